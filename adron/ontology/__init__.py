@@ -1,0 +1,1 @@
+"""The ADROn ontology, as SUO-KIF files shipped with parmor."""

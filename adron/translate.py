@@ -1,0 +1,348 @@
+"""SUO-KIF -> ASP translation, generic over axiom patterns (never per robot type).
+
+Every atomic formula ``(R t1 ... tn)`` becomes the ASP atom ``holds("R", T1, ..., Tn)``:
+relation and constant names are ASP strings, KIF variables ``?X`` become ASP variables
+``V_X``, numbers stay numbers (decimals become strings), and nested function terms
+``(F a b)`` become ``fn("F", A, B)``. The patterns translated:
+
+* ground atoms -> facts (``subclass``, ``instance``, ``subrelation``, ``domain`` ...);
+* ``(=> (instance ?X C) (exists (?v ...) (and L ...)))`` -> an *existential axiom*:
+  ``exists_axiom(I, "C")``, one ``witness(I, "?v", "K")`` per ``(instance ?v K)`` and one
+  ``link(I, "R", A, B)`` per binary literal, where A and B are ``self`` (for ?X), the
+  witness name, or ``c("Const")``. Each existential variable is a distinct individual
+  (the unique-witness reading the paper's axioms rely on); ``(not (equal ?a ?b))``
+  between witnesses agrees with that and is accepted. The ASP encodings turn these into
+  part counts and structural requirements (``asp/parts.lp``, ``asp/capability.lp``);
+* Horn-like ``(=> body head)`` and ``(<=> a b)`` without quantifiers -> ASP rules. A
+  ``(not A)`` in a body is read as default negation (closed world); ``(equal a b)`` in a
+  body is ASP equality. Head variables must occur in a positive body atom.
+* ``documentation``, ``comment``, ``termFormat``, ``format`` -> metadata kept for ``explain``,
+  not sent to the solver.
+
+Anything else is reported as :class:`Untranslated` with its location, never dropped
+silently. The output depends only on the forms and their order.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+from adron.kif import Form, RowVar, String, Symbol, Var
+
+LOGICAL = frozenset({"and", "or", "not", "=>", "<=>", "exists", "forall"})
+METADATA = frozenset({"documentation", "comment", "termFormat", "format"})
+_IDENT = re.compile(r"[^A-Za-z0-9_]")
+
+
+class _Skip(Exception):
+    """Raised inside the translator when a form has no ASP reading; carries the reason."""
+
+
+@dataclass(frozen=True, slots=True)
+class Untranslated:
+    """A form the translator could not express in ASP."""
+
+    file: str
+    line: int
+    col: int
+    reason: str
+    text: str
+
+    @property
+    def location(self) -> str:
+        return f"{self.file}:{self.line}:{self.col}"
+
+
+@dataclass(frozen=True, slots=True)
+class AxiomSource:
+    """Where existential axiom ``id`` came from, and the class it quantifies over."""
+
+    id: int
+    cls: str
+    file: str
+    line: int
+    col: int
+
+    @property
+    def location(self) -> str:
+        return f"{self.file}:{self.line}:{self.col}"
+
+
+@dataclass(frozen=True)
+class Translation:
+    """The ASP program of a set of KIF forms and an account of what was translated."""
+
+    program: str
+    forms: int
+    facts: int
+    rules: int
+    axioms: int
+    metadata: int
+    untranslated: tuple[Untranslated, ...]
+    sources: tuple[AxiomSource, ...]
+    documentation: dict[str, str] = field(default_factory=dict)
+    ground: dict[str, tuple[tuple, ...]] = field(default_factory=dict)
+
+    @property
+    def translated(self) -> int:
+        return self.facts + self.rules + self.axioms + self.metadata
+
+    def relation(self, name: str) -> tuple[tuple, ...]:
+        """The argument tuples of every ground fact of relation ``name``, in file order."""
+        return self.ground.get(name, ())
+
+
+def asp_string(text: str) -> str:
+    """Quote ``text`` as an ASP string constant."""
+    escaped = text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
+    return f'"{escaped}"'
+
+
+def _asp_var(v: str) -> str:
+    return "V_" + _IDENT.sub("_", v[1:])
+
+
+def _term(t: object) -> str:
+    """An argument position: constant, variable, number or function term."""
+    if isinstance(t, Var):
+        return _asp_var(t)
+    if isinstance(t, RowVar):
+        raise _Skip(f"row variable {t}")
+    if isinstance(t, (Symbol, String)):
+        return asp_string(str(t))
+    if isinstance(t, bool):
+        raise _Skip("boolean")
+    if isinstance(t, int):
+        return str(t)
+    if isinstance(t, float):
+        return asp_string(repr(t))
+    if isinstance(t, Form):
+        head = t.items[0] if t.items else None
+        if not isinstance(head, Symbol) or head in LOGICAL:
+            raise _Skip("formula in argument position")
+        return "fn(" + ",".join([asp_string(head), *(_term(a) for a in t.items[1:])]) + ")"
+    raise _Skip(f"unsupported term {t!r}")
+
+
+def _atom(f: object) -> str:
+    """A relational atom ``(R args...)`` as ``holds("R", ...)``."""
+    if not isinstance(f, Form) or not f.items:
+        raise _Skip("expected an atomic formula")
+    head = f.items[0]
+    if isinstance(head, Var):
+        raise _Skip("variable in predicate position")
+    if not isinstance(head, Symbol) or head in LOGICAL:
+        raise _Skip(f"{head} is not a relation")
+    if head == "equal":
+        raise _Skip("equality as a conclusion")
+    if len(f.items) < 2:
+        raise _Skip("relation without arguments")
+    return "holds(" + ",".join([asp_string(head), *(_term(a) for a in f.items[1:])]) + ")"
+
+
+def _vars(f: object) -> set[str]:
+    if isinstance(f, Var):
+        return {str(f)}
+    if isinstance(f, Form):
+        out: set[str] = set()
+        for item in f.items:
+            out |= _vars(item)
+        return out
+    return set()
+
+
+def _has_vars(f: object) -> bool:
+    if isinstance(f, (Var, RowVar)):
+        return True
+    return isinstance(f, Form) and any(_has_vars(i) for i in f.items)
+
+
+def _op(f: object) -> str | None:
+    if isinstance(f, Form) and f.items and isinstance(f.items[0], Symbol):
+        return str(f.items[0])
+    return None
+
+
+def _conjuncts(f: object) -> list[object]:
+    return list(f.items[1:]) if _op(f) == "and" else [f]
+
+
+def _body(f: object) -> tuple[list[str], set[str], set[str]]:
+    """Body literals, variables bound by positive atoms, variables needing binding."""
+    lits: list[str] = []
+    bound: set[str] = set()
+    needs: set[str] = set()
+    for c in _conjuncts(f):
+        op = _op(c)
+        if op == "not":
+            if len(c.items) != 2:
+                raise _Skip("malformed not")
+            inner = c.items[1]
+            if _op(inner) == "equal" and len(inner.items) == 3:
+                lits.append(f"{_term(inner.items[1])} != {_term(inner.items[2])}")
+            else:
+                lits.append("not " + _atom(inner))
+            needs |= _vars(inner)
+        elif op == "equal":
+            if len(c.items) != 3:
+                raise _Skip("malformed equal")
+            lits.append(f"{_term(c.items[1])} = {_term(c.items[2])}")
+            needs |= _vars(c)
+        elif op in LOGICAL:
+            raise _Skip(f"'{op}' in a rule body")
+        else:
+            lits.append(_atom(c))
+            bound |= _vars(c)
+    return lits, bound, needs
+
+
+def _horn(body: object, head: object) -> list[str]:
+    """ASP rules for ``(=> body head)``; raises _Skip when it is not Horn-like."""
+    lits, bound, needs = _body(body)
+    rules = []
+    for h in _conjuncts(head):
+        op = _op(h)
+        if op in LOGICAL:
+            raise _Skip(f"'{op}' in a rule head")
+        atom = _atom(h)
+        unsafe = sorted((_vars(h) | needs) - bound)
+        if unsafe:
+            raise _Skip(f"unsafe variable {unsafe[0]} (not bound by a positive body atom)")
+        rules.append(f"{atom} :- {', '.join(lits)}.")
+    return rules
+
+
+def _witness_pair(lit: object) -> bool:
+    """True for ``(not (equal ?a ?b))``, also in the paper's ``(not (equal (?a ?b)))`` form."""
+    if _op(lit) != "not" or len(lit.items) != 2 or _op(lit.items[1]) != "equal":
+        return False
+    args = lit.items[1].items[1:]
+    if len(args) == 1 and isinstance(args[0], Form):
+        args = args[0].items
+    return len(args) == 2 and all(isinstance(a, Var) for a in args)
+
+
+def _existential(axiom_id: int, f: Form) -> list[str] | None:
+    """Facts for ``(=> (instance ?X C) (exists (...) ...))``; None if not that pattern."""
+    if len(f.items) != 3 or _op(f) != "=>":
+        return None
+    ante, cons = f.items[1], f.items[2]
+    if not (
+        _op(ante) == "instance"
+        and len(ante.items) == 3
+        and isinstance(ante.items[1], Var)
+        and isinstance(ante.items[2], Symbol)
+        and _op(cons) == "exists"
+        and len(cons.items) == 3
+        and isinstance(cons.items[1], Form)
+    ):
+        return None
+    this, cls = str(ante.items[1]), str(ante.items[2])
+    names = cons.items[1].items
+    if not all(isinstance(v, Var) for v in names):
+        raise _Skip("exists over something other than variables")
+    witnesses = [str(v) for v in names]
+    if this in witnesses:
+        raise _Skip(f"{this} is both universal and existential")
+
+    def ref(t: object) -> str:
+        if isinstance(t, Var):
+            if str(t) == this:
+                return "self"
+            if str(t) in witnesses:
+                return asp_string(str(t))
+            raise _Skip(f"free variable {t}")
+        if isinstance(t, Symbol):
+            return f"c({asp_string(str(t))})"
+        raise _Skip(f"unsupported argument {t!r} in an existential axiom")
+
+    out = [f"exists_axiom({axiom_id},{asp_string(cls)})."]
+    typed: set[str] = set()
+    links: list[str] = []
+    for lit in _conjuncts(cons.items[2]):
+        if _witness_pair(lit):
+            continue
+        op = _op(lit)
+        if op is None or op in LOGICAL or op == "equal" or len(lit.items) != 3:
+            raise _Skip(f"literal {_short(lit)} in an existential axiom")
+        a, b = lit.items[1], lit.items[2]
+        if op == "instance" and isinstance(a, Var) and str(a) in witnesses:
+            if not isinstance(b, Symbol):
+                raise _Skip("instance of a non-constant class")
+            out.append(f"witness({axiom_id},{asp_string(str(a))},{asp_string(str(b))}).")
+            typed.add(str(a))
+        else:
+            links.append(f"link({axiom_id},{asp_string(op)},{ref(a)},{ref(b)}).")
+    for w in witnesses:
+        if w not in typed:
+            out.append(f'witness({axiom_id},{asp_string(w)},"Entity").')
+    return out + links
+
+
+def _short(f: object, width: int = 72) -> str:
+    text = f.to_text() if isinstance(f, Form) else str(f)
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
+def translate(forms: Iterable[Form]) -> Translation:
+    """Translate KIF forms (in order) into one ASP program and an account of it."""
+    lines: list[str] = []
+    untranslated: list[Untranslated] = []
+    sources: list[AxiomSource] = []
+    docs: dict[str, str] = {}
+    ground: dict[str, list[tuple]] = {}
+    n_forms = n_facts = n_rules = n_axioms = n_meta = 0
+
+    for f in forms:
+        n_forms += 1
+        op = _op(f)
+        try:
+            if op in METADATA:
+                n_meta += 1
+                if op == "documentation" and len(f.items) >= 4:
+                    docs.setdefault(str(f.items[1]), str(f.items[3]))
+                continue
+            if op in ("=>", "<=>"):
+                if len(f.items) != 3:
+                    raise _Skip(f"'{op}' needs two arguments")
+                if op == "=>":
+                    facts = _existential(n_axioms + 1, f)
+                    if facts is not None:
+                        n_axioms += 1
+                        sources.append(AxiomSource(n_axioms, str(f.items[1].items[2]),
+                                                   f.file, f.line, f.col))
+                        lines.append(f"% {f.file}:{f.line}")
+                        lines.extend(facts)
+                        continue
+                    rules = _horn(f.items[1], f.items[2])
+                else:
+                    rules = _horn(f.items[1], f.items[2]) + _horn(f.items[2], f.items[1])
+                lines.extend(rules)
+                n_rules += len(rules)
+                continue
+            if op in LOGICAL:
+                raise _Skip(f"top-level '{op}'")
+            if _has_vars(f):
+                raise _Skip("free variables in a top-level fact")
+            lines.append(_atom(f) + ".")
+            ground.setdefault(str(f.items[0]), []).append(
+                tuple(a if isinstance(a, (int, float)) else str(a) for a in f.items[1:])
+            )
+            n_facts += 1
+        except _Skip as why:
+            untranslated.append(Untranslated(f.file, f.line, f.col, str(why), _short(f)))
+
+    return Translation(
+        program="\n".join(lines) + "\n",
+        forms=n_forms,
+        facts=n_facts,
+        rules=n_rules,
+        axioms=n_axioms,
+        metadata=n_meta,
+        untranslated=tuple(untranslated),
+        sources=tuple(sources),
+        documentation=docs,
+        ground={k: tuple(v) for k, v in ground.items()},
+    )

@@ -1,0 +1,1 @@
+"""ASP encodings (.lp files) shipped as package data; found via importlib.resources."""

@@ -1,0 +1,1 @@
+"""Exporters of a design: URDF, MJCF, STL, bill of materials, design record."""

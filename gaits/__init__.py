@@ -1,0 +1,1 @@
+"""Behaviour (gait) generators for each robot type."""

@@ -1,0 +1,1 @@
+"""Kinematic tree models and dynamics (forward kinematics, RNEA); imports nothing of parmor."""

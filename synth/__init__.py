@@ -1,0 +1,1 @@
+"""Synthesis: the clingo driver, disambiguation dialogue, regression suites and the CLI."""

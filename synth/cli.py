@@ -1,0 +1,351 @@
+"""The ``parmor`` command line: a thin shell over the Python API.
+
+Exit codes: 0 done; 1 the request cannot be met (unsatisfiable, infeasible, regression
+changed); 2 bad input; 3 an answer is needed and input is off. Heavy modules (clingo and
+everything after it) are imported inside the commands, so ``parmor --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from typing import TextIO
+
+from adron.errors import AnswerNeeded, InputError, ParmorError
+
+EPILOG = """\
+examples:
+  parmor abilities
+  parmor design walking                       asks "Does the robot need to grasp?"
+  parmor design walking --answer grasping=yes --json
+  parmor design pick-and-place --param object_shape=oval
+  parmor enumerate walking
+  parmor explain HexapodRobot
+  parmor ontology check mine.kif
+  parmor regress suite.toml --update
+
+exit codes: 0 done, 1 cannot be met, 2 bad input, 3 an answer is needed and input is off
+"""
+
+
+def _kb_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("knowledge base")
+    g.add_argument("--ontology", action="append", default=[], metavar="FILE.kif",
+                   help="extra SUO-KIF file loaded after ADROn (repeatable)")
+    g.add_argument("--rules", action="append", default=[], metavar="FILE.lp",
+                   help="extra ASP rule file joined to the encodings (repeatable)")
+    g.add_argument("--allow-scripts", action="store_true",
+                   help="accept rule files that contain #script (clingo runs their code)")
+
+
+def _request_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("abilities", nargs="+", metavar="ABILITY",
+                   help="abilities the robot must have (see 'parmor abilities')")
+    p.add_argument("--answer", action="append", default=[], metavar="ABILITY=yes|no",
+                   help="answer a disambiguating question in advance (repeatable)")
+    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                   help="a design parameter, e.g. object_shape=oval (repeatable)")
+    _kb_options(p)
+    p.add_argument("--json", action="store_true", help="print JSON on stdout")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="parmor",
+        description="Design modular robots from the abilities they must have: the ADROn "
+        "ontology (SUO-KIF) is translated to Answer Set Programming and clingo finds the "
+        "robot types that can do it, asks what tells them apart, and gives the parts and "
+        "modules of the design.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    p = sub.add_parser("abilities", help="list the abilities a robot can be asked for",
+                       description="List every ability with its KIF class, the question "
+                       "that asks for it and the robot types that can have it.")
+    _kb_options(p)
+    p.add_argument("--json", action="store_true", help="print JSON on stdout")
+
+    p = sub.add_parser("design", help="design a robot for a set of abilities",
+                       description="Find the robot types that can do every ABILITY, ask "
+                       "yes/no questions until one remains (on a terminal), and print its "
+                       "conceptual design: parts, modules, degrees of freedom, abilities.",
+                       epilog="example: parmor design walking --answer grasping=yes --json",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    _request_options(p)
+    p.add_argument("--no-input", action="store_true",
+                   help="never ask; exit 3 when an answer is still needed")
+    p.add_argument("--out", metavar="DIR", help="write design.json into the new folder DIR")
+    p.add_argument("--force", action="store_true", help="replace DIR if it exists")
+
+    p = sub.add_parser("enumerate", help="list every candidate robot for a set of abilities",
+                       description="List every robot type that meets the request, in "
+                       "preference order (fewest active modules first), with its parts, "
+                       "modules and abilities. Asks nothing.")
+    _request_options(p)
+    p.add_argument("--limit", type=int, metavar="N", help="list at most N candidates")
+
+    p = sub.add_parser("explain", help="show a robot type's parts and abilities, with reasons",
+                       description="Show the parts of ROBOT_TYPE (own and inherited, with "
+                       "the axiom that declares each) and each ability with its reason.")
+    p.add_argument("robot_type", metavar="ROBOT_TYPE", help="a KIF class, e.g. HexapodRobot")
+    _kb_options(p)
+    p.add_argument("--json", action="store_true", help="print JSON on stdout")
+
+    p = sub.add_parser("ontology", help="check SUO-KIF files",
+                       description="Work with SUO-KIF files.")
+    osub = p.add_subparsers(dest="ontology_command", metavar="ACTION", required=True)
+    c = osub.add_parser("check", help="parse and translate KIF files, report what is not "
+                        "translated", description="Parse and translate FILE.kif... on their "
+                        "own and print the counts of forms, translated forms and untranslated "
+                        "ones with their locations. Exit 0 when they parse, 2 on a syntax "
+                        "error.")
+    c.add_argument("files", nargs="+", metavar="FILE.kif")
+    c.add_argument("--json", action="store_true", help="print JSON on stdout")
+    c.add_argument("--all", action="store_true", help="list every untranslated form")
+
+    p = sub.add_parser("regress", help="run a regression suite of design queries",
+                       description="Run the named queries of SUITE.toml and compare their "
+                       "results with the snapshot beside it (SUITE.snapshot.json). Exit 0 "
+                       "when all match, 1 with a diff when one changed.",
+                       epilog=REGRESS_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("suite", metavar="SUITE.toml")
+    p.add_argument("--update", action="store_true", help="store the results as the snapshot")
+    return parser
+
+
+REGRESS_HELP = """\
+suite format (TOML; paths are relative to the suite file):
+  ontology = ["mine.kif"]          # optional, like --ontology
+  rules = ["extra.lp"]             # optional, like --rules
+  [[query]]
+  name = "walking-grasp"
+  abilities = ["walking"]
+  answers = { grasping = "yes" }   # optional
+  params = { object_shape = "oval" }  # optional
+"""
+
+
+def _designer(args: argparse.Namespace, err: TextIO):
+    """Load the knowledge base and ground it; returns a Designer."""
+    from adron.kb import load
+    from synth.conceptual import Designer
+    from synth.solver import Reasoner
+
+    kb = load(args.ontology)
+    _warn_untranslated(kb, err)
+    return Designer(kb, Reasoner(kb, args.rules, args.allow_scripts))
+
+
+def _warn_untranslated(kb, err: TextIO) -> None:
+    user = [u for u in kb.translation.untranslated if u.file not in _builtin_names()]
+    if user:
+        first = user[0]
+        err.write(f"parmor: note: {len(user)} form(s) of your ontology were not translated "
+                  f"(first at {first.location}: {first.reason}); see 'parmor ontology "
+                  "check'\n")
+
+
+def _builtin_names() -> set[str]:
+    from adron.kb import builtin_files
+
+    return {n for n, _ in builtin_files()}
+
+
+def _request(args: argparse.Namespace):
+    from synth.conceptual import Request, parse_answer, parse_param
+
+    return Request(
+        abilities=tuple(args.abilities),
+        answers=tuple(parse_answer(a) for a in args.answer),
+        params=tuple(parse_param(p) for p in args.param),
+    )
+
+
+def _ask(question, err: TextIO) -> bool:
+    while True:
+        err.write(f"{question.text} [y/n] ")
+        err.flush()
+        line = sys.stdin.readline()
+        if not line:
+            raise AnswerNeeded(f"an answer is needed: {question.text}")
+        v = line.strip().lower()
+        if v in ("y", "yes"):
+            return True
+        if v in ("n", "no"):
+            return False
+        err.write("please answer y or n\n")
+
+
+def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from export.record import design_record, design_text, to_json
+
+    designer = _designer(args, err)
+    req = _request(args)
+    interactive = not args.no_input and sys.stdin.isatty()
+    while True:
+        d = designer.step(req)
+        if d.status != "ambiguous" or not interactive:
+            break
+        err.write("Candidates: " + ", ".join(c.robot_type for c in d.candidates) + "\n")
+        q = d.questions[-1]
+        req = req.answer(q.ability, _ask(q, err))
+    rec = design_record(d, designer.short)
+    if args.out and d.status == "designed":
+        from export.bundle import write_bundle
+
+        write_bundle(args.out, {"design.json": to_json(rec)}, force=args.force)
+    out.write(to_json(rec) if args.json else design_text(d, designer.short))
+    if d.status == "ambiguous":
+        q = d.questions[-1]
+        err.write(f"parmor: an answer is needed: {q.text} "
+                  f"(pass --answer {q.ability}=yes or --answer {q.ability}=no)\n")
+        return AnswerNeeded.exit_code
+    if d.status == "unsatisfiable":
+        err.write(f"parmor: no robot can meet the request: {' + '.join(d.conflict)}\n")
+        return 1
+    if args.out:
+        err.write(f"parmor: wrote {args.out}/design.json\n")
+    return 0
+
+
+def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from export.record import candidate_record, candidate_text, to_json
+
+    designer = _designer(args, err)
+    req = _request(args)
+    if args.limit is not None and args.limit < 0:
+        raise InputError("--limit must be 0 or more")
+    sol = designer.reasoner.solve(designer.query(req))
+    cands = sol.candidates[: args.limit] if args.limit is not None else sol.candidates
+    conflict = designer.conflict(req) if not sol.candidates else ()
+    if args.json:
+        out.write(to_json({
+            "status": "enumerated" if sol.candidates else "unsatisfiable",
+            "count": len(sol.candidates),
+            "candidates": [candidate_record(c, designer.short) for c in cands],
+            "conflict": list(conflict),
+        }))
+    else:
+        for i, c in enumerate(cands, 1):
+            out.write(f"{i}. {c.robot_type}\n{candidate_text(c, designer.short, '   ')}\n")
+        shown = f"{len(cands)} of {len(sol.candidates)}" if len(cands) < len(
+            sol.candidates) else f"{len(sol.candidates)}"
+        out.write(f"{shown} candidate(s)\n")
+    if not sol.candidates:
+        err.write(f"parmor: no robot can meet the request: {' + '.join(conflict)}\n")
+        return 1
+    return 0
+
+
+def cmd_explain(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from export.record import to_json
+    from synth.explain import explain_record, explain_text
+
+    designer = _designer(args, err)
+    rec = explain_record(designer, args.robot_type)
+    out.write(to_json(rec) if args.json else explain_text(rec))
+    return 0
+
+
+def cmd_abilities(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from export.record import to_json
+    from synth.solver import Query
+
+    designer = _designer(args, err)
+    sol = designer.reasoner.solve(Query())
+    kb = designer.kb
+    rows = []
+    for a in kb.abilities:
+        rows.append({
+            "ability": a.name,
+            "kif": a.kif,
+            "question": a.question,
+            "robot_types": sorted(c.robot_type for c in sol.candidates if a.kif in c.potential),
+            "documentation": kb.translation.documentation.get(a.kif, ""),
+        })
+    if args.json:
+        out.write(to_json(rows))
+    else:
+        width = max((len(r["ability"]) for r in rows), default=0)
+        for r in rows:
+            who = ", ".join(r["robot_types"]) or "(no robot type)"
+            out.write(f"{r['ability']:<{width}}  {r['kif']}: {who}\n")
+    return 0
+
+
+def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from adron.kb import load
+    from export.record import to_json
+
+    kb = load(args.files, builtin=False)
+    t = kb.translation
+    un = t.untranslated
+    rec = {
+        "files": list(kb.files),
+        "forms": t.forms,
+        "translated": t.translated,
+        "facts": t.facts,
+        "rules": t.rules,
+        "existential_axioms": t.axioms,
+        "metadata": t.metadata,
+        "untranslated": len(un),
+        "untranslated_forms": [
+            {"file": u.file, "line": u.line, "col": u.col, "reason": u.reason, "text": u.text}
+            for u in (un if args.all or args.json else un[:10])
+        ],
+    }
+    if args.json:
+        out.write(to_json(rec))
+        return 0
+    out.write(f"{t.forms} forms in {len(kb.files)} file(s): {t.translated} translated "
+              f"({t.facts} facts, {t.rules} rules, {t.axioms} existential axioms, "
+              f"{t.metadata} metadata), {len(un)} untranslated\n")
+    for u in rec["untranslated_forms"]:
+        out.write(f"  {u['file']}:{u['line']}:{u['col']}: {u['reason']}: {u['text']}\n")
+    if len(un) > len(rec["untranslated_forms"]):
+        out.write(f"  ... and {len(un) - len(rec['untranslated_forms'])} more (--all lists "
+                  "them)\n")
+    return 0
+
+
+def cmd_regress(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from synth.regress import run_suite
+
+    return run_suite(args.suite, update=args.update, out=out, err=err)
+
+
+COMMANDS = {
+    "abilities": cmd_abilities,
+    "design": cmd_design,
+    "enumerate": cmd_enumerate,
+    "explain": cmd_explain,
+    "regress": cmd_regress,
+}
+
+
+def main(argv: Sequence[str] | None = None, out: TextIO | None = None,
+         err: TextIO | None = None) -> int:
+    """Run the command line; returns the exit code (never raises for user errors)."""
+    out = out or sys.stdout
+    err = err or sys.stderr
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # argparse: --help (0) or a usage error (2)
+        return int(e.code or 0)
+    handler = cmd_ontology_check if args.command == "ontology" else COMMANDS[args.command]
+    try:
+        return handler(args, out, err)
+    except ParmorError as e:
+        err.write(f"parmor: error: {e}\n")
+        return e.exit_code
+    except KeyboardInterrupt:
+        err.write("parmor: interrupted\n")
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

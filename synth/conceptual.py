@@ -1,0 +1,208 @@
+"""Conceptual design: the paper's Procedure 1 over the clingo reasoner.
+
+1. The requested abilities (and answers, and conceptual parameters) select the candidate
+   base configurations (one answer set each).
+2. While several candidates remain, ask "Does the robot need to ...?" about an ability
+   that some candidates could have and others could not, the one that splits them most
+   evenly (ties: the ability's short name in alphabetical order). "yes" adds it to the
+   demands; "no" drops the candidates whose declared parts give it.
+3. When no ability separates the rest, choose by the documented preference of
+   ``asp/preference.lp`` (fewest active modules; then type name) and say so.
+4. When no candidate remains, name the smallest set of demands that conflict.
+"""
+
+from __future__ import annotations
+
+import difflib
+import itertools
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+from adron.errors import InputError, OntologyError
+from adron.kb import KnowledgeBase
+from synth.solver import Candidate, Query, Reasoner
+
+
+@dataclass(frozen=True, slots=True)
+class Request:
+    """A user's request in command-line terms (short ability names, parameter names)."""
+
+    abilities: tuple[str, ...] = ()
+    answers: tuple[tuple[str, bool], ...] = ()
+    params: tuple[tuple[str, str], ...] = ()
+
+    def answer(self, ability: str, yes: bool) -> Request:
+        return replace(self, answers=(*self.answers, (ability, yes)))
+
+
+@dataclass(frozen=True, slots=True)
+class Question:
+    ability: str
+    text: str
+    answer: bool | None = None
+
+
+@dataclass(frozen=True)
+class Design:
+    """The outcome of one step of the procedure."""
+
+    status: str  # "designed" | "ambiguous" | "unsatisfiable"
+    request: Request
+    candidates: tuple[Candidate, ...] = ()
+    chosen: Candidate | None = None
+    chosen_by: str | None = None  # "only candidate" | "preference"
+    note: str | None = None
+    questions: tuple[Question, ...] = ()
+    conflict: tuple[str, ...] = ()
+    needed: tuple[str, ...] = ()
+    extra: dict = field(default_factory=dict)
+
+
+def suggest(word: str, options: Sequence[str]) -> str:
+    """' (did you mean: a, b?)' for close matches of ``word``, else ''."""
+    close = difflib.get_close_matches(word, options, n=3, cutoff=0.5)
+    return f" (did you mean: {', '.join(close)}?)" if close else ""
+
+
+def parse_answer(text: str) -> tuple[str, bool]:
+    """'grasping=yes' -> ('grasping', True); raises InputError on anything else."""
+    name, sep, value = text.partition("=")
+    v = value.strip().lower()
+    if not sep or not name.strip() or v not in ("yes", "no", "y", "n", "true", "false"):
+        raise InputError(f"--answer {text!r}: expected ABILITY=yes or ABILITY=no")
+    return name.strip(), v in ("yes", "y", "true")
+
+
+def parse_param(text: str) -> tuple[str, str]:
+    """'object_shape=oval' -> ('object_shape', 'oval'); raises InputError when malformed."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip() or not value.strip():
+        raise InputError(f"--param {text!r}: expected NAME=VALUE")
+    return name.strip(), value.strip()
+
+
+class Designer:
+    """Runs the procedure on one grounded knowledge base; queries re-use the grounding."""
+
+    def __init__(self, kb: KnowledgeBase, reasoner: Reasoner) -> None:
+        self.kb = kb
+        self.reasoner = reasoner
+
+    # -- names ------------------------------------------------------------------------
+    def ability_kif(self, name: str) -> str:
+        a = self.kb.ability(name)
+        if a is None:
+            names = [x.name for x in self.kb.abilities]
+            raise InputError(f"unknown ability {name!r}{suggest(name, names)}; "
+                             "'parmor abilities' lists them")
+        return a.kif
+
+    def short(self, kif: str) -> str:
+        a = self.kb.ability_of_kif(kif)
+        return a.name if a else kif
+
+    def robot_type(self, name: str) -> str:
+        types = self.reasoner.robot_types
+        if name not in types:
+            raise InputError(f"unknown robot type {name!r}{suggest(name, types)}")
+        return name
+
+    def query(self, req: Request) -> Query:
+        """Check every name of ``req`` against the ontology and build the solver query."""
+        requests = tuple(dict.fromkeys(self.ability_kif(a) for a in req.abilities))
+        answers: dict[str, bool] = {}
+        for name, yes in req.answers:
+            kif = self.ability_kif(name)
+            if answers.get(kif, yes) != yes:
+                raise InputError(f"--answer {name}: answered both yes and no")
+            answers[kif] = yes
+        params: dict[str, tuple[str, str]] = {}
+        for name, value in req.params:
+            p = self.kb.parameter(name)
+            if p is None:
+                names = [x.name for x in self.kb.parameters]
+                raise InputError(f"unknown parameter {name!r}{suggest(name, names)}; "
+                                 f"known: {', '.join(names) or 'none'}")
+            term = p.term(value)
+            if term is None:
+                vals = [v for v, _ in p.values]
+                raise InputError(f"--param {name}={value}: unknown value{suggest(value, vals)}; "
+                                 f"one of: {', '.join(vals)}")
+            if name in params and params[name][1] != term:
+                raise InputError(f"--param {name} given twice with different values")
+            params[name] = (p.relation, term)
+        return Query(requests, tuple(sorted(answers.items())), tuple(sorted(params.values())))
+
+    # -- the procedure ----------------------------------------------------------------
+    def step(self, req: Request) -> Design:
+        """Solve ``req``: designed, ambiguous (with the next question) or unsatisfiable."""
+        q = self.query(req)
+        sol = self.reasoner.solve(q)
+        asked = tuple(Question(n, self._question(n), yes) for n, yes in req.answers)
+        needed = tuple(self.short(a) for a in sol.needed)
+        if not sol.candidates:
+            return Design("unsatisfiable", req, questions=asked, conflict=self.conflict(req),
+                          needed=needed)
+        cands = sol.candidates
+        if len(cands) == 1:
+            return Design("designed", req, cands, cands[0], "only candidate",
+                          questions=asked, needed=needed)
+        nxt = self.next_question(cands, set(sol.needed) | set(sol.excluded)
+                                 | {a for a, _ in q.answers})
+        if nxt is None:
+            best = cands[0]
+            others = ", ".join(c.robot_type for c in cands[1:])
+            note = (f"no ability separates {best.robot_type} from {others}; chose "
+                    f"{best.robot_type} by preference: fewest active modules "
+                    f"({best.active_total})")
+            return Design("designed", req, cands, best, "preference", note, asked,
+                          needed=needed)
+        return Design("ambiguous", req, cands, questions=(*asked, nxt), needed=needed)
+
+    def _question(self, name: str) -> str:
+        a = self.kb.ability(name)
+        return a.question if a else f"Does the robot need to {name}?"
+
+    def next_question(self, cands: Sequence[Candidate], settled: set[str]) -> Question | None:
+        """The ability that splits ``cands`` most evenly, or None when none splits them."""
+        best: tuple[int, str] | None = None
+        n = len(cands)
+        for kif in sorted({a for c in cands for a in c.potential} - settled):
+            yes = sum(kif in c.potential for c in cands)
+            if 0 < yes < n:
+                key = (abs(n - 2 * yes), self.short(kif))
+                best = key if best is None or key < best else best
+        if best is None:
+            return None
+        return Question(best[1], self._question(best[1]))
+
+    def conflict(self, req: Request) -> tuple[str, ...]:
+        """The smallest set of demands (abilities, answers, parameters) that no robot meets.
+
+        Tries subsets by size, each a re-solve under new externals (no regrounding).
+        """
+        demands: list[tuple[str, Request]] = []
+        demands += [(a, Request(abilities=(a,))) for a in dict.fromkeys(req.abilities)]
+        demands += [(f"{a}={'yes' if y else 'no'}", Request(answers=((a, y),)))
+                    for a, y in req.answers]
+        demands += [(f"{p}={v}", Request(params=((p, v),))) for p, v in req.params]
+        for size in range(1, len(demands) + 1):
+            for combo in itertools.combinations(demands, size):
+                merged = Request(
+                    abilities=tuple(x for _, r in combo for x in r.abilities),
+                    answers=tuple(x for _, r in combo for x in r.answers),
+                    params=tuple(x for _, r in combo for x in r.params),
+                )
+                if not self.reasoner.satisfiable(self.query(merged)):
+                    return tuple(name for name, _ in combo)
+        if not self.reasoner.satisfiable(Query()):
+            raise OntologyError("the ontology defines no buildable robot (no instance of "
+                                "BaseConfiguration)")
+        return tuple(name for name, _ in demands)
+
+    def describe(self, robot_type: str) -> Candidate:
+        """The parts and abilities of any robot class, as declared (explain)."""
+        sol = self.reasoner.solve(Query(focus=self.robot_type(robot_type)))
+        if not sol.candidates:
+            raise OntologyError(f"{robot_type}: the reasoner found no model to describe it")
+        return sol.candidates[0]

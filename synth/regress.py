@@ -1,0 +1,140 @@
+"""``parmor regress``: named design queries and their stored results.
+
+A suite is a TOML file (format in ``parmor regress --help``). Each query runs as
+``parmor design --no-input --json`` would; the records are stored in
+``<suite>.snapshot.json`` beside the suite by ``--update`` and compared otherwise.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+import tomllib
+from pathlib import Path
+from typing import TextIO
+
+from adron.errors import InputError
+
+SUITE_KEYS = {"ontology", "rules", "allow_scripts", "query"}
+QUERY_KEYS = {"name", "abilities", "answers", "params"}
+
+
+def snapshot_path(suite: Path) -> Path:
+    return suite.with_name(suite.stem + ".snapshot.json")
+
+
+def _str_list(value: object, where: str) -> tuple[str, ...]:
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise InputError(f"{where}: expected a list of strings")
+    return tuple(value)
+
+
+def _str_table(value: object, where: str) -> dict[str, str]:
+    if not isinstance(value, dict) or not all(isinstance(v, str) for v in value.values()):
+        raise InputError(f"{where}: expected a table of strings")
+    return value
+
+
+def load_suite(path: Path) -> tuple[dict, list[dict]]:
+    """The suite's options and its queries, validated (errors name file and key)."""
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except tomllib.TOMLDecodeError as e:
+        raise InputError(f"{path}: {e}") from None
+    unknown = sorted(set(data) - SUITE_KEYS)
+    if unknown:
+        raise InputError(f"{path}: unknown key {unknown[0]!r}")
+    base = path.parent
+    opts = {
+        "ontology": [str(base / p) for p in _str_list(data.get("ontology", []), f"{path}: ontology")],
+        "rules": [str(base / p) for p in _str_list(data.get("rules", []), f"{path}: rules")],
+        "allow_scripts": bool(data.get("allow_scripts", False)),
+    }
+    queries = data.get("query", [])
+    if not isinstance(queries, list) or not queries:
+        raise InputError(f"{path}: no [[query]] tables")
+    names: set[str] = set()
+    out = []
+    for i, q in enumerate(queries, 1):
+        where = f"{path}: query {i}"
+        bad = sorted(set(q) - QUERY_KEYS)
+        if bad:
+            raise InputError(f"{where}: unknown key {bad[0]!r}")
+        name = q.get("name")
+        if not isinstance(name, str) or not name:
+            raise InputError(f"{where}: missing 'name'")
+        if name in names:
+            raise InputError(f"{where}: duplicate name {name!r}")
+        names.add(name)
+        out.append({
+            "name": name,
+            "abilities": _str_list(q.get("abilities", []), f"{where} ({name}): abilities"),
+            "answers": _str_table(q.get("answers", {}), f"{where} ({name}): answers"),
+            "params": _str_table(q.get("params", {}), f"{where} ({name}): params"),
+        })
+    return opts, out
+
+
+def run_queries(opts: dict, queries: list[dict]) -> dict[str, dict]:
+    """name -> design record, for every query of a suite (one grounding for all)."""
+    from adron.kb import load
+    from export.record import design_record
+    from synth.conceptual import Designer, Request, parse_answer
+    from synth.solver import Reasoner
+
+    kb = load(opts["ontology"])
+    designer = Designer(kb, Reasoner(kb, opts["rules"], opts["allow_scripts"]))
+    results = {}
+    for q in queries:
+        req = Request(
+            abilities=q["abilities"],
+            answers=tuple(parse_answer(f"{k}={v}") for k, v in q["answers"].items()),
+            params=tuple(q["params"].items()),
+        )
+        results[q["name"]] = design_record(designer.step(req), designer.short)
+    return results
+
+
+def _dump(obj: object) -> str:
+    return json.dumps(obj, indent=2, ensure_ascii=False) + "\n"
+
+
+def run_suite(suite: str | Path, update: bool, out: TextIO, err: TextIO) -> int:
+    """Run a suite; 0 when all match (or updated), 1 with a diff when any changed."""
+    path = Path(suite)
+    opts, queries = load_suite(path)
+    results = run_queries(opts, queries)
+    snap = snapshot_path(path)
+    if update:
+        snap.write_text(_dump(results), encoding="utf-8")
+        out.write(f"stored {len(results)} result(s) in {snap}\n")
+        return 0
+    try:
+        stored = json.loads(snap.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{snap}: no snapshot; run 'parmor regress {suite} --update' "
+                         "first") from None
+    except json.JSONDecodeError as e:
+        raise InputError(f"{snap}:{e.lineno}:{e.colno}: {e.msg}") from None
+    changed = 0
+    for name, rec in results.items():
+        if name not in stored:
+            out.write(f"NEW      {name} (not in the snapshot)\n")
+            changed += 1
+        elif stored[name] != rec:
+            changed += 1
+            out.write(f"CHANGED  {name}\n")
+            diff = difflib.unified_diff(_dump(stored[name]).splitlines(),
+                                        _dump(rec).splitlines(),
+                                        f"{snap.name}:{name}", f"now:{name}", lineterm="")
+            out.writelines(line + "\n" for line in diff)
+        else:
+            out.write(f"ok       {name}\n")
+    for name in sorted(set(stored) - set(results)):
+        out.write(f"GONE     {name} (in the snapshot, not in the suite)\n")
+        changed += 1
+    out.write(f"{len(results) - changed if changed <= len(results) else 0} matched, "
+              f"{changed} changed\n")
+    return 1 if changed else 0

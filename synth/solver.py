@@ -1,0 +1,225 @@
+"""The one owner of ``clingo.Control``: grounds the knowledge base once, then answers
+queries by assigning externals (multi-shot), returning frozen dataclasses.
+
+The program is the KIF translation, the encodings of ``asp/conceptual.lp`` and any user
+rule files. A query sets the externals ``request/1``, ``answer/2``, ``param/2`` and
+``focus/1`` and enumerates all answer sets: one per candidate robot type.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import clingo
+
+from adron.errors import InputError, OntologyError
+from adron.kb import KnowledgeBase, read_user_file
+
+_SCRIPT = re.compile(r"#script\b")
+
+
+@dataclass(frozen=True, slots=True)
+class Query:
+    """A request in KIF terms. ``answers`` maps action class to True (yes) / False (no);
+    ``params`` holds (relation, term) pairs; ``focus`` names a robot class to describe."""
+
+    requests: tuple[str, ...] = ()
+    answers: tuple[tuple[str, bool], ...] = ()
+    params: tuple[tuple[str, str], ...] = ()
+    focus: str | None = None
+
+
+@dataclass(frozen=True, slots=True, order=True)
+class Reason:
+    """Why a robot can do an action: it has ``have`` parts of ``kind``, it needs ``need``."""
+
+    action: str
+    kind: str
+    need: int
+    have: int
+
+
+@dataclass(frozen=True, slots=True)
+class PartSource:
+    """A part count and the axioms (by id) that declare it."""
+
+    kind: str
+    count: int
+    axioms: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One answer set: a robot type and its conceptual design under the query."""
+
+    robot_type: str
+    active_total: int
+    dof: int
+    parts: tuple[tuple[str, int], ...]
+    modules: tuple[tuple[str, int], ...]
+    passive: tuple[tuple[str, int], ...]
+    abilities: tuple[str, ...]
+    potential: tuple[str, ...]
+    reasons: tuple[Reason, ...] = ()
+    sources: tuple[PartSource, ...] = ()
+    module_limit: int | None = None
+
+
+@dataclass(frozen=True)
+class Solution:
+    """All candidates of a query (preference order) and the demands as the solver saw them."""
+
+    candidates: tuple[Candidate, ...]
+    needed: tuple[str, ...] = ()
+    excluded: tuple[str, ...] = ()
+    satisfiable: bool = True
+    extra: dict = field(default_factory=dict)
+
+
+def encoding_dir() -> Path:
+    """The folder of the shipped encodings (package data of ``asp``)."""
+    return Path(str(resources.files("asp")))
+
+
+def check_rules_file(path: str | Path, allow_scripts: bool) -> str:
+    """Read a user's .lp file; refuse one with ``#script`` unless scripts are allowed."""
+    name, text = read_user_file(path)
+    if not allow_scripts:
+        for lineno, line in enumerate(text.splitlines(), 1):
+            m = _SCRIPT.search(line.split("%", 1)[0])
+            if m:
+                raise InputError(
+                    f"{name}:{lineno}:{m.start() + 1}: refusing a rule file that contains "
+                    "#script (clingo would run its code); pass --allow-scripts to trust it"
+                )
+    return text
+
+
+def _str(sym: clingo.Symbol) -> str:
+    return sym.string if sym.type == clingo.SymbolType.String else str(sym)
+
+
+class Reasoner:
+    """Grounds once; :meth:`solve` and :meth:`satisfiable` re-solve under new externals."""
+
+    def __init__(
+        self,
+        kb: KnowledgeBase,
+        rules: Sequence[str | Path] = (),
+        allow_scripts: bool = False,
+    ) -> None:
+        self.kb = kb
+        self._messages: list[str] = []
+        self._ctl = clingo.Control(
+            ["--models=0", "--opt-mode=enum"], logger=self._log, message_limit=20
+        )
+        self._externals: set[clingo.Symbol] = set()
+        try:
+            self._ctl.add("base", [], kb.translation.program)
+            self._ctl.load(str(encoding_dir() / "conceptual.lp"))
+            for path in rules:
+                self._ctl.add("base", [], check_rules_file(path, allow_scripts))
+            self._ctl.ground([("base", [])])
+        except RuntimeError as e:
+            detail = "; ".join(self._messages) or str(e)
+            raise OntologyError(f"the rules do not ground: {detail}") from None
+        self._externals = {a.symbol for a in self._ctl.symbolic_atoms if a.is_external}
+        #: every subclass of Robot, as the taxonomy closure found them
+        self.robot_types: tuple[str, ...] = tuple(sorted(
+            s.arguments[0].string for s in self._externals if s.name == "focus"
+        ))
+
+    def _log(self, code: clingo.MessageCode, message: str) -> None:
+        self._messages.append(message.strip().replace("\n", " "))
+
+    def _assign(self, query: Query) -> None:
+        on: set[clingo.Symbol] = set()
+        S, F = clingo.String, clingo.Function
+        for a in query.requests:
+            on.add(F("request", [S(a)]))
+        for a, yes in query.answers:
+            on.add(F("answer", [S(a), F("yes" if yes else "no")]))
+        for rel, term in query.params:
+            on.add(F("param", [S(rel), S(term)]))
+        if query.focus is not None:
+            on.add(F("focus", [S(query.focus)]))
+        missing = on - self._externals
+        if missing:
+            raise InputError(
+                "not known to the knowledge base: " + ", ".join(sorted(map(str, missing)))
+            )
+        for sym in self._externals:
+            self._ctl.assign_external(sym, sym in on)
+
+    def satisfiable(self, query: Query) -> bool:
+        """True when at least one candidate meets ``query`` (stops at the first model)."""
+        self._assign(query)
+        with self._ctl.solve(yield_=True) as handle:
+            for _ in handle:
+                return True
+        return False
+
+    def solve(self, query: Query) -> Solution:
+        """Every candidate of ``query``, in preference order (active modules, then name)."""
+        self._assign(query)
+        found: dict[str, Candidate] = {}
+        needed: set[str] = set()
+        excluded: set[str] = set()
+        with self._ctl.solve(yield_=True) as handle:
+            for model in handle:
+                cand, need, excl = self._read(model.symbols(shown=True))
+                needed |= need
+                excluded |= excl
+                if cand is not None:
+                    found[cand.robot_type] = cand
+        order = sorted(found.values(), key=lambda c: (c.active_total, c.robot_type))
+        return Solution(tuple(order), tuple(sorted(needed)), tuple(sorted(excluded)),
+                        satisfiable=bool(order) or False)
+
+    @staticmethod
+    def _read(symbols: Iterable[clingo.Symbol]) -> tuple[Candidate | None, set, set]:
+        by: dict[str, list[list]] = {}
+        for s in symbols:
+            by.setdefault(s.name, []).append([_str(a) if a.type != clingo.SymbolType.Number
+                                              else a.number for a in s.arguments])
+        need = {a[0] for a in by.get("need", [])}
+        excl = {a[0] for a in by.get("excluded", [])}
+        robots = [a[0] for a in by.get("chosen", [])]
+        if not robots:
+            # focus mode: the described robot is the one with a dof atom
+            robots = [a[0] for a in by.get("dof", [])]
+        if not robots:
+            return None, need, excl
+        r = robots[0]
+
+        def triples(name: str) -> tuple[tuple[str, int], ...]:
+            return tuple(sorted((k, n) for rr, k, n in by.get(name, []) if rr == r and n > 0))
+
+        def single(name: str) -> int | None:
+            vals = [a[1] for a in by.get(name, []) if a[0] == r]
+            return vals[0] if vals else None
+
+        sources: dict[tuple[str, int], list[int]] = {}
+        for rr, k, n, i in by.get("source", []):
+            if rr == r:
+                sources.setdefault((k, n), []).append(i)
+        cand = Candidate(
+            robot_type=r,
+            active_total=single("active_total") or 0,
+            dof=single("dof") or 0,
+            parts=triples("structural"),
+            modules=triples("active"),
+            passive=triples("passive"),
+            abilities=tuple(sorted(a for rr, a in by.get("has_ability", []) if rr == r)),
+            potential=tuple(sorted(a for rr, a in by.get("potential", []) if rr == r)),
+            reasons=tuple(sorted(Reason(a, k, n, s)
+                                 for rr, a, k, n, s in by.get("reason", []) if rr == r)),
+            sources=tuple(PartSource(k, n, tuple(sorted(ids)))
+                          for (k, n), ids in sorted(sources.items())),
+            module_limit=single("limit"),
+        )
+        return cand, need, excl
