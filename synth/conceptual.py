@@ -202,7 +202,8 @@ class Designer:
 
     def describe(self, robot_type: str) -> Candidate:
         """The parts and abilities of any robot class, as declared (explain)."""
-        sol = self.reasoner.solve(Query(focus=self.robot_type(robot_type)))
+        focused = self.reasoner.focused(self.robot_type(robot_type))
+        sol = focused.solve(Query())
         if not sol.candidates:
             raise OntologyError(f"{robot_type}: the reasoner found no model to describe it")
         return sol.candidates[0]

@@ -2,8 +2,8 @@
 queries by assigning externals (multi-shot), returning frozen dataclasses.
 
 The program is the KIF translation, the encodings of ``asp/conceptual.lp`` and any user
-rule files. A query sets the externals ``request/1``, ``answer/2``, ``param/2`` and
-``focus/1`` and enumerates all answer sets: one per candidate robot type.
+rule files. A query sets the externals ``request/1``, ``answer/2`` and ``param/2``
+and enumerates all answer sets: one per candidate robot type.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import clingo
 
 from adron.errors import InputError, OntologyError
 from adron.kb import KnowledgeBase, read_user_file
+from adron.translate import asp_string
 
 _SCRIPT = re.compile(r"#script\b")
 
@@ -25,12 +26,11 @@ _SCRIPT = re.compile(r"#script\b")
 @dataclass(frozen=True, slots=True)
 class Query:
     """A request in KIF terms. ``answers`` maps action class to True (yes) / False (no);
-    ``params`` holds (relation, term) pairs; ``focus`` names a robot class to describe."""
+    ``params`` holds (relation, term) pairs."""
 
     requests: tuple[str, ...] = ()
     answers: tuple[tuple[str, bool], ...] = ()
     params: tuple[tuple[str, str], ...] = ()
-    focus: str | None = None
 
 
 @dataclass(frozen=True, slots=True, order=True)
@@ -111,8 +111,12 @@ class Reasoner:
         kb: KnowledgeBase,
         rules: Sequence[str | Path] = (),
         allow_scripts: bool = False,
+        focus: str | None = None,
     ) -> None:
+        """Ground ``kb`` with the encodings and ``rules``. With ``focus`` (a robot class),
+        the program describes that class instead of choosing among candidates."""
         self.kb = kb
+        self._rules, self._allow_scripts = tuple(rules), allow_scripts
         self._messages: list[str] = []
         self._ctl = clingo.Control(
             ["--models=0", "--opt-mode=enum"], logger=self._log, message_limit=20
@@ -121,17 +125,29 @@ class Reasoner:
         try:
             self._ctl.add("base", [], kb.translation.program)
             self._ctl.load(str(encoding_dir() / "conceptual.lp"))
+            if focus is not None:
+                self._ctl.add("base", [], f"focus({asp_string(focus)}).")
             for path in rules:
                 self._ctl.add("base", [], check_rules_file(path, allow_scripts))
             self._ctl.ground([("base", [])])
         except RuntimeError as e:
             detail = "; ".join(self._messages) or str(e)
             raise OntologyError(f"the rules do not ground: {detail}") from None
-        self._externals = {a.symbol for a in self._ctl.symbolic_atoms if a.is_external}
+        atoms = self._ctl.symbolic_atoms
+        self._externals = {
+            a.symbol
+            for sig in (("request", 1), ("answer", 2), ("param", 2))
+            for a in atoms.by_signature(*sig)
+            if a.is_external
+        }
         #: every subclass of Robot, as the taxonomy closure found them
         self.robot_types: tuple[str, ...] = tuple(sorted(
-            s.arguments[0].string for s in self._externals if s.name == "focus"
+            a.symbol.arguments[0].string for a in atoms.by_signature("robot_class", 1)
         ))
+
+    def focused(self, robot_type: str) -> Reasoner:
+        """A reasoner over the same program that describes ``robot_type`` (explain)."""
+        return Reasoner(self.kb, self._rules, self._allow_scripts, focus=robot_type)
 
     def _log(self, code: clingo.MessageCode, message: str) -> None:
         self._messages.append(message.strip().replace("\n", " "))
@@ -145,8 +161,6 @@ class Reasoner:
             on.add(F("answer", [S(a), F("yes" if yes else "no")]))
         for rel, term in query.params:
             on.add(F("param", [S(rel), S(term)]))
-        if query.focus is not None:
-            on.add(F("focus", [S(query.focus)]))
         missing = on - self._externals
         if missing:
             raise InputError(
@@ -190,8 +204,8 @@ class Reasoner:
         excl = {a[0] for a in by.get("excluded", [])}
         robots = [a[0] for a in by.get("chosen", [])]
         if not robots:
-            # focus mode: the described robot is the one with a dof atom
-            robots = [a[0] for a in by.get("dof", [])]
+            # focus mode: the described robot is the one with parts
+            robots = sorted({a[0] for a in by.get("structural", []) + by.get("active", [])})
         if not robots:
             return None, need, excl
         r = robots[0]
@@ -209,8 +223,8 @@ class Reasoner:
                 sources.setdefault((k, n), []).append(i)
         cand = Candidate(
             robot_type=r,
-            active_total=single("active_total") or 0,
-            dof=single("dof") or 0,
+            active_total=sum(n for rr, _, n in by.get("active", []) if rr == r),
+            dof=sum(n for rr, _, n in by.get("actuator", []) if rr == r),
             parts=triples("structural"),
             modules=triples("active"),
             passive=triples("passive"),

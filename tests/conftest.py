@@ -1,0 +1,63 @@
+"""Shared fixtures: the shipped knowledge base grounded once per session, and a runner
+for the command line through ``main(argv)``."""
+
+from __future__ import annotations
+
+import io
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from adron.kb import KnowledgeBase, load
+from synth.cli import main
+from synth.conceptual import Designer
+from synth.solver import Reasoner
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = REPO.parent / "shared"
+
+
+def require_shared(sub: str) -> Path:
+    """``../shared/<sub>``; skips where it is absent, fails under CI=true."""
+    path = SHARED / sub
+    if not path.exists():
+        if os.environ.get("CI") == "true":
+            pytest.fail(f"{path} is missing, and CI=true forbids skipping")
+        pytest.skip(f"{path} is absent (tests that need ../shared skip)")
+    return path
+
+
+@pytest.fixture(scope="session")
+def kb() -> KnowledgeBase:
+    return load()
+
+
+@pytest.fixture(scope="session")
+def designer(kb: KnowledgeBase) -> Designer:
+    return Designer(kb, Reasoner(kb))
+
+
+@dataclass
+class Run:
+    code: int
+    out: str
+    err: str
+
+
+@pytest.fixture
+def cli(monkeypatch: pytest.MonkeyPatch):
+    """Run ``parmor ARGS`` in-process; stdin is a non-terminal unless ``stdin`` is given."""
+
+    def run(*argv: str, stdin: str | None = None, tty: bool = False) -> Run:
+        class In(io.StringIO):
+            def isatty(self) -> bool:
+                return tty
+
+        monkeypatch.setattr("sys.stdin", In(stdin or ""))
+        out, err = io.StringIO(), io.StringIO()
+        code = main(list(argv), out=out, err=err)
+        return Run(code, out.getvalue(), err.getvalue())
+
+    return run
