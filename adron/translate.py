@@ -72,7 +72,11 @@ class AxiomSource:
 
 @dataclass(frozen=True)
 class Translation:
-    """The ASP program of a set of KIF forms and an account of what was translated."""
+    """The ASP program of a set of KIF forms and an account of what was translated.
+
+    ``facts``, ``rules``, ``axioms`` and ``metadata`` count *forms* (a ``<=>`` form is one
+    rule form that yields two ASP rules), so ``translated + len(untranslated) == forms``.
+    """
 
     program: str
     forms: int
@@ -311,8 +315,9 @@ def translate(forms: Iterable[Form]) -> Translation:
                     facts = _existential(n_axioms + 1, f)
                     if facts is not None:
                         n_axioms += 1
-                        sources.append(AxiomSource(n_axioms, str(f.items[1].items[2]),
-                                                   f.file, f.line, f.col))
+                        sources.append(
+                            AxiomSource(n_axioms, str(f.items[1].items[2]), f.file, f.line, f.col)
+                        )
                         lines.append(f"% {f.file}:{f.line}")
                         lines.extend(facts)
                         continue
@@ -320,7 +325,7 @@ def translate(forms: Iterable[Form]) -> Translation:
                 else:
                     rules = _horn(f.items[1], f.items[2]) + _horn(f.items[2], f.items[1])
                 lines.extend(rules)
-                n_rules += len(rules)
+                n_rules += 1
                 continue
             if op in LOGICAL:
                 raise _Skip(f"top-level '{op}'")

@@ -49,8 +49,11 @@ def design_record(d: Design, short: Short) -> dict:
         "note": d.note,
         "candidates": [x.robot_type for x in d.candidates],
         "questions": [
-            {"ability": q.ability, "text": q.text,
-             "answer": None if q.answer is None else ("yes" if q.answer else "no")}
+            {
+                "ability": q.ability,
+                "text": q.text,
+                "answer": None if q.answer is None else ("yes" if q.answer else "no"),
+            }
             for q in d.questions
         ],
         "conflict": list(d.conflict),
@@ -95,8 +98,11 @@ def design_text(d: Design, short: Short) -> str:
             out.append(f"{q.text} {'yes' if q.answer else 'no'}")
     if d.status == "unsatisfiable":
         what = " and ".join(d.conflict)
-        out.append(f"No robot can meet the request: {what} conflict."
-                   if len(d.conflict) > 1 else f"No robot can meet the request: {what}.")
+        out.append(
+            f"No robot can meet the request: {what} conflict."
+            if len(d.conflict) > 1
+            else f"No robot can meet the request: {what}."
+        )
         return "\n".join(out) + "\n"
     if d.status == "ambiguous":
         out.append("Candidates: " + ", ".join(c.robot_type for c in d.candidates))

@@ -31,21 +31,48 @@ exit codes: 0 done, 1 cannot be met, 2 bad input, 3 an answer is needed and inpu
 
 def _kb_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("knowledge base")
-    g.add_argument("--ontology", action="append", default=[], metavar="FILE.kif",
-                   help="extra SUO-KIF file loaded after ADROn (repeatable)")
-    g.add_argument("--rules", action="append", default=[], metavar="FILE.lp",
-                   help="extra ASP rule file joined to the encodings (repeatable)")
-    g.add_argument("--allow-scripts", action="store_true",
-                   help="accept rule files that contain #script (clingo runs their code)")
+    g.add_argument(
+        "--ontology",
+        action="append",
+        default=[],
+        metavar="FILE.kif",
+        help="extra SUO-KIF file loaded after ADROn (repeatable)",
+    )
+    g.add_argument(
+        "--rules",
+        action="append",
+        default=[],
+        metavar="FILE.lp",
+        help="extra ASP rule file joined to the encodings (repeatable)",
+    )
+    g.add_argument(
+        "--allow-scripts",
+        action="store_true",
+        help="accept rule files that contain #script (clingo runs their code)",
+    )
 
 
 def _request_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("abilities", nargs="+", metavar="ABILITY",
-                   help="abilities the robot must have (see 'parmor abilities')")
-    p.add_argument("--answer", action="append", default=[], metavar="ABILITY=yes|no",
-                   help="answer a disambiguating question in advance (repeatable)")
-    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                   help="a design parameter, e.g. object_shape=oval (repeatable)")
+    p.add_argument(
+        "abilities",
+        nargs="+",
+        metavar="ABILITY",
+        help="abilities the robot must have (see 'parmor abilities')",
+    )
+    p.add_argument(
+        "--answer",
+        action="append",
+        default=[],
+        metavar="ABILITY=yes|no",
+        help="answer a disambiguating question in advance (repeatable)",
+    )
+    p.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a design parameter, e.g. object_shape=oval (repeatable)",
+    )
     _kb_options(p)
     p.add_argument("--json", action="store_true", help="print JSON on stdout")
 
@@ -62,55 +89,76 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
-    p = sub.add_parser("abilities", help="list the abilities a robot can be asked for",
-                       description="List every ability with its KIF class, the question "
-                       "that asks for it and the robot types that can have it.")
+    p = sub.add_parser(
+        "abilities",
+        help="list the abilities a robot can be asked for",
+        description="List every ability with its KIF class, the question "
+        "that asks for it and the robot types that can have it.",
+    )
     _kb_options(p)
     p.add_argument("--json", action="store_true", help="print JSON on stdout")
 
-    p = sub.add_parser("design", help="design a robot for a set of abilities",
-                       description="Find the robot types that can do every ABILITY, ask "
-                       "yes/no questions until one remains (on a terminal), and print its "
-                       "conceptual design: parts, modules, degrees of freedom, abilities.",
-                       epilog="example: parmor design walking --answer grasping=yes --json",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser(
+        "design",
+        help="design a robot for a set of abilities",
+        description="Find the robot types that can do every ABILITY, ask "
+        "yes/no questions until one remains (on a terminal), and print its "
+        "conceptual design: parts, modules, degrees of freedom, abilities.",
+        epilog="example: parmor design walking --answer grasping=yes --json",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     _request_options(p)
-    p.add_argument("--no-input", action="store_true",
-                   help="never ask; exit 3 when an answer is still needed")
+    p.add_argument(
+        "--no-input", action="store_true", help="never ask; exit 3 when an answer is still needed"
+    )
     p.add_argument("--out", metavar="DIR", help="write design.json into the new folder DIR")
     p.add_argument("--force", action="store_true", help="replace DIR if it exists")
 
-    p = sub.add_parser("enumerate", help="list every candidate robot for a set of abilities",
-                       description="List every robot type that meets the request, in "
-                       "preference order (fewest active modules first), with its parts, "
-                       "modules and abilities. Asks nothing.")
+    p = sub.add_parser(
+        "enumerate",
+        help="list every candidate robot for a set of abilities",
+        description="List every robot type that meets the request, in "
+        "preference order (fewest active modules first), with its parts, "
+        "modules and abilities. Asks nothing.",
+    )
     _request_options(p)
     p.add_argument("--limit", type=int, metavar="N", help="list at most N candidates")
 
-    p = sub.add_parser("explain", help="show a robot type's parts and abilities, with reasons",
-                       description="Show the parts of ROBOT_TYPE (own and inherited, with "
-                       "the axiom that declares each) and each ability with its reason.")
+    p = sub.add_parser(
+        "explain",
+        help="show a robot type's parts and abilities, with reasons",
+        description="Show the parts of ROBOT_TYPE (own and inherited, with "
+        "the axiom that declares each) and each ability with its reason.",
+    )
     p.add_argument("robot_type", metavar="ROBOT_TYPE", help="a KIF class, e.g. HexapodRobot")
     _kb_options(p)
     p.add_argument("--json", action="store_true", help="print JSON on stdout")
 
-    p = sub.add_parser("ontology", help="check SUO-KIF files",
-                       description="Work with SUO-KIF files.")
+    p = sub.add_parser(
+        "ontology", help="check SUO-KIF files", description="Work with SUO-KIF files."
+    )
     osub = p.add_subparsers(dest="ontology_command", metavar="ACTION", required=True)
-    c = osub.add_parser("check", help="parse and translate KIF files, report what is not "
-                        "translated", description="Parse and translate FILE.kif... on their "
-                        "own and print the counts of forms, translated forms and untranslated "
-                        "ones with their locations. Exit 0 when they parse, 2 on a syntax "
-                        "error.")
+    c = osub.add_parser(
+        "check",
+        help="parse and translate KIF files, report what is not translated",
+        description="Parse and translate FILE.kif... on their "
+        "own and print the counts of forms, translated forms and untranslated "
+        "ones with their locations. Exit 0 when they parse, 2 on a syntax "
+        "error.",
+    )
     c.add_argument("files", nargs="+", metavar="FILE.kif")
     c.add_argument("--json", action="store_true", help="print JSON on stdout")
     c.add_argument("--all", action="store_true", help="list every untranslated form")
 
-    p = sub.add_parser("regress", help="run a regression suite of design queries",
-                       description="Run the named queries of SUITE.toml and compare their "
-                       "results with the snapshot beside it (SUITE.snapshot.json). Exit 0 "
-                       "when all match, 1 with a diff when one changed.",
-                       epilog=REGRESS_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser(
+        "regress",
+        help="run a regression suite of design queries",
+        description="Run the named queries of SUITE.toml and compare their "
+        "results with the snapshot beside it (SUITE.snapshot.json). Exit 0 "
+        "when all match, 1 with a diff when one changed.",
+        epilog=REGRESS_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("suite", metavar="SUITE.toml")
     p.add_argument("--update", action="store_true", help="store the results as the snapshot")
     return parser
@@ -143,9 +191,11 @@ def _warn_untranslated(kb, err: TextIO) -> None:
     user = [u for u in kb.translation.untranslated if u.file not in _builtin_names()]
     if user:
         first = user[0]
-        err.write(f"parmor: note: {len(user)} form(s) of your ontology were not translated "
-                  f"(first at {first.location}: {first.reason}); see 'parmor ontology "
-                  "check'\n")
+        err.write(
+            f"parmor: note: {len(user)} form(s) of your ontology were not translated "
+            f"(first at {first.location}: {first.reason}); see 'parmor ontology "
+            "check'\n"
+        )
 
 
 def _builtin_names() -> set[str]:
@@ -200,8 +250,10 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     out.write(to_json(rec) if args.json else design_text(d, designer.short))
     if d.status == "ambiguous":
         q = d.questions[-1]
-        err.write(f"parmor: an answer is needed: {q.text} "
-                  f"(pass --answer {q.ability}=yes or --answer {q.ability}=no)\n")
+        err.write(
+            f"parmor: an answer is needed: {q.text} "
+            f"(pass --answer {q.ability}=yes or --answer {q.ability}=no)\n"
+        )
         return AnswerNeeded.exit_code
     if d.status == "unsatisfiable":
         err.write(f"parmor: no robot can meet the request: {' + '.join(d.conflict)}\n")
@@ -222,17 +274,24 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     cands = sol.candidates[: args.limit] if args.limit is not None else sol.candidates
     conflict = designer.conflict(req) if not sol.candidates else ()
     if args.json:
-        out.write(to_json({
-            "status": "enumerated" if sol.candidates else "unsatisfiable",
-            "count": len(sol.candidates),
-            "candidates": [candidate_record(c, designer.short) for c in cands],
-            "conflict": list(conflict),
-        }))
+        out.write(
+            to_json(
+                {
+                    "status": "enumerated" if sol.candidates else "unsatisfiable",
+                    "count": len(sol.candidates),
+                    "candidates": [candidate_record(c, designer.short) for c in cands],
+                    "conflict": list(conflict),
+                }
+            )
+        )
     else:
         for i, c in enumerate(cands, 1):
             out.write(f"{i}. {c.robot_type}\n{candidate_text(c, designer.short, '   ')}\n")
-        shown = f"{len(cands)} of {len(sol.candidates)}" if len(cands) < len(
-            sol.candidates) else f"{len(sol.candidates)}"
+        shown = (
+            f"{len(cands)} of {len(sol.candidates)}"
+            if len(cands) < len(sol.candidates)
+            else f"{len(sol.candidates)}"
+        )
         out.write(f"{shown} candidate(s)\n")
     if not sol.candidates:
         err.write(f"parmor: no robot can meet the request: {' + '.join(conflict)}\n")
@@ -259,13 +318,15 @@ def cmd_abilities(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     kb = designer.kb
     rows = []
     for a in kb.abilities:
-        rows.append({
-            "ability": a.name,
-            "kif": a.kif,
-            "question": a.question,
-            "robot_types": sorted(c.robot_type for c in sol.candidates if a.kif in c.potential),
-            "documentation": kb.translation.documentation.get(a.kif, ""),
-        })
+        rows.append(
+            {
+                "ability": a.name,
+                "kif": a.kif,
+                "question": a.question,
+                "robot_types": sorted(c.robot_type for c in sol.candidates if a.kif in c.potential),
+                "documentation": kb.translation.documentation.get(a.kif, ""),
+            }
+        )
     if args.json:
         out.write(to_json(rows))
     else:
@@ -300,14 +361,15 @@ def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> in
     if args.json:
         out.write(to_json(rec))
         return 0
-    out.write(f"{t.forms} forms in {len(kb.files)} file(s): {t.translated} translated "
-              f"({t.facts} facts, {t.rules} rules, {t.axioms} existential axioms, "
-              f"{t.metadata} metadata), {len(un)} untranslated\n")
+    out.write(
+        f"{t.forms} forms in {len(kb.files)} file(s): {t.translated} translated "
+        f"({t.facts} facts, {t.rules} rules, {t.axioms} existential axioms, "
+        f"{t.metadata} metadata), {len(un)} untranslated\n"
+    )
     for u in rec["untranslated_forms"]:
         out.write(f"  {u['file']}:{u['line']}:{u['col']}: {u['reason']}: {u['text']}\n")
     if len(un) > len(rec["untranslated_forms"]):
-        out.write(f"  ... and {len(un) - len(rec['untranslated_forms'])} more (--all lists "
-                  "them)\n")
+        out.write(f"  ... and {len(un) - len(rec['untranslated_forms'])} more (--all lists them)\n")
     return 0
 
 
@@ -326,8 +388,9 @@ COMMANDS = {
 }
 
 
-def main(argv: Sequence[str] | None = None, out: TextIO | None = None,
-         err: TextIO | None = None) -> int:
+def main(
+    argv: Sequence[str] | None = None, out: TextIO | None = None, err: TextIO | None = None
+) -> int:
     """Run the command line; returns the exit code (never raises for user errors)."""
     out = out or sys.stdout
     err = err or sys.stderr

@@ -93,8 +93,9 @@ class Designer:
         a = self.kb.ability(name)
         if a is None:
             names = [x.name for x in self.kb.abilities]
-            raise InputError(f"unknown ability {name!r}{suggest(name, names)}; "
-                             "'parmor abilities' lists them")
+            raise InputError(
+                f"unknown ability {name!r}{suggest(name, names)}; 'parmor abilities' lists them"
+            )
         return a.kif
 
     def short(self, kif: str) -> str:
@@ -121,13 +122,17 @@ class Designer:
             p = self.kb.parameter(name)
             if p is None:
                 names = [x.name for x in self.kb.parameters]
-                raise InputError(f"unknown parameter {name!r}{suggest(name, names)}; "
-                                 f"known: {', '.join(names) or 'none'}")
+                raise InputError(
+                    f"unknown parameter {name!r}{suggest(name, names)}; "
+                    f"known: {', '.join(names) or 'none'}"
+                )
             term = p.term(value)
             if term is None:
                 vals = [v for v, _ in p.values]
-                raise InputError(f"--param {name}={value}: unknown value{suggest(value, vals)}; "
-                                 f"one of: {', '.join(vals)}")
+                raise InputError(
+                    f"--param {name}={value}: unknown value{suggest(value, vals)}; "
+                    f"one of: {', '.join(vals)}"
+                )
             if name in params and params[name][1] != term:
                 raise InputError(f"--param {name} given twice with different values")
             params[name] = (p.relation, term)
@@ -141,22 +146,26 @@ class Designer:
         asked = tuple(Question(n, self._question(n), yes) for n, yes in req.answers)
         needed = tuple(self.short(a) for a in sol.needed)
         if not sol.candidates:
-            return Design("unsatisfiable", req, questions=asked, conflict=self.conflict(req),
-                          needed=needed)
+            return Design(
+                "unsatisfiable", req, questions=asked, conflict=self.conflict(req), needed=needed
+            )
         cands = sol.candidates
         if len(cands) == 1:
-            return Design("designed", req, cands, cands[0], "only candidate",
-                          questions=asked, needed=needed)
-        nxt = self.next_question(cands, set(sol.needed) | set(sol.excluded)
-                                 | {a for a, _ in q.answers})
+            return Design(
+                "designed", req, cands, cands[0], "only candidate", questions=asked, needed=needed
+            )
+        nxt = self.next_question(
+            cands, set(sol.needed) | set(sol.excluded) | {a for a, _ in q.answers}
+        )
         if nxt is None:
             best = cands[0]
             others = ", ".join(c.robot_type for c in cands[1:])
-            note = (f"no ability separates {best.robot_type} from {others}; chose "
-                    f"{best.robot_type} by preference: fewest active modules "
-                    f"({best.active_total})")
-            return Design("designed", req, cands, best, "preference", note, asked,
-                          needed=needed)
+            note = (
+                f"no ability separates {best.robot_type} from {others}; chose "
+                f"{best.robot_type} by preference: fewest active modules "
+                f"({best.active_total})"
+            )
+            return Design("designed", req, cands, best, "preference", note, asked, needed=needed)
         return Design("ambiguous", req, cands, questions=(*asked, nxt), needed=needed)
 
     def _question(self, name: str) -> str:
@@ -183,8 +192,9 @@ class Designer:
         """
         demands: list[tuple[str, Request]] = []
         demands += [(a, Request(abilities=(a,))) for a in dict.fromkeys(req.abilities)]
-        demands += [(f"{a}={'yes' if y else 'no'}", Request(answers=((a, y),)))
-                    for a, y in req.answers]
+        demands += [
+            (f"{a}={'yes' if y else 'no'}", Request(answers=((a, y),))) for a, y in req.answers
+        ]
         demands += [(f"{p}={v}", Request(params=((p, v),))) for p, v in req.params]
         for size in range(1, len(demands) + 1):
             for combo in itertools.combinations(demands, size):
@@ -196,8 +206,9 @@ class Designer:
                 if not self.reasoner.satisfiable(self.query(merged)):
                     return tuple(name for name, _ in combo)
         if not self.reasoner.satisfiable(Query()):
-            raise OntologyError("the ontology defines no buildable robot (no instance of "
-                                "BaseConfiguration)")
+            raise OntologyError(
+                "the ontology defines no buildable robot (no instance of BaseConfiguration)"
+            )
         return tuple(name for name, _ in demands)
 
     def describe(self, robot_type: str) -> Candidate:

@@ -13,19 +13,19 @@ def explain_record(designer: Designer, robot_type: str) -> dict:
     parts = []
     for ps in c.sources:
         axioms = [sources[i] for i in ps.axioms if i in sources]
-        parts.append({
-            "kind": ps.kind,
-            "count": ps.count,
-            "declared_by": [
-                {"class": a.cls, "location": a.location,
-                 "inherited": a.cls != c.robot_type}
-                for a in axioms
-            ],
-        })
+        parts.append(
+            {
+                "kind": ps.kind,
+                "count": ps.count,
+                "declared_by": [
+                    {"class": a.cls, "location": a.location, "inherited": a.cls != c.robot_type}
+                    for a in axioms
+                ],
+            }
+        )
     reasons: dict[str, list[dict]] = {}
     for r in c.reasons:
-        reasons.setdefault(r.action, []).append({"part": r.kind, "needs": r.need,
-                                                 "has": r.have})
+        reasons.setdefault(r.action, []).append({"part": r.kind, "needs": r.need, "has": r.have})
     abilities = [
         {"ability": designer.short(a), "kif": a, "requires": reasons.get(a, [])}
         for a in sorted(c.abilities, key=designer.short)

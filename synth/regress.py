@@ -48,7 +48,9 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
         raise InputError(f"{path}: unknown key {unknown[0]!r}")
     base = path.parent
     opts = {
-        "ontology": [str(base / p) for p in _str_list(data.get("ontology", []), f"{path}: ontology")],
+        "ontology": [
+            str(base / p) for p in _str_list(data.get("ontology", []), f"{path}: ontology")
+        ],
         "rules": [str(base / p) for p in _str_list(data.get("rules", []), f"{path}: rules")],
         "allow_scripts": bool(data.get("allow_scripts", False)),
     }
@@ -68,12 +70,14 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
         if name in names:
             raise InputError(f"{where}: duplicate name {name!r}")
         names.add(name)
-        out.append({
-            "name": name,
-            "abilities": _str_list(q.get("abilities", []), f"{where} ({name}): abilities"),
-            "answers": _str_table(q.get("answers", {}), f"{where} ({name}): answers"),
-            "params": _str_table(q.get("params", {}), f"{where} ({name}): params"),
-        })
+        out.append(
+            {
+                "name": name,
+                "abilities": _str_list(q.get("abilities", []), f"{where} ({name}): abilities"),
+                "answers": _str_table(q.get("answers", {}), f"{where} ({name}): answers"),
+                "params": _str_table(q.get("params", {}), f"{where} ({name}): params"),
+            }
+        )
     return opts, out
 
 
@@ -114,8 +118,9 @@ def run_suite(suite: str | Path, update: bool, out: TextIO, err: TextIO) -> int:
     try:
         stored = json.loads(snap.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise InputError(f"{snap}: no snapshot; run 'parmor regress {suite} --update' "
-                         "first") from None
+        raise InputError(
+            f"{snap}: no snapshot; run 'parmor regress {suite} --update' first"
+        ) from None
     except json.JSONDecodeError as e:
         raise InputError(f"{snap}:{e.lineno}:{e.colno}: {e.msg}") from None
     changed = 0
@@ -126,15 +131,20 @@ def run_suite(suite: str | Path, update: bool, out: TextIO, err: TextIO) -> int:
         elif stored[name] != rec:
             changed += 1
             out.write(f"CHANGED  {name}\n")
-            diff = difflib.unified_diff(_dump(stored[name]).splitlines(),
-                                        _dump(rec).splitlines(),
-                                        f"{snap.name}:{name}", f"now:{name}", lineterm="")
+            diff = difflib.unified_diff(
+                _dump(stored[name]).splitlines(),
+                _dump(rec).splitlines(),
+                f"{snap.name}:{name}",
+                f"now:{name}",
+                lineterm="",
+            )
             out.writelines(line + "\n" for line in diff)
         else:
             out.write(f"ok       {name}\n")
     for name in sorted(set(stored) - set(results)):
         out.write(f"GONE     {name} (in the snapshot, not in the suite)\n")
         changed += 1
-    out.write(f"{len(results) - changed if changed <= len(results) else 0} matched, "
-              f"{changed} changed\n")
+    out.write(
+        f"{len(results) - changed if changed <= len(results) else 0} matched, {changed} changed\n"
+    )
     return 1 if changed else 0

@@ -141,9 +141,9 @@ class Reasoner:
             if a.is_external
         }
         #: every subclass of Robot, as the taxonomy closure found them
-        self.robot_types: tuple[str, ...] = tuple(sorted(
-            a.symbol.arguments[0].string for a in atoms.by_signature("robot_class", 1)
-        ))
+        self.robot_types: tuple[str, ...] = tuple(
+            sorted(a.symbol.arguments[0].string for a in atoms.by_signature("robot_class", 1))
+        )
 
     def focused(self, robot_type: str) -> Reasoner:
         """A reasoner over the same program that describes ``robot_type`` (explain)."""
@@ -177,6 +177,22 @@ class Reasoner:
                 return True
         return False
 
+    def answer_sets(
+        self, query: Query, predicates: Iterable[str] | None = None
+    ) -> frozenset[frozenset[str]]:
+        """The shown atoms of every answer set (as text), optionally only ``predicates``."""
+        self._assign(query)
+        keep = set(predicates) if predicates is not None else None
+        models = set()
+        with self._ctl.solve(yield_=True) as handle:
+            for model in handle:
+                models.add(
+                    frozenset(
+                        str(s) for s in model.symbols(shown=True) if keep is None or s.name in keep
+                    )
+                )
+        return frozenset(models)
+
     def solve(self, query: Query) -> Solution:
         """Every candidate of ``query``, in preference order (active modules, then name)."""
         self._assign(query)
@@ -191,15 +207,20 @@ class Reasoner:
                 if cand is not None:
                     found[cand.robot_type] = cand
         order = sorted(found.values(), key=lambda c: (c.active_total, c.robot_type))
-        return Solution(tuple(order), tuple(sorted(needed)), tuple(sorted(excluded)),
-                        satisfiable=bool(order) or False)
+        return Solution(
+            tuple(order),
+            tuple(sorted(needed)),
+            tuple(sorted(excluded)),
+            satisfiable=bool(order) or False,
+        )
 
     @staticmethod
     def _read(symbols: Iterable[clingo.Symbol]) -> tuple[Candidate | None, set, set]:
         by: dict[str, list[list]] = {}
         for s in symbols:
-            by.setdefault(s.name, []).append([_str(a) if a.type != clingo.SymbolType.Number
-                                              else a.number for a in s.arguments])
+            by.setdefault(s.name, []).append(
+                [_str(a) if a.type != clingo.SymbolType.Number else a.number for a in s.arguments]
+            )
         need = {a[0] for a in by.get("need", [])}
         excl = {a[0] for a in by.get("excluded", [])}
         robots = [a[0] for a in by.get("chosen", [])]
@@ -230,10 +251,12 @@ class Reasoner:
             passive=triples("passive"),
             abilities=tuple(sorted(a for rr, a in by.get("has_ability", []) if rr == r)),
             potential=tuple(sorted(a for rr, a in by.get("potential", []) if rr == r)),
-            reasons=tuple(sorted(Reason(a, k, n, s)
-                                 for rr, a, k, n, s in by.get("reason", []) if rr == r)),
-            sources=tuple(PartSource(k, n, tuple(sorted(ids)))
-                          for (k, n), ids in sorted(sources.items())),
+            reasons=tuple(
+                sorted(Reason(a, k, n, s) for rr, a, k, n, s in by.get("reason", []) if rr == r)
+            ),
+            sources=tuple(
+                PartSource(k, n, tuple(sorted(ids))) for (k, n), ids in sorted(sources.items())
+            ),
             module_limit=single("limit"),
         )
         return cand, need, excl
