@@ -1,0 +1,110 @@
+"""``make bench``: the figures of the performance budget (DESIGN.md), printed.
+
+Timings are wall-clock, best (and median) of several runs, on whatever machine runs
+them; nothing here is asserted. Sections that need ``../shared`` say so and skip.
+"""
+
+from __future__ import annotations
+
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+for p in (REPO, REPO / "bench"):
+    if str(p) not in sys.path:
+        sys.path.insert(0, str(p))
+
+from bench_parse import bench_parse  # noqa: E402
+
+from adron.kb import load  # noqa: E402
+from synth.conceptual import Designer, Request  # noqa: E402
+from synth.solver import Query, Reasoner  # noqa: E402
+
+SUMO = REPO.parent / "shared" / "kif" / "sumo"
+
+
+def timed(fn, runs: int) -> tuple[float, float]:
+    """(best, median) wall time in milliseconds over ``runs`` calls."""
+    times = []
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        fn()
+        times.append((time.perf_counter() - t0) * 1000)
+    return min(times), statistics.median(times)
+
+
+def mark(ok: bool) -> str:
+    return "ok  " if ok else "MISS"
+
+
+def bench_translation() -> list[str]:
+    best, med = timed(load, 20)
+    kb = load()
+    t = kb.translation
+    return [
+        "ADRON load = parse + translate (best/median of 20)",
+        f"  {t.forms} forms -> {t.facts} facts, {t.rules} rules, {t.axioms} axioms: "
+        f"{best:.1f} / {med:.1f} ms",
+    ]
+
+
+def bench_queries() -> list[str]:
+    """Ground + solve of one design query per base configuration.
+
+    Each query asks for every ability the robot type has by its declared parts (read from
+    the ontology through ``explain``), so the type is among the candidates.
+    """
+    kb = load()
+    designer = Designer(kb, Reasoner(kb))
+    lines = ["ground + solve of a design query per robot type (best/median of 20; target < 20 ms)"]
+    for cand in designer.reasoner.solve(Query()).candidates:
+        abilities = tuple(designer.short(a) for a in designer.describe(cand.robot_type).abilities)
+        req = Request(abilities)
+
+        def run(req: Request = req) -> None:
+            d = Designer(kb, Reasoner(kb))
+            d.step(req)
+
+        best, med = timed(run, 20)
+        got = Designer(kb, Reasoner(kb)).step(req)
+        outcome = got.chosen.robot_type if got.chosen else got.status
+        lines.append(
+            f"  {mark(best < 20)} {cand.robot_type:<24} {best:6.1f} / {med:6.1f} ms  "
+            f"({len(abilities)} abilities -> {outcome})"
+        )
+    return lines
+
+
+def bench_process() -> list[str]:
+    """Whole-process time of the command line (python -m synth.cli), best of 10."""
+    lines = ["whole process (best/median of 10; target: design < 500 ms)"]
+    for argv in (["--help"], ["design", "walking", "--answer", "grasping=yes", "--json"]):
+        cmd = [sys.executable, "-m", "synth.cli", *argv]
+
+        def run(cmd: list[str] = cmd) -> None:
+            subprocess.run(cmd, cwd=REPO, check=True, capture_output=True)
+
+        best, med = timed(run, 10)
+        target = best < 500
+        lines.append(f"  {mark(target)} parmor {' '.join(argv):<44} {best:6.1f} / {med:6.1f} ms")
+    return lines
+
+
+def main() -> int:
+    sections = []
+    if SUMO.is_dir():
+        sections.append(bench_parse(SUMO))
+    else:
+        sections.append([f"KIF reader: {SUMO} is absent, skipped"])
+    sections += [bench_translation(), bench_queries(), bench_process()]
+    for lines in sections:
+        print("\n".join(lines))
+        print()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
