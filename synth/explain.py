@@ -38,6 +38,7 @@ def explain_record(designer: Designer, robot_type: str) -> dict:
         "modules": [{"kind": k, "count": n} for k, n in c.modules],
         "passive_modules": [{"kind": k, "count": n} for k, n in c.passive],
         "active_modules": c.active_total,
+        "module_limit": c.module_limit,
         "dof": c.dof,
         "abilities": abilities,
         "gainable_abilities": gainable,
@@ -56,7 +57,11 @@ def explain_text(rec: dict) -> str:
         )
         out.append(f"  {p['kind']} x{p['count']}  ({where})")
     mods = ", ".join(f"{m['kind']} x{m['count']}" for m in rec["modules"])
-    out.append(f"modules: {mods}  ({rec['active_modules']} active, dof {rec['dof']})")
+    limit = rec["module_limit"]
+    over = ""
+    if limit is not None and rec["active_modules"] > limit:
+        over = f"; over the limit of {limit}, so never a candidate"
+    out.append(f"modules: {mods}  ({rec['active_modules']} active, dof {rec['dof']}{over})")
     out.append("abilities:")
     for a in rec["abilities"]:
         why = "; ".join(f"has {r['has']} {r['part']}, needs {r['needs']}" for r in a["requires"])

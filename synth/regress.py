@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TextIO
 
 from adron.errors import InputError
+from adron.kb import read_user_file
 
 SUITE_KEYS = {"ontology", "rules", "allow_scripts", "query"}
 QUERY_KEYS = {"name", "abilities", "answers", "params"}
@@ -37,10 +38,9 @@ def _str_table(value: object, where: str) -> dict[str, str]:
 
 def load_suite(path: Path) -> tuple[dict, list[dict]]:
     """The suite's options and its queries, validated (errors name file and key)."""
+    _, text = read_user_file(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"{path}: {e}") from None
     unknown = sorted(set(data) - SUITE_KEYS)
@@ -48,12 +48,15 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
         raise InputError(f"{path}: unknown key {unknown[0]!r}")
     base = path.parent
     opts = {
+        "suite": str(path),
         "ontology": [
             str(base / p) for p in _str_list(data.get("ontology", []), f"{path}: ontology")
         ],
         "rules": [str(base / p) for p in _str_list(data.get("rules", []), f"{path}: rules")],
-        "allow_scripts": bool(data.get("allow_scripts", False)),
+        "allow_scripts": data.get("allow_scripts", False),
     }
+    if not isinstance(opts["allow_scripts"], bool):
+        raise InputError(f"{path}: allow_scripts: expected true or false")
     queries = data.get("query", [])
     if not isinstance(queries, list) or not queries:
         raise InputError(f"{path}: no [[query]] tables")
@@ -61,6 +64,8 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
     out = []
     for i, q in enumerate(queries, 1):
         where = f"{path}: query {i}"
+        if not isinstance(q, dict):
+            raise InputError(f"{where}: expected a table ([[query]])")
         bad = sorted(set(q) - QUERY_KEYS)
         if bad:
             raise InputError(f"{where}: unknown key {bad[0]!r}")
@@ -91,13 +96,16 @@ def run_queries(opts: dict, queries: list[dict]) -> dict[str, dict]:
     kb = load(opts["ontology"])
     designer = Designer(kb, Reasoner(kb, opts["rules"], opts["allow_scripts"]))
     results = {}
-    for q in queries:
-        req = Request(
-            abilities=q["abilities"],
-            answers=tuple(parse_answer(f"{k}={v}") for k, v in q["answers"].items()),
-            params=tuple(q["params"].items()),
-        )
-        results[q["name"]] = design_record(designer.step(req), designer.short)
+    for i, q in enumerate(queries, 1):
+        try:
+            req = Request(
+                abilities=q["abilities"],
+                answers=tuple(parse_answer(f"{k}={v}") for k, v in q["answers"].items()),
+                params=tuple(q["params"].items()),
+            )
+            results[q["name"]] = design_record(designer.step(req), designer.short)
+        except InputError as e:
+            raise InputError(f"{opts['suite']}: query {i} ({q['name']}): {e}") from None
     return results
 
 
@@ -123,7 +131,9 @@ def run_suite(suite: str | Path, update: bool, out: TextIO, err: TextIO) -> int:
         ) from None
     except json.JSONDecodeError as e:
         raise InputError(f"{snap}:{e.lineno}:{e.colno}: {e.msg}") from None
-    changed = 0
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"{snap}: cannot read: {e}") from None
+    changed = matched = 0
     for name, rec in results.items():
         if name not in stored:
             out.write(f"NEW      {name} (not in the snapshot)\n")
@@ -140,11 +150,10 @@ def run_suite(suite: str | Path, update: bool, out: TextIO, err: TextIO) -> int:
             )
             out.writelines(line + "\n" for line in diff)
         else:
+            matched += 1
             out.write(f"ok       {name}\n")
     for name in sorted(set(stored) - set(results)):
         out.write(f"GONE     {name} (in the snapshot, not in the suite)\n")
         changed += 1
-    out.write(
-        f"{len(results) - changed if changed <= len(results) else 0} matched, {changed} changed\n"
-    )
+    out.write(f"{matched} matched, {changed} changed\n")
     return 1 if changed else 0

@@ -86,7 +86,10 @@ def encoding_dir() -> Path:
 
 
 def check_rules_file(path: str | Path, allow_scripts: bool) -> str:
-    """Read a user's .lp file; refuse one with ``#script`` unless scripts are allowed."""
+    """Read a user's .lp file; refuse one with ``#script`` unless scripts are allowed.
+
+    (Files it includes are not read: clingo would resolve them. A user who includes
+    scripts indirectly has chosen to run them.)"""
     name, text = read_user_file(path)
     if not allow_scripts:
         for lineno, line in enumerate(text.splitlines(), 1):
@@ -128,7 +131,8 @@ class Reasoner:
             if focus is not None:
                 self._ctl.add("base", [], f"focus({asp_string(focus)}).")
             for path in rules:
-                self._ctl.add("base", [], check_rules_file(path, allow_scripts))
+                check_rules_file(path, allow_scripts)
+                self._ctl.load(str(path))
             self._ctl.ground([("base", [])])
         except RuntimeError as e:
             detail = "; ".join(self._messages) or str(e)
