@@ -30,6 +30,10 @@ exit codes: 0 done, 1 cannot be met, 2 bad input, 3 an answer is needed and inpu
 """
 
 
+def _json_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--json", action="store_true", help="print JSON on stdout")
+
+
 def _kb_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("knowledge base")
     g.add_argument(
@@ -75,7 +79,7 @@ def _request_options(p: argparse.ArgumentParser) -> None:
         help="a design parameter, e.g. object_shape=oval (repeatable)",
     )
     _kb_options(p)
-    p.add_argument("--json", action="store_true", help="print JSON on stdout")
+    _json_option(p)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -97,7 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
         "that asks for it and the robot types that can have it.",
     )
     _kb_options(p)
-    p.add_argument("--json", action="store_true", help="print JSON on stdout")
+    _json_option(p)
 
     p = sub.add_parser(
         "design",
@@ -133,7 +137,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("robot_type", metavar="ROBOT_TYPE", help="a KIF class, e.g. HexapodRobot")
     _kb_options(p)
-    p.add_argument("--json", action="store_true", help="print JSON on stdout")
+    _json_option(p)
 
     p = sub.add_parser(
         "ontology", help="check SUO-KIF files", description="Work with SUO-KIF files."
@@ -148,7 +152,7 @@ def build_parser() -> argparse.ArgumentParser:
         "error.",
     )
     c.add_argument("files", nargs="+", metavar="FILE.kif")
-    c.add_argument("--json", action="store_true", help="print JSON on stdout")
+    _json_option(c)
     c.add_argument("--all", action="store_true", help="list every untranslated form")
 
     p = sub.add_parser(

@@ -19,14 +19,18 @@ REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
 
 
-def require_shared(sub: str) -> Path:
-    """``../shared/<sub>``; skips where it is absent, fails under CI=true."""
-    path = SHARED / sub
-    if not path.exists():
+def require_dir(path: Path) -> Path:
+    """``path`` if it is a folder; otherwise skip, or fail when CI=true (CI has ../shared)."""
+    if not path.is_dir():
         if os.environ.get("CI") == "true":
             pytest.fail(f"{path} is missing, and CI=true forbids skipping")
         pytest.skip(f"{path} is absent (tests that need ../shared skip)")
     return path
+
+
+def require_shared(sub: str) -> Path:
+    """``../shared/<sub>``; skips where it is absent, fails under CI=true."""
+    return require_dir(SHARED / sub)
 
 
 @pytest.fixture(scope="session")

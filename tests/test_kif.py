@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import os
 from pathlib import Path
 
 import pytest
@@ -12,25 +11,15 @@ from hypothesis import strategies as st
 
 from adron.errors import InputError, KifSyntaxError
 from adron.kif import Form, RowVar, String, Symbol, Var, parse, parse_file
+from tests.conftest import require_dir, require_shared
 
-SUMO_DIR = Path(__file__).resolve().parents[1].parent / "shared" / "kif" / "sumo"
 SUMO_COUNTS = {"Merge.kif": 5504, "Mid-level-ontology.kif": 10046, "tinySUMO.kif": 347}
-
-
-def require_dir(path: Path) -> Path:
-    """``path`` if it is a folder; otherwise skip, or fail when CI=true."""
-    if not path.is_dir():
-        msg = f"SUMO sample files not found at {path}"
-        if os.environ.get("CI") == "true":
-            pytest.fail(msg)
-        pytest.skip(msg)
-    return path
 
 
 @pytest.fixture
 def sumo_dir() -> Path:
     """The shared SUMO sample folder; skip without it, but fail under CI=true."""
-    return require_dir(SUMO_DIR)
+    return require_shared("kif/sumo")
 
 
 def shape(x: object) -> object:
