@@ -1,0 +1,630 @@
+"""The ParMoR module catalog: actuators, active modules, passive templates, material, rules.
+
+The catalog is a TOML file (the shipped one is ``adron/catalog.toml``; a user passes their
+own with ``--catalog``). :func:`load_catalog` validates it and returns frozen dataclasses
+of SI floats; every problem is an InputError that names the file and the key path, e.g.
+``my.toml: actuator[2] (MG996R): missing key 'stall_torque'``. Entry numbers count the
+``[[actuator]]`` / ``[[module]]`` tables from 1, in file order.
+
+:func:`catalog_facts` writes the actuators and modules as integer ASP facts for clingo.
+
+Module mass, size and cost describe the whole module as it goes into a robot: the part,
+its ATtiny85 board and its printed housing with dovetail faces (see catalog.toml).
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+import tomllib
+from collections.abc import Collection, Iterable
+from dataclasses import dataclass
+from decimal import ROUND_HALF_UP, Decimal
+from importlib.resources import files
+from pathlib import Path
+from typing import Any
+
+from adron.errors import InputError
+from adron.translate import asp_string
+from adron.units import quantity
+
+__all__ = [
+    "BATTERY_CLASS",
+    "MAIN_CLASS",
+    "TORQUE_CLASSES",
+    "Actuator",
+    "Catalog",
+    "DesignRules",
+    "Material",
+    "Module",
+    "Passive",
+    "catalog_facts",
+    "load_catalog",
+    "parse_catalog",
+]
+
+TORQUE_CLASSES = ("low", "medium", "high")
+BATTERY_CLASS = "BatteryModule"
+MAIN_CLASS = "MainModule"
+
+Size = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """A servo actuator module. SI: kg, m, N*m, rad/s, A; cost in the catalog currency."""
+
+    model: str
+    ontology_class: str
+    torque_class: str
+    mass_kg: float
+    size_m: Size
+    stall_torque_Nm: float
+    no_load_speed_rad_s: float
+    stall_current_A: float
+    cost: float
+
+
+@dataclass(frozen=True)
+class Module:
+    """A non-actuator active module (main board, battery, sensor). SI: kg, m, A, V.
+
+    ``current_A`` is the module's typical draw from the 5 V rail. Battery modules also
+    have ``capacity_Ah`` (ampere-hours), ``voltage_V`` (nominal) and ``max_current_A``
+    (continuous: C-rating x capacity); these are None for other modules.
+    """
+
+    model: str
+    ontology_class: str
+    mass_kg: float
+    size_m: Size
+    cost: float
+    current_A: float
+    capacity_Ah: float | None = None
+    voltage_V: float | None = None
+    max_current_A: float | None = None
+
+
+@dataclass(frozen=True)
+class Passive:
+    """Templates of the printed passive modules (m, dimensionless, m^3/s)."""
+
+    dovetail_face_m: float
+    face_thickness_m: float
+    min_wall_m: float
+    max_outer_radius_m: float
+    fillet_radius_m: float
+    stress_concentration: float
+    min_link_length_m: float
+    max_link_length_m: float
+    wheel_min_radius_m: float
+    wheel_max_radius_m: float
+    wheel_width_m: float
+    foot_min_side_m: float
+    foot_max_side_m: float
+    foot_thickness_m: float
+    printer_bed_m: Size
+    print_speed_m3_s: float
+
+
+@dataclass(frozen=True)
+class Material:
+    """The printing material (Pa, Pa, kg/m^3)."""
+
+    name: str
+    youngs_modulus_Pa: float
+    yield_strength_Pa: float
+    density_kg_m3: float
+
+
+@dataclass(frozen=True)
+class DesignRules:
+    """Defaults of the structure generator (dimensionless, m, rad/s^2, m/s^2, rad)."""
+
+    torque_safety_factor: float
+    stress_safety_factor: float
+    max_tip_deflection_m: float
+    max_joint_acceleration_rad_s2: float
+    i2c_first_address: int
+    gravity_m_s2: float
+    max_slope_rad: float
+    rolling_resistance: float
+
+
+@dataclass(frozen=True)
+class Catalog:
+    """A validated catalog. ``source`` is the file it came from (for messages)."""
+
+    name: str
+    currency: str
+    version: str
+    actuators: tuple[Actuator, ...]
+    modules: tuple[Module, ...]
+    passive: Passive
+    material: Material
+    design: DesignRules
+    source: str
+
+    def actuators_of(self, ontology_class: str) -> tuple[Actuator, ...]:
+        """The actuators whose class is exactly ``ontology_class``, in file order.
+
+        (Subclass reasoning is the ontology's job: the ASP encodings match with isa/2.)
+        """
+        return tuple(a for a in self.actuators if a.ontology_class == ontology_class)
+
+    def modules_of(self, ontology_class: str) -> tuple[Module, ...]:
+        """The modules whose class is exactly ``ontology_class``, in file order."""
+        return tuple(m for m in self.modules if m.ontology_class == ontology_class)
+
+    def module_of(self, ontology_class: str) -> Module:
+        """The first module of ``ontology_class``; InputError naming the file if none."""
+        found = self.modules_of(ontology_class)
+        if not found:
+            raise InputError(f"{self.source}: no [[module]] of class '{ontology_class}'")
+        return found[0]
+
+    @property
+    def battery(self) -> Module:
+        """The battery module (the first of class BatteryModule)."""
+        return self.module_of(BATTERY_CLASS)
+
+    @property
+    def main_module(self) -> Module:
+        """The main module (the first of class MainModule)."""
+        return self.module_of(MAIN_CLASS)
+
+    def check_classes(self, known: Collection[str]) -> None:
+        """InputError if an entry names an ontology class not in ``known``.
+
+        The catalog cannot see the ontology (adron.catalog imports no knowledge base);
+        the caller passes the class names of the loaded ontology.
+        """
+        entries = [
+            (f"actuator[{i}] ({a.model})", a.ontology_class)
+            for i, a in enumerate(self.actuators, 1)
+        ]
+        entries += [
+            (f"module[{i}] ({m.model})", m.ontology_class) for i, m in enumerate(self.modules, 1)
+        ]
+        for path, cls in entries:
+            if cls not in known:
+                raise InputError(
+                    f"{self.source}: {path}.class: '{cls}' is not a class of the ontology"
+                    + _suggest(cls, known)
+                )
+
+
+# ---- Loading -----------------------------------------------------------------------------
+
+_ACTUATOR_KEYS = (
+    "model",
+    "class",
+    "torque_class",
+    "mass",
+    "size",
+    "stall_torque",
+    "no_load_speed",
+    "stall_current",
+    "cost",
+)
+_MODULE_KEYS = ("model", "class", "mass", "size", "cost", "current")
+_BATTERY_KEYS = ("capacity", "voltage", "c_rating")
+_PASSIVE_LENGTHS = (
+    "dovetail_face",
+    "face_thickness",
+    "min_wall",
+    "max_outer_radius",
+    "fillet_radius",
+    "min_link_length",
+    "max_link_length",
+    "wheel_min_radius",
+    "wheel_max_radius",
+    "wheel_width",
+    "foot_min_side",
+    "foot_max_side",
+    "foot_thickness",
+)
+_PASSIVE_KEYS = (*_PASSIVE_LENGTHS, "stress_concentration", "printer_bed", "print_speed")
+_MATERIAL_KEYS = ("name", "youngs_modulus", "yield_strength", "density")
+_DESIGN_KEYS = (
+    "torque_safety_factor",
+    "stress_safety_factor",
+    "max_tip_deflection",
+    "max_joint_acceleration",
+    "i2c_first_address",
+    "gravity",
+    "max_slope",
+    "rolling_resistance",
+)
+_TOP_KEYS = ("catalog", "actuator", "module", "passive", "material", "design")
+_CLASS_NAME = re.compile(r"[A-Z][A-Za-z0-9]*")
+_CURRENCY = re.compile(r"[A-Z]{3}")
+_TOML_AT = re.compile(r"(?s)(.*) \(at line (\d+), column (\d+)\)")
+
+
+def _suggest(word: str, choices: Iterable[str]) -> str:
+    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+def _kind(value: Any) -> str:
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, dict):
+        return "a table"
+    if isinstance(value, list):
+        return "an array"
+    if isinstance(value, str):
+        return f"the string '{value}'"
+    return f"the number {value}"
+
+
+class _Table:
+    """One TOML table being read: its data, its key path, and typed getters."""
+
+    def __init__(self, data: dict[str, Any], path: str, file: str) -> None:
+        self.data, self.path, self.file = data, path, file
+
+    def fail(self, message: str, key: str | None = None) -> InputError:
+        where = self.path if key is None else f"{self.path}.{key}"
+        return InputError(f"{self.file}: {where}: {message}")
+
+    def where(self, key: str) -> str:
+        return f"{self.file}: {self.path}.{key}"
+
+    def check_keys(self, required: Iterable[str], optional: Iterable[str] = ()) -> None:
+        required = tuple(required)
+        allowed = (*required, *optional)
+        for key in self.data:
+            if key not in allowed:
+                raise self.fail(f"unknown key '{key}'{_suggest(key, allowed)}")
+        for key in required:
+            if key not in self.data:
+                raise self.fail(f"missing key '{key}'")
+
+    def text(self, key: str) -> str:
+        value = self.data[key]
+        if not isinstance(value, str) or not value.strip():
+            raise self.fail(f"expected a non-empty string, got {_kind(value)}", key)
+        return value
+
+    def class_name(self, key: str = "class") -> str:
+        value = self.text(key)
+        if not _CLASS_NAME.fullmatch(value):
+            raise self.fail(f"'{value}' is not an ontology class name (like 'MainModule')", key)
+        return value
+
+    def q(self, key: str, dimension: str, **flags: bool) -> float:
+        return quantity(self.data[key], dimension, self.where(key), **flags)
+
+    def number(self, key: str, *, minimum: float = 0.0, allow_equal: bool = True) -> float:
+        value = self.data[key]
+        if isinstance(value, str):
+            value = quantity(value, "dimensionless", self.where(key), allow_negative=True)
+        elif isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(f"expected a number, got {_kind(value)}", key)
+        value = float(value)
+        if not math.isfinite(value):
+            raise self.fail(f"expected a finite number, got {value}", key)
+        if value < minimum or (value == minimum and not allow_equal):
+            bound = "at least" if allow_equal else "greater than"
+            raise self.fail(f"must be {bound} {minimum:g}, got {value:g}", key)
+        return value
+
+    def integer(self, key: str, low: int, high: int) -> int:
+        value = self.data[key]
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.fail(f"expected an integer, got {_kind(value)}", key)
+        if not low <= value <= high:
+            raise self.fail(f"must be between {low} and {high}, got {value}", key)
+        return value
+
+    def lengths(self, key: str) -> Size:
+        value = self.data[key]
+        if not isinstance(value, list) or len(value) != 3:
+            raise self.fail(
+                f"expected an array of 3 lengths such as ['50 mm', '50 mm', '40 mm'], "
+                f"got {_kind(value)}" + (f" of {len(value)}" if isinstance(value, list) else ""),
+                key,
+            )
+        x, y, z = (quantity(v, "length", f"{self.where(key)}[{i}]") for i, v in enumerate(value, 1))
+        return (x, y, z)
+
+
+def _section(doc: dict[str, Any], key: str, file: str) -> _Table:
+    if key not in doc:
+        raise InputError(f"{file}: missing table [{key}]")
+    value = doc[key]
+    if not isinstance(value, dict):
+        raise InputError(f"{file}: {key}: expected a table [{key}], got {_kind(value)}")
+    return _Table(value, key, file)
+
+
+def _entries(doc: dict[str, Any], key: str, file: str) -> list[_Table]:
+    value = doc.get(key)
+    if value is None or value == []:
+        raise InputError(f"{file}: no [[{key}]] entries; the catalog needs at least one")
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise InputError(f"{file}: {key}: expected an array of tables [[{key}]]")
+    tables = []
+    for i, data in enumerate(value, 1):
+        model = data.get("model")
+        label = f"{key}[{i}] ({model})" if isinstance(model, str) and model else f"{key}[{i}]"
+        tables.append(_Table(data, label, file))
+    return tables
+
+
+def _actuator(t: _Table) -> Actuator:
+    t.check_keys(_ACTUATOR_KEYS)
+    torque_class = t.text("torque_class")
+    if torque_class not in TORQUE_CLASSES:
+        raise t.fail(
+            f"'{torque_class}' is not one of {', '.join(TORQUE_CLASSES)}"
+            + _suggest(torque_class, TORQUE_CLASSES),
+            "torque_class",
+        )
+    return Actuator(
+        model=t.text("model"),
+        ontology_class=t.class_name(),
+        torque_class=torque_class,
+        mass_kg=t.q("mass", "mass"),
+        size_m=t.lengths("size"),
+        stall_torque_Nm=t.q("stall_torque", "torque"),
+        no_load_speed_rad_s=t.q("no_load_speed", "angular_speed"),
+        stall_current_A=t.q("stall_current", "current"),
+        cost=t.number("cost"),
+    )
+
+
+def _module(t: _Table) -> Module:
+    cls = t.data.get("class")
+    battery = cls == BATTERY_CLASS
+    if battery:
+        t.check_keys((*_MODULE_KEYS, *_BATTERY_KEYS))
+    else:
+        for key in _BATTERY_KEYS:
+            if key in t.data:
+                raise t.fail(f"'{key}' is only for modules of class '{BATTERY_CLASS}'", key)
+        t.check_keys(_MODULE_KEYS)
+    capacity = voltage = max_current = None
+    if battery:
+        capacity = t.q("capacity", "charge") / 3600.0  # C -> Ah
+        voltage = t.q("voltage", "voltage")
+        max_current = t.number("c_rating", allow_equal=False) * capacity  # (1/h) * Ah = A
+    return Module(
+        model=t.text("model"),
+        ontology_class=t.class_name(),
+        mass_kg=t.q("mass", "mass"),
+        size_m=t.lengths("size"),
+        cost=t.number("cost"),
+        current_A=t.q("current", "current", allow_zero=True),
+        capacity_Ah=capacity,
+        voltage_V=voltage,
+        max_current_A=max_current,
+    )
+
+
+def _passive(t: _Table) -> Passive:
+    t.check_keys(_PASSIVE_KEYS)
+    v = {key: t.q(key, "length") for key in _PASSIVE_LENGTHS}
+    bed = t.lengths("printer_bed")
+    p = Passive(
+        dovetail_face_m=v["dovetail_face"],
+        face_thickness_m=v["face_thickness"],
+        min_wall_m=v["min_wall"],
+        max_outer_radius_m=v["max_outer_radius"],
+        fillet_radius_m=v["fillet_radius"],
+        stress_concentration=t.number("stress_concentration", minimum=1.0),
+        min_link_length_m=v["min_link_length"],
+        max_link_length_m=v["max_link_length"],
+        wheel_min_radius_m=v["wheel_min_radius"],
+        wheel_max_radius_m=v["wheel_max_radius"],
+        wheel_width_m=v["wheel_width"],
+        foot_min_side_m=v["foot_min_side"],
+        foot_max_side_m=v["foot_max_side"],
+        foot_thickness_m=v["foot_thickness"],
+        printer_bed_m=bed,
+        print_speed_m3_s=t.q("print_speed", "volume_flow"),
+    )
+
+    def mm(x: float) -> str:
+        return f"{x * 1e3:g} mm"
+
+    if p.min_wall_m >= p.max_outer_radius_m:
+        raise t.fail(
+            f"min_wall {mm(p.min_wall_m)} leaves no hole in a tube of outer radius "
+            f"{mm(p.max_outer_radius_m)}",
+            "min_wall",
+        )
+    if 2 * (p.max_outer_radius_m + p.fillet_radius_m) > p.dovetail_face_m:
+        raise t.fail(
+            f"a tube of radius {mm(p.max_outer_radius_m)} with its "
+            f"{mm(p.fillet_radius_m)} fillet does not fit the {mm(p.dovetail_face_m)} "
+            "dovetail face",
+            "max_outer_radius",
+        )
+    for low, high in (
+        ("min_link_length", "max_link_length"),
+        ("wheel_min_radius", "wheel_max_radius"),
+        ("foot_min_side", "foot_max_side"),
+    ):
+        if v[low] > v[high]:
+            raise t.fail(f"{mm(v[low])} is more than {high} = {mm(v[high])}", low)
+    if p.max_link_length_m > max(bed):
+        raise t.fail(
+            f"{mm(p.max_link_length_m)} does not fit the printer bed "
+            f"({' x '.join(mm(b) for b in bed)})",
+            "max_link_length",
+        )
+    flat = min(bed[0], bed[1])
+    if 2 * p.wheel_max_radius_m > flat:
+        raise t.fail(
+            f"a wheel of radius {mm(p.wheel_max_radius_m)} does not fit the printer bed",
+            "wheel_max_radius",
+        )
+    if p.foot_max_side_m > flat:
+        raise t.fail(f"{mm(p.foot_max_side_m)} does not fit the printer bed", "foot_max_side")
+    return p
+
+
+def _material(t: _Table) -> Material:
+    t.check_keys(_MATERIAL_KEYS)
+    return Material(
+        name=t.text("name"),
+        youngs_modulus_Pa=t.q("youngs_modulus", "pressure"),
+        yield_strength_Pa=t.q("yield_strength", "pressure"),
+        density_kg_m3=t.q("density", "density"),
+    )
+
+
+def _design(t: _Table) -> DesignRules:
+    t.check_keys(_DESIGN_KEYS)
+    slope = t.q("max_slope", "angle", allow_zero=True)
+    if slope >= math.pi / 2:
+        raise t.fail(f"'{t.data['max_slope']}' is not less than 90 deg", "max_slope")
+    rolling = t.number("rolling_resistance")
+    if rolling >= 1:
+        raise t.fail(f"must be less than 1, got {rolling:g}", "rolling_resistance")
+    return DesignRules(
+        torque_safety_factor=t.number("torque_safety_factor", minimum=1.0),
+        stress_safety_factor=t.number("stress_safety_factor", minimum=1.0),
+        max_tip_deflection_m=t.q("max_tip_deflection", "length"),
+        max_joint_acceleration_rad_s2=t.q("max_joint_acceleration", "angular_acceleration"),
+        # 7-bit I2C: 0x00-0x07 and 0x78-0x7F are reserved.
+        i2c_first_address=t.integer("i2c_first_address", 0x08, 0x77),
+        gravity_m_s2=t.q("gravity", "acceleration"),
+        max_slope_rad=slope,
+        rolling_resistance=rolling,
+    )
+
+
+def _header(t: _Table) -> tuple[str, str, str]:
+    t.check_keys(("name", "currency", "version"))
+    currency = t.text("currency")
+    if not _CURRENCY.fullmatch(currency):
+        raise t.fail(f"'{currency}' is not a currency code such as 'EUR'", "currency")
+    version = t.data["version"]
+    if isinstance(version, int) and not isinstance(version, bool):
+        version = str(version)
+    else:
+        version = t.text("version")
+    return t.text("name"), currency, version
+
+
+def _toml_error(error: tomllib.TOMLDecodeError, text: str, source: str) -> InputError:
+    """``file:line:col: message`` from tomllib's "message (at line L, column C)"."""
+    message = str(error)
+    match = _TOML_AT.fullmatch(message)
+    if match:
+        return InputError(f"{source}:{match[2]}:{match[3]}: {match[1]}")
+    if message.endswith(" (at end of document)"):
+        lines = text.split("\n")
+        line, col = len(lines), len(lines[-1]) + 1
+        return InputError(f"{source}:{line}:{col}: {message}")
+    return InputError(f"{source}: {message}")
+
+
+def parse_catalog(text: str, source: str) -> Catalog:
+    """Validate catalog TOML ``text``; ``source`` names it in messages."""
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise _toml_error(error, text, source) from None
+    for key in doc:
+        if key not in _TOP_KEYS:
+            raise InputError(f"{source}: unknown key '{key}'{_suggest(key, _TOP_KEYS)}")
+    name, currency, version = _header(_section(doc, "catalog", source))
+    actuators = tuple(_actuator(t) for t in _entries(doc, "actuator", source))
+    modules = tuple(_module(t) for t in _entries(doc, "module", source))
+    seen: dict[str, str] = {}
+    labelled = [(f"actuator[{i}]", a.model) for i, a in enumerate(actuators, 1)]
+    labelled += [(f"module[{i}]", m.model) for i, m in enumerate(modules, 1)]
+    for label, model in labelled:
+        if model in seen:
+            raise InputError(
+                f"{source}: {label} ({model}): duplicate model '{model}' (also {seen[model]})"
+            )
+        seen[model] = label
+    catalog = Catalog(
+        name=name,
+        currency=currency,
+        version=version,
+        actuators=actuators,
+        modules=modules,
+        passive=_passive(_section(doc, "passive", source)),
+        material=_material(_section(doc, "material", source)),
+        design=_design(_section(doc, "design", source)),
+        source=source,
+    )
+    for cls, what in ((MAIN_CLASS, "the main module"), (BATTERY_CLASS, "a battery")):
+        if not catalog.modules_of(cls):
+            raise InputError(f"{source}: no [[module]] of class '{cls}'; every design needs {what}")
+    return catalog
+
+
+def load_catalog(path: str | Path | None = None) -> Catalog:
+    """The catalog at ``path``, or the shipped one (adron/catalog.toml) when None."""
+    if path is None:
+        resource = files("adron") / "catalog.toml"
+        return parse_catalog(resource.read_text(encoding="utf-8"), str(resource))
+    source = str(path)
+    try:
+        raw = Path(path).read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"{source}: no such file") from None
+    except IsADirectoryError:
+        raise InputError(f"{source}: is a folder, not a catalog file") from None
+    except OSError as error:
+        raise InputError(f"{source}: cannot read: {error.strerror or error}") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise InputError(f"{source}: not UTF-8 text (byte {error.start})") from None
+    return parse_catalog(text, source)
+
+
+# ---- ASP facts ---------------------------------------------------------------------------
+
+
+def _scaled(value: float, scale: int) -> int:
+    """``value * scale`` rounded half up, from the shortest decimal form of ``value``."""
+    return int((Decimal(repr(value)) * scale).to_integral_value(rounding=ROUND_HALF_UP))
+
+
+def catalog_facts(cat: Catalog) -> str:
+    """The actuators and modules as ASP facts in integers (clingo has no floats).
+
+    ``actuator(Model, Class, MassMg, CostCents, StallTorqueMilliNm, NoLoadSpeedMilliRadPerS,
+    StallCurrentMilliA).`` and ``module(Model, Class, MassMg, CostCents, CurrentMilliA).``
+    with Model and Class as strings; mass in milligrams, cost in hundredths of the catalog
+    currency, torque in mN*m, speed in mrad/s, current in mA, each rounded half up.
+    Sorted by model: the same catalog gives the same text.
+    """
+    lines = [
+        f"% Catalog facts: {cat.name}, version {cat.version}, cost in {cat.currency} cents.",
+        "% actuator(Model, Class, MassMg, CostCents, StallTorqueMilliNm, "
+        "NoLoadSpeedMilliRadPerS, StallCurrentMilliA).",
+        "% module(Model, Class, MassMg, CostCents, CurrentMilliA).",
+    ]
+    for a in sorted(cat.actuators, key=lambda a: a.model):
+        fields = [
+            asp_string(a.model),
+            asp_string(a.ontology_class),
+            _scaled(a.mass_kg, 1_000_000),
+            _scaled(a.cost, 100),
+            _scaled(a.stall_torque_Nm, 1000),
+            _scaled(a.no_load_speed_rad_s, 1000),
+            _scaled(a.stall_current_A, 1000),
+        ]
+        lines.append(f"actuator({','.join(map(str, fields))}).")
+    for m in sorted(cat.modules, key=lambda m: m.model):
+        fields = [
+            asp_string(m.model),
+            asp_string(m.ontology_class),
+            _scaled(m.mass_kg, 1_000_000),
+            _scaled(m.cost, 100),
+            _scaled(m.current_A, 1000),
+        ]
+        lines.append(f"module({','.join(map(str, fields))}).")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,103 @@
+"""Structural design parameters: names, dimensions, which robot types use them, defaults.
+
+Conceptual parameters (``object_shape``) are declared in the ontology (``parameterName``);
+the physical ones below size the structure. Values take units (``--param reach=30cm``)
+and are SI floats inside. A default of ``None`` means "from the catalog's [design]
+section" (``deflection``, ``slope``).
+
+| name | dimension | used by | default |
+|---|---|---|---|
+| payload | mass | every type | manipulators 0.2 kg, legged 0.1 kg, wheeled 0.5 kg, snake 0 kg |
+| reach | length | Manipulator3DOF, Manipulator6DOF | 0.25 m |
+| speed | speed | every type but the snake | manipulators 0.2 m/s (tip), legged 0.05 m/s, wheeled 0.3 m/s |
+| obstacle_height | length | HexapodRobot, QuadrupedRobot | 0.03 m |
+| load_area | area | DifferentialDriveRobot, SkidSteerRobot | 0.03 m^2 (300 cm^2) |
+| height | length | HumanoidRobot | 0.40 m |
+| deflection | length | every type | catalog max_tip_deflection |
+| slope | angle | DifferentialDriveRobot, SkidSteerRobot | catalog max_slope |
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from adron.errors import InputError
+
+MANIPULATORS = ("Manipulator3DOF", "Manipulator6DOF")
+LEGGED = ("HexapodRobot", "QuadrupedRobot")
+WHEELED = ("DifferentialDriveRobot", "SkidSteerRobot")
+ALL = (*MANIPULATORS, *LEGGED, "HumanoidRobot", "SnakeRobot", *WHEELED)
+
+
+@dataclass(frozen=True, slots=True)
+class ParamSpec:
+    """A structural parameter: its dimension (adron.units) and per-type defaults (SI)."""
+
+    name: str
+    dimension: str
+    doc: str
+    defaults: Mapping[str, float | None]
+
+    def applies_to(self, robot_type: str) -> bool:
+        return robot_type in self.defaults
+
+
+def _for(types: tuple[str, ...], value: float | None) -> dict[str, float | None]:
+    return dict.fromkeys(types, value)
+
+
+PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec("payload", "mass", "mass carried: at the gripper (manipulators), on the trunk "
+              "(mobile robots)",
+              {**_for(MANIPULATORS, 0.2), **_for(LEGGED, 0.1), "HumanoidRobot": 0.05,
+               "SnakeRobot": 0.0, **_for(WHEELED, 0.5)}),
+    ParamSpec("reach", "length", "horizontal reach from the shoulder axis to the gripper",
+              _for(MANIPULATORS, 0.25)),
+    ParamSpec("speed", "speed", "tip speed (manipulators) or travel speed (mobile robots)",
+              {**_for(MANIPULATORS, 0.2), **_for(LEGGED, 0.05), "HumanoidRobot": 0.05,
+               **_for(WHEELED, 0.3)}),
+    ParamSpec("obstacle_height", "length", "height of the obstacles the legs must step over",
+              _for(LEGGED, 0.03)),
+    ParamSpec("load_area", "area", "area of the load platform (L1 x L2)", _for(WHEELED, 0.03)),
+    ParamSpec("height", "length", "standing height of the humanoid", {"HumanoidRobot": 0.40}),
+    ParamSpec("deflection", "length", "allowed tip deflection of each printed link",
+              _for(ALL, None)),
+    ParamSpec("slope", "angle", "steepest slope to climb while accelerating", _for(WHEELED, None)),
+)
+BY_NAME = {p.name: p for p in PARAMS}
+
+
+def parse_structural(items: Mapping[str, str]) -> dict[str, float]:
+    """``{"reach": "30cm"}`` -> ``{"reach": 0.3}``; raises InputError for a wrong unit."""
+    from adron.units import quantity
+
+    out = {}
+    for name, text in items.items():
+        spec = BY_NAME[name]
+        zero_ok = name in ("payload", "slope")
+        out[name] = quantity(text, spec.dimension, f"--param {name}", allow_zero=zero_ok)
+    return out
+
+
+def resolve(robot_type: str, given: Mapping[str, float], design_defaults: Mapping[str, float]
+            ) -> tuple[dict[str, float], tuple[str, ...]]:
+    """The parameters of ``robot_type``: given values over defaults.
+
+    Returns (values, ignored): the names given that this type does not use.
+    ``design_defaults`` supplies the catalog-driven defaults (``deflection``, ``slope``).
+    """
+    values: dict[str, float] = {}
+    for spec in PARAMS:
+        if not spec.applies_to(robot_type):
+            continue
+        if spec.name in given:
+            values[spec.name] = given[spec.name]
+        else:
+            default = spec.defaults[robot_type]
+            values[spec.name] = design_defaults[spec.name] if default is None else default
+    ignored = tuple(sorted(n for n in given if n not in values))
+    for name, v in values.items():
+        if v < 0 or (v == 0 and name not in ("payload", "slope")):
+            raise InputError(f"--param {name}: must be positive")
+    return values, ignored

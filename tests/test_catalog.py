@@ -1,0 +1,461 @@
+"""adron.catalog: the shipped catalog, its ASP facts, and validation of a user's catalog."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from importlib.resources import files
+from pathlib import Path
+
+import clingo
+import pytest
+
+from adron.catalog import (
+    BATTERY_CLASS,
+    MAIN_CLASS,
+    TORQUE_CLASSES,
+    Catalog,
+    catalog_facts,
+    load_catalog,
+    parse_catalog,
+)
+from adron.errors import InputError
+from adron.kb import KnowledgeBase
+
+SHIPPED = (files("adron") / "catalog.toml").read_text(encoding="utf-8")
+KGF_CM = 9.80665 * 0.01  # N*m
+SERVO_CLASSES = ("PositionServomotor", "ContinuousRotationServomotor")
+SENSOR_CLASSES = (
+    "ContactSensorModule",
+    "UltrasonicSensorModule",
+    "InfraredSensorModule",
+    "IMUSensorModule",
+)
+
+
+@pytest.fixture(scope="module")
+def cat() -> Catalog:
+    return load_catalog()
+
+
+# ---- The shipped catalog -----------------------------------------------------------------
+
+
+def test_six_actuators_two_classes_three_torque_classes(cat: Catalog) -> None:
+    assert len(cat.actuators) == 6
+    pairs = sorted((a.ontology_class, a.torque_class) for a in cat.actuators)
+    assert pairs == sorted((c, t) for c in SERVO_CLASSES for t in TORQUE_CLASSES)
+
+
+@pytest.mark.parametrize("cls", SERVO_CLASSES)
+def test_torque_classes_are_ordered(cat: Catalog, cls: str) -> None:
+    by_class = {a.torque_class: a for a in cat.actuators_of(cls)}
+    low, medium, high = (by_class[t] for t in TORQUE_CLASSES)
+    assert low.stall_torque_Nm < medium.stall_torque_Nm < high.stall_torque_Nm
+    assert low.mass_kg < medium.mass_kg < high.mass_kg
+    assert low.cost < medium.cost < high.cost
+
+
+def test_datasheet_conversions(cat: Catalog) -> None:
+    sg90 = cat.actuators_of("PositionServomotor")[0]
+    assert sg90.model == "SG90"
+    assert sg90.stall_torque_Nm == pytest.approx(1.8 * KGF_CM, rel=1e-12)
+    assert sg90.no_load_speed_rad_s == pytest.approx(math.radians(60) / 0.1, rel=1e-12)
+    assert sg90.mass_kg == pytest.approx(0.034, rel=1e-12)
+    assert sg90.size_m == pytest.approx((0.05, 0.05, 0.04), rel=1e-12)
+
+
+def test_every_actuator_is_plausible_hobby_hardware(cat: Catalog) -> None:
+    for a in cat.actuators:
+        assert 0.01 < a.mass_kg < 0.3, a
+        assert 0.05 < a.stall_torque_Nm < 5, a
+        assert 1 < a.no_load_speed_rad_s < 20, a
+        assert 0.1 < a.stall_current_A < 5, a
+        assert all(0.01 < s < 0.2 for s in a.size_m), a
+
+
+def test_battery_is_the_papers_1500mAh_3s_lipo(cat: Catalog) -> None:
+    battery = cat.battery
+    assert battery.ontology_class == BATTERY_CLASS
+    assert battery.capacity_Ah == pytest.approx(1.5, rel=1e-12)
+    assert battery.voltage_V == pytest.approx(11.1, rel=1e-12)
+    assert battery.max_current_A == pytest.approx(30.0, rel=1e-12)  # 20 C x 1.5 Ah
+
+
+def test_main_module_and_four_sensor_classes(cat: Catalog) -> None:
+    assert cat.main_module.ontology_class == MAIN_CLASS
+    assert cat.main_module.capacity_Ah is None
+    sensors = {m.ontology_class for m in cat.modules} - {MAIN_CLASS, BATTERY_CLASS}
+    assert sensors == set(SENSOR_CLASSES)
+    for cls in SENSOR_CLASSES:
+        module = cat.module_of(cls)
+        assert 0 < module.current_A < 0.1
+        assert module.voltage_V is None and module.max_current_A is None
+
+
+def test_pla_figures_in_printed_ranges(cat: Catalog) -> None:
+    pla = cat.material
+    assert pla.name == "PLA"
+    assert 2.0e9 <= pla.youngs_modulus_Pa <= 3.6e9
+    assert 30e6 <= pla.yield_strength_Pa <= 65e6
+    assert pla.density_kg_m3 == pytest.approx(1240.0)
+
+
+def test_passive_templates_and_rules(cat: Catalog) -> None:
+    p, d = cat.passive, cat.design
+    assert 2 * (p.max_outer_radius_m + p.fillet_radius_m) <= p.dovetail_face_m
+    assert p.min_wall_m < p.max_outer_radius_m
+    assert p.min_link_length_m < p.max_link_length_m <= max(p.printer_bed_m)
+    assert p.printer_bed_m == pytest.approx((0.22, 0.22, 0.25))
+    assert p.print_speed_m3_s == pytest.approx(8e-9, rel=1e-12)
+    assert p.stress_concentration >= 1
+    assert d.i2c_first_address == 8
+    assert d.max_slope_rad == pytest.approx(math.radians(10), rel=1e-12)
+    assert d.gravity_m_s2 == pytest.approx(9.81)
+
+
+def test_catalog_classes_are_ontology_modules(cat: Catalog, kb: KnowledgeBase) -> None:
+    parents: dict[str, set[str]] = {}
+    for sub, sup, *_ in kb.translation.relation("subclass"):
+        parents.setdefault(str(sub), set()).add(str(sup))
+
+    def ancestors(cls: str) -> set[str]:
+        seen, todo = set(), [cls]
+        while todo:
+            for parent in parents.get(todo.pop(), ()):
+                if parent not in seen:
+                    seen.add(parent)
+                    todo.append(parent)
+        return seen
+
+    for a in cat.actuators:
+        assert "ActuatorModule" in ancestors(a.ontology_class), a
+    for m in cat.modules:
+        assert "ActiveModule" in ancestors(m.ontology_class), m
+    cat.check_classes(parents.keys())
+
+
+def test_check_classes_names_file_and_entry(cat: Catalog) -> None:
+    known = {"PositionServomotor", "ContinuousRotationServomotor", "MainModule"}
+    with pytest.raises(InputError) as info:
+        cat.check_classes(known | {"BateryModule"})
+    assert str(info.value) == (
+        f"{cat.source}: module[2] (LiPo-3S-1500).class: 'BatteryModule' is not a class of "
+        "the ontology (did you mean 'BateryModule'?)"
+    )
+
+
+def test_module_of_a_missing_class_names_the_file(cat: Catalog) -> None:
+    with pytest.raises(InputError, match=r"catalog\.toml: no \[\[module\]\] of class 'Lidar'"):
+        cat.module_of("Lidar")
+
+
+def test_loading_is_deterministic(cat: Catalog, tmp_path: Path) -> None:
+    assert load_catalog() == cat
+    assert catalog_facts(load_catalog()) == catalog_facts(cat)
+    path = tmp_path / "copy.toml"
+    path.write_text(SHIPPED, encoding="utf-8")
+    copy = load_catalog(path)
+    assert dataclasses.replace(copy, source=cat.source) == cat
+    # Facts do not depend on the file's location or the order of its entries.
+    assert catalog_facts(copy) == catalog_facts(cat)
+    shuffled = dataclasses.replace(cat, actuators=cat.actuators[::-1], modules=cat.modules[::-1])
+    assert catalog_facts(shuffled) == catalog_facts(cat)
+
+
+# ---- ASP facts ---------------------------------------------------------------------------
+
+
+def _ground(facts: str) -> list[clingo.Symbol]:
+    ctl = clingo.Control(["--warn=none"])
+    ctl.add("base", [], facts)
+    ctl.ground([("base", [])])
+    return sorted(a.symbol for a in ctl.symbolic_atoms)
+
+
+def test_facts_parse_in_clingo_and_round_trip(cat: Catalog) -> None:
+    atoms = _ground(catalog_facts(cat))
+    actuators = {s.arguments[0].string: s for s in atoms if s.name == "actuator"}
+    modules = {s.arguments[0].string: s for s in atoms if s.name == "module"}
+    assert set(actuators) == {a.model for a in cat.actuators}
+    assert set(modules) == {m.model for m in cat.modules}
+    for a in cat.actuators:
+        args = actuators[a.model].arguments
+        assert args[1].string == a.ontology_class
+        numbers = [x.number for x in args[2:]]
+        expected = [
+            a.mass_kg * 1e6,
+            a.cost * 100,
+            a.stall_torque_Nm * 1e3,
+            a.no_load_speed_rad_s * 1e3,
+            a.stall_current_A * 1e3,
+        ]
+        for got, want in zip(numbers, expected, strict=True):
+            assert abs(got - want) <= 0.5 + 1e-9, (a.model, got, want)
+    for m in cat.modules:
+        args = modules[m.model].arguments
+        assert args[1].string == m.ontology_class
+        expected = [m.mass_kg * 1e6, m.cost * 100, m.current_A * 1e3]
+        for got, want in zip((x.number for x in args[2:]), expected, strict=True):
+            assert abs(got - want) <= 0.5 + 1e-9, (m.model, got, want)
+
+
+def test_facts_are_sorted_and_documented(cat: Catalog) -> None:
+    lines = catalog_facts(cat).splitlines()
+    comments = [line for line in lines if line.startswith("%")]
+    facts = [line for line in lines if not line.startswith("%")]
+    assert any("actuator(Model, Class, MassMg, CostCents" in c for c in comments)
+    assert any("module(Model, Class, MassMg, CostCents, CurrentMilliA)" in c for c in comments)
+    actuators = [f for f in facts if f.startswith("actuator(")]
+    assert actuators == sorted(actuators) and len(actuators) == 6
+    assert 'actuator("SG90","PositionServomotor",34000,500,177,10472,650).' in facts
+
+
+def test_facts_round_half_up_and_escape_strings(cat: Catalog) -> None:
+    sg90 = cat.actuators[0]
+    odd = dataclasses.replace(
+        sg90, model='Odd "quoted" \\ servo', cost=0.125, stall_current_A=0.0025, mass_kg=0.0015
+    )
+    facts = catalog_facts(dataclasses.replace(cat, actuators=(odd,)))
+    (atom,) = [s for s in _ground(facts) if s.name == "actuator"]
+    assert atom.arguments[0].string == 'Odd "quoted" \\ servo'
+    mass, cost, _, _, current = (x.number for x in atom.arguments[2:])
+    assert (mass, cost, current) == (1500, 13, 3)  # 12.5 -> 13 and 2.5 -> 3: half up
+
+
+# ---- Validation of a user's catalog ------------------------------------------------------
+
+
+def _edit(old: str, new: str, text: str = SHIPPED) -> str:
+    assert text.count(old) == 1, f"{old!r} must occur once in the shipped catalog"
+    return text.replace(old, new)
+
+
+def _drop(model: str, text: str = SHIPPED) -> str:
+    """The text without the [[actuator]] / [[module]] table of ``model``."""
+    at = text.index(f'model = "{model}"')
+    start = text.rindex("\n[[", 0, at)
+    end = text.index("\n[", at)
+    return text[:start] + text[end:]
+
+
+def _drop_all(kind: str, text: str = SHIPPED) -> str:
+    while f"\n[[{kind}]]" in text:
+        at = text.index(f"\n[[{kind}]]")
+        end = text.index("\n[", at + 1)
+        text = text[:at] + text[end:]
+    return text
+
+
+CASES = {
+    "missing key": (
+        _edit('stall_torque = "9.4 kgf*cm"\n', ""),
+        "actuator[2] (MG996R): missing key 'stall_torque'",
+    ),
+    "misspelled key": (
+        _edit('stall_torque = "9.4 kgf*cm"', 'stal_torque = "9.4 kgf*cm"'),
+        "actuator[2] (MG996R): unknown key 'stal_torque' (did you mean 'stall_torque'?)",
+    ),
+    "wrong unit": (
+        _edit('mass = "88 g"', 'mass = "88 mm"'),
+        "actuator[2] (MG996R).mass: expected a mass such as '0.5 kg', got '88 mm'",
+    ),
+    "bare number": (
+        _edit('stall_torque = "9.4 kgf*cm"', "stall_torque = 9.4"),
+        "actuator[2] (MG996R).stall_torque: '9.4' has no unit; expected a torque such as",
+    ),
+    "negative mass": (
+        _edit('mass = "88 g"', 'mass = "-88 g"'),
+        "actuator[2] (MG996R).mass: must not be negative, got '-88 g'",
+    ),
+    "zero torque": (
+        _edit('stall_torque = "9.4 kgf*cm"', 'stall_torque = "0 N*m"'),
+        "actuator[2] (MG996R).stall_torque: must be positive",
+    ),
+    "duplicate model": (
+        _edit('model = "DS3218"', 'model = "MG996R"'),
+        "actuator[3] (MG996R): duplicate model 'MG996R' (also actuator[2])",
+    ),
+    "duplicate across lists": (
+        _edit('model = "MPU-6050"', 'model = "SG90"'),
+        "module[6] (SG90): duplicate model 'SG90' (also actuator[1])",
+    ),
+    "bad torque class": (
+        _edit('torque_class = "medium"\nmass = "88 g"', 'torque_class = "meduim"\nmass = "88 g"'),
+        "actuator[2] (MG996R).torque_class: 'meduim' is not one of low, medium, high "
+        "(did you mean 'medium'?)",
+    ),
+    "size not an array": (
+        _edit('size = ["115 mm", "50 mm", "40 mm"]', 'size = "115 mm"'),
+        "module[2] (LiPo-3S-1500).size: expected an array of 3 lengths",
+    ),
+    "size of two": (
+        _edit('size = ["115 mm", "50 mm", "40 mm"]', 'size = ["115 mm", "50 mm"]'),
+        "module[2] (LiPo-3S-1500).size: expected an array of 3 lengths",
+    ),
+    "size element": (
+        _edit('size = ["115 mm", "50 mm", "40 mm"]', 'size = ["115 mm", "50 mm", "40"]'),
+        "module[2] (LiPo-3S-1500).size[3]: '40' has no unit",
+    ),
+    "cost as a string": (
+        _edit("cost = 8.7", 'cost = "8.7 EUR"'),
+        "actuator[2] (MG996R).cost: unknown unit 'EUR'",
+    ),
+    "negative cost": (
+        _edit("cost = 8.7", "cost = -8.7"),
+        "actuator[2] (MG996R).cost: must be at least 0, got -8.7",
+    ),
+    "class not a name": (
+        _edit('class = "MainModule"', 'class = "main module"'),
+        "module[1] (IntelEdison).class: 'main module' is not an ontology class name",
+    ),
+    "battery key on a sensor": (
+        _edit('model = "HC-SR04"', 'model = "HC-SR04"\ncapacity = "1 Ah"'),
+        "module[4] (HC-SR04).capacity: 'capacity' is only for modules of class 'BatteryModule'",
+    ),
+    "battery without capacity": (
+        _edit('capacity = "1500 mAh"\n', ""),
+        "module[2] (LiPo-3S-1500): missing key 'capacity'",
+    ),
+    "capacity in volts": (
+        _edit('capacity = "1500 mAh"', 'capacity = "1500 V"'),
+        "module[2] (LiPo-3S-1500).capacity: expected a charge such as '1500 mAh', got '1500 V'",
+    ),
+    "no battery": (
+        _drop("LiPo-3S-1500"),
+        "no [[module]] of class 'BatteryModule'; every design needs a battery",
+    ),
+    "no main module": (
+        _drop("IntelEdison"),
+        "no [[module]] of class 'MainModule'; every design needs the main module",
+    ),
+    "no actuator": (
+        _drop_all("actuator"),
+        "no [[actuator]] entries; the catalog needs at least one",
+    ),
+    "actuator as a table": (
+        _drop_all("actuator") + '\n[actuator]\nmodel = "X"\n',
+        "actuator: expected an array of tables [[actuator]]",
+    ),
+    "misspelled table": (
+        _edit("\n[design]\n", "\n[desing]\n"),
+        "unknown key 'desing' (did you mean 'design'?)",
+    ),
+    "missing table": (
+        SHIPPED[: SHIPPED.index("\n[material]")] + SHIPPED[SHIPPED.index("\n[design]") :],
+        "missing table [material]",
+    ),
+    "passive tube too wide": (
+        _edit('max_outer_radius = "20 mm"', 'max_outer_radius = "30 mm"'),
+        "passive.max_outer_radius: a tube of radius 30 mm with its 3 mm fillet does not fit "
+        "the 50 mm dovetail face",
+    ),
+    "link longer than the bed": (
+        _edit('max_link_length = "200 mm"', 'max_link_length = "30 cm"'),
+        "passive.max_link_length: 300 mm does not fit the printer bed",
+    ),
+    "link range reversed": (
+        _edit('min_link_length = "40 mm"', 'min_link_length = "210 mm"'),
+        "passive.min_link_length: 210 mm is more than max_link_length = 200 mm",
+    ),
+    "kt below one": (
+        _edit("stress_concentration = 1.8", "stress_concentration = 0.8"),
+        "passive.stress_concentration: must be at least 1, got 0.8",
+    ),
+    "modulus in metres": (
+        _edit('youngs_modulus = "2.3 GPa"', 'youngs_modulus = "2.3 m"'),
+        "material.youngs_modulus: expected a pressure such as '3.5 GPa', got '2.3 m'",
+    ),
+    "i2c address out of range": (
+        _edit("i2c_first_address = 0x08", "i2c_first_address = 0x80"),
+        "design.i2c_first_address: must be between 8 and 119, got 128",
+    ),
+    "i2c address as text": (
+        _edit("i2c_first_address = 0x08", 'i2c_first_address = "8"'),
+        "design.i2c_first_address: expected an integer, got the string '8'",
+    ),
+    "slope too steep": (
+        _edit('max_slope = "10 deg"', 'max_slope = "90 deg"'),
+        "design.max_slope: '90 deg' is not less than 90 deg",
+    ),
+    "currency": (
+        _edit('currency = "EUR"', 'currency = "euro"'),
+        "catalog.currency: 'euro' is not a currency code such as 'EUR'",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_invalid_catalog_names_file_and_key(case: str, tmp_path: Path) -> None:
+    text, expected = CASES[case]
+    path = tmp_path / "my catalog.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(InputError) as info:
+        load_catalog(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: ")
+    assert expected in message
+    assert info.value.exit_code == 2
+
+
+def test_toml_syntax_error_gives_file_line_col(tmp_path: Path) -> None:
+    lines = SHIPPED.split("\n")
+    lineno = lines.index('model = "MG996R"') + 1
+    lines[lineno - 1] = 'model = "MG996R'  # unterminated string
+    path = tmp_path / "broken.toml"
+    path.write_text("\n".join(lines), encoding="utf-8")
+    with pytest.raises(InputError) as info:
+        load_catalog(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}:{lineno}:"), message
+    _, line, col, reason = message.rsplit(":", 3)
+    assert int(line) == lineno and int(col) >= 9
+    assert "(at line" not in reason and reason.strip()
+
+
+def test_toml_error_at_end_of_document_still_has_a_position() -> None:
+    with pytest.raises(InputError) as info:
+        parse_catalog('x = "open', "end.toml")
+    assert str(info.value).startswith("end.toml:1:10: Unterminated string")
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    path = tmp_path / "nowhere.toml"
+    with pytest.raises(InputError) as info:
+        load_catalog(path)
+    assert str(info.value) == f"{path}: no such file"
+
+
+def test_folder_and_binary_files_are_input_errors(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="is a folder"):
+        load_catalog(tmp_path)
+    path = tmp_path / "latin1.toml"
+    path.write_bytes(SHIPPED.replace("Li-Po", "Li-Po \xe9").encode("latin-1"))
+    with pytest.raises(InputError, match=r"latin1\.toml: not UTF-8 text"):
+        load_catalog(path)
+
+
+def test_a_users_catalog_may_differ_from_the_shipped_one(tmp_path: Path) -> None:
+    # A cheaper second battery and plain-number strings for dimensionless keys.
+    extra = """
+[[module]]
+model = "LiPo-3S-2200"
+class = "BatteryModule"
+mass = "0.19 kg"
+size = ["120 mm", "50 mm", "40 mm"]
+cost = 0
+current = "0 A"
+capacity = "2.2 Ah"
+voltage = "11.1 V"
+c_rating = "25"
+"""
+    text = _edit("\n[passive]\n", extra + "\n[passive]\n")
+    path = tmp_path / "mine.toml"
+    path.write_text(text, encoding="utf-8")
+    mine = load_catalog(path)
+    assert mine.source == str(path)
+    assert mine.battery.model == "LiPo-3S-1500"  # the first battery
+    second = mine.modules_of(BATTERY_CLASS)[1]
+    assert second.capacity_Ah == pytest.approx(2.2, rel=1e-12)
+    assert second.max_current_A == pytest.approx(55.0, rel=1e-12)
+    assert second.cost == 0 and second.current_A == 0
