@@ -48,21 +48,46 @@ def _for(types: tuple[str, ...], value: float | None) -> dict[str, float | None]
 
 
 PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec("payload", "mass", "mass carried: at the gripper (manipulators), on the trunk "
-              "(mobile robots)",
-              {**_for(MANIPULATORS, 0.2), **_for(LEGGED, 0.1), "HumanoidRobot": 0.05,
-               "SnakeRobot": 0.0, **_for(WHEELED, 0.5)}),
-    ParamSpec("reach", "length", "horizontal reach from the shoulder axis to the gripper",
-              _for(MANIPULATORS, 0.25)),
-    ParamSpec("speed", "speed", "tip speed (manipulators) or travel speed (mobile robots)",
-              {**_for(MANIPULATORS, 0.2), **_for(LEGGED, 0.05), "HumanoidRobot": 0.05,
-               **_for(WHEELED, 0.3)}),
-    ParamSpec("obstacle_height", "length", "height of the obstacles the legs must step over",
-              _for(LEGGED, 0.03)),
+    ParamSpec(
+        "payload",
+        "mass",
+        "mass carried: at the gripper (manipulators), on the trunk (mobile robots)",
+        {
+            **_for(MANIPULATORS, 0.2),
+            **_for(LEGGED, 0.1),
+            "HumanoidRobot": 0.05,
+            "SnakeRobot": 0.0,
+            **_for(WHEELED, 0.5),
+        },
+    ),
+    ParamSpec(
+        "reach",
+        "length",
+        "horizontal reach from the shoulder axis to the gripper",
+        _for(MANIPULATORS, 0.25),
+    ),
+    ParamSpec(
+        "speed",
+        "speed",
+        "tip speed (manipulators) or travel speed (mobile robots)",
+        {
+            **_for(MANIPULATORS, 0.2),
+            **_for(LEGGED, 0.05),
+            "HumanoidRobot": 0.05,
+            **_for(WHEELED, 0.3),
+        },
+    ),
+    ParamSpec(
+        "obstacle_height",
+        "length",
+        "height of the obstacles the legs must step over",
+        _for(LEGGED, 0.03),
+    ),
     ParamSpec("load_area", "area", "area of the load platform (L1 x L2)", _for(WHEELED, 0.03)),
     ParamSpec("height", "length", "standing height of the humanoid", {"HumanoidRobot": 0.40}),
-    ParamSpec("deflection", "length", "allowed tip deflection of each printed link",
-              _for(ALL, None)),
+    ParamSpec(
+        "deflection", "length", "allowed tip deflection of each printed link", _for(ALL, None)
+    ),
     ParamSpec("slope", "angle", "steepest slope to climb while accelerating", _for(WHEELED, None)),
 )
 BY_NAME = {p.name: p for p in PARAMS}
@@ -80,8 +105,9 @@ def parse_structural(items: Mapping[str, str]) -> dict[str, float]:
     return out
 
 
-def resolve(robot_type: str, given: Mapping[str, float], design_defaults: Mapping[str, float]
-            ) -> tuple[dict[str, float], tuple[str, ...]]:
+def resolve(
+    robot_type: str, given: Mapping[str, float], design_defaults: Mapping[str, float]
+) -> tuple[dict[str, float], tuple[str, ...]]:
     """The parameters of ``robot_type``: given values over defaults.
 
     Returns (values, ignored): the names given that this type does not use.

@@ -309,8 +309,11 @@ class ActuatorAssigner:
         self._messages: list[str] = []
         self.joints = tuple(joints)
         self._ctl = clingo.Control(
-            ["--opt-mode=optN", f"-c mass_priority={prio['mass']}",
-             f"-c cost_priority={prio['cost']}"],
+            [
+                "--opt-mode=optN",
+                f"-c mass_priority={prio['mass']}",
+                f"-c cost_priority={prio['cost']}",
+            ],
             logger=lambda code, msg: self._messages.append(msg.strip()),
             message_limit=20,
         )
@@ -346,14 +349,16 @@ class ActuatorAssigner:
         got = {s.arguments[0].string: s.arguments[1].string for s in model.symbols(shown=True)}
         return Assignment(tuple((j.name, got[j.name]) for j in self.joints), tuple(model.cost))
 
-    def best(self, capable: Mapping[str, Iterable[str]], symmetric: bool = True
-             ) -> Assignment | None:
+    def best(
+        self, capable: Mapping[str, Iterable[str]], symmetric: bool = True
+    ) -> Assignment | None:
         """The optimal assignment (ties: the first in joint and model name order)."""
         found = self.ranked(capable, symmetric, 1)
         return found[0] if found else None
 
-    def ranked(self, capable: Mapping[str, Iterable[str]], symmetric: bool, k: int
-               ) -> list[Assignment]:
+    def ranked(
+        self, capable: Mapping[str, Iterable[str]], symmetric: bool, k: int
+    ) -> list[Assignment]:
         """The ``k`` best assignments, best first (each found by re-optimising with the
         previous ones blocked)."""
         self._assign(capable, symmetric)
