@@ -1,0 +1,767 @@
+"""Parametric kinematic models of parmor's base configurations (the paper's section 4.3).
+
+``build(robot_type, params)`` returns a :class:`Template`: a :class:`~kinematics.model.Model`
+whose link lengths, tube radii and masses come from ``params``, plus what the designer
+needs to analyse it (the printed tubes, feet, grippers, wheels). Type names are the
+ontology's KIF class names. The fixed root body (base, trunk or chassis) is welded to the
+world: a worst-case static or dynamic analysis of the limbs needs exactly that.
+
+Conventions (all templates): z up, x forward, SI units. Every joint ``J`` moves the body
+``J_link``; the root body hangs on the fixed joint ``root``. A movable joint's body holds
+the actuator module of that joint (a box of ``params.actuator_size`` and the mass of the
+joint's group, centred on the joint, aligned with the body frame) plus the printed tube
+that starts at the joint (a hollow cylinder of ``params.density``) plus what ends there
+(a foot, a gripper and the payload, a wheel). Pitch joints turn about +y, so a positive
+angle turns a link that points along +x downwards (right-hand rule). Position limits are
+listed per template; effort and velocity limits are left 0 for the designer to fill in.
+
+Templates (length names and defaults in ``DEFAULTS``):
+
+- ``Manipulator3DOF`` (Fig. 16): ``base_yaw`` (z) at the base top, a vertical column
+  ``L1``; ``shoulder_pitch`` (y), upper arm ``L2`` along +x; ``elbow_pitch`` (y), forearm
+  ``L3`` along +x; ``gripper`` (z) at the forearm tip, holding gripper and payload at its
+  origin. Zero pose: arm stretched horizontally along +x, gripper at (L2 + L3, 0, L1).
+  Limits: base_yaw +-pi, shoulder_pitch +-pi/2, elbow_pitch +-5pi/6, gripper [0, pi/2].
+- ``Manipulator6DOF`` (Fig. 31): as the 3-DOF arm, then ``wrist_roll`` (x) at the forearm
+  tip, ``wrist_pitch`` (y) at the same point with the wrist tube ``L4`` along +x, and
+  ``tool_roll`` (x) at the wrist tip (a roll-pitch-roll wrist whose axes meet at the
+  wrist centre); ``gripper`` (z) there. Zero pose: stretched along +x, gripper at
+  (L2 + L3 + L4, 0, L1). Limits: rolls +-pi, wrist_pitch +-pi/2, others as above.
+- ``HexapodRobot`` (Fig. 18, 19) / ``QuadrupedRobot``: a trunk plate ``La1`` (x, between
+  the front and rear leg mounts) by ``La2`` (y, between the left and right mounts). Legs
+  ``lf lm lh rf rm rh`` (left/right, front/middle/hind; the quadruped has no middle
+  pair) are mounted at (+-La1/2 or 0, +-La2/2, 0) pointing straight outward (leg frame x
+  = outward). Per leg ``X``: ``X_coxa`` (z, group leg_coxa) with the coxa tube along +x;
+  ``X_femur`` (y, group leg_femur) at the coxa tip with the femur tube along +x;
+  ``X_tibia`` (y, group leg_tibia) at the femur tip with the tibia tube along -z and the
+  foot at its end. Zero pose: standing, femur horizontal and tibia vertical, feet at
+  z = -tibia. Limits: coxa +-pi/3, femur +-pi/2, tibia +-2pi/3.
+- ``HumanoidRobot`` (Fig. 21): trunk frame at the pelvis centre, trunk box of height
+  ``trunk_height``. Legs ``l``/``r`` at y = +-hip_width/2: ``X_hip_yaw`` (z), ``X_hip_roll``
+  (x), ``X_hip_pitch`` (y, femur tube along -z), ``X_knee_pitch`` (y, tibia tube along -z),
+  ``X_ankle_pitch`` (y), ``X_ankle_roll`` (x, the foot plate of length ``foot``; sole
+  ``actuator_size[2] / 2`` below the ankle). Arms at (0, +-shoulder_width/2,
+  trunk_height): ``X_shoulder_pitch`` (y, upper arm along -z), ``X_elbow_pitch`` (y,
+  forearm along -z), ``X_gripper`` (x) at the forearm tip. 18 actuated joints. Zero pose:
+  upright, arms hanging. Limits: hip_yaw, hip_roll, ankle_roll +-pi/4; hip_pitch +-pi/2;
+  knee_pitch [0, 5pi/6]; ankle_pitch +-pi/3; shoulder_pitch +-pi; elbow_pitch [-5pi/6, 0];
+  gripper [0, pi/2].
+- ``SnakeRobot`` (section 4.3.2): ``params.modules`` = M modules from a fixed base body.
+  Module i (1-based) is ``joint_i`` with body ``module_i``: the actuator and a bracket tube
+  of length ``module`` along +x; odd modules pitch (y, vertical modules), even ones yaw
+  (z, horizontal modules). Zero pose: straight along +x. Limits +-pi/2.
+- ``DifferentialDriveRobot`` (section 4.3.1): chassis plate ``L1`` (x) by ``L2`` (y) centred
+  on the origin, at the wheel axle height. ``left_wheel``/``right_wheel`` (continuous, y,
+  group wheel) at (L1/4, +-L2/2, 0); a ball caster (fixed joint ``caster``) at
+  (-L1/2, 0, -wheel_radius), touching the ground at its origin. Ground at z = -wheel_radius.
+- ``SkidSteerRobot``: the same chassis with ``front_left_wheel``, ``front_right_wheel``,
+  ``rear_left_wheel``, ``rear_right_wheel`` at (+-L1/2, +-L2/2, 0).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from math import isfinite, pi
+from types import MappingProxyType
+
+import numpy as np
+
+from kinematics.model import Body, Joint, Model
+from kinematics.spatial import (
+    Part,
+    box_inertia,
+    point_inertia,
+    rot_z,
+    sphere_inertia,
+    transform,
+    transform_from,
+    tube_inertia,
+    tube_mass,
+)
+
+__all__ = [
+    "DEFAULTS",
+    "TEMPLATES",
+    "Segment",
+    "Template",
+    "TemplateParams",
+    "build",
+    "default_lengths",
+]
+
+#: Tube radii (r_outer, r_inner) m used when ``TemplateParams.tubes`` names none.
+DEFAULT_TUBE = (0.012, 0.009)
+#: Actuator module mass kg used when ``TemplateParams.actuator_mass`` names none.
+DEFAULT_ACTUATOR_MASS = 0.055
+
+BASE_SIZE = (0.10, 0.10, 0.02)  # manipulator base plate, m, under the base_yaw joint
+TRUNK_THICKNESS = 0.03  # legged trunk and snake base box height, m
+HUMANOID_TRUNK_DEPTH = 0.06  # m (x)
+CHASSIS_THICKNESS = 0.005  # m
+GRIPPER_SIZE = (0.04, 0.05, 0.03)  # gripper jaws box, m
+FOOT_WIDTH_RATIO = 0.6  # humanoid foot plate width / length
+FOOT_PLATE = 0.004  # humanoid foot plate thickness, m
+WHEEL_WIDTH = 0.01  # m
+CASTER_RADIUS = 0.01  # m
+
+#: Length names and defaults (m) of each template (read-only; ``default_lengths`` copies).
+DEFAULTS: Mapping[str, Mapping[str, float]] = {
+    "Manipulator3DOF": {"L1": 0.10, "L2": 0.15, "L3": 0.15},
+    "Manipulator6DOF": {"L1": 0.10, "L2": 0.15, "L3": 0.12, "L4": 0.06},
+    "HexapodRobot": {"La1": 0.20, "La2": 0.12, "coxa": 0.04, "femur": 0.08, "tibia": 0.12},
+    "QuadrupedRobot": {"La1": 0.20, "La2": 0.10, "coxa": 0.04, "femur": 0.08, "tibia": 0.10},
+    "HumanoidRobot": {
+        "trunk_height": 0.15,
+        "hip_width": 0.08,
+        "shoulder_width": 0.16,
+        "femur": 0.09,
+        "tibia": 0.09,
+        "foot": 0.10,
+        "upper_arm": 0.07,
+        "forearm": 0.08,
+    },
+    "SnakeRobot": {"module": 0.06},
+    "DifferentialDriveRobot": {"L1": 0.16, "L2": 0.12},
+    "SkidSteerRobot": {"L1": 0.20, "L2": 0.16},
+}
+DEFAULTS = MappingProxyType({k: MappingProxyType(v) for k, v in DEFAULTS.items()})
+
+#: The supported robot types (KIF class names of the ontology's base configurations).
+TEMPLATES: tuple[str, ...] = tuple(DEFAULTS)
+
+
+@dataclass(frozen=True)
+class TemplateParams:
+    """Parameters of a template; every length, radius and mass in SI units.
+
+    ``lengths``: named lengths (m), see ``DEFAULTS``; ``tubes``: (r_outer, r_inner) m per
+    length name of a tube (default ``DEFAULT_TUBE``); ``actuator_mass``: kg per joint group
+    (default ``DEFAULT_ACTUATOR_MASS``); ``payload``: kg, at the gripper of a manipulator,
+    at the trunk otherwise; ``trunk_mass``: kg of the root body (plate, main module,
+    battery); ``modules``: the snake's M.
+    """
+
+    lengths: Mapping[str, float] = field(default_factory=dict)
+    tubes: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    density: float = 1240.0
+    actuator_mass: Mapping[str, float] = field(default_factory=dict)
+    actuator_size: tuple[float, float, float] = (0.040, 0.020, 0.040)
+    payload: float = 0.0
+    trunk_mass: float = 0.25
+    modules: int = 3
+    wheel_radius: float = 0.03
+    foot_mass: float = 0.01
+    gripper_mass: float = 0.03
+    wheel_mass: float = 0.03
+    caster_mass: float = 0.02
+
+
+@dataclass(frozen=True, eq=False)
+class Segment:
+    """One printed tube (a LinkModule) of the design, in the frame of its body.
+
+    ``name`` is unique in the template (the length name, prefixed by the limb when several
+    limbs share it); ``length_name`` is the length (and tube radii) it uses.
+    ``distal_joint``: the joint at its far end, whose wrench loads it; None for a free end
+    or a foot.
+    """
+
+    name: str
+    body: str
+    start: np.ndarray
+    direction: np.ndarray
+    length: float
+    r_outer: float
+    r_inner: float
+    distal_joint: str | None
+    length_name: str = ""
+
+    def __post_init__(self) -> None:
+        for attr in ("start", "direction"):
+            a = np.array(getattr(self, attr), dtype=float)
+            a.setflags(write=False)
+            object.__setattr__(self, attr, a)
+
+    @property
+    def end(self) -> np.ndarray:
+        """(3,) far end of the tube in the body frame, m."""
+        return self.start + self.length * self.direction
+
+
+@dataclass(frozen=True, eq=False)
+class Template:
+    """A built template: its model and the parts the designer analyses.
+
+    ``feet``: bodies that touch the ground at ``foot_points`` (body frame, m);
+    ``wheels``: driven wheel bodies (centre at the body origin, contact ``wheel_radius``
+    below it); ``casters``: passive support bodies touching the ground at their origin;
+    ``end_effectors``: gripper bodies. ``lengths``: the lengths used (defaults filled in).
+    """
+
+    robot_type: str
+    model: Model
+    segments: tuple[Segment, ...]
+    end_effectors: tuple[str, ...]
+    feet: tuple[str, ...]
+    foot_points: tuple[np.ndarray, ...]
+    wheels: tuple[str, ...]
+    legs: int
+    arms: int
+    length_names: tuple[str, ...]
+    casters: tuple[str, ...] = ()
+    lengths: Mapping[str, float] = field(default_factory=dict)
+    params: TemplateParams = field(default_factory=TemplateParams)
+
+    @property
+    def groups(self) -> dict[str, tuple[str, ...]]:
+        """Joint names of each actuator group, in joint order."""
+        out: dict[str, list[str]] = {}
+        for j in self.model.joints:
+            if j.movable:
+                out.setdefault(j.group, []).append(j.name)
+        return {g: tuple(names) for g, names in out.items()}
+
+
+def default_lengths(robot_type: str) -> dict[str, float]:
+    """The length names of ``robot_type`` with their default values, m."""
+    return dict(DEFAULTS[_check_type(robot_type)])
+
+
+def _check_type(robot_type: str) -> str:
+    if robot_type not in DEFAULTS:
+        raise ValueError(f"unknown robot type {robot_type!r}; templates: {', '.join(TEMPLATES)}")
+    return robot_type
+
+
+# --- building blocks ---------------------------------------------------------------------------
+
+
+class _Builder:
+    """Collects bodies, joints and segments of one template."""
+
+    def __init__(self, robot_type: str, params: TemplateParams, lengths: dict[str, float]):
+        self.robot_type = robot_type
+        self.p = params
+        self.L = lengths
+        self.bodies: list[Body] = []
+        self.joints: list[Joint] = []
+        self.segments: list[Segment] = []
+
+    def index(self, body: str | None) -> int:
+        if body is None:
+            return -1
+        for i, b in enumerate(self.bodies):
+            if b.name == body:
+                return i
+        raise KeyError(body)
+
+    def add(
+        self,
+        joint: str,
+        parent: str | None,
+        kind: str,
+        origin: np.ndarray,
+        parts: list[Part],
+        axis: tuple[float, float, float] = (0.0, 0.0, 1.0),
+        limits: tuple[float, float] = (-pi, pi),
+        group: str = "",
+        body: str | None = None,
+    ) -> str:
+        """Add joint ``joint`` and its body (default ``joint + "_link"``); the body's name."""
+        name = body or f"{joint}_link"
+        if kind != "fixed":
+            parts = [self.actuator(group), *parts]
+        i = len(self.bodies)
+        self.bodies.append(Body.from_parts(name, parts))
+        self.joints.append(
+            Joint(
+                joint,
+                self.index(parent),
+                i,
+                kind,
+                origin,
+                np.array(axis, dtype=float),
+                lower=limits[0],
+                upper=limits[1],
+                group=group,
+            )
+        )
+        return name
+
+    def actuator(self, group: str) -> Part:
+        m = float(self.p.actuator_mass.get(group, DEFAULT_ACTUATOR_MASS))
+        return m, np.zeros(3), box_inertia(m, self.p.actuator_size)
+
+    def tube(
+        self,
+        name: str,
+        length_name: str,
+        body: str,
+        direction: tuple[float, float, float],
+        distal: str | None,
+        start: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    ) -> Part:
+        """Record a segment on ``body`` and return its rigid part."""
+        length = self.L[length_name]
+        ro, ri = self.p.tubes.get(length_name, DEFAULT_TUBE)
+        d = np.array(direction, dtype=float)
+        s = np.array(start, dtype=float)
+        self.segments.append(
+            Segment(name, body, s, d, length, float(ro), float(ri), distal, length_name)
+        )
+        m = tube_mass(self.p.density, length, ro, ri)
+        return m, s + 0.5 * length * d, tube_inertia(m, length, ro, ri, d)
+
+    def model(self) -> Model:
+        return Model(tuple(self.bodies), tuple(self.joints))
+
+
+def _frozen(x) -> np.ndarray:
+    a = np.array(x, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+def _point(mass: float, at=(0.0, 0.0, 0.0)) -> Part:
+    return mass, np.array(at, dtype=float), point_inertia(mass)
+
+
+def _box(mass: float, size, at=(0.0, 0.0, 0.0)) -> Part:
+    return mass, np.array(at, dtype=float), box_inertia(mass, size)
+
+
+def _gripper_parts(p: TemplateParams, payload: float) -> list[Part]:
+    return [_box(p.gripper_mass, GRIPPER_SIZE), _point(payload)]
+
+
+# --- templates -----------------------------------------------------------------------------------
+
+
+def _manipulator(b: _Builder, six: bool) -> dict:
+    p, L = b.p, b.L
+    base = b.add(
+        "root",
+        None,
+        "fixed",
+        np.eye(4),
+        [_box(p.trunk_mass, BASE_SIZE, (0, 0, -BASE_SIZE[2] / 2))],
+        body="base",
+    )
+    col = "base_yaw_link"
+    b.add(
+        "base_yaw",
+        base,
+        "revolute",
+        np.eye(4),
+        [b.tube("L1", "L1", col, (0, 0, 1), "shoulder_pitch")],
+        group="base_yaw",
+    )
+    up = "shoulder_pitch_link"
+    b.add(
+        "shoulder_pitch",
+        col,
+        "revolute",
+        transform((0, 0, L["L1"])),
+        [b.tube("L2", "L2", up, (1, 0, 0), "elbow_pitch")],
+        axis=(0, 1, 0),
+        limits=(-pi / 2, pi / 2),
+        group="shoulder_pitch",
+    )
+    fore = "elbow_pitch_link"
+    tip_joint = "wrist_roll" if six else "gripper"
+    b.add(
+        "elbow_pitch",
+        up,
+        "revolute",
+        transform((L["L2"], 0, 0)),
+        [b.tube("L3", "L3", fore, (1, 0, 0), tip_joint)],
+        axis=(0, 1, 0),
+        limits=(-5 * pi / 6, 5 * pi / 6),
+        group="elbow_pitch",
+    )
+    last = fore
+    at = transform((L["L3"], 0, 0))
+    if six:
+        wr = b.add("wrist_roll", fore, "revolute", at, [], axis=(1, 0, 0), group="wrist_roll")
+        wp = "wrist_pitch_link"
+        b.add(
+            "wrist_pitch",
+            wr,
+            "revolute",
+            np.eye(4),
+            [b.tube("L4", "L4", wp, (1, 0, 0), "tool_roll")],
+            axis=(0, 1, 0),
+            limits=(-pi / 2, pi / 2),
+            group="wrist_pitch",
+        )
+        last = b.add(
+            "tool_roll",
+            wp,
+            "revolute",
+            transform((L["L4"], 0, 0)),
+            [],
+            axis=(1, 0, 0),
+            group="tool_roll",
+        )
+        at = np.eye(4)
+    grip = b.add(
+        "gripper",
+        last,
+        "revolute",
+        at,
+        _gripper_parts(p, p.payload),
+        limits=(0.0, pi / 2),
+        group="gripper",
+    )
+    return {"end_effectors": (grip,), "arms": 1}
+
+
+_HEXAPOD_LEGS = (
+    ("lf", 1, 1),
+    ("lm", 0, 1),
+    ("lh", -1, 1),
+    ("rf", 1, -1),
+    ("rm", 0, -1),
+    ("rh", -1, -1),
+)
+_QUADRUPED_LEGS = (("lf", 1, 1), ("lh", -1, 1), ("rf", 1, -1), ("rh", -1, -1))
+
+
+def _multiped(b: _Builder, legs: tuple[tuple[str, int, int], ...]) -> dict:
+    p, L = b.p, b.L
+    trunk = b.add(
+        "root",
+        None,
+        "fixed",
+        np.eye(4),
+        [_box(p.trunk_mass, (L["La1"], L["La2"], TRUNK_THICKNESS)), _point(p.payload)],
+        body="trunk",
+    )
+    feet, points = [], []
+    for leg, fx, side in legs:
+        mount = transform_from(rot_z(side * pi / 2), (fx * L["La1"] / 2, side * L["La2"] / 2, 0))
+        coxa, femur, tibia = (f"{leg}_{s}_link" for s in ("coxa", "femur", "tibia"))
+        b.add(
+            f"{leg}_coxa",
+            trunk,
+            "revolute",
+            mount,
+            [b.tube(f"{leg}_coxa", "coxa", coxa, (1, 0, 0), f"{leg}_femur")],
+            limits=(-pi / 3, pi / 3),
+            group="leg_coxa",
+        )
+        b.add(
+            f"{leg}_femur",
+            coxa,
+            "revolute",
+            transform((L["coxa"], 0, 0)),
+            [b.tube(f"{leg}_femur", "femur", femur, (1, 0, 0), f"{leg}_tibia")],
+            axis=(0, 1, 0),
+            limits=(-pi / 2, pi / 2),
+            group="leg_femur",
+        )
+        foot = (0.0, 0.0, -L["tibia"])
+        b.add(
+            f"{leg}_tibia",
+            femur,
+            "revolute",
+            transform((L["femur"], 0, 0)),
+            [b.tube(f"{leg}_tibia", "tibia", tibia, (0, 0, -1), None), _point(p.foot_mass, foot)],
+            axis=(0, 1, 0),
+            limits=(-2 * pi / 3, 2 * pi / 3),
+            group="leg_tibia",
+        )
+        feet.append(tibia)
+        points.append(_frozen(foot))
+    return {"feet": tuple(feet), "foot_points": tuple(points), "legs": len(legs)}
+
+
+def _humanoid(b: _Builder) -> dict:
+    p, L = b.p, b.L
+    th = L["trunk_height"]
+    trunk = b.add(
+        "root",
+        None,
+        "fixed",
+        np.eye(4),
+        [
+            _box(p.trunk_mass, (HUMANOID_TRUNK_DEPTH, L["shoulder_width"], th), (0, 0, th / 2)),
+            _point(p.payload, (0, 0, th / 2)),
+        ],
+        body="trunk",
+    )
+    sole = p.actuator_size[2] / 2
+    q4, q3 = pi / 4, pi / 3
+    feet, points, hands = [], [], []
+    for s, side in (("l", 1), ("r", -1)):
+        hy = b.add(
+            f"{s}_hip_yaw",
+            trunk,
+            "revolute",
+            transform((0, side * L["hip_width"] / 2, 0)),
+            [],
+            limits=(-q4, q4),
+            group="hip_yaw",
+        )
+        hr = b.add(
+            f"{s}_hip_roll",
+            hy,
+            "revolute",
+            np.eye(4),
+            [],
+            axis=(1, 0, 0),
+            limits=(-q4, q4),
+            group="hip_roll",
+        )
+        thigh = f"{s}_hip_pitch_link"
+        b.add(
+            f"{s}_hip_pitch",
+            hr,
+            "revolute",
+            np.eye(4),
+            [b.tube(f"{s}_femur", "femur", thigh, (0, 0, -1), f"{s}_knee_pitch")],
+            axis=(0, 1, 0),
+            limits=(-pi / 2, pi / 2),
+            group="hip_pitch",
+        )
+        shank = f"{s}_knee_pitch_link"
+        b.add(
+            f"{s}_knee_pitch",
+            thigh,
+            "revolute",
+            transform((0, 0, -L["femur"])),
+            [b.tube(f"{s}_tibia", "tibia", shank, (0, 0, -1), f"{s}_ankle_pitch")],
+            axis=(0, 1, 0),
+            limits=(0.0, 5 * pi / 6),
+            group="knee_pitch",
+        )
+        ap = b.add(
+            f"{s}_ankle_pitch",
+            shank,
+            "revolute",
+            transform((0, 0, -L["tibia"])),
+            [],
+            axis=(0, 1, 0),
+            limits=(-q3, q3),
+            group="ankle_pitch",
+        )
+        plate = (L["foot"], FOOT_WIDTH_RATIO * L["foot"], FOOT_PLATE)
+        foot = b.add(
+            f"{s}_ankle_roll",
+            ap,
+            "revolute",
+            np.eye(4),
+            [_box(p.foot_mass, plate, (0, 0, -sole + FOOT_PLATE / 2))],
+            axis=(1, 0, 0),
+            limits=(-q4, q4),
+            group="ankle_roll",
+        )
+        feet.append(foot)
+        points.append(_frozen((0.0, 0.0, -sole)))
+        upper = f"{s}_shoulder_pitch_link"
+        b.add(
+            f"{s}_shoulder_pitch",
+            trunk,
+            "revolute",
+            transform((0, side * L["shoulder_width"] / 2, th)),
+            [b.tube(f"{s}_upper_arm", "upper_arm", upper, (0, 0, -1), f"{s}_elbow_pitch")],
+            axis=(0, 1, 0),
+            group="shoulder_pitch",
+        )
+        fore = f"{s}_elbow_pitch_link"
+        b.add(
+            f"{s}_elbow_pitch",
+            upper,
+            "revolute",
+            transform((0, 0, -L["upper_arm"])),
+            [b.tube(f"{s}_forearm", "forearm", fore, (0, 0, -1), f"{s}_gripper")],
+            axis=(0, 1, 0),
+            limits=(-5 * pi / 6, 0.0),
+            group="elbow_pitch",
+        )
+        hand = b.add(
+            f"{s}_gripper",
+            fore,
+            "revolute",
+            transform((0, 0, -L["forearm"])),
+            _gripper_parts(p, 0.0),
+            axis=(1, 0, 0),
+            limits=(0.0, pi / 2),
+            group="gripper",
+        )
+        hands.append(hand)
+    return {
+        "feet": tuple(feet),
+        "foot_points": tuple(points),
+        "end_effectors": tuple(hands),
+        "legs": 2,
+        "arms": 2,
+    }
+
+
+def _snake(b: _Builder) -> dict:
+    p, L = b.p, b.L
+    m = p.modules
+    if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
+        raise ValueError(f"modules must be an integer >= 1, got {m!r}")
+    size = (p.actuator_size[0], p.actuator_size[0], TRUNK_THICKNESS)
+    base = [_box(p.trunk_mass, size), _point(p.payload)]
+    parent = b.add("root", None, "fixed", np.eye(4), base, body="base")
+    origin = np.eye(4)
+    for i in range(1, m + 1):
+        body = f"module_{i}"
+        distal = f"joint_{i + 1}" if i < m else None
+        axis = (0, 1, 0) if i % 2 else (0, 0, 1)
+        parent = b.add(
+            f"joint_{i}",
+            parent,
+            "revolute",
+            origin,
+            [b.tube(body, "module", body, (1, 0, 0), distal)],
+            axis=axis,
+            limits=(-pi / 2, pi / 2),
+            group="snake_module",
+            body=body,
+        )
+        origin = transform((L["module"], 0, 0))
+    return {}
+
+
+def _wheeled(b: _Builder, skid: bool) -> dict:
+    p, L = b.p, b.L
+    r = p.wheel_radius
+    if not (isfinite(r) and r > 0):
+        raise ValueError(f"wheel_radius must be positive, got {r}")
+    chassis = b.add(
+        "root",
+        None,
+        "fixed",
+        np.eye(4),
+        [_box(p.trunk_mass, (L["L1"], L["L2"], CHASSIS_THICKNESS)), _point(p.payload)],
+        body="chassis",
+    )
+    wheel = [(p.wheel_mass, np.zeros(3), tube_inertia(p.wheel_mass, WHEEL_WIDTH, r, 0, (0, 1, 0)))]
+    if skid:
+        spots = (
+            ("front_left_wheel", 1, 1),
+            ("front_right_wheel", 1, -1),
+            ("rear_left_wheel", -1, 1),
+            ("rear_right_wheel", -1, -1),
+        )
+        places = [(n, (fx * L["L1"] / 2, side * L["L2"] / 2, 0)) for n, fx, side in spots]
+    else:
+        places = [
+            (n, (L["L1"] / 4, side * L["L2"] / 2, 0))
+            for n, side in (("left_wheel", 1), ("right_wheel", -1))
+        ]
+    wheels = tuple(
+        b.add(n, chassis, "continuous", transform(xyz), list(wheel), axis=(0, 1, 0), group="wheel")
+        for n, xyz in places
+    )
+    casters: tuple[str, ...] = ()
+    if not skid:
+        ball = (
+            p.caster_mass,
+            np.array([0, 0, CASTER_RADIUS]),
+            sphere_inertia(p.caster_mass, CASTER_RADIUS),
+        )
+        casters = (b.add("caster", chassis, "fixed", transform((-L["L1"] / 2, 0, -r)), [ball]),)
+    return {"wheels": wheels, "casters": casters}
+
+
+_BUILDERS: dict[str, Callable[[_Builder], dict]] = {
+    "Manipulator3DOF": lambda b: _manipulator(b, six=False),
+    "Manipulator6DOF": lambda b: _manipulator(b, six=True),
+    "HexapodRobot": lambda b: _multiped(b, _HEXAPOD_LEGS),
+    "QuadrupedRobot": lambda b: _multiped(b, _QUADRUPED_LEGS),
+    "HumanoidRobot": _humanoid,
+    "SnakeRobot": _snake,
+    "DifferentialDriveRobot": lambda b: _wheeled(b, skid=False),
+    "SkidSteerRobot": lambda b: _wheeled(b, skid=True),
+}
+
+
+# --- checking and the entry point ----------------------------------------------------------------
+
+
+def _nonneg(name: str, x: float) -> None:
+    if not (isinstance(x, (int, float, np.floating, np.integer)) and isfinite(x) and x >= 0):
+        raise ValueError(f"{name} must be a finite number >= 0, got {x!r}")
+
+
+def _check_params(robot_type: str, p: TemplateParams) -> dict[str, float]:
+    """Validated lengths with defaults filled in; ValueError naming the valid choices."""
+    defaults = DEFAULTS[robot_type]
+    names = ", ".join(defaults)
+    unknown = sorted(set(p.lengths) - set(defaults))
+    if unknown:
+        raise ValueError(f"{robot_type} has no length {', '.join(unknown)}; lengths: {names}")
+    lengths = dict(defaults)
+    for k, x in p.lengths.items():
+        if not (isinstance(x, (int, float, np.floating, np.integer)) and isfinite(x) and x > 0):
+            raise ValueError(f"{robot_type} length {k} must be a positive number, got {x!r}")
+        lengths[k] = float(x)
+    for k, radii in p.tubes.items():
+        try:
+            ro, ri = (float(r) for r in radii)
+        except (TypeError, ValueError):
+            raise ValueError(f"tube {k}: expected (r_outer, r_inner), got {radii!r}") from None
+        if not (isfinite(ro) and isfinite(ri) and 0 <= ri < ro):
+            raise ValueError(f"tube {k}: need 0 <= r_inner < r_outer, got ({ro}, {ri})")
+    for name in ("density",):
+        x = getattr(p, name)
+        _nonneg(name, x)
+        if x == 0:
+            raise ValueError(f"{name} must be positive")
+    for name in ("payload", "trunk_mass", "foot_mass", "gripper_mass", "wheel_mass", "caster_mass"):
+        _nonneg(name, getattr(p, name))
+    for g, m in p.actuator_mass.items():
+        _nonneg(f"actuator_mass[{g!r}]", m)
+    size = tuple(p.actuator_size)
+    if len(size) != 3 or not all(isfinite(s) and s > 0 for s in size):
+        raise ValueError(f"actuator_size must be three positive lengths, got {p.actuator_size!r}")
+    return lengths
+
+
+def build(robot_type: str, params: TemplateParams | None = None) -> Template:
+    """The parametric model of ``robot_type`` (a KIF class name, see ``TEMPLATES``).
+
+    ValueError for an unknown type, unknown or non-positive lengths, bad radii, negative
+    masses, or actuator masses for groups the template does not have (the message lists the
+    valid names).
+    """
+    p = params if params is not None else TemplateParams()
+    _check_type(robot_type)
+    lengths = _check_params(robot_type, p)
+    b = _Builder(robot_type, p, lengths)
+    extra = _BUILDERS[robot_type](b)
+    model = b.model()
+    tubes = sorted({s.length_name for s in b.segments})
+    unknown = sorted(set(p.tubes) - set(tubes))
+    if unknown:
+        raise ValueError(
+            f"{robot_type} has no tube {', '.join(unknown)}; tubes: {', '.join(tubes) or 'none'}"
+        )
+    groups = {j.group for j in model.joints if j.movable}
+    unknown = sorted(set(p.actuator_mass) - groups)
+    if unknown:
+        raise ValueError(
+            f"{robot_type} has no joint group {', '.join(unknown)}; "
+            f"groups: {', '.join(sorted(groups))}"
+        )
+    return Template(
+        robot_type=robot_type,
+        model=model,
+        segments=tuple(b.segments),
+        end_effectors=extra.get("end_effectors", ()),
+        feet=extra.get("feet", ()),
+        foot_points=extra.get("foot_points", ()),
+        wheels=extra.get("wheels", ()),
+        legs=extra.get("legs", 0),
+        arms=extra.get("arms", 0),
+        length_names=tuple(DEFAULTS[robot_type]),
+        casters=extra.get("casters", ()),
+        lengths=lengths,
+        params=p,
+    )
