@@ -19,7 +19,7 @@ section" (``deflection``, ``slope``).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from adron.errors import InputError
@@ -91,6 +91,23 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("slope", "angle", "steepest slope to climb while accelerating", _for(WHEELED, None)),
 )
 BY_NAME = {p.name: p for p in PARAMS}
+
+
+def exceeded_limits(robot_type: str, limits: Iterable[tuple], given: Mapping[str, float]
+                    ) -> list[str]:
+    """The structural limits (ontology ``structuralLimit`` facts: type, name, quantity) of
+    ``robot_type`` that the given values exceed, as readable phrases."""
+    from adron.units import quantity
+
+    out = []
+    for rtype, name, text, *_ in limits:
+        if rtype != robot_type or name not in given or name not in BY_NAME:
+            continue
+        limit = quantity(text, BY_NAME[name].dimension, f"structuralLimit {rtype} {name}",
+                         allow_zero=True)
+        if given[name] > limit:
+            out.append(f"{name} above {text}")
+    return out
 
 
 def parse_structural(items: Mapping[str, str]) -> dict[str, float]:

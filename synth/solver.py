@@ -67,6 +67,7 @@ class Candidate:
     reasons: tuple[Reason, ...] = ()
     sources: tuple[PartSource, ...] = ()
     module_limit: int | None = None
+    hierarchy: int = 1  # depth of the part tree (robot -> parts -> modules: 2)
 
 
 @dataclass(frozen=True)
@@ -262,6 +263,7 @@ class Reasoner:
                 PartSource(k, n, tuple(sorted(ids))) for (k, n), ids in sorted(sources.items())
             ),
             module_limit=single("limit"),
+            hierarchy=max((d for rr, d in by.get("level", []) if rr == r), default=1),
         )
         return cand, need, excl
 

@@ -1,0 +1,402 @@
+"""Per-type sizing rules of the structure generator (the paper's sections 4.2.1 and 4.3):
+tentative link lengths from the requirements, and the worst-case load cases.
+
+Each family turns the resolved parameters (SI, see ``synth.params``) into
+1. the template's named lengths and the extra template inputs (wheel radius, M), and
+2. load cases: configurations, velocities, accelerations and external forces whose RNEA
+   torques and joint wrenches bound what the actuators and links must carry, plus the
+   joint speeds the behaviours need.
+
+Constants below are documented design choices, not knowledge about robot types (which
+lives in the ontology) nor module data (which lives in the catalog).
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from adron.catalog import Catalog
+from adron.errors import InfeasibleError
+from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics
+from kinematics.templates import Template, default_lengths
+
+#: Lift of a foot above an obstacle, m; and clearance between neighbouring legs' reach, m.
+STEP_MARGIN = 0.01
+LEG_CLEARANCE = 0.02
+#: Height the standing trunk keeps above an obstacle, m.
+TRUNK_CLEARANCE = 0.03
+#: Largest coxa swing used for a stride (rad): below the template's +-pi/3 limit.
+COXA_SWING = math.pi / 4
+#: Duty factor of the tripod (hexapod) and trot (quadruped) gaits.
+DUTY = 0.5
+#: Peak / mean joint speed of a smooth (minimum-jerk) swing.
+PEAK_FACTOR = 1.875
+#: Wheeled robots: time to reach the travel speed, s; chassis aspect L1 : L2.
+ACCELERATION_TIME = 1.0
+CHASSIS_ASPECT = 4 / 3
+#: Headroom on the wheel speed when choosing the radius (the wheel's own inertia).
+SPEED_MARGIN = 1.1
+#: Gripper closing speed (rad/s); snake joint speed of its gaits (rad/s): amplitude 0.5 rad
+#: at 0.5 Hz, times the peak factor.
+GRIPPER_SPEED = 1.0
+SNAKE_SPEED = 0.5 * 2 * math.pi * 0.5 * PEAK_FACTOR
+#: Humanoid proportions of the standing height (Fig. 21).
+HUMANOID = {"femur": 0.22, "tibia": 0.22, "foot": 0.25, "trunk_height": 0.35,
+            "hip_width": 0.2, "shoulder_width": 0.4, "upper_arm": 0.17, "forearm": 0.19}
+#: Humanoid walking pose (rad): knees bent so that the pitch joints carry the weight.
+CROUCH = {"hip_pitch": -0.3, "knee_pitch": 0.6, "ankle_pitch": -0.3}
+
+
+@dataclass
+class LoadCase:
+    """One worst case: q, v, a (nv,) and external wrenches (nbodies, 6) for RNEA."""
+
+    name: str
+    q: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    fext: np.ndarray | None = None
+
+
+@dataclass
+class Sizing:
+    """What a family decides for one iteration."""
+
+    lengths: dict[str, float]
+    modules: int = 3
+    wheel_radius: float = 0.03
+    notes: list[str] = field(default_factory=list)
+
+
+def _clamp_length(name: str, value: float, catalog: Catalog, why: str) -> float:
+    lo, hi = catalog.passive.min_link_length_m, catalog.passive.max_link_length_m
+    if value > hi:
+        raise InfeasibleError(
+            f"{why} needs a link '{name}' of {value * 1000:.0f} mm, but the longest printable "
+            f"link is {hi * 1000:.0f} mm (catalog passive.max_link_length)"
+        )
+    return max(lo, value)
+
+
+def _joint_q(tmpl: Template, values: Mapping[str, float]) -> np.ndarray:
+    """A configuration with the named joints (by suffix) set, others at zero."""
+    model = tmpl.model
+    q = np.zeros(model.nv)
+    for j in model.joints:
+        idx = model.q_index[model.joint(j.name)]
+        if idx < 0:
+            continue
+        for suffix, angle in values.items():
+            if j.name.endswith(suffix):
+                q[idx] = angle
+    return q
+
+
+def _movable(tmpl: Template) -> list[str]:
+    m = tmpl.model
+    return [j.name for j in m.joints if m.q_index[m.joint(j.name)] >= 0]
+
+
+def _accel_cases(tmpl: Template, q: np.ndarray, v: np.ndarray, accel: float,
+                 fext: np.ndarray | None, name: str) -> list[LoadCase]:
+    """The case at rest plus all joints accelerating one way and the other."""
+    nv = tmpl.model.nv
+    ones = np.ones(nv) * accel
+    return [LoadCase(f"{name}, holding", q, np.zeros(nv), np.zeros(nv), fext),
+            LoadCase(f"{name}, accelerating", q, v, ones, fext),
+            LoadCase(f"{name}, decelerating", q, v, -ones, fext)]
+
+
+def _support(tmpl: Template, q: np.ndarray, feet: list[str], weight: float,
+             under_com: bool = False) -> np.ndarray:
+    """fext: the ground carries ``weight`` N shared by ``feet`` (upward, at the foot points;
+    with ``under_com`` at the ground point under the centre of mass)."""
+    model = tmpl.model
+    fext = np.zeros((len(model.bodies), 6))
+    T = forward_kinematics(model, q)
+    com = center_of_mass(model, q)
+    for foot in feet:
+        k = tmpl.feet.index(foot)
+        b = model.body(foot)
+        point = (T[b] @ np.append(tmpl.foot_points[k], 1.0))[:3]
+        if under_com:
+            point = np.array([com[0], com[1], point[2]])
+        fext[b] += external_force_at(model, q, b, point, (0.0, 0.0, weight / len(feet)))
+    return fext
+
+
+class Family(ABC):
+    """Sizing of one kind of base configuration."""
+
+    @abstractmethod
+    def size(self, robot_type: str, p: Mapping[str, float], catalog: Catalog) -> Sizing:
+        """Tentative lengths and template inputs from the parameters."""
+
+    @abstractmethod
+    def load_cases(self, tmpl: Template, p: Mapping[str, float], catalog: Catalog
+                   ) -> list[LoadCase]:
+        """The worst cases to analyse on the analysis template."""
+
+    @abstractmethod
+    def speeds(self, tmpl: Template, p: Mapping[str, float], sizing: Sizing | None
+               ) -> dict[str, float]:
+        """Required speed (rad/s) of each movable joint."""
+
+    def analysis_modules(self, modules: int) -> int:
+        """Snake modules in the analysed chain (others: unused)."""
+        return modules
+
+    def update(self, sizing: Sizing, tmpl: Template, p: Mapping[str, float],
+               catalog: Catalog) -> Sizing:
+        """Sizing decisions that depend on the current masses (default: none)."""
+        return sizing
+
+    def bounds(self, tmpl: Template, catalog: Catalog) -> dict[str, tuple[float, float]]:
+        """Length range (Lmin, Lmax) per length name for the link optimisation: fixed."""
+        return {n: (v, v) for n, v in tmpl.lengths.items()}
+
+
+class Manipulators(Family):
+    """Manipulator3DOF / Manipulator6DOF: links from the reach; worst case stretched
+    horizontally at full reach with the payload, every joint at the required speed and the
+    catalog's maximum joint acceleration."""
+
+    def size(self, robot_type, p, catalog):
+        d = default_lengths(robot_type)
+        reach = p["reach"]
+        why = f"reach {reach * 100:.0f} cm"
+        if "L4" in d:
+            wrist = min(d["L4"], reach / 4)
+            arm = (reach - wrist) / 2
+            lengths = {"L1": d["L1"], "L2": arm, "L3": arm, "L4": wrist}
+        else:
+            lengths = {"L1": d["L1"], "L2": reach / 2, "L3": reach / 2}
+        return Sizing({k: _clamp_length(k, v, catalog, why) for k, v in lengths.items()})
+
+    def load_cases(self, tmpl, p, catalog):
+        q = np.zeros(tmpl.model.nv)
+        v = self._speed_vector(tmpl, p)
+        return _accel_cases(tmpl, q, v, catalog.design.max_joint_acceleration_rad_s2, None,
+                            "stretched at full reach")
+
+    def _speed_vector(self, tmpl, p):
+        speeds = self.speeds(tmpl, p, None)
+        m = tmpl.model
+        v = np.zeros(m.nv)
+        for name, w in speeds.items():
+            v[m.q_index[m.joint(name)]] = w
+        return v
+
+    def speeds(self, tmpl, p, sizing):
+        reach = sum(tmpl.lengths[k] for k in tmpl.lengths if k != "L1")
+        w = p["speed"] / reach
+        return {j: (GRIPPER_SPEED if j == "gripper" else w) for j in _movable(tmpl)}
+
+
+class Multipeds(Family):
+    """HexapodRobot / QuadrupedRobot: legs from the obstacle height h (the foot lifts
+    h + STEP_MARGIN with the femur at 45 degrees; the trunk clears h standing); body links
+    La1, La2 so that neighbouring legs' reachable strides do not overlap; worst case on the
+    minimum support (hexapod: a tripod; quadruped: the two legs of a trot) carrying the
+    whole robot and payload, the swing legs accelerating."""
+
+    def size(self, robot_type, p, catalog):
+        d = default_lengths(robot_type)
+        h = p["obstacle_height"]
+        why = f"obstacle height {h * 100:.1f} cm"
+        femur = (h + STEP_MARGIN) / math.sin(math.pi / 4)
+        tibia = max(h + TRUNK_CLEARANCE, 1.25 * femur)
+        coxa = d["coxa"]
+        reach = coxa + femur
+        stride = 2 * reach * math.sin(COXA_SWING)
+        spacing = stride + LEG_CLEARANCE
+        legs_per_side = 3 if robot_type == "HexapodRobot" else 2
+        la1 = spacing * (legs_per_side - 1)
+        la2 = max(d["La2"], catalog.passive.dovetail_face_m * 2)
+        lengths = {"coxa": coxa, "femur": femur, "tibia": tibia, "La1": la1, "La2": la2}
+        out = {}
+        for k, v in lengths.items():
+            out[k] = v if k in ("La1", "La2") else _clamp_length(k, v, catalog, why)
+        return Sizing(out, notes=[f"stride {stride * 100:.1f} cm"])
+
+    def _support_feet(self, tmpl):
+        feet = list(tmpl.feet)
+        if len(feet) == 6:  # tripod: left front, right middle, left hind
+            return [f for f in feet if f.startswith(("lf", "rm", "lh"))]
+        return [f for f in feet if f.startswith(("lf", "rh"))]  # trot: a diagonal pair
+
+    def load_cases(self, tmpl, p, catalog):
+        q = np.zeros(tmpl.model.nv)
+        weight = tmpl.model.total_mass * catalog.design.gravity_m_s2
+        fext = _support(tmpl, q, self._support_feet(tmpl), weight)
+        v = np.zeros(tmpl.model.nv)
+        return _accel_cases(tmpl, q, v, catalog.design.max_joint_acceleration_rad_s2, fext,
+                            f"standing on {len(self._support_feet(tmpl))} legs")
+
+    def speeds(self, tmpl, p, sizing):
+        L = tmpl.lengths
+        reach = L["coxa"] + L["femur"]
+        stride = 2 * reach * math.sin(COXA_SWING)
+        swing_time = stride / p["speed"] * (1 - DUTY) / DUTY
+        lift = math.asin(min(1.0, (p["obstacle_height"] + STEP_MARGIN) / L["femur"]))
+        sweep = 2 * COXA_SWING
+        w = PEAK_FACTOR * max(sweep, 2 * lift) / swing_time
+        return dict.fromkeys(_movable(tmpl), w)
+
+
+
+class Humanoid(Family):
+    """HumanoidRobot: limb lengths in proportion to the standing height; worst case on one
+    foot in a walking crouch, the ground force under the centre of mass."""
+
+    def size(self, robot_type, p, catalog):
+        H = p["height"]
+        why = f"height {H * 100:.0f} cm"
+        lengths = {k: f * H for k, f in HUMANOID.items()}
+        out = {}
+        for k, v in lengths.items():
+            tube = k in ("femur", "tibia", "upper_arm", "forearm")
+            out[k] = _clamp_length(k, v, catalog, why) if tube else v
+        return Sizing(out)
+
+    def load_cases(self, tmpl, p, catalog):
+        q = _joint_q(tmpl, CROUCH)
+        weight = tmpl.model.total_mass * catalog.design.gravity_m_s2
+        foot = [f for f in tmpl.feet if f.startswith("l")][:1]
+        fext = _support(tmpl, q, foot, weight, under_com=True)
+        v = np.zeros(tmpl.model.nv)
+        return _accel_cases(tmpl, q, v, catalog.design.max_joint_acceleration_rad_s2, fext,
+                            "on one foot, crouched")
+
+    def speeds(self, tmpl, p, sizing):
+        L = tmpl.lengths
+        leg = L["femur"] + L["tibia"]
+        step = 0.5 * leg
+        step_time = step / p["speed"]
+        sweep = 2 * math.asin(min(1.0, step / 2 / leg))
+        w = PEAK_FACTOR * sweep / (step_time * (1 - DUTY))
+        return {j: (GRIPPER_SPEED if j.endswith("gripper") else w) for j in _movable(tmpl)}
+
+
+class Snake(Family):
+    """SnakeRobot: M from the ontology (the conceptual design); worst case lifting the
+    longest unsupported segment of its gaits, taken as half of the body (sidewinding lifts
+    alternate halves), straight and horizontal, accelerating."""
+
+    def size(self, robot_type, p, catalog):
+        return Sizing(default_lengths(robot_type))
+
+    def analysis_modules(self, modules: int) -> int:
+        return max(1, math.ceil(modules / 2))
+
+    def load_cases(self, tmpl, p, catalog):
+        q = np.zeros(tmpl.model.nv)
+        v = np.full(tmpl.model.nv, SNAKE_SPEED)
+        return _accel_cases(tmpl, q, v, catalog.design.max_joint_acceleration_rad_s2, None,
+                            f"lifting {tmpl.model.nv} modules")
+
+    def speeds(self, tmpl, p, sizing):
+        return dict.fromkeys(_movable(tmpl), SNAKE_SPEED)
+
+
+class Wheeled(Family):
+    """DifferentialDriveRobot / SkidSteerRobot: chassis L1 x L2 from the load area
+    (aspect 4:3); the wheel radius is the smallest with which some catalog
+    continuous-rotation servo both holds the wheel's share of the traction force and turns
+    fast enough under it (its speed falls linearly with torque) for the travel speed; worst
+    case climbing the slope with the payload while accelerating to the travel speed in
+    ACCELERATION_TIME."""
+
+    def size(self, robot_type, p, catalog):
+        area = p["load_area"]
+        l1 = math.sqrt(area * CHASSIS_ASPECT)
+        return Sizing({"L1": l1, "L2": area / l1},
+                      wheel_radius=catalog.passive.wheel_min_radius_m)
+
+    @staticmethod
+    def traction(mass: float, p: Mapping[str, float], catalog: Catalog) -> float:
+        """Total traction force (N) to climb the slope while accelerating."""
+        g, slope = catalog.design.gravity_m_s2, p["slope"]
+        return mass * (g * (math.sin(slope) + catalog.design.rolling_resistance
+                            * math.cos(slope)) + p["speed"] / ACCELERATION_TIME)
+
+    def update(self, sizing, tmpl, p, catalog):
+        n = len(tmpl.wheels)
+        rho, width = catalog.material.density_kg_m3, catalog.passive.wheel_width_m
+        wheel_mass = lambda r: math.pi * r * r * width * rho  # noqa: E731 (solid printed disc)
+        rest = tmpl.model.total_mass - n * wheel_mass(tmpl.params.wheel_radius)
+        r = sizing.wheel_radius
+        for _ in range(50):  # the wheels' own mass depends on their radius: a fixed point
+            force = self.traction(rest + n * wheel_mass(r), p, catalog) / n
+            new = self._radius(force, p, catalog)
+            if abs(new - r) <= 1e-12:
+                break
+            r = new
+        return replace(sizing, wheel_radius=r)
+
+    def _radius(self, force: float, p: Mapping[str, float], catalog: Catalog) -> float:
+        """The smallest printable wheel radius with which some servo carries ``force`` N at
+        the travel speed (with SPEED_MARGIN)."""
+        v, sf = p["speed"] * SPEED_MARGIN, catalog.design.torque_safety_factor
+        r_min, r_max = catalog.passive.wheel_min_radius_m, catalog.passive.wheel_max_radius_m
+        best: float | None = None
+        for a in catalog.actuators_of("ContinuousRotationServomotor"):
+            # speed under load w0 (1 - F r / Ts) times r must reach v: the smaller root of
+            # -(w0 F / Ts) r^2 + w0 r - v = 0; the torque F r must stay within Ts / sf
+            w0, ts = a.no_load_speed_rad_s, a.stall_torque_Nm
+            k = w0 * force / ts
+            disc = w0 * w0 - 4 * k * v
+            if disc < 0:
+                continue
+            r = max(r_min, 2 * v / (w0 + math.sqrt(disc)))
+            if r <= min(r_max, ts / sf / max(force, 1e-12)) and (best is None or r < best):
+                best = r
+        if best is None:
+            raise InfeasibleError(
+                f"no catalog wheel servo drives a printable wheel ({r_min * 1000:.0f}-"
+                f"{r_max * 1000:.0f} mm) at {v:.2f} m/s while pushing {force:.2f} N up a "
+                f"{math.degrees(p['slope']):.0f} deg slope; ask for less speed, payload or slope"
+            )
+        return best
+
+    def load_cases(self, tmpl, p, catalog):
+        g = catalog.design.gravity_m_s2
+        mass = tmpl.model.total_mass
+        accel = p["speed"] / ACCELERATION_TIME
+        traction = self.traction(mass, p, catalog)
+        wheels = list(tmpl.wheels)
+        m = tmpl.model
+        q = np.zeros(m.nv)
+        fext = np.zeros((len(m.bodies), 6))
+        r = tmpl.params.wheel_radius
+        T = forward_kinematics(m, q)
+        for w in wheels:
+            # the ground pushes each driven wheel forward (and up) at its contact point
+            b = m.body(w)
+            contact = T[b, :3, 3] + np.array([0.0, 0.0, -r])
+            force = (traction / len(wheels), 0.0, mass * g / (len(wheels) + len(tmpl.casters)))
+            fext[b] += external_force_at(m, q, b, contact, force)
+        v = np.full(m.nv, p["speed"] / r)
+        a = np.full(m.nv, accel / r)
+        return [LoadCase(f"climbing {math.degrees(p['slope']):.0f} deg while accelerating", q, v, a,
+                         fext)]
+
+    def speeds(self, tmpl, p, sizing):
+        return dict.fromkeys(_movable(tmpl), p["speed"] / tmpl.params.wheel_radius)
+
+
+FAMILIES: dict[str, Family] = {
+    "Manipulator3DOF": Manipulators(),
+    "Manipulator6DOF": Manipulators(),
+    "HexapodRobot": Multipeds(),
+    "QuadrupedRobot": Multipeds(),
+    "HumanoidRobot": Humanoid(),
+    "SnakeRobot": Snake(),
+    "DifferentialDriveRobot": Wheeled(),
+    "SkidSteerRobot": Wheeled(),
+}

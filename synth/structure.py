@@ -1,0 +1,529 @@
+"""The structure generator: the paper's co-design loop (sections 4.2.1-4.2.3).
+
+Starting from the conceptual design (a robot type with its parts and modules):
+
+1. tentative link lengths from the requirements (``synth.sizing``);
+2. worst-case RNEA on the type's kinematic template (``kinematics``): joint torques and
+   the wrenches every link carries;
+3. actuator assignment by clingo (``ActuatorAssigner``): a model is capable for a joint
+   when its stall torque divided by the catalog's torque safety factor covers the required
+   torque and its speed under that torque (a servo's speed falls linearly from no-load
+   speed at no torque to zero at stall) covers the required speed;
+4. each printed link as the minimum-volume tube that keeps its tip deflection within the
+   allowed one (``synth.links.optimal_tube``), thickened (more stiffness asked of it) until
+   its clamped-end stress, with the fillet's stress concentration, is within the
+   material's yield over the stress safety factor;
+5. again from 2 with the new masses, until the masses change by less than 1e-6
+   (relative), or an infeasibility error that names the requirement and the best value
+   that can be reached.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from adron.catalog import Actuator, Catalog, catalog_facts
+from adron.errors import InfeasibleError, InputError
+from adron.kb import KnowledgeBase
+from kinematics.dynamics import joint_wrenches, rnea
+from kinematics.templates import TEMPLATES, Segment, Template, TemplateParams, build
+from synth.links import (
+    Tube,
+    TubeLimits,
+    beam_check,
+    max_allowed_stress,
+    optimal_tube,
+    stiffness_constant,
+)
+from synth.params import resolve
+from synth.sizing import FAMILIES, Family, LoadCase, Sizing
+from synth.solver import ActuatorAssigner, Assignment, Candidate, JointSlot
+
+CONVERGENCE = 1e-6
+MAX_ITERATIONS = 50
+STRESS_BISECTIONS = 60
+
+
+@dataclass(frozen=True)
+class LinkDesign:
+    """One printed tube design (all segments sharing a length name use it)."""
+
+    name: str
+    count: int
+    length_m: float
+    r_outer_m: float
+    r_inner_m: float
+    volume_m3: float
+    mass_kg: float
+    tip_deflection_m: float
+    max_deflection_m: float
+    max_stress_Pa: float
+    allowed_stress_Pa: float
+    branch: str
+    governed_by: str  # "deflection" or "stress"
+
+
+@dataclass(frozen=True)
+class JointDesign:
+    name: str
+    group: str
+    module_class: str
+    actuator: str
+    required_torque_Nm: float
+    actuator_torque_Nm: float  # stall torque
+    usable_torque_Nm: float  # stall torque / safety factor
+    required_speed_rad_s: float
+    load_case: str
+
+
+@dataclass(frozen=True)
+class ModuleUse:
+    kind: str
+    model: str
+    count: int
+    i2c_addresses: tuple[int, ...]  # empty for the bus master
+
+
+@dataclass(frozen=True)
+class Power:
+    peak_current_A: float  # every actuator at its required torque, plus the modules
+    stall_current_A: float  # every actuator stalled, plus the modules
+    battery_max_current_A: float
+    ok: bool
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """The paper's MR&H: modularity (modules), regularity (reuse), hierarchy (depth)."""
+
+    modularity: int
+    regularity: float
+    hierarchy: int
+
+
+@dataclass(frozen=True)
+class Structure:
+    robot_type: str
+    params: dict[str, float]
+    ignored_params: tuple[str, ...]
+    lengths: dict[str, float]
+    wheel_radius_m: float | None
+    links: tuple[LinkDesign, ...]
+    joints: tuple[JointDesign, ...]
+    modules: tuple[ModuleUse, ...]
+    mass_kg: float
+    cost: float
+    power: Power
+    metrics: Metrics
+    iterations: int
+    template: Template = field(repr=False, compare=False)
+    notes: tuple[str, ...] = ()
+
+
+def module_class(model_joint_name: str, kind: str, group: str) -> str:
+    """The ontology class of the module that drives a template joint."""
+    if kind == "continuous":
+        return "ContinuousRotationServomotor"
+    if group == "gripper" or model_joint_name.endswith("gripper"):
+        return "GripperServomotor"
+    return "PositionServomotor"
+
+
+def _slots(tmpl: Template) -> list[JointSlot]:
+    m = tmpl.model
+    return [JointSlot(j.name, j.group, module_class(j.name, j.kind, j.group))
+            for j in m.joints if m.q_index[m.joint(j.name)] >= 0]
+
+
+def usable_torque(a: Actuator, catalog: Catalog) -> float:
+    return a.stall_torque_Nm / catalog.design.torque_safety_factor
+
+
+def speed_at(a: Actuator, torque: float) -> float:
+    """Speed (rad/s) of a servo holding ``torque``: linear from no-load to stall."""
+    return max(0.0, a.no_load_speed_rad_s * (1.0 - torque / a.stall_torque_Nm))
+
+
+def _frame(direction: np.ndarray) -> np.ndarray:
+    """Rotation whose x axis is ``direction`` (columns: tube axes in the body frame)."""
+    x = direction / np.linalg.norm(direction)
+    helper = np.array([0.0, 0.0, 1.0]) if abs(x[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    y = np.cross(helper, x)
+    y /= np.linalg.norm(y)
+    return np.column_stack([x, y, np.cross(x, y)])
+
+
+def free_end_load(seg: Segment, wrench: np.ndarray) -> np.ndarray:
+    """The load at a tube's free end, in the tube frame (x along the tube), from the wrench
+    its joint transmits into the body (body frame, moment about the body origin)."""
+    f, m = wrench[:3], wrench[3:]
+    end = seg.start + seg.length * seg.direction
+    m_end = m - np.cross(end, f)
+    R = _frame(seg.direction)
+    return -np.concatenate([R.T @ f, R.T @ m_end])
+
+
+def _equivalent_force(load: np.ndarray, length: float) -> float:
+    """Tip force that bends a cantilever as much as this free-end force and moment."""
+    f_perp = math.hypot(load[1], load[2])
+    m_perp = math.hypot(load[4], load[5])
+    return f_perp + 1.5 * m_perp / length
+
+
+@dataclass
+class _Requirements:
+    torque: dict[str, float]
+    case: dict[str, str]
+    speed: dict[str, float]
+    loads: dict[str, list[np.ndarray]]  # length name -> free-end loads (tube frame)
+
+
+class StructureDesigner:
+    """One robot type's co-design loop with its own actuator assigner (grounded once)."""
+
+    def __init__(self, kb: KnowledgeBase, candidate: Candidate, catalog: Catalog,
+                 params: Mapping[str, float], symmetric: bool = True,
+                 objective: Sequence[str] = ("mass", "cost")) -> None:
+        self.type = candidate.robot_type
+        if self.type not in TEMPLATES or self.type not in FAMILIES:
+            raise InputError(f"{self.type}: no kinematic template to size it "
+                             f"(templates: {', '.join(TEMPLATES)})")
+        self.candidate, self.catalog, self.symmetric = candidate, catalog, symmetric
+        self.family: Family = FAMILIES[self.type]
+        defaults = {"deflection": catalog.design.max_tip_deflection_m,
+                    "slope": catalog.design.max_slope_rad}
+        self.values, self.ignored = resolve(self.type, params, defaults)
+        self.modules = max(candidate.dof, 1)
+        probe = build(self.type, TemplateParams(modules=self.modules))
+        self.slots = _slots(probe)
+        self.other_active = candidate.active_total - len(self.slots)
+        if self.other_active < 0:
+            raise InputError(f"{self.type}: the template has {len(self.slots)} actuated joints "
+                             f"but the design only {candidate.active_total} active modules")
+        self.assigner = ActuatorAssigner(kb, catalog_facts(catalog), self.type, self.slots,
+                                         self.other_active, objective)
+        self.by_model = {a.model: a for a in catalog.actuators}
+
+    # -- fixed modules ------------------------------------------------------------------
+    def _fixed_modules(self) -> list[tuple[str, str, int, float, float, float]]:
+        """(kind, model, count, mass, cost, current) of the active modules that are not
+        joint actuators (main module, battery, sensors), from the conceptual design."""
+        joint_classes = {s.module_class for s in self.slots}
+        out = []
+        for kind, n in self.candidate.modules:
+            if kind in joint_classes:
+                continue
+            m = self.catalog.module_of(kind)
+            out.append((kind, m.model, n, m.mass_kg, m.cost, m.current_A))
+        return out
+
+    def _trunk_mass(self, sizing: Sizing) -> float:
+        fixed = sum(n * mass for _, _, n, mass, _, _ in self._fixed_modules())
+        p = self.catalog.passive
+        L = sizing.lengths
+        if "La1" in L:
+            area = L["La1"] * L["La2"]
+        elif "L1" in L and "L2" in L and "L3" not in L:
+            area = L["L1"] * L["L2"]
+        elif "shoulder_width" in L:
+            area = L["shoulder_width"] * L["trunk_height"]
+        else:
+            area = p.dovetail_face_m ** 2
+        return fixed + area * p.face_thickness_m * self.catalog.material.density_kg_m3
+
+    # -- one analysis -------------------------------------------------------------------
+    def _params(self, sizing: Sizing, tubes, act_mass, modules: int) -> TemplateParams:
+        cat = self.catalog
+        rho = cat.material.density_kg_m3
+        p = cat.passive
+        foot = p.foot_min_side_m ** 2 * p.foot_thickness_m * rho
+        wheel = math.pi * sizing.wheel_radius ** 2 * p.wheel_width_m * rho
+        sizes = [a.size_m for a in cat.actuators]
+        return TemplateParams(
+            lengths=sizing.lengths, tubes=tubes, density=rho, actuator_mass=act_mass,
+            actuator_size=tuple(max(s[i] for s in sizes) for i in range(3)),
+            payload=self.values.get("payload", 0.0), trunk_mass=self._trunk_mass(sizing),
+            modules=modules, wheel_radius=sizing.wheel_radius, foot_mass=foot,
+            wheel_mass=wheel,
+        )
+
+    def _requirements(self, tp: TemplateParams, sizing: Sizing) -> tuple[_Requirements,
+                                                                          Template]:
+        analysis = build(self.type, replace(tp, modules=self.family.analysis_modules(
+            tp.modules)))
+        cases: list[LoadCase] = self.family.load_cases(analysis, self.values, self.catalog)
+        m = analysis.model
+        torque: dict[str, float] = {}
+        case_of: dict[str, str] = {}
+        loads: dict[str, list[np.ndarray]] = {}
+        for case in cases:
+            tau = np.abs(rnea(m, case.q, case.v, case.a, case.fext))
+            W = joint_wrenches(m, case.q, case.v, case.a, case.fext)
+            for j in m.joints:
+                k = m.q_index[m.joint(j.name)]
+                if k >= 0 and tau[k] >= torque.get(j.name, -1.0):
+                    torque[j.name], case_of[j.name] = float(tau[k]), case.name
+            for seg in analysis.segments:
+                load = free_end_load(seg, W[m.body(seg.body)])
+                loads.setdefault(seg.length_name or seg.name, []).append(load)
+        speeds = self.family.speeds(analysis, self.values, sizing)
+        # joints beyond the analysed chain (a snake's) take their group's requirement
+        group_torque: dict[str, float] = {}
+        group_case: dict[str, str] = {}
+        for s in self.slots:
+            if s.name in torque and torque[s.name] >= group_torque.get(s.group, -1.0):
+                group_torque[s.group], group_case[s.group] = torque[s.name], case_of[s.name]
+        group_speed = {s.group: speeds[s.name] for s in self.slots if s.name in speeds}
+        for s in self.slots:
+            if s.name not in torque:
+                torque[s.name], case_of[s.name] = group_torque[s.group], group_case[s.group]
+            speeds.setdefault(s.name, group_speed[s.group])
+        return _Requirements(torque, case_of, speeds, loads), analysis
+
+    def capable(self, req: _Requirements) -> dict[str, list[str]]:
+        out = {}
+        for s in self.slots:
+            t, w = req.torque[s.name], req.speed[s.name]
+            out[s.name] = [
+                name for name in self.assigner.serving.get(s.name, ())
+                if usable_torque(self.by_model[name], self.catalog) >= t
+                and speed_at(self.by_model[name], t) >= w
+            ]
+        return out
+
+    def _size_link(self, name: str, length: float, loads: list[np.ndarray]) -> tuple[Tube, dict]:
+        cat = self.catalog
+        E = cat.material.youngs_modulus_Pa
+        dmax = self.values["deflection"]
+        allowed = max_allowed_stress(cat.material.yield_strength_Pa,
+                                     cat.design.stress_safety_factor)
+        limits = TubeLimits(cat.passive.max_outer_radius_m, cat.passive.min_wall_m, length,
+                            length)
+        force = max(_equivalent_force(ld, length) for ld in loads)
+        k0 = stiffness_constant(force, E, dmax)
+        # Euler buckling of a cantilever (effective length 2L) under the axial compression:
+        # P sf <= pi^2 E I / (2L)^2, I = pi/4 (r2^4 - r1^4)  =>  a lower bound on K0
+        squeeze = max(max(-ld[0], 0.0) for ld in loads)
+        k_buckle = 16 * squeeze * cat.design.stress_safety_factor / (math.pi ** 3 * E * length)
+        k0 = max(k0, k_buckle)
+        try:
+            tube = optimal_tube(k0, limits, name)
+        except InfeasibleError as e:
+            best = dmax * e.required / e.reachable if e.reachable else float("inf")
+            raise InfeasibleError(
+                f"link '{name}' ({length * 1000:.0f} mm) cannot keep its tip deflection within "
+                f"{dmax * 1000:.2f} mm under {force:.2f} N: the stiffest printable tube "
+                f"(solid, r = {cat.passive.max_outer_radius_m * 1000:.0f} mm) deflects "
+                f"{best * 1000:.2f} mm; allow a larger deflection (--param deflection=...) or "
+                "carry less"
+            ) from None
+
+        def worst(t: Tube):
+            return max((beam_check(t, ld, E, cat.passive.stress_concentration)
+                        for ld in loads), key=lambda r: r.max_stress_Pa)
+
+        check = worst(tube)
+        governed = "deflection"
+        if check.max_stress_Pa > allowed:
+            governed = "stress"
+            k_max = cat.passive.max_outer_radius_m ** 4 / length ** 3
+            strongest = optimal_tube(k_max, limits, name)
+            if worst(strongest).max_stress_Pa > allowed:
+                raise InfeasibleError(
+                    f"link '{name}' ({length * 1000:.0f} mm): the clamped-end stress "
+                    f"{worst(strongest).max_stress_Pa / 1e6:.1f} MPa of the strongest printable "
+                    f"tube exceeds the allowed {allowed / 1e6:.1f} MPa (yield / safety factor); "
+                    "carry less or use a stronger material"
+                )
+            lo, hi = k0, k_max
+            for _ in range(STRESS_BISECTIONS):
+                mid = 0.5 * (lo + hi)
+                if worst(optimal_tube(mid, limits, name)).max_stress_Pa > allowed:
+                    lo = mid
+                else:
+                    hi = mid
+            tube = optimal_tube(hi, limits, name)
+            check = worst(tube)
+        info = {"deflection": max(beam_check(tube, ld, E).tip_deflection_m for ld in loads),
+                "stress": check.max_stress_Pa, "allowed": allowed, "governed": governed}
+        return tube, info
+
+    # -- the loop -----------------------------------------------------------------------
+    def run(self) -> Structure:
+        cat = self.catalog
+        sizing = self.family.size(self.type, self.values, cat)
+        p = cat.passive
+        probe = build(self.type, self._params(sizing, {}, {}, self.modules))
+        names = sorted({s.length_name or s.name for s in probe.segments})
+        tubes = {n: (p.max_outer_radius_m, p.max_outer_radius_m - p.min_wall_m) for n in names}
+        act_mass = {s.group: min(self.by_model[m].mass_kg for m in self.assigner.serving[s.name])
+                    for s in self.slots}
+        prev: np.ndarray | None = None
+        for it in range(1, MAX_ITERATIONS + 1):
+            sizing = self.family.update(
+                sizing, build(self.type, self._params(sizing, tubes, act_mass, self.modules)),
+                self.values, cat)
+            tp = self._params(sizing, tubes, act_mass, self.modules)
+            req, analysis = self._requirements(tp, sizing)
+            assignment = self.assigner.best(self.capable(req), self.symmetric)
+            if assignment is None:
+                raise self._no_actuator(req)
+            new_mass: dict[str, float] = {}
+            for joint, model in assignment.models:
+                g = next(s.group for s in self.slots if s.name == joint)
+                new_mass[g] = max(new_mass.get(g, 0.0), self.by_model[model].mass_kg)
+            sized = {n: self._size_link(n, sizing.lengths.get(n, analysis.lengths.get(n, 0.0))
+                                        or _segment_length(analysis, n), req.loads[n])
+                     for n in names if n in req.loads}
+            tubes = {n: (t.r_outer, t.r_inner) for n, (t, _) in sized.items()}
+            act_mass = new_mass
+            vector = np.array([*(act_mass[g] for g in sorted(act_mass)),
+                               *(sized[n][0].volume for n in sorted(sized))])
+            if prev is not None and np.all(np.abs(vector - prev) <= CONVERGENCE * np.abs(prev)):
+                break
+            prev = vector
+        else:
+            raise InfeasibleError(f"{self.type}: the masses did not converge in "
+                                  f"{MAX_ITERATIONS} iterations")
+        final = build(self.type, self._params(sizing, tubes, act_mass, self.modules))
+        return self._record(final, sizing, req, assignment, sized, it)
+
+    def _no_actuator(self, req: _Requirements) -> InfeasibleError:
+        strongest = max(self.catalog.actuators, key=lambda a: a.stall_torque_Nm)
+        worst = max(self.slots, key=lambda s: req.torque[s.name] / max(
+            (usable_torque(self.by_model[m], self.catalog)
+             for m in self.assigner.serving.get(s.name, ())), default=1e-12))
+        models = [self.by_model[m] for m in self.assigner.serving.get(worst.name, ())]
+        best = max(models, key=lambda a: a.stall_torque_Nm) if models else strongest
+        t, w = req.torque[worst.name], req.speed[worst.name]
+        if usable_torque(best, self.catalog) < t:
+            what = (f"joint '{worst.name}' needs {t:.2f} N m but the strongest actuator "
+                    f"({best.model}) gives {usable_torque(best, self.catalog):.2f} N m after the "
+                    f"torque safety factor {self.catalog.design.torque_safety_factor}")
+        elif speed_at(best, t) < w:
+            what = (f"joint '{worst.name}' needs {w:.2f} rad/s at {t:.2f} N m but the fastest "
+                    f"capable actuator reaches {speed_at(best, t):.2f} rad/s")
+        else:
+            what = (f"no assignment keeps alike joints alike within the bus limit of "
+                    f"{self.candidate.module_limit} active modules")
+        return InfeasibleError(f"{self.type}: {what}")
+
+    def _record(self, tmpl: Template, sizing: Sizing, req: _Requirements,
+                assignment: Assignment, sized: dict, iterations: int) -> Structure:
+        cat = self.catalog
+        rho = cat.material.density_kg_m3
+        counts: dict[str, int] = {}
+        for s in tmpl.segments:
+            n = s.length_name or s.name
+            counts[n] = counts.get(n, 0) + 1
+        links = tuple(
+            LinkDesign(n, counts.get(n, 0), t.length, t.r_outer, t.r_inner, t.volume,
+                       t.volume * rho, info["deflection"], self.values["deflection"],
+                       info["stress"], info["allowed"], t.active, info["governed"])
+            for n, (t, info) in sorted(sized.items())
+        )
+        joints = tuple(
+            JointDesign(s.name, s.group, s.module_class, assignment.model_of(s.name),
+                        req.torque[s.name], self.by_model[assignment.model_of(s.name)]
+                        .stall_torque_Nm,
+                        usable_torque(self.by_model[assignment.model_of(s.name)], cat),
+                        req.speed[s.name], req.case[s.name])
+            for s in self.slots
+        )
+        modules, cost, peak, stall = self._modules(assignment, req)
+        battery = cat.battery.max_current_A or 0.0
+        power = Power(peak, stall, battery, peak <= battery)
+        n_passive = sum(counts.values())
+        kinds = {m.model for m in modules} | {n for n in counts}
+        n_modules = sum(m.count for m in modules) + n_passive
+        metrics = Metrics(n_modules, round(n_modules / max(len(kinds), 1), 6),
+                          self.candidate.hierarchy)
+        lengths = dict(sorted(tmpl.lengths.items()))
+        return Structure(
+            self.type, dict(sorted(self.values.items())), self.ignored, lengths,
+            sizing.wheel_radius if tmpl.wheels else None, links, joints, modules,
+            float(tmpl.model.total_mass), round(cost, 2), power, metrics, iterations, tmpl,
+            tuple(sizing.notes),
+        )
+
+    def _modules(self, assignment: Assignment, req: _Requirements
+                 ) -> tuple[tuple[ModuleUse, ...], float, float, float]:
+        cat = self.catalog
+        address = cat.design.i2c_first_address
+        out: list[ModuleUse] = []
+        cost = peak = stall = 0.0
+        for kind, model, n, _, c, current in sorted(self._fixed_modules(),
+                                                    key=lambda x: (x[0] != "MainModule", x[0])):
+            if kind == "MainModule":
+                addrs: tuple[int, ...] = ()
+            else:
+                addrs = tuple(range(address, address + n))
+                address += n
+            out.append(ModuleUse(kind, model, n, addrs))
+            cost += n * c
+            peak += n * current
+            stall += n * current
+        per_model: dict[tuple[str, str], list[int]] = {}
+        for s in self.slots:
+            a = self.by_model[assignment.model_of(s.name)]
+            per_model.setdefault((s.module_class, a.model), []).append(address)
+            address += 1
+            cost += a.cost
+            peak += a.stall_current_A * min(1.0, req.torque[s.name] / a.stall_torque_Nm)
+            stall += a.stall_current_A
+        out += [ModuleUse(k, m, len(addrs), tuple(addrs))
+                for (k, m), addrs in sorted(per_model.items())]
+        if address - 1 > 0x77:
+            raise InfeasibleError(f"{self.type}: more I2C devices than 7-bit addresses")
+        return tuple(out), cost, peak, stall
+
+
+def _segment_length(tmpl: Template, name: str) -> float:
+    return next(s.length for s in tmpl.segments if (s.length_name or s.name) == name)
+
+
+def design_structure(kb: KnowledgeBase, candidate: Candidate, catalog: Catalog,
+                     params: Mapping[str, float], symmetric: bool = True,
+                     objective: Sequence[str] = ("mass", "cost")) -> Structure:
+    """Size ``candidate`` (a conceptual design) for ``params`` (SI) with ``catalog``."""
+    designer = StructureDesigner(kb, candidate, catalog, params, symmetric, objective)
+    try:
+        return designer.run()
+    except InfeasibleError as e:
+        hint = largest_payload(kb, candidate, catalog, params, symmetric, objective)
+        if hint is not None:
+            raise InfeasibleError(f"{e} — the largest payload that works here is "
+                                  f"{hint:.3f} kg") from None
+        raise
+
+
+def largest_payload(kb: KnowledgeBase, candidate: Candidate, catalog: Catalog,
+                    params: Mapping[str, float], symmetric: bool,
+                    objective: Sequence[str], steps: int = 24) -> float | None:
+    """The largest payload (kg) with which the design succeeds, all else equal (bisection),
+    or None when even no payload fails or the payload is not the limit."""
+    asked = params.get("payload")
+    if not asked:
+        return None
+    designer = StructureDesigner(kb, candidate, catalog, {**params, "payload": 0.0},
+                                 symmetric, objective)
+
+    def ok(payload: float) -> bool:
+        designer.values = {**designer.values, "payload": payload}
+        try:
+            designer.run()
+            return True
+        except InfeasibleError:
+            return False
+
+    if not ok(0.0):
+        return None
+    lo, hi = 0.0, asked
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    return lo
