@@ -8,9 +8,13 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from synth.conceptual import Design
 from synth.solver import Candidate
+
+if TYPE_CHECKING:  # the structure stage pulls numpy in: keep it off the conceptual path
+    from synth.structure import Structure
 
 Short = Callable[[str], str]
 
@@ -34,8 +38,59 @@ def candidate_record(c: Candidate, short: Short) -> dict:
     }
 
 
-def design_record(d: Design, short: Short) -> dict:
-    """The whole outcome of ``parmor design`` as a dict (stable key order)."""
+def _r(x: float) -> float:
+    """Round for the record: 9 significant digits keep outputs stable across platforms."""
+    return float(f"{x:.9g}")
+
+
+def structure_record(s: Structure) -> dict:
+    """The sized structure: links, joints, modules with models and I2C addresses, totals."""
+    return {
+        "params": {k: _r(v) for k, v in s.params.items()},
+        "ignored_params": list(s.ignored_params),
+        "lengths_m": {k: _r(v) for k, v in s.lengths.items()},
+        "wheel_radius_m": None if s.wheel_radius_m is None else _r(s.wheel_radius_m),
+        "links": [
+            {"name": link.name, "count": link.count, "length_m": _r(link.length_m),
+             "r_outer_m": _r(link.r_outer_m), "r_inner_m": _r(link.r_inner_m),
+             "volume_m3": _r(link.volume_m3), "mass_kg": _r(link.mass_kg),
+             "tip_deflection_m": _r(link.tip_deflection_m),
+             "max_deflection_m": _r(link.max_deflection_m),
+             "max_stress_Pa": _r(link.max_stress_Pa),
+             "allowed_stress_Pa": _r(link.allowed_stress_Pa),
+             "branch": link.branch, "governed_by": link.governed_by}
+            for link in s.links
+        ],
+        "joints": [
+            {"name": j.name, "group": j.group, "module_class": j.module_class,
+             "actuator": j.actuator, "required_torque_Nm": _r(j.required_torque_Nm),
+             "actuator_torque_Nm": _r(j.actuator_torque_Nm),
+             "usable_torque_Nm": _r(j.usable_torque_Nm),
+             "required_speed_rad_s": _r(j.required_speed_rad_s), "load_case": j.load_case}
+            for j in s.joints
+        ],
+        "modules": [
+            {"kind": m.kind, "model": m.model, "count": m.count,
+             "i2c_addresses": [f"0x{a:02x}" for a in m.i2c_addresses]}
+            for m in s.modules
+        ],
+        "mass_kg": _r(s.mass_kg),
+        "cost": _r(s.cost),
+        "power": {"peak_current_A": _r(s.power.peak_current_A),
+                  "stall_current_A": _r(s.power.stall_current_A),
+                  "battery_max_current_A": _r(s.power.battery_max_current_A),
+                  "ok": s.power.ok},
+        "metrics": {"modularity": s.metrics.modularity, "regularity": _r(s.metrics.regularity),
+                    "hierarchy": s.metrics.hierarchy},
+        "iterations": s.iterations,
+        "notes": list(s.notes),
+    }
+
+
+def design_record(d: Design, short: Short, structure: Structure | None = None) -> dict:
+    """The whole outcome of ``parmor design`` as a dict (stable key order). With a sized
+    ``structure``, ``modules`` names catalog models and I2C addresses and the structural
+    fields follow (``links``, ``joints``, ``mass_kg``, ``cost``, ``power``, ``metrics``...)."""
     c = d.chosen
     rec: dict = {
         "status": d.status,
@@ -66,6 +121,10 @@ def design_record(d: Design, short: Short) -> dict:
         "dof": c.dof if c else None,
         "abilities": sorted(short(a) for a in c.abilities) if c else [],
     }
+    if structure is not None:
+        srec = structure_record(structure)
+        rec["modules"] = srec.pop("modules")
+        rec.update(srec)
     return rec
 
 
@@ -90,7 +149,36 @@ def candidate_text(c: Candidate, short: Short, indent: str = "  ") -> str:
     return "\n".join(lines)
 
 
-def design_text(d: Design, short: Short) -> str:
+def structure_text(s: Structure, indent: str = "  ") -> str:
+    """The sized structure as text: links, joints, modules, totals."""
+    out = [f"{indent}structure:  {s.mass_kg:.3f} kg, cost {s.cost:.2f}, {s.iterations} iterations"]
+    for link in s.links:
+        out.append(
+            f"{indent}  link {link.name:<10} x{link.count}  L {link.length_m * 1000:6.1f} mm  "
+            f"r {link.r_outer_m * 1000:5.2f}/{link.r_inner_m * 1000:5.2f} mm  "
+            f"deflection {link.tip_deflection_m * 1000:.2f}/{link.max_deflection_m * 1000:.2f} mm  "
+            f"stress {link.max_stress_Pa / 1e6:.1f}/{link.allowed_stress_Pa / 1e6:.1f} MPa"
+        )
+    for j in s.joints:
+        out.append(
+            f"{indent}  joint {j.name:<18} {j.actuator:<8} needs {j.required_torque_Nm:6.3f} N m "
+            f"(has {j.usable_torque_Nm:.3f}), {j.required_speed_rad_s:5.2f} rad/s"
+        )
+    for m in s.modules:
+        addrs = ", ".join(f"0x{a:02x}" for a in m.i2c_addresses) or "bus master"
+        out.append(f"{indent}  module {m.kind} {m.model} x{m.count}  [{addrs}]")
+    p = s.power
+    out.append(f"{indent}  power: peak {p.peak_current_A:.2f} A (stall {p.stall_current_A:.2f} A) "
+               f"of {p.battery_max_current_A:.1f} A{'' if p.ok else '  OVER THE BATTERY RATING'}")
+    m = s.metrics
+    out.append(f"{indent}  MR&H: modularity {m.modularity}, regularity {m.regularity:.2f}, "
+               f"hierarchy {m.hierarchy}")
+    if s.ignored_params:
+        out.append(f"{indent}  not used by {s.robot_type}: {', '.join(s.ignored_params)}")
+    return "\n".join(out)
+
+
+def design_text(d: Design, short: Short, structure: Structure | None = None) -> str:
     """A human-readable account of a design outcome."""
     out: list[str] = []
     for q in d.questions:
@@ -116,4 +204,6 @@ def design_text(d: Design, short: Short) -> str:
     if d.note:
         out.append(f"  note:       {d.note}")
     out.append(candidate_text(c, short))
+    if structure is not None:
+        out.append(structure_text(structure))
     return "\n".join(out) + "\n"

@@ -34,6 +34,19 @@ def _json_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print JSON on stdout")
 
 
+def _structure_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("structure (sizing links and choosing actuators)")
+    g.add_argument("--catalog", metavar="FILE.toml",
+                   help="module catalog to use instead of the shipped ParMoR one")
+    g.add_argument("--conceptual", action="store_true",
+                   help="stop after the conceptual design (no sizing)")
+    g.add_argument("--no-symmetry", action="store_true",
+                   help="let alike joints (the same joint of alike legs) get different actuators")
+    g.add_argument("--objective", default="mass,cost", metavar="ORDER",
+                   help="what the actuator choice minimises first: mass,cost (default) or "
+                   "cost,mass")
+
+
 def _kb_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("knowledge base")
     g.add_argument(
@@ -116,6 +129,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--no-input", action="store_true", help="never ask; exit 3 when an answer is still needed"
     )
+    _structure_options(p)
     p.add_argument("--out", metavar="DIR", help="write design.json into the new folder DIR")
     p.add_argument("--force", action="store_true", help="replace DIR if it exists")
 
@@ -173,6 +187,8 @@ REGRESS_HELP = """\
 suite format (TOML; paths are relative to the suite file):
   ontology = ["mine.kif"]          # optional, like --ontology
   rules = ["extra.lp"]             # optional, like --rules
+  catalog = "my-catalog.toml"      # optional, like --catalog
+  conceptual = true                # optional, like --conceptual
   [[query]]
   name = "walking-grasp"
   abilities = ["walking"]
@@ -230,25 +246,43 @@ def _ask(question, err: TextIO) -> bool:
         err.write("please answer y or n\n")
 
 
+def _options(args: argparse.Namespace):
+    from synth.pipeline import StructureOptions, parse_objective
+
+    return StructureOptions(args.catalog, args.conceptual, not args.no_symmetry,
+                            parse_objective(args.objective))
+
+
 def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from export.record import design_record, design_text, to_json
+    from export.record import design_text, to_json
+    from synth.pipeline import run
 
     designer = _designer(args, err)
     req = _request(args)
+    opts = _options(args)
     interactive = not args.no_input and sys.stdin.isatty()
-    while True:
+    while interactive:
         d = designer.step(req)
-        if d.status != "ambiguous" or not interactive:
+        if d.status != "ambiguous":
             break
         err.write("Candidates: " + ", ".join(c.robot_type for c in d.candidates) + "\n")
         q = d.questions[-1]
         req = req.answer(q.ability, _ask(q, err))
-    rec = design_record(d, designer.short)
+    result = run(designer, req, opts)
+    d = result.design
+    if result.note:
+        err.write(f"parmor: note: {result.note}\n")
+    rec = result.record(designer)
+    if result.infeasible:
+        if args.json:
+            out.write(to_json(rec))
+        err.write(f"parmor: cannot build it: {result.infeasible}\n")
+        return 1
     if args.out and d.status == "designed":
         from export.bundle import write_bundle
 
         write_bundle(args.out, {"design.json": to_json(rec)}, force=args.force)
-    out.write(to_json(rec) if args.json else design_text(d, designer.short))
+    out.write(to_json(rec) if args.json else design_text(d, designer.short, result.structure))
     if d.status == "ambiguous":
         q = d.questions[-1]
         err.write(

@@ -20,6 +20,8 @@ from dataclasses import dataclass, field, replace
 
 from adron.errors import InputError, OntologyError
 from adron.kb import KnowledgeBase
+from synth.params import BY_NAME as STRUCTURAL
+from synth.params import exceeded_limits, parse_structural
 from synth.solver import Candidate, Query, Reasoner
 
 
@@ -120,11 +122,12 @@ class Designer:
         params: dict[str, tuple[str, str]] = {}
         for name, value in req.params:
             p = self.kb.parameter(name)
+            if p is None and name in STRUCTURAL:
+                continue  # a physical parameter: see structural()
             if p is None:
-                names = [x.name for x in self.kb.parameters]
+                names = sorted([x.name for x in self.kb.parameters] + list(STRUCTURAL))
                 raise InputError(
-                    f"unknown parameter {name!r}{suggest(name, names)}; "
-                    f"known: {', '.join(names) or 'none'}"
+                    f"unknown parameter {name!r}{suggest(name, names)}; known: {', '.join(names)}"
                 )
             term = p.term(value)
             if term is None:
@@ -138,10 +141,21 @@ class Designer:
             params[name] = (p.relation, term)
         return Query(requests, tuple(sorted(answers.items())), tuple(sorted(params.values())))
 
+    def structural(self, req: Request) -> dict[str, float]:
+        """The physical parameters of ``req`` in SI units (units are required)."""
+        given: dict[str, str] = {}
+        for name, value in req.params:
+            if self.kb.parameter(name) is None and name in STRUCTURAL:
+                if given.get(name, value) != value:
+                    raise InputError(f"--param {name} given twice with different values")
+                given[name] = value
+        return parse_structural(given) if given else {}
+
     # -- the procedure ----------------------------------------------------------------
     def step(self, req: Request) -> Design:
         """Solve ``req``: designed, ambiguous (with the next question) or unsatisfiable."""
         q = self.query(req)
+        physical = self.structural(req)
         sol = self.reasoner.solve(q)
         asked = tuple(Question(n, self._question(n), yes) for n, yes in req.answers)
         needed = tuple(self.short(a) for a in sol.needed)
@@ -150,6 +164,19 @@ class Designer:
                 "unsatisfiable", req, questions=asked, conflict=self.conflict(req), needed=needed
             )
         cands = sol.candidates
+        limits = self.kb.translation.relation("structuralLimit")
+        if physical and limits:
+            over = {c.robot_type: exceeded_limits(c.robot_type, limits, physical) for c in cands}
+            kept = tuple(c for c in cands if not over[c.robot_type])
+            if not kept:
+                names = sorted({w.split(" ")[0] for ws in over.values() for w in ws})
+                why = "; ".join(f"{t}: {', '.join(ws)}" for t, ws in over.items())
+                conflict = tuple(req.abilities) + tuple(
+                    f"{n}={v}" for n, v in req.params if n in names
+                )
+                return Design("unsatisfiable", req, questions=asked, conflict=conflict,
+                              needed=needed, note=f"every candidate exceeds a limit ({why})")
+            cands = kept
         if len(cands) == 1:
             return Design(
                 "designed", req, cands, cands[0], "only candidate", questions=asked, needed=needed

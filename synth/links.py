@@ -24,7 +24,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.optimize import minimize
 
 from adron.errors import InfeasibleError
 
@@ -269,6 +268,8 @@ def optimal_tube_numeric(K0: float, limits: TubeLimits, name: str = "link") -> T
     Raises :class:`~adron.errors.InfeasibleError` when no start converges to a feasible
     point.
     """
+    from scipy.optimize import minimize  # lazy: scipy is for cross-checks, not designs
+
     k0 = float(K0)
     if not math.isfinite(k0):
         raise ValueError(f"K0 must be finite, got {K0!r}")

@@ -7,9 +7,9 @@ section" (``deflection``, ``slope``).
 
 | name | dimension | used by | default |
 |---|---|---|---|
-| payload | mass | every type | manipulators 0.2 kg, legged 0.1 kg, wheeled 0.5 kg, snake 0 kg |
+| payload | mass | every type | manipulators 0.2, multipeds 0.1, humanoid 0.05, wheeled 0.5, snake 0 kg |
 | reach | length | Manipulator3DOF, Manipulator6DOF | 0.25 m |
-| speed | speed | every type but the snake | manipulators 0.2 m/s (tip), legged 0.05 m/s, wheeled 0.3 m/s |
+| speed | speed | all but the snake | manipulators 0.2 m/s (tip), legged 0.05 m/s, wheeled 0.3 m/s |
 | obstacle_height | length | HexapodRobot, QuadrupedRobot | 0.03 m |
 | load_area | area | DifferentialDriveRobot, SkidSteerRobot | 0.03 m^2 (300 cm^2) |
 | height | length | HumanoidRobot | 0.40 m |

@@ -16,7 +16,7 @@ from typing import TextIO
 from adron.errors import InputError
 from adron.kb import read_user_file
 
-SUITE_KEYS = {"ontology", "rules", "allow_scripts", "query"}
+SUITE_KEYS = {"ontology", "rules", "allow_scripts", "catalog", "conceptual", "query"}
 QUERY_KEYS = {"name", "abilities", "answers", "params"}
 
 
@@ -55,8 +55,14 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
         "rules": [str(base / p) for p in _str_list(data.get("rules", []), f"{path}: rules")],
         "allow_scripts": data.get("allow_scripts", False),
     }
-    if not isinstance(opts["allow_scripts"], bool):
-        raise InputError(f"{path}: allow_scripts: expected true or false")
+    for key in ("allow_scripts", "conceptual"):
+        opts[key] = data.get(key, False)
+        if not isinstance(opts[key], bool):
+            raise InputError(f"{path}: {key}: expected true or false")
+    catalog = data.get("catalog")
+    if catalog is not None and not isinstance(catalog, str):
+        raise InputError(f"{path}: catalog: expected a path")
+    opts["catalog"] = str(base / catalog) if catalog else None
     queries = data.get("query", [])
     if not isinstance(queries, list) or not queries:
         raise InputError(f"{path}: no [[query]] tables")
@@ -89,12 +95,13 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
 def run_queries(opts: dict, queries: list[dict]) -> dict[str, dict]:
     """name -> design record, for every query of a suite (one grounding for all)."""
     from adron.kb import load
-    from export.record import design_record
     from synth.conceptual import Designer, Request, parse_answer
+    from synth.pipeline import StructureOptions, run
     from synth.solver import Reasoner
 
     kb = load(opts["ontology"])
     designer = Designer(kb, Reasoner(kb, opts["rules"], opts["allow_scripts"]))
+    sopts = StructureOptions(opts["catalog"], opts["conceptual"])
     results = {}
     for i, q in enumerate(queries, 1):
         try:
@@ -103,7 +110,7 @@ def run_queries(opts: dict, queries: list[dict]) -> dict[str, dict]:
                 answers=tuple(parse_answer(f"{k}={v}") for k, v in q["answers"].items()),
                 params=tuple(q["params"].items()),
             )
-            results[q["name"]] = design_record(designer.step(req), designer.short)
+            results[q["name"]] = run(designer, req, sopts).record(designer)
         except InputError as e:
             raise InputError(f"{opts['suite']}: query {i} ({q['name']}): {e}") from None
     return results

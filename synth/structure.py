@@ -363,7 +363,8 @@ class StructureDesigner:
         act_mass = {s.group: min(self.by_model[m].mass_kg for m in self.assigner.serving[s.name])
                     for s in self.slots}
         prev: np.ndarray | None = None
-        for it in range(1, MAX_ITERATIONS + 1):
+        iterations = 0
+        for iterations in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (used after the loop)
             sizing = self.family.update(
                 sizing, build(self.type, self._params(sizing, tubes, act_mass, self.modules)),
                 self.values, cat)
@@ -390,7 +391,7 @@ class StructureDesigner:
             raise InfeasibleError(f"{self.type}: the masses did not converge in "
                                   f"{MAX_ITERATIONS} iterations")
         final = build(self.type, self._params(sizing, tubes, act_mass, self.modules))
-        return self._record(final, sizing, req, assignment, sized, it)
+        return self._record(final, sizing, req, assignment, sized, iterations)
 
     def _no_actuator(self, req: _Requirements) -> InfeasibleError:
         strongest = max(self.catalog.actuators, key=lambda a: a.stall_torque_Nm)
@@ -496,7 +497,7 @@ def design_structure(kb: KnowledgeBase, candidate: Candidate, catalog: Catalog,
     except InfeasibleError as e:
         hint = largest_payload(kb, candidate, catalog, params, symmetric, objective)
         if hint is not None:
-            raise InfeasibleError(f"{e} — the largest payload that works here is "
+            raise InfeasibleError(f"{e}; the largest payload that works here is "
                                   f"{hint:.3f} kg") from None
         raise
 

@@ -35,8 +35,11 @@ GRASP_QUESTION = "Does the robot need to grasp?"
 
 
 def counts(rows: list[dict]) -> dict[str, int]:
-    """[{"kind": K, "count": N}, ...] -> {K: N}."""
-    return {r["kind"]: r["count"] for r in rows}
+    """[{"kind": K, "count": N}, ...] -> {K: total N} (a kind may come in several models)."""
+    out: dict[str, int] = {}
+    for r in rows:
+        out[r["kind"]] = out.get(r["kind"], 0) + r["count"]
+    return out
 
 
 def no_traceback(r) -> None:

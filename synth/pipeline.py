@@ -1,0 +1,87 @@
+"""One design request end to end, as both ``parmor design`` and ``parmor regress`` run it:
+the conceptual procedure, then (unless asked not to) the structure generator, giving the
+design record."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from adron.errors import InfeasibleError, InputError
+from synth.conceptual import Design, Designer, Request
+
+if TYPE_CHECKING:  # numpy-heavy: imported only when a structure is sized
+    from adron.catalog import Catalog
+    from synth.structure import Structure
+
+
+@dataclass(frozen=True, slots=True)
+class StructureOptions:
+    """How to size the structure: catalog file (None: the shipped one), whether to stop at
+    the conceptual design, symmetry of alike joints, the actuator objective order."""
+
+    catalog: str | None = None
+    conceptual: bool = False
+    symmetric: bool = True
+    objective: tuple[str, ...] = ("mass", "cost")
+
+
+def parse_objective(text: str) -> tuple[str, ...]:
+    order = tuple(x.strip() for x in text.split(",") if x.strip())
+    if sorted(order) != ["cost", "mass"]:
+        raise InputError(f"objective {text!r}: expected mass,cost or cost,mass")
+    return order
+
+
+def load_checked_catalog(path: str | None, designer: Designer) -> Catalog:
+    """The catalog, with every ontology class it names checked against the ontology."""
+    from adron.catalog import load_catalog
+
+    cat = load_catalog(path)
+    known = {n for pair in designer.kb.translation.relation("subclass") for n in pair[:2]}
+    cat.check_classes(known)
+    return cat
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """A design, its sized structure (or None) and why there is none."""
+
+    design: Design
+    structure: Structure | None = None
+    infeasible: str | None = None  # the infeasibility message
+    note: str | None = None  # why the design stayed conceptual
+
+    @property
+    def status(self) -> str:
+        return "infeasible" if self.infeasible else self.design.status
+
+    def record(self, designer: Designer) -> dict:
+        from export.record import design_record
+
+        rec = design_record(self.design, designer.short, self.structure)
+        if self.infeasible:
+            rec["status"] = "infeasible"
+            rec["infeasible"] = self.infeasible
+        return rec
+
+
+def run(designer: Designer, req: Request, opts: StructureOptions) -> Outcome:
+    """The conceptual step of ``req`` and, for a designed robot, its structure."""
+    d = designer.step(req)
+    if d.status != "designed" or opts.conceptual:
+        return Outcome(d)
+    from kinematics.templates import TEMPLATES
+
+    if d.chosen.robot_type not in TEMPLATES:
+        return Outcome(d, note=f"{d.chosen.robot_type} has no kinematic template; the design "
+                       "stays conceptual")
+    from synth.structure import design_structure
+
+    catalog = load_checked_catalog(opts.catalog, designer)
+    try:
+        s = design_structure(designer.kb, d.chosen, catalog, designer.structural(req),
+                             opts.symmetric, opts.objective)
+    except InfeasibleError as e:
+        return Outcome(d, infeasible=str(e))
+    return Outcome(d, s)
