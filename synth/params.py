@@ -7,7 +7,7 @@ section" (``deflection``, ``slope``).
 
 | name | dimension | used by | default |
 |---|---|---|---|
-| payload | mass | every type | manipulators 0.2, multipeds 0.1, humanoid 0.05, wheeled 0.5, snake 0 kg |
+| payload | mass | all | kg: manipulators 0.2, multipeds 0.1, humanoid 0.05, wheeled 0.5, snake 0 |
 | reach | length | Manipulator3DOF, Manipulator6DOF | 0.25 m |
 | speed | speed | all but the snake | manipulators 0.2 m/s (tip), legged 0.05 m/s, wheeled 0.3 m/s |
 | obstacle_height | length | HexapodRobot, QuadrupedRobot | 0.03 m |
