@@ -14,7 +14,7 @@ from synth.conceptual import Design
 from synth.solver import Candidate
 
 if TYPE_CHECKING:  # the structure stage pulls numpy in: keep it off the conceptual path
-    from synth.structure import Structure
+    from synth.structure import Alternatives, Structure
 
 Short = Callable[[str], str]
 
@@ -51,39 +51,83 @@ def structure_record(s: Structure) -> dict:
         "lengths_m": {k: _r(v) for k, v in s.lengths.items()},
         "wheel_radius_m": None if s.wheel_radius_m is None else _r(s.wheel_radius_m),
         "links": [
-            {"name": link.name, "count": link.count, "length_m": _r(link.length_m),
-             "r_outer_m": _r(link.r_outer_m), "r_inner_m": _r(link.r_inner_m),
-             "volume_m3": _r(link.volume_m3), "mass_kg": _r(link.mass_kg),
-             "tip_deflection_m": _r(link.tip_deflection_m),
-             "max_deflection_m": _r(link.max_deflection_m),
-             "max_stress_Pa": _r(link.max_stress_Pa),
-             "allowed_stress_Pa": _r(link.allowed_stress_Pa),
-             "branch": link.branch, "governed_by": link.governed_by}
+            {
+                "name": link.name,
+                "count": link.count,
+                "length_m": _r(link.length_m),
+                "r_outer_m": _r(link.r_outer_m),
+                "r_inner_m": _r(link.r_inner_m),
+                "volume_m3": _r(link.volume_m3),
+                "mass_kg": _r(link.mass_kg),
+                "tip_deflection_m": _r(link.tip_deflection_m),
+                "max_deflection_m": _r(link.max_deflection_m),
+                "max_stress_Pa": _r(link.max_stress_Pa),
+                "allowed_stress_Pa": _r(link.allowed_stress_Pa),
+                "branch": link.branch,
+                "governed_by": link.governed_by,
+            }
             for link in s.links
         ],
         "joints": [
-            {"name": j.name, "group": j.group, "module_class": j.module_class,
-             "actuator": j.actuator, "required_torque_Nm": _r(j.required_torque_Nm),
-             "actuator_torque_Nm": _r(j.actuator_torque_Nm),
-             "usable_torque_Nm": _r(j.usable_torque_Nm),
-             "required_speed_rad_s": _r(j.required_speed_rad_s), "load_case": j.load_case}
+            {
+                "name": j.name,
+                "group": j.group,
+                "module_class": j.module_class,
+                "actuator": j.actuator,
+                "required_torque_Nm": _r(j.required_torque_Nm),
+                "actuator_torque_Nm": _r(j.actuator_torque_Nm),
+                "usable_torque_Nm": _r(j.usable_torque_Nm),
+                "required_speed_rad_s": _r(j.required_speed_rad_s),
+                "load_case": j.load_case,
+            }
             for j in s.joints
         ],
         "modules": [
-            {"kind": m.kind, "model": m.model, "count": m.count,
-             "i2c_addresses": [f"0x{a:02x}" for a in m.i2c_addresses]}
+            {
+                "kind": m.kind,
+                "model": m.model,
+                "count": m.count,
+                "i2c_addresses": [f"0x{a:02x}" for a in m.i2c_addresses],
+            }
             for m in s.modules
         ],
         "mass_kg": _r(s.mass_kg),
         "cost": _r(s.cost),
-        "power": {"peak_current_A": _r(s.power.peak_current_A),
-                  "stall_current_A": _r(s.power.stall_current_A),
-                  "battery_max_current_A": _r(s.power.battery_max_current_A),
-                  "ok": s.power.ok},
-        "metrics": {"modularity": s.metrics.modularity, "regularity": _r(s.metrics.regularity),
-                    "hierarchy": s.metrics.hierarchy},
+        "power": {
+            "peak_current_A": _r(s.power.peak_current_A),
+            "stall_current_A": _r(s.power.stall_current_A),
+            "battery_max_current_A": _r(s.power.battery_max_current_A),
+            "ok": s.power.ok,
+        },
+        "metrics": {
+            "modularity": s.metrics.modularity,
+            "regularity": _r(s.metrics.regularity),
+            "hierarchy": s.metrics.hierarchy,
+        },
         "iterations": s.iterations,
         "notes": list(s.notes),
+    }
+
+
+def alternatives_record(a: Alternatives) -> dict:
+    """Feasible actuator assignments: exact count, the best ones, the Pareto front."""
+
+    def one(x) -> dict:
+        per: dict[str, int] = {}
+        for _, m in x.models:
+            per[m] = per.get(m, 0) + 1
+        return {
+            "modules_mass_kg": _r(x.mass_kg),
+            "modules_cost": _r(x.cost),
+            "summary": ", ".join(f"{m} x{n}" for m, n in sorted(per.items())),
+            "joints": dict(x.models),
+        }
+
+    return {
+        "count": a.count,
+        "symmetric": a.symmetric,
+        "ranked": [one(x) for x in a.ranked],
+        "pareto": None if a.pareto is None else [one(x) for x in a.pareto],
     }
 
 
@@ -168,11 +212,15 @@ def structure_text(s: Structure, indent: str = "  ") -> str:
         addrs = ", ".join(f"0x{a:02x}" for a in m.i2c_addresses) or "bus master"
         out.append(f"{indent}  module {m.kind} {m.model} x{m.count}  [{addrs}]")
     p = s.power
-    out.append(f"{indent}  power: peak {p.peak_current_A:.2f} A (stall {p.stall_current_A:.2f} A) "
-               f"of {p.battery_max_current_A:.1f} A{'' if p.ok else '  OVER THE BATTERY RATING'}")
+    out.append(
+        f"{indent}  power: peak {p.peak_current_A:.2f} A (stall {p.stall_current_A:.2f} A) "
+        f"of {p.battery_max_current_A:.1f} A{'' if p.ok else '  OVER THE BATTERY RATING'}"
+    )
     m = s.metrics
-    out.append(f"{indent}  MR&H: modularity {m.modularity}, regularity {m.regularity:.2f}, "
-               f"hierarchy {m.hierarchy}")
+    out.append(
+        f"{indent}  MR&H: modularity {m.modularity}, regularity {m.regularity:.2f}, "
+        f"hierarchy {m.hierarchy}"
+    )
     if s.ignored_params:
         out.append(f"{indent}  not used by {s.robot_type}: {', '.join(s.ignored_params)}")
     return "\n".join(out)

@@ -36,15 +36,25 @@ def _json_option(p: argparse.ArgumentParser) -> None:
 
 def _structure_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("structure (sizing links and choosing actuators)")
-    g.add_argument("--catalog", metavar="FILE.toml",
-                   help="module catalog to use instead of the shipped ParMoR one")
-    g.add_argument("--conceptual", action="store_true",
-                   help="stop after the conceptual design (no sizing)")
-    g.add_argument("--no-symmetry", action="store_true",
-                   help="let alike joints (the same joint of alike legs) get different actuators")
-    g.add_argument("--objective", default="mass,cost", metavar="ORDER",
-                   help="what the actuator choice minimises first: mass,cost (default) or "
-                   "cost,mass")
+    g.add_argument(
+        "--catalog",
+        metavar="FILE.toml",
+        help="module catalog to use instead of the shipped ParMoR one",
+    )
+    g.add_argument(
+        "--conceptual", action="store_true", help="stop after the conceptual design (no sizing)"
+    )
+    g.add_argument(
+        "--no-symmetry",
+        action="store_true",
+        help="let alike joints (the same joint of alike legs) get different actuators",
+    )
+    g.add_argument(
+        "--objective",
+        default="mass,cost",
+        metavar="ORDER",
+        help="what the actuator choice minimises first: mass,cost (default) or cost,mass",
+    )
 
 
 def _kb_options(p: argparse.ArgumentParser) -> None:
@@ -138,10 +148,25 @@ def build_parser() -> argparse.ArgumentParser:
         help="list every candidate robot for a set of abilities",
         description="List every robot type that meets the request, in "
         "preference order (fewest active modules first), with its parts, "
-        "modules and abilities. Asks nothing.",
+        "modules and abilities, sized for the --param values, with the exact count of its "
+        "feasible actuator assignments and the best of them. Asks nothing. With --json, "
+        "one JSON object per line as each candidate is done, then a summary line.",
     )
     _request_options(p)
+    _structure_options(p)
     p.add_argument("--limit", type=int, metavar="N", help="list at most N candidates")
+    p.add_argument(
+        "--assignments",
+        type=int,
+        default=3,
+        metavar="K",
+        help="list the K best actuator assignments of each candidate (default 3)",
+    )
+    p.add_argument(
+        "--pareto",
+        action="store_true",
+        help="also print each candidate's mass/cost Pareto front of assignments",
+    )
 
     p = sub.add_parser(
         "explain",
@@ -249,8 +274,9 @@ def _ask(question, err: TextIO) -> bool:
 def _options(args: argparse.Namespace):
     from synth.pipeline import StructureOptions, parse_objective
 
-    return StructureOptions(args.catalog, args.conceptual, not args.no_symmetry,
-                            parse_objective(args.objective))
+    return StructureOptions(
+        args.catalog, args.conceptual, not args.no_symmetry, parse_objective(args.objective)
+    )
 
 
 def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -299,39 +325,143 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from export.record import candidate_record, candidate_text, to_json
+    import json
+
+    from export.record import candidate_record, candidate_text
 
     designer = _designer(args, err)
     req = _request(args)
+    opts = _options(args)
     if args.limit is not None and args.limit < 0:
         raise InputError("--limit must be 0 or more")
+    if args.assignments < 1:
+        raise InputError("--assignments must be 1 or more")
     sol = designer.reasoner.solve(designer.query(req))
-    cands = sol.candidates[: args.limit] if args.limit is not None else sol.candidates
-    conflict = designer.conflict(req) if not sol.candidates else ()
-    if args.json:
-        out.write(
-            to_json(
-                {
-                    "status": "enumerated" if sol.candidates else "unsatisfiable",
-                    "count": len(sol.candidates),
-                    "candidates": [candidate_record(c, designer.short) for c in cands],
-                    "conflict": list(conflict),
-                }
+    physical = designer.structural(req)
+    cands, over = designer.within_limits(sol.candidates, physical)
+    shown = cands[: args.limit] if args.limit is not None else cands
+    sizer = None if opts.conceptual else _Sizer(designer, opts, physical, args)
+    progress = _progress(err, len(shown)) if sizer and err.isatty() else None
+    for i, c in enumerate(shown, 1):
+        rec = candidate_record(c, designer.short)
+        if sizer is not None:
+            if progress:
+                progress(i, c.robot_type)
+            rec.update(sizer.size(c))
+        if args.json:
+            out.write(
+                json.dumps({"type": "candidate", "rank": i, **rec}, ensure_ascii=False) + "\n"
             )
-        )
-    else:
-        for i, c in enumerate(cands, 1):
+            out.flush()
+        else:
             out.write(f"{i}. {c.robot_type}\n{candidate_text(c, designer.short, '   ')}\n")
-        shown = (
-            f"{len(cands)} of {len(sol.candidates)}"
-            if len(cands) < len(sol.candidates)
-            else f"{len(sol.candidates)}"
-        )
-        out.write(f"{shown} candidate(s)\n")
-    if not sol.candidates:
+            if sizer is not None:
+                out.write(sizer.text(rec, "   "))
+    if progress:
+        progress(None, "")
+    conflict = list(designer.conflict(req)) if not sol.candidates else []
+    if sol.candidates and not cands:
+        conflict = [*req.abilities, *(f"{n}={v}" for n, v in req.params if n in physical)]
+    status = "enumerated" if cands else "unsatisfiable"
+    if args.json:
+        summary = {
+            "type": "summary",
+            "status": status,
+            "count": len(cands),
+            "shown": len(shown),
+            "conflict": conflict,
+            "excluded": over,
+        }
+        out.write(json.dumps(summary, ensure_ascii=False) + "\n")
+    else:
+        for t, ws in over.items():
+            out.write(f"not built for this request: {t} ({', '.join(ws)})\n")
+        listed = f"{len(shown)} of {len(cands)}" if len(shown) < len(cands) else f"{len(cands)}"
+        out.write(f"{listed} candidate(s)\n")
+    if not cands:
         err.write(f"parmor: no robot can meet the request: {' + '.join(conflict)}\n")
         return 1
     return 0
+
+
+class _Sizer:
+    """Sizes each enumerated candidate and lists its feasible actuator assignments."""
+
+    def __init__(self, designer, opts, physical, args: argparse.Namespace) -> None:
+        from synth.pipeline import load_checked_catalog
+
+        self.designer, self.opts, self.physical = designer, opts, physical
+        self.k, self.pareto = args.assignments, args.pareto
+        self.catalog = load_checked_catalog(opts.catalog, designer)
+
+    def size(self, c) -> dict:
+        from adron.errors import InfeasibleError
+        from export.record import alternatives_record, structure_record
+        from kinematics.templates import TEMPLATES
+        from synth.structure import StructureDesigner, alternatives
+
+        if c.robot_type not in TEMPLATES:
+            return {"structure": None, "note": "no kinematic template: conceptual only"}
+        try:
+            sd = StructureDesigner(
+                self.designer.kb,
+                c,
+                self.catalog,
+                self.physical,
+                self.opts.symmetric,
+                self.opts.objective,
+            )
+            s = sd.run()
+            alts = alternatives(sd, self.k, self.pareto)
+        except InfeasibleError as e:
+            return {"structure": None, "infeasible": str(e)}
+        srec = structure_record(s)
+        keep = ("mass_kg", "cost", "iterations", "params", "lengths_m", "wheel_radius_m")
+        return {"structure": {k: srec[k] for k in keep}, "assignments": alternatives_record(alts)}
+
+    @staticmethod
+    def text(rec: dict, indent: str) -> str:
+        if rec.get("infeasible"):
+            return f"{indent}infeasible: {rec['infeasible']}\n"
+        if rec.get("structure") is None:
+            return f"{indent}{rec.get('note', '')}\n"
+        s, a = rec["structure"], rec["assignments"]
+        alike = "alike joints alike" if a["symmetric"] else "joints independent"
+        lines = [
+            f"{indent}sized:      {s['mass_kg']:.3f} kg, cost {s['cost']:.2f}",
+            f"{indent}assignments: {a['count']} feasible ({alike}), best first:",
+        ]
+        for n, x in enumerate(a["ranked"], 1):
+            lines.append(
+                f"{indent}  {n}. modules {x['modules_mass_kg']:.3f} kg, "
+                f"cost {x['modules_cost']:.2f}: {x['summary']}"
+            )
+        if a.get("pareto") is not None:
+            lines.append(f"{indent}mass/cost Pareto front:")
+            lines += [
+                f"{indent}  modules {x['modules_mass_kg']:.3f} kg, cost "
+                f"{x['modules_cost']:.2f}: {x['summary']}"
+                for x in a["pareto"]
+            ]
+        return "\n".join(lines) + "\n"
+
+
+def _progress(err: TextIO, total: int):
+    """A progress line on a terminal (rich): call with (i, name), then (None, "")."""
+    from rich.console import Console
+    from rich.progress import Progress
+
+    bar = Progress(transient=True, console=Console(file=err))
+    task = bar.add_task("sizing", total=total)
+    bar.start()
+
+    def step(i: int | None, name: str) -> None:
+        if i is None:
+            bar.stop()
+        else:
+            bar.update(task, completed=i - 1, description=f"sizing {name}")
+
+    return step
 
 
 def cmd_explain(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import difflib
 import itertools
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 from adron.errors import InputError, OntologyError
@@ -151,6 +151,18 @@ class Designer:
                 given[name] = value
         return parse_structural(given) if given else {}
 
+    def within_limits(
+        self, cands: Sequence[Candidate], physical: Mapping[str, float]
+    ) -> tuple[tuple[Candidate, ...], dict[str, list[str]]]:
+        """The candidates whose ontology ``structuralLimit`` facts the physical parameters
+        do not exceed, and the exceeded limits of the others (type -> phrases)."""
+        limits = self.kb.translation.relation("structuralLimit")
+        if not physical or not limits:
+            return tuple(cands), {}
+        over = {c.robot_type: exceeded_limits(c.robot_type, limits, physical) for c in cands}
+        over = {t: w for t, w in over.items() if w}
+        return tuple(c for c in cands if c.robot_type not in over), over
+
     # -- the procedure ----------------------------------------------------------------
     def step(self, req: Request) -> Design:
         """Solve ``req``: designed, ambiguous (with the next question) or unsatisfiable."""
@@ -163,23 +175,29 @@ class Designer:
             return Design(
                 "unsatisfiable", req, questions=asked, conflict=self.conflict(req), needed=needed
             )
-        cands = sol.candidates
-        limits = self.kb.translation.relation("structuralLimit")
-        if physical and limits:
-            over = {c.robot_type: exceeded_limits(c.robot_type, limits, physical) for c in cands}
-            kept = tuple(c for c in cands if not over[c.robot_type])
-            if not kept:
-                names = sorted({w.split(" ")[0] for ws in over.values() for w in ws})
-                why = "; ".join(f"{t}: {', '.join(ws)}" for t, ws in over.items())
-                conflict = tuple(req.abilities) + tuple(
-                    f"{n}={v}" for n, v in req.params if n in names
-                )
-                return Design("unsatisfiable", req, questions=asked, conflict=conflict,
-                              needed=needed, note=f"every candidate exceeds a limit ({why})")
-            cands = kept
+        cands, over = self.within_limits(sol.candidates, physical)
+        excluded = "; ".join(f"{t} is not built for {', '.join(ws)}" for t, ws in over.items())
+        if not cands:
+            names = sorted({w.split(" ")[0] for ws in over.values() for w in ws})
+            conflict = tuple(req.abilities) + tuple(f"{n}={v}" for n, v in req.params if n in names)
+            return Design(
+                "unsatisfiable",
+                req,
+                questions=asked,
+                conflict=conflict,
+                needed=needed,
+                note=excluded,
+            )
         if len(cands) == 1:
             return Design(
-                "designed", req, cands, cands[0], "only candidate", questions=asked, needed=needed
+                "designed",
+                req,
+                cands,
+                cands[0],
+                "only candidate",
+                excluded or None,
+                asked,
+                needed=needed,
             )
         nxt = self.next_question(
             cands, set(sol.needed) | set(sol.excluded) | {a for a, _ in q.answers}
@@ -192,8 +210,12 @@ class Designer:
                 f"{best.robot_type} by preference: fewest active modules "
                 f"({best.active_total})"
             )
+            if excluded:
+                note = f"{excluded}; {note}"
             return Design("designed", req, cands, best, "preference", note, asked, needed=needed)
-        return Design("ambiguous", req, cands, questions=(*asked, nxt), needed=needed)
+        return Design(
+            "ambiguous", req, cands, questions=(*asked, nxt), needed=needed, note=excluded or None
+        )
 
     def _question(self, name: str) -> str:
         a = self.kb.ability(name)

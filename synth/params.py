@@ -93,8 +93,9 @@ PARAMS: tuple[ParamSpec, ...] = (
 BY_NAME = {p.name: p for p in PARAMS}
 
 
-def exceeded_limits(robot_type: str, limits: Iterable[tuple], given: Mapping[str, float]
-                    ) -> list[str]:
+def exceeded_limits(
+    robot_type: str, limits: Iterable[tuple], given: Mapping[str, float]
+) -> list[str]:
     """The structural limits (ontology ``structuralLimit`` facts: type, name, quantity) of
     ``robot_type`` that the given values exceed, as readable phrases."""
     from adron.units import quantity
@@ -103,8 +104,9 @@ def exceeded_limits(robot_type: str, limits: Iterable[tuple], given: Mapping[str
     for rtype, name, text, *_ in limits:
         if rtype != robot_type or name not in given or name not in BY_NAME:
             continue
-        limit = quantity(text, BY_NAME[name].dimension, f"structuralLimit {rtype} {name}",
-                         allow_zero=True)
+        limit = quantity(
+            text, BY_NAME[name].dimension, f"structuralLimit {rtype} {name}", allow_zero=True
+        )
         if given[name] > limit:
             out.append(f"{name} above {text}")
     return out

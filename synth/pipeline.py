@@ -74,14 +74,16 @@ def run(designer: Designer, req: Request, opts: StructureOptions) -> Outcome:
     from kinematics.templates import TEMPLATES
 
     if d.chosen.robot_type not in TEMPLATES:
-        return Outcome(d, note=f"{d.chosen.robot_type} has no kinematic template; the design "
-                       "stays conceptual")
+        return Outcome(
+            d, note=f"{d.chosen.robot_type} has no kinematic template; the design stays conceptual"
+        )
     from synth.structure import design_structure
 
     catalog = load_checked_catalog(opts.catalog, designer)
     try:
-        s = design_structure(designer.kb, d.chosen, catalog, designer.structural(req),
-                             opts.symmetric, opts.objective)
+        s = design_structure(
+            designer.kb, d.chosen, catalog, designer.structural(req), opts.symmetric, opts.objective
+        )
     except InfeasibleError as e:
         return Outcome(d, infeasible=str(e))
     return Outcome(d, s)

@@ -46,8 +46,16 @@ SPEED_MARGIN = 1.1
 GRIPPER_SPEED = 1.0
 SNAKE_SPEED = 0.5 * 2 * math.pi * 0.5 * PEAK_FACTOR
 #: Humanoid proportions of the standing height (Fig. 21).
-HUMANOID = {"femur": 0.22, "tibia": 0.22, "foot": 0.25, "trunk_height": 0.35,
-            "hip_width": 0.2, "shoulder_width": 0.4, "upper_arm": 0.17, "forearm": 0.19}
+HUMANOID = {
+    "femur": 0.22,
+    "tibia": 0.22,
+    "foot": 0.25,
+    "trunk_height": 0.35,
+    "hip_width": 0.2,
+    "shoulder_width": 0.4,
+    "upper_arm": 0.17,
+    "forearm": 0.19,
+}
 #: Humanoid walking pose (rad): knees bent so that the pitch joints carry the weight.
 CROUCH = {"hip_pitch": -0.3, "knee_pitch": 0.6, "ankle_pitch": -0.3}
 
@@ -102,18 +110,22 @@ def _movable(tmpl: Template) -> list[str]:
     return [j.name for j in m.joints if m.q_index[m.joint(j.name)] >= 0]
 
 
-def _accel_cases(tmpl: Template, q: np.ndarray, v: np.ndarray, accel: float,
-                 fext: np.ndarray | None, name: str) -> list[LoadCase]:
+def _accel_cases(
+    tmpl: Template, q: np.ndarray, v: np.ndarray, accel: float, fext: np.ndarray | None, name: str
+) -> list[LoadCase]:
     """The case at rest plus all joints accelerating one way and the other."""
     nv = tmpl.model.nv
     ones = np.ones(nv) * accel
-    return [LoadCase(f"{name}, holding", q, np.zeros(nv), np.zeros(nv), fext),
-            LoadCase(f"{name}, accelerating", q, v, ones, fext),
-            LoadCase(f"{name}, decelerating", q, v, -ones, fext)]
+    return [
+        LoadCase(f"{name}, holding", q, np.zeros(nv), np.zeros(nv), fext),
+        LoadCase(f"{name}, accelerating", q, v, ones, fext),
+        LoadCase(f"{name}, decelerating", q, v, -ones, fext),
+    ]
 
 
-def _support(tmpl: Template, q: np.ndarray, feet: list[str], weight: float,
-             under_com: bool = False) -> np.ndarray:
+def _support(
+    tmpl: Template, q: np.ndarray, feet: list[str], weight: float, under_com: bool = False
+) -> np.ndarray:
     """fext: the ground carries ``weight`` N shared by ``feet`` (upward, at the foot points;
     with ``under_com`` at the ground point under the centre of mass)."""
     model = tmpl.model
@@ -138,21 +150,24 @@ class Family(ABC):
         """Tentative lengths and template inputs from the parameters."""
 
     @abstractmethod
-    def load_cases(self, tmpl: Template, p: Mapping[str, float], catalog: Catalog
-                   ) -> list[LoadCase]:
+    def load_cases(
+        self, tmpl: Template, p: Mapping[str, float], catalog: Catalog
+    ) -> list[LoadCase]:
         """The worst cases to analyse on the analysis template."""
 
     @abstractmethod
-    def speeds(self, tmpl: Template, p: Mapping[str, float], sizing: Sizing | None
-               ) -> dict[str, float]:
+    def speeds(
+        self, tmpl: Template, p: Mapping[str, float], sizing: Sizing | None
+    ) -> dict[str, float]:
         """Required speed (rad/s) of each movable joint."""
 
     def analysis_modules(self, modules: int) -> int:
         """Snake modules in the analysed chain (others: unused)."""
         return modules
 
-    def update(self, sizing: Sizing, tmpl: Template, p: Mapping[str, float],
-               catalog: Catalog) -> Sizing:
+    def update(
+        self, sizing: Sizing, tmpl: Template, p: Mapping[str, float], catalog: Catalog
+    ) -> Sizing:
         """Sizing decisions that depend on the current masses (default: none)."""
         return sizing
 
@@ -181,8 +196,14 @@ class Manipulators(Family):
     def load_cases(self, tmpl, p, catalog):
         q = np.zeros(tmpl.model.nv)
         v = self._speed_vector(tmpl, p)
-        return _accel_cases(tmpl, q, v, catalog.design.max_joint_acceleration_rad_s2, None,
-                            "stretched at full reach")
+        return _accel_cases(
+            tmpl,
+            q,
+            v,
+            catalog.design.max_joint_acceleration_rad_s2,
+            None,
+            "stretched at full reach",
+        )
 
     def _speed_vector(self, tmpl, p):
         speeds = self.speeds(tmpl, p, None)
@@ -235,8 +256,14 @@ class Multipeds(Family):
         weight = tmpl.model.total_mass * catalog.design.gravity_m_s2
         fext = _support(tmpl, q, self._support_feet(tmpl), weight)
         v = np.zeros(tmpl.model.nv)
-        return _accel_cases(tmpl, q, v, catalog.design.max_joint_acceleration_rad_s2, fext,
-                            f"standing on {len(self._support_feet(tmpl))} legs")
+        return _accel_cases(
+            tmpl,
+            q,
+            v,
+            catalog.design.max_joint_acceleration_rad_s2,
+            fext,
+            f"standing on {len(self._support_feet(tmpl))} legs",
+        )
 
     def speeds(self, tmpl, p, sizing):
         L = tmpl.lengths
@@ -247,7 +274,6 @@ class Multipeds(Family):
         sweep = 2 * COXA_SWING
         w = PEAK_FACTOR * max(sweep, 2 * lift) / swing_time
         return dict.fromkeys(_movable(tmpl), w)
-
 
 
 class Humanoid(Family):
@@ -270,8 +296,9 @@ class Humanoid(Family):
         foot = [f for f in tmpl.feet if f.startswith("l")][:1]
         fext = _support(tmpl, q, foot, weight, under_com=True)
         v = np.zeros(tmpl.model.nv)
-        return _accel_cases(tmpl, q, v, catalog.design.max_joint_acceleration_rad_s2, fext,
-                            "on one foot, crouched")
+        return _accel_cases(
+            tmpl, q, v, catalog.design.max_joint_acceleration_rad_s2, fext, "on one foot, crouched"
+        )
 
     def speeds(self, tmpl, p, sizing):
         L = tmpl.lengths
@@ -297,8 +324,14 @@ class Snake(Family):
     def load_cases(self, tmpl, p, catalog):
         q = np.zeros(tmpl.model.nv)
         v = np.full(tmpl.model.nv, SNAKE_SPEED)
-        return _accel_cases(tmpl, q, v, catalog.design.max_joint_acceleration_rad_s2, None,
-                            f"lifting {tmpl.model.nv} modules")
+        return _accel_cases(
+            tmpl,
+            q,
+            v,
+            catalog.design.max_joint_acceleration_rad_s2,
+            None,
+            f"lifting {tmpl.model.nv} modules",
+        )
 
     def speeds(self, tmpl, p, sizing):
         return dict.fromkeys(_movable(tmpl), SNAKE_SPEED)
@@ -315,15 +348,16 @@ class Wheeled(Family):
     def size(self, robot_type, p, catalog):
         area = p["load_area"]
         l1 = math.sqrt(area * CHASSIS_ASPECT)
-        return Sizing({"L1": l1, "L2": area / l1},
-                      wheel_radius=catalog.passive.wheel_min_radius_m)
+        return Sizing({"L1": l1, "L2": area / l1}, wheel_radius=catalog.passive.wheel_min_radius_m)
 
     @staticmethod
     def traction(mass: float, p: Mapping[str, float], catalog: Catalog) -> float:
         """Total traction force (N) to climb the slope while accelerating."""
         g, slope = catalog.design.gravity_m_s2, p["slope"]
-        return mass * (g * (math.sin(slope) + catalog.design.rolling_resistance
-                            * math.cos(slope)) + p["speed"] / ACCELERATION_TIME)
+        return mass * (
+            g * (math.sin(slope) + catalog.design.rolling_resistance * math.cos(slope))
+            + p["speed"] / ACCELERATION_TIME
+        )
 
     def update(self, sizing, tmpl, p, catalog):
         n = len(tmpl.wheels)
@@ -383,8 +417,11 @@ class Wheeled(Family):
             fext[b] += external_force_at(m, q, b, contact, force)
         v = np.full(m.nv, p["speed"] / r)
         a = np.full(m.nv, accel / r)
-        return [LoadCase(f"climbing {math.degrees(p['slope']):.0f} deg while accelerating", q, v, a,
-                         fext)]
+        return [
+            LoadCase(
+                f"climbing {math.degrees(p['slope']):.0f} deg while accelerating", q, v, a, fext
+            )
+        ]
 
     def speeds(self, tmpl, p, sizing):
         return dict.fromkeys(_movable(tmpl), p["speed"] / tmpl.params.wheel_radius)

@@ -135,8 +135,11 @@ def module_class(model_joint_name: str, kind: str, group: str) -> str:
 
 def _slots(tmpl: Template) -> list[JointSlot]:
     m = tmpl.model
-    return [JointSlot(j.name, j.group, module_class(j.name, j.kind, j.group))
-            for j in m.joints if m.q_index[m.joint(j.name)] >= 0]
+    return [
+        JointSlot(j.name, j.group, module_class(j.name, j.kind, j.group))
+        for j in m.joints
+        if m.q_index[m.joint(j.name)] >= 0
+    ]
 
 
 def usable_torque(a: Actuator, catalog: Catalog) -> float:
@@ -185,27 +188,39 @@ class _Requirements:
 class StructureDesigner:
     """One robot type's co-design loop with its own actuator assigner (grounded once)."""
 
-    def __init__(self, kb: KnowledgeBase, candidate: Candidate, catalog: Catalog,
-                 params: Mapping[str, float], symmetric: bool = True,
-                 objective: Sequence[str] = ("mass", "cost")) -> None:
+    def __init__(
+        self,
+        kb: KnowledgeBase,
+        candidate: Candidate,
+        catalog: Catalog,
+        params: Mapping[str, float],
+        symmetric: bool = True,
+        objective: Sequence[str] = ("mass", "cost"),
+    ) -> None:
         self.type = candidate.robot_type
         if self.type not in TEMPLATES or self.type not in FAMILIES:
-            raise InputError(f"{self.type}: no kinematic template to size it "
-                             f"(templates: {', '.join(TEMPLATES)})")
+            raise InputError(
+                f"{self.type}: no kinematic template to size it (templates: {', '.join(TEMPLATES)})"
+            )
         self.candidate, self.catalog, self.symmetric = candidate, catalog, symmetric
         self.family: Family = FAMILIES[self.type]
-        defaults = {"deflection": catalog.design.max_tip_deflection_m,
-                    "slope": catalog.design.max_slope_rad}
+        defaults = {
+            "deflection": catalog.design.max_tip_deflection_m,
+            "slope": catalog.design.max_slope_rad,
+        }
         self.values, self.ignored = resolve(self.type, params, defaults)
         self.modules = max(candidate.dof, 1)
         probe = build(self.type, TemplateParams(modules=self.modules))
         self.slots = _slots(probe)
         self.other_active = candidate.active_total - len(self.slots)
         if self.other_active < 0:
-            raise InputError(f"{self.type}: the template has {len(self.slots)} actuated joints "
-                             f"but the design only {candidate.active_total} active modules")
-        self.assigner = ActuatorAssigner(kb, catalog_facts(catalog), self.type, self.slots,
-                                         self.other_active, objective)
+            raise InputError(
+                f"{self.type}: the template has {len(self.slots)} actuated joints "
+                f"but the design only {candidate.active_total} active modules"
+            )
+        self.assigner = ActuatorAssigner(
+            kb, catalog_facts(catalog), self.type, self.slots, self.other_active, objective
+        )
         self.by_model = {a.model: a for a in catalog.actuators}
 
     # -- fixed modules ------------------------------------------------------------------
@@ -232,7 +247,7 @@ class StructureDesigner:
         elif "shoulder_width" in L:
             area = L["shoulder_width"] * L["trunk_height"]
         else:
-            area = p.dovetail_face_m ** 2
+            area = p.dovetail_face_m**2
         return fixed + area * p.face_thickness_m * self.catalog.material.density_kg_m3
 
     # -- one analysis -------------------------------------------------------------------
@@ -240,21 +255,25 @@ class StructureDesigner:
         cat = self.catalog
         rho = cat.material.density_kg_m3
         p = cat.passive
-        foot = p.foot_min_side_m ** 2 * p.foot_thickness_m * rho
-        wheel = math.pi * sizing.wheel_radius ** 2 * p.wheel_width_m * rho
+        foot = p.foot_min_side_m**2 * p.foot_thickness_m * rho
+        wheel = math.pi * sizing.wheel_radius**2 * p.wheel_width_m * rho
         sizes = [a.size_m for a in cat.actuators]
         return TemplateParams(
-            lengths=sizing.lengths, tubes=tubes, density=rho, actuator_mass=act_mass,
+            lengths=sizing.lengths,
+            tubes=tubes,
+            density=rho,
+            actuator_mass=act_mass,
             actuator_size=tuple(max(s[i] for s in sizes) for i in range(3)),
-            payload=self.values.get("payload", 0.0), trunk_mass=self._trunk_mass(sizing),
-            modules=modules, wheel_radius=sizing.wheel_radius, foot_mass=foot,
+            payload=self.values.get("payload", 0.0),
+            trunk_mass=self._trunk_mass(sizing),
+            modules=modules,
+            wheel_radius=sizing.wheel_radius,
+            foot_mass=foot,
             wheel_mass=wheel,
         )
 
-    def _requirements(self, tp: TemplateParams, sizing: Sizing) -> tuple[_Requirements,
-                                                                          Template]:
-        analysis = build(self.type, replace(tp, modules=self.family.analysis_modules(
-            tp.modules)))
+    def _requirements(self, tp: TemplateParams, sizing: Sizing) -> tuple[_Requirements, Template]:
+        analysis = build(self.type, replace(tp, modules=self.family.analysis_modules(tp.modules)))
         cases: list[LoadCase] = self.family.load_cases(analysis, self.values, self.catalog)
         m = analysis.model
         torque: dict[str, float] = {}
@@ -289,7 +308,8 @@ class StructureDesigner:
         for s in self.slots:
             t, w = req.torque[s.name], req.speed[s.name]
             out[s.name] = [
-                name for name in self.assigner.serving.get(s.name, ())
+                name
+                for name in self.assigner.serving.get(s.name, ())
                 if usable_torque(self.by_model[name], self.catalog) >= t
                 and speed_at(self.by_model[name], t) >= w
             ]
@@ -299,16 +319,16 @@ class StructureDesigner:
         cat = self.catalog
         E = cat.material.youngs_modulus_Pa
         dmax = self.values["deflection"]
-        allowed = max_allowed_stress(cat.material.yield_strength_Pa,
-                                     cat.design.stress_safety_factor)
-        limits = TubeLimits(cat.passive.max_outer_radius_m, cat.passive.min_wall_m, length,
-                            length)
+        allowed = max_allowed_stress(
+            cat.material.yield_strength_Pa, cat.design.stress_safety_factor
+        )
+        limits = TubeLimits(cat.passive.max_outer_radius_m, cat.passive.min_wall_m, length, length)
         force = max(_equivalent_force(ld, length) for ld in loads)
         k0 = stiffness_constant(force, E, dmax)
         # Euler buckling of a cantilever (effective length 2L) under the axial compression:
         # P sf <= pi^2 E I / (2L)^2, I = pi/4 (r2^4 - r1^4)  =>  a lower bound on K0
         squeeze = max(max(-ld[0], 0.0) for ld in loads)
-        k_buckle = 16 * squeeze * cat.design.stress_safety_factor / (math.pi ** 3 * E * length)
+        k_buckle = 16 * squeeze * cat.design.stress_safety_factor / (math.pi**3 * E * length)
         k0 = max(k0, k_buckle)
         try:
             tube = optimal_tube(k0, limits, name)
@@ -323,14 +343,16 @@ class StructureDesigner:
             ) from None
 
         def worst(t: Tube):
-            return max((beam_check(t, ld, E, cat.passive.stress_concentration)
-                        for ld in loads), key=lambda r: r.max_stress_Pa)
+            return max(
+                (beam_check(t, ld, E, cat.passive.stress_concentration) for ld in loads),
+                key=lambda r: r.max_stress_Pa,
+            )
 
         check = worst(tube)
         governed = "deflection"
         if check.max_stress_Pa > allowed:
             governed = "stress"
-            k_max = cat.passive.max_outer_radius_m ** 4 / length ** 3
+            k_max = cat.passive.max_outer_radius_m**4 / length**3
             strongest = optimal_tube(k_max, limits, name)
             if worst(strongest).max_stress_Pa > allowed:
                 raise InfeasibleError(
@@ -348,8 +370,12 @@ class StructureDesigner:
                     hi = mid
             tube = optimal_tube(hi, limits, name)
             check = worst(tube)
-        info = {"deflection": max(beam_check(tube, ld, E).tip_deflection_m for ld in loads),
-                "stress": check.max_stress_Pa, "allowed": allowed, "governed": governed}
+        info = {
+            "deflection": max(beam_check(tube, ld, E).tip_deflection_m for ld in loads),
+            "stress": check.max_stress_Pa,
+            "allowed": allowed,
+            "governed": governed,
+        }
         return tube, info
 
     # -- the loop -----------------------------------------------------------------------
@@ -360,14 +386,19 @@ class StructureDesigner:
         probe = build(self.type, self._params(sizing, {}, {}, self.modules))
         names = sorted({s.length_name or s.name for s in probe.segments})
         tubes = {n: (p.max_outer_radius_m, p.max_outer_radius_m - p.min_wall_m) for n in names}
-        act_mass = {s.group: min(self.by_model[m].mass_kg for m in self.assigner.serving[s.name])
-                    for s in self.slots}
+        act_mass = {
+            s.group: min(self.by_model[m].mass_kg for m in self.assigner.serving[s.name])
+            for s in self.slots
+        }
         prev: np.ndarray | None = None
         iterations = 0
         for iterations in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (used after the loop)
             sizing = self.family.update(
-                sizing, build(self.type, self._params(sizing, tubes, act_mass, self.modules)),
-                self.values, cat)
+                sizing,
+                build(self.type, self._params(sizing, tubes, act_mass, self.modules)),
+                self.values,
+                cat,
+            )
             tp = self._params(sizing, tubes, act_mass, self.modules)
             req, analysis = self._requirements(tp, sizing)
             assignment = self.assigner.best(self.capable(req), self.symmetric)
@@ -377,44 +408,80 @@ class StructureDesigner:
             for joint, model in assignment.models:
                 g = next(s.group for s in self.slots if s.name == joint)
                 new_mass[g] = max(new_mass.get(g, 0.0), self.by_model[model].mass_kg)
-            sized = {n: self._size_link(n, sizing.lengths.get(n, analysis.lengths.get(n, 0.0))
-                                        or _segment_length(analysis, n), req.loads[n])
-                     for n in names if n in req.loads}
+            sized = {
+                n: self._size_link(
+                    n,
+                    sizing.lengths.get(n, analysis.lengths.get(n, 0.0))
+                    or _segment_length(analysis, n),
+                    req.loads[n],
+                )
+                for n in names
+                if n in req.loads
+            }
             tubes = {n: (t.r_outer, t.r_inner) for n, (t, _) in sized.items()}
             act_mass = new_mass
-            vector = np.array([*(act_mass[g] for g in sorted(act_mass)),
-                               *(sized[n][0].volume for n in sorted(sized))])
+            vector = np.array(
+                [
+                    *(act_mass[g] for g in sorted(act_mass)),
+                    *(sized[n][0].volume for n in sorted(sized)),
+                ]
+            )
             if prev is not None and np.all(np.abs(vector - prev) <= CONVERGENCE * np.abs(prev)):
                 break
             prev = vector
         else:
-            raise InfeasibleError(f"{self.type}: the masses did not converge in "
-                                  f"{MAX_ITERATIONS} iterations")
+            raise InfeasibleError(
+                f"{self.type}: the masses did not converge in {MAX_ITERATIONS} iterations"
+            )
         final = build(self.type, self._params(sizing, tubes, act_mass, self.modules))
+        self.requirements = req  # the converged requirements, for enumerating alternatives
         return self._record(final, sizing, req, assignment, sized, iterations)
 
     def _no_actuator(self, req: _Requirements) -> InfeasibleError:
         strongest = max(self.catalog.actuators, key=lambda a: a.stall_torque_Nm)
-        worst = max(self.slots, key=lambda s: req.torque[s.name] / max(
-            (usable_torque(self.by_model[m], self.catalog)
-             for m in self.assigner.serving.get(s.name, ())), default=1e-12))
+        worst = max(
+            self.slots,
+            key=lambda s: (
+                req.torque[s.name]
+                / max(
+                    (
+                        usable_torque(self.by_model[m], self.catalog)
+                        for m in self.assigner.serving.get(s.name, ())
+                    ),
+                    default=1e-12,
+                )
+            ),
+        )
         models = [self.by_model[m] for m in self.assigner.serving.get(worst.name, ())]
         best = max(models, key=lambda a: a.stall_torque_Nm) if models else strongest
         t, w = req.torque[worst.name], req.speed[worst.name]
         if usable_torque(best, self.catalog) < t:
-            what = (f"joint '{worst.name}' needs {t:.2f} N m but the strongest actuator "
-                    f"({best.model}) gives {usable_torque(best, self.catalog):.2f} N m after the "
-                    f"torque safety factor {self.catalog.design.torque_safety_factor}")
+            what = (
+                f"joint '{worst.name}' needs {t:.2f} N m but the strongest actuator "
+                f"({best.model}) gives {usable_torque(best, self.catalog):.2f} N m after the "
+                f"torque safety factor {self.catalog.design.torque_safety_factor}"
+            )
         elif speed_at(best, t) < w:
-            what = (f"joint '{worst.name}' needs {w:.2f} rad/s at {t:.2f} N m but the fastest "
-                    f"capable actuator reaches {speed_at(best, t):.2f} rad/s")
+            what = (
+                f"joint '{worst.name}' needs {w:.2f} rad/s at {t:.2f} N m but the fastest "
+                f"capable actuator reaches {speed_at(best, t):.2f} rad/s"
+            )
         else:
-            what = (f"no assignment keeps alike joints alike within the bus limit of "
-                    f"{self.candidate.module_limit} active modules")
+            what = (
+                f"no assignment keeps alike joints alike within the bus limit of "
+                f"{self.candidate.module_limit} active modules"
+            )
         return InfeasibleError(f"{self.type}: {what}")
 
-    def _record(self, tmpl: Template, sizing: Sizing, req: _Requirements,
-                assignment: Assignment, sized: dict, iterations: int) -> Structure:
+    def _record(
+        self,
+        tmpl: Template,
+        sizing: Sizing,
+        req: _Requirements,
+        assignment: Assignment,
+        sized: dict,
+        iterations: int,
+    ) -> Structure:
         cat = self.catalog
         rho = cat.material.density_kg_m3
         counts: dict[str, int] = {}
@@ -422,17 +489,35 @@ class StructureDesigner:
             n = s.length_name or s.name
             counts[n] = counts.get(n, 0) + 1
         links = tuple(
-            LinkDesign(n, counts.get(n, 0), t.length, t.r_outer, t.r_inner, t.volume,
-                       t.volume * rho, info["deflection"], self.values["deflection"],
-                       info["stress"], info["allowed"], t.active, info["governed"])
+            LinkDesign(
+                n,
+                counts.get(n, 0),
+                t.length,
+                t.r_outer,
+                t.r_inner,
+                t.volume,
+                t.volume * rho,
+                info["deflection"],
+                self.values["deflection"],
+                info["stress"],
+                info["allowed"],
+                t.active,
+                info["governed"],
+            )
             for n, (t, info) in sorted(sized.items())
         )
         joints = tuple(
-            JointDesign(s.name, s.group, s.module_class, assignment.model_of(s.name),
-                        req.torque[s.name], self.by_model[assignment.model_of(s.name)]
-                        .stall_torque_Nm,
-                        usable_torque(self.by_model[assignment.model_of(s.name)], cat),
-                        req.speed[s.name], req.case[s.name])
+            JointDesign(
+                s.name,
+                s.group,
+                s.module_class,
+                assignment.model_of(s.name),
+                req.torque[s.name],
+                self.by_model[assignment.model_of(s.name)].stall_torque_Nm,
+                usable_torque(self.by_model[assignment.model_of(s.name)], cat),
+                req.speed[s.name],
+                req.case[s.name],
+            )
             for s in self.slots
         )
         modules, cost, peak, stall = self._modules(assignment, req)
@@ -441,24 +526,38 @@ class StructureDesigner:
         n_passive = sum(counts.values())
         kinds = {m.model for m in modules} | {n for n in counts}
         n_modules = sum(m.count for m in modules) + n_passive
-        metrics = Metrics(n_modules, round(n_modules / max(len(kinds), 1), 6),
-                          self.candidate.hierarchy)
+        metrics = Metrics(
+            n_modules, round(n_modules / max(len(kinds), 1), 6), self.candidate.hierarchy
+        )
         lengths = dict(sorted(tmpl.lengths.items()))
         return Structure(
-            self.type, dict(sorted(self.values.items())), self.ignored, lengths,
-            sizing.wheel_radius if tmpl.wheels else None, links, joints, modules,
-            float(tmpl.model.total_mass), round(cost, 2), power, metrics, iterations, tmpl,
+            self.type,
+            dict(sorted(self.values.items())),
+            self.ignored,
+            lengths,
+            sizing.wheel_radius if tmpl.wheels else None,
+            links,
+            joints,
+            modules,
+            float(tmpl.model.total_mass),
+            round(cost, 2),
+            power,
+            metrics,
+            iterations,
+            tmpl,
             tuple(sizing.notes),
         )
 
-    def _modules(self, assignment: Assignment, req: _Requirements
-                 ) -> tuple[tuple[ModuleUse, ...], float, float, float]:
+    def _modules(
+        self, assignment: Assignment, req: _Requirements
+    ) -> tuple[tuple[ModuleUse, ...], float, float, float]:
         cat = self.catalog
         address = cat.design.i2c_first_address
         out: list[ModuleUse] = []
         cost = peak = stall = 0.0
-        for kind, model, n, _, c, current in sorted(self._fixed_modules(),
-                                                    key=lambda x: (x[0] != "MainModule", x[0])):
+        for kind, model, n, _, c, current in sorted(
+            self._fixed_modules(), key=lambda x: (x[0] != "MainModule", x[0])
+        ):
             if kind == "MainModule":
                 addrs: tuple[int, ...] = ()
             else:
@@ -476,8 +575,9 @@ class StructureDesigner:
             cost += a.cost
             peak += a.stall_current_A * min(1.0, req.torque[s.name] / a.stall_torque_Nm)
             stall += a.stall_current_A
-        out += [ModuleUse(k, m, len(addrs), tuple(addrs))
-                for (k, m), addrs in sorted(per_model.items())]
+        out += [
+            ModuleUse(k, m, len(addrs), tuple(addrs)) for (k, m), addrs in sorted(per_model.items())
+        ]
         if address - 1 > 0x77:
             raise InfeasibleError(f"{self.type}: more I2C devices than 7-bit addresses")
         return tuple(out), cost, peak, stall
@@ -487,9 +587,14 @@ def _segment_length(tmpl: Template, name: str) -> float:
     return next(s.length for s in tmpl.segments if (s.length_name or s.name) == name)
 
 
-def design_structure(kb: KnowledgeBase, candidate: Candidate, catalog: Catalog,
-                     params: Mapping[str, float], symmetric: bool = True,
-                     objective: Sequence[str] = ("mass", "cost")) -> Structure:
+def design_structure(
+    kb: KnowledgeBase,
+    candidate: Candidate,
+    catalog: Catalog,
+    params: Mapping[str, float],
+    symmetric: bool = True,
+    objective: Sequence[str] = ("mass", "cost"),
+) -> Structure:
     """Size ``candidate`` (a conceptual design) for ``params`` (SI) with ``catalog``."""
     designer = StructureDesigner(kb, candidate, catalog, params, symmetric, objective)
     try:
@@ -497,21 +602,29 @@ def design_structure(kb: KnowledgeBase, candidate: Candidate, catalog: Catalog,
     except InfeasibleError as e:
         hint = largest_payload(kb, candidate, catalog, params, symmetric, objective)
         if hint is not None:
-            raise InfeasibleError(f"{e}; the largest payload that works here is "
-                                  f"{hint:.3f} kg") from None
+            raise InfeasibleError(
+                f"{e}; the largest payload that works here is {hint:.3f} kg"
+            ) from None
         raise
 
 
-def largest_payload(kb: KnowledgeBase, candidate: Candidate, catalog: Catalog,
-                    params: Mapping[str, float], symmetric: bool,
-                    objective: Sequence[str], steps: int = 24) -> float | None:
+def largest_payload(
+    kb: KnowledgeBase,
+    candidate: Candidate,
+    catalog: Catalog,
+    params: Mapping[str, float],
+    symmetric: bool,
+    objective: Sequence[str],
+    steps: int = 24,
+) -> float | None:
     """The largest payload (kg) with which the design succeeds, all else equal (bisection),
     or None when even no payload fails or the payload is not the limit."""
     asked = params.get("payload")
     if not asked:
         return None
-    designer = StructureDesigner(kb, candidate, catalog, {**params, "payload": 0.0},
-                                 symmetric, objective)
+    designer = StructureDesigner(
+        kb, candidate, catalog, {**params, "payload": 0.0}, symmetric, objective
+    )
 
     def ok(payload: float) -> bool:
         designer.values = {**designer.values, "payload": payload}
@@ -528,3 +641,88 @@ def largest_payload(kb: KnowledgeBase, candidate: Candidate, catalog: Catalog,
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if ok(mid) else (lo, mid)
     return lo
+
+
+@dataclass(frozen=True)
+class Alternative:
+    """One feasible actuator assignment and the module totals it gives (kg, currency)."""
+
+    models: tuple[tuple[str, str], ...]
+    mass_kg: float
+    cost: float
+
+
+@dataclass(frozen=True)
+class Alternatives:
+    """The feasible assignments of a sized design (at its converged requirements)."""
+
+    count: int
+    symmetric: bool
+    ranked: tuple[Alternative, ...]
+    pareto: tuple[Alternative, ...] | None
+
+
+PARETO_LIMIT = 200_000
+
+
+def count_assignments(
+    slots: Sequence[JointSlot], capable: Mapping[str, Sequence[str]], symmetric: bool
+) -> int:
+    """The exact number of feasible assignments. Joints only interact through symmetry
+    (the active module count is the same for every assignment), so it is the product over
+    symmetry groups of the models capable for every joint of the group (over joints
+    without symmetry)."""
+    groups: dict[str, set[str]] = {}
+    total = 1
+    for s in slots:
+        ok = set(capable.get(s.name, ()))
+        if symmetric and s.group:
+            groups[s.group] = groups[s.group] & ok if s.group in groups else ok
+        else:
+            total *= len(ok)
+    for ok in groups.values():
+        total *= len(ok)
+    return total
+
+
+def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> Alternatives:
+    """The ``k`` best assignments (and the mass/cost Pareto front) of a design that
+    ``designer.run()`` has converged."""
+    req = designer.requirements
+    capable = designer.capable(req)
+    fixed_mass = sum(n * m for _, _, n, m, _, _ in designer._fixed_modules())
+    fixed_cost = sum(n * c for _, _, n, _, c, _ in designer._fixed_modules())
+
+    def alt(a: Assignment) -> Alternative:
+        acts = [designer.by_model[m] for _, m in a.models]
+        return Alternative(
+            a.models,
+            round(fixed_mass + sum(x.mass_kg for x in acts), 9),
+            round(fixed_cost + sum(x.cost for x in acts), 6),
+        )
+
+    count = count_assignments(designer.slots, capable, designer.symmetric)
+    ranked = tuple(alt(a) for a in designer.assigner.ranked(capable, designer.symmetric, k))
+    front = None
+    if pareto:
+        if count > PARETO_LIMIT:
+            raise InputError(
+                f"{designer.type}: {count} feasible assignments are too many for "
+                f"--pareto (at most {PARETO_LIMIT}); keep alike joints alike "
+                "(drop --no-symmetry)"
+            )
+        every = sorted(
+            {
+                (x.mass_kg, x.cost, x.models): x
+                for x in map(alt, designer.assigner.all(capable, designer.symmetric))
+            }.values(),
+            key=lambda x: (x.mass_kg, x.cost, x.models),
+        )
+        front_list: list[Alternative] = []
+        best_cost = float("inf")
+        for x in every:  # by mass, then cost: a point is on the front if it is cheaper
+            if x.cost < best_cost:
+                front_list.append(x)
+                best_cost = x.cost
+        front = tuple(front_list)
+    return Alternatives(count, designer.symmetric, ranked, front)

@@ -34,6 +34,14 @@ DESIGN_KEYS = {
 GRASP_QUESTION = "Does the robot need to grasp?"
 
 
+def enumerated(text: str) -> dict:
+    """``enumerate --json`` prints JSON lines: candidates, then a summary; as one dict."""
+    lines = [json.loads(line) for line in text.splitlines()]
+    assert lines and lines[-1]["type"] == "summary"
+    assert all(x["type"] == "candidate" for x in lines[:-1])
+    return {**lines[-1], "candidates": lines[:-1]}
+
+
 def counts(rows: list[dict]) -> dict[str, int]:
     """[{"kind": K, "count": N}, ...] -> {K: total N} (a kind may come in several models)."""
     out: dict[str, int] = {}
@@ -373,7 +381,7 @@ def test_enumerate_text(cli, designer) -> None:
 def test_enumerate_json(cli) -> None:
     r = cli("enumerate", "walking", "--json")
     assert r.code == 0
-    d = json.loads(r.out)
+    d = enumerated(r.out)
     assert d["status"] == "enumerated"
     assert d["count"] == 3
     assert [c["robot_type"] for c in d["candidates"]] == [
@@ -393,7 +401,7 @@ def test_enumerate_limit(cli) -> None:
     assert r.code == 0
     assert re.findall(r"^\d+\. (\w+)$", r.out, re.M) == ["QuadrupedRobot"]
     assert "1 of 3 candidate(s)" in r.out
-    d = json.loads(cli("enumerate", "walking", "--limit", "1", "--json").out)
+    d = enumerated(cli("enumerate", "walking", "--limit", "1", "--json").out)
     assert d["count"] == 3
     assert [c["robot_type"] for c in d["candidates"]] == ["QuadrupedRobot"]
 
@@ -402,7 +410,7 @@ def test_enumerate_unsatisfiable(cli) -> None:
     r = cli("enumerate", "rolling", "grasping")
     assert r.code == 1
     assert "rolling" in r.err and "grasping" in r.err
-    d = json.loads(cli("enumerate", "rolling", "grasping", "--json").out)
+    d = enumerated(cli("enumerate", "rolling", "grasping", "--json").out)
     assert d["status"] == "unsatisfiable"
     assert d["count"] == 0
     assert d["conflict"] == ["rolling", "grasping"]
@@ -578,9 +586,9 @@ def test_rules_file_missing(cli, tmp_path: Path) -> None:
 def test_user_ontology_adds_a_base_configuration(cli, tmp_path: Path) -> None:
     f = tmp_path / "pentapod.kif"
     f.write_text(legged_robot_kif("PentapodRobot", 5), encoding="utf-8")
-    r = cli("enumerate", "walking", "--ontology", str(f), "--json")
+    r = cli("enumerate", "walking", "--ontology", str(f), "--json", "--conceptual")
     assert r.code == 0, r.err
-    d = json.loads(r.out)
+    d = enumerated(r.out)
     assert d["count"] == 4
     cands = {c["robot_type"]: c for c in d["candidates"]}
     assert set(cands) == LEGGED | {"PentapodRobot"}
@@ -609,9 +617,9 @@ def test_user_ontology_over_the_bus_limit_is_excluded(cli, tmp_path: Path) -> No
     r = cli("explain", "OctopodRobot", "--ontology", str(f), "--json")
     assert r.code == 0, r.err
     assert json.loads(r.out)["active_modules"] == 26
-    r = cli("enumerate", "walking", "--ontology", str(f), "--json")
+    r = cli("enumerate", "walking", "--ontology", str(f), "--json", "--conceptual")
     assert r.code == 0
-    d = json.loads(r.out)
+    d = enumerated(r.out)
     assert "OctopodRobot" not in [c["robot_type"] for c in d["candidates"]]
     assert d["count"] == 3
     r = cli("design", "rough-terrain-walking", "--ontology", str(f), "--json")
@@ -681,4 +689,4 @@ def test_same_bytes_across_hash_seeds(argv: list[str]) -> None:
         assert p.returncode == 0, p.stderr.decode()
         outs.append(p.stdout)
     assert outs[0] == outs[1]
-    assert json.loads(outs[0])
+    assert enumerated(outs[0].decode()) if argv[0] == "enumerate" else json.loads(outs[0])
