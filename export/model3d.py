@@ -1,0 +1,109 @@
+"""The physical assembly of a sized design: what the exporters (URDF, MJCF, STL, BOM) share.
+
+An :class:`Assembly` is the design's kinematic tree with, on every body, the parts that
+make it up: printed parts (meshes, placed in the body frame) and catalog modules (boxes
+of the catalog's size and mass). Mass properties of each body are the sum of its parts:
+printed parts from their meshes and the material density, modules from the catalog.
+SI units; transforms are 4x4 homogeneous matrices (parent frame -> child frame).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """A visual/collision shape in a body frame.
+
+    ``kind``: "mesh" (``mesh`` is the file name under ``meshes/``, vertices in metres),
+    "box" (``size`` = full extents x, y, z), "cylinder" (``size`` = radius, length; axis
+    along the local z) or "sphere" (``size`` = radius,).
+    """
+
+    kind: str
+    origin: np.ndarray  # (4, 4) body frame -> shape frame
+    size: tuple[float, ...] = ()
+    mesh: str | None = None
+    rgba: tuple[float, float, float, float] = (0.8, 0.8, 0.8, 1.0)
+    name: str = ""
+
+
+@dataclass(frozen=True)
+class PartUse:
+    """One physical part on a body: a printed part or a catalog module."""
+
+    name: str  # printed: the part design's name (its STL stem); module: the catalog model
+    source: str  # "printed" | "module" | "payload"
+    mass: float  # kg
+    com: np.ndarray  # (3,) in the body frame
+    inertia: np.ndarray  # (3, 3) about com, body axes
+    geometry: Geometry | None = None
+
+
+@dataclass(frozen=True)
+class BodySpec:
+    name: str
+    parts: tuple[PartUse, ...]
+    mass: float
+    com: np.ndarray  # (3,)
+    inertia: np.ndarray  # (3, 3) about com, body axes
+
+    @property
+    def visuals(self) -> tuple[Geometry, ...]:
+        return tuple(p.geometry for p in self.parts if p.geometry is not None)
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    name: str
+    parent: str  # body name
+    child: str  # body name
+    kind: str  # "revolute" | "continuous" | "fixed"
+    origin: np.ndarray  # (4, 4) parent body frame -> joint/child frame at q = 0
+    axis: np.ndarray  # (3,)
+    lower: float = 0.0
+    upper: float = 0.0
+    effort: float = 0.0  # N m: the actuator's stall torque
+    velocity: float = 0.0  # rad/s: the actuator's no-load speed
+    actuator: str = ""  # catalog model
+
+
+@dataclass(frozen=True)
+class PrintedPart:
+    """A printed part design: its mesh (binary STL) and what the BOM needs."""
+
+    name: str  # safe file stem: [a-z0-9_]+
+    kind: str  # "link" | "foot" | "wheel" | "plate" | "bracket" | "finger"
+    stl: bytes
+    count: int
+    volume_m3: float  # of the mesh
+    analytic_volume_m3: float  # of the part's analytic model (optimiser + faces/fillets)
+    mass_kg: float
+    extents_m: tuple[float, float, float]  # bounding box of the part as printed
+    fits_bed: bool
+    print_time_s: float
+
+
+@dataclass(frozen=True)
+class Assembly:
+    robot_type: str
+    root: str  # the root body (base, trunk, chassis)
+    bodies: tuple[BodySpec, ...]
+    joints: tuple[JointSpec, ...]  # topological order, parents first
+    printed: tuple[PrintedPart, ...]
+    feet: tuple[str, ...] = ()  # bodies that touch the ground with a foot
+    wheels: tuple[str, ...] = ()
+    casters: tuple[str, ...] = ()
+    spawn_height: float = 0.0  # m: root height so the robot stands on z = 0
+    fixed_base: bool = True  # manipulators are bolted down; mobile robots float
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def total_mass(self) -> float:
+        return float(sum(b.mass for b in self.bodies))
+
+    def body(self, name: str) -> BodySpec:
+        return next(b for b in self.bodies if b.name == name)
