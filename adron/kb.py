@@ -80,6 +80,19 @@ def read_user_file(path: str | Path) -> tuple[str, str]:
         raise InputError(f"{path}: cannot read: {e}") from None
 
 
+def facts(tr: Translation, relation: str, arity: int) -> list[tuple[str, ...]]:
+    """The ground facts of ``relation``, each checked to have ``arity`` name or string
+    arguments; an OntologyError names the file:line:col of a malformed one."""
+    out = []
+    for args, where in tr.located(relation):
+        if len(args) != arity or not all(isinstance(a, str) for a in args):
+            shape = " ".join(["X"] * arity)
+            raise OntologyError(f"{where}: ({relation} {' '.join(map(str, args))}): expected "
+                                f"({relation} {shape}) with {arity} names or strings")
+        out.append(args)
+    return out
+
+
 def load(extra: Sequence[str | Path] = (), builtin: bool = True) -> KnowledgeBase:
     """Parse and translate the shipped ontology (unless ``builtin`` is False) and ``extra``."""
     sources = (builtin_files() if builtin else []) + [read_user_file(p) for p in extra]
@@ -87,19 +100,20 @@ def load(extra: Sequence[str | Path] = (), builtin: bool = True) -> KnowledgeBas
     for name, text in sources:
         forms.extend(parse(text, name))
     tr = translate(forms)
-    verbs = {kif: verb for kif, verb, *_ in tr.relation("abilityVerb")}
+    verbs = {kif: verb for kif, verb in facts(tr, "abilityVerb", 2)}
     abilities, seen = [], {}
-    for kif, name, *_ in tr.relation("abilityName"):
+    for kif, name in facts(tr, "abilityName", 2):
         if name in seen and seen[name] != kif:
             raise OntologyError(f"ability name {name!r} is given to both {seen[name]} and {kif}")
         if name not in seen:
             seen[name] = kif
             abilities.append(Ability(name, kif, verbs.get(kif, name)))
     params = []
-    values = tr.relation("parameterValue")
-    for rel, name, *_ in tr.relation("parameterName"):
-        vals = tuple((v, t) for r, v, t, *_ in values if r == rel)
-        params.append(Parameter(str(name), str(rel), vals))
+    values = facts(tr, "parameterValue", 3)
+    for rel, name in facts(tr, "parameterName", 2):
+        vals = tuple((v, t) for r, v, t in values if r == rel)
+        params.append(Parameter(name, rel, vals))
+    facts(tr, "structuralLimit", 3)  # checked here, used by the structure stage
     return KnowledgeBase(
         files=tuple(n for n, _ in sources),
         translation=tr,

@@ -88,6 +88,7 @@ class Translation:
     sources: tuple[AxiomSource, ...]
     documentation: dict[str, str] = field(default_factory=dict)
     ground: dict[str, tuple[tuple, ...]] = field(default_factory=dict)
+    ground_at: dict[str, tuple[str, ...]] = field(default_factory=dict)  # file:line:col
 
     @property
     def translated(self) -> int:
@@ -97,6 +98,10 @@ class Translation:
         """The argument tuples of every ground fact of relation ``name``, in file order."""
         return self.ground.get(name, ())
 
+    def located(self, name: str) -> tuple[tuple[tuple, str], ...]:
+        """(arguments, "file:line:col") of every ground fact of relation ``name``."""
+        return tuple(zip(self.ground.get(name, ()), self.ground_at.get(name, ()), strict=True))
+
 
 def asp_string(text: str) -> str:
     """Quote ``text`` as an ASP string constant."""
@@ -105,7 +110,16 @@ def asp_string(text: str) -> str:
 
 
 def _asp_var(v: str) -> str:
-    return "V_" + _IDENT.sub("_", v[1:])
+    """An injective ASP variable name for a KIF variable: ``?X-1`` -> ``V_X_2d_1``,
+    ``?X_1`` -> ``V_X__1`` (``_`` doubles; any other character ASP does not allow becomes
+    its code point in hex between two ``_``)."""
+    body = v[1:].replace("_", "__")
+    return "V_" + _IDENT.sub(lambda m: f"_{ord(m.group()):x}_", body)
+
+
+def _comment(text: str) -> str:
+    """Text safe inside an ASP line comment (no line breaks)."""
+    return "".join(c if c.isprintable() else "?" for c in text)
 
 
 def _term(t: object) -> str:
@@ -297,6 +311,7 @@ def translate(forms: Iterable[Form]) -> Translation:
     sources: list[AxiomSource] = []
     docs: dict[str, str] = {}
     ground: dict[str, list[tuple]] = {}
+    ground_at: dict[str, list[str]] = {}
     n_forms = n_facts = n_rules = n_axioms = n_meta = 0
 
     for f in forms:
@@ -318,7 +333,7 @@ def translate(forms: Iterable[Form]) -> Translation:
                         sources.append(
                             AxiomSource(n_axioms, str(f.items[1].items[2]), f.file, f.line, f.col)
                         )
-                        lines.append(f"% {f.file}:{f.line}")
+                        lines.append(f"% {_comment(f.file)}:{f.line}")
                         lines.extend(facts)
                         continue
                     rules = _horn(f.items[1], f.items[2])
@@ -335,6 +350,7 @@ def translate(forms: Iterable[Form]) -> Translation:
             ground.setdefault(str(f.items[0]), []).append(
                 tuple(a if isinstance(a, (int, float)) else str(a) for a in f.items[1:])
             )
+            ground_at.setdefault(str(f.items[0]), []).append(f"{f.file}:{f.line}:{f.col}")
             n_facts += 1
         except _Skip as why:
             untranslated.append(Untranslated(f.file, f.line, f.col, str(why), _short(f)))
@@ -350,4 +366,5 @@ def translate(forms: Iterable[Form]) -> Translation:
         sources=tuple(sources),
         documentation=docs,
         ground={k: tuple(v) for k, v in ground.items()},
+        ground_at={k: tuple(v) for k, v in ground_at.items()},
     )

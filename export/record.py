@@ -79,6 +79,7 @@ def structure_record(s: Structure) -> dict:
                 "usable_torque_Nm": _r(j.usable_torque_Nm),
                 "required_speed_rad_s": _r(j.required_speed_rad_s),
                 "load_case": j.load_case,
+                "i2c_address": f"0x{j.i2c_address:02x}",
             }
             for j in s.joints
         ],

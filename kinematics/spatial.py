@@ -8,6 +8,7 @@ kg m^2, about the centre of mass unless a function says otherwise.
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from math import comb, gamma, pi
 
 import numpy as np
 
@@ -168,6 +169,171 @@ def tube_inertia(
 def tube_mass(density: float, length: float, r_outer: float, r_inner: float) -> float:
     """Mass kg of a hollow cylinder: ``density`` kg/m^3 x pi (r_outer^2 - r_inner^2) x length."""
     return float(density * np.pi * (r_outer**2 - r_inner**2) * length)
+
+
+# --- the printed link module (paper Fig. 10) ---------------------------------------------
+#
+# Geometry, in the part frame (the tube axis is the part's axis, x below; all lengths m):
+#
+# - tube: a hollow cylinder r_inner <= r <= r_outer over 0 <= x <= length;
+# - two face plates: squares of side ``face_side`` perpendicular to the axis over
+#   0 <= x <= t and length - t <= x <= length (t = ``face_thickness``), centred on the axis,
+#   with a central bore of radius r_inner (the tube stays open end to end); the plates lie
+#   inside the tube's length, so the overall length stays ``length``;
+# - two concave fillet rings of radius f (= ``fillet``) between each plate's inner face and
+#   the tube's outside: the rings of revolution whose half-section is the square
+#   r_outer <= r <= r_outer + f, t <= x <= t + f (mirrored at the far end) less the disc of
+#   radius f centred at (x, r) = (t + f, r_outer + f).
+#
+# The plates need face_side / 2 >= r_outer + f (the fillet stands on the plate) and
+# length >= 2 (t + f) (the fillets do not meet). face_side = face_thickness = fillet = 0 is
+# the bare tube. The part is symmetric about its mid-length and about the axis (the square
+# plates have equal second moments about every in-plane axis), so its inertia about the
+# centre of mass is diag(axial, transverse, transverse) in axis-aligned coordinates.
+
+#: Centroid of the fillet's half-section from its corner (r_outer, t), along x and along r,
+#: as a fraction of the fillet radius: (10 - 3 pi) / (12 - 3 pi).
+FILLET_CENTROID = (10.0 - 3.0 * pi) / (12.0 - 3.0 * pi)
+
+
+def _cos_sin_integral(i: int, j: int) -> float:
+    """Integral of cos^i(t) sin^j(t) over 0 <= t <= pi/2 (a Beta function)."""
+    return gamma((i + 1) / 2) * gamma((j + 1) / 2) / (2.0 * gamma((i + j) / 2 + 1))
+
+
+def _fillet_moment(f: float, a: int, b: int) -> float:
+    """Integral of u^a w^b over a fillet's half-section, m^(a+b+2).
+
+    The section is 0 <= u, w <= f outside the disc of radius f centred at (f, f): the
+    square's moment less the quarter disc's (polar coordinates about (f, f), exact).
+    """
+    quarter = sum(
+        comb(a, i) * comb(b, j) * (-1) ** (i + j) * _cos_sin_integral(i, j) / (i + j + 2)
+        for i in range(a + 1)
+        for j in range(b + 1)
+    )
+    return f ** (a + b + 2) * (1.0 / ((a + 1) * (b + 1)) - quarter)
+
+
+def _check_link(
+    length: float,
+    r_outer: float,
+    r_inner: float,
+    face_side: float,
+    face_thickness: float,
+    fillet: float,
+) -> bool:
+    """Validate a link part's dimensions (m); True if it has face plates."""
+    _check_positive(length, "length")
+    _check_positive(r_outer, "r_outer")
+    _check_positive(r_inner, "r_inner", allow_zero=True)
+    if r_inner >= r_outer:
+        raise ValueError(f"r_inner ({r_inner}) must be less than r_outer ({r_outer})")
+    for x, name in ((face_side, "face_side"), (face_thickness, "face_thickness")):
+        _check_positive(x, name, allow_zero=True)
+    _check_positive(fillet, "fillet", allow_zero=True)
+    plates = face_side > 0 and face_thickness > 0
+    if not plates:
+        if face_side > 0 or face_thickness > 0 or fillet > 0:
+            raise ValueError(
+                "a link's face plates need both face_side and face_thickness (and a fillet "
+                f"needs plates), got face_side={face_side}, face_thickness={face_thickness}, "
+                f"fillet={fillet}"
+            )
+        return False
+    if face_side / 2 < r_outer + fillet:
+        raise ValueError(
+            f"face_side/2 ({face_side / 2}) must be at least r_outer + fillet "
+            f"({r_outer + fillet}): the tube and its fillet must stand on the face plate"
+        )
+    if length < 2 * (face_thickness + fillet):
+        raise ValueError(
+            f"length ({length}) must be at least 2 (face_thickness + fillet) "
+            f"({2 * (face_thickness + fillet)}): the plates and fillets must not overlap"
+        )
+    return True
+
+
+def link_part_volume(
+    length: float,
+    r_outer: float,
+    r_inner: float,
+    face_side: float = 0.0,
+    face_thickness: float = 0.0,
+    fillet: float = 0.0,
+) -> float:
+    """Solid volume m^3 of a printed link: tube + two bored face plates + two fillet rings.
+
+    Geometry as described above this function (m). The plates add their square less the
+    tube's disc, t (a^2 - pi r_outer^2) each; a fillet ring adds (Pappus) 2 pi R A with
+    A = f^2 (1 - pi/4) and R = r_outer + f (10 - 3 pi) / (12 - 3 pi).
+    """
+    plates = _check_link(length, r_outer, r_inner, face_side, face_thickness, fillet)
+    v = pi * (r_outer**2 - r_inner**2) * length
+    if plates:
+        v += 2.0 * face_thickness * (face_side**2 - pi * r_outer**2)
+        area = fillet**2 * (1.0 - pi / 4.0)
+        v += 2.0 * 2.0 * pi * (r_outer + FILLET_CENTROID * fillet) * area
+    return float(v)
+
+
+def link_part_mass_properties(
+    density: float,
+    length: float,
+    r_outer: float,
+    r_inner: float,
+    face_side: float = 0.0,
+    face_thickness: float = 0.0,
+    fillet: float = 0.0,
+    axis: ArrayLike = (1.0, 0.0, 0.0),
+) -> Part:
+    """Mass kg, COM (3,) m and inertia (3,3) kg m^2 about the COM of a printed link.
+
+    The part starts at the origin and runs ``length`` m along the unit ``axis``; geometry as
+    described above :func:`link_part_volume`; ``density`` kg/m^3. The COM is at mid-length.
+    With no plates (all face dimensions 0) it is exactly ``tube_mass`` / ``tube_inertia``.
+    """
+    plates = _check_link(length, r_outer, r_inner, face_side, face_thickness, fillet)
+    _check_positive(density, "density")
+    a = _vec3(axis, "axis")
+    a = a / np.linalg.norm(a)
+    if not plates:
+        m = tube_mass(density, length, r_outer, r_inner)
+        return m, 0.5 * length * a, tube_inertia(m, length, r_outer, r_inner, a)
+    L, ro, ri, side, t, f = length, r_outer, r_inner, face_side, face_thickness, fillet
+    # Each piece: mass, R2 = integral of r^2 dm (r: distance from the axis), X2 = integral
+    # of (x - L/2)^2 dm. Axial inertia = sum R2; transverse = sum X2 + sum R2 / 2 (exact for
+    # solids of revolution and for the square plates, by their symmetry).
+    m_tube = density * pi * (ro**2 - ri**2) * L
+    pieces = [(m_tube, m_tube * (ro**2 + ri**2) / 2.0, m_tube * L**2 / 12.0)]
+    h = L / 2.0 - t / 2.0  # plate centre from mid-length
+    m_box = density * side**2 * t
+    m_disc = density * pi * ro**2 * t
+    plate = (
+        m_box - m_disc,
+        m_box * side**2 / 6.0 - m_disc * ro**2 / 2.0,
+        (m_box - m_disc) * (t**2 / 12.0 + h**2),
+    )
+    S = lambda i, j: _fillet_moment(f, i, j)  # noqa: E731  (u along x, w along r)
+    g = t - L / 2.0  # the fillet section's corner from mid-length, along x
+    two_pi_rho = 2.0 * pi * density
+    ring = (
+        two_pi_rho * (ro * S(0, 0) + S(0, 1)),
+        two_pi_rho * (ro**3 * S(0, 0) + 3 * ro**2 * S(0, 1) + 3 * ro * S(0, 2) + S(0, 3)),
+        two_pi_rho
+        * (
+            g**2 * (ro * S(0, 0) + S(0, 1))
+            + 2 * g * (ro * S(1, 0) + S(1, 1))
+            + (ro * S(2, 0) + S(2, 1))
+        ),
+    )
+    pieces += [plate, plate, ring, ring]
+    m = float(sum(p[0] for p in pieces))
+    r2 = sum(p[1] for p in pieces)
+    x2 = sum(p[2] for p in pieces)
+    aa = np.outer(a, a)
+    inertia = (x2 + r2 / 2.0) * (np.eye(3) - aa) + r2 * aa
+    return m, 0.5 * L * a, inertia
 
 
 def rotate_inertia(R: np.ndarray, inertia: np.ndarray) -> np.ndarray:

@@ -15,6 +15,13 @@ that starts at the joint (a hollow cylinder of ``params.density``) plus what end
 angle turns a link that points along +x downwards (right-hand rule). Position limits are
 listed per template; effort and velocity limits are left 0 for the designer to fill in.
 
+The printed tube is a bare hollow cylinder unless ``params.face_side``, ``face_thickness``
+and ``fillet`` are set: then it is the whole printed link module (paper Fig. 10: the tube,
+a square dovetail face plate at each end and a fillet between each plate and the tube;
+``kinematics.spatial.link_part_mass_properties``), of the same overall length.
+``Template.parts`` keeps every body's parts, labelled, with their placement and
+dimensions (:class:`LabelledPart`), so that exporters can rebuild each body from them.
+
 Templates (length names and defaults in ``DEFAULTS``):
 
 - ``Manipulator3DOF`` (Fig. 16): ``base_yaw`` (z) at the base top, a vertical column
@@ -71,7 +78,9 @@ from kinematics.model import Body, Joint, Model
 from kinematics.spatial import (
     Part,
     box_inertia,
+    link_part_mass_properties,
     point_inertia,
+    rot_x,
     rot_z,
     sphere_inertia,
     transform,
@@ -82,7 +91,9 @@ from kinematics.spatial import (
 
 __all__ = [
     "DEFAULTS",
+    "PART_KINDS",
     "TEMPLATES",
+    "LabelledPart",
     "Segment",
     "Template",
     "TemplateParams",
@@ -104,6 +115,12 @@ FOOT_WIDTH_RATIO = 0.6  # humanoid foot plate width / length
 FOOT_PLATE = 0.004  # humanoid foot plate thickness, m
 WHEEL_WIDTH = 0.01  # m
 CASTER_RADIUS = 0.01  # m
+
+#: Trunk part frames (columns: the part's x, y, z in the body frame): modules go up, down
+#: (under a manipulator's base) or to the back (a humanoid's trunk, part x along y).
+_UP = np.eye(3)
+_DOWN = np.diag([1.0, -1.0, -1.0])
+_BACK = np.column_stack([(0.0, 1.0, 0.0), (0.0, 0.0, -1.0), (-1.0, 0.0, 0.0)])
 
 #: Length names and defaults (m) of each template (read-only; ``default_lengths`` copies).
 DEFAULTS: Mapping[str, Mapping[str, float]] = {
@@ -140,6 +157,11 @@ class TemplateParams:
     (default ``DEFAULT_ACTUATOR_MASS``); ``payload``: kg, at the gripper of a manipulator,
     at the trunk otherwise; ``trunk_mass``: kg of the root body (plate, main module,
     battery); ``modules``: the snake's M.
+
+    ``face_side``, ``face_thickness``, ``fillet`` (m): the printed link module's square
+    dovetail face plates and the fillets between them and the tube (paper Fig. 10; geometry
+    in ``kinematics.spatial.link_part_volume``). All 0 (the default): every link is a bare
+    tube. When set, every link's mass properties are those of the whole printed part.
     """
 
     lengths: Mapping[str, float] = field(default_factory=dict)
@@ -155,6 +177,9 @@ class TemplateParams:
     gripper_mass: float = 0.03
     wheel_mass: float = 0.03
     caster_mass: float = 0.02
+    face_side: float = 0.0
+    face_thickness: float = 0.0
+    fillet: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,6 +214,57 @@ class Segment:
         return self.start + self.length * self.direction
 
 
+#: Kinds of :class:`LabelledPart`.
+PART_KINDS = ("actuator", "link", "trunk", "foot", "gripper", "payload", "wheel", "caster")
+
+
+@dataclass(frozen=True, eq=False)
+class LabelledPart:
+    """One rigid part of a template body, with what an exporter needs to rebuild it.
+
+    ``mass`` kg, ``com`` (3,) m and ``inertia`` (3,3) kg m^2 about the COM, body axes:
+    exactly the Part the body's mass properties combine. ``placement`` (4,4): body frame
+    <- part frame. ``label``: the joint name (actuator), the segment name (link), the body
+    name (other kinds). ``dims`` (m) and the part frame by ``kind``:
+
+    - "actuator": (x, y, z) box (``params.actuator_size``) centred on the joint, body axes;
+    - "link": (length, r_outer, r_inner, face_side, face_thickness, fillet); frame origin
+      at the tube's start, z along the tube, x and y along the face plates' edges;
+    - "trunk": (x, y, z) box of the root body centred on the frame origin; the frame's z
+      points to the side where the trunk's modules go (manipulator base: down, humanoid:
+      back, others: up) and its x is the box's long side;
+    - "foot": () a point foot, or (x, y, z) a foot plate whose sole is the frame's z = 0
+      plane; the frame origin is the contact point, body axes;
+    - "gripper": (x, y, z) box centred on the frame origin, body axes;
+    - "payload": () a point mass at the frame origin;
+    - "wheel": (radius, width) disc centred on the frame origin, its axis the frame's z;
+    - "caster": (radius,) ball centred on the frame origin.
+    """
+
+    label: str
+    kind: str
+    mass: float
+    com: np.ndarray
+    inertia: np.ndarray
+    placement: np.ndarray
+    dims: tuple[float, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.kind not in PART_KINDS:
+            raise ValueError(f"part kind {self.kind!r} is not one of {PART_KINDS}")
+        for attr in ("com", "inertia", "placement"):
+            a = np.array(getattr(self, attr), dtype=float)
+            a.setflags(write=False)
+            object.__setattr__(self, attr, a)
+        object.__setattr__(self, "mass", float(self.mass))
+        object.__setattr__(self, "dims", tuple(float(x) for x in self.dims))
+
+    @property
+    def part(self) -> Part:
+        """(mass, com, inertia) as ``Body.from_parts`` takes it."""
+        return self.mass, self.com, self.inertia
+
+
 @dataclass(frozen=True, eq=False)
 class Template:
     """A built template: its model and the parts the designer analyses.
@@ -197,6 +273,8 @@ class Template:
     ``wheels``: driven wheel bodies (centre at the body origin, contact ``wheel_radius``
     below it); ``casters``: passive support bodies touching the ground at their origin;
     ``end_effectors``: gripper bodies. ``lengths``: the lengths used (defaults filled in).
+    ``parts``: body name -> its labelled parts; the body's mass, COM and inertia are
+    exactly ``combine_parts`` of them, in order.
     """
 
     robot_type: str
@@ -212,6 +290,7 @@ class Template:
     casters: tuple[str, ...] = ()
     lengths: Mapping[str, float] = field(default_factory=dict)
     params: TemplateParams = field(default_factory=TemplateParams)
+    parts: Mapping[str, tuple[LabelledPart, ...]] = field(default_factory=dict)
 
     @property
     def groups(self) -> dict[str, tuple[str, ...]]:
@@ -247,6 +326,7 @@ class _Builder:
         self.bodies: list[Body] = []
         self.joints: list[Joint] = []
         self.segments: list[Segment] = []
+        self.parts: dict[str, tuple[LabelledPart, ...]] = {}
 
     def index(self, body: str | None) -> int:
         if body is None:
@@ -262,7 +342,7 @@ class _Builder:
         parent: str | None,
         kind: str,
         origin: np.ndarray,
-        parts: list[Part],
+        parts: list[LabelledPart],
         axis: tuple[float, float, float] = (0.0, 0.0, 1.0),
         limits: tuple[float, float] = (-pi, pi),
         group: str = "",
@@ -271,9 +351,10 @@ class _Builder:
         """Add joint ``joint`` and its body (default ``joint + "_link"``); the body's name."""
         name = body or f"{joint}_link"
         if kind != "fixed":
-            parts = [self.actuator(group), *parts]
+            parts = [self.actuator(group, joint), *parts]
         i = len(self.bodies)
-        self.bodies.append(Body.from_parts(name, parts))
+        self.bodies.append(Body.from_parts(name, [lp.part for lp in parts]))
+        self.parts[name] = tuple(parts)
         self.joints.append(
             Joint(
                 joint,
@@ -289,9 +370,12 @@ class _Builder:
         )
         return name
 
-    def actuator(self, group: str) -> Part:
+    def actuator(self, group: str, joint: str) -> LabelledPart:
         m = float(self.p.actuator_mass.get(group, DEFAULT_ACTUATOR_MASS))
-        return m, np.zeros(3), box_inertia(m, self.p.actuator_size)
+        size = tuple(self.p.actuator_size)
+        return LabelledPart(
+            joint, "actuator", m, np.zeros(3), box_inertia(m, size), np.eye(4), size
+        )
 
     def tube(
         self,
@@ -301,8 +385,9 @@ class _Builder:
         direction: tuple[float, float, float],
         distal: str | None,
         start: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    ) -> Part:
-        """Record a segment on ``body`` and return its rigid part."""
+    ) -> LabelledPart:
+        """Record a segment on ``body`` and return its printed link part."""
+        p = self.p
         length = self.L[length_name]
         ro, ri = self.p.tubes.get(length_name, DEFAULT_TUBE)
         d = np.array(direction, dtype=float)
@@ -310,8 +395,15 @@ class _Builder:
         self.segments.append(
             Segment(name, body, s, d, length, float(ro), float(ri), distal, length_name)
         )
-        m = tube_mass(self.p.density, length, ro, ri)
-        return m, s + 0.5 * length * d, tube_inertia(m, length, ro, ri, d)
+        faces = (p.face_side, p.face_thickness, p.fillet)
+        if any(faces):
+            m, c, inertia = link_part_mass_properties(p.density, length, ro, ri, *faces, axis=d)
+            com = s + c
+        else:  # the bare tube, computed as it always was
+            m = tube_mass(p.density, length, ro, ri)
+            com, inertia = s + 0.5 * length * d, tube_inertia(m, length, ro, ri, d)
+        dims = (length, float(ro), float(ri), *(float(x) for x in faces))
+        return LabelledPart(name, "link", m, com, inertia, transform_from(_tube_frame(d), s), dims)
 
     def model(self) -> Model:
         return Model(tuple(self.bodies), tuple(self.joints))
@@ -323,16 +415,54 @@ def _frozen(x) -> np.ndarray:
     return a
 
 
-def _point(mass: float, at=(0.0, 0.0, 0.0)) -> Part:
-    return mass, np.array(at, dtype=float), point_inertia(mass)
+def _tube_frame(direction: np.ndarray) -> np.ndarray:
+    """Rotation (3,3) whose z column is ``direction`` and whose x column is the body's z
+    (or, for a tube along z, the body's x) made perpendicular to it."""
+    z = direction / np.linalg.norm(direction)
+    helper = np.array([0.0, 0.0, 1.0]) if abs(z[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x = helper - (helper @ z) * z
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
 
 
-def _box(mass: float, size, at=(0.0, 0.0, 0.0)) -> Part:
-    return mass, np.array(at, dtype=float), box_inertia(mass, size)
+def _point(label: str, kind: str, mass: float, at=(0.0, 0.0, 0.0)) -> LabelledPart:
+    return LabelledPart(
+        label, kind, mass, np.array(at, dtype=float), point_inertia(mass), transform(at)
+    )
 
 
-def _gripper_parts(p: TemplateParams, payload: float) -> list[Part]:
-    return [_box(p.gripper_mass, GRIPPER_SIZE), _point(payload)]
+def _box(label: str, kind: str, mass: float, size, at=(0.0, 0.0, 0.0)) -> LabelledPart:
+    return LabelledPart(
+        label,
+        kind,
+        mass,
+        np.array(at, dtype=float),
+        box_inertia(mass, size),
+        transform(at),
+        tuple(size),
+    )
+
+
+def _trunk(label: str, mass: float, size, at, R: np.ndarray) -> LabelledPart:
+    """The root body's box: ``size`` (body axes) centred at ``at``; ``R`` (a signed axis
+    permutation) turns the part frame into the body frame (its z: where modules go)."""
+    dims = tuple(float(size[int(np.argmax(np.abs(R[:, k])))]) for k in range(3))
+    return LabelledPart(
+        label,
+        "trunk",
+        mass,
+        np.array(at, dtype=float),
+        box_inertia(mass, size),
+        transform_from(R, at),
+        dims,
+    )
+
+
+def _gripper_parts(p: TemplateParams, payload: float, body: str) -> list[LabelledPart]:
+    return [
+        _box(body, "gripper", p.gripper_mass, GRIPPER_SIZE),
+        _point(body, "payload", payload),
+    ]
 
 
 # --- templates -----------------------------------------------------------------------------------
@@ -345,7 +475,7 @@ def _manipulator(b: _Builder, six: bool) -> dict:
         None,
         "fixed",
         np.eye(4),
-        [_box(p.trunk_mass, BASE_SIZE, (0, 0, -BASE_SIZE[2] / 2))],
+        [_trunk("base", p.trunk_mass, BASE_SIZE, (0, 0, -BASE_SIZE[2] / 2), _DOWN)],
         body="base",
     )
     col = "base_yaw_link"
@@ -410,7 +540,7 @@ def _manipulator(b: _Builder, six: bool) -> dict:
         last,
         "revolute",
         at,
-        _gripper_parts(p, p.payload),
+        _gripper_parts(p, p.payload, "gripper_link"),
         limits=(0.0, pi / 2),
         group="gripper",
     )
@@ -435,7 +565,10 @@ def _multiped(b: _Builder, legs: tuple[tuple[str, int, int], ...]) -> dict:
         None,
         "fixed",
         np.eye(4),
-        [_box(p.trunk_mass, (L["La1"], L["La2"], TRUNK_THICKNESS)), _point(p.payload)],
+        [
+            _trunk("trunk", p.trunk_mass, (L["La1"], L["La2"], TRUNK_THICKNESS), (0, 0, 0), _UP),
+            _point("trunk", "payload", p.payload),
+        ],
         body="trunk",
     )
     feet, points = [], []
@@ -467,7 +600,10 @@ def _multiped(b: _Builder, legs: tuple[tuple[str, int, int], ...]) -> dict:
             femur,
             "revolute",
             transform((L["femur"], 0, 0)),
-            [b.tube(f"{leg}_tibia", "tibia", tibia, (0, 0, -1), None), _point(p.foot_mass, foot)],
+            [
+                b.tube(f"{leg}_tibia", "tibia", tibia, (0, 0, -1), None),
+                _point(tibia, "foot", p.foot_mass, foot),
+            ],
             axis=(0, 1, 0),
             limits=(-2 * pi / 3, 2 * pi / 3),
             group="leg_tibia",
@@ -486,8 +622,14 @@ def _humanoid(b: _Builder) -> dict:
         "fixed",
         np.eye(4),
         [
-            _box(p.trunk_mass, (HUMANOID_TRUNK_DEPTH, L["shoulder_width"], th), (0, 0, th / 2)),
-            _point(p.payload, (0, 0, th / 2)),
+            _trunk(
+                "trunk",
+                p.trunk_mass,
+                (HUMANOID_TRUNK_DEPTH, L["shoulder_width"], th),
+                (0, 0, th / 2),
+                _BACK,
+            ),
+            _point("trunk", "payload", p.payload, (0, 0, th / 2)),
         ],
         body="trunk",
     )
@@ -547,12 +689,21 @@ def _humanoid(b: _Builder) -> dict:
             group="ankle_pitch",
         )
         plate = (L["foot"], FOOT_WIDTH_RATIO * L["foot"], FOOT_PLATE)
+        sole_part = LabelledPart(
+            f"{s}_ankle_roll_link",
+            "foot",
+            p.foot_mass,
+            np.array([0.0, 0.0, -sole + FOOT_PLATE / 2]),
+            box_inertia(p.foot_mass, plate),
+            transform((0, 0, -sole)),
+            plate,
+        )
         foot = b.add(
             f"{s}_ankle_roll",
             ap,
             "revolute",
             np.eye(4),
-            [_box(p.foot_mass, plate, (0, 0, -sole + FOOT_PLATE / 2))],
+            [sole_part],
             axis=(1, 0, 0),
             limits=(-q4, q4),
             group="ankle_roll",
@@ -585,7 +736,7 @@ def _humanoid(b: _Builder) -> dict:
             fore,
             "revolute",
             transform((0, 0, -L["forearm"])),
-            _gripper_parts(p, 0.0),
+            _gripper_parts(p, 0.0, f"{s}_gripper_link"),
             axis=(1, 0, 0),
             limits=(0.0, pi / 2),
             group="gripper",
@@ -606,7 +757,10 @@ def _snake(b: _Builder) -> dict:
     if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
         raise ValueError(f"modules must be an integer >= 1, got {m!r}")
     size = (p.actuator_size[0], p.actuator_size[0], TRUNK_THICKNESS)
-    base = [_box(p.trunk_mass, size), _point(p.payload)]
+    base = [
+        _trunk("base", p.trunk_mass, size, (0, 0, 0), _UP),
+        _point("base", "payload", p.payload),
+    ]
     parent = b.add("root", None, "fixed", np.eye(4), base, body="base")
     origin = np.eye(4)
     for i in range(1, m + 1):
@@ -638,10 +792,20 @@ def _wheeled(b: _Builder, skid: bool) -> dict:
         None,
         "fixed",
         np.eye(4),
-        [_box(p.trunk_mass, (L["L1"], L["L2"], CHASSIS_THICKNESS)), _point(p.payload)],
+        [
+            _trunk("chassis", p.trunk_mass, (L["L1"], L["L2"], CHASSIS_THICKNESS), (0, 0, 0), _UP),
+            _point("chassis", "payload", p.payload),
+        ],
         body="chassis",
     )
-    wheel = [(p.wheel_mass, np.zeros(3), tube_inertia(p.wheel_mass, WHEEL_WIDTH, r, 0, (0, 1, 0)))]
+
+    def wheel(body: str) -> list[LabelledPart]:
+        inertia = tube_inertia(p.wheel_mass, WHEEL_WIDTH, r, 0, (0, 1, 0))
+        frame = transform_from(rot_x(-pi / 2), (0, 0, 0))  # part z = the axle (body y)
+        return [
+            LabelledPart(body, "wheel", p.wheel_mass, np.zeros(3), inertia, frame, (r, WHEEL_WIDTH))
+        ]
+
     if skid:
         spots = (
             ("front_left_wheel", 1, 1),
@@ -656,15 +820,27 @@ def _wheeled(b: _Builder, skid: bool) -> dict:
             for n, side in (("left_wheel", 1), ("right_wheel", -1))
         ]
     wheels = tuple(
-        b.add(n, chassis, "continuous", transform(xyz), list(wheel), axis=(0, 1, 0), group="wheel")
+        b.add(
+            n,
+            chassis,
+            "continuous",
+            transform(xyz),
+            wheel(f"{n}_link"),
+            axis=(0, 1, 0),
+            group="wheel",
+        )
         for n, xyz in places
     )
     casters: tuple[str, ...] = ()
     if not skid:
-        ball = (
+        ball = LabelledPart(
+            "caster_link",
+            "caster",
             p.caster_mass,
             np.array([0, 0, CASTER_RADIUS]),
             sphere_inertia(p.caster_mass, CASTER_RADIUS),
+            transform((0, 0, CASTER_RADIUS)),
+            (CASTER_RADIUS,),
         )
         casters = (b.add("caster", chassis, "fixed", transform((-L["L1"] / 2, 0, -r)), [ball]),)
     return {"wheels": wheels, "casters": casters}
@@ -716,6 +892,14 @@ def _check_params(robot_type: str, p: TemplateParams) -> dict[str, float]:
             raise ValueError(f"{name} must be positive")
     for name in ("payload", "trunk_mass", "foot_mass", "gripper_mass", "wheel_mass", "caster_mass"):
         _nonneg(name, getattr(p, name))
+    for name in ("face_side", "face_thickness", "fillet"):
+        _nonneg(name, getattr(p, name))
+    if (p.face_side > 0) != (p.face_thickness > 0) or (p.fillet > 0 and p.face_side == 0):
+        raise ValueError(
+            "face_side and face_thickness are both set (printed links with face plates) or "
+            f"both 0 (bare tubes), and a fillet needs them; got face_side={p.face_side}, "
+            f"face_thickness={p.face_thickness}, fillet={p.fillet}"
+        )
     for g, m in p.actuator_mass.items():
         _nonneg(f"actuator_mass[{g!r}]", m)
     size = tuple(p.actuator_size)
@@ -764,4 +948,5 @@ def build(robot_type: str, params: TemplateParams | None = None) -> Template:
         casters=extra.get("casters", ()),
         lengths=lengths,
         params=p,
+        parts=MappingProxyType(dict(b.parts)),
     )

@@ -140,8 +140,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--no-input", action="store_true", help="never ask; exit 3 when an answer is still needed"
     )
     _structure_options(p)
-    p.add_argument("--out", metavar="DIR", help="write design.json into the new folder DIR")
-    p.add_argument("--force", action="store_true", help="replace DIR if it exists")
+    p.add_argument("--out", metavar="DIR", help="write the bundle into the folder DIR: "
+                   "design.json, robot.urdf, robot.xml, meshes/*.stl, bom.csv, README.md "
+                   "(design.json alone with --conceptual)")
+    p.add_argument("--force", action="store_true", help="replace DIR if it is not empty")
 
     p = sub.add_parser(
         "enumerate",
@@ -205,6 +207,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("suite", metavar="SUITE.toml")
     p.add_argument("--update", action="store_true", help="store the results as the snapshot")
+    p.add_argument("--allow-scripts", action="store_true",
+                   help="accept the suite's rule files that contain #script")
     return parser
 
 
@@ -307,7 +311,8 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.out and d.status == "designed":
         from export.bundle import write_bundle
 
-        write_bundle(args.out, {"design.json": to_json(rec)}, force=args.force)
+        files = result.files(designer)
+        write_bundle(args.out, files, force=args.force)
     out.write(to_json(rec) if args.json else design_text(d, designer.short, result.structure))
     if d.status == "ambiguous":
         q = d.questions[-1]
@@ -320,7 +325,7 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         err.write(f"parmor: no robot can meet the request: {' + '.join(d.conflict)}\n")
         return 1
     if args.out:
-        err.write(f"parmor: wrote {args.out}/design.json\n")
+        err.write(f"parmor: wrote {args.out}: {', '.join(sorted(files))}\n")
     return 0
 
 
@@ -541,7 +546,8 @@ def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> in
 def cmd_regress(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from synth.regress import run_suite
 
-    return run_suite(args.suite, update=args.update, out=out, err=err)
+    return run_suite(args.suite, update=args.update, out=out, err=err,
+                     allow_scripts=args.allow_scripts)
 
 
 COMMANDS = {

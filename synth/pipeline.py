@@ -51,10 +51,23 @@ class Outcome:
     structure: Structure | None = None
     infeasible: str | None = None  # the infeasibility message
     note: str | None = None  # why the design stayed conceptual
+    catalog: Catalog | None = None  # the catalog the structure was sized with
 
     @property
     def status(self) -> str:
         return "infeasible" if self.infeasible else self.design.status
+
+    def files(self, designer: Designer) -> dict[str, str | bytes]:
+        """The output bundle: everything for a sized design, design.json alone otherwise."""
+        from export.record import to_json
+
+        rec = self.record(designer)
+        if self.structure is None or self.catalog is None:
+            return {"design.json": to_json(rec)}
+        from export.bundle import bundle_files
+
+        doc = designer.kb.translation.documentation.get(self.structure.robot_type, "")
+        return bundle_files(rec, self.structure, self.catalog, doc)
 
     def record(self, designer: Designer) -> dict:
         from export.record import design_record
@@ -85,5 +98,5 @@ def run(designer: Designer, req: Request, opts: StructureOptions) -> Outcome:
             designer.kb, d.chosen, catalog, designer.structural(req), opts.symmetric, opts.objective
         )
     except InfeasibleError as e:
-        return Outcome(d, infeasible=str(e))
-    return Outcome(d, s)
+        return Outcome(d, infeasible=str(e), catalog=catalog)
+    return Outcome(d, s, catalog=catalog)

@@ -16,7 +16,7 @@ from typing import TextIO
 from adron.errors import InputError
 from adron.kb import read_user_file
 
-SUITE_KEYS = {"ontology", "rules", "allow_scripts", "catalog", "conceptual", "query"}
+SUITE_KEYS = {"ontology", "rules", "catalog", "conceptual", "query"}
 QUERY_KEYS = {"name", "abilities", "answers", "params"}
 
 
@@ -53,12 +53,13 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
             str(base / p) for p in _str_list(data.get("ontology", []), f"{path}: ontology")
         ],
         "rules": [str(base / p) for p in _str_list(data.get("rules", []), f"{path}: rules")],
-        "allow_scripts": data.get("allow_scripts", False),
+        "conceptual": data.get("conceptual", False),
+        # running a rule file's scripts is the user's call on the command line, never the
+        # suite file's (a suite can come from anywhere)
+        "allow_scripts": False,
     }
-    for key in ("allow_scripts", "conceptual"):
-        opts[key] = data.get(key, False)
-        if not isinstance(opts[key], bool):
-            raise InputError(f"{path}: {key}: expected true or false")
+    if not isinstance(opts["conceptual"], bool):
+        raise InputError(f"{path}: conceptual: expected true or false")
     catalog = data.get("catalog")
     if catalog is not None and not isinstance(catalog, str):
         raise InputError(f"{path}: catalog: expected a path")
@@ -120,10 +121,12 @@ def _dump(obj: object) -> str:
     return json.dumps(obj, indent=2, ensure_ascii=False) + "\n"
 
 
-def run_suite(suite: str | Path, update: bool, out: TextIO, err: TextIO) -> int:
+def run_suite(suite: str | Path, update: bool, out: TextIO, err: TextIO,
+              allow_scripts: bool = False) -> int:
     """Run a suite; 0 when all match (or updated), 1 with a diff when any changed."""
     path = Path(suite)
     opts, queries = load_suite(path)
+    opts["allow_scripts"] = allow_scripts
     results = run_queries(opts, queries)
     snap = snapshot_path(path)
     if update:

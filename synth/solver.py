@@ -20,7 +20,7 @@ from adron.errors import InputError, OntologyError
 from adron.kb import KnowledgeBase, read_user_file
 from adron.translate import asp_string
 
-_SCRIPT = re.compile(r"#script\b")
+_SCRIPT = re.compile(r"#\s*script", re.IGNORECASE)
 
 
 @dataclass(frozen=True, slots=True)
@@ -93,8 +93,10 @@ def check_rules_file(path: str | Path, allow_scripts: bool) -> str:
     scripts indirectly has chosen to run them.)"""
     name, text = read_user_file(path)
     if not allow_scripts:
+        # anywhere in the text, comments and strings included: refusing too much is safe,
+        # guessing where clingo's lexer sees a comment is not
         for lineno, line in enumerate(text.splitlines(), 1):
-            m = _SCRIPT.search(line.split("%", 1)[0])
+            m = _SCRIPT.search(line)
             if m:
                 raise InputError(
                     f"{name}:{lineno}:{m.start() + 1}: refusing a rule file that contains "

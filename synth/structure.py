@@ -78,6 +78,7 @@ class JointDesign:
     usable_torque_Nm: float  # stall torque / safety factor
     required_speed_rad_s: float
     load_case: str
+    i2c_address: int = 0
 
 
 @dataclass(frozen=True)
@@ -508,6 +509,7 @@ class StructureDesigner:
             )
             for n, (t, info) in sorted(sized.items())
         )
+        modules, cost, peak, stall, address = self._modules(assignment, req)
         joints = tuple(
             JointDesign(
                 s.name,
@@ -519,10 +521,10 @@ class StructureDesigner:
                 usable_torque(self.by_model[assignment.model_of(s.name)], cat),
                 req.speed[s.name],
                 req.case[s.name],
+                address[s.name],
             )
             for s in self.slots
         )
-        modules, cost, peak, stall = self._modules(assignment, req)
         battery = cat.battery.max_current_A or 0.0
         power = Power(peak, stall, battery, peak <= battery)
         n_passive = sum(counts.values())
@@ -552,7 +554,7 @@ class StructureDesigner:
 
     def _modules(
         self, assignment: Assignment, req: _Requirements
-    ) -> tuple[tuple[ModuleUse, ...], float, float, float]:
+    ) -> tuple[tuple[ModuleUse, ...], float, float, float, dict[str, int]]:
         cat = self.catalog
         address = cat.design.i2c_first_address
         out: list[ModuleUse] = []
@@ -570,9 +572,11 @@ class StructureDesigner:
             peak += n * current
             stall += n * current
         per_model: dict[tuple[str, str], list[int]] = {}
+        by_joint: dict[str, int] = {}
         for s in self.slots:
             a = self.by_model[assignment.model_of(s.name)]
             per_model.setdefault((s.module_class, a.model), []).append(address)
+            by_joint[s.name] = address
             address += 1
             cost += a.cost
             peak += a.stall_current_A * min(1.0, req.torque[s.name] / a.stall_torque_Nm)
@@ -582,7 +586,7 @@ class StructureDesigner:
         ]
         if address - 1 > 0x77:
             raise InfeasibleError(f"{self.type}: more I2C devices than 7-bit addresses")
-        return tuple(out), cost, peak, stall
+        return tuple(out), cost, peak, stall, by_joint
 
 
 def _segment_length(tmpl: Template, name: str) -> float:

@@ -322,7 +322,13 @@ def test_out_writes_design_json(cli, tmp_path: Path) -> None:
     assert r.code == 0, r.err
     assert (out / "design.json").read_text(encoding="utf-8") == r.out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bundle"]  # no temp folders left
-    assert sorted(p.name for p in out.iterdir()) == ["design.json"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        "README.md", "bom.csv", "design.json", "meshes", "robot.urdf", "robot.xml"]
+    assert all(p.suffix == ".stl" for p in (out / "meshes").iterdir())
+    r = cli("design", "walking", "--answer", "grasping=yes", "--json", "--conceptual", "--out",
+            str(tmp_path / "conceptual"))
+    assert r.code == 0, r.err
+    assert [p.name for p in (tmp_path / "conceptual").iterdir()] == ["design.json"]
 
 
 def test_out_text_mode_writes_the_json_record(cli, tmp_path: Path) -> None:
@@ -347,7 +353,7 @@ def test_out_existing_needs_force(cli, tmp_path: Path) -> None:
 
     r = cli("design", "walking", "--answer", "grasping=yes", "--json", "--out", str(out), "--force")
     assert r.code == 0, r.err
-    assert sorted(p.name for p in out.iterdir()) == ["design.json"]
+    assert "mine.txt" not in [p.name for p in out.iterdir()]
     assert (out / "design.json").read_text(encoding="utf-8") == r.out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bundle"]
 
@@ -550,10 +556,14 @@ def test_rules_file_with_script_is_refused(cli, tmp_path: Path) -> None:
     no_traceback(r)
 
 
-def test_rules_file_with_commented_script_is_accepted(cli, tmp_path: Path) -> None:
+def test_rules_file_mentioning_script_anywhere_is_refused(cli, tmp_path: Path) -> None:
+    # a comment is refused too: parmor does not guess where clingo's lexer sees comments
     rules = tmp_path / "comment.lp"
     rules.write_text("% #script (python) is not used here\n", encoding="utf-8")
     r = cli("design", "walking", "--answer", "grasping=yes", "--rules", str(rules))
+    assert r.code == 2 and "comment.lp:1:3" in r.err
+    r = cli("design", "walking", "--answer", "grasping=yes", "--rules", str(rules),
+            "--allow-scripts", "--conceptual")
     assert r.code == 0, r.err
 
 

@@ -319,15 +319,30 @@ def test_suite_that_is_not_utf8(cli, tmp_path: Path) -> None:
     assert "s.toml" in r.err
 
 
-def test_allow_scripts_must_be_a_boolean(cli, tmp_path: Path) -> None:
+def test_a_suite_cannot_allow_scripts_itself(cli, tmp_path: Path) -> None:
     (tmp_path / "s.lp").write_text("#script (python)\ndef f():\n    return 1\n#end.\n")
     suite = tmp_path / "s.toml"
-    suite.write_text('allow_scripts = "false"\nrules = ["s.lp"]\n' + Q, encoding="utf-8")
+    suite.write_text("allow_scripts = true\nrules = [\"s.lp\"]\n" + Q, encoding="utf-8")
     r = cli("regress", str(suite), "--update")
-    assert r.code == 2
-    # "false" must not switch scripts on: either the key is rejected, or the rule file is
-    # refused as it is without allow_scripts
-    assert "allow_scripts" in r.err or "--allow-scripts" in r.err
+    assert r.code == 2 and "unknown key 'allow_scripts'" in r.err
+    suite.write_text('rules = ["s.lp"]\n' + Q, encoding="utf-8")
+    r = cli("regress", str(suite), "--update")
+    assert r.code == 2 and "--allow-scripts" in r.err
+
+
+def test_script_hidden_after_a_percent_in_a_string_is_refused(cli, tmp_path: Path) -> None:
+    rules = tmp_path / "r.lp"
+    rules.write_text('p("%"). #script (lua) x = 1 #end.\n', encoding="utf-8")
+    r = cli("design", "walking", "--rules", str(rules), "--no-input")
+    assert r.code == 2 and "--allow-scripts" in r.err
+
+
+def test_a_file_name_cannot_inject_rules(cli, tmp_path: Path) -> None:
+    name = tmp_path / "x\n#script (lua) y = 1 #end.\n%.kif"
+    name.write_text("(=> (instance ?R A) (exists (?p) (part ?p ?R)))\n", encoding="utf-8")
+    r = cli("design", "walking", "--answer", "grasping=yes", "--ontology", str(name),
+            "--conceptual")
+    assert r.code == 0, r.err
 
 
 def test_rules_file_with_script_is_refused(cli, tmp_path: Path) -> None:

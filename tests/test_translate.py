@@ -45,7 +45,12 @@ TRANSLATED = [
     (
         "variable names with dashes",
         "(=> (p ?leg-1) (q ?leg-1))",
-        ['holds("q",V_leg_1) :- holds("p",V_leg_1).'],
+        ['holds("q",V_leg_2d_1) :- holds("p",V_leg_2d_1).'],
+    ),
+    (
+        "variable names stay distinct after escaping",
+        "(=> (and (p ?X-1) (q ?X_1)) (r ?X-1 ?X_1))",
+        ['holds("r",V_X_2d_1,V_X__1) :- holds("p",V_X_2d_1), holds("q",V_X__1).'],
     ),
     (
         "existential part axiom",
@@ -154,3 +159,21 @@ def test_sumo_merge_translates_with_a_full_report() -> None:
     assert tr.facts > 3000 and tr.rules > 0 and len(tr.untranslated) > 100
     assert all(u.file.endswith("Merge.kif") and u.line > 0 for u in tr.untranslated)
     clingo.Control().add("base", [], tr.program)  # syntactically valid ASP
+
+
+@pytest.mark.parametrize(
+    ("kif", "where"),
+    [
+        ("(abilityName RobotWalking)", "bad.kif:2:1"),
+        ("(parameterName objSize)", "bad.kif:2:1"),
+        ('(abilityName FooAct 3)', "bad.kif:2:1"),
+        ('(structuralLimit SkidSteerRobot "payload")', "bad.kif:2:1"),
+    ],
+)
+def test_malformed_vocabulary_facts_are_ontology_errors(tmp_path, kif, where) -> None:
+    from adron.errors import OntologyError
+
+    f = tmp_path / "bad.kif"
+    f.write_text("(subclass A B)\n" + kif + "\n", encoding="utf-8")
+    with pytest.raises(OntologyError, match=where.replace("bad.kif", ".*bad.kif")):
+        load([f])

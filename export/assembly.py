@@ -1,0 +1,452 @@
+"""The physical assembly of a sized design: ``build_assembly(structure, catalog)``.
+
+It rebuilds every body of the structure's kinematic template from the template's labelled
+parts (``Template.parts``), with the real parts in place of the template's stand-ins:
+
+- printed parts become meshes (``export.meshes``) placed in the body frame, their mass
+  properties computed from the mesh with the catalog material's density:
+  - links: the printed link module (tube + two dovetail face plates + fillets) with the
+    sized tube and the catalog's ``dovetail_face_m``, ``face_thickness_m`` and
+    ``fillet_radius_m``, whatever the template was built with (a note says so when the
+    template's links leave the faces out);
+  - feet: a square pad of the catalog's ``foot_min_side_m`` and ``foot_thickness_m`` (the
+    figures the structure generator weighs) whose sole is the template's foot point, so
+    the pad fills the last ``foot_thickness_m`` of the tibia's length; a humanoid's foot is
+    a plate of the template's foot length and width, ``foot_thickness_m`` thick;
+  - wheels: a disc of the wheel radius and the catalog's ``wheel_width_m`` with a hub bore;
+  - the root body's plate (trunk, chassis, manipulator base plate): the template's root
+    part is the structure's ``trunk_mass`` = the trunk's catalog modules (main module,
+    battery, sensors) + a printed plate. The plate is what the modules leave of that mass:
+    a plate of the catalog's ``face_thickness_m`` with the footprint of the template's
+    root box scaled to that area (for the structure generator's figures: La1 x La2 for
+    legged trunks, L1 x L2 for chassis, shoulder width x trunk height for a humanoid, a
+    dovetail face for a manipulator base or a snake's head).
+- catalog modules become boxes of the catalog's size and mass: each joint's chosen
+  actuator centred on the joint with its shaft (the catalog size's z) along the joint axis;
+  the trunk's modules in rows on the plate, on the side the template's root part frame
+  points to (up; down under a manipulator's base; behind a humanoid's trunk);
+- the payload is a point mass where the template puts it; grippers keep the template's box
+  (jaws of the template's gripper mass); a ball caster is a sphere of the template's mass.
+
+Body mass, COM and inertia are the combination of the body's parts (parallel axis
+theorem). Alike parts share one printed design (one STL, counted once per use).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from adron.catalog import Catalog, Module
+from adron.errors import ExportError
+from export import meshes
+from export.model3d import (
+    Assembly,
+    BodySpec,
+    Geometry,
+    JointSpec,
+    PartUse,
+    PrintedPart,
+)
+from kinematics.spatial import (
+    box_inertia,
+    combine_parts,
+    link_part_volume,
+    rotate_inertia,
+    transform,
+    transform_from,
+)
+from kinematics.templates import LabelledPart, Template
+
+if TYPE_CHECKING:
+    import trimesh
+
+    from synth.structure import Structure
+
+__all__ = ["PRINTED_RGBA", "MODULE_RGBA", "build_assembly", "safe_name"]
+
+PRINTED_RGBA = (0.95, 0.55, 0.15, 1.0)  # printed PLA
+MODULE_RGBA = (0.25, 0.25, 0.28, 1.0)  # catalog modules
+CASTER_RGBA = (0.7, 0.7, 0.72, 1.0)
+_MIN_PLATE_KG = 1e-9
+
+
+def safe_name(name: str) -> str:
+    """A file stem of [a-z0-9_] from ``name``."""
+    return re.sub(r"_+", "_", re.sub(r"[^a-z0-9_]", "_", name.lower())).strip("_") or "part"
+
+
+def _frame_z(axis: np.ndarray) -> np.ndarray:
+    """Rotation (3,3) whose z column is ``axis`` (x: the body's z or x made perpendicular)."""
+    z = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    helper = np.array([0.0, 0.0, 1.0]) if abs(z[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x = helper - (helper @ z) * z
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+@dataclass
+class _Design:
+    """One printed part design while the assembly is built."""
+
+    name: str
+    kind: str
+    mesh: trimesh.Trimesh
+    analytic_volume: float
+    props: tuple[float, np.ndarray, np.ndarray]  # mass kg, com, inertia (print frame)
+    count: int = 0
+
+
+@dataclass
+class _Builder:
+    structure: Structure
+    catalog: Catalog
+    designs: dict[tuple, _Design] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def rho(self) -> float:
+        return self.catalog.material.density_kg_m3
+
+    def design(self, key: tuple, name: str, kind: str, build, analytic: float) -> _Design:
+        """The printed design for ``key`` (built once), with one more use counted."""
+        d = self.designs.get(key)
+        if d is None:
+            taken = {x.name for x in self.designs.values()}
+            stem, k = safe_name(name), 2
+            unique = stem
+            while unique in taken:
+                unique, k = f"{stem}_{k}", k + 1
+            mesh = build()
+            d = _Design(unique, kind, mesh, analytic, meshes.mesh_mass_properties(mesh, self.rho))
+            self.designs[key] = d
+        d.count += 1
+        return d
+
+    def printed(self, d: _Design, placement: np.ndarray) -> PartUse:
+        """A use of design ``d`` with its print frame at ``placement`` (body frame)."""
+        m, c, inertia = d.props
+        R, p = placement[:3, :3], placement[:3, 3]
+        geom = Geometry("mesh", placement, mesh=f"{d.name}.stl", rgba=PRINTED_RGBA, name=d.name)
+        return PartUse(d.name, "printed", m, R @ c + p, rotate_inertia(R, inertia), geom)
+
+
+def _box_use(
+    name: str, source: str, mass: float, size, placement: np.ndarray, rgba=MODULE_RGBA
+) -> PartUse:
+    R = placement[:3, :3]
+    geom = Geometry("box", placement, tuple(float(s) for s in size), rgba=rgba, name=name)
+    inertia = rotate_inertia(R, box_inertia(mass, size))
+    return PartUse(name, source, float(mass), placement[:3, 3].copy(), inertia, geom)
+
+
+# --- the parts of each kind ----------------------------------------------------------------
+
+
+def _actuator(b: _Builder, lp: LabelledPart, axis: np.ndarray, models: dict) -> PartUse:
+    a = models.get(lp.label)
+    if a is None:
+        raise ExportError(f"joint '{lp.label}' has no actuator in the structure")
+    placement = transform_from(_frame_z(axis), lp.placement[:3, 3])
+    return _box_use(a.model, "module", a.mass_kg, a.size_m, placement)
+
+
+def _link(b: _Builder, lp: LabelledPart, tmpl: Template) -> PartUse:
+    seg = next(s for s in tmpl.segments if s.name == lp.label)
+    p = b.catalog.passive
+    length, ro, ri = lp.dims[:3]
+    faces = (p.dovetail_face_m, p.face_thickness_m, p.fillet_radius_m)
+    dims = (length, ro, ri, *faces)
+    design_name = seg.length_name or seg.name
+    d = b.design(
+        ("link", design_name, *dims),
+        f"link_{design_name}",
+        "link",
+        lambda: meshes.link_mesh(*dims),
+        link_part_volume(*dims),
+    )
+    return b.printed(d, lp.placement)
+
+
+def _foot(b: _Builder, lp: LabelledPart) -> PartUse:
+    p = b.catalog.passive
+    t = p.foot_thickness_m
+    if lp.dims:  # a foot plate (humanoid)
+        lx, ly = lp.dims[0], lp.dims[1]
+        d = b.design(
+            ("foot_plate", lx, ly, t),
+            "foot_plate",
+            "foot",
+            lambda: meshes.plate_mesh(lx, ly, t),
+            lx * ly * t,
+        )
+    else:
+        s = p.foot_min_side_m
+        d = b.design(("foot", s, t), "foot", "foot", lambda: meshes.foot_mesh(s, t), s * s * t)
+    return b.printed(d, lp.placement)
+
+
+def _wheel(b: _Builder, lp: LabelledPart) -> PartUse:
+    r, w = lp.dims[0], b.catalog.passive.wheel_width_m
+    bore = meshes.WHEEL_BORE
+    d = b.design(
+        ("wheel", r, w),
+        "wheel",
+        "wheel",
+        lambda: meshes.wheel_mesh(r, w),
+        np.pi * (r * r - bore * bore) * w,
+    )
+    return b.printed(d, lp.placement @ transform((0.0, 0.0, -w / 2)))
+
+
+def _trunk_modules(b: _Builder) -> list[Module]:
+    """The catalog modules of the root body: the structure's modules that are not joint
+    actuators (main module, battery, sensors), one entry per unit, in the record's order."""
+    actuators = {a.model for a in b.catalog.actuators}
+    by_model = {m.model: m for m in b.catalog.modules}
+    out = []
+    for use in b.structure.modules:
+        if use.model in actuators:
+            continue
+        if use.model not in by_model:
+            raise ExportError(f"module '{use.model}' is not in the catalog {b.catalog.source}")
+        out += [by_model[use.model]] * use.count
+    return out
+
+
+def _rows(sizes: list[tuple[float, float, float]], lx: float, ly: float) -> list[np.ndarray]:
+    """Centres (part frame, z from 0 up) of boxes laid out in rows along x (at most ``lx``
+    long, or the longest box) stacked along y (at most ``ly``), then in layers up z."""
+    width = max([lx, *(s[0] for s in sizes)])
+    depth = max([ly, *(s[1] for s in sizes)])
+    layers: list[list[list[int]]] = [[[]]]
+    for i, (sx, sy, _) in enumerate(sizes):
+        row = layers[-1][-1]
+        if row and sum(sizes[k][0] for k in row) + sx > width + 1e-12:
+            rows_y = sum(max(sizes[k][1] for k in r) for r in layers[-1])
+            if rows_y + sy > depth + 1e-12:
+                layers.append([[]])
+            else:
+                layers[-1].append([])
+        layers[-1][-1].append(i)
+    centres: list[np.ndarray] = [np.zeros(3)] * len(sizes)
+    z0 = 0.0
+    for layer in layers:
+        rows = [r for r in layer if r]
+        total_y = sum(max(sizes[k][1] for k in r) for r in rows)
+        y = -total_y / 2
+        for r in rows:
+            dy = max(sizes[k][1] for k in r)
+            x = -sum(sizes[k][0] for k in r) / 2
+            for k in r:
+                sx, _, sz = sizes[k]
+                centres[k] = np.array([x + sx / 2, y + dy / 2, z0 + sz / 2])
+                x += sx
+            y += dy
+        z0 += max((sizes[k][2] for r in rows for k in r), default=0.0)
+    return centres
+
+
+def _trunk(b: _Builder, lp: LabelledPart, body: str) -> list[PartUse]:
+    """The root body's printed plate and catalog modules (see the module docstring)."""
+    modules = _trunk_modules(b)
+    out: list[PartUse] = []
+    plate_mass = lp.mass - sum(m.mass_kg for m in modules)
+    t = b.catalog.passive.face_thickness_m
+    top = 0.0
+    lx, ly = lp.dims[0], lp.dims[1]
+    if plate_mass > _MIN_PLATE_KG:
+        area = plate_mass / (b.rho * t)
+        px = float(np.sqrt(area * lx / ly))
+        py = area / px
+        name = f"{body}_plate"
+        d = b.design(
+            ("plate", name, px, py, t),
+            name,
+            "plate",
+            lambda: meshes.plate_mesh(px, py, t),
+            px * py * t,
+        )
+        out.append(b.printed(d, lp.placement @ transform((0.0, 0.0, -t / 2))))
+        top = t / 2
+        lx, ly = px, py
+    else:
+        b.notes.append(
+            f"{body}: the catalog modules ({lp.mass - plate_mass:.3f} kg) weigh at least the "
+            f"template's root part ({lp.mass:.3f} kg): no printed plate"
+        )
+    centres = _rows([m.size_m for m in modules], lx, ly)
+    for m, c in zip(modules, centres, strict=True):
+        placement = lp.placement @ transform((c[0], c[1], c[2] + top))
+        out.append(_box_use(m.model, "module", m.mass_kg, m.size_m, placement))
+    return out
+
+
+def _part_uses(
+    b: _Builder, lp: LabelledPart, body: str, axis: np.ndarray, models: dict, tmpl: Template
+) -> list[PartUse]:
+    if lp.kind == "actuator":
+        return [_actuator(b, lp, axis, models)]
+    if lp.kind == "link":
+        return [_link(b, lp, tmpl)]
+    if lp.kind == "foot":
+        return [_foot(b, lp)]
+    if lp.kind == "wheel":
+        return [_wheel(b, lp)]
+    if lp.kind == "trunk":
+        return _trunk(b, lp, body)
+    if lp.mass <= 0.0:
+        return []
+    if lp.kind == "payload":
+        return [PartUse("payload", "payload", lp.mass, lp.com.copy(), lp.inertia.copy())]
+    if lp.kind == "gripper":
+        return [_box_use("gripper", "module", lp.mass, lp.dims, lp.placement)]
+    if lp.kind == "caster":
+        geom = Geometry("sphere", lp.placement, lp.dims, rgba=CASTER_RGBA, name="ball_caster")
+        return [PartUse("ball_caster", "module", lp.mass, lp.com.copy(), lp.inertia.copy(), geom)]
+    raise ExportError(f"body '{body}': no exporter for a part of kind '{lp.kind}'")
+
+
+# --- geometry helpers -----------------------------------------------------------------------
+
+
+def _geometry_points(g: Geometry, mesh_of: dict[str, np.ndarray]) -> np.ndarray:
+    """Points (n, 3) in the body frame that bound ``g`` from below (exactly, for its kind)."""
+    T = g.origin
+    if g.kind == "mesh":
+        local = mesh_of[g.mesh]
+    elif g.kind == "box":
+        h = np.asarray(g.size) / 2
+        local = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        local = local * h
+    elif g.kind == "sphere":
+        c = T[:3, 3]
+        return np.array([c - [0.0, 0.0, g.size[0]]])
+    else:
+        raise ExportError(f"no bounds for geometry kind '{g.kind}'")
+    return local @ T[:3, :3].T + T[:3, 3]
+
+
+def _zero_pose_frames(tmpl: Template) -> list[np.ndarray]:
+    frames: list[np.ndarray] = []
+    for j in tmpl.model.joints:
+        parent = np.eye(4) if j.parent < 0 else frames[j.parent]
+        frames.append(parent @ j.origin)
+    return frames
+
+
+# --- the entry point ------------------------------------------------------------------------
+
+
+def build_assembly(structure: Structure, catalog: Catalog) -> Assembly:
+    """The assembly of a sized ``structure`` with the parts of ``catalog`` (SI units).
+
+    ExportError if the structure names an actuator or module the catalog lacks.
+    """
+    tmpl: Template = structure.template
+    model = tmpl.model
+    by_model = {a.model: a for a in catalog.actuators}
+    models = {}
+    for j in structure.joints:
+        if j.actuator not in by_model:
+            raise ExportError(f"actuator '{j.actuator}' is not in the catalog {catalog.source}")
+        models[j.name] = by_model[j.actuator]
+    b = _Builder(structure, catalog)
+    p = tmpl.params
+    faces = (catalog.passive.dovetail_face_m, catalog.passive.face_thickness_m)
+    faces += (catalog.passive.fillet_radius_m,)
+    if tmpl.segments and (p.face_side, p.face_thickness, p.fillet) != faces:
+        b.notes.append(
+            "the structure's links were weighed without the catalog's face plates and "
+            "fillets; the printed links have them"
+        )
+    bodies: list[BodySpec] = []
+    for i, body in enumerate(model.bodies):
+        joint = model.joints[i]
+        uses: list[PartUse] = []
+        for lp in tmpl.parts[body.name]:
+            uses += _part_uses(b, lp, body.name, joint.axis, models, tmpl)
+        mass, com, inertia = combine_parts((u.mass, u.com, u.inertia) for u in uses)
+        bodies.append(BodySpec(body.name, tuple(uses), mass, com, inertia))
+
+    joints: list[JointSpec] = []
+    root = ""
+    for j in model.joints:
+        if j.parent < 0:
+            root = model.bodies[j.child].name
+            continue
+        a = models.get(j.name)
+        limited = j.kind == "revolute"
+        joints.append(
+            JointSpec(
+                j.name,
+                model.bodies[j.parent].name,
+                model.bodies[j.child].name,
+                j.kind,
+                np.array(j.origin),
+                np.array(j.axis),
+                j.lower if limited else 0.0,
+                j.upper if limited else 0.0,
+                a.stall_torque_Nm if a is not None and j.movable else 0.0,
+                a.no_load_speed_rad_s if a is not None and j.movable else 0.0,
+                a.model if a is not None and j.movable else "",
+            )
+        )
+
+    passive = catalog.passive
+    printed = []
+    mesh_points: dict[str, np.ndarray] = {}
+    for d in sorted(b.designs.values(), key=lambda d: d.name):
+        size = meshes.extents(d.mesh)
+        volume = meshes.mesh_volume(d.mesh)
+        mesh_points[f"{d.name}.stl"] = np.asarray(d.mesh.vertices, dtype=float)
+        printed.append(
+            PrintedPart(
+                d.name,
+                d.kind,
+                meshes.stl_bytes(d.mesh),
+                d.count,
+                volume,
+                float(d.analytic_volume),
+                d.props[0],
+                size,
+                meshes.fits_bed(size, passive.printer_bed_m),
+                meshes.print_time_s(volume, passive.print_speed_m3_s),
+            )
+        )
+
+    # zero pose: the lowest point of what touches the ground sits on z = 0
+    frames = _zero_pose_frames(tmpl)
+    contact = set(tmpl.feet) | set(tmpl.wheels) | set(tmpl.casters)
+    lowest = np.inf
+    for i, spec in enumerate(bodies):
+        if contact and spec.name not in contact:
+            continue
+        for g in spec.visuals:
+            pts = _geometry_points(g, mesh_points)
+            world = pts @ frames[i][:3, :3].T + frames[i][:3, 3]
+            lowest = min(lowest, float(world[:, 2].min()))
+    spawn = -lowest if np.isfinite(lowest) else 0.0
+
+    total = sum(s.mass for s in bodies)
+    if structure.mass_kg > 0 and abs(total - structure.mass_kg) > 0.01 * structure.mass_kg:
+        b.notes.append(
+            f"the assembly weighs {total:.3f} kg, the structure {structure.mass_kg:.3f} kg"
+        )
+    fixed = bool(tmpl.end_effectors) and tmpl.legs == 0 and not tmpl.wheels
+    return Assembly(
+        robot_type=structure.robot_type,
+        root=root,
+        bodies=tuple(bodies),
+        joints=tuple(joints),
+        printed=tuple(printed),
+        feet=tuple(tmpl.feet),
+        wheels=tuple(tmpl.wheels),
+        casters=tuple(tmpl.casters),
+        spawn_height=float(spawn),
+        fixed_base=fixed,
+        notes=tuple(b.notes),
+    )

@@ -1,0 +1,246 @@
+"""Meshes of parmor's printed parts (manifold3d CSG), their STL bytes and print figures.
+
+Every function is pure and deterministic: identical inputs give identical vertices and
+identical STL bytes. Lengths in metres (STL files hold metres too; a slicer reading mm
+must scale by 1000). Meshes are ``trimesh.Trimesh`` objects, watertight volumes.
+
+Each part is built in its *print frame*: standing on z = 0, centred on the z axis, z up as
+it is printed:
+
+- ``link_mesh``: the printed link module (paper Fig. 10), the tube's axis along z from 0 to
+  ``length``; the geometry of ``kinematics.spatial.link_part_volume`` (tube, two square
+  face plates with a bore of the tube's inner radius, concave fillet rings), built as the
+  revolution of one half-section (the bored tube, the fillets and, over the plates'
+  thickness, discs that cover the plates) intersected with the square prism of the faces.
+  Faces' edges along x and y.
+- ``foot_mesh``: a square foot pad; ``plate_mesh``: a rectangular plate (trunk, chassis,
+  base plates, a humanoid's foot plate); z is the thickness.
+- ``wheel_mesh``: a disc wheel with a hub bore, its axle along z.
+
+No separate bracket mesh: the snake template models each module's bracket as a printed
+tube segment (length name ``module``) between two actuator modules, i.e. a link module with
+two dovetail faces, so ``link_mesh`` builds it.
+
+Round surfaces are polygons of ``segments`` sides inscribed in the circles (volumes come out
+a little smaller than the analytic ones: 0.16 % for 64 sides).
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+from math import cos, pi, sin, sqrt
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:  # trimesh and manifold3d are imported where they are used
+    import trimesh
+
+__all__ = [
+    "STL_HEADER",
+    "WHEEL_BORE",
+    "extents",
+    "fits_bed",
+    "foot_mesh",
+    "link_mesh",
+    "link_profile_mm",
+    "mesh_mass_properties",
+    "mesh_volume",
+    "plate_mesh",
+    "print_time_s",
+    "stl_bytes",
+    "wheel_mesh",
+]
+
+#: The fixed 80-byte header of every binary STL parmor writes.
+STL_HEADER = b"parmor binary STL, units: m".ljust(80, b"\0")
+#: Hub bore radius of a printed wheel, m: the clearance hole of an M3 servo horn screw.
+WHEEL_BORE = 0.0017
+#: Circular segments of round surfaces by default.
+SEGMENTS = 64
+MM = 1000.0  # mm per m
+
+
+def _to_trimesh(solid) -> trimesh.Trimesh:
+    """The manifold ``solid`` as a trimesh (manifold3d's output is closed and oriented by
+    construction: its status is checked here; the tests check trimesh's is_volume)."""
+    import manifold3d as mf
+    import trimesh
+
+    if solid.status() != mf.Error.NoError or solid.is_empty():
+        raise ValueError(f"internal error: a printed part's CSG failed ({solid.status()})")
+    m = solid.to_mesh64()
+    vertices = np.asarray(m.vert_properties, dtype=float)[:, :3]
+    faces = np.asarray(m.tri_verts, dtype=np.int64)
+    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+
+
+def _positive(name: str, x: float, allow_zero: bool = False) -> float:
+    x = float(x)
+    if not (np.isfinite(x) and (x >= 0 if allow_zero else x > 0)):
+        raise ValueError(f"{name} must be {'>= 0' if allow_zero else 'positive'}, got {x}")
+    return x
+
+
+def _arc(cx: float, cz: float, r: float, a0: float, a1: float, n: int) -> list[tuple]:
+    """``n + 1`` points (r, z) of the arc of radius ``r`` about (cx, cz) from a0 to a1 rad."""
+    return [
+        (cx + r * cos(a0 + (a1 - a0) * k / n), cz + r * sin(a0 + (a1 - a0) * k / n))
+        for k in range(n + 1)
+    ]
+
+
+def link_profile_mm(
+    length: float,
+    r_outer: float,
+    r_inner: float,
+    face_side: float = 0.0,
+    face_thickness: float = 0.0,
+    fillet: float = 0.0,
+    segments: int = SEGMENTS,
+) -> list[tuple[float, float]]:
+    """The half-section (r, z), mm, that ``link_mesh`` revolves about z (dimensions in m,
+    as ``link_mesh``; checked there): the tube from r_inner, the fillet arcs
+    (``segments // 8`` chords each, at least 4) and, within the plates' thickness, discs
+    reaching past the square's corners (the polygon of ``segments`` sides covers the
+    square), which the square prism then trims to the plates."""
+    plates = face_side > 0 and face_thickness > 0
+    L, ro, ri, a, t, f = (
+        MM * float(x) for x in (length, r_outer, r_inner, face_side, face_thickness, fillet)
+    )
+    if not plates:
+        return [(ri, 0.0), (ro, 0.0), (ro, L), (ri, L)]
+    big = 1.01 * a / (sqrt(2.0) * cos(pi / int(segments)))
+    if f > 0:
+        k = max(4, int(segments) // 8)
+        bottom = _arc(ro + f, t + f, f, -pi / 2, -pi, k)
+        top = _arc(ro + f, L - t - f, f, pi, pi / 2, k)
+    else:
+        bottom, top = [(ro, t)], [(ro, L - t)]
+    return [(ri, 0.0), (big, 0.0), (big, t), *bottom, *top, (big, L - t), (big, L), (ri, L)]
+
+
+def link_mesh(
+    length: float,
+    r_outer: float,
+    r_inner: float,
+    face_side: float = 0.0,
+    face_thickness: float = 0.0,
+    fillet: float = 0.0,
+    segments: int = SEGMENTS,
+) -> trimesh.Trimesh:
+    """The printed link module (m): tube along z over [0, length], plates at both ends.
+
+    Same dimensions and checks as ``kinematics.spatial.link_part_volume`` (face_side =
+    face_thickness = fillet = 0: a bare tube). One revolution (``link_profile_mm``) and,
+    with plates, one intersection with the square prism of the faces (taller than the
+    part, so that no faces are coplanar: no slivers in the result).
+    """
+    import manifold3d as mf
+
+    from kinematics.spatial import _check_link
+
+    plates = _check_link(length, r_outer, r_inner, face_side, face_thickness, fillet)
+    n = int(segments)
+    if n < 8:
+        raise ValueError(f"segments must be at least 8, got {segments}")
+    # built in mm (manifold3d's 2-D cross-sections round to 1e-8 units), scaled to m at the end
+    profile = link_profile_mm(length, r_outer, r_inner, face_side, face_thickness, fillet, n)
+    solid = mf.Manifold.revolve(mf.CrossSection([np.array(profile, dtype=float)]), n)
+    if plates:
+        L, a = MM * float(length), MM * float(face_side)
+        prism = mf.Manifold.cube((a, a, L + 2.0), center=True).translate((0, 0, L / 2))
+        solid = solid ^ prism
+    return _to_trimesh(solid.scale((1 / MM, 1 / MM, 1 / MM)))
+
+
+def plate_mesh(lx: float, ly: float, thickness: float) -> trimesh.Trimesh:
+    """A rectangular plate ``lx`` x ``ly`` m, ``thickness`` m thick over z in [0, thickness]."""
+    import manifold3d as mf
+
+    size = (_positive("lx", lx), _positive("ly", ly), _positive("thickness", thickness))
+    box = mf.Manifold.cube(size, center=True).translate((0, 0, size[2] / 2))
+    return _to_trimesh(box)
+
+
+def foot_mesh(side: float, thickness: float) -> trimesh.Trimesh:
+    """A square printed foot pad of ``side`` m, ``thickness`` m (sole on z = 0)."""
+    return plate_mesh(side, side, thickness)
+
+
+def wheel_mesh(
+    radius: float, width: float, bore: float = WHEEL_BORE, segments: int = 2 * SEGMENTS
+) -> trimesh.Trimesh:
+    """A printed disc wheel of ``radius`` m and ``width`` m, axle along z over [0, width],
+    with a hub bore of radius ``bore`` m (0: none) for the servo horn screw."""
+    import manifold3d as mf
+
+    r, w = _positive("radius", radius), _positive("width", width)
+    b = _positive("bore", bore, allow_zero=True)
+    if b >= r:
+        raise ValueError(f"bore ({b}) must be smaller than radius ({r})")
+    n = int(segments)
+    disc = mf.Manifold.cylinder(w, r, circular_segments=n)
+    if b > 0:
+        hole = mf.Manifold.cylinder(w + 0.002, b, circular_segments=max(16, n // 4))
+        disc = disc - hole.translate((0, 0, -0.001))
+    return _to_trimesh(disc)
+
+
+# --- figures -----------------------------------------------------------------------------
+
+
+def stl_bytes(mesh: trimesh.Trimesh) -> bytes:
+    """Binary STL of ``mesh`` (metres) with the fixed header ``STL_HEADER``; deterministic."""
+    v = np.asarray(mesh.vertices, dtype=float)
+    tri = v[np.asarray(mesh.faces, dtype=np.int64)]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norm = np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = np.divide(normals, norm, out=np.zeros_like(normals), where=norm > 0)
+    record = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+    data = np.zeros(len(tri), dtype=record)
+    data["n"] = normals
+    data["v"] = tri
+    return STL_HEADER + struct.pack("<I", len(tri)) + data.tobytes()
+
+
+def mesh_volume(mesh: trimesh.Trimesh) -> float:
+    """Enclosed volume m^3 of a closed mesh."""
+    return float(mesh.volume)
+
+
+def mesh_mass_properties(
+    mesh: trimesh.Trimesh, density: float
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """Mass kg, COM (3,) m and inertia (3,3) kg m^2 about the COM (mesh axes) of a solid
+    ``mesh`` of uniform ``density`` kg/m^3."""
+    props = mesh.mass_properties  # unit density
+    rho = _positive("density", density)
+    return (
+        float(props["mass"] * rho),
+        np.array(props["center_mass"], dtype=float),
+        np.array(props["inertia"], dtype=float) * rho,
+    )
+
+
+def extents(mesh: trimesh.Trimesh) -> tuple[float, float, float]:
+    """Axis-aligned bounding box sizes (x, y, z) m of ``mesh`` in its print frame."""
+    lo, hi = np.asarray(mesh.bounds, dtype=float)
+    x, y, z = (float(d) for d in hi - lo)
+    return x, y, z
+
+
+def fits_bed(size: Sequence[float], bed: Sequence[float]) -> bool:
+    """True if a box of the three extents ``size`` (m) fits the printer's build volume
+    ``bed`` (m) in some axis-aligned orientation (some permutation of the extents is within
+    the bed's extents: equivalently, the sorted extents are within the sorted bed)."""
+    s, b = sorted(float(x) for x in size), sorted(float(x) for x in bed)
+    if len(s) != 3 or len(b) != 3:
+        raise ValueError(f"need three extents and three bed sizes, got {size!r}, {bed!r}")
+    return all(x <= y for x, y in zip(s, b, strict=True))
+
+
+def print_time_s(volume: float, print_speed: float) -> float:
+    """Print time s of ``volume`` m^3 at an average extrusion rate ``print_speed`` m^3/s."""
+    return _positive("volume", volume, allow_zero=True) / _positive("print_speed", print_speed)

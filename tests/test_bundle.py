@@ -1,0 +1,92 @@
+"""The bundle pieces that need no geometry: BOM, the bundle README, atomic writing."""
+
+from __future__ import annotations
+
+import csv
+import io
+
+import pytest
+
+from adron.errors import ExportError
+from export.bom import COLUMNS, bom_csv
+from export.bundle import write_bundle
+from export.guide import guide_markdown
+from export.model3d import PrintedPart
+
+
+def part(name: str, count: int, fits: bool = True) -> PrintedPart:
+    return PrintedPart(name, "link", b"solid", count, 1e-5, 1e-5, 0.0124, (0.1, 0.05, 0.05),
+                       fits, 600.0)
+
+
+MODULES = [{"kind": "PositionServomotor", "model": "SG90", "count": 3},
+           {"kind": "MainModule", "model": "IntelEdison", "count": 1}]
+FIGURES = {"SG90": (5.0, 0.034), "IntelEdison": (62.4, 0.041)}
+
+
+def test_bom_lists_modules_and_parts_with_totals() -> None:
+    rows = list(csv.reader(io.StringIO(bom_csv(MODULES, [part("link_l2", 2)], FIGURES))))
+    assert tuple(rows[0]) == COLUMNS
+    by_name = {r[1]: r for r in rows[1:-1]}
+    assert by_name["SG90"][3] == "3" and by_name["SG90"][4] == "5"
+    assert by_name["link_l2"][9] == "meshes/link_l2.stl" and by_name["link_l2"][8] == "yes"
+    total = rows[-1]
+    assert total[0] == "total" and total[3] == str(3 + 1 + 2)
+    assert float(total[4]) == pytest.approx(3 * 5.0 + 62.4)
+    assert float(total[5]) == pytest.approx(3 * 0.034 + 0.041 + 2 * 0.0124)
+    assert float(total[7]) == pytest.approx(1200)
+
+
+def test_bom_flags_a_part_too_big_for_the_bed() -> None:
+    rows = list(csv.reader(io.StringIO(bom_csv(MODULES, [part("plate", 1, fits=False)],
+                                               FIGURES))))
+    assert rows[-2][8] == "NO" and rows[-1][8] == "NO"
+
+
+def record() -> dict:
+    return {
+        "robot_type": "Arm|<x>", "request": {"abilities": ["grasping"]},
+        "abilities": ["grasping"], "mass_kg": 0.5, "cost": 10.0, "dof": 3,
+        "active_modules": 6, "module_limit": 24, "params": {"reach": 0.25},
+        "modules": [{"kind": "MainModule", "model": "IntelEdison", "count": 1,
+                     "i2c_addresses": []},
+                    {"kind": "PositionServomotor", "model": "SG90", "count": 1,
+                     "i2c_addresses": ["0x09"]}],
+        "joints": [{"name": "base_yaw", "module_class": "PositionServomotor",
+                    "actuator": "SG90", "i2c_address": "0x09", "required_torque_Nm": 0.05,
+                    "usable_torque_Nm": 0.12}],
+    }
+
+
+def test_guide_tells_files_printing_and_assembly_order() -> None:
+    text = guide_markdown(record(), [part("link_l2", 2, fits=False)], "An arm.")
+    assert text.startswith("# Arm\\|<x>: a parmor design")
+    for f in ("design.json", "robot.urdf", "robot.xml", "meshes/*.stl", "bom.csv"):
+        assert f"`{f}`" in text
+    assert "`meshes/link_l2.stl` | 2 |" in text and "split it" in text
+    main = text.index("MainModule IntelEdison x1 on the root body (bus master)")
+    joint = text.index("Joint `base_yaw`: SG90 at 0x09")
+    assert main < joint
+
+
+def test_write_bundle_is_atomic_and_refuses_non_empty_folders(tmp_path) -> None:
+    out = tmp_path / "b"
+    write_bundle(out, {"a.txt": "1", "meshes/x.stl": b"2"})
+    assert (out / "a.txt").read_text() == "1" and (out / "meshes" / "x.stl").read_bytes() == b"2"
+    with pytest.raises(ExportError, match="not empty"):
+        write_bundle(out, {"a.txt": "new"})
+    assert (out / "a.txt").read_text() == "1"
+    write_bundle(out, {"c.txt": "3"}, force=True)
+    assert sorted(p.name for p in out.iterdir()) == ["c.txt"]
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    write_bundle(empty, {"a.txt": "1"})  # an empty folder is fine
+    assert (empty / "a.txt").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b", "empty"]  # no temporaries
+
+
+@pytest.mark.parametrize("name", ["../x.txt", "/abs.txt", "meshes/../../x"])
+def test_write_bundle_keeps_files_inside(tmp_path, name) -> None:
+    with pytest.raises(ExportError, match="inside"):
+        write_bundle(tmp_path / "b", {name: "x"})
+    assert list(tmp_path.iterdir()) == []

@@ -1,0 +1,164 @@
+"""export.meshes: every printed part is a closed volume that matches its analytic model;
+STL bytes are deterministic; print-bed and print-time figures.
+
+The analytic model of the link module (kinematics.spatial) is checked here too, against
+the mesh's own mass properties and against closed forms written out in the test."""
+
+from __future__ import annotations
+
+import io
+import itertools
+from math import pi
+
+import numpy as np
+import pytest
+import trimesh
+
+from export import meshes
+from kinematics.spatial import link_part_mass_properties, link_part_volume, tube_mass
+
+RHO = 1240.0
+
+
+def random_links(n: int, seed: int) -> list[tuple[float, ...]]:
+    """``n`` valid (length, r_outer, r_inner, face_side, face_thickness, fillet), m."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        ro = rng.uniform(0.006, 0.020)
+        ri = rng.uniform(0.0, ro - 0.0012)
+        f = rng.uniform(0.001, 0.004)
+        side = rng.uniform(2 * (ro + f), 0.06)
+        t = rng.uniform(0.002, 0.006)
+        length = rng.uniform(2 * (t + f) + 0.005, 0.2)
+        out.append(tuple(float(x) for x in (length, ro, ri, side, t, f)))
+    return out
+
+
+def closed(mesh: trimesh.Trimesh) -> None:
+    assert mesh.is_watertight and mesh.is_volume and mesh.volume > 0
+
+
+def load(stl: bytes) -> trimesh.Trimesh:
+    return trimesh.load(io.BytesIO(stl), file_type="stl")
+
+
+@pytest.mark.parametrize("dims", random_links(6, seed=11))
+def test_link_mesh_is_the_analytic_part(dims: tuple[float, ...]) -> None:
+    length, ro, ri, side, t, f = dims
+    mesh = meshes.link_mesh(*dims)
+    closed(mesh)
+    assert meshes.mesh_volume(mesh) == pytest.approx(link_part_volume(*dims), rel=0.01)
+    np.testing.assert_allclose(meshes.extents(mesh), (side, side, length), rtol=1e-9)
+    # mass properties: the analytic model (axis z, from the origin) against the mesh's
+    m, com, inertia = meshes.mesh_mass_properties(mesh, RHO)
+    ma, ca, ia = link_part_mass_properties(RHO, *dims, axis=(0, 0, 1))
+    assert m == pytest.approx(ma, rel=0.01)
+    np.testing.assert_allclose(com, ca, atol=1e-6)
+    np.testing.assert_allclose(inertia, ia, rtol=0, atol=0.01 * np.abs(ia).max())
+
+
+def test_link_volume_is_tube_plus_two_plates_plus_two_pappus_rings() -> None:
+    for length, ro, ri, side, t, f in random_links(5, seed=3):
+        tube = pi * (ro**2 - ri**2) * length
+        plates = 2 * t * (side**2 - pi * ro**2)
+        centroid = ro + f * (10 - 3 * pi) / (12 - 3 * pi)  # of the fillet's half-section
+        rings = 2 * 2 * pi * centroid * f**2 * (1 - pi / 4)
+        dims = (length, ro, ri, side, t, f)
+        assert link_part_volume(*dims) == pytest.approx(tube + plates + rings, rel=1e-12)
+        m, com, inertia = link_part_mass_properties(RHO, *dims)
+        assert m == pytest.approx(RHO * (tube + plates + rings), rel=1e-12)
+        np.testing.assert_allclose(com, (length / 2, 0, 0))
+        assert inertia[1, 1] == inertia[2, 2] and inertia[0, 1] == 0.0
+
+
+def test_bare_link_is_the_tube() -> None:
+    mesh = meshes.link_mesh(0.1, 0.012, 0.009)
+    closed(mesh)
+    assert meshes.mesh_volume(mesh) == pytest.approx(pi * (0.012**2 - 0.009**2) * 0.1, rel=0.01)
+    m, com, inertia = link_part_mass_properties(RHO, 0.1, 0.012, 0.009)
+    assert m == tube_mass(RHO, 0.1, 0.012, 0.009)
+    solid = meshes.link_mesh(0.05, 0.01, 0.0, 0.04, 0.003, 0.002)  # no bore
+    closed(solid)
+    assert meshes.mesh_volume(solid) == pytest.approx(
+        link_part_volume(0.05, 0.01, 0.0, 0.04, 0.003, 0.002), rel=0.01
+    )
+
+
+def test_pads_plates_and_wheels() -> None:
+    rng = np.random.default_rng(5)
+    for _ in range(4):
+        side, t = rng.uniform(0.04, 0.12), rng.uniform(0.003, 0.008)
+        foot = meshes.foot_mesh(side, t)
+        closed(foot)
+        assert meshes.mesh_volume(foot) == pytest.approx(side * side * t, rel=1e-9)
+        np.testing.assert_allclose(meshes.extents(foot), (side, side, t), rtol=1e-9)
+        np.testing.assert_allclose(foot.bounds[0], (-side / 2, -side / 2, 0), atol=1e-12)
+        lx, ly = rng.uniform(0.05, 0.3, size=2)
+        plate = meshes.plate_mesh(lx, ly, t)
+        closed(plate)
+        assert meshes.mesh_volume(plate) == pytest.approx(lx * ly * t, rel=1e-9)
+        r, w = rng.uniform(0.02, 0.1), rng.uniform(0.005, 0.02)
+        wheel = meshes.wheel_mesh(r, w)
+        closed(wheel)
+        b = meshes.WHEEL_BORE
+        assert meshes.mesh_volume(wheel) == pytest.approx(pi * (r * r - b * b) * w, rel=0.01)
+        np.testing.assert_allclose(meshes.extents(wheel), (2 * r, 2 * r, w), rtol=1e-6)
+        solid = meshes.wheel_mesh(r, w, bore=0.0)
+        assert meshes.mesh_volume(solid) > meshes.mesh_volume(wheel)
+
+
+def test_stl_bytes_are_deterministic_and_faithful() -> None:
+    dims = random_links(1, seed=99)[0]
+    builds = [
+        (lambda: meshes.link_mesh(*dims)),
+        (lambda: meshes.foot_mesh(0.05, 0.005)),
+        (lambda: meshes.plate_mesh(0.2, 0.1, 0.004)),
+        (lambda: meshes.wheel_mesh(0.04, 0.01)),
+    ]
+    for make in builds:
+        a, b = make(), make()
+        stl = meshes.stl_bytes(a)
+        assert stl == meshes.stl_bytes(b)
+        assert stl[:80] == meshes.STL_HEADER and len(stl) == 84 + 50 * len(a.faces)
+        back = load(stl)
+        assert back.is_watertight
+        assert back.volume == pytest.approx(a.volume, rel=1e-5)
+
+
+def test_invalid_parts_are_rejected() -> None:
+    with pytest.raises(ValueError, match="face_side/2"):
+        meshes.link_mesh(0.1, 0.02, 0.018, 0.045, 0.004, 0.003)  # fillet off the plate
+    with pytest.raises(ValueError, match="must not overlap"):
+        link_part_volume(0.012, 0.01, 0.008, 0.05, 0.004, 0.003)
+    with pytest.raises(ValueError, match="both face_side and face_thickness"):
+        link_part_volume(0.1, 0.01, 0.008, 0.05, 0.0, 0.0)
+    with pytest.raises(ValueError, match="r_inner"):
+        meshes.link_mesh(0.1, 0.01, 0.01)
+    with pytest.raises(ValueError, match="bore"):
+        meshes.wheel_mesh(0.01, 0.01, bore=0.02)
+    with pytest.raises(ValueError):
+        meshes.plate_mesh(0.1, 0.0, 0.004)
+
+
+def test_fits_bed_tries_every_axis_aligned_orientation() -> None:
+    bed = (0.22, 0.22, 0.25)
+    assert meshes.fits_bed((0.05, 0.05, 0.24), bed)
+    assert meshes.fits_bed((0.24, 0.05, 0.05), bed)  # lies along z
+    assert meshes.fits_bed((0.22, 0.22, 0.25), bed)
+    assert not meshes.fits_bed((0.23, 0.23, 0.01), bed)
+    assert not meshes.fits_bed((0.30, 0.01, 0.01), bed)
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        size = tuple(rng.uniform(0.0, 0.3, size=3))
+        brute = any(
+            all(s <= b for s, b in zip(p, bed, strict=True)) for p in itertools.permutations(size)
+        )
+        assert meshes.fits_bed(size, bed) == brute
+
+
+def test_print_time() -> None:
+    assert meshes.print_time_s(8e-6, 8e-9) == pytest.approx(1000.0)
+    assert meshes.print_time_s(0.0, 8e-9) == 0.0
+    with pytest.raises(ValueError):
+        meshes.print_time_s(1e-6, 0.0)
