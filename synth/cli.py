@@ -366,7 +366,7 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         progress(None, "")
     conflict = list(designer.conflict(req)) if not sol.candidates else []
     if sol.candidates and not cands:
-        conflict = [*req.abilities, *(f"{n}={v}" for n, v in req.params if n in physical)]
+        conflict = list(designer.limit_conflict(req, over))
     status = "enumerated" if cands else "unsatisfiable"
     if args.json:
         summary = {

@@ -16,7 +16,7 @@ from __future__ import annotations
 import difflib
 import itertools
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 from adron.errors import InputError, OntologyError
 from adron.kb import KnowledgeBase
@@ -57,7 +57,6 @@ class Design:
     questions: tuple[Question, ...] = ()
     conflict: tuple[str, ...] = ()
     needed: tuple[str, ...] = ()
-    extra: dict = field(default_factory=dict)
 
 
 def suggest(word: str, options: Sequence[str]) -> str:
@@ -156,12 +155,19 @@ class Designer:
     ) -> tuple[tuple[Candidate, ...], dict[str, list[str]]]:
         """The candidates whose ontology ``structuralLimit`` facts the physical parameters
         do not exceed, and the exceeded limits of the others (type -> phrases)."""
-        limits = self.kb.translation.relation("structuralLimit")
-        if not physical or not limits:
+        limits = self.kb.translation.located("structuralLimit")
+        if not limits:
             return tuple(cands), {}
-        over = {c.robot_type: exceeded_limits(c.robot_type, limits, physical) for c in cands}
+        over = {c.robot_type: exceeded_limits(c, limits, physical) for c in cands}
         over = {t: w for t, w in over.items() if w}
         return tuple(c for c in cands if c.robot_type not in over), over
+
+    @staticmethod
+    def limit_conflict(req: Request, over: Mapping[str, list[str]]) -> tuple[str, ...]:
+        """The demands behind "every candidate exceeds a structural limit": the requested
+        abilities and the parameters named by the exceeded limits."""
+        names = {phrase.split(" above ")[0] for phrases in over.values() for phrase in phrases}
+        return tuple(req.abilities) + tuple(f"{n}={v}" for n, v in req.params if n in names)
 
     # -- the procedure ----------------------------------------------------------------
     def step(self, req: Request) -> Design:
@@ -178,16 +184,9 @@ class Designer:
         cands, over = self.within_limits(sol.candidates, physical)
         excluded = "; ".join(f"{t} is not built for {', '.join(ws)}" for t, ws in over.items())
         if not cands:
-            names = sorted({w.split(" ")[0] for ws in over.values() for w in ws})
-            conflict = tuple(req.abilities) + tuple(f"{n}={v}" for n, v in req.params if n in names)
-            return Design(
-                "unsatisfiable",
-                req,
-                questions=asked,
-                conflict=conflict,
-                needed=needed,
-                note=excluded,
-            )
+            conflict = self.limit_conflict(req, over)
+            return Design("unsatisfiable", req, questions=asked, conflict=conflict,
+                          needed=needed, note=excluded)
         if len(cands) == 1:
             return Design(
                 "designed",
@@ -222,13 +221,20 @@ class Designer:
         return a.question if a else f"Does the robot need to {name}?"
 
     def next_question(self, cands: Sequence[Candidate], settled: set[str]) -> Question | None:
-        """The ability that splits ``cands`` most evenly, or None when none splits them."""
+        """The ability whose answer narrows ``cands`` most, or None when none does.
+
+        "yes" keeps the candidates that could have the ability (``potential``: with grown
+        parts or added modules); "no" keeps those whose declared parts do not give it. An
+        ability is asked only when either answer drops someone; the best one leaves the
+        fewest candidates in its worse case (ties: the short name's alphabetical order).
+        """
         best: tuple[int, str] | None = None
         n = len(cands)
         for kif in sorted({a for c in cands for a in c.potential} - settled):
             yes = sum(kif in c.potential for c in cands)
-            if 0 < yes < n:
-                key = (abs(n - 2 * yes), self.short(kif))
+            no = n - sum(kif in c.declared for c in cands)
+            if yes < n and no < n:
+                key = (max(yes, no), self.short(kif))
                 best = key if best is None or key < best else best
         if best is None:
             return None
@@ -239,12 +245,19 @@ class Designer:
 
         Tries subsets by size, each a re-solve under new externals (no regrounding).
         """
+        if not self.reasoner.satisfiable(Query()):
+            raise OntologyError(
+                "the knowledge base admits no robot at all (no instance of BaseConfiguration, "
+                "or rules that contradict each other)"
+            )
         demands: list[tuple[str, Request]] = []
         demands += [(a, Request(abilities=(a,))) for a in dict.fromkeys(req.abilities)]
         demands += [
             (f"{a}={'yes' if y else 'no'}", Request(answers=((a, y),))) for a, y in req.answers
         ]
-        demands += [(f"{p}={v}", Request(params=((p, v),))) for p, v in req.params]
+        # physical parameters never change what the reasoner admits: only the ontology's
+        demands += [(f"{p}={v}", Request(params=((p, v),))) for p, v in req.params
+                    if self.kb.parameter(p) is not None]
         for size in range(1, len(demands) + 1):
             for combo in itertools.combinations(demands, size):
                 merged = Request(
@@ -254,10 +267,6 @@ class Designer:
                 )
                 if not self.reasoner.satisfiable(self.query(merged)):
                     return tuple(name for name, _ in combo)
-        if not self.reasoner.satisfiable(Query()):
-            raise OntologyError(
-                "the ontology defines no buildable robot (no instance of BaseConfiguration)"
-            )
         return tuple(name for name, _ in demands)
 
     def describe(self, robot_type: str) -> Candidate:

@@ -93,21 +93,27 @@ PARAMS: tuple[ParamSpec, ...] = (
 BY_NAME = {p.name: p for p in PARAMS}
 
 
-def exceeded_limits(
-    robot_type: str, limits: Iterable[tuple], given: Mapping[str, float]
-) -> list[str]:
-    """The structural limits (ontology ``structuralLimit`` facts: type, name, quantity) of
-    ``robot_type`` that the given values exceed, as readable phrases."""
+def exceeded_limits(candidate, limits: Iterable[tuple[tuple, str]],
+                    given: Mapping[str, float]) -> list[str]:
+    """The ontology's ``structuralLimit`` facts ((type, name, quantity), "file:line:col") on
+    ``candidate``'s class or any robot class above it that its parameters exceed (the given
+    values, else its defaults), as readable phrases."""
+    from adron.errors import OntologyError
     from adron.units import quantity
 
     out = []
-    for rtype, name, text, *_ in limits:
-        if rtype != robot_type or name not in given or name not in BY_NAME:
+    for (rtype, name, text), where in limits:
+        if rtype not in candidate.ancestors:
             continue
-        limit = quantity(
-            text, BY_NAME[name].dimension, f"structuralLimit {rtype} {name}", allow_zero=True
-        )
-        if given[name] > limit:
+        if name not in BY_NAME:
+            raise OntologyError(f"{where}: structuralLimit names {name!r}, not a parameter "
+                                f"(known: {', '.join(sorted(BY_NAME))})")
+        spec = BY_NAME[name]
+        value = given.get(name, spec.defaults.get(candidate.robot_type))
+        if value is None:
+            continue
+        limit = quantity(text, spec.dimension, f"{where}: structuralLimit", allow_zero=True)
+        if value > limit:
             out.append(f"{name} above {text}")
     return out
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from importlib import resources
 from pathlib import Path
 
@@ -68,6 +68,9 @@ class Candidate:
     sources: tuple[PartSource, ...] = ()
     module_limit: int | None = None
     hierarchy: int = 1  # depth of the part tree (robot -> parts -> modules: 2)
+    declared: tuple[str, ...] = ()  # abilities its declared parts give (no growth, add-ons)
+    ancestors: tuple[str, ...] = ()  # robot classes it is (itself included)
+    preference: tuple[int, ...] = ()  # asp/preference.lp's cost of choosing it
 
 
 @dataclass(frozen=True)
@@ -78,7 +81,6 @@ class Solution:
     needed: tuple[str, ...] = ()
     excluded: tuple[str, ...] = ()
     satisfiable: bool = True
-    extra: dict = field(default_factory=dict)
 
 
 def encoding_dir() -> Path:
@@ -201,7 +203,8 @@ class Reasoner:
         return frozenset(models)
 
     def solve(self, query: Query) -> Solution:
-        """Every candidate of ``query``, in preference order (active modules, then name)."""
+        """Every candidate of ``query``, in preference order: the cost asp/preference.lp
+        gives each answer set (fewest active modules), then the type name."""
         self._assign(query)
         found: dict[str, Candidate] = {}
         needed: set[str] = set()
@@ -212,14 +215,10 @@ class Reasoner:
                 needed |= need
                 excluded |= excl
                 if cand is not None:
-                    found[cand.robot_type] = cand
-        order = sorted(found.values(), key=lambda c: (c.active_total, c.robot_type))
-        return Solution(
-            tuple(order),
-            tuple(sorted(needed)),
-            tuple(sorted(excluded)),
-            satisfiable=bool(order) or False,
-        )
+                    found[cand.robot_type] = replace(cand, preference=tuple(model.cost))
+        order = sorted(found.values(), key=lambda c: (c.preference, c.robot_type))
+        return Solution(tuple(order), tuple(sorted(needed)), tuple(sorted(excluded)),
+                        satisfiable=bool(order))
 
     @staticmethod
     def _read(symbols: Iterable[clingo.Symbol]) -> tuple[Candidate | None, set, set]:
@@ -266,6 +265,8 @@ class Reasoner:
             ),
             module_limit=single("limit"),
             hierarchy=max((d for rr, d in by.get("level", []) if rr == r), default=1),
+            declared=tuple(sorted(a for rr, a in by.get("declared", []) if rr == r)),
+            ancestors=tuple(sorted(c for rr, c in by.get("ancestor", []) if rr == r)),
         )
         return cand, need, excl
 

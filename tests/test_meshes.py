@@ -129,6 +129,10 @@ def test_stl_bytes_are_deterministic_and_faithful() -> None:
 def test_invalid_parts_are_rejected() -> None:
     with pytest.raises(ValueError, match="face_side/2"):
         meshes.link_mesh(0.1, 0.02, 0.018, 0.045, 0.004, 0.003)  # fillet off the plate
+    with pytest.raises(ValueError, match="face_side/2"):
+        link_part_volume(2.0, 0.5, 0.25, 1.5, 0.0625, 0.25)  # fillet to the plate's edge
+    with pytest.raises(ValueError, match="multiple of 8"):
+        meshes.link_mesh(0.1, 0.012, 0.009, 0.05, 0.004, 0.003, segments=60)
     with pytest.raises(ValueError, match="must not overlap"):
         link_part_volume(0.012, 0.01, 0.008, 0.05, 0.004, 0.003)
     with pytest.raises(ValueError, match="both face_side and face_thickness"):
