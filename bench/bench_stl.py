@@ -4,9 +4,11 @@ Usage: ``python bench/bench_stl.py``. ``bench_stl`` returns the report lines for
 ``bench/bench.py``.
 
 The parts are the three links (L1, L2, L3) of the default 3-DOF manipulator design, with
-the catalog's dovetail faces and fillets. Both sides build the same geometry from the same
+the catalog's dovetail faces and fillets. Both sides build the same solid from the same
 numbers: the revolution of the same half-section (``export.meshes.link_profile_mm``) with
-the same number of segments, intersected with the square prism of the faces. OpenSCAD
+the same number of segments, whose plate discs become the faces' squares; manifold3d moves
+the discs' rims onto the square (``Manifold.warp_batch``), OpenSCAD, which has no warp,
+intersects the revolution with the square prism (its cheapest construction). OpenSCAD
 (Debian's ``openscad``, CGAL booleans) reads a ``.scad`` file the benchmark writes to a
 temporary folder and writes an STL; it is timed as a user runs it, one process per part
 (its start-up time, measured on an empty file, is reported too). manifold3d is timed from
@@ -68,7 +70,7 @@ def default_links() -> list[tuple[str, tuple[float, ...]]]:
 
 def scad_source(dims: tuple[float, ...], segments: int = meshes.SEGMENTS) -> str:
     """OpenSCAD source (mm) of the link part ``link_mesh(*dims, segments)`` builds: the same
-    half-section revolved, intersected with the same square prism."""
+    half-section revolved, intersected with the square prism of the faces."""
     length, side = meshes.MM * dims[0], meshes.MM * dims[3]
     profile = meshes.link_profile_mm(*dims, segments)
     points = ", ".join(f"[{r:.9g}, {z:.9g}]" for r, z in profile)

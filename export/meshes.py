@@ -11,8 +11,8 @@ it is printed:
   ``length``; the geometry of ``kinematics.spatial.link_part_volume`` (tube, two square
   face plates with a bore of the tube's inner radius, concave fillet rings), built as the
   revolution of one half-section (the bored tube, the fillets and, over the plates'
-  thickness, discs that cover the plates) intersected with the square prism of the faces.
-  Faces' edges along x and y.
+  thickness, discs) whose discs' rims are then moved onto the faces' square. Faces' edges
+  along x and y.
 - ``foot_mesh``: a square foot pad; ``plate_mesh``: a rectangular plate (trunk, chassis,
   base plates, a humanoid's foot plate); z is the thickness.
 - ``wheel_mesh``: a disc wheel with a hub bore, its axle along z.
@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Sequence
-from math import cos, pi, sin, sqrt
+from math import cos, pi, sin
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -102,23 +102,39 @@ def link_profile_mm(
 ) -> list[tuple[float, float]]:
     """The half-section (r, z), mm, that ``link_mesh`` revolves about z (dimensions in m,
     as ``link_mesh``; checked there): the tube from r_inner, the fillet arcs
-    (``segments // 8`` chords each, at least 4) and, within the plates' thickness, discs
-    reaching past the square's corners (the polygon of ``segments`` sides covers the
-    square), which the square prism then trims to the plates."""
+    (``segments // 8`` chords each, at least 4) and, over each plate's thickness, a disc of
+    radius ``face_side`` (more than the square's half-diagonal): the square plate is that
+    disc trimmed to the face's square (``link_mesh`` moves the disc's rim onto the square;
+    an intersection with the square prism gives the same solid)."""
     plates = face_side > 0 and face_thickness > 0
     L, ro, ri, a, t, f = (
         MM * float(x) for x in (length, r_outer, r_inner, face_side, face_thickness, fillet)
     )
     if not plates:
         return [(ri, 0.0), (ro, 0.0), (ro, L), (ri, L)]
-    big = 1.01 * a / (sqrt(2.0) * cos(pi / int(segments)))
     if f > 0:
         k = max(4, int(segments) // 8)
         bottom = _arc(ro + f, t + f, f, -pi / 2, -pi, k)
         top = _arc(ro + f, L - t - f, f, pi, pi / 2, k)
     else:
         bottom, top = [(ro, t)], [(ro, L - t)]
-    return [(ri, 0.0), (big, 0.0), (big, t), *bottom, *top, (big, L - t), (big, L), (ri, L)]
+    return [(ri, 0.0), (a, 0.0), (a, t), *bottom, *top, (a, L - t), (a, L), (ri, L)]
+
+
+def _square_rim(vertices: np.ndarray, rim: float, half: float) -> np.ndarray:
+    """``vertices`` (n, 3) with those at radius ``rim`` moved radially onto the square of
+    half-side ``half`` (exactly onto its sides: the larger coordinate becomes +-half)."""
+    v = np.array(vertices, dtype=float)
+    x, y = v[:, 0], v[:, 1]
+    on = np.abs(np.hypot(x, y) - rim) <= 1e-9 * rim
+    ax, ay = np.abs(x), np.abs(y)
+    along_x = on & (ax >= ay)
+    along_y = on & (ax < ay)
+    v[along_x, 1] = y[along_x] * (half / ax[along_x])
+    v[along_x, 0] = np.copysign(half, x[along_x])
+    v[along_y, 0] = x[along_y] * (half / ay[along_y])
+    v[along_y, 1] = np.copysign(half, y[along_y])
+    return v
 
 
 def link_mesh(
@@ -133,25 +149,27 @@ def link_mesh(
     """The printed link module (m): tube along z over [0, length], plates at both ends.
 
     Same dimensions and checks as ``kinematics.spatial.link_part_volume`` (face_side =
-    face_thickness = fillet = 0: a bare tube). One revolution (``link_profile_mm``) and,
-    with plates, one intersection with the square prism of the faces (taller than the
-    part, so that no faces are coplanar: no slivers in the result).
+    face_thickness = fillet = 0: a bare tube). One revolution of ``link_profile_mm`` with
+    ``segments`` sides (a multiple of 8 with plates); the plates' rims are then moved
+    radially onto the square (``Manifold.warp_batch``): the revolution has a vertex at every
+    multiple of 45 degrees, i.e. at the square's corners, so every rim edge lands on a
+    side of the square and the plates are exact squares. No boolean operation: no
+    slivers, and fast.
     """
     import manifold3d as mf
 
-    from kinematics.spatial import _check_link
+    from kinematics.spatial import check_link_part
 
-    plates = _check_link(length, r_outer, r_inner, face_side, face_thickness, fillet)
+    plates = check_link_part(length, r_outer, r_inner, face_side, face_thickness, fillet)
     n = int(segments)
-    if n < 8:
-        raise ValueError(f"segments must be at least 8, got {segments}")
+    if n < 8 or (plates and n % 8):
+        raise ValueError(f"segments must be a multiple of 8 (at least 8), got {segments}")
     # built in mm (manifold3d's 2-D cross-sections round to 1e-8 units), scaled to m at the end
     profile = link_profile_mm(length, r_outer, r_inner, face_side, face_thickness, fillet, n)
     solid = mf.Manifold.revolve(mf.CrossSection([np.array(profile, dtype=float)]), n)
     if plates:
-        L, a = MM * float(length), MM * float(face_side)
-        prism = mf.Manifold.cube((a, a, L + 2.0), center=True).translate((0, 0, L / 2))
-        solid = solid ^ prism
+        a = MM * float(face_side)
+        solid = solid.warp_batch(lambda v: _square_rim(v, a, a / 2))
     return _to_trimesh(solid.scale((1 / MM, 1 / MM, 1 / MM)))
 
 

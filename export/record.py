@@ -126,6 +126,7 @@ def alternatives_record(a: Alternatives) -> dict:
 
     return {
         "count": a.count,
+        "count_exact": a.exact,
         "symmetric": a.symmetric,
         "ranked": [one(x) for x in a.ranked],
         "pareto": None if a.pareto is None else [one(x) for x in a.pareto],

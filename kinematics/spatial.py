@@ -185,7 +185,7 @@ def tube_mass(density: float, length: float, r_outer: float, r_inner: float) -> 
 #   r_outer <= r <= r_outer + f, t <= x <= t + f (mirrored at the far end) less the disc of
 #   radius f centred at (x, r) = (t + f, r_outer + f).
 #
-# The plates need face_side / 2 >= r_outer + f (the fillet stands on the plate) and
+# The plates need face_side / 2 > r_outer + f (the fillet stands on the plate) and
 # length >= 2 (t + f) (the fillets do not meet). face_side = face_thickness = fillet = 0 is
 # the bare tube. The part is symmetric about its mid-length and about the axis (the square
 # plates have equal second moments about every in-plane axis), so its inertia about the
@@ -215,7 +215,7 @@ def _fillet_moment(f: float, a: int, b: int) -> float:
     return f ** (a + b + 2) * (1.0 / ((a + 1) * (b + 1)) - quarter)
 
 
-def _check_link(
+def check_link_part(
     length: float,
     r_outer: float,
     r_inner: float,
@@ -223,7 +223,7 @@ def _check_link(
     face_thickness: float,
     fillet: float,
 ) -> bool:
-    """Validate a link part's dimensions (m); True if it has face plates."""
+    """ValueError unless these are a valid printed link (m); True if it has face plates."""
     _check_positive(length, "length")
     _check_positive(r_outer, "r_outer")
     _check_positive(r_inner, "r_inner", allow_zero=True)
@@ -241,9 +241,9 @@ def _check_link(
                 f"fillet={fillet}"
             )
         return False
-    if face_side / 2 < r_outer + fillet:
+    if face_side / 2 <= r_outer + fillet:
         raise ValueError(
-            f"face_side/2 ({face_side / 2}) must be at least r_outer + fillet "
+            f"face_side/2 ({face_side / 2}) must exceed r_outer + fillet "
             f"({r_outer + fillet}): the tube and its fillet must stand on the face plate"
         )
     if length < 2 * (face_thickness + fillet):
@@ -268,7 +268,7 @@ def link_part_volume(
     tube's disc, t (a^2 - pi r_outer^2) each; a fillet ring adds (Pappus) 2 pi R A with
     A = f^2 (1 - pi/4) and R = r_outer + f (10 - 3 pi) / (12 - 3 pi).
     """
-    plates = _check_link(length, r_outer, r_inner, face_side, face_thickness, fillet)
+    plates = check_link_part(length, r_outer, r_inner, face_side, face_thickness, fillet)
     v = pi * (r_outer**2 - r_inner**2) * length
     if plates:
         v += 2.0 * face_thickness * (face_side**2 - pi * r_outer**2)
@@ -293,7 +293,7 @@ def link_part_mass_properties(
     described above :func:`link_part_volume`; ``density`` kg/m^3. The COM is at mid-length.
     With no plates (all face dimensions 0) it is exactly ``tube_mass`` / ``tube_inertia``.
     """
-    plates = _check_link(length, r_outer, r_inner, face_side, face_thickness, fillet)
+    plates = check_link_part(length, r_outer, r_inner, face_side, face_thickness, fillet)
     _check_positive(density, "density")
     a = _vec3(axis, "axis")
     a = a / np.linalg.norm(a)

@@ -7,7 +7,7 @@ section" (``deflection``, ``slope``).
 
 | name | dimension | used by | default |
 |---|---|---|---|
-| payload | mass | all | kg: manipulators 0.2, multipeds 0.1, humanoid 0.05, wheeled 0.5, snake 0 |
+| payload | mass | all | kg: 3-DOF arm 0.2, 6-DOF 0.1, multipeds 0.1, humanoid 0.05, wheeled 0.5 |
 | reach | length | Manipulator3DOF, Manipulator6DOF | 0.25 m |
 | speed | speed | all but the snake | manipulators 0.2 m/s (tip), legged 0.05 m/s, wheeled 0.3 m/s |
 | obstacle_height | length | HexapodRobot, QuadrupedRobot | 0.03 m |
@@ -53,7 +53,8 @@ PARAMS: tuple[ParamSpec, ...] = (
         "mass",
         "mass carried: at the gripper (manipulators), on the trunk (mobile robots)",
         {
-            **_for(MANIPULATORS, 0.2),
+            "Manipulator3DOF": 0.2,
+            "Manipulator6DOF": 0.1,
             **_for(LEGGED, 0.1),
             "HumanoidRobot": 0.05,
             "SnakeRobot": 0.0,

@@ -23,7 +23,7 @@ import numpy as np
 from adron.catalog import Catalog
 from adron.errors import InfeasibleError
 from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics
-from kinematics.templates import Template, default_lengths
+from kinematics.templates import Template, build, default_lengths
 
 #: Lift of a foot above an obstacle, m; and clearance between neighbouring legs' reach, m.
 STEP_MARGIN = 0.01
@@ -42,9 +42,11 @@ CHASSIS_ASPECT = 4 / 3
 #: Headroom on the wheel speed when choosing the radius (the wheel's own inertia).
 SPEED_MARGIN = 1.1
 #: Gripper closing speed (rad/s); snake joint speed of its gaits (rad/s): amplitude 0.5 rad
-#: at 0.5 Hz, times the peak factor.
+#: at 0.5 Hz. Gripping: friction between jaws and object, and the jaw's lever (m).
+GRIP_FRICTION = 0.5
+JAW_LEVER = 0.03
 GRIPPER_SPEED = 1.0
-SNAKE_SPEED = 0.5 * 2 * math.pi * 0.5 * PEAK_FACTOR
+SNAKE_SPEED = 0.5 * 2 * math.pi * 0.5  # the peak of a sinusoid: amplitude x frequency
 #: Humanoid proportions of the standing height (Fig. 21).
 HUMANOID = {
     "femur": 0.22,
@@ -123,23 +125,61 @@ def _accel_cases(
     ]
 
 
+def support_shares(points: np.ndarray, com: np.ndarray) -> np.ndarray:
+    """Vertical ground forces (fractions of the weight) on feet at ``points`` (n, 2) that
+    hold a body whose centre of mass is over ``com`` (2,) in static equilibrium: total 1
+    and no moment about the centre of mass (least norm when the feet are more than
+    three; feet that would have to pull are dropped)."""
+    active = np.ones(len(points), dtype=bool)
+    shares = np.zeros(len(points))
+    while active.any():
+        p = points[active] - com
+        A = np.vstack([np.ones(len(p)), p[:, 0], p[:, 1]])
+        f, *_ = np.linalg.lstsq(A, np.array([1.0, 0.0, 0.0]), rcond=None)
+        if (f >= -1e-12).all():
+            shares[active] = np.clip(f, 0.0, None)
+            return shares / shares.sum()
+        idx = np.flatnonzero(active)
+        active[idx[np.argmin(f)]] = False
+    raise InfeasibleError("no foot can carry the robot: its centre of mass is outside them")
+
+
 def _support(
     tmpl: Template, q: np.ndarray, feet: list[str], weight: float, under_com: bool = False
 ) -> np.ndarray:
-    """fext: the ground carries ``weight`` N shared by ``feet`` (upward, at the foot points;
-    with ``under_com`` at the ground point under the centre of mass)."""
+    """fext: the ground carries ``weight`` N on ``feet`` (upward, at the foot points,
+    shared for static equilibrium about the centre of mass; with ``under_com`` a single
+    foot's force acts under the centre of mass, as when the robot has shifted its weight
+    over that foot)."""
     model = tmpl.model
     fext = np.zeros((len(model.bodies), 6))
     T = forward_kinematics(model, q)
     com = center_of_mass(model, q)
+    points = []
     for foot in feet:
         k = tmpl.feet.index(foot)
+        point = (T[model.body(foot)] @ np.append(tmpl.foot_points[k], 1.0))[:3]
+        points.append(np.array([com[0], com[1], point[2]]) if under_com else point)
+    shares = support_shares(np.array([p[:2] for p in points]), com[:2])
+    for foot, point, share in zip(feet, points, shares, strict=True):
         b = model.body(foot)
-        point = (T[b] @ np.append(tmpl.foot_points[k], 1.0))[:3]
-        if under_com:
-            point = np.array([com[0], com[1], point[2]])
-        fext[b] += external_force_at(model, q, b, point, (0.0, 0.0, weight / len(feet)))
+        fext[b] += external_force_at(model, q, b, point, (0.0, 0.0, weight * share))
     return fext
+
+
+def stride_length(reach: float) -> float:
+    """The longest stride (m) of a leg whose foot is ``reach`` m from the coxa axis."""
+    return 2 * reach * math.sin(COXA_SWING)
+
+
+def alternate_feet(tmpl: Template) -> list[str]:
+    """Every other foot around the trunk: a tripod of a hexapod, the diagonal pair of a
+    quadruped's trot (feet ordered by their angle about the trunk's vertical axis)."""
+    model = tmpl.model
+    T = forward_kinematics(model, np.zeros(model.nv))
+    angle = {f: math.atan2(T[model.body(f), 1, 3], T[model.body(f), 0, 3]) for f in tmpl.feet}
+    ring = sorted(tmpl.feet, key=lambda f: (angle[f], f))
+    return ring[::2]
 
 
 class Family(ABC):
@@ -161,9 +201,14 @@ class Family(ABC):
     ) -> dict[str, float]:
         """Required speed (rad/s) of each movable joint."""
 
-    def analysis_modules(self, modules: int) -> int:
+    def analysis_modules(self, modules: int, lifted_share: float = 0.5) -> int:
         """Snake modules in the analysed chain (others: unused)."""
         return modules
+
+    def extra_torque(self, tmpl: Template, p: Mapping[str, float], catalog: Catalog
+                     ) -> dict[str, float]:
+        """Torques (N m) beyond the RNEA load cases, per joint (default: none)."""
+        return {}
 
     def update(
         self, sizing: Sizing, tmpl: Template, p: Mapping[str, float], catalog: Catalog
@@ -213,6 +258,13 @@ class Manipulators(Family):
             v[m.q_index[m.joint(name)]] = w
         return v
 
+    def extra_torque(self, tmpl, p, catalog):
+        """The gripper holds the payload by friction: two jaws squeeze it with m g / (2 mu)
+        each, at the jaw's lever."""
+        g = catalog.design.gravity_m_s2
+        squeeze = p.get("payload", 0.0) * g / (2 * GRIP_FRICTION)
+        return {j: squeeze * JAW_LEVER for j in _movable(tmpl) if j.endswith("gripper")}
+
     def speeds(self, tmpl, p, sizing):
         reach = sum(tmpl.lengths[k] for k in tmpl.lengths if k != "L1")
         w = p["speed"] / reach
@@ -234,9 +286,9 @@ class Multipeds(Family):
         tibia = max(h + TRUNK_CLEARANCE, 1.25 * femur)
         coxa = d["coxa"]
         reach = coxa + femur
-        stride = 2 * reach * math.sin(COXA_SWING)
+        stride = stride_length(reach)
         spacing = stride + LEG_CLEARANCE
-        legs_per_side = 3 if robot_type == "HexapodRobot" else 2
+        legs_per_side = build(robot_type).legs // 2
         la1 = spacing * (legs_per_side - 1)
         la2 = max(d["La2"], catalog.passive.dovetail_face_m * 2)
         lengths = {"coxa": coxa, "femur": femur, "tibia": tibia, "La1": la1, "La2": la2}
@@ -245,16 +297,11 @@ class Multipeds(Family):
             out[k] = v if k in ("La1", "La2") else _clamp_length(k, v, catalog, why)
         return Sizing(out, notes=[f"stride {stride * 100:.1f} cm"])
 
-    def _support_feet(self, tmpl):
-        feet = list(tmpl.feet)
-        if len(feet) == 6:  # tripod: left front, right middle, left hind
-            return [f for f in feet if f.startswith(("lf", "rm", "lh"))]
-        return [f for f in feet if f.startswith(("lf", "rh"))]  # trot: a diagonal pair
-
     def load_cases(self, tmpl, p, catalog):
         q = np.zeros(tmpl.model.nv)
         weight = tmpl.model.total_mass * catalog.design.gravity_m_s2
-        fext = _support(tmpl, q, self._support_feet(tmpl), weight)
+        support = alternate_feet(tmpl)
+        fext = _support(tmpl, q, support, weight)
         v = np.zeros(tmpl.model.nv)
         return _accel_cases(
             tmpl,
@@ -262,13 +309,13 @@ class Multipeds(Family):
             v,
             catalog.design.max_joint_acceleration_rad_s2,
             fext,
-            f"standing on {len(self._support_feet(tmpl))} legs",
+            f"standing on {len(support)} legs",
         )
 
     def speeds(self, tmpl, p, sizing):
         L = tmpl.lengths
         reach = L["coxa"] + L["femur"]
-        stride = 2 * reach * math.sin(COXA_SWING)
+        stride = stride_length(reach)
         swing_time = stride / p["speed"] * (1 - DUTY) / DUTY
         lift = math.asin(min(1.0, (p["obstacle_height"] + STEP_MARGIN) / L["femur"]))
         sweep = 2 * COXA_SWING
@@ -312,14 +359,14 @@ class Humanoid(Family):
 
 class Snake(Family):
     """SnakeRobot: M from the ontology (the conceptual design); worst case lifting the
-    longest unsupported segment of its gaits, taken as half of the body (sidewinding lifts
-    alternate halves), straight and horizontal, accelerating."""
+    longest unsupported segment its gaits need (the ontology's ``liftedModuleShare`` of
+    each gait), straight and horizontal, accelerating."""
 
     def size(self, robot_type, p, catalog):
         return Sizing(default_lengths(robot_type))
 
-    def analysis_modules(self, modules: int) -> int:
-        return max(1, math.ceil(modules / 2))
+    def analysis_modules(self, modules: int, lifted_share: float = 0.5) -> int:
+        return max(1, math.ceil(modules * lifted_share))
 
     def load_cases(self, tmpl, p, catalog):
         q = np.zeros(tmpl.model.nv)

@@ -30,7 +30,14 @@ from adron.catalog import Actuator, Catalog, catalog_facts
 from adron.errors import InfeasibleError, InputError
 from adron.kb import KnowledgeBase
 from kinematics.dynamics import joint_wrenches, rnea
-from kinematics.templates import TEMPLATES, Segment, Template, TemplateParams, build
+from kinematics.templates import (
+    FOOT_WIDTH_RATIO,
+    TEMPLATES,
+    Segment,
+    Template,
+    TemplateParams,
+    build,
+)
 from synth.links import (
     Tube,
     TubeLimits,
@@ -125,6 +132,15 @@ class Structure:
     notes: tuple[str, ...] = ()
 
 
+def template_for(candidate: Candidate) -> str | None:
+    """The kinematic template of a robot type: its own, or that of the robot class above
+    it that has one (a user's HeavyHexapod sized as a HexapodRobot); None when none."""
+    if candidate.robot_type in TEMPLATES and candidate.robot_type in FAMILIES:
+        return candidate.robot_type
+    own = sorted(a for a in candidate.ancestors if a in TEMPLATES and a in FAMILIES)
+    return own[0] if own else None
+
+
 def module_class(model_joint_name: str, kind: str, group: str) -> str:
     """The ontology class of the module that drives a template joint."""
     if kind == "continuous":
@@ -198,13 +214,17 @@ class StructureDesigner:
         symmetric: bool = True,
         objective: Sequence[str] = ("mass", "cost"),
     ) -> None:
-        self.type = candidate.robot_type
-        if self.type not in TEMPLATES or self.type not in FAMILIES:
-            raise InputError(
-                f"{self.type}: no kinematic template to size it (templates: {', '.join(TEMPLATES)})"
-            )
+        template = template_for(candidate)
+        if template is None:
+            raise InputError(f"{candidate.robot_type}: no kinematic template to size it "
+                             f"(templates: {', '.join(TEMPLATES)})")
+        self.type = template  # the template (a class the robot type is, itself or above)
         self.candidate, self.catalog, self.symmetric = candidate, catalog, symmetric
         self.family: Family = FAMILIES[self.type]
+        shares = [n / d for gait, n, d in kb.translation.relation("liftedModuleShare")
+                  if gait in candidate.abilities and isinstance(n, int) and isinstance(d, int)
+                  and d > 0]
+        self.lifted_share = max(shares, default=0.5)
         defaults = {
             "deflection": catalog.design.max_tip_deflection_m,
             "slope": catalog.design.max_slope_rad,
@@ -216,12 +236,26 @@ class StructureDesigner:
         self.other_active = candidate.active_total - len(self.slots)
         if self.other_active < 0:
             raise InputError(
-                f"{self.type}: the template has {len(self.slots)} actuated joints "
+                f"{self.candidate.robot_type}: the template has {len(self.slots)} actuated joints "
                 f"but the design only {candidate.active_total} active modules"
             )
+        declared = dict(candidate.modules)
+        for cls in sorted({s.module_class for s in self.slots}):
+            joints = sum(s.module_class == cls for s in self.slots)
+            if declared.get(cls, 0) != joints:
+                raise InputError(
+                    f"{candidate.robot_type}: the conceptual design has "
+                    f"{declared.get(cls, 0)} {cls} but the {self.type} template {joints} "
+                    "joints driven by one; the ontology and the template disagree")
+        self.objective = tuple(objective)
         self.assigner = ActuatorAssigner(
-            kb, catalog_facts(catalog), self.type, self.slots, self.other_active, objective
+            kb, catalog_facts(catalog), candidate.robot_type, self.slots, self.other_active,
+            objective
         )
+        for s in self.slots:
+            if not self.assigner.serving.get(s.name):
+                raise InputError(f"{catalog.source}: no actuator of class {s.module_class} "
+                                 f"(or a class above it) for joint '{s.name}'")
         self.by_model = {a.model: a for a in catalog.actuators}
 
     # -- fixed modules ------------------------------------------------------------------
@@ -256,7 +290,11 @@ class StructureDesigner:
         cat = self.catalog
         rho = cat.material.density_kg_m3
         p = cat.passive
-        foot = p.foot_min_side_m**2 * p.foot_thickness_m * rho
+        if "foot" in sizing.lengths:  # a sized foot plate (the humanoid's sole)
+            side = sizing.lengths["foot"]
+            foot = side * FOOT_WIDTH_RATIO * side * p.foot_thickness_m * rho
+        else:  # a printed pad under a leg's tip
+            foot = p.foot_min_side_m**2 * p.foot_thickness_m * rho
         wheel = math.pi * sizing.wheel_radius**2 * p.wheel_width_m * rho
         sizes = [a.size_m for a in cat.actuators]
         return TemplateParams(
@@ -271,10 +309,14 @@ class StructureDesigner:
             wheel_radius=sizing.wheel_radius,
             foot_mass=foot,
             wheel_mass=wheel,
+            face_side=p.dovetail_face_m,
+            face_thickness=p.face_thickness_m,
+            fillet=p.fillet_radius_m,
         )
 
     def _requirements(self, tp: TemplateParams, sizing: Sizing) -> tuple[_Requirements, Template]:
-        analysis = build(self.type, replace(tp, modules=self.family.analysis_modules(tp.modules)))
+        analysis = build(self.type, replace(
+            tp, modules=self.family.analysis_modules(tp.modules, self.lifted_share)))
         cases: list[LoadCase] = self.family.load_cases(analysis, self.values, self.catalog)
         m = analysis.model
         torque: dict[str, float] = {}
@@ -290,6 +332,10 @@ class StructureDesigner:
             for seg in analysis.segments:
                 load = free_end_load(seg, W[m.body(seg.body)])
                 loads.setdefault(seg.length_name or seg.name, []).append(load)
+        for joint, extra in self.family.extra_torque(analysis, self.values,
+                                                     self.catalog).items():
+            torque[joint] += extra  # e.g. the gripper's squeeze, on top of its dynamics
+            case_of[joint] += " and gripping"
         speeds = self.family.speeds(analysis, self.values, sizing)
         # joints beyond the analysed chain (a snake's) take their group's requirement
         group_torque: dict[str, float] = {}
@@ -433,48 +479,44 @@ class StructureDesigner:
                 break
             prev = vector
         else:
-            raise InfeasibleError(
-                f"{self.type}: the masses did not converge in {MAX_ITERATIONS} iterations"
-            )
+            raise InfeasibleError(f"{self.candidate.robot_type}: the masses did not converge "
+                                  f"in {MAX_ITERATIONS} iterations")
         final = build(self.type, self._params(sizing, tubes, act_mass, self.modules))
         self.requirements = req  # the converged requirements, for enumerating alternatives
+        self.converged = (sizing, tubes, act_mass)
         return self._record(final, sizing, req, assignment, sized, iterations)
 
     def _no_actuator(self, req: _Requirements) -> InfeasibleError:
-        strongest = max(self.catalog.actuators, key=lambda a: a.stall_torque_Nm)
-        worst = max(
-            self.slots,
-            key=lambda s: (
-                req.torque[s.name]
-                / max(
-                    (
-                        usable_torque(self.by_model[m], self.catalog)
-                        for m in self.assigner.serving.get(s.name, ())
-                    ),
-                    default=1e-12,
-                )
-            ),
-        )
-        models = [self.by_model[m] for m in self.assigner.serving.get(worst.name, ())]
-        best = max(models, key=lambda a: a.stall_torque_Nm) if models else strongest
-        t, w = req.torque[worst.name], req.speed[worst.name]
-        if usable_torque(best, self.catalog) < t:
-            what = (
-                f"joint '{worst.name}' needs {t:.2f} N m but the strongest actuator "
-                f"({best.model}) gives {usable_torque(best, self.catalog):.2f} N m after the "
-                f"torque safety factor {self.catalog.design.torque_safety_factor}"
-            )
-        elif speed_at(best, t) < w:
-            what = (
-                f"joint '{worst.name}' needs {w:.2f} rad/s at {t:.2f} N m but the fastest "
-                f"capable actuator reaches {speed_at(best, t):.2f} rad/s"
-            )
-        else:
-            what = (
-                f"no assignment keeps alike joints alike within the bus limit of "
-                f"{self.candidate.module_limit} active modules"
-            )
-        return InfeasibleError(f"{self.type}: {what}")
+        """Why no assignment exists: the joint whose requirement no model meets (torque
+        first, then speed under that torque), else a symmetry group with no common model."""
+        capable = self.capable(req)
+        sf = self.catalog.design.torque_safety_factor
+        for s in sorted(self.slots, key=lambda s: -req.torque[s.name]):
+            if capable[s.name]:
+                continue
+            models = [self.by_model[m] for m in self.assigner.serving[s.name]]
+            t, w = req.torque[s.name], req.speed[s.name]
+            strong = [a for a in models if usable_torque(a, self.catalog) >= t]
+            if not strong:
+                best = max(models, key=lambda a: a.stall_torque_Nm)
+                what = (f"joint '{s.name}' needs {t:.2f} N m but the strongest actuator "
+                        f"({best.model}) gives {usable_torque(best, self.catalog):.2f} N m "
+                        f"after the torque safety factor {sf}")
+            else:
+                fast = max(strong, key=lambda a: speed_at(a, t))
+                what = (f"joint '{s.name}' needs {w:.2f} rad/s at {t:.2f} N m but the "
+                        f"fastest actuator strong enough ({fast.model}) turns at "
+                        f"{speed_at(fast, t):.2f} rad/s under that torque")
+            return InfeasibleError(f"{self.candidate.robot_type}: {what}")
+        groups = sorted({s.group for s in self.slots if s.group})
+        for g in groups:
+            common = set.intersection(*(set(capable[s.name]) for s in self.slots
+                                        if s.group == g))
+            if not common:
+                return InfeasibleError(
+                    f"{self.candidate.robot_type}: the alike joints of group '{g}' have no "
+                    "actuator model in common; --no-symmetry lets them differ")
+        return InfeasibleError(f"{self.candidate.robot_type}: no actuator assignment")
 
     def _record(
         self,
@@ -527,15 +569,16 @@ class StructureDesigner:
         )
         battery = cat.battery.max_current_A or 0.0
         power = Power(peak, stall, battery, peak <= battery)
-        n_passive = sum(counts.values())
-        kinds = {m.model for m in modules} | {n for n in counts}
+        # every printed module of the conceptual design (links, feet, wheels, plates...)
+        n_passive = sum(n for _, n in self.candidate.passive)
+        kinds = {m.model for m in modules} | {k for k, _ in self.candidate.passive}
         n_modules = sum(m.count for m in modules) + n_passive
         metrics = Metrics(
             n_modules, round(n_modules / max(len(kinds), 1), 6), self.candidate.hierarchy
         )
         lengths = dict(sorted(tmpl.lengths.items()))
         return Structure(
-            self.type,
+            self.candidate.robot_type,
             dict(sorted(self.values.items())),
             self.ignored,
             lengths,
@@ -585,7 +628,8 @@ class StructureDesigner:
             ModuleUse(k, m, len(addrs), tuple(addrs)) for (k, m), addrs in sorted(per_model.items())
         ]
         if address - 1 > 0x77:
-            raise InfeasibleError(f"{self.type}: more I2C devices than 7-bit addresses")
+            raise InfeasibleError(f"{self.candidate.robot_type}: more I2C devices than the "
+                                  "7-bit addresses")
         return tuple(out), cost, peak, stall, by_joint
 
 
@@ -606,47 +650,41 @@ def design_structure(
     try:
         return designer.run()
     except InfeasibleError as e:
-        hint = largest_payload(kb, candidate, catalog, params, symmetric, objective)
+        hint = largest_payload(designer)
         if hint is not None:
+            shown = math.floor(hint * 1000) / 1000  # round down: the shown value must work
             raise InfeasibleError(
-                f"{e}; the largest payload that works here is {hint:.3f} kg"
+                f"{e}; the largest payload that works here is {shown:.3f} kg"
             ) from None
         raise
 
 
-def largest_payload(
-    kb: KnowledgeBase,
-    candidate: Candidate,
-    catalog: Catalog,
-    params: Mapping[str, float],
-    symmetric: bool,
-    objective: Sequence[str],
-    steps: int = 24,
-) -> float | None:
-    """The largest payload (kg) with which the design succeeds, all else equal (bisection),
-    or None when even no payload fails or the payload is not the limit."""
-    asked = params.get("payload")
+def largest_payload(designer: StructureDesigner, steps: int = 24) -> float | None:
+    """The largest payload (kg) with which ``designer``'s design succeeds, all else equal
+    (bisection), or None when it fails even empty-handed (the payload is not the limit)."""
+    asked = designer.values.get("payload")
     if not asked:
         return None
-    designer = StructureDesigner(
-        kb, candidate, catalog, {**params, "payload": 0.0}, symmetric, objective
-    )
+    values = designer.values
 
     def ok(payload: float) -> bool:
-        designer.values = {**designer.values, "payload": payload}
+        designer.values = {**values, "payload": payload}
         try:
             designer.run()
             return True
         except InfeasibleError:
             return False
 
-    if not ok(0.0):
-        return None
-    lo, hi = 0.0, asked
-    for _ in range(steps):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
-    return lo
+    try:
+        if not ok(0.0):
+            return None
+        lo, hi = 0.0, asked
+        for _ in range(steps):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+        return lo
+    finally:
+        designer.values = values
 
 
 @dataclass(frozen=True)
@@ -666,9 +704,9 @@ class Alternatives:
     symmetric: bool
     ranked: tuple[Alternative, ...]
     pareto: tuple[Alternative, ...] | None
+    exact: bool = True  # False: count is an upper bound (too many to check one by one)
 
 
-PARETO_LIMIT = 200_000
 
 
 def count_assignments(
@@ -691,13 +729,84 @@ def count_assignments(
     return total
 
 
+ENUMERATE_LIMIT = 200_000
+MASS_STEP = 0.01  # kg: finite step of the torque sensitivities (the torques are linear in it)
+
+
+class _TorqueModel:
+    """Joint torques as a function of the actuator masses, around a converged design.
+
+    RNEA torques are linear in the bodies' masses for fixed motion and loads, and so is the
+    ground's support force in the total mass: per load case, tau(m) = tau0 + sum over
+    actuator groups of (m_g - m0_g) s_g, with s_g from one finite step. (The share of the
+    weight each foot carries moves with the centre of mass; that small effect is not
+    modelled.) A joint's requirement is the largest |tau| over the cases, plus any extra
+    torque (gripping)."""
+
+    def __init__(self, designer: StructureDesigner) -> None:
+        self.d = designer
+        sizing, tubes, act_mass = designer.converged
+        self.base = dict(act_mass)
+        self.names, self.t0, self.extra = self._raw(sizing, tubes, self.base)
+        self.sens = {}
+        for g, m in sorted(self.base.items()):
+            _, t, _ = self._raw(sizing, tubes, {**self.base, g: m + MASS_STEP})
+            self.sens[g] = (t - self.t0) / MASS_STEP
+
+    def _raw(self, sizing, tubes, act_mass):
+        d = self.d
+        tp = d._params(sizing, tubes, act_mass, d.modules)
+        analysis = build(d.type, replace(
+            tp, modules=d.family.analysis_modules(tp.modules, d.lifted_share)))
+        m = analysis.model
+        cases = d.family.load_cases(analysis, d.values, d.catalog)
+        t = np.array([rnea(m, c.q, c.v, c.a, c.fext) for c in cases])
+        names = [j.name for j in m.joints if m.q_index[m.joint(j.name)] >= 0]
+        extra = d.family.extra_torque(analysis, d.values, d.catalog)
+        return names, t, extra
+
+    def torques(self, models: Mapping[str, str]) -> dict[str, float]:
+        """Required torque per joint (N m) with these actuator models."""
+        d = self.d
+        group_mass: dict[str, float] = {}
+        for s in d.slots:
+            mass = d.by_model[models[s.name]].mass_kg
+            group_mass[s.group] = max(group_mass.get(s.group, 0.0), mass)
+        t = self.t0.copy()
+        for g, mass in group_mass.items():
+            t += (mass - self.base[g]) * self.sens[g]
+        need = np.abs(t).max(axis=0)
+        out = {n: float(need[k]) + self.extra.get(n, 0.0) for k, n in enumerate(self.names)}
+        by_group: dict[str, float] = {}
+        for s in d.slots:
+            if s.name in out:
+                by_group[s.group] = max(by_group.get(s.group, 0.0), out[s.name])
+        return {s.name: out.get(s.name, by_group.get(s.group, 0.0)) for s in d.slots}
+
+    def feasible(self, models: Mapping[str, str]) -> bool:
+        d = self.d
+        need = self.torques(models)
+        for s in d.slots:
+            a = d.by_model[models[s.name]]
+            t = need[s.name] * (1 - 1e-12)
+            if usable_torque(a, d.catalog) < t or speed_at(a, t) < d.requirements.speed[s.name]:
+                return False
+        return True
+
+
 def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> Alternatives:
-    """The ``k`` best assignments (and the mass/cost Pareto front) of a design that
-    ``designer.run()`` has converged."""
+    """The ``k`` best feasible assignments (and the mass/cost Pareto front) of a design that
+    ``designer.run()`` has converged.
+
+    Candidates are the assignments capable at the converged design's torques (the
+    lightest actuators: any other assignment only adds mass); each is then checked with
+    its own actuator masses (``_TorqueModel``). The count is exact when the candidates can
+    be enumerated (at most ENUMERATE_LIMIT); above that it is an upper bound."""
     req = designer.requirements
     capable = designer.capable(req)
     fixed_mass = sum(n * m for _, _, n, m, _, _ in designer._fixed_modules())
     fixed_cost = sum(n * c for _, _, n, _, c, _ in designer._fixed_modules())
+    model = _TorqueModel(designer)
 
     def alt(a: Assignment) -> Alternative:
         acts = [designer.by_model[m] for _, m in a.models]
@@ -707,28 +816,33 @@ def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> A
             round(fixed_cost + sum(x.cost for x in acts), 6),
         )
 
-    count = count_assignments(designer.slots, capable, designer.symmetric)
-    ranked = tuple(alt(a) for a in designer.assigner.ranked(capable, designer.symmetric, k))
+    upper = count_assignments(designer.slots, capable, designer.symmetric)
+    key = {"mass": lambda x: x.mass_kg, "cost": lambda x: x.cost}
+    order = [key[name] for name in designer.objective]
+
+    def rank(x: Alternative) -> tuple:
+        return (*(f(x) for f in order), x.models)
+
+    if upper <= ENUMERATE_LIMIT:
+        every = sorted((alt(a) for a in designer.assigner.all(capable, designer.symmetric)
+                        if model.feasible(dict(a.models))), key=rank)
+        count, exact, ranked = len(every), True, tuple(every[:k])
+    else:
+        if pareto:
+            raise InputError(
+                f"{designer.candidate.robot_type}: {upper} assignments are too many for "
+                f"--pareto (at most {ENUMERATE_LIMIT}); keep alike joints alike "
+                "(drop --no-symmetry)")
+        found = [alt(a) for a in designer.assigner.ranked(capable, designer.symmetric, 4 * k)
+                 if model.feasible(dict(a.models))]
+        count, exact, ranked, every = upper, False, tuple(found[:k]), []
     front = None
     if pareto:
-        if count > PARETO_LIMIT:
-            raise InputError(
-                f"{designer.type}: {count} feasible assignments are too many for "
-                f"--pareto (at most {PARETO_LIMIT}); keep alike joints alike "
-                "(drop --no-symmetry)"
-            )
-        every = sorted(
-            {
-                (x.mass_kg, x.cost, x.models): x
-                for x in map(alt, designer.assigner.all(capable, designer.symmetric))
-            }.values(),
-            key=lambda x: (x.mass_kg, x.cost, x.models),
-        )
         front_list: list[Alternative] = []
         best_cost = float("inf")
-        for x in every:  # by mass, then cost: a point is on the front if it is cheaper
-            if x.cost < best_cost:
+        for x in sorted(every, key=lambda x: (x.mass_kg, x.cost, x.models)):
+            if x.cost < best_cost:  # by mass, then cost: on the front if it is cheaper
                 front_list.append(x)
                 best_cost = x.cost
         front = tuple(front_list)
-    return Alternatives(count, designer.symmetric, ranked, front)
+    return Alternatives(count, designer.symmetric, ranked, front, exact)

@@ -68,7 +68,7 @@ def test_i2c_addresses_are_unique_and_the_main_module_is_the_master(defaults, ca
         assert len(main) == 1 and main[0].i2c_addresses == ()
 
 
-def test_mass_cost_power_and_metrics_add_up(defaults, catalog) -> None:
+def test_mass_cost_power_and_metrics_add_up(defaults, bases, catalog) -> None:
     price = {a.model: a.cost for a in catalog.actuators} | {
         m.model: m.cost for m in catalog.modules
     }
@@ -84,9 +84,8 @@ def test_mass_cost_power_and_metrics_add_up(defaults, catalog) -> None:
         assert 0 < s.power.peak_current_A <= s.power.stall_current_A
         assert s.power.ok == (s.power.peak_current_A <= s.power.battery_max_current_A)
         assert s.metrics.hierarchy == 2  # robot -> structural parts -> modules
-        assert s.metrics.modularity == sum(m.count for m in s.modules) + sum(
-            link.count for link in s.links
-        )
+        passive = sum(n for _, n in bases[t].passive)  # links, feet, wheels, plates...
+        assert s.metrics.modularity == sum(m.count for m in s.modules) + passive
 
 
 def test_fig8_a_larger_workspace_gets_longer_links_and_stronger_actuators(
@@ -110,7 +109,7 @@ def test_fig8_a_larger_workspace_gets_longer_links_and_stronger_actuators(
 def test_a_heavier_payload_never_gets_weaker_actuators(kb, bases, catalog) -> None:
     stall = {a.model: a.stall_torque_Nm for a in catalog.actuators}
     last = None
-    for payload in (0.0, 0.05, 0.1, 0.2):
+    for payload in (0.0, 0.05, 0.1, 0.15):
         s = design_structure(kb, bases["Manipulator6DOF"], catalog, {"payload": payload})
         now = [stall[j.actuator] for j in s.joints]
         if last is not None:
@@ -305,3 +304,26 @@ def test_enumerate_lists_sized_candidates_with_assignments(cli) -> None:
         "conflict": [],
         "excluded": {},
     }
+
+
+def test_every_counted_assignment_is_feasible_with_its_own_masses(kb, bases, catalog) -> None:
+    """Re-derive feasibility of each assignment from scratch (template with its masses,
+    RNEA, the capability rule) and compare with the count and the ranked list."""
+    from dataclasses import replace
+
+    sd = StructureDesigner(kb, bases["Manipulator3DOF"], catalog, {"payload": 0.28})
+    sd.run()
+    sizing, tubes, act_mass = sd.converged
+    superset = sd.assigner.all(sd.capable(sd.requirements), True)
+
+    def really_feasible(models: dict[str, str]) -> bool:
+        masses = {s.group: catalog_mass[models[s.name]] for s in sd.slots}
+        tp = sd._params(sizing, tubes, {**act_mass, **masses}, sd.modules)
+        req, _ = sd._requirements(replace(tp), sizing)
+        return all(models[s.name] in sd.capable(req)[s.name] for s in sd.slots)
+
+    catalog_mass = {a.model: a.mass_kg for a in catalog.actuators}
+    feasible = [a for a in superset if really_feasible(dict(a.models))]
+    alts = alternatives(sd, 50)
+    assert alts.exact and alts.count == len(feasible) < len(superset)
+    assert {x.models for x in alts.ranked} == {a.models for a in feasible}
