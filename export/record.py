@@ -58,6 +58,7 @@ def structure_record(s: Structure) -> dict:
                 "r_outer_m": _r(link.r_outer_m),
                 "r_inner_m": _r(link.r_inner_m),
                 "volume_m3": _r(link.volume_m3),
+                "part_volume_m3": _r(link.part_volume_m3),
                 "mass_kg": _r(link.mass_kg),
                 "tip_deflection_m": _r(link.tip_deflection_m),
                 "max_deflection_m": _r(link.max_deflection_m),

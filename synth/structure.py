@@ -30,6 +30,7 @@ from adron.catalog import Actuator, Catalog, catalog_facts
 from adron.errors import InfeasibleError, InputError
 from adron.kb import KnowledgeBase
 from kinematics.dynamics import joint_wrenches, rnea
+from kinematics.spatial import link_part_volume
 from kinematics.templates import (
     FOOT_WIDTH_RATIO,
     TEMPLATES,
@@ -57,7 +58,9 @@ STRESS_BISECTIONS = 40  # relative precision 1e-12 of the stiffness asked of the
 
 @dataclass(frozen=True)
 class LinkDesign:
-    """One printed tube design (all segments sharing a length name use it)."""
+    """One printed link design (all segments sharing a length name use it): the optimised
+    tube (``volume_m3``: the paper's objective) and the whole printed part with its two
+    dovetail faces and fillets (``part_volume_m3``, ``mass_kg``)."""
 
     name: str
     count: int
@@ -65,6 +68,7 @@ class LinkDesign:
     r_outer_m: float
     r_inner_m: float
     volume_m3: float
+    part_volume_m3: float
     mass_kg: float
     tip_deflection_m: float
     max_deflection_m: float
@@ -486,6 +490,11 @@ class StructureDesigner:
         self.converged = (sizing, tubes, act_mass)
         return self._record(final, sizing, req, assignment, sized, iterations)
 
+    def _part_volume(self, t: Tube) -> float:
+        p = self.catalog.passive
+        return link_part_volume(t.length, t.r_outer, t.r_inner, p.dovetail_face_m,
+                                p.face_thickness_m, p.fillet_radius_m)
+
     def _no_actuator(self, req: _Requirements) -> InfeasibleError:
         """Why no assignment exists: the joint whose requirement no model meets (torque
         first, then speed under that torque), else a symmetry group with no common model."""
@@ -541,7 +550,8 @@ class StructureDesigner:
                 t.r_outer,
                 t.r_inner,
                 t.volume,
-                t.volume * rho,
+                self._part_volume(t),
+                self._part_volume(t) * rho,
                 info["deflection"],
                 self.values["deflection"],
                 info["stress"],

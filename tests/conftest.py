@@ -17,6 +17,7 @@ from synth.solver import Reasoner
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
+CI = os.environ.get("CI") == "true"
 
 
 def require_dir(path: Path) -> Path:
