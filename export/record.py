@@ -46,6 +46,7 @@ def _r(x: float) -> float:
 def structure_record(s: Structure) -> dict:
     """The sized structure: links, joints, modules with models and I2C addresses, totals."""
     return {
+        "template": s.template.robot_type,
         "params": {k: _r(v) for k, v in s.params.items()},
         "ignored_params": list(s.ignored_params),
         "lengths_m": {k: _r(v) for k, v in s.lengths.items()},
@@ -78,6 +79,7 @@ def structure_record(s: Structure) -> dict:
                 "required_torque_Nm": _r(j.required_torque_Nm),
                 "actuator_torque_Nm": _r(j.actuator_torque_Nm),
                 "usable_torque_Nm": _r(j.usable_torque_Nm),
+                "no_load_speed_rad_s": _r(j.no_load_speed_rad_s),
                 "required_speed_rad_s": _r(j.required_speed_rad_s),
                 "load_case": j.load_case,
                 "i2c_address": f"0x{j.i2c_address:02x}",

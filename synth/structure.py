@@ -90,6 +90,7 @@ class JointDesign:
     required_speed_rad_s: float
     load_case: str
     i2c_address: int = 0
+    no_load_speed_rad_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -574,6 +575,7 @@ class StructureDesigner:
                 req.speed[s.name],
                 req.case[s.name],
                 address[s.name],
+                self.by_model[assignment.model_of(s.name)].no_load_speed_rad_s,
             )
             for s in self.slots
         )

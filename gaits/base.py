@@ -1,0 +1,184 @@
+"""The controller API: behaviours with plain parameters that return joint trajectories.
+
+A :class:`Controller` belongs to one design. It lists its behaviours (named by the
+ontology's ability short names: ``walking``, ``rolling``, ``driving``, ``pick-and-place``
+...) with typed, documented parameters (:class:`BehaviorSpec`), so that command-line
+options, ROS services and drag-and-drop blocks can all be generated from the same
+description; ``run(name, **params)`` returns a :class:`Trajectory`.
+
+Controllers read the design from its record (``design.json``) through
+:class:`DesignGeometry` and rebuild its kinematic template; ``gaits`` imports nothing of
+parmor but ``kinematics``.
+"""
+
+from __future__ import annotations
+
+import io
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kinematics.templates import Template, TemplateParams, build
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Joint references over time for one behaviour.
+
+    ``times`` (N,) s from 0, increasing; ``positions`` and ``velocities`` (N, nj) in rad and
+    rad/s for ``joints``; position servos follow ``positions``, wheels (continuous joints)
+    follow ``velocities``. ``info`` carries what the behaviour promises and a simulation
+    can check: ``command`` ((v m/s, w rad/s) for driving), ``target`` ((x, y, z) m, where
+    a manipulator places its payload), ``stability_margin_m`` ((N,) for legged gaits),
+    ``direction`` ((x, y) unit vector of the intended travel)...
+    """
+
+    behavior: str
+    times: np.ndarray
+    joints: tuple[str, ...]
+    positions: np.ndarray
+    velocities: np.ndarray
+    info: Mapping[str, object] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        n, nj = len(self.times), len(self.joints)
+        if self.positions.shape != (n, nj) or self.velocities.shape != (n, nj):
+            raise ValueError(f"trajectory {self.behavior!r}: positions and velocities must "
+                             f"be ({n}, {nj})")
+        if n < 2 or np.any(np.diff(self.times) <= 0) or self.times[0] != 0:
+            raise ValueError(f"trajectory {self.behavior!r}: times must start at 0 and rise")
+
+    @property
+    def duration(self) -> float:
+        return float(self.times[-1])
+
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(positions, velocities) at time ``t`` s (linear interpolation, held at the ends)."""
+        q = np.array([np.interp(t, self.times, self.positions[:, k])
+                      for k in range(len(self.joints))])
+        v = np.array([np.interp(t, self.times, self.velocities[:, k])
+                      for k in range(len(self.joints))])
+        return q, v
+
+    def csv(self) -> str:
+        """Deterministic CSV: ``t`` then one position column per joint (rad)."""
+        out = io.StringIO()
+        out.write(",".join(["t", *self.joints]) + "\n")
+        for t, row in zip(self.times, self.positions, strict=True):
+            out.write(",".join(f"{x:.6f}" for x in (t, *row)) + "\n")
+        return out.getvalue()
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A behaviour parameter: name, kind ("float" | "int" | "choice"), default, unit, doc."""
+
+    name: str
+    kind: str
+    default: object
+    doc: str
+    unit: str = ""
+    choices: tuple[str, ...] = ()
+    low: float | None = None
+    high: float | None = None
+
+    def check(self, value: object) -> object:
+        """The value converted to the parameter's kind; ValueError naming it otherwise."""
+        if self.kind == "choice":
+            if value not in self.choices:
+                raise ValueError(f"{self.name}: expected one of {', '.join(self.choices)}, "
+                                 f"got {value!r}")
+            return value
+        try:
+            x = int(value) if self.kind == "int" else float(value)
+        except (TypeError, ValueError):
+            raise ValueError(f"{self.name}: expected a number, got {value!r}") from None
+        if (self.low is not None and x < self.low) or (self.high is not None and x > self.high):
+            raise ValueError(f"{self.name}: {x} is outside [{self.low}, {self.high}]")
+        return x
+
+
+@dataclass(frozen=True)
+class BehaviorSpec:
+    """A behaviour a controller offers: the ability it realises and its parameters."""
+
+    name: str
+    doc: str
+    params: tuple[Parameter, ...] = ()
+
+    def resolve(self, given: Mapping[str, object]) -> dict[str, object]:
+        known = {p.name: p for p in self.params}
+        unknown = sorted(set(given) - set(known))
+        if unknown:
+            raise ValueError(f"behaviour {self.name!r} has no parameter {unknown[0]!r} "
+                             f"(parameters: {', '.join(known) or 'none'})")
+        return {p.name: p.check(given[p.name]) if p.name in given else p.default
+                for p in self.params}
+
+
+@dataclass(frozen=True)
+class DesignGeometry:
+    """What a controller needs of a sized design, read from its record (design.json)."""
+
+    robot_type: str  # the design's type (maybe a user's subclass)
+    template: str  # the kinematic template it was sized with
+    lengths: Mapping[str, float]
+    modules: int
+    wheel_radius: float
+    params: Mapping[str, float]  # the structural parameters used (SI)
+    abilities: tuple[str, ...]
+    joint_speed: Mapping[str, float]  # rad/s the chosen actuator reaches (no load)
+
+    @classmethod
+    def from_record(cls, record: Mapping) -> DesignGeometry:
+        """From a design record with a structure (``parmor design --json``)."""
+        if record.get("template") is None:
+            raise ValueError("the design record has no structure (designed with --conceptual?)")
+        return cls(
+            robot_type=record["robot_type"],
+            template=record["template"],
+            lengths=dict(record["lengths_m"]),
+            modules=int(record.get("dof") or 1),
+            wheel_radius=float(record.get("wheel_radius_m") or 0.03),
+            params=dict(record.get("params", {})),
+            abilities=tuple(record.get("abilities", ())),
+            joint_speed={j["name"]: float(j.get("no_load_speed_rad_s", 0.0))
+                         for j in record.get("joints", [])},
+        )
+
+    def build(self) -> Template:
+        """The design's kinematic template (geometry; masses do not matter to gaits)."""
+        return build(self.template, TemplateParams(lengths=self.lengths, modules=self.modules,
+                                                   wheel_radius=self.wheel_radius))
+
+
+class Controller(ABC):
+    """The behaviours of one design."""
+
+    def __init__(self, geometry: DesignGeometry) -> None:
+        self.geometry = geometry
+        self.template = geometry.build()
+
+    @property
+    @abstractmethod
+    def behaviors(self) -> Mapping[str, BehaviorSpec]:
+        """Behaviour name -> its description (names are ability short names)."""
+
+    @abstractmethod
+    def _run(self, name: str, params: Mapping[str, object]) -> Trajectory:
+        """The trajectory of behaviour ``name`` with resolved parameters."""
+
+    def run(self, name: str, **params: object) -> Trajectory:
+        """The joint trajectory of behaviour ``name``; ValueError for unknown names or
+        parameters (the message lists the valid ones)."""
+        spec = self.behaviors.get(name)
+        if spec is None:
+            raise ValueError(f"{self.geometry.robot_type} has no behaviour {name!r} "
+                             f"(behaviours: {', '.join(sorted(self.behaviors))})")
+        return self._run(name, spec.resolve(params))
+
+    def movable_joints(self) -> tuple[str, ...]:
+        m = self.template.model
+        return tuple(j.name for j in m.joints if m.q_index[m.joint(j.name)] >= 0)
