@@ -1,1 +1,33 @@
-"""Behaviour (gait) generators for each robot type."""
+"""Behaviour (gait) generators for each robot type: a controller per design.
+
+``controller_for(geometry)`` picks the controller of the design's kinematic template; the
+modules are imported on demand.
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+
+from gaits.base import Controller, DesignGeometry
+
+#: template -> (module, controller class)
+CONTROLLERS: dict[str, tuple[str, str]] = {
+    "DifferentialDriveRobot": ("gaits.wheeled", "WheeledController"),
+    "SkidSteerRobot": ("gaits.wheeled", "WheeledController"),
+    "SnakeRobot": ("gaits.snake", "SnakeController"),
+    "Manipulator3DOF": ("gaits.manipulator", "ManipulatorController"),
+    "Manipulator6DOF": ("gaits.manipulator", "ManipulatorController"),
+    "HexapodRobot": ("gaits.legged", "LeggedController"),
+    "QuadrupedRobot": ("gaits.legged", "LeggedController"),
+    "HumanoidRobot": ("gaits.humanoid", "HumanoidController"),
+}
+
+
+def controller_for(geometry: DesignGeometry) -> Controller:
+    """The controller of a sized design (ValueError when its template has none)."""
+    entry = CONTROLLERS.get(geometry.template)
+    if entry is None:
+        raise ValueError(f"no controller for {geometry.template} "
+                         f"(controllers: {', '.join(sorted(CONTROLLERS))})")
+    module, name = entry
+    return getattr(import_module(module), name)(geometry)

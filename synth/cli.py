@@ -197,6 +197,32 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--all", action="store_true", help="list every untranslated form")
 
     p = sub.add_parser(
+        "simulate",
+        help="run a behaviour of an exported design in MuJoCo and measure it",
+        description="Generate the joint trajectory of a behaviour (an ability's short name: "
+        "walking, rolling, driving, pick-and-place...) for the design in DIR (written by "
+        "'parmor design --out DIR') and run it on DIR/robot.xml in MuJoCo, with the "
+        "actuators limited to their stall torques. Reports distance, heading change, "
+        "whether it fell, the largest torque over stall, tracking or placing errors. Exit 1 "
+        "when the robot fell.",
+        epilog="examples:\n  parmor simulate hexapod --behavior walking --gait tripod "
+        "--seconds 10\n  parmor simulate cart --behavior driving --set v=0.2 --set w=0.5 "
+        "--json\n  parmor simulate arm --behavior pick-and-place --plot",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("dir", metavar="DIR", help="a bundle folder written by 'parmor design --out'")
+    p.add_argument("--behavior", required=True, metavar="NAME",
+                   help="the behaviour to run ('--behavior help' lists them)")
+    p.add_argument("--seconds", type=float, metavar="S",
+                   help="simulated time (default: the behaviour's duration)")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="a behaviour parameter, e.g. --set v=0.2 (repeatable)")
+    p.add_argument("--gait", metavar="NAME", help="shortcut for --set gait=NAME")
+    p.add_argument("--plot", action="store_true",
+                   help="write PNG plots of the run into DIR/plots/")
+    _json_option(p)
+
+    p = sub.add_parser(
         "regress",
         help="run a regression suite of design queries",
         description="Run the named queries of SUITE.toml and compare their "
@@ -550,12 +576,86 @@ def cmd_regress(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                      allow_scripts=args.allow_scripts)
 
 
+def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    import json
+    from pathlib import Path
+
+    from export.record import to_json
+
+    folder = Path(args.dir)
+    try:
+        record = json.loads((folder / "design.json").read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{folder}: no design.json (write one with 'parmor design ... "
+                         "--out DIR')") from None
+    except (OSError, json.JSONDecodeError) as e:
+        raise InputError(f"{folder / 'design.json'}: {e}") from None
+    from export.simulate import load_bundle_model, simulate
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    params: dict[str, str] = {}
+    for item in args.set:
+        name, sep, value = item.partition("=")
+        if not sep or not name:
+            raise InputError(f"--set {item!r}: expected NAME=VALUE")
+        params[name.strip()] = value.strip()
+    if args.gait:
+        params["gait"] = args.gait
+    try:
+        controller = controller_for(DesignGeometry.from_record(record))
+        if args.behavior == "help":
+            for name, spec in sorted(controller.behaviors.items()):
+                ps = ", ".join(f"{p.name}={p.default}{' ' + p.unit if p.unit else ''}"
+                               for p in spec.params)
+                out.write(f"{name}: {spec.doc}\n  parameters: {ps or 'none'}\n")
+            return 0
+        traj = controller.run(args.behavior, **params)
+    except (ValueError, KeyError) as e:
+        raise InputError(str(e).strip("'\"")) from None
+    if args.seconds is not None and args.seconds <= 0:
+        raise InputError("--seconds must be positive")
+    model = load_bundle_model(folder)
+    tmpl = controller.template
+    progress = None
+    if err.isatty():
+        step = _progress(err, 100)
+
+        def progress(fraction: float) -> None:
+            step(int(fraction * 100) + 1, f"simulating {args.behavior}")
+
+    result = simulate(model, traj, args.seconds, can_fall=bool(tmpl.feet or tmpl.wheels),
+                      end_effector=tmpl.end_effectors[0] if tmpl.end_effectors else None,
+                      progress=progress)
+    if progress is not None:
+        step(None, "")
+    rec = result.to_dict()
+    margin = traj.info.get("stability_margin_m")
+    if margin is not None:
+        rec["min_stability_margin_m"] = float(f"{min(margin):.6g}")
+    if args.plot:
+        from export.plots import write_plots
+
+        rec["plots"] = write_plots(folder / "plots", traj, result)
+    if args.json:
+        out.write(to_json(rec))
+    else:
+        for key, value in rec.items():
+            if value is not None:
+                out.write(f"{key:>22}: {value}\n")
+    if result.fell:
+        err.write(f"parmor: the robot fell at {result.fell_at_s:.2f} s\n")
+        return 1
+    return 0
+
+
 COMMANDS = {
     "abilities": cmd_abilities,
     "design": cmd_design,
     "enumerate": cmd_enumerate,
     "explain": cmd_explain,
     "regress": cmd_regress,
+    "simulate": cmd_simulate,
 }
 
 
