@@ -105,11 +105,19 @@ def simulate(model, traj: Trajectory, seconds: float | None = None,
     limit = np.maximum(np.abs(model.actuator_forcerange).max(axis=1), 1e-12)
     times, roots, qs, refs, forces = [], [], [], [], []
     every = max(1, steps // 500)
+    grid = np.arange(steps) * model.opt.timestep
+    # the references at every step, resampled once (held at the trajectory's ends)
+    ctrl = np.empty((steps, len(columns)))
+    ref = np.empty((steps, len(columns)))
+    for n, (k, _, velocity) in enumerate(columns):
+        ref[:, n] = np.interp(grid, traj.times, traj.positions[:, k])
+        ctrl[:, n] = np.interp(grid, traj.times, traj.velocities[:, k]) if velocity \
+            else ref[:, n]
+    idx = np.array([a for _, a, _ in columns], dtype=int)
     for i in range(steps):
-        t = i * model.opt.timestep
-        q, v = traj.at(t)
-        for k, a, velocity in columns:
-            data.ctrl[a] = v[k] if velocity else q[k]
+        t = grid[i]
+        q = ref[i]
+        data.ctrl[idx] = ctrl[i]
         mujoco.mj_step(model, data)
         ratio = max(ratio, float(np.max(np.abs(data.actuator_force) / limit)))
         if free and can_fall and fell_at is None and (
