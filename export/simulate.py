@@ -10,7 +10,8 @@ below half of its start height or tilted more than 60 degrees; never for the sna
 rolling turns its body over, nor for a fixed base), ``max_torque_ratio`` (largest
 |actuator force| / stall torque), ``tracking_error`` (driving: relative error of the mean
 (v, w) over the second half against the commanded ones), ``placing_error_m``
-(manipulators: distance of the gripper from the trajectory's ``target`` at the end).
+(manipulators: distance of the gripper from the trajectory's ``target`` when it let go,
+``info["placed_at_s"]``, else at the end).
 """
 
 from __future__ import annotations
@@ -105,6 +106,9 @@ def simulate(model, traj: Trajectory, seconds: float | None = None,
     limit = np.maximum(np.abs(model.actuator_forcerange).max(axis=1), 1e-12)
     times, roots, qs, refs, forces = [], [], [], [], []
     every = max(1, steps // 500)
+    placed_at = traj.info.get("placed_at_s")
+    placed_step = None if placed_at is None else int(round(float(placed_at) / model.opt.timestep))
+    placed_where = None
     grid = np.arange(steps) * model.opt.timestep
     # the references at every step, resampled once (held at the trajectory's ends)
     ctrl = np.empty((steps, len(columns)))
@@ -119,6 +123,8 @@ def simulate(model, traj: Trajectory, seconds: float | None = None,
         q = ref[i]
         data.ctrl[idx] = ctrl[i]
         mujoco.mj_step(model, data)
+        if i == placed_step and end_effector is not None:
+            placed_where = data.xpos[model.body(end_effector).id].copy()
         ratio = max(ratio, float(np.max(np.abs(data.actuator_force) / limit)))
         if free and can_fall and fell_at is None and (
                 data.qpos[2] < FALL_HEIGHT * start[2] or _tilt(data.qpos[3:7]) > FALL_TILT):
@@ -145,7 +151,9 @@ def simulate(model, traj: Trajectory, seconds: float | None = None,
         result.tracking_error = _tracking_error(result, command)
     target = traj.info.get("target")
     if target is not None and end_effector is not None:
-        where = data.xpos[model.body(end_effector).id]
+        # where the gripper let go (info "placed_at_s"), else where it ends
+        where = placed_where if placed_where is not None else \
+            data.xpos[model.body(end_effector).id]
         result.placing_error_m = float(np.linalg.norm(where - np.asarray(target)))
     return result
 

@@ -6,6 +6,7 @@ modules are imported on demand.
 
 from __future__ import annotations
 
+import inspect
 from importlib import import_module
 
 from gaits.base import Controller, DesignGeometry
@@ -23,11 +24,17 @@ CONTROLLERS: dict[str, tuple[str, str]] = {
 }
 
 
-def controller_for(geometry: DesignGeometry) -> Controller:
-    """The controller of a sized design (ValueError when its template has none)."""
+def controller_for(geometry: DesignGeometry, **options: object) -> Controller:
+    """The controller of a sized design (ValueError when its template has none).
+
+    ``options`` that the controller's constructor accepts are passed on (e.g.
+    ``base_position``: where a fixed base stands in the world); others are ignored.
+    """
     entry = CONTROLLERS.get(geometry.template)
     if entry is None:
         raise ValueError(f"no controller for {geometry.template} "
                          f"(controllers: {', '.join(sorted(CONTROLLERS))})")
     module, name = entry
-    return getattr(import_module(module), name)(geometry)
+    cls = getattr(import_module(module), name)
+    accepted = inspect.signature(cls).parameters
+    return cls(geometry, **{k: v for k, v in options.items() if k in accepted})

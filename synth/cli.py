@@ -602,8 +602,11 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         params[name.strip()] = value.strip()
     if args.gait:
         params["gait"] = args.gait
+    model = load_bundle_model(folder)
     try:
-        controller = controller_for(DesignGeometry.from_record(record))
+        # a fixed base stands where the MJCF puts its root body
+        controller = controller_for(DesignGeometry.from_record(record),
+                                    base_position=tuple(float(x) for x in model.body(1).pos))
         if args.behavior == "help":
             for name, spec in sorted(controller.behaviors.items()):
                 ps = ", ".join(f"{p.name}={p.default}{' ' + p.unit if p.unit else ''}"
@@ -615,7 +618,6 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         raise InputError(str(e).strip("'\"")) from None
     if args.seconds is not None and args.seconds <= 0:
         raise InputError("--seconds must be positive")
-    model = load_bundle_model(folder)
     tmpl = controller.template
     progress = None
     if err.isatty():
