@@ -39,6 +39,10 @@ PEAK_FACTOR = 1.875
 #: Wheeled robots: time to reach the travel speed, s; chassis aspect L1 : L2.
 ACCELERATION_TIME = 1.0
 CHASSIS_ASPECT = 4 / 3
+#: Tyre-on-floor friction (the MJCF's wheel contact class uses the same value).
+TYRE_FRICTION = 1.0
+#: Turning in place is done at this fraction of the travel speed (rim speed).
+TURN_SPEED_FRACTION = 0.25
 #: Headroom on the wheel speed when choosing the radius (the wheel's own inertia).
 SPEED_MARGIN = 1.1
 #: Gripper closing speed (rad/s); snake joint speed of its gaits (rad/s): amplitude 0.5 rad
@@ -205,9 +209,10 @@ class Family(ABC):
         """Snake modules in the analysed chain (others: unused)."""
         return modules
 
-    def extra_torque(self, tmpl: Template, p: Mapping[str, float], catalog: Catalog
-                     ) -> dict[str, float]:
-        """Torques (N m) beyond the RNEA load cases, per joint (default: none)."""
+    def holds(self, tmpl: Template, p: Mapping[str, float], catalog: Catalog
+              ) -> dict[str, tuple[float, float, str]]:
+        """A second operating point per joint beyond the RNEA load cases: (torque N m,
+        speed rad/s it must keep under that torque, what it is). Default: none."""
         return {}
 
     def update(
@@ -258,12 +263,13 @@ class Manipulators(Family):
             v[m.q_index[m.joint(name)]] = w
         return v
 
-    def extra_torque(self, tmpl, p, catalog):
+    def holds(self, tmpl, p, catalog):
         """The gripper holds the payload by friction: two jaws squeeze it with m g / (2 mu)
-        each, at the jaw's lever."""
+        each, at the jaw's lever, while the gripper stands still."""
         g = catalog.design.gravity_m_s2
         squeeze = p.get("payload", 0.0) * g / (2 * GRIP_FRICTION)
-        return {j: squeeze * JAW_LEVER for j in _movable(tmpl) if j.endswith("gripper")}
+        return {j: (squeeze * JAW_LEVER, 0.0, "gripping the payload")
+                for j in _movable(tmpl) if j.endswith("gripper")}
 
     def speeds(self, tmpl, p, sizing):
         reach = sum(tmpl.lengths[k] for k in tmpl.lengths if k != "L1")
@@ -413,35 +419,46 @@ class Wheeled(Family):
         rest = tmpl.model.total_mass - n * wheel_mass(tmpl.params.wheel_radius)
         r = sizing.wheel_radius
         for _ in range(50):  # the wheels' own mass depends on their radius: a fixed point
-            force = self.traction(rest + n * wheel_mass(r), p, catalog) / n
-            new = self._radius(force, p, catalog)
+            mass = rest + n * wheel_mass(r)
+            new = self._radius([(self.traction(mass, p, catalog) / n, p["speed"]),
+                                (self.turning_drag(tmpl, mass, catalog),
+                                 TURN_SPEED_FRACTION * p["speed"])], p, catalog)
             if abs(new - r) <= 1e-12:
                 break
             r = new
         return replace(sizing, wheel_radius=r)
 
-    def _radius(self, force: float, p: Mapping[str, float], catalog: Catalog) -> float:
-        """The smallest printable wheel radius with which some servo carries ``force`` N at
-        the travel speed (with SPEED_MARGIN)."""
-        v, sf = p["speed"] * SPEED_MARGIN, catalog.design.torque_safety_factor
+    def _radius(self, points: list[tuple[float, float]], p: Mapping[str, float],
+                catalog: Catalog) -> float:
+        """The smallest printable wheel radius with which one servo meets every operating
+        point (rim force N, ground speed m/s; speeds with SPEED_MARGIN)."""
+        sf = catalog.design.torque_safety_factor
         r_min, r_max = catalog.passive.wheel_min_radius_m, catalog.passive.wheel_max_radius_m
         best: float | None = None
         for a in catalog.actuators_of("ContinuousRotationServomotor"):
-            # speed under load w0 (1 - F r / Ts) times r must reach v: the smaller root of
-            # -(w0 F / Ts) r^2 + w0 r - v = 0; the torque F r must stay within Ts / sf
+            # at each point, the speed under load w0 (1 - F r / Ts) r must reach v: r at
+            # least the smaller root of -(w0 F / Ts) r^2 + w0 r - v = 0; F r <= Ts / sf
             w0, ts = a.no_load_speed_rad_s, a.stall_torque_Nm
-            k = w0 * force / ts
-            disc = w0 * w0 - 4 * k * v
-            if disc < 0:
-                continue
-            r = max(r_min, 2 * v / (w0 + math.sqrt(disc)))
-            if r <= min(r_max, ts / sf / max(force, 1e-12)) and (best is None or r < best):
-                best = r
+            lo, hi = r_min, r_max
+            for force, speed in points:
+                v = speed * SPEED_MARGIN
+                k = w0 * force / ts
+                disc = w0 * w0 - 4 * k * v
+                if disc < 0:
+                    lo = math.inf
+                    break
+                lo = max(lo, 2 * v / (w0 + math.sqrt(disc)))
+                if force > 0:
+                    hi = min(hi, ts / sf / force)
+            if lo <= hi and (best is None or lo < best):
+                best = lo
         if best is None:
+            force, _ = max(points)
             raise InfeasibleError(
                 f"no catalog wheel servo drives a printable wheel ({r_min * 1000:.0f}-"
-                f"{r_max * 1000:.0f} mm) at {v:.2f} m/s while pushing {force:.2f} N up a "
-                f"{math.degrees(p['slope']):.0f} deg slope; ask for less speed, payload or slope"
+                f"{r_max * 1000:.0f} mm) at {p['speed']:.2f} m/s while pushing {force:.2f} N "
+                f"(climbing a {math.degrees(p['slope']):.0f} deg slope, or turning in place); "
+                "ask for less speed, payload or slope"
             )
         return best
 
@@ -472,6 +489,32 @@ class Wheeled(Family):
 
     def speeds(self, tmpl, p, sizing):
         return dict.fromkeys(_movable(tmpl), p["speed"] / tmpl.params.wheel_radius)
+
+    @staticmethod
+    def turning_drag(tmpl: Template, mass: float, catalog: Catalog) -> float:
+        """The force (N) at each wheel's rim to turn in place. A robot without a caster
+        (skid-steer) drags its wheels sideways: mu N a / sqrt(a^2 + b^2) per wheel (a:
+        wheel base, b: track, N: its share of the weight, mu: tyre friction); 0 with a
+        caster (differential drive turns by rolling)."""
+        if tmpl.casters:
+            return 0.0
+        m = tmpl.model
+        T = forward_kinematics(m, np.zeros(m.nv))
+        xy = np.array([T[m.body(w), :2, 3] for w in tmpl.wheels])
+        a = xy[:, 0].max() - xy[:, 0].min()
+        b = xy[:, 1].max() - xy[:, 1].min()
+        if a <= 0 or b <= 0:
+            return 0.0
+        share = mass * catalog.design.gravity_m_s2 / len(tmpl.wheels)
+        return TYRE_FRICTION * share * a / math.hypot(a, b)
+
+    def holds(self, tmpl, p, catalog):
+        drag = self.turning_drag(tmpl, tmpl.model.total_mass, catalog)
+        if drag <= 0:
+            return {}
+        r = tmpl.params.wheel_radius
+        speed = TURN_SPEED_FRACTION * p["speed"] / r
+        return {j: (float(drag * r), float(speed), "turning in place") for j in _movable(tmpl)}
 
 
 FAMILIES: dict[str, Family] = {

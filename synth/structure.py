@@ -91,6 +91,9 @@ class JointDesign:
     load_case: str
     i2c_address: int = 0
     no_load_speed_rad_s: float = 0.0
+    hold_torque_Nm: float = 0.0  # a second operating point (0: none): torque ...
+    hold_speed_rad_s: float = 0.0  # ... at this speed
+    hold: str = ""  # ... while doing this (gripping, turning in place)
 
 
 @dataclass(frozen=True)
@@ -168,6 +171,11 @@ def usable_torque(a: Actuator, catalog: Catalog) -> float:
     return a.stall_torque_Nm / catalog.design.torque_safety_factor
 
 
+def meets(a: Actuator, torque: float, speed: float, catalog: Catalog) -> bool:
+    """Whether actuator ``a`` gives ``torque`` (within its usable torque) at ``speed``."""
+    return usable_torque(a, catalog) >= torque and speed_at(a, torque) >= speed
+
+
 def speed_at(a: Actuator, torque: float) -> float:
     """Speed (rad/s) of a servo holding ``torque``: linear from no-load to stall."""
     return max(0.0, a.no_load_speed_rad_s * (1.0 - torque / a.stall_torque_Nm))
@@ -205,6 +213,7 @@ class _Requirements:
     case: dict[str, str]
     speed: dict[str, float]
     loads: dict[str, list[np.ndarray]]  # length name -> free-end loads (tube frame)
+    holds: dict[str, tuple[float, float, str]]  # joint -> second point (N m, rad/s, what)
 
 
 class StructureDesigner:
@@ -337,10 +346,7 @@ class StructureDesigner:
             for seg in analysis.segments:
                 load = free_end_load(seg, W[m.body(seg.body)])
                 loads.setdefault(seg.length_name or seg.name, []).append(load)
-        for joint, extra in self.family.extra_torque(analysis, self.values,
-                                                     self.catalog).items():
-            torque[joint] += extra  # e.g. the gripper's squeeze, on top of its dynamics
-            case_of[joint] += " and gripping"
+        holds = self.family.holds(analysis, self.values, self.catalog)
         speeds = self.family.speeds(analysis, self.values, sizing)
         # joints beyond the analysed chain (a snake's) take their group's requirement
         group_torque: dict[str, float] = {}
@@ -353,17 +359,25 @@ class StructureDesigner:
             if s.name not in torque:
                 torque[s.name], case_of[s.name] = group_torque[s.group], group_case[s.group]
             speeds.setdefault(s.name, group_speed[s.group])
-        return _Requirements(torque, case_of, speeds, loads), analysis
+        for s in self.slots:  # a joint beyond the analysed chain holds like its group
+            if s.name not in holds:
+                same = [holds[o.name] for o in self.slots if o.group == s.group
+                        and o.name in holds]
+                if same:
+                    holds[s.name] = max(same)
+        return _Requirements(torque, case_of, speeds, loads, holds), analysis
 
     def capable(self, req: _Requirements) -> dict[str, list[str]]:
+        """Per joint, the serving models that meet its operating points: the dynamic one
+        (largest torque at the required speed) and its hold (torque at its speed)."""
         out = {}
         for s in self.slots:
-            t, w = req.torque[s.name], req.speed[s.name]
+            points = [(req.torque[s.name], req.speed[s.name])]
+            if s.name in req.holds:
+                points.append(req.holds[s.name][:2])
             out[s.name] = [
-                name
-                for name in self.assigner.serving.get(s.name, ())
-                if usable_torque(self.by_model[name], self.catalog) >= t
-                and speed_at(self.by_model[name], t) >= w
+                name for name in self.assigner.serving.get(s.name, ())
+                if all(meets(self.by_model[name], t, w, self.catalog) for t, w in points)
             ]
         return out
 
@@ -576,6 +590,7 @@ class StructureDesigner:
                 req.case[s.name],
                 address[s.name],
                 self.by_model[assignment.model_of(s.name)].no_load_speed_rad_s,
+                *req.holds.get(s.name, (0.0, 0.0, "")),
             )
             for s in self.slots
         )
@@ -634,7 +649,8 @@ class StructureDesigner:
             by_joint[s.name] = address
             address += 1
             cost += a.cost
-            peak += a.stall_current_A * min(1.0, req.torque[s.name] / a.stall_torque_Nm)
+            torque = max(req.torque[s.name], req.holds.get(s.name, (0.0,))[0])
+            peak += a.stall_current_A * min(1.0, torque / a.stall_torque_Nm)
             stall += a.stall_current_A
         out += [
             ModuleUse(k, m, len(addrs), tuple(addrs)) for (k, m), addrs in sorted(per_model.items())
@@ -752,17 +768,17 @@ class _TorqueModel:
     ground's support force in the total mass: per load case, tau(m) = tau0 + sum over
     actuator groups of (m_g - m0_g) s_g, with s_g from one finite step. (The share of the
     weight each foot carries moves with the centre of mass; that small effect is not
-    modelled.) A joint's requirement is the largest |tau| over the cases, plus any extra
-    torque (gripping)."""
+    modelled.) A joint's requirement is the largest |tau| over the cases; its hold (a
+    gripper's squeeze, a skid-steer's turn) is taken from the converged design."""
 
     def __init__(self, designer: StructureDesigner) -> None:
         self.d = designer
         sizing, tubes, act_mass = designer.converged
         self.base = dict(act_mass)
-        self.names, self.t0, self.extra = self._raw(sizing, tubes, self.base)
+        self.names, self.t0 = self._raw(sizing, tubes, self.base)
         self.sens = {}
         for g, m in sorted(self.base.items()):
-            _, t, _ = self._raw(sizing, tubes, {**self.base, g: m + MASS_STEP})
+            _, t = self._raw(sizing, tubes, {**self.base, g: m + MASS_STEP})
             self.sens[g] = (t - self.t0) / MASS_STEP
 
     def _raw(self, sizing, tubes, act_mass):
@@ -774,8 +790,7 @@ class _TorqueModel:
         cases = d.family.load_cases(analysis, d.values, d.catalog)
         t = np.array([rnea(m, c.q, c.v, c.a, c.fext) for c in cases])
         names = [j.name for j in m.joints if m.q_index[m.joint(j.name)] >= 0]
-        extra = d.family.extra_torque(analysis, d.values, d.catalog)
-        return names, t, extra
+        return names, t
 
     def torques(self, models: Mapping[str, str]) -> dict[str, float]:
         """Required torque per joint (N m) with these actuator models."""
@@ -788,7 +803,7 @@ class _TorqueModel:
         for g, mass in group_mass.items():
             t += (mass - self.base[g]) * self.sens[g]
         need = np.abs(t).max(axis=0)
-        out = {n: float(need[k]) + self.extra.get(n, 0.0) for k, n in enumerate(self.names)}
+        out = {n: float(need[k]) for k, n in enumerate(self.names)}
         by_group: dict[str, float] = {}
         for s in d.slots:
             if s.name in out:
@@ -800,8 +815,10 @@ class _TorqueModel:
         need = self.torques(models)
         for s in d.slots:
             a = d.by_model[models[s.name]]
-            t = need[s.name] * (1 - 1e-12)
-            if usable_torque(a, d.catalog) < t or speed_at(a, t) < d.requirements.speed[s.name]:
+            points = [(need[s.name] * (1 - 1e-12), d.requirements.speed[s.name])]
+            if s.name in d.requirements.holds:
+                points.append(d.requirements.holds[s.name][:2])
+            if not all(meets(a, t, w, d.catalog) for t, w in points):
                 return False
         return True
 

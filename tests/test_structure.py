@@ -46,6 +46,9 @@ def test_every_base_configuration_designs_with_its_defaults(defaults, bases, cat
                 a.stall_torque_Nm / catalog.design.torque_safety_factor
             )
             assert speed_at(a, j.required_torque_Nm) >= j.required_speed_rad_s, (t, j.name)
+            if j.hold:  # the second operating point (gripping, turning in place)
+                assert j.usable_torque_Nm >= j.hold_torque_Nm, (t, j.name)
+                assert speed_at(a, j.hold_torque_Nm) >= j.hold_speed_rad_s, (t, j.name)
         for link in s.links:
             assert link.tip_deflection_m <= link.max_deflection_m * (1 + 1e-9), (t, link.name)
             assert link.max_stress_Pa <= link.allowed_stress_Pa * (1 + 1e-9), (t, link.name)
