@@ -20,6 +20,7 @@ for p in (REPO, REPO / "bench"):
 from bench_links import bench_links  # noqa: E402
 from bench_parse import bench_parse  # noqa: E402
 from bench_rnea import bench_rnea  # noqa: E402
+from bench_sim import bench_sim  # noqa: E402
 from bench_stl import bench_stl  # noqa: E402
 
 from adron.kb import load  # noqa: E402
@@ -123,7 +124,7 @@ def main() -> int:
     else:
         sections.append([f"KIF reader: {SUMO} is absent, skipped"])
     sections += [bench_translation(), bench_queries(), bench_rnea(), bench_links(),
-                 bench_structures(), bench_stl(), bench_process()]
+                 bench_structures(), bench_stl(), bench_sim(), bench_process()]
     for lines in sections:
         print("\n".join(lines))
         print()
