@@ -46,7 +46,26 @@ def bundle_files(
     }
     for p in asm.printed:
         files[f"meshes/{p.name}.stl"] = p.stl
+    files.update(trajectory_files(record))
     return files
+
+
+def trajectory_files(record: dict) -> dict[str, str]:
+    """``trajectories/<behaviour>.csv``: each behaviour of the design's controller that
+    realises one of its abilities, with default parameters (joint angles over time)."""
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    controller = controller_for(DesignGeometry.from_record(record))
+    out = {}
+    for name in sorted(set(controller.behaviors) & set(record.get("abilities", ()))):
+        if not _SAFE_BEHAVIOR.fullmatch(name):
+            raise ExportError(f"behaviour name {name!r} is not a safe file name")
+        out[f"trajectories/{name}.csv"] = controller.run(name).csv()
+    return out
+
+
+_SAFE_BEHAVIOR = re.compile(r"[a-z0-9_-]+")
 
 
 def write_bundle(out: str | Path, files: Mapping[str, str | bytes], force: bool = False) -> Path:

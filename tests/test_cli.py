@@ -323,7 +323,10 @@ def test_out_writes_design_json(cli, tmp_path: Path) -> None:
     assert (out / "design.json").read_text(encoding="utf-8") == r.out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bundle"]  # no temp folders left
     assert sorted(p.name for p in out.iterdir()) == [
-        "README.md", "bom.csv", "design.json", "meshes", "robot.urdf", "robot.xml"]
+        "README.md", "bom.csv", "design.json", "meshes", "robot.urdf", "robot.xml",
+        "trajectories"]
+    walks = sorted(p.name for p in (out / "trajectories").iterdir())
+    assert walks == ["running.csv", "walking.csv"]
     assert all(p.suffix == ".stl" for p in (out / "meshes").iterdir())
     r = cli("design", "walking", "--answer", "grasping=yes", "--json", "--conceptual", "--out",
             str(tmp_path / "conceptual"))

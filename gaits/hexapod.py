@@ -1,0 +1,892 @@
+"""Multiped gait generation (paper section 4.3.4, for the hexapod and, built the same way,
+the quadruped): leg kinematics, gait patterns, foot trajectories and the static stability
+margin. The behaviours that use them are ``gaits.legged.LeggedController``'s.
+
+**Legs.** A leg of the ``HexapodRobot`` / ``QuadrupedRobot`` template is read off the
+template's joints (:func:`legs_of`): the coxa (yaw about the trunk's z) at the mount
+``m`` with mount yaw ``psi_m`` (the leg points outward), the femur (pitch) ``c`` further
+out, the tibia (pitch) ``f`` beyond it, and the foot ``t`` below the tibia joint at q = 0.
+With ``psi = psi_m + q_coxa``, ``s = q_femur + q_tibia`` and pitch turning a +x link down,
+the foot in the trunk frame is (:func:`leg_fk`)::
+
+    r = c + f cos(q_femur) - t sin(s)            (m, radial distance from the coxa axis)
+    p = m + (r cos(psi), r sin(psi), -f sin(q_femur) - t cos(s))
+
+and the closed-form inverse (:func:`leg_ik`), with ``rho = |p_xy - m_xy| - c``,
+``z = p_z - m_z`` and ``D^2 = rho^2 + z^2``::
+
+    q_coxa  = atan2(p_y - m_y, p_x - m_x) - psi_m
+    q_tibia = asin((f^2 + t^2 - D^2) / (2 f t))          (the knee-up branch, |q| <= pi/2)
+    q_femur = atan2(-z, rho) - atan2(t cos(q_tibia), f - t sin(q_tibia))
+
+**Gaits** (:func:`gait_pattern`) are phase offsets on the legs ranked in the direction of
+travel (left/right of it, rear to front; in a turn, the rear and front halves, each along
+its own travel): ``tripod`` (hexapod: two alternating tripods, duty 1/2), ``ripple`` (each
+side a back-to-front wave, the other side half a cycle later, duty 1 - 1/rows = 2/3),
+``wave`` (one leg at a time, duty 1 - 1/legs = 5/6) and, for the quadruped, ``crawl`` (one
+leg at a time, hind then front leg of a side, the other side half a cycle later, duty
+``CRAWL_DUTY`` = 5/6 >= 3/4, so that a four-foot phase separates the sides and the trunk
+can sway across).
+
+**Feet** (:func:`plan_gait`) stand on world footholds in stance, so each moves backward in
+a straight line at the body's speed relative to the trunk; in swing a foot lifts (a
+minimum-jerk rise over ``LIFT_FRACTION`` of the swing to ``step_height``, a plateau, and
+the mirrored descent) while it moves to the next foothold along a minimum-jerk straight
+line that starts and ends ``SWING_EDGE`` of the swing later/earlier, so it is above the
+obstacle for most of its way. Each foothold is the mean of the leg's neutral point (its
+foot at q = 0) at the beginning and end of the stance it carries, so a stance sweeps the
+stride symmetrically about the neutral point; the robot starts standing at q = 0 and ends
+with every foot on its neutral point. The body's speed ramps up and down with
+minimum-jerk envelopes just long enough that the first and last stances stay within half
+a stride of neutral. A stance higher than the zero pose starts with a ``TRANSITION_S``
+minimum-jerk rise from q = 0 with the feet in place.
+
+**Stride** (:func:`max_stride`): the longest stance segment about each neutral point
+that keeps the coxa within ``COXA_SWING`` (the designer's working swing), the tibia within
+``TIBIA_TILT`` of vertical (the tibia servo holds the leg's load at that lever), every
+joint ``JOINT_MARGIN`` inside its limits with the foot down and lifted, and neighbouring
+legs' segments ``LEG_CLEARANCE`` apart.
+
+**Static stability margin** (:func:`support_margin`, :func:`stability_margins`): the
+signed distance m of the centre of mass's ground projection to the nearest edge of the
+convex hull of the stance feet (negative outside), with the centre of mass from
+``kinematics.dynamics.center_of_mass`` of the template (its masses) and the feet from
+``forward_kinematics``, at every sample. When a gait's margin would fall below
+``MIN_MARGIN`` (the quadruped's crawl, whose support triangles' diagonals pass through the
+centre), the trunk sways: a clamped cubic B-spline offset of the trunk in the horizontal
+plane that a linear programme (scipy HiGHS) chooses to maximise the smallest margin of both
+the centre of mass and the cart-table zero-moment point (``COM - z_c / g * acceleration``),
+within ``SWAY_MAX`` and ``SWAY_ACCEL``; a second programme then minimises the sway's
+acceleration at 95 % of that margin.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinematics.dynamics import center_of_mass, forward_kinematics
+from kinematics.templates import Template
+
+__all__ = [
+    "GAITS",
+    "GaitPattern",
+    "GaitPlan",
+    "GaitTiming",
+    "Leg",
+    "gait_pattern",
+    "gait_timing",
+    "leg_fk",
+    "leg_ik",
+    "legs_of",
+    "limit_slack",
+    "max_stride",
+    "plan_gait",
+    "stability_margins",
+    "standing_height",
+    "support_margin",
+    "tibia_tilt",
+]
+
+#: Trajectory sample period, s.
+SAMPLE_DT = 0.01
+#: Clearance between neighbouring legs' stance segments, m (as the designer's).
+LEG_CLEARANCE = 0.02
+#: Coxa swing used by a stride, rad (the designer's, inside the template's +-pi/3).
+COXA_SWING = math.pi / 4
+#: Largest tibia tilt from vertical in stance, rad: the tibia servo carries the leg's load
+#: at a lever of tibia x sin(tilt).
+TIBIA_TILT = 0.3
+#: Distance kept from every joint limit, rad.
+JOINT_MARGIN = 0.05
+#: Smallest static stability margin a plan must keep, m.
+MIN_MARGIN = 0.01
+#: Trunk sway limits: offset per axis m, acceleration per axis m/s^2.
+SWAY_MAX = 0.02
+SWAY_ACCEL = 0.5
+#: Standing still before the first and after the last swing when the trunk sways, cycles.
+SWAY_LEAD = 0.25
+#: Duration of the rise from q = 0 to a higher stance, s.
+TRANSITION_S = 1.0
+#: Swing profile: share of the swing spent rising (and descending); share at each end of
+#: the swing before the foot starts (after it stops) moving horizontally.
+LIFT_FRACTION = 0.4
+SWING_EDGE = 0.15
+#: Duty factor of the quadruped's crawl (one leg at a time needs >= 3/4).
+CRAWL_DUTY = 5 / 6
+#: The sway's B-spline knot spans, and the samples its linear programmes constrain, per
+#: gait cycle (the plan then checks every sample).
+SWAY_KNOTS = 12
+LP_SAMPLES = 60
+
+
+# --- leg kinematics ----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class Leg:
+    """One 3-DOF leg read off a template (lengths m, angles rad, trunk frame).
+
+    ``joints``: (coxa, femur, tibia) joint names; ``mount`` (3,): the coxa joint's origin;
+    ``yaw``: the direction the leg points at q = 0; ``lower``/``upper`` (3,): joint limits;
+    ``foot_body``: the tibia body holding the foot point (0, 0, -tibia).
+    """
+
+    name: str
+    joints: tuple[str, str, str]
+    mount: np.ndarray
+    yaw: float
+    coxa: float
+    femur: float
+    tibia: float
+    lower: np.ndarray
+    upper: np.ndarray
+    foot_body: str
+
+    @property
+    def neutral(self) -> np.ndarray:
+        """(3,) the foot at q = 0, trunk frame, m."""
+        return leg_fk(self, np.zeros(3))
+
+
+def legs_of(template: Template) -> tuple[Leg, ...]:
+    """The legs of a multiped template, in the template's foot order.
+
+    ValueError when a foot does not hang on a coxa (z) - femur (y) - tibia (y) chain of the
+    template's layout (coxa and femur tubes along the joint frame's x, tibia along -z).
+    """
+    m = template.model
+    if not template.feet or len(template.feet) < 3:
+        raise ValueError(f"{template.robot_type} is not a legged robot (feet: {template.feet})")
+    legs = []
+    for foot, point in zip(template.feet, template.foot_points, strict=True):
+        b_tibia = m.body(foot)
+        j_tibia = m.joints[b_tibia]
+        j_femur = m.joints[j_tibia.parent]
+        j_coxa = m.joints[j_femur.parent]
+        chain = (j_coxa, j_femur, j_tibia)
+        if j_coxa.parent < 0 or any(j.kind != "revolute" for j in chain):
+            raise ValueError(f"foot {foot!r} does not hang on three revolute joints")
+        if m.joints[j_coxa.parent].movable:
+            raise ValueError(f"leg of {foot!r} is not mounted on the trunk")
+        ok = (
+            np.allclose(j_coxa.axis, (0, 0, 1))
+            and np.allclose(j_femur.axis, (0, 1, 0))
+            and np.allclose(j_tibia.axis, (0, 1, 0))
+            and np.allclose(j_coxa.origin[2, :3], (0, 0, 1))
+            and np.allclose(j_femur.origin[:3, :3], np.eye(3))
+            and np.allclose(j_tibia.origin[:3, :3], np.eye(3))
+            and np.allclose(j_femur.origin[1:3, 3], 0)
+            and np.allclose(j_tibia.origin[1:3, 3], 0)
+            and np.allclose(point[:2], 0)
+            and point[2] < 0
+        )
+        if not ok:
+            raise ValueError(f"leg of {foot!r} is not a coxa-femur-tibia leg of the template")
+        R = j_coxa.origin[:3, :3]
+        legs.append(
+            Leg(
+                name=j_coxa.name.removesuffix("_coxa"),
+                joints=(j_coxa.name, j_femur.name, j_tibia.name),
+                mount=np.array(j_coxa.origin[:3, 3], dtype=float),
+                yaw=math.atan2(R[1, 0], R[0, 0]),
+                coxa=float(j_femur.origin[0, 3]),
+                femur=float(j_tibia.origin[0, 3]),
+                tibia=float(-point[2]),
+                lower=np.array([j.lower for j in chain]),
+                upper=np.array([j.upper for j in chain]),
+                foot_body=foot,
+            )
+        )
+    return tuple(legs)
+
+
+def leg_fk(leg: Leg, q: np.ndarray) -> np.ndarray:
+    """Foot positions (..., 3) m in the trunk frame of joint angles (..., 3) rad."""
+    q = np.asarray(q, dtype=float)
+    psi = leg.yaw + q[..., 0]
+    s = q[..., 1] + q[..., 2]
+    r = leg.coxa + leg.femur * np.cos(q[..., 1]) - leg.tibia * np.sin(s)
+    z = -leg.femur * np.sin(q[..., 1]) - leg.tibia * np.cos(s)
+    return np.stack(
+        [leg.mount[0] + r * np.cos(psi), leg.mount[1] + r * np.sin(psi), leg.mount[2] + z],
+        axis=-1,
+    )
+
+
+def leg_ik(leg: Leg, p: np.ndarray) -> np.ndarray:
+    """Joint angles (..., 3) rad (coxa, femur, tibia) that put the foot at ``p`` (..., 3) m
+    (trunk frame), outward of the coxa axis, knee-up branch (|q_tibia| <= pi/2); ValueError
+    when a point is out of the leg's reach.
+    Joint limits are not checked (see :func:`limit_slack`)."""
+    p = np.asarray(p, dtype=float)
+    d = p - leg.mount
+    psi = np.arctan2(d[..., 1], d[..., 0])
+    q_coxa = (psi - leg.yaw + math.pi) % (2 * math.pi) - math.pi
+    rho = np.hypot(d[..., 0], d[..., 1]) - leg.coxa
+    z = d[..., 2]
+    f, t = leg.femur, leg.tibia
+    k = (f * f + t * t - rho * rho - z * z) / (2 * f * t)
+    if np.any(np.abs(k) > 1 + 1e-12):
+        worst = float(np.max(np.abs(k)))
+        raise ValueError(f"leg {leg.name}: foot target out of reach (|sin q_tibia| = {worst:.3f})")
+    q_tibia = np.arcsin(np.clip(k, -1.0, 1.0))
+    q_femur = np.arctan2(-z, rho) - np.arctan2(t * np.cos(q_tibia), f - t * np.sin(q_tibia))
+    q_femur = (q_femur + math.pi) % (2 * math.pi) - math.pi
+    return np.stack([q_coxa, q_femur, q_tibia], axis=-1)
+
+
+def limit_slack(leg: Leg, q: np.ndarray) -> np.ndarray:
+    """Smallest distance (...,) rad of the joint angles (..., 3) to the leg's limits
+    (negative: outside)."""
+    q = np.asarray(q, dtype=float)
+    return np.minimum(q - leg.lower, leg.upper - q).min(axis=-1)
+
+
+def tibia_tilt(q: np.ndarray) -> np.ndarray:
+    """Tilt (...,) rad of the tibia from vertical for leg angles (..., 3)."""
+    q = np.asarray(q, dtype=float)
+    return np.abs(q[..., 1] + q[..., 2])
+
+
+# --- support polygon -----------------------------------------------------------------------------
+
+
+def _hull(points: np.ndarray) -> np.ndarray:
+    """Counter-clockwise convex hull (k, 2) of points (n, 2) (monotone chain)."""
+    pts = sorted(map(tuple, np.asarray(points, dtype=float)))
+    if len(pts) <= 2:
+        return np.array(pts)
+
+    def half(seq: Sequence[tuple[float, float]]) -> list[tuple[float, float]]:
+        out: list[tuple[float, float]] = []
+        for p in seq:
+            while len(out) >= 2:
+                (ax, ay), (bx, by) = out[-2], out[-1]
+                if (bx - ax) * (p[1] - ay) - (by - ay) * (p[0] - ax) > 1e-15:
+                    break
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = half(pts), half(pts[::-1])
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def _edges(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inward unit normals (k, 2) and offsets (k,) of the hull of ``points``: a point x is
+    inside when ``normals @ x - offsets >= 0`` for every edge."""
+    h = _hull(points)
+    if len(h) < 3:
+        return np.zeros((0, 2)), np.zeros(0)
+    e = np.roll(h, -1, axis=0) - h
+    n = np.stack([-e[:, 1], e[:, 0]], axis=1) / np.linalg.norm(e, axis=1)[:, None]
+    return n, np.einsum("ij,ij->i", n, h)
+
+
+def support_margin(feet: np.ndarray, com: np.ndarray) -> float:
+    """Static stability margin m of a centre of mass ``com`` (2,) over stance feet (n, 2):
+    inside their convex hull, the distance to its nearest edge; outside, negative (the
+    signed distance to the line of the most violated edge); for fewer than three feet, or
+    feet in a line, minus the distance to them."""
+    feet = np.asarray(feet, dtype=float)[:, :2]
+    c = np.asarray(com, dtype=float)[:2]
+    n, b = _edges(feet)
+    if len(b):
+        return float(np.min(n @ c - b))
+    if len(feet) == 0:
+        return -math.inf
+    h = _hull(feet)
+    if len(h) == 1:
+        return -float(np.linalg.norm(c - h[0]))
+    a, e = h[0], h[-1] - h[0]
+    u = np.clip((c - a) @ e / (e @ e), 0.0, 1.0)
+    return -float(np.linalg.norm(c - a - u * e))
+
+
+def stability_margins(
+    template: Template, legs: Sequence[Leg], q: np.ndarray, stance: np.ndarray
+) -> np.ndarray:
+    """Static stability margins (N,) m along joint trajectories ``q`` (N, nv) (template
+    order) with the stance feet ``stance`` (N, legs) bool: centre of mass by
+    ``center_of_mass`` and feet by ``forward_kinematics`` of the template, both in the
+    trunk frame (the trunk stays level, so this is the ground projection)."""
+    model = template.model
+    q = np.atleast_2d(q)
+    com = center_of_mass(model, q)
+    T = forward_kinematics(model, q)
+    feet = np.stack(
+        [
+            T[:, model.body(leg.foot_body), :3, :3] @ np.array([0.0, 0.0, -leg.tibia])
+            + T[:, model.body(leg.foot_body), :3, 3]
+            for leg in legs
+        ],
+        axis=1,
+    )
+    return np.array([support_margin(feet[i, stance[i], :2], com[i, :2]) for i in range(len(q))])
+
+
+# --- gaits ---------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class GaitPattern:
+    """A periodic gait: ``duty`` (stance share of a cycle) and each leg's lift-off phase
+    in [0, 1) of the cycle (``phases``: leg name -> phase)."""
+
+    name: str
+    duty: float
+    phases: Mapping[str, float]
+
+
+#: Gaits by leg count.
+GAITS: Mapping[int, tuple[str, ...]] = {6: ("tripod", "ripple", "wave"), 4: ("crawl",)}
+
+
+def _ranked(
+    legs: Sequence[Leg], direction: float, turn: float = 0.0
+) -> tuple[list[Leg], list[Leg]]:
+    """Two groups of legs, each ordered from its trailing to its leading leg.
+
+    Walking towards ``direction`` (rad): the legs left and right of the travel, rear to
+    front. Turning (``turn`` > 0 counter-clockwise, < 0 clockwise): the rear and the front
+    half of the legs (their feet travel sideways, in opposite directions), each ordered
+    along its own travel.
+    """
+    if turn:
+        order = sorted(legs, key=lambda g: (round(float(g.mount[0]), 9), float(g.mount[1]), g.name))
+        half = len(order) // 2
+        groups = (order[:half], order[half:])
+        out = []
+        for group in groups:
+            n = np.array([g.neutral[:2] for g in group])
+            travel = math.copysign(1.0, turn) * np.array([-n[:, 1].sum(), n[:, 0].sum()])
+            out.append(sorted(group, key=lambda g, t=travel: (float(g.neutral[:2] @ t), g.name)))
+        return out[0], out[1]
+    u = np.array([math.cos(direction), math.sin(direction)])
+    w = np.array([-u[1], u[0]])
+    key = {leg.name: (float(leg.mount[:2] @ w), float(leg.mount[:2] @ u)) for leg in legs}
+    order = sorted(legs, key=lambda g: (round(key[g.name][0], 9), key[g.name][1], g.name))
+    half = len(order) // 2
+    right, left = order[:half], order[half:]
+    return (sorted(left, key=lambda g: key[g.name][1]), sorted(right, key=lambda g: key[g.name][1]))
+
+
+def gait_pattern(
+    name: str, legs: Sequence[Leg], direction: float = 0.0, turn: float = 0.0
+) -> GaitPattern:
+    """The named gait for these legs, travelling towards ``direction`` rad (trunk frame),
+    or turning in place when ``turn`` is not 0 (its sign: counter-clockwise > 0).
+
+    tripod: legs alternate around the trunk, duty 1/2; ripple: each group of legs (see
+    :func:`_ranked`: the sides of the travel, or the rear and front halves in a turn) a
+    trailing-to-leading wave, duty 1 - 1/rows, the second group half a cycle after the
+    first; wave: one leg at a time, the first group then the second, duty 1 - 1/legs;
+    crawl (quadruped): as ripple with duty ``CRAWL_DUTY``, so that the two swings of a
+    group follow each other and four-foot phases separate the groups. ValueError for a
+    gait the legs cannot do.
+    """
+    n = len(legs)
+    valid = GAITS.get(n, ())
+    if name not in valid:
+        raise ValueError(
+            f"gait: a {n}-legged robot walks with {', '.join(valid) or 'no gait'}, not {name!r}"
+        )
+    left, right = _ranked(
+        legs, 0.0 if name == "tripod" else direction, 0.0 if name == "tripod" else turn
+    )
+    rows = len(left)
+    phases: dict[str, float] = {}
+    if name == "tripod":
+        duty = 0.5
+        for s, side in enumerate((left, right)):
+            for r, leg in enumerate(side):
+                phases[leg.name] = 0.5 * ((r + s) % 2)
+    elif name == "wave":
+        duty = 1 - 1 / n
+        for k, leg in enumerate([*left, *right]):
+            phases[leg.name] = k / n
+    else:  # ripple, crawl
+        duty = CRAWL_DUTY if name == "crawl" else 1 - 1 / rows
+        for s, side in enumerate((left, right)):
+            for r, leg in enumerate(side):
+                phases[leg.name] = (0.5 * s + r * (1 - duty)) % 1.0
+    return GaitPattern(name, duty, phases)
+
+
+# --- stride -----------------------------------------------------------------------------------
+
+
+def _segment_ok(
+    leg: Leg, points: np.ndarray, height: float, step: float, coxa_swing: float
+) -> bool:
+    """Whether the foot can stand on ``points`` (k, 2) (trunk frame, ``height`` m below the
+    trunk) and lift ``step`` m there, within the gait's reach rules."""
+    p = np.column_stack([points, np.full(len(points), -height)])
+    lifted = p + (0.0, 0.0, step)
+    try:
+        q = leg_ik(leg, p)
+        ql = leg_ik(leg, lifted)
+    except ValueError:
+        return False
+    return bool(
+        np.all(np.abs(q[:, 0]) <= coxa_swing)
+        and np.all(limit_slack(leg, q) >= JOINT_MARGIN)
+        and np.all(limit_slack(leg, ql) >= JOINT_MARGIN)
+        and np.all(tibia_tilt(q) <= TIBIA_TILT)
+    )
+
+
+def _segment_distance(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> float:
+    """Distance m between two 2-D segments (sampled finely; segments are short)."""
+    s = np.linspace(0.0, 1.0, 41)[:, None]
+    pa = a0 + s * (a1 - a0)
+    pb = b0 + s * (b1 - b0)
+    return float(np.min(np.linalg.norm(pa[:, None, :] - pb[None, :, :], axis=2)))
+
+
+def max_stride(
+    legs: Sequence[Leg],
+    travel: Mapping[str, np.ndarray],
+    height: float,
+    step: float,
+    coxa_swing: float = COXA_SWING,
+) -> float:
+    """The longest stride s m such that every leg's stance segment, its neutral point
+    +- s/2 x ``travel[leg]`` (a (2,) vector in the trunk frame, of length <= 1: the
+    leg's share of the stride), is reachable (:func:`_segment_ok`) and neighbouring
+    segments stay ``LEG_CLEARANCE`` apart. 0 when none is."""
+
+    def ok(s: float) -> bool:
+        segs = {}
+        for leg in legs:
+            n = leg.neutral[:2]
+            half = 0.5 * s * np.asarray(travel[leg.name], dtype=float)
+            pts = n + np.linspace(-1.0, 1.0, 21)[:, None] * half
+            if not _segment_ok(leg, pts, height, step, coxa_swing):
+                return False
+            segs[leg.name] = (n - half, n + half)
+        names = list(segs)
+        for i, a in enumerate(names):
+            for b in names[i + 1 :]:
+                if _segment_distance(*segs[a], *segs[b]) < LEG_CLEARANCE:
+                    return False
+        return True
+
+    if not ok(0.0):
+        return 0.0
+    lo, hi = 0.0, 4 * max(leg.coxa + leg.femur + leg.tibia for leg in legs)
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    return lo
+
+
+# --- planning ---------------------------------------------------------------------------------
+
+
+def _smooth(u: np.ndarray) -> np.ndarray:
+    """Minimum-jerk ramp 10u^3 - 15u^4 + 6u^5 of u clipped to [0, 1]."""
+    x = np.clip(u, 0.0, 1.0)
+    return x**3 * (10 - 15 * x + 6 * x * x)
+
+
+def _lift(tau: np.ndarray) -> np.ndarray:
+    """Height share (0..1) of a swing at its phase tau in [0, 1]."""
+    return np.minimum(_smooth(tau / LIFT_FRACTION), _smooth((1 - tau) / LIFT_FRACTION))
+
+
+def _advance(tau: np.ndarray) -> np.ndarray:
+    """Horizontal share (0..1) of a swing's way at its phase tau in [0, 1]."""
+    return _smooth((tau - SWING_EDGE) / (1 - 2 * SWING_EDGE))
+
+
+@dataclass(frozen=True, eq=False)
+class GaitPlan:
+    """A planned legged motion, sampled at ``times`` (N,) s.
+
+    ``q`` (N, nv) rad, template joint order; ``body`` (N, 3): the trunk's planned (x m,
+    y m, yaw rad) in the world (sway included); ``stance`` (N, legs) bool; ``feet`` (N,
+    legs, 3): feet in the trunk frame, m; ``margin`` (N,) m: static stability margin;
+    ``sway`` (N, 2) m: the trunk's offset from its steady path, trunk axes; scalars:
+    ``period`` s, ``stride`` m (the stance sweep of the farthest-travelling foot),
+    ``speed`` (m/s, or rad/s for a turn), ``step_height`` and ``height`` m, ``duty``,
+    ``cycles``, ``progress`` (s at full speed: distance / speed, or turn / yaw rate).
+    """
+
+    times: np.ndarray
+    q: np.ndarray
+    body: np.ndarray
+    stance: np.ndarray
+    feet: np.ndarray
+    margin: np.ndarray
+    sway: np.ndarray
+    period: float
+    stride: float
+    speed: float
+    step_height: float
+    height: float
+    duty: float
+    cycles: int
+    progress: float
+
+
+def _envelope(t: np.ndarray, t0: float, t1: float, ramp: float) -> np.ndarray:
+    """Speed share (0..1): minimum-jerk ramps of ``ramp`` s up from t0 and down to t1."""
+    if ramp <= 0:
+        return ((t >= t0) & (t <= t1)).astype(float)
+    return _smooth((t - t0) / ramp) * _smooth((t1 - t) / ramp)
+
+
+def _progress(t: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """Cumulative trapezoidal integral of e over t (same shape)."""
+    out = np.zeros_like(e)
+    out[1:] = np.cumsum(0.5 * (e[1:] + e[:-1]) * np.diff(t))
+    return out
+
+
+def _swings(
+    pattern: GaitPattern, legs: Sequence[Leg], cycles: int, t_start: float, period: float
+) -> dict[str, np.ndarray]:
+    """Swing intervals (cycles, 2) s of each leg."""
+    out = {}
+    for leg in legs:
+        a = t_start + (pattern.phases[leg.name] + np.arange(cycles)) * period
+        out[leg.name] = np.stack([a, a + (1 - pattern.duty) * period], axis=1)
+    return out
+
+
+def _ramp_for(swings: Mapping[str, np.ndarray], t0: float, t1: float, budget: float) -> float:
+    """The shortest ramp s whose envelope moves the body less than ``budget`` (s at full
+    speed) during each leg's first and last stance."""
+    grid = np.linspace(t0, t1, 4001)
+
+    def worst(ramp: float) -> float:
+        prog = _progress(grid, _envelope(grid, t0, t1, ramp))
+        w = 0.0
+        for iv in swings.values():
+            w = max(
+                w,
+                float(np.interp(iv[0, 0], grid, prog)),
+                float(prog[-1] - np.interp(iv[-1, 1], grid, prog)),
+            )
+        return w
+
+    lo, hi = 0.0, 0.5 * (t1 - t0)
+    if worst(lo) <= budget:
+        return lo
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if worst(mid) <= budget else (mid, hi)
+    return hi
+
+
+def _rot(yaw: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 2, 2) of yaw angles."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
+@dataclass(frozen=True, eq=False)
+class GaitTiming:
+    """When a gait's legs swing and how fast its trunk moves (share of full speed)."""
+
+    times: np.ndarray  # (N,) s
+    envelope: np.ndarray  # (N,) 0..1
+    progress: np.ndarray  # (N,) s at full speed
+    swings: Mapping[str, np.ndarray]  # leg -> (cycles, 2) s
+    t_rise: float
+    t_end: float
+
+
+def gait_timing(
+    pattern: GaitPattern,
+    legs: Sequence[Leg],
+    cycles: int,
+    period: float,
+    t_rise: float,
+    lead: float,
+) -> GaitTiming:
+    """The schedule of ``cycles`` cycles of ``pattern`` after ``t_rise`` s of rising and
+    ``lead`` s of standing (and ``lead`` s standing at the end)."""
+    if cycles < 1 or not period > 0:
+        raise ValueError("a gait needs at least one cycle of positive period")
+    t_start = t_rise + lead
+    sw = _swings(pattern, legs, cycles, t_start, period)
+    t_stop = max(float(iv[-1, 1]) for iv in sw.values())
+    t_end = t_stop + lead
+    n = int(math.ceil(t_end / SAMPLE_DT - 1e-9)) + 1
+    times = np.linspace(0.0, (n - 1) * SAMPLE_DT, n)
+    ramp = _ramp_for(sw, t_start, t_stop, 0.5 * pattern.duty * period)
+    e = _envelope(times, t_start, t_stop, ramp)
+    return GaitTiming(times, e, _progress(times, e), sw, t_rise, float(times[-1]))
+
+
+def standing_height(legs: Sequence[Leg]) -> float:
+    """Trunk height m above the ground at q = 0 (feet down)."""
+    return max(float(-leg.neutral[2]) for leg in legs)
+
+
+def plan_gait(
+    template: Template,
+    legs: Sequence[Leg],
+    pattern: GaitPattern,
+    cycles: int,
+    period: float,
+    twist: tuple[float, float, float],
+    step_height: float,
+    height: float,
+    sway: bool | None = None,
+    stand: bool = False,
+) -> GaitPlan:
+    """Sample a gait: ``cycles`` cycles of ``period`` s of ``pattern`` while the trunk moves
+    with ``twist`` = (v_x m/s, v_y m/s, yaw rate rad/s) in its own frame at full speed,
+    feet lifting ``step_height`` m, trunk ``height`` m above the ground.
+
+    The trunk sways (see the module docstring) when ``sway`` is True, or when it is None
+    and the margin without sway would fall below ``MIN_MARGIN``; a swaying trunk (or
+    ``stand``) stands ``SWAY_LEAD`` cycles before the first swing and after the last.
+    Joint limits are not checked here (see ``LeggedController``); ValueError for
+    unreachable feet or when no sway is possible.
+    """
+    h0 = standing_height(legs)
+    t_rise = TRANSITION_S if abs(height - h0) > 1e-6 else 0.0
+    sway_on = bool(sway)
+    vx, vy, wz = twist
+    while True:
+        lead = SWAY_LEAD * period if (sway_on or stand) else 0.0
+        tm = gait_timing(pattern, legs, cycles, period, t_rise, lead)
+        times, e = tm.times, tm.envelope
+        n = len(times)
+        yaw = wz * tm.progress
+        vel = np.einsum("nij,j->ni", _rot(yaw), np.array([vx, vy])) * e[:, None]
+        pos = np.stack([_progress(times, vel[:, 0]), _progress(times, vel[:, 1])], axis=1)
+        plan = _feet_plan(legs, tm.swings, times, pos, yaw, t_rise, h0, height, step_height)
+        d = np.zeros((n, 2))
+        q, feet_b = _joint_plan(template, legs, plan, pos, yaw, d)
+        margin = stability_margins(template, legs, q, plan["stance"])
+        if not sway_on and sway is None and margin.min() < MIN_MARGIN:
+            sway_on = True
+            continue
+        break
+    if sway_on:
+        g = float(np.linalg.norm(template.model.gravity))
+        for _ in range(2):  # the legs' share of the COM follows the sway: iterate
+            com = center_of_mass(template.model, q)[:, :2]
+            d = _sway_lp(times, plan, pos, yaw, com, height / g, t_rise, tm.t_end, period)
+            q, feet_b = _joint_plan(template, legs, plan, pos, yaw, d)
+        margin = stability_margins(template, legs, q, plan["stance"])
+    world = pos + np.einsum("nij,nj->ni", _rot(yaw), d)
+    # the farthest-travelling foot's stance sweep at full speed
+    stride = (
+        pattern.duty
+        * period
+        * max(math.hypot(vx - wz * leg.neutral[1], vy + wz * leg.neutral[0]) for leg in legs)
+    )
+    return GaitPlan(
+        times=times,
+        q=q,
+        body=np.column_stack([world, yaw]),
+        stance=plan["stance"],
+        feet=feet_b,
+        margin=margin,
+        sway=d,
+        period=period,
+        stride=stride,
+        speed=math.hypot(vx, vy) if (vx or vy) else abs(wz),
+        step_height=step_height,
+        height=height,
+        duty=pattern.duty,
+        cycles=cycles,
+        progress=float(tm.progress[-1]),
+    )
+
+
+def _feet_plan(
+    legs: Sequence[Leg],
+    swings: Mapping[str, np.ndarray],
+    times: np.ndarray,
+    pos: np.ndarray,
+    yaw: np.ndarray,
+    t_rise: float,
+    h0: float,
+    height: float,
+    step: float,
+) -> dict[str, np.ndarray]:
+    """World feet (N, legs, 2), lift above the ground (N, legs), stance (N, legs) and the
+    trunk height (N,) of a gait."""
+    n, nl = len(times), len(legs)
+    feet = np.zeros((n, nl, 2))
+    lift = np.zeros((n, nl))
+    stance = np.ones((n, nl), dtype=bool)
+
+    def neutral_world(leg: Leg, t: float) -> np.ndarray:
+        p = np.array([np.interp(t, times, pos[:, 0]), np.interp(t, times, pos[:, 1])])
+        return p + _rot(np.interp(t, times, yaw)) @ leg.neutral[:2]
+
+    for k, leg in enumerate(legs):
+        iv = swings[leg.name]
+        holds = [neutral_world(leg, 0.0)]
+        for c in range(1, len(iv)):
+            holds.append(0.5 * (neutral_world(leg, iv[c - 1, 1]) + neutral_world(leg, iv[c, 0])))
+        holds.append(neutral_world(leg, float(times[-1])))
+        holds_a = np.array(holds)
+        # index of the stance each sample is in or after: number of swings started
+        started = np.searchsorted(iv[:, 0], times, side="left")
+        feet[:, k] = holds_a[started]
+        for c, (a, b) in enumerate(iv):
+            inside = (times > a) & (times < b)
+            tau = (times[inside] - a) / (b - a)
+            feet[inside, k] = holds_a[c] + _advance(tau)[:, None] * (holds_a[c + 1] - holds_a[c])
+            lift[inside, k] = step * _lift(tau)
+            stance[inside, k] = False
+    z = np.full(n, height)
+    if t_rise > 0:
+        z = h0 + (height - h0) * _smooth(times / t_rise)
+    return {"feet": feet, "lift": lift, "stance": stance, "height": z}
+
+
+def _joint_plan(
+    template: Template,
+    legs: Sequence[Leg],
+    plan: Mapping[str, np.ndarray],
+    pos: np.ndarray,
+    yaw: np.ndarray,
+    sway: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Joint angles (N, nv) and trunk-frame feet (N, legs, 3) for the trunk at ``pos`` +
+    ``sway`` (rotated by ``yaw``)."""
+    m = template.model
+    R = _rot(yaw)
+    body = pos + np.einsum("nij,nj->ni", R, sway)
+    rel = plan["feet"] - body[:, None, :]
+    local = np.einsum("nji,nkj->nki", R, rel)  # R^T (feet - body)
+    z = (plan["lift"] - plan["height"][:, None])[..., None]
+    feet_b = np.concatenate([local, z], axis=2)
+    q = np.zeros((len(pos), m.nv))
+    for k, leg in enumerate(legs):
+        qk = leg_ik(leg, feet_b[:, k])
+        for j, name in enumerate(leg.joints):
+            q[:, m.q_index[m.joint(name)]] = qk[:, j]
+    return q, feet_b
+
+
+def _sway_lp(
+    times: np.ndarray,
+    plan: Mapping[str, np.ndarray],
+    pos: np.ndarray,
+    yaw: np.ndarray,
+    com: np.ndarray,
+    kz: float,
+    t0: float,
+    t1: float,
+    period: float,
+) -> np.ndarray:
+    """Trunk sway (N, 2) m (trunk axes) maximising the smallest stability margin of the
+    centre of mass and of the cart-table ZMP (``COM - kz * acceleration``, kz = trunk
+    height / g in s^2); ``com`` (N, 2): the centre of mass in the trunk frame with the legs
+    where the last sway put them. See the module docstring.
+
+    The sway is a clamped cubic B-spline on [t0, t1] with ``SWAY_KNOTS`` knot spans a
+    cycle whose first and last three coefficients are 0 (no offset, velocity or
+    acceleration at either end); its coefficients within +-``SWAY_MAX`` bound the offset
+    (a B-spline stays in the hull of its coefficients). Margins and accelerations are
+    constrained at ``LP_SAMPLES`` samples a cycle.
+    """
+    from scipy import sparse
+    from scipy.interpolate import BSpline
+    from scipy.optimize import linprog
+
+    pieces = max(8, int(math.ceil((t1 - t0) / period * SWAY_KNOTS)))
+    knots = np.concatenate([[t0] * 3, np.linspace(t0, t1, pieces + 1), [t1] * 3])
+    nb = len(knots) - 4
+    free = np.arange(3, nb - 3)
+    nf = len(free)
+    every = max(1, int(period / LP_SAMPLES / SAMPLE_DT))
+    sel = np.flatnonzero((times >= t0) & (times <= t1))[::every]
+    ts = times[sel]
+    B = BSpline.design_matrix(ts, knots, 3).tocsc()[:, free].tocsr()
+    Bdd = sparse.csr_matrix(BSpline(knots, np.eye(nb)[:, free], 3).derivative(2)(ts))
+    R = _rot(yaw)
+    rows, normals, rhs = [], [], []
+    for j, i in enumerate(sel):
+        st = plan["stance"][i]
+        if st.sum() < 3:
+            continue
+        feet = np.einsum("ji,kj->ki", R[i], plan["feet"][i, st] - pos[i])  # steady frame
+        nrm, off = _edges(feet)
+        rows.extend([j] * len(off))
+        normals.append(nrm)
+        rhs.append(nrm @ com[i] - off)
+    rows_a = np.array(rows)
+    nrm = np.concatenate(normals)
+    rhs_a = np.concatenate(rhs)
+    Bj, Bddj = B[rows_a], Bdd[rows_a]
+
+    def margin_rows(k: float) -> sparse.csr_matrix:
+        # n.(c + d - k d'') - b >= m  <=>  -n.d + k n.d'' + m <= n.c - b
+        nx, ny = sparse.diags(nrm[:, 0]), sparse.diags(nrm[:, 1])
+        return sparse.hstack([-nx @ Bj + k * nx @ Bddj, -ny @ Bj + k * ny @ Bddj])
+
+    A_m = sparse.vstack([margin_rows(0.0), margin_rows(kz)]).tocsr()
+    b_m = np.concatenate([rhs_a, rhs_a])
+    Z = sparse.csr_matrix(Bdd.shape)
+    A_acc = sparse.vstack(
+        [
+            sparse.hstack([Bdd, Z]),
+            sparse.hstack([-Bdd, Z]),
+            sparse.hstack([Z, Bdd]),
+            sparse.hstack([Z, -Bdd]),
+        ]
+    ).tocsr()
+    b_acc = np.full(A_acc.shape[0], SWAY_ACCEL)
+    box = [(-SWAY_MAX, SWAY_MAX)] * (2 * nf)
+    ones = sparse.csr_matrix(np.ones((A_m.shape[0], 1)))
+    A1 = sparse.vstack(
+        [sparse.hstack([A_m, ones]), sparse.hstack([A_acc, sparse.csr_matrix((A_acc.shape[0], 1))])]
+    ).tocsr()
+    cost = np.zeros(2 * nf + 1)
+    cost[-1] = -1.0
+    res = _linprog(linprog, cost, A1, np.concatenate([b_m, b_acc]), [*box, (None, None)])
+    if res is None:
+        raise ValueError("no trunk sway keeps the gait statically stable")
+    best = float(res.x[-1])
+    # the smoothest sway (least sum of |second differences| of the coefficients) keeping
+    # 95 % of the best margin
+    keep = best - 0.05 * abs(best)
+    nd = nf - 2
+    D = sparse.diags([np.ones(nd), -2 * np.ones(nd), np.ones(nd)], [0, 1, 2], shape=(nd, nf))
+    Zd, Id, Zdd = sparse.csr_matrix((nd, nf)), sparse.identity(nd), sparse.csr_matrix((nd, nd))
+    A_s = sparse.vstack(
+        [
+            sparse.hstack([D, Zd, -Id, Zdd]),
+            sparse.hstack([-D, Zd, -Id, Zdd]),
+            sparse.hstack([Zd, D, Zdd, -Id]),
+            sparse.hstack([Zd, -D, Zdd, -Id]),
+        ]
+    )
+    pad = sparse.csr_matrix((A_m.shape[0] + A_acc.shape[0], 2 * nd))
+    A2 = sparse.vstack([sparse.hstack([sparse.vstack([A_m, A_acc]), pad]), A_s]).tocsr()
+    b2 = np.concatenate([b_m - keep, b_acc, np.zeros(4 * nd)])
+    cost2 = np.concatenate([np.zeros(2 * nf), np.ones(2 * nd)])
+    res2 = _linprog(linprog, cost2, A2, b2, [*box, *[(0.0, None)] * (2 * nd)])
+    w = (res2 if res2 is not None else res).x[: 2 * nf]
+    inside = (times >= t0) & (times <= t1)
+    full = BSpline.design_matrix(times[inside], knots, 3).tocsc()[:, free]
+    out = np.zeros((len(times), 2))
+    out[inside, 0] = full @ w[:nf]
+    out[inside, 1] = full @ w[nf:]
+    return out
+
+
+def _linprog(linprog, cost, A, b, bounds):
+    """scipy's HiGHS on min cost.x, A x <= b; the dual simplex, then interior point if that
+    fails numerically; None when neither solves it."""
+    for method in ("highs-ds", "highs-ipm"):
+        res = linprog(cost, A_ub=A, b_ub=b, bounds=bounds, method=method)
+        if res.status == 0:
+            return res
+    return None

@@ -1,0 +1,775 @@
+"""Humanoid behaviours: the paper's synthetic locomotion (section 4.3.5, Figs. 22-24).
+
+The paper took the joint trajectories of a stable gait of a reference robot, kept a few
+frequency components per joint (FFT), and found empirically "conversion maps" from the
+length of the leg's passive modules to scale factors of those components, so that any
+printed size gets its gait as ``A_j(t) = (a x + b) sum_i a_i sin(w_i t + phi_i)``. Here:
+
+1. **Reference gait** (:func:`reference_gait`): one stride of a periodic walk of the
+   reference humanoid (the ``HumanoidRobot`` template's defaults scaled geometrically to
+   femur = tibia = ``x``, as parmor sizes humanoids in proportion to their height). The
+   zero-moment point (ZMP) rests under the stance ankle (laterally ``sway`` of the way)
+   and moves to the next foot in double support; the centre of mass (COM) is the exact
+   periodic solution of the linear inverted pendulum ``c - (z_c / g) c'' = p`` (solved
+   per Fourier component); the pelvis is placed so that the whole-body COM of the
+   multibody model (``kinematics.center_of_mass``) follows it; swing feet follow
+   minimum-jerk paths with a C2 lift; :func:`leg_ik` (closed form) gives the angles.
+2. **Synthetic locomotion** (:func:`synthesize`): each joint's trajectory over one stride
+   (two steps) through an FFT, keeping its mean and ``HARMONICS`` stride harmonics.
+3. **Conversion maps** (:class:`ConversionMaps`, :func:`fit_maps`): reference gaits for
+   the leg module lengths ``MAP_SIZES`` and the step ratios ``MAP_RATIOS`` (step length
+   over its default); each component's scale factor against the reference size (an
+   in-phase and a quadrature one: a component's phase drifts a little with the step
+   length) is fitted by least squares as ``(a x + b) + r (c x + d) + r^2 (e x + f)``:
+   for a given step, the paper's linear map in x. :func:`conversion_maps` fits them on
+   first use (deterministic; about half a second per gait). The maps reproduce the 20
+   reference gaits they were fitted on to within 0.01 rad, and gaits between them too.
+4. A designed humanoid (:class:`HumanoidController`) gets its joint trajectories from the
+   maps alone, with ``x`` = (femur + tibia) / 2 of the design: a crouch from q = 0, the
+   weight shift and foot lift faded in while stepping in place, the step length grown
+   and shrunk only while a foot is in the air (:class:`GaitPlan`), then a fade out.
+
+Open loop on the MJCF's position servos (no feedback from the trunk's attitude), and
+with SG90 servos (0.18 N m stall) at the default design's hip and ankle pitch joints, the
+sagittal balance is marginal: in single support the ankle holds the COM only within
+about 11 mm of the ankle. The gait shapes (``WALK``, ``RUN``) were therefore tuned by a
+parameter search in MuJoCo on the default design (40 cm tall): a shallow crouch
+(hip-ankle 96 % of the leg, knees near 0.6 rad as in the sizing's load case), small
+steps (12 % of the leg), a high foot lift, and 80 % of the lateral sway to the stance
+ankle (a full sway rolls the ankle's actuator box onto the floor).
+
+Units: m, s, rad. Frames: trunk frame at the pelvis centre, x forward, z up (the
+template's); a reference gait's world frame has the ground at z = 0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from functools import cache
+from math import pi
+
+import numpy as np
+
+from gaits.base import BehaviorSpec, Controller, DesignGeometry, Parameter, Trajectory
+from kinematics.dynamics import center_of_mass, forward_kinematics
+from kinematics.templates import (
+    DEFAULTS,
+    FOOT_WIDTH_RATIO,
+    Template,
+    TemplateParams,
+    build,
+)
+
+__all__ = [
+    "ARM_JOINTS",
+    "HARMONICS",
+    "LEG_JOINTS",
+    "MAP_RATIOS",
+    "MAP_SIZES",
+    "RUN",
+    "WALK",
+    "ConversionMaps",
+    "GaitPlan",
+    "GaitShape",
+    "HumanoidController",
+    "ReferenceGait",
+    "Synthetic",
+    "conversion_maps",
+    "fit_maps",
+    "leg_ik",
+    "reference_gait",
+    "reference_template",
+    "stability_margin",
+    "stance_height",
+    "synthesize",
+]
+
+G = 9.81  # m/s^2
+SIDES = ("l", "r")  # left (+y), right (-y)
+LEG_JOINTS = ("hip_yaw", "hip_roll", "hip_pitch", "knee_pitch", "ankle_pitch", "ankle_roll")
+ARM_JOINTS = ("shoulder_pitch", "elbow_pitch", "gripper")
+#: Leg module lengths x (m, femur = tibia = x) of the reference gaits the maps are fitted on.
+MAP_SIZES = (0.06, 0.075, 0.09, 0.105, 0.12)
+#: Step lengths (fractions of the gait's default) of the reference gaits of the maps.
+MAP_RATIOS = (0.0, 0.5, 1.0, 1.25)
+#: The reference size of the synthetic locomotion (m): the template's default femur.
+REFERENCE_SIZE = 0.09
+#: Harmonics of the stride frequency kept per joint (besides the mean).
+HARMONICS = 8
+SAMPLES = 256  # samples of one stride of a reference gait
+CROUCH_TIME = 1.0  # s from q = 0 to the gait's mean pose
+SAMPLE_DT = 0.01  # s between trajectory samples
+SETTLE_TIME = 0.5  # s of standing still at the end of a behaviour
+
+
+# --- leg kinematics ------------------------------------------------------------------------------
+
+
+def leg_ik(ankle: np.ndarray, femur: float, tibia: float) -> np.ndarray:
+    """Joint angles (..., 6) rad of one leg, in ``LEG_JOINTS`` order, that put the ankle at
+    ``ankle`` (..., 3) m with the foot parallel to the trunk and hip yaw 0.
+
+    ``ankle`` is relative to the leg's hip point (where hip yaw, roll and pitch axes meet)
+    in trunk axes. Closed form: the hip roll turns the leg's plane through the ankle, the
+    knee angle follows from the hip-ankle distance (law of cosines, knee bent forward,
+    ``knee >= 0``), the hip pitch aims the femur-tibia triangle, and the ankle pitch and
+    roll undo the leg's pitch and roll. ValueError when the ankle is out of reach.
+    """
+    p = np.asarray(ankle, dtype=float)
+    if p.shape[-1:] != (3,):
+        raise ValueError(f"ankle positions must have shape (..., 3), got {p.shape}")
+    x, y, z = p[..., 0], p[..., 1], p[..., 2]
+    if np.any(z >= 0):
+        raise ValueError("the ankle must be below the hip (z < 0)")
+    roll = np.arctan2(y, -z)
+    zp = -np.hypot(y, z)  # ankle z in the rolled leg plane
+    c = (x * x + zp * zp - femur**2 - tibia**2) / (2 * femur * tibia)
+    if np.any(c > 1 + 1e-9) or np.any(c < -1 - 1e-9):
+        raise ValueError(
+            f"ankle out of reach: hip-ankle distance must be within "
+            f"[{abs(femur - tibia):.4f}, {femur + tibia:.4f}] m"
+        )
+    knee = np.arccos(np.clip(c, -1.0, 1.0))
+    hip = np.arctan2(-x, -zp) - np.arctan2(tibia * np.sin(knee), femur + tibia * np.cos(knee))
+    return np.stack([np.zeros_like(x), roll, hip, knee, -(hip + knee), -roll], axis=-1)
+
+
+def _joint_names(part: tuple[str, ...]) -> tuple[str, ...]:
+    return tuple(f"{s}_{j}" for s in SIDES for j in part)
+
+
+def _q_full(model_names: tuple[str, ...], names: tuple[str, ...], q: np.ndarray) -> np.ndarray:
+    """(n, nq) model coordinates with ``q`` (n, len(names)) placed by name, others 0."""
+    out = np.zeros((q.shape[0], len(model_names)))
+    index = {n: k for k, n in enumerate(model_names)}
+    for k, n in enumerate(names):
+        out[:, index[n]] = q[:, k]
+    return out
+
+
+# --- the reference gait --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class GaitShape:
+    """A periodic gait in proportions of the leg length ``L = femur + tibia``.
+
+    ``step_period`` s per step (a stride is two steps); ``double_support`` fraction of a
+    step with both feet down; ``height`` hip-ankle distance / L with the COM over the
+    stance ankle (< 1: crouched); ``step`` default step length / L; ``lift`` swing foot
+    lift / L; ``sway`` lateral ZMP position in single support as a fraction of half the
+    hip width (1: under the stance ankle).
+    """
+
+    name: str
+    step_period: float
+    double_support: float
+    height: float
+    step: float
+    lift: float
+    sway: float
+
+
+#: The walking gait: tuned in MuJoCo on the default design (see the module docstring).
+WALK = GaitShape("walking", 0.75, 0.25, 0.96, 0.12, 0.12, 0.8)
+#: The faster gait (``running``): a shorter period and double support, longer steps.
+RUN = GaitShape("running", 0.5, 0.15, 0.96, 0.15, 0.12, 0.8)
+
+
+@dataclass(frozen=True)
+class ReferenceGait:
+    """One stride of a periodic reference gait, sampled uniformly.
+
+    ``t`` (n,) s over ``[0, period)``; ``joints`` the 12 leg joint names; ``q`` (n, 12)
+    rad; ``com`` (n, 3), ``pelvis`` (n, 3) m, ``zmp`` (n, 2) m and ``ankles`` (2, n, 3) m
+    (left, right) in the world (ground z = 0); ``step_length`` m advance per step.
+    """
+
+    shape: GaitShape
+    size: float
+    step_length: float
+    period: float
+    t: np.ndarray
+    joints: tuple[str, ...]
+    q: np.ndarray
+    com: np.ndarray
+    pelvis: np.ndarray
+    zmp: np.ndarray
+    ankles: np.ndarray
+
+
+def _smooth(s: np.ndarray) -> np.ndarray:
+    """Minimum-jerk blend 0 -> 1 of s in [0, 1] (clipped)."""
+    s = np.clip(s, 0.0, 1.0)
+    return s * s * s * (10 - 15 * s + 6 * s * s)
+
+
+def stance_height(shape: GaitShape, leg: float, half_hip: float) -> float:
+    """Hip-ankle height m of ``shape`` for legs of length ``leg`` m: the hip-ankle distance
+    is ``shape.height * leg`` with the COM swayed over the stance ankle."""
+    reach = shape.height * leg
+    lateral = shape.sway * half_hip
+    if lateral >= reach:
+        raise ValueError(f"legs of {leg:.3f} m cannot sway {lateral:.3f} m sideways")
+    return float(np.sqrt(reach * reach - lateral * lateral))
+
+
+def reference_template(size: float) -> Template:
+    """The reference humanoid of leg module length ``size`` m: the template's default
+    humanoid scaled geometrically (every length times ``size / REFERENCE_SIZE``, as parmor
+    sizes humanoids in proportion to their height), femur = tibia = ``size``."""
+    k = size / REFERENCE_SIZE
+    lengths = {name: k * v for name, v in DEFAULTS["HumanoidRobot"].items()}
+    lengths.update(femur=size, tibia=size)
+    return build("HumanoidRobot", TemplateParams(lengths=lengths))
+
+
+def _lipm_periodic(p: np.ndarray, period: float, zc: float) -> np.ndarray:
+    """The periodic COM (n,) of a linear inverted pendulum of height ``zc`` m whose ZMP is
+    the periodic ``p`` (n,) sampled over ``period`` s: ``c - zc/g c'' = p``, exactly, per
+    Fourier component."""
+    n = len(p)
+    w = 2 * pi * np.fft.rfftfreq(n, period / n)
+    return np.fft.irfft(np.fft.rfft(p) / (1 + w * w * zc / G), n)
+
+
+def reference_gait(
+    size: float,
+    shape: GaitShape = WALK,
+    ratio: float = 1.0,
+    samples: int = SAMPLES,
+    template: Template | None = None,
+    com_model: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> ReferenceGait:
+    """The periodic gait ``shape`` of the reference humanoid of leg module length ``size``
+    m, with steps of ``ratio`` times the default step length (forward, x).
+
+    Timing of one stride (``T`` = step period, ``d`` = double support): [0, dT) weight to
+    the left foot; [dT, T) left support, right foot swings forward; [T, T + dT) weight to
+    the right; [T + dT, 2T) right support, left foot swings. ``template`` overrides the
+    reference humanoid (its own femur and tibia are used); ``com_model`` maps leg angles
+    (n, 12) to the whole-body COM (n, 3) m relative to the pelvis (default: the template's
+    multibody model), e.g. to plan with a measured mass distribution.
+    """
+    if not size > 0:
+        raise ValueError(f"size must be positive, got {size!r}")
+    if ratio < 0:
+        raise ValueError(f"ratio must be >= 0, got {ratio!r}")
+    tmpl = template if template is not None else reference_template(size)
+    femur, tibia = tmpl.lengths["femur"], tmpl.lengths["tibia"]
+    leg = femur + tibia
+    T, d = shape.step_period, shape.double_support
+    period = 2 * T
+    n = samples
+    t = np.arange(n) * period / n
+    s = shape.step * leg * ratio
+    sole = tmpl.params.actuator_size[2] / 2
+    hw = tmpl.lengths["hip_width"] / 2
+    h = stance_height(shape, leg, hw)
+    lift = shape.lift * leg
+
+    # feet (ankles, world): left lands at x = 0 at t = 0, the right one is at -s then
+    ankles = np.zeros((2, n, 3))
+    ankles[0, :, 1], ankles[1, :, 1] = hw, -hw
+    ankles[:, :, 2] = sole
+    right_swing = _smooth((t - d * T) / ((1 - d) * T))  # right: -s -> +s in [dT, T)
+    left_swing = _smooth((t - T - d * T) / ((1 - d) * T))  # left: 0 -> 2s in [T + dT, 2T)
+    ankles[1, :, 0] = -s + 2 * s * right_swing
+    ankles[0, :, 0] = 2 * s * left_swing
+
+    def bump(u: np.ndarray) -> np.ndarray:  # 0 -> 1 -> 0, C2, peak at u = 1/2
+        inside = (u > 0) & (u < 1)
+        return np.where(inside, 64 * u**3 * (1 - u) ** 3, 0.0)
+
+    ankles[1, :, 2] += lift * bump((t - d * T) / ((1 - d) * T))
+    ankles[0, :, 2] += lift * bump((t - T - d * T) / ((1 - d) * T))
+
+    # ZMP: at the stance ankle, moved smoothly between the feet in double support
+    to_left = _smooth(t / (d * T)) - _smooth((t - T) / (d * T))  # 1 on the left foot
+    zx = -s + s * _smooth(t / (d * T)) + s * _smooth((t - T) / (d * T))
+    zy = shape.sway * hw * (2 * to_left - 1)
+    zmp = np.stack([zx, zy], axis=1)
+
+    # pelvis such that the whole-body COM follows the periodic LIPM solution
+    names = _joint_names(LEG_JOINTS)
+    model = tmpl.model
+    q_names = model.q_names
+    hips = np.array([[0.0, hw, 0.0], [0.0, -hw, 0.0]])
+    pelvis_z = h + sole
+    v = s / T  # mean forward speed, m/s
+    offset = np.zeros((n, 3))
+    com = np.zeros((n, 3))
+    zc = pelvis_z
+    for _ in range(6):  # the COM's offset from the pelvis depends on the pose: iterate
+        pelvis = np.zeros((n, 3))
+        pelvis[:, 2] = pelvis_z
+        com[:, 0] = v * t + _lipm_periodic(zx - v * t, period, zc)
+        com[:, 1] = _lipm_periodic(zy, period, zc)
+        pelvis[:, :2] = com[:, :2] - offset[:, :2]
+        q = np.concatenate(
+            [leg_ik(ankles[k] - pelvis - hips[k], femur, tibia) for k in range(2)], axis=1
+        )
+        offset = (
+            center_of_mass(model, _q_full(q_names, names, q)) if com_model is None else com_model(q)
+        )
+        zc = pelvis_z + float(offset[:, 2].mean())
+    com[:, 2] = pelvis_z + offset[:, 2]
+    return ReferenceGait(shape, float(size), s, period, t, names, q, com, pelvis, zmp, ankles)
+
+
+# --- synthetic locomotion ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Synthetic:
+    """Sum-of-sines joint trajectories ``q_j(t) = sum_i a_ji sin(w_ji t + phi_ji)``.
+
+    ``joints`` names; ``harmonics`` (J, K) int multiples of the stride frequency
+    ``2 pi / period`` (0: the joint's mean, with ``phi = pi / 2``); ``amplitudes`` (J, K)
+    rad; ``phases`` (J, K) rad.
+    """
+
+    period: float
+    joints: tuple[str, ...]
+    harmonics: np.ndarray
+    amplitudes: np.ndarray
+    phases: np.ndarray
+
+    @property
+    def omegas(self) -> np.ndarray:
+        """(J, K) angular frequencies rad/s."""
+        return self.harmonics * (2 * pi / self.period)
+
+    def __call__(
+        self, t: np.ndarray, scale: np.ndarray | None = None, quadrature: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(positions rad, velocities rad/s) (n, J) at times ``t`` (n,) s.
+
+        ``scale`` (J, K) multiplies each component (default 1); ``quadrature`` (J, K) adds
+        ``quadrature * a sin(w t + phi + pi / 2)`` per component (default 0).
+        """
+        t = np.asarray(t, dtype=float)[:, None, None]
+        w = self.omegas
+        arg = w * t + self.phases
+        s = np.ones_like(self.amplitudes) if scale is None else np.asarray(scale)
+        c = np.zeros_like(self.amplitudes) if quadrature is None else np.asarray(quadrature)
+        sin, cos = np.sin(arg), np.cos(arg)
+        a_in, a_q = self.amplitudes * s, self.amplitudes * c
+        q = (a_in * sin + a_q * cos).sum(-1)
+        v = (w * (a_in * cos - a_q * sin)).sum(-1)
+        return q, v
+
+
+def _coefficients(q: np.ndarray) -> np.ndarray:
+    """Complex Fourier coefficients (n // 2 + 1, J) of periodic samples q (n, J): q(t) =
+    c_0 + sum_h 2 Re(c_h exp(i h w t))."""
+    return np.fft.rfft(q, axis=0) / q.shape[0]
+
+
+def _pick(c: np.ndarray, harmonics: np.ndarray) -> np.ndarray:
+    """(J, K) coefficients of ``c`` (H, J) at each joint's ``harmonics`` (J, K)."""
+    return c[harmonics, np.arange(harmonics.shape[0])[:, None]]
+
+
+def _largest(magnitudes: np.ndarray, k: int) -> np.ndarray:
+    """(J, k + 1): harmonic 0 and the ``k`` largest of ``magnitudes`` (H, J) (harmonics
+    1.., ties: the lower), ascending."""
+    order = np.argsort(-magnitudes[1:].T, axis=1, kind="stable")[:, :k] + 1
+    J = magnitudes.shape[1]
+    return np.concatenate([np.zeros((J, 1), dtype=int), np.sort(order, axis=1)], axis=1)
+
+
+def synthesize(
+    gait: ReferenceGait, harmonics: int = HARMONICS, select: np.ndarray | None = None
+) -> Synthetic:
+    """The synthetic locomotion of a reference gait: per joint, its mean and its
+    ``harmonics`` largest stride harmonics from an FFT (or the harmonics ``select`` (J, K)
+    names)."""
+    c = _coefficients(gait.q)
+    hs = _largest(np.abs(c), harmonics) if select is None else np.asarray(select, dtype=int)
+    coef = _pick(c, hs)
+    amp = np.where(hs == 0, coef.real, 2 * np.abs(coef))
+    phase = np.where(hs == 0, pi / 2, np.angle(coef) + pi / 2)
+    return Synthetic(gait.period, gait.joints, hs, amp, phase)
+
+
+def _basis(x: float, r: float) -> np.ndarray:
+    return np.array([x, 1.0, r * x, r, r * r * x, r * r])
+
+
+@dataclass(frozen=True)
+class ConversionMaps:
+    """Scale factors of the synthetic locomotion's components as functions of the leg
+    module length ``x`` (m) and the step ratio ``r`` (step length / the default one).
+
+    Each component ``a sin(w t + phi)`` of ``reference`` (the synthetic locomotion of the
+    reference size) gets an in-phase scale ``s`` and a quadrature scale ``s_q`` (the
+    component's phase drifts with the step length):
+    ``s a sin(w t + phi) + s_q a sin(w t + phi + pi / 2)``; each scale is
+    ``(a x + b) + r (c x + d) + r^2 (e x + f)`` with ``coef[j, i, {0: s, 1: s_q}] =
+    (a, b, c, d, e, f)``: linear in x for a given step, as the paper's maps.
+    ``sizes``, ``ratios``: the grid of reference gaits it was fitted on; ``residual``: the
+    largest joint-angle error (rad) of the maps against those gaits.
+    """
+
+    shape: GaitShape
+    reference: Synthetic
+    coef: np.ndarray
+    sizes: tuple[float, ...]
+    ratios: tuple[float, ...]
+    residual: float
+
+    def scale(self, x: float, r: float) -> tuple[np.ndarray, np.ndarray]:
+        """(in-phase, quadrature) scale factors (J, K) at leg module length ``x`` m and step
+        ratio ``r``."""
+        s = self.coef @ _basis(x, r)
+        return s[..., 0], s[..., 1]
+
+    def trajectory(self, x: float, r: float, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(positions rad, velocities rad/s) (n, J) of the mapped gait at times ``t`` (n,) s."""
+        return self.reference(t, *self.scale(x, r))
+
+    def components(self, x: float, r: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(mean, oscillation) (n, J) rad of the mapped gait at times ``t`` (n,) s with a
+        step ratio ``r`` (n,) that may change along the way."""
+        r = np.asarray(r, dtype=float)
+        basis = np.stack([np.full_like(r, x), np.ones_like(r), r * x, r, r * r * x, r * r], 1)
+        s = np.einsum("jkcb,nb->njkc", self.coef, basis)  # (n, J, K, 2)
+        ref = self.reference
+        arg = ref.omegas * np.asarray(t, dtype=float)[:, None, None] + ref.phases
+        terms = ref.amplitudes * (s[..., 0] * np.sin(arg) + s[..., 1] * np.cos(arg))
+        mean = ref.harmonics == 0
+        return (terms * mean).sum(-1), (terms * ~mean).sum(-1)
+
+
+def fit_maps(
+    shape: GaitShape,
+    sizes: tuple[float, ...] = MAP_SIZES,
+    ratios: tuple[float, ...] = MAP_RATIOS,
+    harmonics: int = HARMONICS,
+) -> ConversionMaps:
+    """Conversion maps of ``shape`` fitted (least squares) on the reference gaits of every
+    size in ``sizes`` (m) and step ratio in ``ratios``; the kept harmonics are each
+    joint's largest over all of them."""
+    grid = [(x, r, reference_gait(x, shape, r)) for x in sizes for r in ratios]
+    coefs = [_coefficients(g.q) for _, _, g in grid]
+    hs = _largest(np.abs(np.array(coefs)).sum(0), harmonics)
+    base = reference_gait(REFERENCE_SIZE, shape, 1.0)
+    reference = synthesize(base, select=hs)
+    ref = _pick(_coefficients(base.q), hs)
+    tiny = np.abs(ref) < 1e-12
+    safe = np.where(tiny, 1.0, ref)
+    A = np.array([_basis(x, r) for x, r, _ in grid])  # (N, 6)
+    Y = []
+    for c in coefs:
+        z = np.where(tiny, 1.0, _pick(c, hs) / safe)  # complex scale of each component
+        Y.append(np.stack([z.real, z.imag], axis=-1))
+    Y = np.array(Y).reshape(len(grid), -1)
+    coef, *_ = np.linalg.lstsq(A, Y, rcond=None)
+    J, K = hs.shape
+    coef = coef.T.reshape(J, K, 2, A.shape[1])
+    maps = ConversionMaps(shape, reference, coef, tuple(sizes), tuple(ratios), 0.0)
+    worst = max(float(np.abs(maps.trajectory(x, r, g.t)[0] - g.q).max()) for x, r, g in grid)
+    return ConversionMaps(shape, reference, coef, tuple(sizes), tuple(ratios), worst)
+
+
+@cache
+def conversion_maps(gait: str = "walking") -> ConversionMaps:
+    """The conversion maps of ``gait`` ("walking" or "running"), fitted on first use (the
+    same numbers every time: the fit is deterministic)."""
+    shapes = {WALK.name: WALK, RUN.name: RUN}
+    if gait not in shapes:
+        raise ValueError(f"no gait {gait!r}; gaits: {', '.join(shapes)}")
+    return fit_maps(shapes[gait])
+
+
+# --- stability -----------------------------------------------------------------------------------
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> float:
+    """z of the cross product of two planar vectors."""
+    return float(a[0] * b[1] - a[1] * b[0])
+
+
+def _support_margin(point: np.ndarray, corners: np.ndarray) -> float:
+    """Signed distance m of ``point`` (2,) inside the convex hull of ``corners`` (m, 2)
+    (negative outside)."""
+    pts = np.unique(np.round(corners, 12), axis=0)
+    pts = pts[np.lexsort((pts[:, 1], pts[:, 0]))]
+
+    def half(seq):
+        out: list[np.ndarray] = []
+        for p in seq:
+            while len(out) >= 2 and _cross(out[-1] - out[-2], p - out[-2]) <= 0:
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = half(pts), half(pts[::-1])
+    hull = np.array(lower[:-1] + upper[:-1])
+    margin = np.inf
+    for a, b in zip(hull, np.roll(hull, -1, axis=0), strict=True):
+        e = b - a
+        normal = np.array([-e[1], e[0]]) / np.linalg.norm(e)  # inward for a CCW hull
+        margin = min(margin, float(normal @ (point - a)))
+    return margin
+
+
+def stability_margin(
+    template: Template, names: tuple[str, ...], q: np.ndarray, contact: float = 0.002
+) -> np.ndarray:
+    """Static stability margin (n,) m: distance of the COM's ground projection inside the
+    support polygon (the sole plates of the feet within ``contact`` m of the lowest one),
+    with the trunk upright and the feet flat (as the gaits keep them)."""
+    model = template.model
+    Q = _q_full(model.q_names, names, np.atleast_2d(q))
+    frames = forward_kinematics(model, Q)
+    com = center_of_mass(model, Q)
+    feet = [model.body(f) for f in template.feet]
+    soles = np.array(
+        [
+            frames[:, b, :3, 3] + frames[:, b, :3, :3] @ p
+            for b, p in zip(feet, template.foot_points, strict=True)
+        ]
+    )  # (2, n, 3)
+    half = template.lengths["foot"] / 2
+    width = FOOT_WIDTH_RATIO * half
+    corners = np.array([[sx * half, sy * width] for sx in (-1, 1) for sy in (-1, 1)])
+    out = np.empty(len(Q))
+    for i in range(len(Q)):
+        low = soles[:, i, 2].min()
+        pts = [
+            soles[k, i, :2] + corners for k in range(len(feet)) if soles[k, i, 2] <= low + contact
+        ]
+        out[i] = _support_margin(com[i, :2], np.concatenate(pts))
+    return out
+
+
+# --- the controller ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class GaitPlan:
+    """When a mapped gait does what, in s from the start of the oscillation (after the
+    ``CROUCH_TIME`` crouch from q = 0).
+
+    The oscillation fades in over ``ramp`` s while stepping in place (the weight shift
+    and the foot lift grow; r = 0), starting in mid double support. The step ratio r
+    then grows from 0 to its target during one single-support window starting at
+    ``up`` (a half step), stays for ``steps`` full steps, and returns to 0 during the
+    window starting at ``down`` (a half step: the feet end side by side); r only changes
+    while one foot is in the air, so the feet never slide against each other. The
+    oscillation then fades out over ``ramp`` s from ``fade``; ``end``: all done.
+    """
+
+    swing: float  # s, length of a single-support window
+    ramp: float
+    up: float
+    down: float
+    fade: float
+    end: float
+
+    @classmethod
+    def of(cls, shape: GaitShape, steps: int) -> GaitPlan:
+        T, d = shape.step_period, shape.double_support
+        ramp = 2 * T
+        first = d * T / 2  # the first single-support window starts after half a DS
+        up = first + T * np.ceil((ramp - first) / T - 1e-9)
+        down = up + (steps + 1) * T
+        fade = down + (1 - d) * T + d * T / 2
+        return cls((1 - d) * T, ramp, float(up), float(down), float(fade), float(fade + ramp))
+
+    def envelope(self, tau: np.ndarray) -> np.ndarray:
+        """Oscillation amplitude (n,) in [0, 1] at times ``tau`` s."""
+        return _smooth(tau / self.ramp) - _smooth((tau - self.fade) / self.ramp)
+
+    def ratio(self, tau: np.ndarray, target: float) -> np.ndarray:
+        """Step ratio (n,) at times ``tau`` s."""
+        return target * (
+            _smooth((tau - self.up) / self.swing) - _smooth((tau - self.down) / self.swing)
+        )
+
+
+class HumanoidController(Controller):
+    """Behaviours of a designed humanoid, from the synthetic locomotion's conversion maps.
+
+    ``walking`` and ``running``: ``steps`` full steps of ``step_length`` m (default: a
+    fixed fraction of the leg length, ``GaitShape.step``) between a half step that starts
+    and one that ends the walk, ``direction`` forward or backward (the pendulum gait is
+    time-symmetric: backward is the forward gait played in reverse). ``balancing``:
+    standing crouched, shifting the weight from foot to foot (this design's leg IK, not
+    the maps). Arms hang still (q = 0). Every trajectory starts at q = 0 and ends standing
+    crouched; ``info`` gives the planned ``expected_distance_m`` and the static
+    ``stability_margin_m`` (COM inside the planned support polygon; the pendulum gait
+    leaves it by a few mm while the weight moves between the feet).
+
+    Measured in MuJoCo on the default design (40 cm, 1.69 kg): walking, 4 steps of 21 mm,
+    0.16 m forward in 9 s without falling (16 steps: 0.50 m); running, 4 steps of 26 mm,
+    0.16 m in 6.5 s; balancing, no fall. Backward the robot falls on its back (at 4.5 s,
+    in the first full step): its COM sits behind the ankles, whose servos saturate.
+    """
+
+    def __init__(self, geometry: DesignGeometry) -> None:
+        super().__init__(geometry)
+        L = self.template.lengths
+        self.femur, self.tibia = float(L["femur"]), float(L["tibia"])
+        self.leg = self.femur + self.tibia
+        self.size = self.leg / 2  # the maps' x, m
+        self.joints = _joint_names(LEG_JOINTS) + _joint_names(ARM_JOINTS)
+
+    def default_step(self, shape: GaitShape = WALK) -> float:
+        """Default step length m of ``shape`` for this design's legs."""
+        return shape.step * self.leg
+
+    @property
+    def behaviors(self) -> Mapping[str, BehaviorSpec]:
+        def gait(shape: GaitShape, doc: str) -> BehaviorSpec:
+            s0 = self.default_step(shape)
+            return BehaviorSpec(
+                shape.name,
+                doc,
+                (
+                    Parameter(
+                        "steps",
+                        "int",
+                        4,
+                        "full steps between the starting and the stopping half step",
+                        low=1,
+                        high=200,
+                    ),
+                    Parameter(
+                        "step_length",
+                        "float",
+                        round(s0, 4),
+                        "advance per full step",
+                        unit="m",
+                        low=0.0,
+                        high=round(MAP_RATIOS[-1] * s0, 4),
+                    ),
+                    Parameter(
+                        "direction",
+                        "choice",
+                        "forward",
+                        "travel direction",
+                        choices=("forward", "backward"),
+                    ),
+                ),
+            )
+
+        return {
+            WALK.name: gait(WALK, "a slow crouched walk (the paper's synthetic locomotion)"),
+            RUN.name: gait(
+                RUN,
+                "a faster gait: shorter step period and double support, "
+                "longer steps (no flight phase)",
+            ),
+            "balancing": BehaviorSpec(
+                "balancing",
+                "stand crouched and shift the weight from foot to foot, feet flat",
+                (
+                    Parameter("shifts", "int", 2, "left-right weight shifts", low=1, high=100),
+                    Parameter(
+                        "amount",
+                        "float",
+                        0.8,
+                        "pelvis shift as a fraction of half the hip width",
+                        low=0.0,
+                        high=1.0,
+                    ),
+                    Parameter(
+                        "period",
+                        "float",
+                        2.0,
+                        "duration of one left-right shift",
+                        unit="s",
+                        low=0.5,
+                        high=20.0,
+                    ),
+                ),
+            ),
+        }
+
+    def _run(self, name: str, params: Mapping[str, object]) -> Trajectory:
+        if name == "balancing":
+            return self._balancing(
+                int(params["shifts"]), float(params["amount"]), float(params["period"])
+            )
+        shape = WALK if name == WALK.name else RUN
+        return self._gait(
+            shape, int(params["steps"]), float(params["step_length"]), str(params["direction"])
+        )
+
+    def _gait(self, shape: GaitShape, steps: int, step: float, direction: str) -> Trajectory:
+        maps = conversion_maps(shape.name)
+        plan = GaitPlan.of(shape, steps)
+        sign = 1.0 if direction == "forward" else -1.0
+        ratio = step / self.default_step(shape)
+        start = shape.double_support * shape.step_period / 2  # mid double support
+
+        def legs(t: np.ndarray) -> np.ndarray:
+            tau = t - CROUCH_TIME
+            mean, osc = maps.components(self.size, plan.ratio(tau, ratio), start + sign * tau)
+            crouch = _smooth(t / CROUCH_TIME)[:, None]  # r = 0 and no oscillation meanwhile
+            return crouch * mean + plan.envelope(tau)[:, None] * osc
+
+        info: dict[str, object] = {
+            "direction": (sign, 0.0),
+            "steps": steps,
+            "step_length_m": step,
+            "step_period_s": shape.step_period,
+            "expected_distance_m": (steps + 1) * step,
+            "leg_module_m": self.size,
+            "maps_extrapolated": not MAP_SIZES[0] <= self.size <= MAP_SIZES[-1],
+        }
+        return self._trajectory(shape.name, CROUCH_TIME + plan.end, legs, info)
+
+    def _balancing(self, shifts: int, amount: float, period: float) -> Trajectory:
+        """Crouch (this design's leg IK), sway the pelvis ``shifts`` times left and right
+        by ``amount`` times half the hip width under a smooth envelope, stand still."""
+        hw = self.template.lengths["hip_width"] / 2
+        height = stance_height(WALK, self.leg, hw)
+        duration = shifts * period
+
+        def legs(t: np.ndarray) -> np.ndarray:
+            tau = np.clip(t - CROUCH_TIME, 0.0, duration)
+            y = amount * hw * np.sin(2 * pi * tau / period) * np.sin(pi * tau / duration) ** 2
+            ankle = np.stack([np.zeros_like(t), -y, np.full_like(t, -height)], axis=1)
+            one = leg_ik(ankle, self.femur, self.tibia)  # both legs alike, side by side
+            one *= _smooth(t / CROUCH_TIME)[:, None]  # the crouch from q = 0 (y = 0 then)
+            return np.concatenate([one, one], axis=1)
+
+        info: dict[str, object] = {"direction": (0.0, 0.0)}
+        return self._trajectory("balancing", CROUCH_TIME + duration, legs, info)
+
+    def _trajectory(
+        self,
+        name: str,
+        duration: float,
+        legs: Callable[[np.ndarray], np.ndarray],
+        info: dict[str, object],
+    ) -> Trajectory:
+        """The trajectory of leg angles ``legs(t)`` (n, 12) rad over ``duration`` s and
+        ``SETTLE_TIME`` s more (arms hanging), velocities by central differences of
+        ``legs``, and its stability margin; ValueError if it leaves a joint's limits (an
+        extrapolation of the maps far from their sizes)."""
+        t = np.arange(0.0, duration + SETTLE_TIME, SAMPLE_DT)
+        h = 1e-6  # s
+        q = np.zeros((len(t), len(self.joints)))
+        v = np.zeros_like(q)
+        q[:, :12] = legs(t)
+        v[:, :12] = (legs(t + h) - legs(t - h)) / (2 * h)
+        model = self.template.model
+        index = {n: k for k, n in enumerate(model.q_names)}
+        low, high = model.lower, model.upper
+        for k, joint in enumerate(self.joints):
+            i = index[joint]
+            if q[:, k].min() < low[i] - 1e-9 or q[:, k].max() > high[i] + 1e-9:
+                raise ValueError(
+                    f"{name}: joint {joint} would leave its limits [{low[i]:.3f}, "
+                    f"{high[i]:.3f}] rad (reaching [{q[:, k].min():.3f}, "
+                    f"{q[:, k].max():.3f}]); leg module {self.size:.3f} m, maps fitted for "
+                    f"{MAP_SIZES[0]}..{MAP_SIZES[-1]} m"
+                )
+        info["stability_margin_m"] = stability_margin(self.template, self.joints, q)
+        return Trajectory(name, t, self.joints, q, v, info)

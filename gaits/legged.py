@@ -1,0 +1,516 @@
+"""Behaviours of multiped designs (paper section 4.3.4; issue 5's hexapod and quadruped):
+``walking``, ``rough-terrain-walking`` and ``turning``, built on the gait generator of
+``gaits.hexapod`` (leg kinematics, gaits, foot trajectories, stability margin).
+
+**Stance height**: the zero pose (tibia vertical, the trunk ``tibia`` m up) unless the
+trunk's underside (``TRUNK_THICKNESS`` / 2 below its frame) would be less than
+``STEP_MARGIN`` above the design's obstacle (``params["obstacle_height"]``); a higher
+stance starts with a rise from q = 0.
+
+**Step height**: the obstacle height + ``STEP_MARGIN`` (at least ``MIN_STEP``), times
+``ROUGH_STEP_FACTOR`` on rough terrain.
+
+**Stride**: ``STRIDE_FRACTION`` of the longest feasible (``gaits.hexapod.max_stride``) in
+the direction of travel; plans whose margin falls below ``MIN_MARGIN`` or that leave the
+joint limits are retried with a shorter stride.
+
+**Timing**: the cycle time is stride / (duty x speed); the default speed is the design's
+(``params["speed"]``) or ``DEFAULT_SPEED``, slowed down when a joint would exceed
+``SPEED_MARGIN`` of its actuator's no-load speed; an explicit speed that needs faster
+joints raises ValueError with the largest feasible one.
+
+**Masses**: the stability margins use the sized template with the design's masses when
+the controller is given it (``LeggedController(geometry, template=structure.template)``);
+otherwise the template rebuilt from the record with its default masses
+(``DesignGeometry`` carries no masses; the geometry, which alone decides the gaits, is the
+same).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from gaits.base import BehaviorSpec, Controller, DesignGeometry, Parameter, Trajectory
+from gaits.hexapod import (
+    GAITS,
+    MIN_MARGIN,
+    SWAY_LEAD,
+    TRANSITION_S,
+    GaitPattern,
+    GaitPlan,
+    gait_pattern,
+    gait_timing,
+    legs_of,
+    max_stride,
+    plan_gait,
+    standing_height,
+)
+from kinematics.templates import TRUNK_THICKNESS, Template
+
+__all__ = ["DIRECTIONS", "DirectionParameter", "LeggedController"]
+
+#: Lift of a swinging foot above the design's obstacle, and of the trunk's underside, m.
+STEP_MARGIN = 0.01
+#: Smallest step height, m (designs without an obstacle height).
+MIN_STEP = 0.02
+#: Rough-terrain step: this times the walking step height.
+ROUGH_STEP_FACTOR = 1.5
+#: Fraction of the longest feasible stride a gait uses (room for sway and start/stop).
+STRIDE_FRACTION = 0.8
+#: Fraction of an actuator's no-load speed a trajectory may ask for.
+SPEED_MARGIN = 0.6
+#: Body speed when the design names none, m/s.
+DEFAULT_SPEED = 0.05
+#: Named directions of travel, rad (counter-clockwise from the trunk's +x).
+DIRECTIONS = {"forward": 0.0, "backward": math.pi, "left": math.pi / 2, "right": -math.pi / 2}
+
+
+# --- the controller ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class DirectionParameter(Parameter):
+    """A direction of travel: an angle in rad (counter-clockwise from the trunk's +x) or
+    one of ``DIRECTIONS`` (forward, backward, left, right)."""
+
+    def check(self, value: object) -> object:
+        if isinstance(value, str) and value.strip().lower() in DIRECTIONS:
+            return DIRECTIONS[value.strip().lower()]
+        try:
+            return super().check(value)
+        except ValueError:
+            raise ValueError(
+                f"{self.name}: expected an angle in rad in [{self.low:.4g}, {self.high:.4g}] "
+                f"or one of {', '.join(DIRECTIONS)}, got {value!r}"
+            ) from None
+
+
+class LeggedController(Controller):
+    """Behaviours of a hexapod or quadruped design (see the module docstring).
+
+    - ``walking(gait, steps, seconds, direction, speed, stride, step_height)``: walk
+      ``steps`` gait cycles (every leg steps once a cycle), or about ``seconds`` s when
+      that is > 0 (whole cycles then fill the time: the cycle is shortened so that the
+      trunk is at least as fast as asked, when the actuators allow), towards
+      ``direction`` (rad, or forward/backward/left/right), trunk speed ``speed`` m/s (0:
+      the design's, slowed down to the actuators' speeds), ``stride`` m (0:
+      ``STRIDE_FRACTION`` of the longest feasible), feet lifted ``step_height`` m (0: the
+      design's obstacle height + ``STEP_MARGIN``).
+    - ``rough-terrain-walking``: the same with a step ``ROUGH_STEP_FACTOR`` times higher
+      (offered when the design has that ability, or names no abilities).
+    - ``turning(angle, gait, speed, step_height)``: turn in place by ``angle`` rad
+      (counter-clockwise positive) at up to ``speed`` rad/s (0: the design's trunk speed
+      at the farthest foot, within the actuators' speeds).
+
+    ``Trajectory.info``: ``direction`` (x, y) unit vector of the travel (walking; trunk
+    frame at the start = world), ``stability_margin_m`` (N,), ``min_stability_margin_m``,
+    ``gait``, ``duty``, ``cycle_s``, ``cycles``, ``stride_m``, ``step_height_m``,
+    ``stance_height_m``,
+    ``speed`` (m/s, or rad/s when turning), ``planned_distance_m`` (walking) or
+    ``heading_rad`` (turning), ``body_path`` (N, 3) planned trunk (x m, y m, yaw rad),
+    ``legs`` (leg names) and ``stance`` (N, legs) bool (the feet on the ground),
+    ``obstacle_height_m``, ``body_length_m`` (the trunk's length between the front and rear
+    leg mounts: La1), ``com_masses`` ("design" or "template defaults").
+
+    ``template``: the sized template with the design's masses (``Structure.template``) for
+    the stability margins; by default the template rebuilt from the record, with its
+    default masses (the geometry, which alone decides the gaits, is the same).
+    """
+
+    def __init__(self, geometry: DesignGeometry, template: Template | None = None) -> None:
+        super().__init__(geometry)
+        if template is not None:
+            if template.robot_type != self.template.robot_type or any(
+                abs(template.lengths[k] - v) > 1e-9 for k, v in self.template.lengths.items()
+            ):
+                raise ValueError("the template given is not the design's (type or lengths)")
+            self.template = template
+        self.com_masses = "design" if template is not None else "template defaults"
+        self.legs = legs_of(self.template)
+        self.gaits = GAITS.get(len(self.legs), ())
+        if not self.gaits:
+            raise ValueError(
+                f"no gait for a {len(self.legs)}-legged robot "
+                f"(gaits for {', '.join(map(str, GAITS))} legs)"
+            )
+        self.obstacle = float(geometry.params.get("obstacle_height", 0.0))
+        self.step_height = max(self.obstacle + STEP_MARGIN, MIN_STEP)
+        self.height = max(
+            standing_height(self.legs), self.obstacle + STEP_MARGIN + TRUNK_THICKNESS / 2
+        )
+        self.speed = float(geometry.params.get("speed") or DEFAULT_SPEED)
+        m = self.template.model
+        self._limits = np.array(
+            [
+                SPEED_MARGIN * geometry.joint_speed.get(m.joints[i].name, 0.0) or math.inf
+                for i in m.q_joints
+            ]
+        )
+
+    # -- behaviours ----------------------------------------------------------------------------
+
+    @property
+    def behaviors(self) -> Mapping[str, BehaviorSpec]:
+        gait = Parameter("gait", "choice", self.gaits[0], "gait", choices=self.gaits)
+        step = Parameter(
+            "step_height",
+            "float",
+            0.0,
+            "foot lift (0: the design's obstacle height + margin)",
+            "m",
+            low=0.0,
+            high=1.0,
+        )
+        walk = (
+            gait,
+            Parameter(
+                "steps", "int", 4, "gait cycles (every leg steps once a cycle)", low=1, high=10000
+            ),
+            Parameter(
+                "seconds",
+                "float",
+                0.0,
+                "walk for about this long instead of `steps` (0: use steps)",
+                "s",
+                low=0.0,
+                high=36000.0,
+            ),
+            DirectionParameter(
+                "direction",
+                "float",
+                0.0,
+                "direction of travel: rad from forward, counter-clockwise, "
+                "or forward/backward/left/right",
+                "rad",
+                low=-math.pi,
+                high=math.pi,
+            ),
+            Parameter(
+                "speed",
+                "float",
+                0.0,
+                "trunk speed (0: the design's, within the actuators' speeds)",
+                "m/s",
+                low=0.0,
+                high=10.0,
+            ),
+            Parameter("stride", "float", 0.0, "stride (0: automatic)", "m", low=0.0, high=10.0),
+            step,
+        )
+        out = {
+            "walking": BehaviorSpec(
+                "walking", "Walk a straight line with a statically stable gait.", walk
+            ),
+            "turning": BehaviorSpec(
+                "turning",
+                "Turn in place by an angle with a statically stable gait.",
+                (
+                    Parameter(
+                        "angle",
+                        "float",
+                        math.pi / 2,
+                        "heading change, counter-clockwise positive",
+                        "rad",
+                        low=-4 * math.pi,
+                        high=4 * math.pi,
+                    ),
+                    gait,
+                    Parameter(
+                        "speed",
+                        "float",
+                        0.0,
+                        "yaw rate (0: the design's trunk speed at the farthest foot)",
+                        "rad/s",
+                        low=0.0,
+                        high=10.0,
+                    ),
+                    step,
+                ),
+            ),
+        }
+        abilities = self.geometry.abilities
+        if not abilities or "rough-terrain-walking" in abilities:
+            out["rough-terrain-walking"] = BehaviorSpec(
+                "rough-terrain-walking",
+                f"Walk like `walking` with a {ROUGH_STEP_FACTOR:g}x higher step.",
+                walk,
+            )
+        return out
+
+    def walk(self, steps: int = 4, direction: float | str = 0.0, **params: object) -> Trajectory:
+        """``walking`` for ``steps`` cycles towards ``direction`` (see the class)."""
+        return self.run("walking", steps=steps, direction=direction, **params)
+
+    def turn(self, angle: float, **params: object) -> Trajectory:
+        """``turning`` by ``angle`` rad, counter-clockwise positive."""
+        return self.run("turning", angle=angle, **params)
+
+    def _run(self, name: str, params: Mapping[str, object]) -> Trajectory:
+        if name == "turning":
+            return self._turning(params)
+        rough = name == "rough-terrain-walking"
+        step = float(params["step_height"]) or self.step_height * (  # type: ignore[arg-type]
+            ROUGH_STEP_FACTOR if rough else 1.0
+        )
+        return self._walking(name, params, step)
+
+    # -- planning ------------------------------------------------------------------------------
+
+    def _check_step(self, step: float) -> None:
+        if step <= self.obstacle:
+            raise ValueError(
+                f"step_height: {step:g} m does not clear the design's obstacle "
+                f"height of {self.obstacle:g} m"
+            )
+
+    def _stride(self, travel: Mapping[str, np.ndarray], step: float) -> float:
+        s_max = max_stride(self.legs, travel, self.height, step)
+        if s_max <= 1e-4:
+            raise ValueError(
+                f"step_height: the legs cannot lift {step:g} m and keep walking "
+                "within their joint limits"
+            )
+        return s_max
+
+    def _ratio(self, q: np.ndarray, times: np.ndarray) -> float:
+        """Largest joint speed of ``q`` as a share of the usable actuator speed."""
+        v = np.gradient(q, times, axis=0)
+        return float(np.max(np.abs(v) / self._limits))
+
+    def _accept(self, plan: GaitPlan) -> bool:
+        """Whether a plan keeps every joint inside its limits and the robot stable."""
+        m = self.template.model
+        inside = np.all(plan.q >= m.lower - 1e-9) and np.all(plan.q <= m.upper + 1e-9)
+        return bool(inside and plan.margin.min() >= MIN_MARGIN)
+
+    def _progress(self, pattern: GaitPattern, cycles: int, period: float) -> float:
+        """Time s at full speed of ``cycles`` cycles of ``period`` s (ramps discounted)."""
+        return float(gait_timing(pattern, self.legs, cycles, period, 0.0, 0.0).progress[-1])
+
+    def _rise(self) -> float:
+        return TRANSITION_S if abs(self.height - standing_height(self.legs)) > 1e-6 else 0.0
+
+    def _walking(self, name: str, params: Mapping[str, object], step: float) -> Trajectory:
+        self._check_step(step)
+        direction = float(params["direction"])  # type: ignore[arg-type]
+        u = np.array([math.cos(direction), math.sin(direction)])
+        pattern = gait_pattern(str(params["gait"]), self.legs, direction)
+        s_max = self._stride({leg.name: u for leg in self.legs}, step)
+        asked_stride = float(params["stride"])  # type: ignore[arg-type]
+        if asked_stride > s_max:
+            raise ValueError(
+                f"stride: {asked_stride:g} m is beyond the legs' reach in this "
+                f"direction (at most {s_max:.3g} m with a {step:g} m step)"
+            )
+        stride = asked_stride or STRIDE_FRACTION * s_max
+        asked_speed = float(params["speed"])  # type: ignore[arg-type]
+        for _ in range(12):
+            plan = self._fit(
+                pattern,
+                stride,
+                step,
+                u,
+                0.0,
+                asked_speed or self.speed,
+                bool(asked_speed),
+                int(params["steps"]),  # type: ignore[call-overload]
+                float(params["seconds"]),
+            )  # type: ignore[arg-type]
+            if plan is not None:
+                break
+            if asked_stride:
+                raise ValueError(
+                    f"stride: {asked_stride:g} m leaves the gait without a "
+                    f"static stability margin of {MIN_MARGIN:g} m or outside its "
+                    "joint limits; try a shorter one"
+                )
+            stride *= 0.85
+        else:
+            raise ValueError(f"no stable {pattern.name} gait found for this design")
+        return self._trajectory(
+            name,
+            plan,
+            pattern,
+            {
+                "direction": (float(u[0]), float(u[1])),
+                "planned_distance_m": plan.speed * plan.progress,
+            },
+        )
+
+    def _turning(self, params: Mapping[str, object]) -> Trajectory:
+        angle = float(params["angle"])  # type: ignore[arg-type]
+        if angle == 0:
+            raise ValueError("angle: must not be 0")
+        step = float(params["step_height"]) or self.step_height  # type: ignore[arg-type]
+        self._check_step(step)
+        reach = max(float(np.hypot(*leg.neutral[:2])) for leg in self.legs)
+        travel = {
+            leg.name: np.array([-leg.neutral[1], leg.neutral[0]]) / reach for leg in self.legs
+        }
+        turn = STRIDE_FRACTION * self._stride(travel, step) / reach  # rad per stance
+        asked = float(params["speed"])  # type: ignore[arg-type]
+        # leg order: groups of the turn (rear/front halves) or of forward walking, whichever
+        # keeps the larger margin without sway
+        best = -math.inf
+        for candidate in (
+            gait_pattern(str(params["gait"]), self.legs, 0.0, turn=angle),
+            gait_pattern(str(params["gait"]), self.legs, 0.0),
+        ):
+            period = turn / (candidate.duty * (asked or self.speed / reach))
+            try:
+                trial = plan_gait(
+                    self.template,
+                    self.legs,
+                    candidate,
+                    2,
+                    period,
+                    (0.0, 0.0, math.copysign(turn / (candidate.duty * period), angle)),
+                    step,
+                    self.height,
+                    sway=False,
+                    stand=True,
+                )
+            except ValueError:
+                continue
+            if trial.margin.min() > best:
+                best, pattern = float(trial.margin.min()), candidate
+        if best == -math.inf:
+            raise ValueError("no turning step is within the legs' reach")
+        for _ in range(12):
+            plan = self._fit(
+                pattern, turn, step, None, angle, asked or self.speed / reach, bool(asked), 0, 0.0
+            )
+            if plan is not None:
+                break
+            turn *= 0.85
+        else:
+            raise ValueError(f"no stable {pattern.name} turn found for this design")
+        return self._trajectory("turning", plan, pattern, {"heading_rad": float(plan.body[-1, 2])})
+
+    def _fit(
+        self,
+        pattern: GaitPattern,
+        per_stance: float,
+        step: float,
+        u: np.ndarray | None,
+        angle: float,
+        rate: float,
+        explicit: bool,
+        steps: int,
+        seconds: float,
+    ) -> GaitPlan | None:
+        """A plan of ``pattern`` whose stances each cover ``per_stance`` (m along ``u``, or
+        rad of a turn by ``angle`` when ``u`` is None) at ``rate`` (m/s or rad/s), for
+        ``steps`` cycles or about ``seconds`` s; slower than ``rate`` when a joint would
+        exceed its usable speed (ValueError instead when ``explicit``). None when the plan
+        leaves the joint limits or the stability margin.
+
+        The timing is settled on sway-free plans (cheap); a gait that needs the trunk to
+        sway is then planned once more with it."""
+        duty = pattern.duty
+        span = max(pattern.phases.values()) + 1 - duty  # cycles from first lift to last landing
+        rise = self._rise()
+        period = per_stance / (duty * rate)
+        fastest = 0.0  # shortest cycle the actuators allow, s (0: not known yet)
+        sway: bool | None = None
+        for _ in range(12):
+            extra = span - 1 + (2 * SWAY_LEAD if sway else 0.0)
+            if u is None:
+                cycles = 1
+                while abs(angle) > rate * (1 + 1e-9) * self._progress(pattern, cycles, period):
+                    cycles += 1
+            elif seconds > 0:
+                avail = (seconds - rise) / period - extra
+                if explicit:
+                    cycles = max(1, math.floor(avail + 1e-9))
+                else:  # whole cycles fill the time, at least as fast as asked if possible
+                    cycles = max(1, math.ceil(avail - 1e-9))
+                    while cycles > 1 and (seconds - rise) / (cycles + extra) < fastest:
+                        cycles -= 1
+                    period = max((seconds - rise) / (cycles + extra), fastest)
+                if rise + (cycles + extra) * period > seconds + 1e-6:
+                    need = rise + (1 + extra) * period
+                    raise ValueError(f"seconds: one {pattern.name} cycle takes {need:.3g} s")
+            else:
+                cycles = steps
+            if u is None:
+                tm = gait_timing(pattern, self.legs, cycles, period, 0.0, 0.0)
+                twist = (0.0, 0.0, angle / float(tm.progress[-1]))
+            else:
+                v = per_stance / (duty * period)
+                twist = (v * float(u[0]), v * float(u[1]), 0.0)
+            try:
+                plan = plan_gait(
+                    self.template,
+                    self.legs,
+                    pattern,
+                    cycles,
+                    period,
+                    twist,
+                    step,
+                    self.height,
+                    sway=False,
+                    stand=bool(sway),
+                )
+                if sway is None:
+                    sway = bool(plan.margin.min() < MIN_MARGIN)
+                    if sway:
+                        continue  # the timing again, with the standing lead-in and -out
+                ratio = self._ratio(plan.q, plan.times)
+                if ratio <= 1 + 1e-6 and sway:
+                    plan = plan_gait(
+                        self.template,
+                        self.legs,
+                        pattern,
+                        cycles,
+                        period,
+                        twist,
+                        step,
+                        self.height,
+                        sway=True,
+                    )
+                    ratio = self._ratio(plan.q, plan.times)
+            except ValueError:  # a foot out of reach, or no sway: a shorter stride may do
+                return None
+            if ratio <= 1 + 1e-6:
+                return plan if self._accept(plan) else None
+            if explicit:
+                unit = "m/s" if u is not None else "rad/s"
+                raise ValueError(
+                    f"speed: {rate:g} {unit} needs joints faster than {SPEED_MARGIN:.0%} of "
+                    f"their actuators' no-load speed; at most about {rate / ratio:.3g} {unit} "
+                    f"with the {pattern.name} gait"
+                )
+            fastest = period * ratio * 1.02
+            period = fastest
+            rate = per_stance / (duty * period)
+        raise ValueError(f"no {pattern.name} timing within the actuators' speeds")
+
+    def _trajectory(
+        self, name: str, plan: GaitPlan, pattern: GaitPattern, extra: Mapping[str, object]
+    ) -> Trajectory:
+        velocities = np.gradient(plan.q, plan.times, axis=0)
+        info: dict[str, object] = {
+            "stability_margin_m": plan.margin,
+            "min_stability_margin_m": float(plan.margin.min()),
+            "gait": pattern.name,
+            "duty": pattern.duty,
+            "cycle_s": plan.period,
+            "cycles": plan.cycles,
+            "stride_m": plan.stride,
+            "step_height_m": plan.step_height,
+            "stance_height_m": plan.height,
+            "speed": plan.speed,
+            "obstacle_height_m": self.obstacle,
+            "body_length_m": float(np.ptp([leg.mount[0] for leg in self.legs])),
+            "body_path": plan.body,
+            "legs": tuple(leg.name for leg in self.legs),
+            "stance": plan.stance,
+            "com_masses": self.com_masses,
+            **extra,
+        }
+        return Trajectory(name, plan.times, self.movable_joints(), plan.q, velocities, info)

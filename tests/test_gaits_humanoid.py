@@ -1,0 +1,452 @@
+"""Humanoid behaviours (gaits/humanoid.py): leg IK, the reference gait (LIPM + ZMP), the
+synthetic locomotion and its conversion maps, the controller, and MuJoCo acceptance on the
+default HumanoidRobot design."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gaits.base import DesignGeometry
+from gaits.humanoid import (
+    HARMONICS,
+    LEG_JOINTS,
+    MAP_SIZES,
+    REFERENCE_SIZE,
+    RUN,
+    WALK,
+    G,
+    GaitPlan,
+    HumanoidController,
+    conversion_maps,
+    fit_maps,
+    leg_ik,
+    reference_gait,
+    reference_template,
+    synthesize,
+)
+from kinematics.dynamics import center_of_mass, forward_kinematics
+from kinematics.templates import DEFAULTS, TemplateParams, build
+
+LEGS = tuple(f"{s}_{j}" for s in "lr" for j in LEG_JOINTS)
+
+
+def _full(model, names, q):
+    """(n, nq) model coordinates with q (n, len(names)) placed by name."""
+    out = np.zeros((len(q), model.nq))
+    index = {n: k for k, n in enumerate(model.q_names)}
+    for k, n in enumerate(names):
+        out[:, index[n]] = q[:, k]
+    return out
+
+
+def _ankles(template, names, q):
+    """(2, n, 3) ankle positions (left, right) and (2, n, 3, 3) foot rotations in the trunk
+    frame, by the model's forward kinematics."""
+    model = template.model
+    F = forward_kinematics(model, _full(model, names, np.atleast_2d(q)))
+    feet = [model.body(f"{s}_ankle_roll_link") for s in "lr"]
+    return np.array([F[:, b, :3, 3] for b in feet]), np.array([F[:, b, :3, :3] for b in feet])
+
+
+def _geometry(lengths=None) -> DesignGeometry:
+    return DesignGeometry(
+        robot_type="HumanoidRobot",
+        template="HumanoidRobot",
+        lengths=dict(lengths or DEFAULTS["HumanoidRobot"]),
+        modules=1,
+        wheel_radius=0.03,
+        params={},
+        abilities=("walking", "balancing", "running"),
+        joint_speed={},
+    )
+
+
+# --- leg IK ----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("femur, tibia", [(0.09, 0.09), (0.088, 0.088), (0.07, 0.11)])
+def test_leg_ik_round_trips_through_forward_kinematics(femur, tibia):
+    tmpl = build("HumanoidRobot", TemplateParams(lengths={"femur": femur, "tibia": tibia}))
+    hw = tmpl.lengths["hip_width"] / 2
+    rng = np.random.default_rng(7)
+    n = 200
+    leg = femur + tibia
+    # ankles within reach, in front of/behind and beside the hip, below it
+    d = rng.uniform(abs(femur - tibia) + 0.02, 0.99 * leg, n)
+    pitch = rng.uniform(-0.6, 0.6, n)
+    roll = rng.uniform(-0.4, 0.4, n)
+    target = np.stack(
+        [-d * np.sin(pitch), d * np.cos(pitch) * np.sin(roll), -d * np.cos(pitch) * np.cos(roll)],
+        axis=1,
+    )
+    q_leg = leg_ik(target, femur, tibia)
+    assert q_leg.shape == (n, 6)
+    assert np.all(q_leg[:, 0] == 0) and np.all(q_leg[:, 3] >= 0)  # no yaw, knee forward
+    q = np.concatenate([q_leg, q_leg], axis=1)
+    ankles, rotations = _ankles(tmpl, LEGS, q)
+    for k, side in enumerate((1.0, -1.0)):
+        hip = np.array([0.0, side * hw, 0.0])
+        np.testing.assert_allclose(ankles[k] - hip, target, atol=1e-12)
+        np.testing.assert_allclose(rotations[k], np.broadcast_to(np.eye(3), (n, 3, 3)), atol=1e-12)
+
+
+def test_leg_ik_straight_leg_is_zero():
+    np.testing.assert_allclose(leg_ik(np.array([0.0, 0.0, -0.18]), 0.09, 0.09), 0.0, atol=1e-7)
+
+
+@pytest.mark.parametrize(
+    "ankle", [(0.0, 0.0, -0.2), (0.19, 0.0, -0.01), (0.0, 0.0, 0.05), (0.0, 0.0, 0.0)]
+)
+def test_leg_ik_rejects_unreachable_ankles(ankle):
+    with pytest.raises(ValueError):
+        leg_ik(np.array(ankle), 0.09, 0.09)
+
+
+def test_leg_ik_rejects_bad_shapes():
+    with pytest.raises(ValueError, match="shape"):
+        leg_ik(np.zeros((4, 2)), 0.09, 0.09)
+
+
+# --- the reference gait ----------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def gait():
+    return reference_gait(REFERENCE_SIZE, WALK, 1.0)
+
+
+def test_reference_gait_com_is_the_inverted_pendulum_of_its_zmp(gait):
+    n = len(gait.t)
+    w = 2 * np.pi * np.fft.rfftfreq(n, gait.period / n)
+    zc = float(gait.com[:, 2].mean())
+    v = gait.step_length / WALK.step_period
+    for axis in (0, 1):
+        c = gait.com[:, axis] - (v * gait.t if axis == 0 else 0.0)  # the periodic part
+        acc = np.fft.irfft(-(w**2) * np.fft.rfft(c), n)
+        zmp = gait.zmp[:, axis] - (v * gait.t if axis == 0 else 0.0)
+        np.testing.assert_allclose(c - zc / G * acc, zmp, atol=2e-3)
+
+
+def test_reference_gait_zmp_stays_under_the_stance_foot(gait):
+    T, d = WALK.step_period, WALK.double_support
+    single_left = (gait.t >= d * T) & (gait.t < T)
+    single_right = gait.t >= T + d * T
+    for mask, k in ((single_left, 0), (single_right, 1)):
+        offset = gait.zmp[mask] - gait.ankles[k, mask, :2]
+        assert np.abs(offset[:, 0]).max() < 1e-9  # under the ankle
+        hw = reference_template(REFERENCE_SIZE).lengths["hip_width"] / 2
+        np.testing.assert_allclose(np.abs(offset[:, 1]), (1 - WALK.sway) * hw, atol=1e-9)
+
+
+def test_reference_gait_joint_angles_put_the_feet_on_the_planned_path(gait):
+    tmpl = reference_template(REFERENCE_SIZE)
+    ankles, rotations = _ankles(tmpl, gait.joints, gait.q)
+    for k in range(2):
+        np.testing.assert_allclose(ankles[k], gait.ankles[k] - gait.pelvis, atol=1e-9)
+    np.testing.assert_allclose(rotations, np.broadcast_to(np.eye(3), rotations.shape), atol=1e-9)
+    # the multibody COM follows the pendulum's (pelvis placed by iteration)
+    com = center_of_mass(tmpl.model, _full(tmpl.model, gait.joints, gait.q)) + gait.pelvis
+    np.testing.assert_allclose(com[:, :2], gait.com[:, :2], atol=2e-4)
+    # one foot at a time leaves the ground, by the planned lift
+    lift = gait.ankles[:, :, 2] - gait.ankles[:, :, 2].min()
+    assert np.isclose(lift.max(), WALK.lift * 2 * REFERENCE_SIZE, rtol=1e-3)
+    assert not np.any((lift[0] > 1e-9) & (lift[1] > 1e-9))
+
+
+def test_reference_gait_closes_over_a_stride(gait):
+    assert gait.step_length == pytest.approx(WALK.step * 2 * REFERENCE_SIZE)
+    assert gait.period == pytest.approx(2 * WALK.step_period)
+    # the last sample leads into the first one as smoothly as any two samples follow
+    steps = np.abs(np.diff(np.vstack([gait.q, gait.q[:1]]), axis=0))
+    assert steps[-1].max() <= 1.01 * steps[:-1].max()
+    # and the feet advance by two steps per stride, which the joint angles do not see
+    advance = gait.ankles[0, -1, 0] - gait.ankles[0, 0, 0]  # the swing ends at 2T
+    assert advance == pytest.approx(2 * gait.step_length, rel=1e-4)
+
+
+def test_reference_gait_rejects_bad_arguments():
+    with pytest.raises(ValueError):
+        reference_gait(0.0)
+    with pytest.raises(ValueError):
+        reference_gait(0.09, WALK, -1.0)
+
+
+# --- synthetic locomotion and conversion maps ------------------------------------------------
+
+
+def test_synthetic_locomotion_keeps_a_few_components_per_joint(gait):
+    syn = synthesize(gait)
+    assert syn.harmonics.shape == (12, HARMONICS + 1)
+    q, v = syn(gait.t)
+    assert np.abs(q - gait.q).max() < 0.02  # a few components are enough
+    coarse, _ = synthesize(gait, 3)(gait.t)
+    assert np.abs(coarse - gait.q).max() > np.abs(q - gait.q).max()
+    exact, _ = synthesize(gait, len(gait.t) // 2 - 1)(gait.t)  # all but the Nyquist one
+    np.testing.assert_allclose(exact, gait.q, atol=1e-6)
+    # velocities are the derivative of the positions
+    dt = 1e-6
+    q2, _ = syn(gait.t + dt)
+    np.testing.assert_allclose((q2 - q) / dt, v, atol=1e-3)
+
+
+@pytest.fixture(scope="module")
+def maps():
+    return conversion_maps("walking")
+
+
+def test_maps_reproduce_the_reference_gaits_at_the_fitted_sizes(maps):
+    assert maps.sizes == MAP_SIZES and maps.residual < 0.01
+    for x in MAP_SIZES:
+        for r in (0.0, 1.0):
+            g = reference_gait(x, WALK, r)
+            q, _ = maps.trajectory(x, r, g.t)
+            assert np.abs(q - g.q).max() < 0.01, (x, r)
+
+
+@pytest.mark.parametrize("x, r", [(0.0675, 0.25), (0.088, 1.0), (0.1125, 0.75), (0.1, 1.1)])
+def test_maps_interpolate_between_the_fitted_sizes(maps, x, r):
+    g = reference_gait(x, WALK, r)
+    q, _ = maps.trajectory(x, r, g.t)
+    assert np.abs(q - g.q).max() < 0.012
+
+
+def test_map_scales_are_one_at_the_reference_and_linear_in_size(maps):
+    s, sq = maps.scale(REFERENCE_SIZE, 1.0)
+    big = maps.reference.amplitudes > 1e-3
+    np.testing.assert_allclose(s[big], 1.0, atol=0.05)  # a least-squares fit of 20 gaits
+    np.testing.assert_allclose(sq[big], 0.0, atol=0.05)
+    a, b, c = (maps.scale(x, 0.8)[0] for x in (0.07, 0.09, 0.11))
+    np.testing.assert_allclose(b - a, c - b, atol=1e-12)  # the paper's (a x + b) per step
+
+
+def test_maps_are_deterministic(maps):
+    again = fit_maps(WALK)
+    assert np.array_equal(again.coef, maps.coef)
+    assert np.array_equal(again.reference.amplitudes, maps.reference.amplitudes)
+
+
+def test_unknown_gait_has_no_maps():
+    with pytest.raises(ValueError, match="walking"):
+        conversion_maps("hopping")
+
+
+# --- the controller ----------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def controller():
+    return HumanoidController(_geometry())
+
+
+def _check_smooth_and_limited(controller, traj, speed=None):
+    model = controller.template.model
+    index = {n: k for k, n in enumerate(model.q_names)}
+    assert traj.joints == controller.joints
+    np.testing.assert_allclose(traj.positions[0], 0.0, atol=1e-12)  # starts from q = 0
+    np.testing.assert_allclose(traj.velocities[0], 0.0, atol=1e-9)
+    for k, name in enumerate(traj.joints):
+        i = index[name]
+        assert model.lower[i] <= traj.positions[:, k].min()
+        assert traj.positions[:, k].max() <= model.upper[i]
+    dt = np.diff(traj.times)
+    q, v = traj.positions, traj.velocities
+    # the velocities are the positions' derivative, and neither jumps
+    central = (q[2:] - q[:-2]) / (dt[1:] + dt[:-1])[:, None]
+    assert np.abs(central - v[1:-1]).max() < 0.05
+    assert np.abs(np.diff(q, axis=0)).max() < 0.06  # rad per 10 ms
+    assert (np.abs(np.diff(v, axis=0)) / dt[:, None]).max() < 150.0  # rad/s^2
+    if speed is not None:  # the actuators' no-load speeds
+        limit = np.array([speed[n] for n in traj.joints])
+        assert np.all(np.abs(v).max(axis=0) <= 0.9 * limit)
+
+
+def test_behaviours_and_their_parameters(controller):
+    assert set(controller.behaviors) == {"walking", "running", "balancing"}
+    walk = {p.name: p for p in controller.behaviors["walking"].params}
+    assert walk["step_length"].default == pytest.approx(WALK.step * 0.18, abs=1e-4)
+    assert walk["direction"].choices == ("forward", "backward")
+
+
+@pytest.mark.parametrize(
+    "name, params",
+    [
+        ("walking", {"steps": 0}),
+        ("walking", {"steps": "many"}),
+        ("walking", {"step_length": -0.01}),
+        ("walking", {"step_length": 1.0}),
+        ("walking", {"direction": "sideways"}),
+        ("walking", {"speed": 1}),
+        ("running", {"steps": 0}),
+        ("balancing", {"amount": 1.5}),
+        ("balancing", {"period": 0.0}),
+        ("flying", {}),
+    ],
+)
+def test_bad_parameters_raise(controller, name, params):
+    with pytest.raises(ValueError):
+        controller.run(name, **params)
+
+
+def _landings(controller, traj):
+    """At each planned touchdown (by FK; a foot more than 3 mm above the other lifts):
+    (which foot landed: +1 left, -1 right, how far it is in front of the other, m)."""
+    ankles, _ = _ankles(controller.template, traj.joints, traj.positions)
+    up = ankles[:, :, 2] - ankles[:, :, 2].min(axis=0) > 0.003  # (2, n)
+    out = []
+    for foot, sign in ((0, 1.0), (1, -1.0)):
+        for k in np.flatnonzero(up[foot, :-1] & ~up[foot, 1:]):
+            ahead = ankles[foot, k + 1, 0] - ankles[1 - foot, k + 1, 0]
+            out.append((k, sign, ahead))
+    out.sort()
+    return np.array([(sign, ahead) for _, sign, ahead in out])
+
+
+@pytest.mark.parametrize("direction", ["forward", "backward"])
+def test_walking_takes_the_steps_it_promises(controller, direction):
+    traj = controller.run("walking", steps=4, direction=direction)
+    _check_smooth_and_limited(controller, traj)
+    sign = 1.0 if direction == "forward" else -1.0
+    s = traj.info["step_length_m"]
+    assert traj.info["direction"] == (sign, 0.0)
+    assert traj.info["expected_distance_m"] == pytest.approx(5 * s)
+    landings = _landings(controller, traj)
+    ahead = landings[:, 1]
+    # stepping in place while the sway grows, a half step, 4 full steps, a half step
+    stepping = np.abs(ahead) > 0.5 * s
+    assert stepping.sum() == 5 and len(landings) >= 7
+    np.testing.assert_allclose(ahead[stepping], sign * s, rtol=0.1)  # in the travel direction
+    assert np.all(np.abs(ahead[~stepping]) < 0.1 * s)  # in place; the feet end side by side
+    assert np.all(landings[1:, 0] != landings[:-1, 0])  # left and right alternate
+    margin = traj.info["stability_margin_m"]
+    assert margin.shape == traj.times.shape and margin.min() > -0.015
+
+
+def test_walking_backward_plays_the_forward_gait_in_reverse(controller):
+    fwd = controller.run("walking", steps=2)
+    bwd = controller.run("walking", steps=2, direction="backward")
+    assert fwd.duration == bwd.duration
+    ankles_f, _ = _ankles(controller.template, fwd.joints, fwd.positions)
+    ankles_b, _ = _ankles(controller.template, bwd.joints, bwd.positions)
+    # mirror images in x, swapping which foot goes first
+    sep_f = ankles_f[0, :, 0] - ankles_f[1, :, 0]
+    sep_b = ankles_b[0, :, 0] - ankles_b[1, :, 0]
+    assert sep_f.max() == pytest.approx(-sep_b.min(), rel=0.05)
+    assert sep_f.min() == pytest.approx(-sep_b.max(), rel=0.05)
+
+
+def test_running_is_faster_than_walking(controller):
+    walk = controller.run("walking", steps=6)
+    run = controller.run("running", steps=6)
+    _check_smooth_and_limited(controller, run)
+    v_walk = walk.info["step_length_m"] / walk.info["step_period_s"]
+    v_run = run.info["step_length_m"] / run.info["step_period_s"]
+    assert v_run > 1.5 * v_walk and run.info["step_period_s"] == RUN.step_period
+
+
+def test_balancing_keeps_the_feet_and_the_com_over_them(controller):
+    traj = controller.run("balancing", shifts=2, amount=0.8)
+    _check_smooth_and_limited(controller, traj)
+    ankles, rotations = _ankles(controller.template, traj.joints, traj.positions)
+    gap = ankles[0] - ankles[1]  # the feet do not move against each other
+    np.testing.assert_allclose(gap, np.broadcast_to(gap[0], gap.shape), atol=1e-9)
+    np.testing.assert_allclose(rotations, np.broadcast_to(np.eye(3), rotations.shape), atol=1e-9)
+    sway = ankles[0, :, 1] - ankles[0, 0, 1]  # the pelvis over the feet, sideways
+    hw = controller.template.lengths["hip_width"] / 2
+    assert 0.6 * hw < np.abs(sway).max() <= 0.8 * hw + 1e-12
+    assert traj.info["stability_margin_m"].min() > 0.005
+
+
+def test_behaviours_are_deterministic(controller):
+    a = controller.run("walking", steps=3, step_length=0.02)
+    b = HumanoidController(_geometry()).run("walking", steps=3, step_length=0.02)
+    assert np.array_equal(a.positions, b.positions) and a.csv() == b.csv()
+
+
+def test_other_sizes_get_scaled_gaits():
+    small = {k: 0.75 * v for k, v in DEFAULTS["HumanoidRobot"].items()}
+    ctl = HumanoidController(_geometry(small))
+    traj = ctl.run("walking", steps=2)
+    _check_smooth_and_limited(ctl, traj)
+    assert traj.info["leg_module_m"] == pytest.approx(0.0675)
+    assert not traj.info["maps_extrapolated"]
+    tiny = {k: 0.2 * v for k, v in DEFAULTS["HumanoidRobot"].items()}
+    assert HumanoidController(_geometry(tiny)).run("balancing").duration > 0
+
+
+def test_gait_plan_changes_the_step_only_in_single_support():
+    plan = GaitPlan.of(WALK, 3)
+    T, d = WALK.step_period, WALK.double_support
+    tau = np.linspace(0, plan.end, 5001)
+    r = plan.ratio(tau, 1.0)
+    for k in range(int(plan.end / T) + 1):  # double support k: both feet on the ground
+        a = d * T / 2 + k * T + (1 - d) * T
+        both = plan.ratio(np.linspace(a, a + d * T, 50), 1.0)
+        assert np.ptp(both) < 1e-12
+    assert plan.envelope(tau)[0] == 0 and plan.envelope(tau[-1:])[0] == pytest.approx(0, abs=1e-12)
+    assert r.max() == pytest.approx(1.0)
+
+
+# --- MuJoCo acceptance on the default HumanoidRobot design -----------------------------------
+
+
+@pytest.fixture(scope="module")
+def design(kb, designer, tmp_path_factory):
+    from adron.catalog import load_catalog
+    from export.bundle import bundle_files, write_bundle
+    from export.record import design_record
+    from export.simulate import load_bundle_model
+    from synth.conceptual import Design, Request
+    from synth.solver import Query
+    from synth.structure import design_structure
+
+    cand = next(
+        c for c in designer.reasoner.solve(Query()).candidates if c.robot_type == "HumanoidRobot"
+    )
+    s = design_structure(kb, cand, load_catalog(), {})
+    rec = design_record(
+        Design("designed", Request(), (cand,), cand, "only candidate"), designer.short, s
+    )
+    folder = tmp_path_factory.mktemp("humanoid") / "bundle"
+    write_bundle(folder, bundle_files(rec, s, load_catalog()))
+    return DesignGeometry.from_record(rec), load_bundle_model(folder)
+
+
+def _forward(result) -> float:
+    root = result.series["root"]
+    return float(root[-1][0] - root[0][0])
+
+
+def test_default_design_walks_four_steps_forward(design):
+    from export.simulate import simulate
+
+    geometry, model = design
+    ctl = HumanoidController(geometry)
+    traj = ctl.run("walking", steps=4)
+    _check_smooth_and_limited(ctl, traj, geometry.joint_speed)
+    result = simulate(model, traj)
+    s = traj.info["step_length_m"]
+    assert not result.fell, f"fell at {result.fell_at_s} s"
+    assert _forward(result) > 4 * s, f"moved {_forward(result):.3f} m, 4 steps are {4 * s:.3f}"
+    assert abs(result.heading_rad) < 0.2
+
+
+def test_default_design_runs_forward(design):
+    from export.simulate import simulate
+
+    geometry, model = design
+    ctl = HumanoidController(geometry)
+    traj = ctl.run("running", steps=4)
+    _check_smooth_and_limited(ctl, traj, geometry.joint_speed)
+    result = simulate(model, traj)
+    assert not result.fell, f"fell at {result.fell_at_s} s"
+    assert _forward(result) > 4 * traj.info["step_length_m"]
+
+
+def test_default_design_balances_in_place(design):
+    from export.simulate import simulate
+
+    geometry, model = design
+    result = simulate(model, HumanoidController(geometry).run("balancing"))
+    assert not result.fell and result.distance_m < 0.01
+    assert result.max_torque_ratio < 1.0
