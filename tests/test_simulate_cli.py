@@ -1,0 +1,59 @@
+"""``parmor simulate``: a bundle's behaviour run in MuJoCo from the command line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+
+@pytest.fixture(scope="module")
+def cart(tmp_path_factory) -> Path:
+    import io
+
+    from synth.cli import main
+
+    folder = tmp_path_factory.mktemp("sim") / "cart"
+    err = io.StringIO()
+    assert main(["design", "driving", "--out", str(folder)], out=io.StringIO(), err=err) == 0, \
+        err.getvalue()
+    return folder
+
+
+def test_simulate_reports_the_run_as_json(cli, cart) -> None:
+    r = cli("simulate", str(cart), "--behavior", "driving", "--set", "v=0.15", "--json")
+    assert r.code == 0, r.err
+    d = json.loads(r.out)
+    assert d["behavior"] == "driving" and d["fell"] is False
+    assert d["distance_m"] > 0.3 and d["tracking_error"] < 0.1
+    assert 0 < d["max_torque_ratio"] <= 1.0
+
+
+def test_simulate_lists_behaviours_and_plots(cli, cart) -> None:
+    r = cli("simulate", str(cart), "--behavior", "help")
+    assert r.code == 0 and "driving:" in r.out and "parameters:" in r.out
+    r = cli("simulate", str(cart), "--behavior", "driving", "--seconds", "1", "--plot")
+    assert r.code == 0, r.err
+    assert sorted(p.name for p in (cart / "plots").iterdir()) == [
+        "driving_joints.png", "driving_torques.png"]
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--behavior", "flying"], "no behaviour 'flying'"),
+    (["--behavior", "driving", "--set", "v"], "expected NAME=VALUE"),
+    (["--behavior", "driving", "--set", "speed=1"], "no parameter 'speed'"),
+    (["--behavior", "driving", "--set", "v=fast"], "expected a number"),
+    (["--behavior", "driving", "--seconds", "-1"], "--seconds"),
+])
+def test_simulate_bad_input_exits_2(cli, cart, argv, message) -> None:
+    r = cli("simulate", str(cart), *argv)
+    assert r.code == 2 and message in r.err and "Traceback" not in r.err
+
+
+def test_simulate_needs_a_bundle(cli, tmp_path) -> None:
+    r = cli("simulate", str(tmp_path), "--behavior", "driving")
+    assert r.code == 2 and "no design.json" in r.err
+    (tmp_path / "design.json").write_text("{not json", encoding="utf-8")
+    r = cli("simulate", str(tmp_path), "--behavior", "driving")
+    assert r.code == 2 and "design.json" in r.err
