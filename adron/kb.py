@@ -87,8 +87,10 @@ def facts(tr: Translation, relation: str, arity: int) -> list[tuple[str, ...]]:
     for args, where in tr.located(relation):
         if len(args) != arity or not all(isinstance(a, str) for a in args):
             shape = " ".join(["X"] * arity)
-            raise OntologyError(f"{where}: ({relation} {' '.join(map(str, args))}): expected "
-                                f"({relation} {shape}) with {arity} names or strings")
+            raise OntologyError(
+                f"{where}: ({relation} {' '.join(map(str, args))}): expected "
+                f"({relation} {shape}) with {arity} names or strings"
+            )
         out.append(args)
     return out
 

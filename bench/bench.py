@@ -94,18 +94,22 @@ def bench_structures() -> list[str]:
     for cand in designer.reasoner.solve(Query()).candidates:
         best, med = timed(lambda c=cand: design_structure(kb, c, catalog, {}), 5)
         s = design_structure(kb, cand, catalog, {})
-        lines.append(f"  {cand.robot_type:<24} {best:7.1f} / {med:7.1f} ms  ({s.iterations} "
-                     f"iterations, {s.mass_kg:.3f} kg, {len(s.joints)} joints, "
-                     f"{len(s.links)} link designs)")
+        lines.append(
+            f"  {cand.robot_type:<24} {best:7.1f} / {med:7.1f} ms  ({s.iterations} "
+            f"iterations, {s.mass_kg:.3f} kg, {len(s.joints)} joints, "
+            f"{len(s.links)} link designs)"
+        )
     return lines
 
 
 def bench_process() -> list[str]:
     """Whole-process time of the command line (python -m synth.cli), best of 10."""
     lines = ["whole process (best/median of 10; target: conceptual design < 500 ms)"]
-    for argv in (["--help"],
-                 ["design", "walking", "--answer", "grasping=yes", "--json", "--conceptual"],
-                 ["design", "walking", "--answer", "grasping=yes", "--json"]):
+    for argv in (
+        ["--help"],
+        ["design", "walking", "--answer", "grasping=yes", "--json", "--conceptual"],
+        ["design", "walking", "--answer", "grasping=yes", "--json"],
+    ):
         cmd = [sys.executable, "-m", "synth.cli", *argv]
 
         def run(cmd: list[str] = cmd) -> None:
@@ -123,8 +127,16 @@ def main() -> int:
         sections.append(bench_parse(SUMO))
     else:
         sections.append([f"KIF reader: {SUMO} is absent, skipped"])
-    sections += [bench_translation(), bench_queries(), bench_rnea(), bench_links(),
-                 bench_structures(), bench_stl(), bench_sim(), bench_process()]
+    sections += [
+        bench_translation(),
+        bench_queries(),
+        bench_rnea(),
+        bench_links(),
+        bench_structures(),
+        bench_stl(),
+        bench_sim(),
+        bench_process(),
+    ]
     for lines in sections:
         print("\n".join(lines))
         print()

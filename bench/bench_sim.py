@@ -32,13 +32,16 @@ def bench_sim(seconds: float = 5.0) -> list[str]:
     with tempfile.TemporaryDirectory() as tmp:
         for cand in designer.reasoner.solve(Query()).candidates:
             s = design_structure(kb, cand, catalog, {})
-            rec = design_record(Design("designed", Request(), (cand,), cand, "only candidate"),
-                                designer.short, s)
+            rec = design_record(
+                Design("designed", Request(), (cand,), cand, "only candidate"), designer.short, s
+            )
             folder = Path(tmp) / cand.robot_type
             write_bundle(folder, bundle_files(rec, s, catalog))
             model = load_bundle_model(folder)
-            ctl = controller_for(DesignGeometry.from_record(rec),
-                                 base_position=tuple(float(x) for x in model.body(1).pos))
+            ctl = controller_for(
+                DesignGeometry.from_record(rec),
+                base_position=tuple(float(x) for x in model.body(1).pos),
+            )
             names = sorted(set(ctl.behaviors) & set(rec["abilities"])) or sorted(ctl.behaviors)
             traj = ctl.run(names[0])
             t0 = time.perf_counter()
@@ -46,8 +49,10 @@ def bench_sim(seconds: float = 5.0) -> list[str]:
             wall = time.perf_counter() - t0
             ratio = seconds / wall
             mark = "ok  " if ratio >= 50 else "MISS"
-            lines.append(f"  {mark} {cand.robot_type:<24} {names[0]:<16} {ratio:7.1f}x real time "
-                         f"({wall * 1000:.0f} ms)")
+            lines.append(
+                f"  {mark} {cand.robot_type:<24} {names[0]:<16} {ratio:7.1f}x real time "
+                f"({wall * 1000:.0f} ms)"
+            )
     return lines
 
 

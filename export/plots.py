@@ -23,10 +23,13 @@ def write_plots(folder: Path, traj: Trajectory, result: SimResult) -> list[str]:
     s = result.series
     fig, ax = plt.subplots(figsize=(8, 4.5))
     for k, name in enumerate(traj.joints):
-        line, = ax.plot(s["t"], s["q"][:, k], label=name)
+        (line,) = ax.plot(s["t"], s["q"][:, k], label=name)
         ax.plot(s["t"], s["q_ref"][:, k], "--", color=line.get_color(), linewidth=0.8)
-    ax.set(xlabel="time (s)", ylabel="joint angle (rad)",
-           title=f"{traj.behavior}: joints (dashed: reference)")
+    ax.set(
+        xlabel="time (s)",
+        ylabel="joint angle (rad)",
+        title=f"{traj.behavior}: joints (dashed: reference)",
+    )
     if len(traj.joints) <= 12:
         ax.legend(fontsize=6, ncol=2)
     written.append(_save(fig, folder / f"{traj.behavior}_joints.png"))
@@ -39,8 +42,11 @@ def write_plots(folder: Path, traj: Trajectory, result: SimResult) -> list[str]:
         fig, ax = plt.subplots(figsize=(8, 3.5))
         ax.plot(traj.times, np.asarray(margin) * 1000)
         ax.axhline(0, color="red", linewidth=0.8)
-        ax.set(xlabel="time (s)", ylabel="stability margin (mm)",
-               title=f"{traj.behavior}: static stability margin")
+        ax.set(
+            xlabel="time (s)",
+            ylabel="stability margin (mm)",
+            title=f"{traj.behavior}: static stability margin",
+        )
         written.append(_save(fig, folder / f"{traj.behavior}_stability.png"))
     return written
 

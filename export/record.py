@@ -80,8 +80,13 @@ def structure_record(s: Structure) -> dict:
                 "actuator_torque_Nm": _r(j.actuator_torque_Nm),
                 "usable_torque_Nm": _r(j.usable_torque_Nm),
                 "no_load_speed_rad_s": _r(j.no_load_speed_rad_s),
-                "hold": {"torque_Nm": _r(j.hold_torque_Nm), "speed_rad_s": _r(j.hold_speed_rad_s),
-                         "while": j.hold} if j.hold else None,
+                "hold": {
+                    "torque_Nm": _r(j.hold_torque_Nm),
+                    "speed_rad_s": _r(j.hold_speed_rad_s),
+                    "while": j.hold,
+                }
+                if j.hold
+                else None,
                 "required_speed_rad_s": _r(j.required_speed_rad_s),
                 "load_case": j.load_case,
                 "i2c_address": f"0x{j.i2c_address:02x}",

@@ -46,12 +46,17 @@ class SimResult:
         def r(x):
             return None if x is None else float(f"{x:.6g}")
 
-        return {"behavior": self.behavior, "seconds": r(self.seconds),
-                "distance_m": r(self.distance_m), "heading_rad": r(self.heading_rad),
-                "fell": self.fell, "fell_at_s": r(self.fell_at_s),
-                "max_torque_ratio": r(self.max_torque_ratio),
-                "tracking_error": r(self.tracking_error),
-                "placing_error_m": r(self.placing_error_m)}
+        return {
+            "behavior": self.behavior,
+            "seconds": r(self.seconds),
+            "distance_m": r(self.distance_m),
+            "heading_rad": r(self.heading_rad),
+            "fell": self.fell,
+            "fell_at_s": r(self.fell_at_s),
+            "max_torque_ratio": r(self.max_torque_ratio),
+            "tracking_error": r(self.tracking_error),
+            "placing_error_m": r(self.placing_error_m),
+        }
 
 
 def load_bundle_model(folder: str | Path):
@@ -74,9 +79,14 @@ def _tilt(quat: np.ndarray) -> float:
     return math.acos(max(-1.0, min(1.0, up)))
 
 
-def simulate(model, traj: Trajectory, seconds: float | None = None,
-             can_fall: bool = True, end_effector: str | None = None,
-             progress: Callable[[float], None] | None = None) -> SimResult:
+def simulate(
+    model,
+    traj: Trajectory,
+    seconds: float | None = None,
+    can_fall: bool = True,
+    end_effector: str | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> SimResult:
     """Run ``traj`` on ``model`` (a mujoco.MjModel) for ``seconds`` (default: the
     trajectory's duration; the trajectory holds its last value after its end)."""
     import mujoco
@@ -115,8 +125,7 @@ def simulate(model, traj: Trajectory, seconds: float | None = None,
     ref = np.empty((steps, len(columns)))
     for n, (k, _, velocity) in enumerate(columns):
         ref[:, n] = np.interp(grid, traj.times, traj.positions[:, k])
-        ctrl[:, n] = np.interp(grid, traj.times, traj.velocities[:, k]) if velocity \
-            else ref[:, n]
+        ctrl[:, n] = np.interp(grid, traj.times, traj.velocities[:, k]) if velocity else ref[:, n]
     idx = np.array([a for _, a, _ in columns], dtype=int)
     for i in range(steps):
         t = grid[i]
@@ -126,25 +135,39 @@ def simulate(model, traj: Trajectory, seconds: float | None = None,
         if i == placed_step and end_effector is not None:
             placed_where = data.xpos[model.body(end_effector).id].copy()
         ratio = max(ratio, float(np.max(np.abs(data.actuator_force) / limit)))
-        if free and can_fall and fell_at is None and (
-                data.qpos[2] < FALL_HEIGHT * start[2] or _tilt(data.qpos[3:7]) > FALL_TILT):
+        if (
+            free
+            and can_fall
+            and fell_at is None
+            and (data.qpos[2] < FALL_HEIGHT * start[2] or _tilt(data.qpos[3:7]) > FALL_TILT)
+        ):
             fell_at = t
         if i % every == 0:
             times.append(t)
             roots.append(data.qpos[:7].copy() if free else np.zeros(7))
-            qs.append([data.qpos[model.jnt_qposadr[model.actuator_trnid[a, 0]]]
-                       for _, a, _ in columns])
+            qs.append(
+                [data.qpos[model.jnt_qposadr[model.actuator_trnid[a, 0]]] for _, a, _ in columns]
+            )
             refs.append(q)
             forces.append(data.actuator_force.copy())
         if progress and i % 500 == 0:
             progress(t / seconds)
     end = data.qpos[:3] if free else np.zeros(3)
     result = SimResult(
-        traj.behavior, seconds, float(np.hypot(*(end[:2] - start[:2]))),
+        traj.behavior,
+        seconds,
+        float(np.hypot(*(end[:2] - start[:2]))),
         (_yaw(data.qpos[3:7]) - yaw0 + math.pi) % (2 * math.pi) - math.pi if free else 0.0,
-        fell_at is not None, fell_at, ratio,
-        series={"t": np.array(times), "root": np.array(roots), "q": np.array(qs),
-                "q_ref": np.array(refs), "force": np.array(forces)},
+        fell_at is not None,
+        fell_at,
+        ratio,
+        series={
+            "t": np.array(times),
+            "root": np.array(roots),
+            "q": np.array(qs),
+            "q_ref": np.array(refs),
+            "force": np.array(forces),
+        },
     )
     command = traj.info.get("command")
     if command is not None and free:
@@ -152,8 +175,7 @@ def simulate(model, traj: Trajectory, seconds: float | None = None,
     target = traj.info.get("target")
     if target is not None and end_effector is not None:
         # where the gripper let go (info "placed_at_s"), else where it ends
-        where = placed_where if placed_where is not None else \
-            data.xpos[model.body(end_effector).id]
+        where = placed_where if placed_where is not None else data.xpos[model.body(end_effector).id]
         result.placing_error_m = float(np.linalg.norm(where - np.asarray(target)))
     return result
 

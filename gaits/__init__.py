@@ -32,8 +32,9 @@ def controller_for(geometry: DesignGeometry, **options: object) -> Controller:
     """
     entry = CONTROLLERS.get(geometry.template)
     if entry is None:
-        raise ValueError(f"no controller for {geometry.template} "
-                         f"(controllers: {', '.join(sorted(CONTROLLERS))})")
+        raise ValueError(
+            f"no controller for {geometry.template} (controllers: {', '.join(sorted(CONTROLLERS))})"
+        )
     module, name = entry
     cls = getattr(import_module(module), name)
     accepted = inspect.signature(cls).parameters

@@ -45,8 +45,9 @@ class Trajectory:
     def __post_init__(self) -> None:
         n, nj = len(self.times), len(self.joints)
         if self.positions.shape != (n, nj) or self.velocities.shape != (n, nj):
-            raise ValueError(f"trajectory {self.behavior!r}: positions and velocities must "
-                             f"be ({n}, {nj})")
+            raise ValueError(
+                f"trajectory {self.behavior!r}: positions and velocities must be ({n}, {nj})"
+            )
         if n < 2 or np.any(np.diff(self.times) <= 0) or self.times[0] != 0:
             raise ValueError(f"trajectory {self.behavior!r}: times must start at 0 and rise")
 
@@ -56,10 +57,12 @@ class Trajectory:
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """(positions, velocities) at time ``t`` s (linear interpolation, held at the ends)."""
-        q = np.array([np.interp(t, self.times, self.positions[:, k])
-                      for k in range(len(self.joints))])
-        v = np.array([np.interp(t, self.times, self.velocities[:, k])
-                      for k in range(len(self.joints))])
+        q = np.array(
+            [np.interp(t, self.times, self.positions[:, k]) for k in range(len(self.joints))]
+        )
+        v = np.array(
+            [np.interp(t, self.times, self.velocities[:, k]) for k in range(len(self.joints))]
+        )
         return q, v
 
     def csv(self) -> str:
@@ -88,8 +91,9 @@ class Parameter:
         """The value converted to the parameter's kind; ValueError naming it otherwise."""
         if self.kind == "choice":
             if value not in self.choices:
-                raise ValueError(f"{self.name}: expected one of {', '.join(self.choices)}, "
-                                 f"got {value!r}")
+                raise ValueError(
+                    f"{self.name}: expected one of {', '.join(self.choices)}, got {value!r}"
+                )
             return value
         try:
             x = int(value) if self.kind == "int" else float(value)
@@ -112,10 +116,13 @@ class BehaviorSpec:
         known = {p.name: p for p in self.params}
         unknown = sorted(set(given) - set(known))
         if unknown:
-            raise ValueError(f"behaviour {self.name!r} has no parameter {unknown[0]!r} "
-                             f"(parameters: {', '.join(known) or 'none'})")
-        return {p.name: p.check(given[p.name]) if p.name in given else p.default
-                for p in self.params}
+            raise ValueError(
+                f"behaviour {self.name!r} has no parameter {unknown[0]!r} "
+                f"(parameters: {', '.join(known) or 'none'})"
+            )
+        return {
+            p.name: p.check(given[p.name]) if p.name in given else p.default for p in self.params
+        }
 
 
 @dataclass(frozen=True)
@@ -144,14 +151,20 @@ class DesignGeometry:
             wheel_radius=float(record.get("wheel_radius_m") or 0.03),
             params=dict(record.get("params", {})),
             abilities=tuple(record.get("abilities", ())),
-            joint_speed={j["name"]: float(j.get("no_load_speed_rad_s", 0.0))
-                         for j in record.get("joints", [])},
+            joint_speed={
+                j["name"]: float(j.get("no_load_speed_rad_s", 0.0))
+                for j in record.get("joints", [])
+            },
         )
 
     def build(self) -> Template:
         """The design's kinematic template (geometry; masses do not matter to gaits)."""
-        return build(self.template, TemplateParams(lengths=self.lengths, modules=self.modules,
-                                                   wheel_radius=self.wheel_radius))
+        return build(
+            self.template,
+            TemplateParams(
+                lengths=self.lengths, modules=self.modules, wheel_radius=self.wheel_radius
+            ),
+        )
 
 
 class Controller(ABC):
@@ -175,8 +188,10 @@ class Controller(ABC):
         parameters (the message lists the valid ones)."""
         spec = self.behaviors.get(name)
         if spec is None:
-            raise ValueError(f"{self.geometry.robot_type} has no behaviour {name!r} "
-                             f"(behaviours: {', '.join(sorted(self.behaviors))})")
+            raise ValueError(
+                f"{self.geometry.robot_type} has no behaviour {name!r} "
+                f"(behaviours: {', '.join(sorted(self.behaviors))})"
+            )
         return self._run(name, spec.resolve(params))
 
     def movable_joints(self) -> tuple[str, ...]:

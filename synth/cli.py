@@ -140,9 +140,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--no-input", action="store_true", help="never ask; exit 3 when an answer is still needed"
     )
     _structure_options(p)
-    p.add_argument("--out", metavar="DIR", help="write the bundle into the folder DIR: "
-                   "design.json, robot.urdf, robot.xml, meshes/*.stl, bom.csv, README.md "
-                   "(design.json alone with --conceptual)")
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="write the bundle into the folder DIR: "
+        "design.json, robot.urdf, robot.xml, meshes/*.stl, bom.csv, README.md "
+        "(design.json alone with --conceptual)",
+    )
     p.add_argument("--force", action="store_true", help="replace DIR if it is not empty")
 
     p = sub.add_parser(
@@ -211,15 +215,27 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("dir", metavar="DIR", help="a bundle folder written by 'parmor design --out'")
-    p.add_argument("--behavior", required=True, metavar="NAME",
-                   help="the behaviour to run ('--behavior help' lists them)")
-    p.add_argument("--seconds", type=float, metavar="S",
-                   help="simulated time (default: the behaviour's duration)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="a behaviour parameter, e.g. --set v=0.2 (repeatable)")
+    p.add_argument(
+        "--behavior",
+        required=True,
+        metavar="NAME",
+        help="the behaviour to run ('--behavior help' lists them)",
+    )
+    p.add_argument(
+        "--seconds",
+        type=float,
+        metavar="S",
+        help="simulated time (default: the behaviour's duration)",
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a behaviour parameter, e.g. --set v=0.2 (repeatable)",
+    )
     p.add_argument("--gait", metavar="NAME", help="shortcut for --set gait=NAME")
-    p.add_argument("--plot", action="store_true",
-                   help="write PNG plots of the run into DIR/plots/")
+    p.add_argument("--plot", action="store_true", help="write PNG plots of the run into DIR/plots/")
     _json_option(p)
 
     p = sub.add_parser(
@@ -233,8 +249,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("suite", metavar="SUITE.toml")
     p.add_argument("--update", action="store_true", help="store the results as the snapshot")
-    p.add_argument("--allow-scripts", action="store_true",
-                   help="accept the suite's rule files that contain #script")
+    p.add_argument(
+        "--allow-scripts",
+        action="store_true",
+        help="accept the suite's rule files that contain #script",
+    )
     return parser
 
 
@@ -572,8 +591,9 @@ def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> in
 def cmd_regress(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from synth.regress import run_suite
 
-    return run_suite(args.suite, update=args.update, out=out, err=err,
-                     allow_scripts=args.allow_scripts)
+    return run_suite(
+        args.suite, update=args.update, out=out, err=err, allow_scripts=args.allow_scripts
+    )
 
 
 def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -586,8 +606,9 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     try:
         record = json.loads((folder / "design.json").read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise InputError(f"{folder}: no design.json (write one with 'parmor design ... "
-                         "--out DIR')") from None
+        raise InputError(
+            f"{folder}: no design.json (write one with 'parmor design ... --out DIR')"
+        ) from None
     except (OSError, json.JSONDecodeError) as e:
         raise InputError(f"{folder / 'design.json'}: {e}") from None
     from export.simulate import load_bundle_model, simulate
@@ -605,12 +626,15 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     model = load_bundle_model(folder)
     try:
         # a fixed base stands where the MJCF puts its root body
-        controller = controller_for(DesignGeometry.from_record(record),
-                                    base_position=tuple(float(x) for x in model.body(1).pos))
+        controller = controller_for(
+            DesignGeometry.from_record(record),
+            base_position=tuple(float(x) for x in model.body(1).pos),
+        )
         if args.behavior == "help":
             for name, spec in sorted(controller.behaviors.items()):
-                ps = ", ".join(f"{p.name}={p.default}{' ' + p.unit if p.unit else ''}"
-                               for p in spec.params)
+                ps = ", ".join(
+                    f"{p.name}={p.default}{' ' + p.unit if p.unit else ''}" for p in spec.params
+                )
                 out.write(f"{name}: {spec.doc}\n  parameters: {ps or 'none'}\n")
             return 0
         traj = controller.run(args.behavior, **params)
@@ -626,9 +650,14 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         def progress(fraction: float) -> None:
             step(int(fraction * 100) + 1, f"simulating {args.behavior}")
 
-    result = simulate(model, traj, args.seconds, can_fall=bool(tmpl.feet or tmpl.wheels),
-                      end_effector=tmpl.end_effectors[0] if tmpl.end_effectors else None,
-                      progress=progress)
+    result = simulate(
+        model,
+        traj,
+        args.seconds,
+        can_fall=bool(tmpl.feet or tmpl.wheels),
+        end_effector=tmpl.end_effectors[0] if tmpl.end_effectors else None,
+        progress=progress,
+    )
     if progress is not None:
         step(None, "")
     rec = result.to_dict()

@@ -185,8 +185,14 @@ class Designer:
         excluded = "; ".join(f"{t} is not built for {', '.join(ws)}" for t, ws in over.items())
         if not cands:
             conflict = self.limit_conflict(req, over)
-            return Design("unsatisfiable", req, questions=asked, conflict=conflict,
-                          needed=needed, note=excluded)
+            return Design(
+                "unsatisfiable",
+                req,
+                questions=asked,
+                conflict=conflict,
+                needed=needed,
+                note=excluded,
+            )
         if len(cands) == 1:
             return Design(
                 "designed",
@@ -256,8 +262,11 @@ class Designer:
             (f"{a}={'yes' if y else 'no'}", Request(answers=((a, y),))) for a, y in req.answers
         ]
         # physical parameters never change what the reasoner admits: only the ontology's
-        demands += [(f"{p}={v}", Request(params=((p, v),))) for p, v in req.params
-                    if self.kb.parameter(p) is not None]
+        demands += [
+            (f"{p}={v}", Request(params=((p, v),)))
+            for p, v in req.params
+            if self.kb.parameter(p) is not None
+        ]
         for size in range(1, len(demands) + 1):
             for combo in itertools.combinations(demands, size):
                 merged = Request(

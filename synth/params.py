@@ -94,8 +94,9 @@ PARAMS: tuple[ParamSpec, ...] = (
 BY_NAME = {p.name: p for p in PARAMS}
 
 
-def exceeded_limits(candidate, limits: Iterable[tuple[tuple, str]],
-                    given: Mapping[str, float]) -> list[str]:
+def exceeded_limits(
+    candidate, limits: Iterable[tuple[tuple, str]], given: Mapping[str, float]
+) -> list[str]:
     """The ontology's ``structuralLimit`` facts ((type, name, quantity), "file:line:col") on
     ``candidate``'s class or any robot class above it that its parameters exceed (the given
     values, else its defaults), as readable phrases."""
@@ -107,8 +108,10 @@ def exceeded_limits(candidate, limits: Iterable[tuple[tuple, str]],
         if rtype not in candidate.ancestors:
             continue
         if name not in BY_NAME:
-            raise OntologyError(f"{where}: structuralLimit names {name!r}, not a parameter "
-                                f"(known: {', '.join(sorted(BY_NAME))})")
+            raise OntologyError(
+                f"{where}: structuralLimit names {name!r}, not a parameter "
+                f"(known: {', '.join(sorted(BY_NAME))})"
+            )
         spec = BY_NAME[name]
         value = given.get(name, spec.defaults.get(candidate.robot_type))
         if value is None:

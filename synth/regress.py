@@ -121,8 +121,9 @@ def _dump(obj: object) -> str:
     return json.dumps(obj, indent=2, ensure_ascii=False) + "\n"
 
 
-def run_suite(suite: str | Path, update: bool, out: TextIO, err: TextIO,
-              allow_scripts: bool = False) -> int:
+def run_suite(
+    suite: str | Path, update: bool, out: TextIO, err: TextIO, allow_scripts: bool = False
+) -> int:
     """Run a suite; 0 when all match (or updated), 1 with a diff when any changed."""
     path = Path(suite)
     opts, queries = load_suite(path)

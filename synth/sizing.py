@@ -209,8 +209,9 @@ class Family(ABC):
         """Snake modules in the analysed chain (others: unused)."""
         return modules
 
-    def holds(self, tmpl: Template, p: Mapping[str, float], catalog: Catalog
-              ) -> dict[str, tuple[float, float, str]]:
+    def holds(
+        self, tmpl: Template, p: Mapping[str, float], catalog: Catalog
+    ) -> dict[str, tuple[float, float, str]]:
         """A second operating point per joint beyond the RNEA load cases: (torque N m,
         speed rad/s it must keep under that torque, what it is). Default: none."""
         return {}
@@ -268,8 +269,11 @@ class Manipulators(Family):
         each, at the jaw's lever, while the gripper stands still."""
         g = catalog.design.gravity_m_s2
         squeeze = p.get("payload", 0.0) * g / (2 * GRIP_FRICTION)
-        return {j: (squeeze * JAW_LEVER, 0.0, "gripping the payload")
-                for j in _movable(tmpl) if j.endswith("gripper")}
+        return {
+            j: (squeeze * JAW_LEVER, 0.0, "gripping the payload")
+            for j in _movable(tmpl)
+            if j.endswith("gripper")
+        }
 
     def speeds(self, tmpl, p, sizing):
         reach = sum(tmpl.lengths[k] for k in tmpl.lengths if k != "L1")
@@ -420,16 +424,22 @@ class Wheeled(Family):
         r = sizing.wheel_radius
         for _ in range(50):  # the wheels' own mass depends on their radius: a fixed point
             mass = rest + n * wheel_mass(r)
-            new = self._radius([(self.traction(mass, p, catalog) / n, p["speed"]),
-                                (self.turning_drag(tmpl, mass, catalog),
-                                 TURN_SPEED_FRACTION * p["speed"])], p, catalog)
+            new = self._radius(
+                [
+                    (self.traction(mass, p, catalog) / n, p["speed"]),
+                    (self.turning_drag(tmpl, mass, catalog), TURN_SPEED_FRACTION * p["speed"]),
+                ],
+                p,
+                catalog,
+            )
             if abs(new - r) <= 1e-12:
                 break
             r = new
         return replace(sizing, wheel_radius=r)
 
-    def _radius(self, points: list[tuple[float, float]], p: Mapping[str, float],
-                catalog: Catalog) -> float:
+    def _radius(
+        self, points: list[tuple[float, float]], p: Mapping[str, float], catalog: Catalog
+    ) -> float:
         """The smallest printable wheel radius with which one servo meets every operating
         point (rim force N, ground speed m/s; speeds with SPEED_MARGIN)."""
         sf = catalog.design.torque_safety_factor

@@ -217,8 +217,9 @@ class Reasoner:
                 if cand is not None:
                     found[cand.robot_type] = replace(cand, preference=tuple(model.cost))
         order = sorted(found.values(), key=lambda c: (c.preference, c.robot_type))
-        return Solution(tuple(order), tuple(sorted(needed)), tuple(sorted(excluded)),
-                        satisfiable=bool(order))
+        return Solution(
+            tuple(order), tuple(sorted(needed)), tuple(sorted(excluded)), satisfiable=bool(order)
+        )
 
     @staticmethod
     def _read(symbols: Iterable[clingo.Symbol]) -> tuple[Candidate | None, set, set]:

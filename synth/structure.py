@@ -230,14 +230,18 @@ class StructureDesigner:
     ) -> None:
         template = template_for(candidate)
         if template is None:
-            raise InputError(f"{candidate.robot_type}: no kinematic template to size it "
-                             f"(templates: {', '.join(TEMPLATES)})")
+            raise InputError(
+                f"{candidate.robot_type}: no kinematic template to size it "
+                f"(templates: {', '.join(TEMPLATES)})"
+            )
         self.type = template  # the template (a class the robot type is, itself or above)
         self.candidate, self.catalog, self.symmetric = candidate, catalog, symmetric
         self.family: Family = FAMILIES[self.type]
-        shares = [n / d for gait, n, d in kb.translation.relation("liftedModuleShare")
-                  if gait in candidate.abilities and isinstance(n, int) and isinstance(d, int)
-                  and d > 0]
+        shares = [
+            n / d
+            for gait, n, d in kb.translation.relation("liftedModuleShare")
+            if gait in candidate.abilities and isinstance(n, int) and isinstance(d, int) and d > 0
+        ]
         self.lifted_share = max(shares, default=0.5)
         defaults = {
             "deflection": catalog.design.max_tip_deflection_m,
@@ -260,16 +264,23 @@ class StructureDesigner:
                 raise InputError(
                     f"{candidate.robot_type}: the conceptual design has "
                     f"{declared.get(cls, 0)} {cls} but the {self.type} template {joints} "
-                    "joints driven by one; the ontology and the template disagree")
+                    "joints driven by one; the ontology and the template disagree"
+                )
         self.objective = tuple(objective)
         self.assigner = ActuatorAssigner(
-            kb, catalog_facts(catalog), candidate.robot_type, self.slots, self.other_active,
-            objective
+            kb,
+            catalog_facts(catalog),
+            candidate.robot_type,
+            self.slots,
+            self.other_active,
+            objective,
         )
         for s in self.slots:
             if not self.assigner.serving.get(s.name):
-                raise InputError(f"{catalog.source}: no actuator of class {s.module_class} "
-                                 f"(or a class above it) for joint '{s.name}'")
+                raise InputError(
+                    f"{catalog.source}: no actuator of class {s.module_class} "
+                    f"(or a class above it) for joint '{s.name}'"
+                )
         self.by_model = {a.model: a for a in catalog.actuators}
 
     # -- fixed modules ------------------------------------------------------------------
@@ -329,8 +340,10 @@ class StructureDesigner:
         )
 
     def _requirements(self, tp: TemplateParams, sizing: Sizing) -> tuple[_Requirements, Template]:
-        analysis = build(self.type, replace(
-            tp, modules=self.family.analysis_modules(tp.modules, self.lifted_share)))
+        analysis = build(
+            self.type,
+            replace(tp, modules=self.family.analysis_modules(tp.modules, self.lifted_share)),
+        )
         cases: list[LoadCase] = self.family.load_cases(analysis, self.values, self.catalog)
         m = analysis.model
         torque: dict[str, float] = {}
@@ -361,8 +374,7 @@ class StructureDesigner:
             speeds.setdefault(s.name, group_speed[s.group])
         for s in self.slots:  # a joint beyond the analysed chain holds like its group
             if s.name not in holds:
-                same = [holds[o.name] for o in self.slots if o.group == s.group
-                        and o.name in holds]
+                same = [holds[o.name] for o in self.slots if o.group == s.group and o.name in holds]
                 if same:
                     holds[s.name] = max(same)
         return _Requirements(torque, case_of, speeds, loads, holds), analysis
@@ -376,7 +388,8 @@ class StructureDesigner:
             if s.name in req.holds:
                 points.append(req.holds[s.name][:2])
             out[s.name] = [
-                name for name in self.assigner.serving.get(s.name, ())
+                name
+                for name in self.assigner.serving.get(s.name, ())
                 if all(meets(self.by_model[name], t, w, self.catalog) for t, w in points)
             ]
         return out
@@ -498,8 +511,10 @@ class StructureDesigner:
                 break
             prev = vector
         else:
-            raise InfeasibleError(f"{self.candidate.robot_type}: the masses did not converge "
-                                  f"in {MAX_ITERATIONS} iterations")
+            raise InfeasibleError(
+                f"{self.candidate.robot_type}: the masses did not converge "
+                f"in {MAX_ITERATIONS} iterations"
+            )
         final = build(self.type, self._params(sizing, tubes, act_mass, self.modules))
         self.requirements = req  # the converged requirements, for enumerating alternatives
         self.converged = (sizing, tubes, act_mass)
@@ -507,8 +522,9 @@ class StructureDesigner:
 
     def _part_volume(self, t: Tube) -> float:
         p = self.catalog.passive
-        return link_part_volume(t.length, t.r_outer, t.r_inner, p.dovetail_face_m,
-                                p.face_thickness_m, p.fillet_radius_m)
+        return link_part_volume(
+            t.length, t.r_outer, t.r_inner, p.dovetail_face_m, p.face_thickness_m, p.fillet_radius_m
+        )
 
     def _no_actuator(self, req: _Requirements) -> InfeasibleError:
         """Why no assignment exists: the joint whose requirement no model meets (torque
@@ -523,23 +539,27 @@ class StructureDesigner:
             strong = [a for a in models if usable_torque(a, self.catalog) >= t]
             if not strong:
                 best = max(models, key=lambda a: a.stall_torque_Nm)
-                what = (f"joint '{s.name}' needs {t:.2f} N m but the strongest actuator "
-                        f"({best.model}) gives {usable_torque(best, self.catalog):.2f} N m "
-                        f"after the torque safety factor {sf}")
+                what = (
+                    f"joint '{s.name}' needs {t:.2f} N m but the strongest actuator "
+                    f"({best.model}) gives {usable_torque(best, self.catalog):.2f} N m "
+                    f"after the torque safety factor {sf}"
+                )
             else:
                 fast = max(strong, key=lambda a: speed_at(a, t))
-                what = (f"joint '{s.name}' needs {w:.2f} rad/s at {t:.2f} N m but the "
-                        f"fastest actuator strong enough ({fast.model}) turns at "
-                        f"{speed_at(fast, t):.2f} rad/s under that torque")
+                what = (
+                    f"joint '{s.name}' needs {w:.2f} rad/s at {t:.2f} N m but the "
+                    f"fastest actuator strong enough ({fast.model}) turns at "
+                    f"{speed_at(fast, t):.2f} rad/s under that torque"
+                )
             return InfeasibleError(f"{self.candidate.robot_type}: {what}")
         groups = sorted({s.group for s in self.slots if s.group})
         for g in groups:
-            common = set.intersection(*(set(capable[s.name]) for s in self.slots
-                                        if s.group == g))
+            common = set.intersection(*(set(capable[s.name]) for s in self.slots if s.group == g))
             if not common:
                 return InfeasibleError(
                     f"{self.candidate.robot_type}: the alike joints of group '{g}' have no "
-                    "actuator model in common; --no-symmetry lets them differ")
+                    "actuator model in common; --no-symmetry lets them differ"
+                )
         return InfeasibleError(f"{self.candidate.robot_type}: no actuator assignment")
 
     def _record(
@@ -656,8 +676,9 @@ class StructureDesigner:
             ModuleUse(k, m, len(addrs), tuple(addrs)) for (k, m), addrs in sorted(per_model.items())
         ]
         if address - 1 > 0x77:
-            raise InfeasibleError(f"{self.candidate.robot_type}: more I2C devices than the "
-                                  "7-bit addresses")
+            raise InfeasibleError(
+                f"{self.candidate.robot_type}: more I2C devices than the 7-bit addresses"
+            )
         return tuple(out), cost, peak, stall, by_joint
 
 
@@ -735,8 +756,6 @@ class Alternatives:
     exact: bool = True  # False: count is an upper bound (too many to check one by one)
 
 
-
-
 def count_assignments(
     slots: Sequence[JointSlot], capable: Mapping[str, Sequence[str]], symmetric: bool
 ) -> int:
@@ -784,8 +803,9 @@ class _TorqueModel:
     def _raw(self, sizing, tubes, act_mass):
         d = self.d
         tp = d._params(sizing, tubes, act_mass, d.modules)
-        analysis = build(d.type, replace(
-            tp, modules=d.family.analysis_modules(tp.modules, d.lifted_share)))
+        analysis = build(
+            d.type, replace(tp, modules=d.family.analysis_modules(tp.modules, d.lifted_share))
+        )
         m = analysis.model
         cases = d.family.load_cases(analysis, d.values, d.catalog)
         t = np.array([rnea(m, c.q, c.v, c.a, c.fext) for c in cases])
@@ -853,17 +873,27 @@ def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> A
         return (*(f(x) for f in order), x.models)
 
     if upper <= ENUMERATE_LIMIT:
-        every = sorted((alt(a) for a in designer.assigner.all(capable, designer.symmetric)
-                        if model.feasible(dict(a.models))), key=rank)
+        every = sorted(
+            (
+                alt(a)
+                for a in designer.assigner.all(capable, designer.symmetric)
+                if model.feasible(dict(a.models))
+            ),
+            key=rank,
+        )
         count, exact, ranked = len(every), True, tuple(every[:k])
     else:
         if pareto:
             raise InputError(
                 f"{designer.candidate.robot_type}: {upper} assignments are too many for "
                 f"--pareto (at most {ENUMERATE_LIMIT}); keep alike joints alike "
-                "(drop --no-symmetry)")
-        found = [alt(a) for a in designer.assigner.ranked(capable, designer.symmetric, 4 * k)
-                 if model.feasible(dict(a.models))]
+                "(drop --no-symmetry)"
+            )
+        found = [
+            alt(a)
+            for a in designer.assigner.ranked(capable, designer.symmetric, 4 * k)
+            if model.feasible(dict(a.models))
+        ]
         count, exact, ranked, every = upper, False, tuple(found[:k]), []
     front = None
     if pareto:

@@ -15,12 +15,15 @@ from export.model3d import PrintedPart
 
 
 def part(name: str, count: int, fits: bool = True) -> PrintedPart:
-    return PrintedPart(name, "link", b"solid", count, 1e-5, 1e-5, 0.0124, (0.1, 0.05, 0.05),
-                       fits, 600.0)
+    return PrintedPart(
+        name, "link", b"solid", count, 1e-5, 1e-5, 0.0124, (0.1, 0.05, 0.05), fits, 600.0
+    )
 
 
-MODULES = [{"kind": "PositionServomotor", "model": "SG90", "count": 3},
-           {"kind": "MainModule", "model": "IntelEdison", "count": 1}]
+MODULES = [
+    {"kind": "PositionServomotor", "model": "SG90", "count": 3},
+    {"kind": "MainModule", "model": "IntelEdison", "count": 1},
+]
 FIGURES = {"SG90": (5.0, 0.034), "IntelEdison": (62.4, 0.041)}
 
 
@@ -38,23 +41,35 @@ def test_bom_lists_modules_and_parts_with_totals() -> None:
 
 
 def test_bom_flags_a_part_too_big_for_the_bed() -> None:
-    rows = list(csv.reader(io.StringIO(bom_csv(MODULES, [part("plate", 1, fits=False)],
-                                               FIGURES))))
+    rows = list(csv.reader(io.StringIO(bom_csv(MODULES, [part("plate", 1, fits=False)], FIGURES))))
     assert rows[-2][8] == "NO" and rows[-1][8] == "NO"
 
 
 def record() -> dict:
     return {
-        "robot_type": "Arm|<x>", "request": {"abilities": ["grasping"]},
-        "abilities": ["grasping"], "mass_kg": 0.5, "cost": 10.0, "dof": 3,
-        "active_modules": 6, "module_limit": 24, "params": {"reach": 0.25},
-        "modules": [{"kind": "MainModule", "model": "IntelEdison", "count": 1,
-                     "i2c_addresses": []},
-                    {"kind": "PositionServomotor", "model": "SG90", "count": 1,
-                     "i2c_addresses": ["0x09"]}],
-        "joints": [{"name": "base_yaw", "module_class": "PositionServomotor",
-                    "actuator": "SG90", "i2c_address": "0x09", "required_torque_Nm": 0.05,
-                    "usable_torque_Nm": 0.12}],
+        "robot_type": "Arm|<x>",
+        "request": {"abilities": ["grasping"]},
+        "abilities": ["grasping"],
+        "mass_kg": 0.5,
+        "cost": 10.0,
+        "dof": 3,
+        "active_modules": 6,
+        "module_limit": 24,
+        "params": {"reach": 0.25},
+        "modules": [
+            {"kind": "MainModule", "model": "IntelEdison", "count": 1, "i2c_addresses": []},
+            {"kind": "PositionServomotor", "model": "SG90", "count": 1, "i2c_addresses": ["0x09"]},
+        ],
+        "joints": [
+            {
+                "name": "base_yaw",
+                "module_class": "PositionServomotor",
+                "actuator": "SG90",
+                "i2c_address": "0x09",
+                "required_torque_Nm": 0.05,
+                "usable_torque_Nm": 0.12,
+            }
+        ],
     }
 
 

@@ -62,8 +62,9 @@ def test_urdf_loads_and_passes_check_urdf(bundles, tmp_path) -> None:
         movable = [j for j in robot.robot.joints if j.type != "fixed"]
         assert len(movable) == len(rec["joints"])
         if tool:
-            r = subprocess.run([tool, str(folder / "robot.urdf")], capture_output=True,
-                               text=True, check=False)
+            r = subprocess.run(
+                [tool, str(folder / "robot.urdf")], capture_output=True, text=True, check=False
+            )
             assert r.returncode == 0, r.stdout + r.stderr
 
 
@@ -76,7 +77,8 @@ def test_mjcf_loads_in_mujoco_with_the_design_mass(bundles) -> None:
         stall = {j["name"]: j["actuator_torque_Nm"] for j in rec["joints"]}
         for k in range(model.nu):
             assert model.actuator_forcerange[k][1] == pytest.approx(
-                stall[model.joint(model.actuator_trnid[k][0]).name])
+                stall[model.joint(model.actuator_trnid[k][0]).name]
+            )
 
 
 def test_meshes_are_watertight_and_match_the_optimiser(bundles, catalog) -> None:
@@ -89,7 +91,7 @@ def test_meshes_are_watertight_and_match_the_optimiser(bundles, catalog) -> None
                 continue
             mesh = trimesh.load(io.BytesIO(data), file_type="stl")
             assert mesh.is_watertight and mesh.is_volume, (t, name)
-            stem = name[len("meshes/"):-len(".stl")]
+            stem = name[len("meshes/") : -len(".stl")]
             if stem in links:
                 assert mesh.volume == pytest.approx(links[stem]["part_volume_m3"], rel=0.01)
             fits = all(a <= b + 1e-9 for a, b in zip(sorted(mesh.extents), bed, strict=True))
@@ -97,8 +99,9 @@ def test_meshes_are_watertight_and_match_the_optimiser(bundles, catalog) -> None
 
 
 def test_bundle_is_byte_identical_for_identical_inputs(kb, designer, catalog) -> None:
-    cand = next(c for c in designer.reasoner.solve(Query()).candidates
-                if c.robot_type == "HexapodRobot")
+    cand = next(
+        c for c in designer.reasoner.solve(Query()).candidates if c.robot_type == "HexapodRobot"
+    )
     d = Design("designed", Request(), (cand,), cand, "only candidate")
     runs = []
     for _ in range(2):

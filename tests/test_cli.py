@@ -323,13 +323,27 @@ def test_out_writes_design_json(cli, tmp_path: Path) -> None:
     assert (out / "design.json").read_text(encoding="utf-8") == r.out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bundle"]  # no temp folders left
     assert sorted(p.name for p in out.iterdir()) == [
-        "README.md", "bom.csv", "design.json", "meshes", "robot.urdf", "robot.xml",
-        "trajectories"]
+        "README.md",
+        "bom.csv",
+        "design.json",
+        "meshes",
+        "robot.urdf",
+        "robot.xml",
+        "trajectories",
+    ]
     walks = sorted(p.name for p in (out / "trajectories").iterdir())
     assert walks == ["running.csv", "walking.csv"]
     assert all(p.suffix == ".stl" for p in (out / "meshes").iterdir())
-    r = cli("design", "walking", "--answer", "grasping=yes", "--json", "--conceptual", "--out",
-            str(tmp_path / "conceptual"))
+    r = cli(
+        "design",
+        "walking",
+        "--answer",
+        "grasping=yes",
+        "--json",
+        "--conceptual",
+        "--out",
+        str(tmp_path / "conceptual"),
+    )
     assert r.code == 0, r.err
     assert [p.name for p in (tmp_path / "conceptual").iterdir()] == ["design.json"]
 
@@ -565,8 +579,16 @@ def test_rules_file_mentioning_script_anywhere_is_refused(cli, tmp_path: Path) -
     rules.write_text("% #script (python) is not used here\n", encoding="utf-8")
     r = cli("design", "walking", "--answer", "grasping=yes", "--rules", str(rules))
     assert r.code == 2 and "comment.lp:1:3" in r.err
-    r = cli("design", "walking", "--answer", "grasping=yes", "--rules", str(rules),
-            "--allow-scripts", "--conceptual")
+    r = cli(
+        "design",
+        "walking",
+        "--answer",
+        "grasping=yes",
+        "--rules",
+        str(rules),
+        "--allow-scripts",
+        "--conceptual",
+    )
     assert r.code == 0, r.err
 
 

@@ -322,7 +322,7 @@ def test_suite_that_is_not_utf8(cli, tmp_path: Path) -> None:
 def test_a_suite_cannot_allow_scripts_itself(cli, tmp_path: Path) -> None:
     (tmp_path / "s.lp").write_text("#script (python)\ndef f():\n    return 1\n#end.\n")
     suite = tmp_path / "s.toml"
-    suite.write_text("allow_scripts = true\nrules = [\"s.lp\"]\n" + Q, encoding="utf-8")
+    suite.write_text('allow_scripts = true\nrules = ["s.lp"]\n' + Q, encoding="utf-8")
     r = cli("regress", str(suite), "--update")
     assert r.code == 2 and "unknown key 'allow_scripts'" in r.err
     suite.write_text('rules = ["s.lp"]\n' + Q, encoding="utf-8")
@@ -340,8 +340,9 @@ def test_script_hidden_after_a_percent_in_a_string_is_refused(cli, tmp_path: Pat
 def test_a_file_name_cannot_inject_rules(cli, tmp_path: Path) -> None:
     name = tmp_path / "x\n#script (lua) y = 1 #end.\n%.kif"
     name.write_text("(=> (instance ?R A) (exists (?p) (part ?p ?R)))\n", encoding="utf-8")
-    r = cli("design", "walking", "--answer", "grasping=yes", "--ontology", str(name),
-            "--conceptual")
+    r = cli(
+        "design", "walking", "--answer", "grasping=yes", "--ontology", str(name), "--conceptual"
+    )
     assert r.code == 0, r.err
 
 

@@ -16,8 +16,9 @@ def cart(tmp_path_factory) -> Path:
 
     folder = tmp_path_factory.mktemp("sim") / "cart"
     err = io.StringIO()
-    assert main(["design", "driving", "--out", str(folder)], out=io.StringIO(), err=err) == 0, \
+    assert main(["design", "driving", "--out", str(folder)], out=io.StringIO(), err=err) == 0, (
         err.getvalue()
+    )
     return folder
 
 
@@ -36,16 +37,21 @@ def test_simulate_lists_behaviours_and_plots(cli, cart) -> None:
     r = cli("simulate", str(cart), "--behavior", "driving", "--seconds", "1", "--plot")
     assert r.code == 0, r.err
     assert sorted(p.name for p in (cart / "plots").iterdir()) == [
-        "driving_joints.png", "driving_torques.png"]
+        "driving_joints.png",
+        "driving_torques.png",
+    ]
 
 
-@pytest.mark.parametrize(("argv", "message"), [
-    (["--behavior", "flying"], "no behaviour 'flying'"),
-    (["--behavior", "driving", "--set", "v"], "expected NAME=VALUE"),
-    (["--behavior", "driving", "--set", "speed=1"], "no parameter 'speed'"),
-    (["--behavior", "driving", "--set", "v=fast"], "expected a number"),
-    (["--behavior", "driving", "--seconds", "-1"], "--seconds"),
-])
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--behavior", "flying"], "no behaviour 'flying'"),
+        (["--behavior", "driving", "--set", "v"], "expected NAME=VALUE"),
+        (["--behavior", "driving", "--set", "speed=1"], "no parameter 'speed'"),
+        (["--behavior", "driving", "--set", "v=fast"], "expected a number"),
+        (["--behavior", "driving", "--seconds", "-1"], "--seconds"),
+    ],
+)
 def test_simulate_bad_input_exits_2(cli, cart, argv, message) -> None:
     r = cli("simulate", str(cart), *argv)
     assert r.code == 2 and message in r.err and "Traceback" not in r.err

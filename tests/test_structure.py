@@ -55,7 +55,8 @@ def test_every_base_configuration_designs_with_its_defaults(defaults, bases, cat
             assert link.r_outer_m <= catalog.passive.max_outer_radius_m + 1e-12
             assert link.r_outer_m - link.r_inner_m >= catalog.passive.min_wall_m - 1e-12
             assert link.mass_kg == pytest.approx(
-                link.part_volume_m3 * catalog.material.density_kg_m3)
+                link.part_volume_m3 * catalog.material.density_kg_m3
+            )
             assert link.part_volume_m3 > link.volume_m3  # the tube plus faces and fillets
         active = sum(m.count for m in s.modules)
         assert active == bases[t].active_total <= bases[t].module_limit == 24

@@ -166,7 +166,7 @@ def test_sumo_merge_translates_with_a_full_report() -> None:
     [
         ("(abilityName RobotWalking)", "bad.kif:2:1"),
         ("(parameterName objSize)", "bad.kif:2:1"),
-        ('(abilityName FooAct 3)', "bad.kif:2:1"),
+        ("(abilityName FooAct 3)", "bad.kif:2:1"),
         ('(structuralLimit SkidSteerRobot "payload")', "bad.kif:2:1"),
     ],
 )
