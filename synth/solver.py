@@ -71,6 +71,7 @@ class Candidate:
     declared: tuple[str, ...] = ()  # abilities its declared parts give (no growth, add-ons)
     ancestors: tuple[str, ...] = ()  # robot classes it is (itself included)
     preference: tuple[int, ...] = ()  # asp/preference.lp's cost of choosing it
+    needed: tuple[str, ...] = ()  # the abilities the query demands of it (KIF classes)
 
 
 @dataclass(frozen=True)
@@ -216,6 +217,8 @@ class Reasoner:
                 excluded |= excl
                 if cand is not None:
                     found[cand.robot_type] = replace(cand, preference=tuple(model.cost))
+        demanded = tuple(sorted(needed))
+        found = {t: replace(c, needed=demanded) for t, c in found.items()}
         order = sorted(found.values(), key=lambda c: (c.preference, c.robot_type))
         return Solution(
             tuple(order), tuple(sorted(needed)), tuple(sorted(excluded)), satisfiable=bool(order)

@@ -240,7 +240,10 @@ class StructureDesigner:
         shares = [
             n / d
             for gait, n, d in kb.translation.relation("liftedModuleShare")
-            if gait in candidate.abilities and isinstance(n, int) and isinstance(d, int) and d > 0
+            if gait in (candidate.needed or candidate.abilities)
+            and isinstance(n, int)
+            and isinstance(d, int)
+            and d > 0
         ]
         self.lifted_share = max(shares, default=0.5)
         defaults = {

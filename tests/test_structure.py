@@ -333,3 +333,14 @@ def test_every_counted_assignment_is_feasible_with_its_own_masses(kb, bases, cat
     alts = alternatives(sd, 50)
     assert alts.exact and alts.count == len(feasible) < len(superset)
     assert {x.models for x in alts.ranked} == {a.models for a in feasible}
+
+
+def test_every_snake_gait_designs_with_defaults(designer, kb, catalog) -> None:
+    """The lifted segment follows the gaits asked for (the ontology's liftedModuleShare),
+    so even the 14-module circular-path snake is buildable with the default catalog."""
+    from synth.conceptual import Request
+
+    for gait in ("rolling", "rectilinear", "sidewinding", "rotating", "circular-path"):
+        cand = designer.step(Request(abilities=(gait,))).chosen
+        s = design_structure(kb, cand, catalog, {})
+        assert len(s.joints) == cand.dof
