@@ -35,7 +35,7 @@ theorem). Alike parts share one printed design (one STL, counted once per use).
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -187,6 +187,27 @@ def _foot(b: _Builder, lp: LabelledPart) -> PartUse:
         s = p.foot_min_side_m
         d = b.design(("foot", s, t), "foot", "foot", lambda: meshes.foot_mesh(s, t), s * s * t)
     return b.printed(d, lp.placement)
+
+
+#: Radius (m) of the rounded contact of a leg's foot pad with the ground.
+FOOT_CONTACT_RADIUS = 0.01
+
+
+def _point_foot(uses: list[PartUse], sole: np.ndarray) -> list[PartUse]:
+    """A leg's foot touches the ground at one rounded point, the sole's centre: the pad and
+    the tube are seen but do not collide (a flat 5 cm pad twisted and tipped on the floor
+    would load the coxa and tibia servos with friction a rubber-tipped leg does not have)."""
+    out = [
+        replace(u, geometry=replace(u.geometry, contact=False)) if u.geometry else u for u in uses
+    ]
+    centre = transform((sole[0], sole[1], sole[2] + FOOT_CONTACT_RADIUS))
+    ball = Geometry(
+        "sphere", centre, (FOOT_CONTACT_RADIUS,), rgba=PRINTED_RGBA, name="foot_contact"
+    )
+    out.append(
+        PartUse("foot_contact", "contact", 0.0, centre[:3, 3].copy(), np.zeros((3, 3)), ball)
+    )
+    return out
 
 
 def _wheel(b: _Builder, lp: LabelledPart) -> PartUse:
@@ -369,6 +390,10 @@ def build_assembly(structure: Structure, catalog: Catalog) -> Assembly:
         uses: list[PartUse] = []
         for lp in tmpl.parts[body.name]:
             uses += _part_uses(b, lp, body.name, joint.axis, models, tmpl)
+        if body.name in tmpl.feet and not any(
+            lp.kind == "foot" and lp.dims for lp in tmpl.parts[body.name]
+        ):
+            uses = _point_foot(uses, tmpl.foot_points[tmpl.feet.index(body.name)])
         mass, com, inertia = combine_parts((u.mass, u.com, u.inertia) for u in uses)
         bodies.append(BodySpec(body.name, tuple(uses), mass, com, inertia))
 

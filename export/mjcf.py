@@ -230,6 +230,9 @@ def _geom(parent: ET.Element, g: Geometry, name: str, cls: str | None) -> None:
         raise ValueError(f"geometry {name!r}: kind {g.kind!r} with size {size} is not supported")
     _pose(el, g.origin)
     el.set("rgba", numbers(g.rgba))
+    if not g.contact:
+        el.set("contype", "0")
+        el.set("conaffinity", "0")
 
 
 def _body_content(el: ET.Element, body: BodySpec, cls: str | None, meshes: dict[str, str]) -> None:

@@ -29,6 +29,7 @@ class Geometry:
     mesh: str | None = None
     rgba: tuple[float, float, float, float] = (0.8, 0.8, 0.8, 1.0)
     name: str = ""
+    contact: bool = True  # False: seen, but never touches the ground in simulation
 
 
 @dataclass(frozen=True)
@@ -36,7 +37,7 @@ class PartUse:
     """One physical part on a body: a printed part or a catalog module."""
 
     name: str  # printed: the part design's name (its STL stem); module: the catalog model
-    source: str  # "printed" | "module" | "payload"
+    source: str  # "printed" | "module" | "payload" | "contact" (massless contact shape)
     mass: float  # kg
     com: np.ndarray  # (3,) in the body frame
     inertia: np.ndarray  # (3, 3) about com, body axes
