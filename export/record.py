@@ -219,6 +219,7 @@ def structure_text(s: Structure, indent: str = "  ") -> str:
         out.append(
             f"{indent}  joint {j.name:<18} {j.actuator:<8} needs {j.required_torque_Nm:6.3f} N m "
             f"(has {j.usable_torque_Nm:.3f}), {j.required_speed_rad_s:5.2f} rad/s"
+            + (f"; {j.hold_torque_Nm:.3f} N m {j.hold}" if j.hold else "")
         )
     for m in s.modules:
         addrs = ", ".join(f"0x{a:02x}" for a in m.i2c_addresses) or "bus master"
