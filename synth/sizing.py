@@ -222,10 +222,6 @@ class Family(ABC):
         """Sizing decisions that depend on the current masses (default: none)."""
         return sizing
 
-    def bounds(self, tmpl: Template, catalog: Catalog) -> dict[str, tuple[float, float]]:
-        """Length range (Lmin, Lmax) per length name for the link optimisation: fixed."""
-        return {n: (v, v) for n, v in tmpl.lengths.items()}
-
 
 class Manipulators(Family):
     """Manipulator3DOF / Manipulator6DOF: links from the reach; worst case stretched
