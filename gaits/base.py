@@ -23,6 +23,23 @@ import numpy as np
 from kinematics.templates import Template, TemplateParams, build
 
 
+def min_jerk(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Minimum-jerk profile ``s = 10 t^3 - 15 t^4 + 6 t^5`` on ``tau`` in [0, 1] (clipped)
+    and its first and second derivatives: s rises from 0 to 1 with s' and s'' zero at both
+    ends. Every behaviour's smooth segments use it."""
+    t = np.clip(np.asarray(tau, dtype=float), 0.0, 1.0)
+    s = t**3 * (10 - 15 * t + 6 * t * t)
+    ds = 30 * t * t * (1 - t) ** 2
+    dds = 60 * t * (1 - t) * (1 - 2 * t)
+    return s, ds, dds
+
+
+def min_jerk_integral(tau: np.ndarray) -> np.ndarray:
+    """The integral of the minimum-jerk profile from 0 to ``tau`` (clipped to [0, 1])."""
+    t = np.clip(np.asarray(tau, dtype=float), 0.0, 1.0)
+    return t**4 * (2.5 - 3 * t + t * t)
+
+
 @dataclass(frozen=True)
 class Trajectory:
     """Joint references over time for one behaviour.

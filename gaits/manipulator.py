@@ -73,7 +73,14 @@ from functools import lru_cache
 
 import numpy as np
 
-from gaits.base import BehaviorSpec, Controller, DesignGeometry, Parameter, Trajectory
+from gaits.base import (
+    BehaviorSpec,
+    Controller,
+    DesignGeometry,
+    Parameter,
+    Trajectory,
+    min_jerk,
+)
 from kinematics.dynamics import forward_kinematics, gravity_torques, jacobian, rnea
 from kinematics.model import Model
 from kinematics.spatial import matrix_from_rpy, rot_y, rot_z
@@ -130,17 +137,6 @@ _ARMS = {
 
 
 # --- profiles ------------------------------------------------------------------------------------
-
-
-def min_jerk(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Minimum-jerk profile ``s = 10 t^3 - 15 t^4 + 6 t^5`` and its first and second
-    derivatives with respect to ``tau`` in [0, 1] (s rises from 0 to 1; s' and s'' vanish at
-    both ends)."""
-    t = np.clip(np.asarray(tau, dtype=float), 0.0, 1.0)
-    s = t**3 * (10 - 15 * t + 6 * t * t)
-    ds = 30 * t * t * (1 - t) ** 2
-    dds = 60 * t * (1 - t) * (1 - 2 * t)
-    return s, ds, dds
 
 
 def _wrap(a: float) -> float:

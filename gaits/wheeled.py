@@ -29,7 +29,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gaits.base import BehaviorSpec, Controller, DesignGeometry, Parameter, Trajectory
+from gaits.base import (
+    BehaviorSpec,
+    Controller,
+    DesignGeometry,
+    Parameter,
+    Trajectory,
+    min_jerk,
+    min_jerk_integral,
+)
 from kinematics.templates import Template
 
 __all__ = [
@@ -122,17 +130,6 @@ def skid_steer_chi(wheel_base: float, track: float) -> float:
     if wheel_base < 0:
         raise ValueError(f"wheel base must be >= 0, got {wheel_base}")
     return 1.0 + (wheel_base / track) ** 2
-
-
-def min_jerk(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The minimum-jerk ramp on ``tau`` in [0, 1] (clipped): (s, ds/dtau, integral of s
-    from 0), with s = 10 tau^3 - 15 tau^4 + 6 tau^5 (zero velocity and acceleration at
-    both ends)."""
-    x = np.clip(np.asarray(tau, dtype=float), 0.0, 1.0)
-    s = x**3 * (10 - 15 * x + 6 * x**2)
-    ds = 30 * x**2 * (1 - x) ** 2
-    integral = x**4 * (2.5 - 3 * x + x**2)
-    return s, ds, integral
 
 
 def _check_geometry(radius: float, track: float) -> None:
@@ -335,7 +332,8 @@ class WheeledController(Controller):
             raise ValueError(f"ramp ({ramp} s) is longer than the drive ({seconds} s)")
         t = _grid(seconds)
         if ramp > 0:
-            s, _, integral = min_jerk(t / ramp)
+            s = min_jerk(t / ramp)[0]
+            integral = min_jerk_integral(t / ramp)
             dist = np.where(t < ramp, ramp * integral, ramp / 2 + (t - ramp))
         else:
             s, dist = np.ones_like(t), t

@@ -13,7 +13,7 @@ from adron.catalog import load_catalog
 from export.bundle import bundle_files, write_bundle
 from export.record import design_record
 from export.simulate import load_bundle_model, simulate
-from gaits.base import DesignGeometry
+from gaits.base import DesignGeometry, min_jerk_integral
 from gaits.wheeled import (
     DriveGeometry,
     WheeledController,
@@ -98,7 +98,8 @@ def test_skid_steer_chi() -> None:
 
 def test_min_jerk_ramp() -> None:
     tau = np.linspace(0, 1, 2001)
-    s, ds, integral = min_jerk(tau)
+    s, ds, _ = min_jerk(tau)
+    integral = min_jerk_integral(tau)
     assert (s[0], s[-1], ds[0], ds[-1]) == (0, 1, 0, 0)
     assert np.all(np.diff(s) >= 0)
     assert np.allclose(np.gradient(s, tau), ds, atol=1e-5)

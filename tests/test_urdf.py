@@ -293,13 +293,8 @@ def real_assemblies(kb, designer) -> dict[str, Assembly]:
 
     Skips while that module is missing (it is written concurrently); fails under CI=true.
     """
-    try:
-        from export.assembly import build_assembly
-    except ImportError as e:
-        if os.environ.get("CI") == "true":
-            pytest.fail(f"export.assembly is missing: {e}")
-        pytest.skip(f"export.assembly is not available yet: {e}")
     from adron.catalog import load_catalog
+    from export.assembly import build_assembly
     from synth.solver import Query
     from synth.structure import design_structure
 
