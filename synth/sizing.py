@@ -5,7 +5,9 @@ Each family turns the resolved parameters (SI, see ``synth.params``) into
 1. the template's named lengths and the extra template inputs (wheel radius, M), and
 2. load cases: configurations, velocities, accelerations and external forces whose RNEA
    torques and joint wrenches bound what the actuators and links must carry, plus the
-   joint speeds the behaviours need.
+   joint speeds the behaviours need. These hand-made cases are joined by the design's
+   own behaviours (``Family.behaviour_cases``: inverse dynamics with contact forces along
+   every trajectory it will run, ``synth.behaviour_loads``).
 
 Constants below are documented design choices, not knowledge about robot types (which
 lives in the ontology) nor module data (which lives in the catalog).
@@ -17,6 +19,7 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,6 +27,10 @@ from adron.catalog import Catalog
 from adron.errors import InfeasibleError
 from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics
 from kinematics.templates import Template, build, default_lengths
+
+if TYPE_CHECKING:  # gaits is imported lazily, when a structure is sized
+    from gaits.base import DesignGeometry
+    from synth.behaviour_loads import BehaviourCase
 
 #: Lift of a foot above an obstacle, m; and clearance between neighbouring legs' reach, m.
 STEP_MARGIN = 0.01
@@ -221,6 +228,18 @@ class Family(ABC):
     ) -> Sizing:
         """Sizing decisions that depend on the current masses (default: none)."""
         return sizing
+
+    def behaviour_cases(
+        self, tmpl: Template, geometry: DesignGeometry
+    ) -> tuple[list[BehaviourCase], tuple[str, ...]]:
+        """Load cases from the behaviours the design will run (``geometry``: the design as
+        its controllers see it) on the analysis template ``tmpl`` with its masses, and
+        notes on behaviours left out; default: every behaviour of the design's abilities,
+        inverse dynamics with contact forces (``synth.behaviour_loads``)."""
+        from synth.behaviour_loads import behaviour_case, motions_for
+
+        motions, notes = motions_for(geometry, tmpl)
+        return [behaviour_case(tmpl, m) for m in motions], notes
 
 
 class Manipulators(Family):

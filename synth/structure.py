@@ -39,6 +39,7 @@ from kinematics.templates import (
     TemplateParams,
     build,
 )
+from synth.behaviour_loads import BehaviourCase, analyse
 from synth.links import (
     Tube,
     TubeLimits,
@@ -200,6 +201,62 @@ def free_end_load(seg: Segment, wrench: np.ndarray) -> np.ndarray:
     return -np.concatenate([R.T @ f, R.T @ m_end])
 
 
+def operating_points(torque: np.ndarray, speed: np.ndarray) -> list[tuple[float, float]]:
+    """The (|torque| N m, |speed| rad/s) samples of a joint that can bind a servo whose
+    speed falls linearly with torque: the upper hull of the samples (see ``upper_hull``)."""
+    t, w = np.abs(np.asarray(torque, float)), np.abs(np.asarray(speed, float))
+    return [(float(t[i]), float(w[i])) for i in hull_indices(t, w)]
+
+
+def hull_indices(torque: np.ndarray, speed: np.ndarray) -> list[int]:
+    """Indices of the samples (torque, speed >= 0) on their upper hull (``upper_hull``)."""
+    order = np.lexsort((-speed, -torque))  # by torque, then speed, both descending
+    best = np.maximum.accumulate(speed[order])
+    keep = np.concatenate([[True], speed[order][1:] > best[:-1]])
+    front = order[keep][::-1]  # the Pareto front: torque ascending, speed descending
+    hull: list[int] = []
+    for i in front.tolist():
+        while len(hull) >= 2:
+            a, b = hull[-2], hull[-1]
+            cross = (torque[b] - torque[a]) * (speed[i] - speed[a]) - (speed[b] - speed[a]) * (
+                torque[i] - torque[a]
+            )
+            if cross >= 0:
+                hull.pop()  # b lies on or under the segment a -> i
+            else:
+                break
+        hull.append(i)
+    return hull
+
+
+def upper_hull(points: Sequence[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The points (torque, speed) that a servo line ``w <= w0 (1 - t / ts)`` can be bound
+    by: the vertices of the points' convex hull facing larger torque and speed (any
+    other point lies under a segment between two of them, or under and left of one, so
+    meeting these meets all)."""
+    pts = sorted({(float(t), float(w)) for t, w in points})
+    if not pts:
+        return []
+    t = np.array([p[0] for p in pts])
+    w = np.array([p[1] for p in pts])
+    return [pts[i] for i in hull_indices(t, w)]
+
+
+def governing_loads(seg: Segment, wrenches: np.ndarray) -> list[np.ndarray]:
+    """Of a behaviour's samples, the free-end loads (tube frame) that govern tube ``seg``:
+    those with the largest bending force, bending moment, compression, twist and
+    equivalent tip force (``wrenches`` (B, 6) as ``free_end_load`` takes them)."""
+    f, m = wrenches[:, :3], wrenches[:, 3:]
+    end = seg.start + seg.length * seg.direction
+    m_end = m - np.cross(end, f)
+    R = _frame(seg.direction)
+    load = -np.concatenate([f @ R, m_end @ R], axis=1)
+    f_perp = np.hypot(load[:, 1], load[:, 2])
+    m_perp = np.hypot(load[:, 4], load[:, 5])
+    measures = (f_perp, m_perp, -load[:, 0], np.abs(load[:, 3]), f_perp + 1.5 * m_perp / seg.length)
+    return [load[i] for i in sorted({int(np.argmax(x)) for x in measures})]
+
+
 def _equivalent_force(load: np.ndarray, length: float) -> float:
     """Tip force that bends a cantilever as much as this free-end force and moment."""
     f_perp = math.hypot(load[1], load[2])
@@ -214,6 +271,9 @@ class _Requirements:
     speed: dict[str, float]
     loads: dict[str, list[np.ndarray]]  # length name -> free-end loads (tube frame)
     holds: dict[str, tuple[float, float, str]]  # joint -> second point (N m, rad/s, what)
+    # joint -> the (N m, rad/s) points its actuator must reach: the hand cases' torque at
+    # the family's speed, and the behaviours' (upper hull of their samples)
+    points: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
 
 
 class StructureDesigner:
@@ -285,6 +345,12 @@ class StructureDesigner:
                     f"(or a class above it) for joint '{s.name}'"
                 )
         self.by_model = {a.model: a for a in catalog.actuators}
+        self.abilities = tuple(
+            sorted((a.name if (a := kb.ability_of_kif(k)) else k) for k in candidate.abilities)
+        )
+        #: the actuator no-load speeds (joint -> rad/s) the behaviours are planned with
+        self.speed_sets: list[dict[str, float]] = []
+        self.behaviour_notes: tuple[str, ...] = ()
 
     # -- fixed modules ------------------------------------------------------------------
     def _fixed_modules(self) -> list[tuple[str, str, int, float, float, float]]:
@@ -342,12 +408,53 @@ class StructureDesigner:
             fillet=p.fillet_radius_m,
         )
 
-    def _requirements(self, tp: TemplateParams, sizing: Sizing) -> tuple[_Requirements, Template]:
+    def _geometry(self, tmpl: Template, sizing: Sizing, speeds: Mapping[str, float]):
+        """The gaits' view of the design as its record will give it (``design.json``)."""
+        from synth.behaviour_loads import design_geometry
+
+        return design_geometry(
+            self.candidate.robot_type,
+            self.type,
+            tmpl.lengths,
+            self.modules,
+            sizing.wheel_radius if tmpl.wheels else None,
+            self.values,
+            self.abilities,
+            speeds,
+        )
+
+    def _behaviour_cases(
+        self, analysis: Template, sizing: Sizing, speed_sets: Sequence[Mapping[str, float]]
+    ) -> list[BehaviourCase]:
+        """The behaviours' load cases, for the trajectories planned with each set of
+        actuator no-load speeds (joint -> rad/s) in ``speed_sets``."""
+        cases: list[BehaviourCase] = []
+        notes: list[str] = []
+        for speeds in speed_sets:
+            got, why = self.family.behaviour_cases(
+                analysis, self._geometry(analysis, sizing, speeds)
+            )
+            cases += got
+            notes += [n for n in why if n not in notes]
+        self.behaviour_notes = tuple(notes)
+        return cases
+
+    def _requirements(
+        self,
+        tp: TemplateParams,
+        sizing: Sizing,
+        speed_sets: Sequence[Mapping[str, float]] | None = None,
+    ) -> tuple[_Requirements, Template]:
+        """Torques, speeds, operating points and link loads of the hand load cases and of
+        the behaviours planned with ``speed_sets`` (default: those the last ``run``
+        converged with; none before it)."""
         analysis = build(
             self.type,
             replace(tp, modules=self.family.analysis_modules(tp.modules, self.lifted_share)),
         )
         cases: list[LoadCase] = self.family.load_cases(analysis, self.values, self.catalog)
+        if speed_sets is None:
+            speed_sets = self.speed_sets
         m = analysis.model
         torque: dict[str, float] = {}
         case_of: dict[str, str] = {}
@@ -364,30 +471,63 @@ class StructureDesigner:
                 loads.setdefault(seg.length_name or seg.name, []).append(load)
         holds = self.family.holds(analysis, self.values, self.catalog)
         speeds = self.family.speeds(analysis, self.values, sizing)
+        hand = dict(torque)
+        behaviour_points: dict[str, list[tuple[float, float]]] = {}
+        for bc in self._behaviour_cases(analysis, sizing, speed_sets):
+            tau_b, W = analyse(analysis, bc)
+            tau_b = np.abs(tau_b)
+            for k, name in enumerate(m.q_names):
+                i = int(np.argmax(tau_b[:, k]))
+                if tau_b[i, k] > torque.get(name, -1.0):
+                    torque[name], case_of[name] = float(tau_b[i, k]), bc.label(i)
+                speeds[name] = max(speeds.get(name, 0.0), float(bc.peak_speed[k]))
+                behaviour_points.setdefault(name, []).extend(
+                    operating_points(tau_b[:, k], bc.v[:, k])
+                )
+            for seg in analysis.segments:
+                loads.setdefault(seg.length_name or seg.name, []).extend(
+                    governing_loads(seg, W[:, m.body(seg.body)])
+                )
         # joints beyond the analysed chain (a snake's) take their group's requirement
         group_torque: dict[str, float] = {}
         group_case: dict[str, str] = {}
+        group_hand: dict[str, float] = {}
+        group_points: dict[str, list[tuple[float, float]]] = {}
         for s in self.slots:
             if s.name in torque and torque[s.name] >= group_torque.get(s.group, -1.0):
                 group_torque[s.group], group_case[s.group] = torque[s.name], case_of[s.name]
+            if s.name in hand:
+                group_hand[s.group] = max(group_hand.get(s.group, 0.0), hand[s.name])
+            group_points.setdefault(s.group, []).extend(behaviour_points.get(s.name, []))
         group_speed = {s.group: speeds[s.name] for s in self.slots if s.name in speeds}
         for s in self.slots:
             if s.name not in torque:
                 torque[s.name], case_of[s.name] = group_torque[s.group], group_case[s.group]
+                hand[s.name] = group_hand[s.group]
+                behaviour_points[s.name] = group_points.get(s.group, [])
             speeds.setdefault(s.name, group_speed[s.group])
         for s in self.slots:  # a joint beyond the analysed chain holds like its group
             if s.name not in holds:
                 same = [holds[o.name] for o in self.slots if o.group == s.group and o.name in holds]
                 if same:
                     holds[s.name] = max(same)
-        return _Requirements(torque, case_of, speeds, loads, holds), analysis
+        hand_speed = self.family.speeds(analysis, self.values, sizing)
+        points = {
+            s.name: upper_hull(
+                [(hand[s.name], hand_speed.get(s.name, speeds[s.name]))]
+                + behaviour_points.get(s.name, [])
+            )
+            for s in self.slots
+        }
+        return _Requirements(torque, case_of, speeds, loads, holds, points), analysis
 
     def capable(self, req: _Requirements) -> dict[str, list[str]]:
-        """Per joint, the serving models that meet its operating points: the dynamic one
-        (largest torque at the required speed) and its hold (torque at its speed)."""
+        """Per joint, the serving models that meet its operating points: the hand cases'
+        (their largest torque at the family's speed), the behaviours' (``req.points``) and
+        its hold (torque at its speed)."""
         out = {}
         for s in self.slots:
-            points = [(req.torque[s.name], req.speed[s.name])]
+            points = list(req.points.get(s.name) or [(req.torque[s.name], req.speed[s.name])])
             if s.name in req.holds:
                 points.append(req.holds[s.name][:2])
             out[s.name] = [
@@ -476,6 +616,13 @@ class StructureDesigner:
         }
         prev: np.ndarray | None = None
         iterations = 0
+        # the behaviours are planned with the chosen actuators' speeds: none on the first
+        # pass (no actuator yet), then those of the last assignment; a set of speeds seen
+        # before (the choice cycles) keeps every set since in the analysis (a superset of
+        # the loads: the requirements then only grow, so the loop settles)
+        speed_sets: list[dict[str, float]] = []
+        seen: list[dict[str, float]] = []
+        cycling = False
         for iterations in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (used after the loop)
             sizing = self.family.update(
                 sizing,
@@ -484,7 +631,7 @@ class StructureDesigner:
                 cat,
             )
             tp = self._params(sizing, tubes, act_mass, self.modules)
-            req, analysis = self._requirements(tp, sizing)
+            req, analysis = self._requirements(tp, sizing, speed_sets)
             assignment = self.assigner.best(self.capable(req), self.symmetric)
             if assignment is None:
                 raise self._no_actuator(req)
@@ -510,9 +657,22 @@ class StructureDesigner:
                     *(sized[n][0].volume for n in sorted(sized)),
                 ]
             )
-            if prev is not None and np.all(np.abs(vector - prev) <= CONVERGENCE * np.abs(prev)):
+            speeds = {
+                joint: self.by_model[model].no_load_speed_rad_s
+                for joint, model in sorted(assignment.models)
+            }
+            planned = bool(speed_sets) and speeds in speed_sets
+            if (
+                planned
+                and prev is not None
+                and np.all(np.abs(vector - prev) <= CONVERGENCE * np.abs(prev))
+            ):
                 break
             prev = vector
+            if not planned:
+                cycling = cycling or speeds in seen
+                speed_sets = [*speed_sets, speeds] if cycling else [speeds]
+                seen.append(speeds)
         else:
             raise InfeasibleError(
                 f"{self.candidate.robot_type}: the masses did not converge "
@@ -521,6 +681,8 @@ class StructureDesigner:
         final = build(self.type, self._params(sizing, tubes, act_mass, self.modules))
         self.requirements = req  # the converged requirements, for enumerating alternatives
         self.converged = (sizing, tubes, act_mass)
+        self.analysis = analysis
+        self.speed_sets = speed_sets
         return self._record(final, sizing, req, assignment, sized, iterations)
 
     def _part_volume(self, t: Tube) -> float:
@@ -538,21 +700,25 @@ class StructureDesigner:
             if capable[s.name]:
                 continue
             models = [self.by_model[m] for m in self.assigner.serving[s.name]]
-            t, w = req.torque[s.name], req.speed[s.name]
+            t = req.torque[s.name]
             strong = [a for a in models if usable_torque(a, self.catalog) >= t]
             if not strong:
                 best = max(models, key=lambda a: a.stall_torque_Nm)
                 what = (
-                    f"joint '{s.name}' needs {t:.2f} N m but the strongest actuator "
-                    f"({best.model}) gives {usable_torque(best, self.catalog):.2f} N m "
-                    f"after the torque safety factor {sf}"
+                    f"joint '{s.name}' needs {t:.2f} N m ({req.case[s.name]}) but the "
+                    f"strongest actuator ({best.model}) gives "
+                    f"{usable_torque(best, self.catalog):.2f} N m after the torque safety "
+                    f"factor {sf}"
                 )
             else:
-                fast = max(strong, key=lambda a: speed_at(a, t))
+                points = req.points.get(s.name) or [(t, req.speed[s.name])]
+                # the operating point that the fastest strong actuator misses by most
+                fast = max(strong, key=lambda a: min(speed_at(a, pt) - pw for pt, pw in points))
+                pt, pw = min(points, key=lambda p: speed_at(fast, p[0]) - p[1])
                 what = (
-                    f"joint '{s.name}' needs {w:.2f} rad/s at {t:.2f} N m but the "
+                    f"joint '{s.name}' needs {pw:.2f} rad/s at {pt:.2f} N m but the "
                     f"fastest actuator strong enough ({fast.model}) turns at "
-                    f"{speed_at(fast, t):.2f} rad/s under that torque"
+                    f"{speed_at(fast, pt):.2f} rad/s under that torque"
                 )
             return InfeasibleError(f"{self.candidate.robot_type}: {what}")
         groups = sorted({s.group for s in self.slots if s.group})
@@ -642,7 +808,7 @@ class StructureDesigner:
             metrics,
             iterations,
             tmpl,
-            tuple(sizing.notes),
+            (*sizing.notes, *self.behaviour_notes),
         )
 
     def _modules(
@@ -797,13 +963,20 @@ class _TorqueModel:
         self.d = designer
         sizing, tubes, act_mass = designer.converged
         self.base = dict(act_mass)
-        self.names, self.t0 = self._raw(sizing, tubes, self.base)
-        self.sens = {}
+        self.names, self.t0, self.b0, self.w = self._raw(sizing, tubes, self.base)
+        self.sens, self.bsens = {}, {}
         for g, m in sorted(self.base.items()):
-            _, t = self._raw(sizing, tubes, {**self.base, g: m + MASS_STEP})
+            _, t, b, _ = self._raw(sizing, tubes, {**self.base, g: m + MASS_STEP})
             self.sens[g] = (t - self.t0) / MASS_STEP
+            self.bsens[g] = (b - self.b0) / MASS_STEP
+        # per joint, the behaviour samples that bind at the converged masses
+        self.rows = [
+            hull_indices(np.abs(self.b0[:, k]), self.w[:, k]) for k in range(len(self.names))
+        ]
 
     def _raw(self, sizing, tubes, act_mass):
+        """Joint names; torques (hand cases, nv) and (behaviour samples, nv); the
+        behaviour samples' |speeds| (rad/s)."""
         d = self.d
         tp = d._params(sizing, tubes, act_mass, d.modules)
         analysis = build(
@@ -812,36 +985,65 @@ class _TorqueModel:
         m = analysis.model
         cases = d.family.load_cases(analysis, d.values, d.catalog)
         t = np.array([rnea(m, c.q, c.v, c.a, c.fext) for c in cases])
+        b = [np.zeros((0, m.nv))]
+        w = [np.zeros((0, m.nv))]
+        for bc in d._behaviour_cases(analysis, sizing, d.speed_sets):
+            b.append(analyse(analysis, bc)[0])
+            w.append(np.abs(bc.v))
         names = [j.name for j in m.joints if m.q_index[m.joint(j.name)] >= 0]
-        return names, t
+        return names, t, np.concatenate(b), np.concatenate(w)
+
+    def _group_masses(self, models: Mapping[str, str]) -> dict[str, float]:
+        group_mass: dict[str, float] = {}
+        for s in self.d.slots:
+            mass = self.d.by_model[models[s.name]].mass_kg
+            group_mass[s.group] = max(group_mass.get(s.group, 0.0), mass)
+        return group_mass
+
+    def _by_joint(
+        self, points: Mapping[str, list[tuple[float, float]]]
+    ) -> dict[str, list[tuple[float, float]]]:
+        """Per slot: its own points, or (beyond the analysed chain) its group's."""
+        group: dict[str, list[tuple[float, float]]] = {}
+        for s in self.d.slots:
+            group.setdefault(s.group, []).extend(points.get(s.name, []))
+        return {s.name: points.get(s.name, group.get(s.group, [])) for s in self.d.slots}
 
     def torques(self, models: Mapping[str, str]) -> dict[str, float]:
         """Required torque per joint (N m) with these actuator models."""
-        d = self.d
-        group_mass: dict[str, float] = {}
-        for s in d.slots:
-            mass = d.by_model[models[s.name]].mass_kg
-            group_mass[s.group] = max(group_mass.get(s.group, 0.0), mass)
-        t = self.t0.copy()
-        for g, mass in group_mass.items():
-            t += (mass - self.base[g]) * self.sens[g]
-        need = np.abs(t).max(axis=0)
+        t, b = self._tau(models)
+        need = np.abs(np.concatenate([t, b])).max(axis=0)
         out = {n: float(need[k]) for k, n in enumerate(self.names)}
         by_group: dict[str, float] = {}
-        for s in d.slots:
+        for s in self.d.slots:
             if s.name in out:
                 by_group[s.group] = max(by_group.get(s.group, 0.0), out[s.name])
-        return {s.name: out.get(s.name, by_group.get(s.group, 0.0)) for s in d.slots}
+        return {s.name: out.get(s.name, by_group.get(s.group, 0.0)) for s in self.d.slots}
+
+    def _tau(self, models: Mapping[str, str]) -> tuple[np.ndarray, np.ndarray]:
+        t, b = self.t0.copy(), self.b0.copy()
+        for g, mass in self._group_masses(models).items():
+            t += (mass - self.base[g]) * self.sens[g]
+            b += (mass - self.base[g]) * self.bsens[g]
+        return t, b
 
     def feasible(self, models: Mapping[str, str]) -> bool:
         d = self.d
-        need = self.torques(models)
+        t, b = self._tau(models)
+        hand_speed = d.family.speeds(d.analysis, d.values, d.converged[0])
+        points: dict[str, list[tuple[float, float]]] = {}
+        for k, n in enumerate(self.names):
+            hand = float(np.abs(t[:, k]).max()) if len(t) else 0.0
+            pts = [(hand * (1 - 1e-12), hand_speed.get(n, d.requirements.speed[n]))]
+            pts += [(abs(float(b[i, k])) * (1 - 1e-12), float(self.w[i, k])) for i in self.rows[k]]
+            points[n] = pts
+        per_joint = self._by_joint(points)
         for s in d.slots:
             a = d.by_model[models[s.name]]
-            points = [(need[s.name] * (1 - 1e-12), d.requirements.speed[s.name])]
+            pts = list(per_joint[s.name])
             if s.name in d.requirements.holds:
-                points.append(d.requirements.holds[s.name][:2])
-            if not all(meets(a, t, w, d.catalog) for t, w in points):
+                pts.append(d.requirements.holds[s.name][:2])
+            if not all(meets(a, tt, w, d.catalog) for tt, w in pts):
                 return False
         return True
 
