@@ -242,19 +242,23 @@ def upper_hull(points: Sequence[tuple[float, float]]) -> list[tuple[float, float
     return [pts[i] for i in hull_indices(t, w)]
 
 
-def governing_loads(seg: Segment, wrenches: np.ndarray) -> list[np.ndarray]:
-    """Of a behaviour's samples, the free-end loads (tube frame) that govern tube ``seg``:
-    those with the largest bending force, bending moment, compression, twist and
-    equivalent tip force (``wrenches`` (B, 6) as ``free_end_load`` takes them)."""
+def free_end_loads(seg: Segment, wrenches: np.ndarray) -> np.ndarray:
+    """``free_end_load`` of many samples: (B, 6) tube-frame loads from (B, 6) wrenches."""
     f, m = wrenches[:, :3], wrenches[:, 3:]
-    end = seg.start + seg.length * seg.direction
-    m_end = m - np.cross(end, f)
+    m_end = m - np.cross(seg.start + seg.length * seg.direction, f)
     R = _frame(seg.direction)
-    load = -np.concatenate([f @ R, m_end @ R], axis=1)
-    f_perp = np.hypot(load[:, 1], load[:, 2])
-    m_perp = np.hypot(load[:, 4], load[:, 5])
-    measures = (f_perp, m_perp, -load[:, 0], np.abs(load[:, 3]), f_perp + 1.5 * m_perp / seg.length)
-    return [load[i] for i in sorted({int(np.argmax(x)) for x in measures})]
+    return -np.concatenate([f @ R, m_end @ R], axis=1)
+
+
+def governing_loads(loads: np.ndarray, name: str, tmpl: Template) -> list[np.ndarray]:
+    """Of the free-end loads (B, 6) of the tubes ``name`` over the behaviours' samples,
+    those that govern them: the largest bending force, bending moment, compression, twist
+    and equivalent tip force."""
+    length = _segment_length(tmpl, name)
+    f_perp = np.hypot(loads[:, 1], loads[:, 2])
+    m_perp = np.hypot(loads[:, 4], loads[:, 5])
+    measures = (f_perp, m_perp, -loads[:, 0], np.abs(loads[:, 3]), f_perp + 1.5 * m_perp / length)
+    return [loads[i] for i in sorted({int(np.argmax(x)) for x in measures})]
 
 
 def _equivalent_force(load: np.ndarray, length: float) -> float:
@@ -348,8 +352,8 @@ class StructureDesigner:
         self.abilities = tuple(
             sorted((a.name if (a := kb.ability_of_kif(k)) else k) for k in candidate.abilities)
         )
-        #: the actuator no-load speeds (joint -> rad/s) the behaviours are planned with
-        self.speed_sets: list[dict[str, float]] = []
+        #: the actuators (joint -> model) the behaviours are planned with (their speeds)
+        self.actuator_sets: list[dict[str, str]] = []
         self.behaviour_notes: tuple[str, ...] = ()
 
     # -- fixed modules ------------------------------------------------------------------
@@ -424,13 +428,14 @@ class StructureDesigner:
         )
 
     def _behaviour_cases(
-        self, analysis: Template, sizing: Sizing, speed_sets: Sequence[Mapping[str, float]]
+        self, analysis: Template, sizing: Sizing, actuator_sets: Sequence[Mapping[str, str]]
     ) -> list[BehaviourCase]:
-        """The behaviours' load cases, for the trajectories planned with each set of
-        actuator no-load speeds (joint -> rad/s) in ``speed_sets``."""
+        """The behaviours' load cases, planned with each assignment (joint -> actuator
+        model) of ``actuator_sets`` (its no-load speeds pace the trajectories)."""
         cases: list[BehaviourCase] = []
         notes: list[str] = []
-        for speeds in speed_sets:
+        for models in actuator_sets:
+            speeds = {j: self.by_model[a].no_load_speed_rad_s for j, a in models.items()}
             got, why = self.family.behaviour_cases(
                 analysis, self._geometry(analysis, sizing, speeds)
             )
@@ -443,18 +448,18 @@ class StructureDesigner:
         self,
         tp: TemplateParams,
         sizing: Sizing,
-        speed_sets: Sequence[Mapping[str, float]] | None = None,
+        actuator_sets: Sequence[Mapping[str, str]] | None = None,
     ) -> tuple[_Requirements, Template]:
         """Torques, speeds, operating points and link loads of the hand load cases and of
-        the behaviours planned with ``speed_sets`` (default: those the last ``run``
+        the behaviours planned with ``actuator_sets`` (default: those the last ``run``
         converged with; none before it)."""
         analysis = build(
             self.type,
             replace(tp, modules=self.family.analysis_modules(tp.modules, self.lifted_share)),
         )
         cases: list[LoadCase] = self.family.load_cases(analysis, self.values, self.catalog)
-        if speed_sets is None:
-            speed_sets = self.speed_sets
+        if actuator_sets is None:
+            actuator_sets = self.actuator_sets
         m = analysis.model
         torque: dict[str, float] = {}
         case_of: dict[str, str] = {}
@@ -473,7 +478,8 @@ class StructureDesigner:
         speeds = self.family.speeds(analysis, self.values, sizing)
         hand = dict(torque)
         behaviour_points: dict[str, list[tuple[float, float]]] = {}
-        for bc in self._behaviour_cases(analysis, sizing, speed_sets):
+        tube_loads: dict[str, list[np.ndarray]] = {}  # length name -> (B, 6) free-end loads
+        for bc in self._behaviour_cases(analysis, sizing, actuator_sets):
             tau_b, W = analyse(analysis, bc)
             tau_b = np.abs(tau_b)
             for k, name in enumerate(m.q_names):
@@ -485,9 +491,10 @@ class StructureDesigner:
                     operating_points(tau_b[:, k], bc.v[:, k])
                 )
             for seg in analysis.segments:
-                loads.setdefault(seg.length_name or seg.name, []).extend(
-                    governing_loads(seg, W[:, m.body(seg.body)])
-                )
+                name = seg.length_name or seg.name
+                tube_loads.setdefault(name, []).append(free_end_loads(seg, W[:, m.body(seg.body)]))
+        for name, got in tube_loads.items():  # the governing samples of every tube alike
+            loads.setdefault(name, []).extend(governing_loads(np.concatenate(got), name, analysis))
         # joints beyond the analysed chain (a snake's) take their group's requirement
         group_torque: dict[str, float] = {}
         group_case: dict[str, str] = {}
@@ -616,12 +623,12 @@ class StructureDesigner:
         }
         prev: np.ndarray | None = None
         iterations = 0
-        # the behaviours are planned with the chosen actuators' speeds: none on the first
-        # pass (no actuator yet), then those of the last assignment; a set of speeds seen
-        # before (the choice cycles) keeps every set since in the analysis (a superset of
-        # the loads: the requirements then only grow, so the loop settles)
-        speed_sets: list[dict[str, float]] = []
-        seen: list[dict[str, float]] = []
+        # the behaviours are planned with the chosen actuators: none on the first pass (no
+        # actuator yet), then those of the last assignment; an assignment seen before (the
+        # choice cycles) keeps every one since in the analysis (a superset of the loads:
+        # the requirements then only grow, so the loop settles)
+        actuator_sets: list[dict[str, str]] = []
+        seen: list[dict[str, str]] = []
         cycling = False
         for iterations in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (used after the loop)
             sizing = self.family.update(
@@ -631,7 +638,7 @@ class StructureDesigner:
                 cat,
             )
             tp = self._params(sizing, tubes, act_mass, self.modules)
-            req, analysis = self._requirements(tp, sizing, speed_sets)
+            req, analysis = self._requirements(tp, sizing, actuator_sets)
             assignment = self.assigner.best(self.capable(req), self.symmetric)
             if assignment is None:
                 raise self._no_actuator(req)
@@ -657,11 +664,8 @@ class StructureDesigner:
                     *(sized[n][0].volume for n in sorted(sized)),
                 ]
             )
-            speeds = {
-                joint: self.by_model[model].no_load_speed_rad_s
-                for joint, model in sorted(assignment.models)
-            }
-            planned = bool(speed_sets) and speeds in speed_sets
+            chosen = dict(sorted(assignment.models))
+            planned = chosen in actuator_sets
             if (
                 planned
                 and prev is not None
@@ -670,9 +674,9 @@ class StructureDesigner:
                 break
             prev = vector
             if not planned:
-                cycling = cycling or speeds in seen
-                speed_sets = [*speed_sets, speeds] if cycling else [speeds]
-                seen.append(speeds)
+                cycling = cycling or chosen in seen
+                actuator_sets = [*actuator_sets, chosen] if cycling else [chosen]
+                seen.append(chosen)
         else:
             raise InfeasibleError(
                 f"{self.candidate.robot_type}: the masses did not converge "
@@ -682,7 +686,7 @@ class StructureDesigner:
         self.requirements = req  # the converged requirements, for enumerating alternatives
         self.converged = (sizing, tubes, act_mass)
         self.analysis = analysis
-        self.speed_sets = speed_sets
+        self.actuator_sets = actuator_sets
         return self._record(final, sizing, req, assignment, sized, iterations)
 
     def _part_volume(self, t: Tube) -> float:
@@ -987,7 +991,7 @@ class _TorqueModel:
         t = np.array([rnea(m, c.q, c.v, c.a, c.fext) for c in cases])
         b = [np.zeros((0, m.nv))]
         w = [np.zeros((0, m.nv))]
-        for bc in d._behaviour_cases(analysis, sizing, d.speed_sets):
+        for bc in d._behaviour_cases(analysis, sizing, d.actuator_sets):
             b.append(analyse(analysis, bc)[0])
             w.append(np.abs(bc.v))
         names = [j.name for j in m.joints if m.q_index[m.joint(j.name)] >= 0]
