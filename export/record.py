@@ -88,6 +88,7 @@ def structure_record(s: Structure) -> dict:
                 if j.hold
                 else None,
                 "required_speed_rad_s": _r(j.required_speed_rad_s),
+                "operating_points": [[_r(t), _r(w)] for t, w in j.operating_points],
                 "load_case": j.load_case,
                 "i2c_address": f"0x{j.i2c_address:02x}",
             }

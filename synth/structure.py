@@ -95,6 +95,9 @@ class JointDesign:
     hold_torque_Nm: float = 0.0  # a second operating point (0: none): torque ...
     hold_speed_rad_s: float = 0.0  # ... at this speed
     hold: str = ""  # ... while doing this (gripping, turning in place)
+    # the (N m, rad/s) points the actuator meets (its speed under each torque): the hand
+    # cases' torque at the family's speed and the behaviours' samples that can bind it
+    operating_points: tuple[tuple[float, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -784,6 +787,7 @@ class StructureDesigner:
                 address[s.name],
                 self.by_model[assignment.model_of(s.name)].no_load_speed_rad_s,
                 *req.holds.get(s.name, (0.0, 0.0, "")),
+                tuple(req.points.get(s.name, ())),
             )
             for s in self.slots
         )
