@@ -358,6 +358,9 @@ class StructureDesigner:
         #: the actuators (joint -> model) the behaviours are planned with (their speeds)
         self.actuator_sets: list[dict[str, str]] = []
         self.behaviour_notes: tuple[str, ...] = ()
+        self.behaviours = True  # False: the hand cases alone (a fast bound)
+        #: parameters the behaviours are planned with (None: the design's)
+        self.plan_values: dict[str, float] | None = None
 
     # -- fixed modules ------------------------------------------------------------------
     def _fixed_modules(self) -> list[tuple[str, str, int, float, float, float]]:
@@ -425,7 +428,7 @@ class StructureDesigner:
             tmpl.lengths,
             self.modules,
             sizing.wheel_radius if tmpl.wheels else None,
-            self.values,
+            self.plan_values or self.values,
             self.abilities,
             speeds,
         )
@@ -576,34 +579,46 @@ class StructureDesigner:
                 "carry less"
             ) from None
 
-        def worst(t: Tube):
-            return max(
-                (beam_check(t, ld, E, cat.passive.stress_concentration) for ld in loads),
-                key=lambda r: r.max_stress_Pa,
-            )
+        def worst(t: Tube, among: list[int] | None = None):
+            """The worst check of tube ``t`` over the loads (or those indexed), and its index."""
+            idx = range(len(loads)) if among is None else among
+            checks = [
+                (beam_check(t, loads[i], E, cat.passive.stress_concentration), i) for i in idx
+            ]
+            return max(checks, key=lambda c: c[0].max_stress_Pa)
 
-        check = worst(tube)
+        check, first = worst(tube)
         governed = "deflection"
         if check.max_stress_Pa > allowed:
             governed = "stress"
             k_max = cat.passive.max_outer_radius_m**4 / length**3
             strongest = optimal_tube(k_max, limits, name)
-            if worst(strongest).max_stress_Pa > allowed:
+            top, other = worst(strongest)
+            if top.max_stress_Pa > allowed:
                 raise InfeasibleError(
                     f"link '{name}' ({length * 1000:.0f} mm): the clamped-end stress "
-                    f"{worst(strongest).max_stress_Pa / 1e6:.1f} MPa of the strongest printable "
+                    f"{top.max_stress_Pa / 1e6:.1f} MPa of the strongest printable "
                     f"tube exceeds the allowed {allowed / 1e6:.1f} MPa (yield / safety factor); "
                     "carry less or use a stronger material"
                 )
+            # bisect on the loads that have governed so far; a load that the result does
+            # not hold joins them and the search goes on above (the stress falls as the
+            # tube stiffens, so the stiffness asked only grows)
+            among = sorted({first, other})
             lo, hi = k0, k_max
-            for _ in range(STRESS_BISECTIONS):
-                mid = 0.5 * (lo + hi)
-                if worst(optimal_tube(mid, limits, name)).max_stress_Pa > allowed:
-                    lo = mid
-                else:
-                    hi = mid
-            tube = optimal_tube(hi, limits, name)
-            check = worst(tube)
+            while True:
+                for _ in range(STRESS_BISECTIONS):
+                    mid = 0.5 * (lo + hi)
+                    if worst(optimal_tube(mid, limits, name), among)[0].max_stress_Pa > allowed:
+                        lo = mid
+                    else:
+                        hi = mid
+                tube = optimal_tube(hi, limits, name)
+                check, i = worst(tube)
+                if check.max_stress_Pa <= allowed or i in among:
+                    break
+                among.append(i)
+                lo, hi = hi, k_max
         info = {
             "deflection": max(beam_check(tube, ld, E).tip_deflection_m for ld in loads),
             "stress": check.max_stress_Pa,
@@ -668,7 +683,7 @@ class StructureDesigner:
                 ]
             )
             chosen = dict(sorted(assignment.models))
-            planned = chosen in actuator_sets
+            planned = chosen in actuator_sets or not self.behaviours
             if (
                 planned
                 and prev is not None
@@ -885,16 +900,27 @@ def design_structure(
         raise
 
 
+#: Bisection steps of ``largest_payload`` with the behaviours analysed (after those with the
+#: hand cases alone, which bound it from above).
+BEHAVIOUR_BISECTIONS = 6
+
+
 def largest_payload(designer: StructureDesigner, steps: int = 24) -> float | None:
     """The largest payload (kg) with which ``designer``'s design succeeds, all else equal
-    (bisection), or None when it fails even empty-handed (the payload is not the limit)."""
+    (bisection), or None when it fails even empty-handed (the payload is not the limit).
+
+    The hand cases alone bound it from above (``steps`` bisections, fast); below that bound
+    ``BEHAVIOUR_BISECTIONS`` more with the behaviours analysed, their trajectories planned
+    with the parameters at the bound (payload included: planning once per actuator choice
+    keeps the search fast; the plans are kinematic, the payload changes masses)."""
     asked = designer.values.get("payload")
     if not asked:
         return None
     values = designer.values
 
-    def ok(payload: float) -> bool:
+    def ok(payload: float, behaviours: bool) -> bool:
         designer.values = {**values, "payload": payload}
+        designer.behaviours = behaviours
         try:
             designer.run()
             return True
@@ -902,15 +928,24 @@ def largest_payload(designer: StructureDesigner, steps: int = 24) -> float | Non
             return False
 
     try:
-        if not ok(0.0):
+        if not ok(0.0, False):
             return None
         lo, hi = 0.0, asked
         for _ in range(steps):
             mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if ok(mid) else (lo, mid)
-        return lo
+            lo, hi = (mid, hi) if ok(mid, False) else (lo, mid)
+        designer.plan_values = {**values, "payload": lo}
+        if ok(lo, True):
+            return lo
+        lo, hi = 0.0, lo
+        for _ in range(BEHAVIOUR_BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if ok(mid, True) else (lo, mid)
+        return lo if lo > 0 or ok(0.0, True) else None
     finally:
         designer.values = values
+        designer.behaviours = True
+        designer.plan_values = None
 
 
 @dataclass(frozen=True)
