@@ -645,7 +645,11 @@ class ManipulatorController(Controller):
             ),
         }
         specs["move_to"] = BehaviorSpec(
-            "move_to", "alias of positioning", specs["positioning"].params
+            "move_to",
+            "alias of positioning",
+            specs["positioning"].params,
+            ability="positioning",
+            alias_of="positioning",
         )
         if self.six:
             tilt = Parameter(
