@@ -48,6 +48,7 @@ class SimResult:
     min_height_ratio: float | None = None
     max_tilt_rad: float | None = None
     verdict: list[str] = field(default_factory=list)
+    complete: bool = True  # ran to the behaviour's end: its promise was judged too
     series: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     @property
@@ -62,6 +63,7 @@ class SimResult:
             "behavior": self.behavior,
             "seconds": r(self.seconds),
             "verdict": "ok" if self.ok else list(self.verdict),
+            "complete": self.complete,
             "distance_m": r(self.distance_m),
             "planned_distance_m": r(self.planned_distance_m),
             "heading_rad": r(self.heading_rad),
@@ -288,7 +290,10 @@ def simulate(
             result.orientation_error_rad = _rotation_angle(
                 base @ matrix_from_rpy(tuple(float(c) for c in rpy)), rot
             )
-    result.verdict = judge(result.to_dict() | {"path_length_m": result.path_length_m}, info, free)
+    # a run stopped before the behaviour's end is judged on falling and saturation only
+    result.complete = seconds >= traj.duration - 1e-9
+    promise = info if result.complete else {}
+    result.verdict = judge(result.to_dict(), promise, free and result.complete)
     return result
 
 
