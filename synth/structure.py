@@ -702,12 +702,9 @@ def design_structure(
     params: Mapping[str, float],
     symmetric: bool = True,
     objective: Sequence[str] = ("mass", "cost"),
-    torque_floor: Mapping[str, float] | None = None,
 ) -> Structure:
-    """Size ``candidate`` (a conceptual design) for ``params`` (SI) with ``catalog``;
-    ``torque_floor``: joint -> N m it must be sized for at least."""
+    """Size ``candidate`` (a conceptual design) for ``params`` (SI) with ``catalog``."""
     designer = StructureDesigner(kb, candidate, catalog, params, symmetric, objective)
-    designer.torque_floor = dict(torque_floor or {})
     try:
         return designer.run()
     except InfeasibleError as e:

@@ -79,7 +79,7 @@ def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Ou
     """``outcome`` (a sized design) simulated, repaired where it can be, and judged."""
     from export.verdict import explain
     from export.verify import controller_for_model, unbehaved_abilities, verify_files
-    from synth.structure import design_structure
+    from synth.structure import StructureDesigner
 
     floors: dict[str, float] = {}
     rounds = 0
@@ -94,16 +94,17 @@ def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Ou
         if not failing or not new or rounds >= MAX_ROUNDS:
             break
         floors |= new
+        sizer = StructureDesigner(
+            designer.kb,
+            outcome.design.chosen,
+            outcome.catalog,
+            designer.structural(req),
+            opts.symmetric,
+            opts.objective,
+        )
+        sizer.torque_floor = dict(floors)
         try:
-            structure = design_structure(
-                designer.kb,
-                outcome.design.chosen,
-                outcome.catalog,
-                designer.structural(req),
-                opts.symmetric,
-                opts.objective,
-                torque_floor=floors,
-            )
+            structure = sizer.run()
         except InfeasibleError:
             break  # no stronger actuator: the failure below stands
         outcome = replace(outcome, structure=structure)
