@@ -78,6 +78,8 @@ __all__ = [
     "conversion_maps",
     "fit_maps",
     "leg_ik",
+    "leg_module_range",
+    "odometry",
     "reference_gait",
     "reference_template",
     "stability_margin",
@@ -89,18 +91,25 @@ G = 9.81  # m/s^2
 SIDES = ("l", "r")  # left (+y), right (-y)
 LEG_JOINTS = ("hip_yaw", "hip_roll", "hip_pitch", "knee_pitch", "ankle_pitch", "ankle_roll")
 ARM_JOINTS = ("shoulder_pitch", "elbow_pitch", "gripper")
-#: Leg module lengths x (m, femur = tibia = x) of the reference gaits the maps are fitted on.
-MAP_SIZES = (0.06, 0.075, 0.09, 0.105, 0.12)
+#: Leg module lengths x (m, femur = tibia = x) of the reference gaits the maps are fitted on:
+#: every link length the reference catalog prints (40-200 mm), so that no design's gait is
+#: extrapolated; a leg outside them is refused (:func:`leg_module_range`).
+MAP_SIZES = (0.04, 0.06, 0.08, 0.10, 0.12, 0.15, 0.20)
 #: Step lengths (fractions of the gait's default) of the reference gaits of the maps.
 MAP_RATIOS = (0.0, 0.5, 1.0, 1.25)
 #: The reference size of the synthetic locomotion (m): the template's default femur.
 REFERENCE_SIZE = 0.09
+#: Leg length (femur + tibia, m) at which a ``GaitShape``'s step period is given.
+REFERENCE_LEG = 2 * REFERENCE_SIZE
 #: Harmonics of the stride frequency kept per joint (besides the mean).
 HARMONICS = 8
 SAMPLES = 256  # samples of one stride of a reference gait
 CROUCH_TIME = 1.0  # s from q = 0 to the gait's mean pose
 SAMPLE_DT = 0.01  # s between trajectory samples
 SETTLE_TIME = 0.5  # s of standing still at the end of a behaviour
+#: Default full steps of a walk or run: enough that the starting and stopping half steps
+#: and the crouch take under half of the behaviour's time.
+DEFAULT_STEPS = 6
 
 
 # --- leg kinematics ------------------------------------------------------------------------------
@@ -155,7 +164,8 @@ def _q_full(model_names: tuple[str, ...], names: tuple[str, ...], q: np.ndarray)
 class GaitShape:
     """A periodic gait in proportions of the leg length ``L = femur + tibia``.
 
-    ``step_period`` s per step (a stride is two steps); ``double_support`` fraction of a
+    ``step_period`` s per step (a stride is two steps) of legs of ``REFERENCE_LEG`` m; other
+    legs step with the same Froude number (:meth:`period`); ``double_support`` fraction of a
     step with both feet down; ``height`` hip-ankle distance / L with the COM over the
     stance ankle (< 1: crouched); ``step`` default step length / L; ``lift`` swing foot
     lift / L; ``sway`` lateral ZMP position in single support as a fraction of half the
@@ -169,6 +179,14 @@ class GaitShape:
     step: float
     lift: float
     sway: float
+
+    def period(self, leg: float) -> float:
+        """Step period s of legs of length ``leg`` m: ``step_period`` scaled with
+        ``sqrt(leg / REFERENCE_LEG)``, so that every size walks with the same Froude number
+        (a pendulum's period grows with the square root of its length). The crouched
+        inverted pendulum's dynamics ``zc / g`` then scale with the period squared, and the
+        gait's joint angles are the same at every size up to the actuators' fixed size."""
+        return self.step_period * float(np.sqrt(leg / REFERENCE_LEG))
 
 
 #: The walking gait: tuned in MuJoCo on the default design (see the module docstring).
@@ -259,7 +277,7 @@ def reference_gait(
     tmpl = template if template is not None else reference_template(size)
     femur, tibia = tmpl.lengths["femur"], tmpl.lengths["tibia"]
     leg = femur + tibia
-    T, d = shape.step_period, shape.double_support
+    T, d = shape.period(leg), shape.double_support
     period = 2 * T
     n = samples
     t = np.arange(n) * period / n
@@ -420,6 +438,14 @@ class ConversionMaps:
     ratios: tuple[float, ...]
     residual: float
 
+    def stride(self, x: float) -> float:
+        """Stride period s (two steps) of the mapped gait at leg module length ``x`` m."""
+        return 2 * self.shape.period(2 * x)
+
+    def covers(self, x: float) -> bool:
+        """Whether ``x`` m is within the sizes the maps were fitted on (no extrapolation)."""
+        return self.sizes[0] - 1e-12 <= x <= self.sizes[-1] + 1e-12
+
     def scale(self, x: float, r: float) -> tuple[np.ndarray, np.ndarray]:
         """(in-phase, quadrature) scale factors (J, K) at leg module length ``x`` m and step
         ratio ``r``."""
@@ -427,8 +453,11 @@ class ConversionMaps:
         return s[..., 0], s[..., 1]
 
     def trajectory(self, x: float, r: float, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(positions rad, velocities rad/s) (n, J) of the mapped gait at times ``t`` (n,) s."""
-        return self.reference(t, *self.scale(x, r))
+        """(positions rad, velocities rad/s) (n, J) of the mapped gait at times ``t`` (n,) s
+        (its stride lasts :meth:`stride` s: the reference's time is scaled)."""
+        k = self.reference.period / self.stride(x)
+        q, v = self.reference(np.asarray(t, dtype=float) * k, *self.scale(x, r))
+        return q, v * k
 
     def components(self, x: float, r: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(mean, oscillation) (n, J) rad of the mapped gait at times ``t`` (n,) s with a
@@ -437,7 +466,8 @@ class ConversionMaps:
         basis = np.stack([np.full_like(r, x), np.ones_like(r), r * x, r, r * r * x, r * r], 1)
         s = np.einsum("jkcb,nb->njkc", self.coef, basis)  # (n, J, K, 2)
         ref = self.reference
-        arg = ref.omegas * np.asarray(t, dtype=float)[:, None, None] + ref.phases
+        k = ref.period / self.stride(x)  # the reference's time per second of this size
+        arg = ref.omegas * (k * np.asarray(t, dtype=float))[:, None, None] + ref.phases
         terms = ref.amplitudes * (s[..., 0] * np.sin(arg) + s[..., 1] * np.cos(arg))
         mean = ref.harmonics == 0
         return (terms * mean).sum(-1), (terms * ~mean).sum(-1)
@@ -571,8 +601,9 @@ class GaitPlan:
     end: float
 
     @classmethod
-    def of(cls, shape: GaitShape, steps: int) -> GaitPlan:
-        T, d = shape.step_period, shape.double_support
+    def of(cls, shape: GaitShape, steps: int, leg: float = REFERENCE_LEG) -> GaitPlan:
+        """The plan of ``steps`` full steps of ``shape`` for legs of ``leg`` m."""
+        T, d = shape.period(leg), shape.double_support
         ramp = 2 * T
         first = d * T / 2  # the first single-support window starts after half a DS
         up = first + T * np.ceil((ramp - first) / T - 1e-9)
