@@ -622,23 +622,60 @@ class GaitPlan:
         )
 
 
+def leg_module_range() -> tuple[float, float]:
+    """(shortest, longest) leg module length x m (femur = tibia) whose gaits the conversion
+    maps give without extrapolation (``MAP_SIZES``); the design refuses other legs."""
+    return MAP_SIZES[0], MAP_SIZES[-1]
+
+
+def odometry(template: Template, names: tuple[str, ...], q: np.ndarray) -> np.ndarray:
+    """(n, 3) m: the trunk's displacement in the world along joint trajectories ``q`` (n,
+    len(names)), with the trunk upright and the lower foot (the stance foot) never sliding:
+    at each sample the trunk moves by minus the stance ankle's motion in the trunk frame.
+    What a gait commands, from its joint angles alone."""
+    model = template.model
+    frames = forward_kinematics(model, _q_full(model.q_names, names, np.atleast_2d(q)))
+    feet = np.array([frames[:, model.body(f), :3, 3] for f in template.feet])  # (2, n, 3)
+    stance = np.argmin(feet[:, :, 2], axis=0)  # (n,)
+    step = (
+        feet[stance[1:], np.arange(1, len(stance))] - feet[stance[1:], np.arange(len(stance) - 1)]
+    )
+    out = np.zeros((len(stance), 3))
+    out[1:] = -np.cumsum(step, axis=0)
+    return out
+
+
+#: Grasping: the arms reach forward (shoulder and elbow pitch, rad; negative turns forward)
+#: with the grippers open, close both grippers, and hold.
+REACH_SHOULDER = -pi / 3
+REACH_ELBOW = -pi / 6
+GRIPPER_OPEN = pi / 2  # rad: the gripper joint's open end (0: closed)
+REACH_TIME = 1.5  # s to raise the arms
+GRIP_TIME = 0.5  # s to close the grippers
+HOLD_TIME = 1.5  # s holding
+
+
 class HumanoidController(Controller):
     """Behaviours of a designed humanoid, from the synthetic locomotion's conversion maps.
 
     ``walking`` and ``running``: ``steps`` full steps of ``step_length`` m (default: a
     fixed fraction of the leg length, ``GaitShape.step``) between a half step that starts
     and one that ends the walk, ``direction`` forward or backward (the pendulum gait is
-    time-symmetric: backward is the forward gait played in reverse). ``balancing``:
-    standing crouched, shifting the weight from foot to foot (this design's leg IK, not
-    the maps). Arms hang still (q = 0). Every trajectory starts at q = 0 and ends standing
-    crouched; ``info`` gives the planned ``expected_distance_m`` and the static
-    ``stability_margin_m`` (COM inside the planned support polygon; the pendulum gait
-    leaves it by a few mm while the weight moves between the feet).
+    time-symmetric: backward is the forward gait played in reverse), with the step period
+    scaled with the legs (``GaitShape.period``). ``grasping``: the arms reach forward with
+    the grippers open, both grippers close and hold, the pelvis shifted back so that the
+    centre of mass stays over the feet. ``balancing`` (the ability a humanoid gains with a
+    sensor): standing crouched, shifting the weight from foot to foot. Arms hang still
+    (q = 0) but in grasping. Every trajectory starts at q = 0 and ends standing crouched.
 
-    Measured in MuJoCo on the default design (40 cm, 1.69 kg): walking, 4 steps of 21 mm,
-    0.16 m forward in 9 s without falling (16 steps: 0.50 m); running, 4 steps of 26 mm,
-    0.16 m in 6.5 s; balancing, no fall. Backward the robot falls on its back (at 4.5 s,
-    in the first full step): its COM sits behind the ankles, whose servos saturate.
+    ``info`` follows the shared contract: ``motion`` ("straight" for the gaits, "hold"
+    otherwise), ``planned_pose`` (the trunk's displacement the joint angles command, by
+    :func:`odometry`, and no change of yaw), ``direction``, ``locomotion`` "legged" and
+    ``body_length_m``: the leg length (femur + tibia), the humanoid's natural unit of
+    stride (its walking speed scales with it); plus ``stability_margin_m`` (COM inside the
+    planned support polygon; the pendulum gait leaves it by a few mm while the weight
+    moves between the feet). A leg module outside the maps' sizes is refused (ValueError),
+    never extrapolated.
     """
 
     def __init__(self, geometry: DesignGeometry) -> None:
@@ -664,7 +701,7 @@ class HumanoidController(Controller):
                     Parameter(
                         "steps",
                         "int",
-                        4,
+                        DEFAULT_STEPS,
                         "full steps between the starting and the stopping half step",
                         low=1,
                         high=200,
@@ -686,6 +723,7 @@ class HumanoidController(Controller):
                         choices=("forward", "backward"),
                     ),
                 ),
+                ability=shape.name,
             )
 
         return {
@@ -694,6 +732,22 @@ class HumanoidController(Controller):
                 RUN,
                 "a faster gait: shorter step period and double support, "
                 "longer steps (no flight phase)",
+            ),
+            "grasping": BehaviorSpec(
+                "grasping",
+                "stand crouched, reach forward with both arms, close both grippers and hold",
+                (
+                    Parameter(
+                        "hold",
+                        "float",
+                        HOLD_TIME,
+                        "time holding with the grippers closed",
+                        unit="s",
+                        low=0.0,
+                        high=60.0,
+                    ),
+                ),
+                ability="grasping",
             ),
             "balancing": BehaviorSpec(
                 "balancing",
@@ -718,6 +772,7 @@ class HumanoidController(Controller):
                         high=20.0,
                     ),
                 ),
+                ability="balancing",
             ),
         }
 
@@ -726,17 +781,26 @@ class HumanoidController(Controller):
             return self._balancing(
                 int(params["shifts"]), float(params["amount"]), float(params["period"])
             )
+        if name == "grasping":
+            return self._grasping(float(params["hold"]))
         shape = WALK if name == WALK.name else RUN
         return self._gait(
             shape, int(params["steps"]), float(params["step_length"]), str(params["direction"])
         )
 
     def _gait(self, shape: GaitShape, steps: int, step: float, direction: str) -> Trajectory:
+        lo, hi = leg_module_range()
+        if not lo - 1e-12 <= self.size <= hi + 1e-12:
+            raise ValueError(
+                f"{shape.name}: leg module {self.size * 1000:.1f} mm is outside the conversion "
+                f"maps' sizes {lo * 1000:.0f}-{hi * 1000:.0f} mm (not extrapolated)"
+            )
         maps = conversion_maps(shape.name)
-        plan = GaitPlan.of(shape, steps)
+        plan = GaitPlan.of(shape, steps, self.leg)
         sign = 1.0 if direction == "forward" else -1.0
         ratio = step / self.default_step(shape)
-        start = shape.double_support * shape.step_period / 2  # mid double support
+        period = shape.period(self.leg)
+        start = shape.double_support * period / 2  # mid double support
 
         def legs(t: np.ndarray) -> np.ndarray:
             tau = t - CROUCH_TIME
@@ -745,33 +809,82 @@ class HumanoidController(Controller):
             return crouch * mean + plan.envelope(tau)[:, None] * osc
 
         info: dict[str, object] = {
+            "motion": "straight",
             "direction": (sign, 0.0),
+            "locomotion": "legged",
+            "body_length_m": self.leg,
             "steps": steps,
             "step_length_m": step,
-            "step_period_s": shape.step_period,
-            "expected_distance_m": (steps + 1) * step,
+            "step_period_s": period,
             "leg_module_m": self.size,
-            "maps_extrapolated": not MAP_SIZES[0] <= self.size <= MAP_SIZES[-1],
         }
         return self._trajectory(shape.name, CROUCH_TIME + plan.end, legs, info)
+
+    def _stance(self, dx: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """(n, 12) leg angles: both ankles ``dx`` (n,) m ahead of their hips and ``-y`` (n,)
+        m beside them (the pelvis moved back and sideways), at the walking gait's stance
+        height."""
+        hw = self.template.lengths["hip_width"] / 2
+        height = stance_height(WALK, self.leg, hw)
+        ankle = np.stack([dx, -y, np.full_like(dx, -height)], axis=1)
+        one = leg_ik(ankle, self.femur, self.tibia)  # both legs alike, side by side
+        return np.concatenate([one, one], axis=1)
 
     def _balancing(self, shifts: int, amount: float, period: float) -> Trajectory:
         """Crouch (this design's leg IK), sway the pelvis ``shifts`` times left and right
         by ``amount`` times half the hip width under a smooth envelope, stand still."""
         hw = self.template.lengths["hip_width"] / 2
-        height = stance_height(WALK, self.leg, hw)
         duration = shifts * period
 
         def legs(t: np.ndarray) -> np.ndarray:
             tau = np.clip(t - CROUCH_TIME, 0.0, duration)
             y = amount * hw * np.sin(2 * pi * tau / period) * np.sin(pi * tau / duration) ** 2
-            ankle = np.stack([np.zeros_like(t), -y, np.full_like(t, -height)], axis=1)
-            one = leg_ik(ankle, self.femur, self.tibia)  # both legs alike, side by side
-            one *= _smooth(t / CROUCH_TIME)[:, None]  # the crouch from q = 0 (y = 0 then)
-            return np.concatenate([one, one], axis=1)
+            # the crouch from q = 0 (y = 0 then)
+            return self._stance(np.zeros_like(t), y) * _smooth(t / CROUCH_TIME)[:, None]
 
-        info: dict[str, object] = {"direction": (0.0, 0.0)}
+        info: dict[str, object] = {"motion": "hold", "body_length_m": self.leg}
         return self._trajectory("balancing", CROUCH_TIME + duration, legs, info)
+
+    def _arms(self, t: np.ndarray) -> np.ndarray:
+        """(n, 6) arm angles of grasping (``ARM_JOINTS`` per side): the grippers open while
+        crouching, the arms reach forward, the grippers close and stay closed."""
+        reach = _smooth((t - CROUCH_TIME) / REACH_TIME)
+        opened = _smooth(t / CROUCH_TIME) - _smooth((t - CROUCH_TIME - REACH_TIME) / GRIP_TIME)
+        one = np.stack([REACH_SHOULDER * reach, REACH_ELBOW * reach, GRIPPER_OPEN * opened], 1)
+        return np.concatenate([one, one], axis=1)
+
+    def _grasping(self, hold: float) -> Trajectory:
+        """Crouch with the grippers opening, reach forward with both arms while the pelvis
+        moves back so that the centre of mass stays over the ankles (this design's
+        geometry with the template's masses and the design's payload on the trunk), close
+        both grippers, hold ``hold`` s."""
+        duration = CROUCH_TIME + REACH_TIME + GRIP_TIME + hold
+        model = build(
+            self.geometry.template,
+            TemplateParams(
+                lengths=self.geometry.lengths,
+                modules=self.geometry.modules,
+                payload=float(self.geometry.params.get("payload", 0.0)),
+            ),
+        ).model
+        index = {n: k for k, n in enumerate(model.q_names)}
+        cols = [index[n] for n in self.joints]
+
+        def legs(t: np.ndarray) -> np.ndarray:
+            crouch = _smooth(t / CROUCH_TIME)[:, None]
+            dx = np.zeros_like(t)
+            Q = np.zeros((len(t), model.nq))
+            Q[:, cols[12:]] = self._arms(t)
+            for _ in range(4):  # the legs' pose moves the COM a little too: iterate
+                q = self._stance(dx, np.zeros_like(t)) * crouch
+                Q[:, cols[:12]] = q
+                com = center_of_mass(model, Q)
+                ankle = forward_kinematics(model, Q)[:, model.body(self.template.feet[0]), 0, 3]
+                dx = dx + (com[:, 0] - ankle)
+            return q
+
+        info: dict[str, object] = {"motion": "hold", "body_length_m": self.leg}
+        return self._trajectory("grasping", duration, legs, info, self._arms)
 
     def _trajectory(
         self,
@@ -779,17 +892,21 @@ class HumanoidController(Controller):
         duration: float,
         legs: Callable[[np.ndarray], np.ndarray],
         info: dict[str, object],
+        arms: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> Trajectory:
-        """The trajectory of leg angles ``legs(t)`` (n, 12) rad over ``duration`` s and
-        ``SETTLE_TIME`` s more (arms hanging), velocities by central differences of
-        ``legs``, and its stability margin; ValueError if it leaves a joint's limits (an
-        extrapolation of the maps far from their sizes)."""
+        """The trajectory of leg angles ``legs(t)`` (n, 12) rad and arm angles ``arms(t)``
+        (n, 6) rad (default: hanging, 0) over ``duration`` s and ``SETTLE_TIME`` s more,
+        velocities by central differences, its stability margin and its ``planned_pose``
+        (:func:`odometry`); ValueError if it leaves a joint's limits."""
         t = np.arange(0.0, duration + SETTLE_TIME, SAMPLE_DT)
         h = 1e-6  # s
         q = np.zeros((len(t), len(self.joints)))
         v = np.zeros_like(q)
         q[:, :12] = legs(t)
         v[:, :12] = (legs(t + h) - legs(t - h)) / (2 * h)
+        if arms is not None:
+            q[:, 12:] = arms(t)
+            v[:, 12:] = (arms(t + h) - arms(t - h)) / (2 * h)
         model = self.template.model
         index = {n: k for k, n in enumerate(model.q_names)}
         low, high = model.lower, model.upper
@@ -799,8 +916,11 @@ class HumanoidController(Controller):
                 raise ValueError(
                     f"{name}: joint {joint} would leave its limits [{low[i]:.3f}, "
                     f"{high[i]:.3f}] rad (reaching [{q[:, k].min():.3f}, "
-                    f"{q[:, k].max():.3f}]); leg module {self.size:.3f} m, maps fitted for "
-                    f"{MAP_SIZES[0]}..{MAP_SIZES[-1]} m"
+                    f"{q[:, k].max():.3f}]); leg module {self.size:.3f} m"
                 )
         info["stability_margin_m"] = stability_margin(self.template, self.joints, q)
+        moved = odometry(self.template, self.joints, q)[-1]
+        info["planned_pose"] = (float(moved[0]), float(moved[1]), 0.0)
+        if info.get("motion") == "straight":
+            info["expected_distance_m"] = float(np.hypot(moved[0], moved[1]))
         return Trajectory(name, t, self.joints, q, v, info)
