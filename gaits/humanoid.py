@@ -46,7 +46,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, partial
 from math import pi
 
 import numpy as np
@@ -647,8 +647,8 @@ def odometry(template: Template, names: tuple[str, ...], q: np.ndarray) -> np.nd
 
 #: Grasping: the arms reach forward (shoulder and elbow pitch, rad; negative turns forward)
 #: with the grippers open, close both grippers, and hold.
-REACH_SHOULDER = -pi / 3
-REACH_ELBOW = -pi / 6
+REACH_SHOULDER = -pi / 4
+REACH_ELBOW = -pi / 4
 GRIPPER_OPEN = pi / 2  # rad: the gripper joint's open end (0: closed)
 REACH_TIME = 1.5  # s to raise the arms
 GRIP_TIME = 0.5  # s to close the grippers
@@ -735,7 +735,8 @@ class HumanoidController(Controller):
             ),
             "grasping": BehaviorSpec(
                 "grasping",
-                "stand crouched, reach forward with both arms, close both grippers and hold",
+                "stand crouched, reach forward with both arms, close both grippers, hold, "
+                "bring the arms back",
                 (
                     Parameter(
                         "hold",
@@ -845,10 +846,13 @@ class HumanoidController(Controller):
         info: dict[str, object] = {"motion": "hold", "body_length_m": self.leg}
         return self._trajectory("balancing", CROUCH_TIME + duration, legs, info)
 
-    def _arms(self, t: np.ndarray) -> np.ndarray:
+    @staticmethod
+    def _arms(t: np.ndarray, hold: float) -> np.ndarray:
         """(n, 6) arm angles of grasping (``ARM_JOINTS`` per side): the grippers open while
-        crouching, the arms reach forward, the grippers close and stay closed."""
-        reach = _smooth((t - CROUCH_TIME) / REACH_TIME)
+        crouching, the arms reach forward, the grippers close and stay closed, the arms come
+        back down after the hold."""
+        back = CROUCH_TIME + REACH_TIME + GRIP_TIME + hold
+        reach = _smooth((t - CROUCH_TIME) / REACH_TIME) - _smooth((t - back) / REACH_TIME)
         opened = _smooth(t / CROUCH_TIME) - _smooth((t - CROUCH_TIME - REACH_TIME) / GRIP_TIME)
         one = np.stack([REACH_SHOULDER * reach, REACH_ELBOW * reach, GRIPPER_OPEN * opened], 1)
         return np.concatenate([one, one], axis=1)
@@ -857,8 +861,10 @@ class HumanoidController(Controller):
         """Crouch with the grippers opening, reach forward with both arms while the pelvis
         moves back so that the centre of mass stays over the ankles (this design's
         geometry with the template's masses and the design's payload on the trunk), close
-        both grippers, hold ``hold`` s."""
-        duration = CROUCH_TIME + REACH_TIME + GRIP_TIME + hold
+        both grippers, hold ``hold`` s, bring the arms back down holding (the trunk back
+        over its start: a hold stays put)."""
+        arms = partial(self._arms, hold=hold)
+        duration = CROUCH_TIME + REACH_TIME + GRIP_TIME + hold + REACH_TIME
         model = build(
             self.geometry.template,
             TemplateParams(
@@ -874,7 +880,7 @@ class HumanoidController(Controller):
             crouch = _smooth(t / CROUCH_TIME)[:, None]
             dx = np.zeros_like(t)
             Q = np.zeros((len(t), model.nq))
-            Q[:, cols[12:]] = self._arms(t)
+            Q[:, cols[12:]] = arms(t)
             for _ in range(4):  # the legs' pose moves the COM a little too: iterate
                 q = self._stance(dx, np.zeros_like(t)) * crouch
                 Q[:, cols[:12]] = q
@@ -884,7 +890,7 @@ class HumanoidController(Controller):
             return q
 
         info: dict[str, object] = {"motion": "hold", "body_length_m": self.leg}
-        return self._trajectory("grasping", duration, legs, info, self._arms)
+        return self._trajectory("grasping", duration, legs, info, arms)
 
     def _trajectory(
         self,
