@@ -63,10 +63,12 @@ from kinematics.templates import (
 
 __all__ = [
     "ARM_JOINTS",
+    "GRIPPER_OPEN",
     "HARMONICS",
     "LEG_JOINTS",
     "MAP_RATIOS",
     "MAP_SIZES",
+    "REACH_SHOULDER",
     "RUN",
     "WALK",
     "ConversionMaps",
