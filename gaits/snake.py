@@ -73,6 +73,11 @@ SAMPLES_PER_CYCLE = 100
 #: Fraction of a joint's no-load speed the waves may ask for (a position servo tracking
 #: a sine at its no-load speed would lag and shrink the wave).
 SPEED_MARGIN = 0.8
+#: Fraction of the no-load speed the default frequency asks of the joints at the waves'
+#: peak: a servo's torque falls linearly with speed (the motor line), so at this speed it
+#: keeps 1 - SPEED_SHARE of its stall torque for the body's loads (the structure generator
+#: sizes those loads to at most 1 / 1.5 of stall).
+SPEED_SHARE = 0.25
 #: Cycles over which the waves fade in at the start and out at the end.
 FADE_CYCLES = 1.0
 #: Default wave frequency Hz (lower when the modules are too slow for it).
@@ -274,11 +279,22 @@ class SnakeController(Controller):
         _, _, v, _ = self._trajectory(gait, 1.0, 3, direction, bend)
         return self.max_speed / float(np.abs(v).max())
 
+    def default_frequency(self, gait: str) -> float:
+        """Default wave frequency Hz of ``gait``: ``DEFAULT_FREQUENCY``, lower when the waves
+        would ask a joint for more than ``SPEED_SHARE`` of its no-load speed."""
+        share = SPEED_SHARE / SPEED_MARGIN
+        return float(f"{min(DEFAULT_FREQUENCY, share * self.max_frequency(gait)):.3g}")
+
+    @property
+    def body_length(self) -> float:
+        """Length m of the module chain (M module pitches)."""
+        return self.modules * float(self.template.lengths["module"])
+
     @property
     def behaviors(self) -> Mapping[str, BehaviorSpec]:
         out = {}
         for gait in self.gaits:
-            f = round(min(DEFAULT_FREQUENCY, 0.8 * self.max_frequency(gait)), 3)
+            f = self.default_frequency(gait)
             params = [
                 Parameter("frequency", "float", f, "wave frequency", "Hz", low=1e-3, high=10),
                 Parameter(
@@ -323,7 +339,13 @@ class SnakeController(Controller):
             )
         if np.any(q < self.lower - 1e-9) or np.any(q > self.upper + 1e-9):
             raise ValueError(f"{name}: the waves leave the joints' range")
-        info: dict[str, object] = {"waves": p, "frequency_hz": freq}
+        info: dict[str, object] = {
+            "motion": "rotate" if name == "rotating" else "crawl",
+            "locomotion": "snake",
+            "body_length_m": self.body_length,
+            "waves": p,
+            "frequency_hz": freq,
+        }
         if name in ("rectilinear", "circular-path"):
             info["direction"] = (-float(direction), 0.0)
         elif name in ("rolling", "sidewinding"):
