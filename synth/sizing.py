@@ -51,9 +51,10 @@ GRIP_FRICTION = 0.5
 JAW_LEVER = 0.03
 GRIPPER_SPEED = 1.0
 SNAKE_SPEED = 0.5 * 2 * math.pi * 0.5  # the peak of a sinusoid: amplitude x frequency
-#: Share of the snake's head (base) weight a lifted segment carries at its free end: the
-#: head tips about its far edge, which stays on the ground.
-HEAD_SHARE = 0.5
+#: Share of the snake's head (base: main module, battery, sensors, payload) a lifted segment
+#: carries at its free end. Simulated, the rolling gait of 3 and 4 SG90 modules saturates
+#: with half the head counted (the square head rolls over its edge): the whole head.
+HEAD_SHARE = 1.0
 #: Humanoid proportions of the standing height (Fig. 21).
 HUMANOID = {
     "femur": 0.22,
@@ -371,7 +372,7 @@ class Snake(Family):
     longest unsupported segment of the gaits the robot lists (the largest of the ontology's
     ``liftedModuleShare`` over them), straight and horizontal, accelerating, its free end
     carrying ``HEAD_SHARE`` of the head (the base: main module, battery, sensors and the
-    payload), which tips about its far edge as the segment lifts it."""
+    payload)."""
 
     def size(self, robot_type, p, catalog):
         return Sizing(default_lengths(robot_type))
