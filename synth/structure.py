@@ -307,7 +307,7 @@ class StructureDesigner:
         shares = [
             n / d
             for gait, n, d in kb.translation.relation("liftedModuleShare")
-            if gait in (candidate.needed or candidate.abilities)
+            if gait in candidate.abilities  # every gait it lists, asked for or not
             and isinstance(n, int)
             and isinstance(d, int)
             and d > 0
@@ -361,6 +361,9 @@ class StructureDesigner:
         self.behaviours = True  # False: the hand cases alone (a fast bound)
         #: parameters the behaviours are planned with (None: the design's)
         self.plan_values: dict[str, float] | None = None
+        #: joint -> torque N m it must be sized for at least (the verification loop's
+        #: feedback: a joint that saturated in simulation needs more than its actuator gave)
+        self.torque_floor: dict[str, float] = {}
 
     # -- fixed modules ------------------------------------------------------------------
     def _fixed_modules(self) -> list[tuple[str, str, int, float, float, float]]:
@@ -524,6 +527,10 @@ class StructureDesigner:
                 same = [holds[o.name] for o in self.slots if o.group == s.group and o.name in holds]
                 if same:
                     holds[s.name] = max(same)
+        for name, floor in sorted(self.torque_floor.items()):  # found in simulation
+            if floor > torque.get(name, 0.0):
+                torque[name], case_of[name] = floor, "simulation"
+            hand[name] = max(hand.get(name, 0.0), floor)
         hand_speed = self.family.speeds(analysis, self.values, sizing)
         points = {
             s.name: upper_hull(
