@@ -4,7 +4,12 @@ Starting from the conceptual design (a robot type with its parts and modules):
 
 1. tentative link lengths from the requirements (``synth.sizing``);
 2. worst-case RNEA on the type's kinematic template (``kinematics``): joint torques and
-   the wrenches every link carries;
+   the wrenches every link carries, for the family's hand-made load cases and along every
+   behaviour the design lists, planned with the actuators of the previous pass (none on
+   the first), with the ground's contact forces (``synth.behaviour_loads``); the joint
+   speeds too come from both, and a joint's actuator must meet each (torque, speed)
+   operating point (its speed falls with torque; a behaviour's torque and speed peaks
+   need not coincide);
 3. actuator assignment by clingo (``ActuatorAssigner``): a model is capable for a joint
    when its stall torque divided by the catalog's torque safety factor covers the required
    torque and its speed under that torque (a servo's speed falls linearly from no-load
@@ -14,8 +19,9 @@ Starting from the conceptual design (a robot type with its parts and modules):
    its clamped-end stress, with the fillet's stress concentration, is within the
    material's yield over the stress safety factor;
 5. again from 2 with the new masses, until the masses change by less than 1e-6
-   (relative), or an infeasibility error that names the requirement and the best value
-   that can be reached.
+   (relative) and the behaviours were planned with the actuators chosen, or an
+   infeasibility error that names the requirement and the best value that can be
+   reached.
 """
 
 from __future__ import annotations
