@@ -50,6 +50,20 @@ class Trajectory:
     can check: ``command`` ((v m/s, w rad/s) for driving), ``target`` ((x, y, z) m, where
     a manipulator places its payload), ``stability_margin_m`` ((N,) for legged gaits),
     ``direction`` ((x, y) unit vector of the intended travel)...
+
+    What the behaviour promises, judged by :mod:`export.verdict` on the simulated outcome:
+
+    - ``motion``: ``"straight"`` (travel a line), ``"arc"`` (drive an arc), ``"turn"``
+      (turn in place), ``"crawl"`` (a snake gait: progress along ``direction``),
+      ``"rotate"`` (turn in the sense ``turn``, +1 counter-clockwise from above),
+      ``"hold"`` (stay up and stay put), ``"place"`` (bring the gripper to ``target``,
+      measured at ``placed_at_s``) or ``"orient"`` (``target`` and ``orientation_rpy``).
+    - ``planned_pose``: (dx m, dy m, dyaw rad), the root's commanded displacement in the
+      world frame from its start position and its commanded change of yaw (straight, arc,
+      turn).
+    - ``path_length_m``: length of the commanded path (arc; default |(dx, dy)|).
+    - ``body_length_m``: the robot's body length (crawl, rotate, legged travel).
+    - ``locomotion``: ``"legged"``, ``"snake"`` or ``"wheeled"``.
     """
 
     behavior: str
@@ -123,11 +137,23 @@ class Parameter:
 
 @dataclass(frozen=True)
 class BehaviorSpec:
-    """A behaviour a controller offers: the ability it realises and its parameters."""
+    """A behaviour a controller offers: the ability it realises and its parameters.
+
+    ``ability`` is the ability short name the behaviour realises or belongs to (None: its
+    own name); e.g. a legged robot's ``turning`` belongs to ``walking``. A design lists and
+    verifies exactly the behaviours whose ability it has. ``alias_of`` names the behaviour
+    this one repeats under another name (not verified twice)."""
 
     name: str
     doc: str
     params: tuple[Parameter, ...] = ()
+    ability: str | None = None
+    alias_of: str | None = None
+
+    @property
+    def realises(self) -> str:
+        """The ability this behaviour realises."""
+        return self.ability or self.name
 
     def resolve(self, given: Mapping[str, object]) -> dict[str, object]:
         known = {p.name: p for p in self.params}
