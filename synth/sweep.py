@@ -667,7 +667,9 @@ def _plot(t: str, rows: Sequence[dict], a: str, b: str | None, simulate: bool) -
             continue
         good = sum(_all_ok(r) for r in acc) if simulate else len(acc)
         whole = len(acc) if simulate else len(rs)
-        ax.scatter([x], [y], marker="o", s=320, color=cmap(good / whole), edgecolors="0.2")
+        ax.scatter(
+            [x], [y], marker="o", s=320, color=cmap(0.15 + 0.7 * good / whole), edgecolors="0.2"
+        )
         ax.annotate(f"{good}/{whole}", (x, y), ha="center", va="center", fontsize=7)
     ax.set_xticks(range(len(xs)), xs)
     ax.set_yticks(range(len(ys)), ys)

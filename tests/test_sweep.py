@@ -1,0 +1,334 @@
+"""Tests of ``parmor sweep`` (synth.sweep): study files whose parameter lists expand into
+their product, designed on worker processes, stored per request (resumable) and summarised
+in results.csv, summary.md and plots."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import pytest
+
+import synth.sweep
+from synth.sweep import default_out, load_study
+
+# cheap designs: a snake, a differential drive, one too fast to size, and a request no robot
+# can meet
+TINY = """\
+[[request]]
+name = "snake"
+abilities = ["rolling"]
+params = { payload = ["0kg", "0.05kg"] }
+
+[[request]]
+name = "cart"
+abilities = ["driving"]
+params = { payload = "0.5kg", speed = ["0.1m/s", "0.2m/s"] }
+
+[[request]]
+name = "fast-cart"
+abilities = ["driving"]
+params = { payload = "0.5kg", speed = "0.6m/s" }
+
+[[request]]
+abilities = ["rolling", "grasping"]
+"""
+N_TINY = 6
+
+
+def write(path: Path, text: str = TINY) -> Path:
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def outputs(folder: Path) -> dict[str, bytes]:
+    """Every output file of a sweep folder (the stored requests left out)."""
+    return {
+        str(p.relative_to(folder)): p.read_bytes()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file() and "requests" not in p.parts
+    }
+
+
+def rows(folder: Path) -> list[dict[str, str]]:
+    return list(csv.DictReader(io.StringIO((folder / "results.csv").read_text())))
+
+
+# --- the study file ------------------------------------------------------------------------
+
+
+def test_lists_expand_into_their_product_in_file_order(tmp_path: Path) -> None:
+    study = write(
+        tmp_path / "s.toml",
+        """\
+[[request]]
+name = "arm"
+abilities = ["pick-and-place"]
+answers = { orienting = "no" }
+[request.params]
+reach = ["20cm", "30cm"]
+object_shape = "cylinder"
+speed = ["0.1m/s", "0.2m/s", "0.3m/s"]
+
+[[request]]
+abilities = ["rolling"]
+""",
+    )
+    opts, reqs = load_study(study)
+    assert len(reqs) == 7
+    assert [(r["params"]["reach"], r["params"]["speed"]) for r in reqs[:6]] == [
+        ("20cm", "0.1m/s"),
+        ("20cm", "0.2m/s"),
+        ("20cm", "0.3m/s"),
+        ("30cm", "0.1m/s"),
+        ("30cm", "0.2m/s"),
+        ("30cm", "0.3m/s"),
+    ]
+    assert all(r["params"]["object_shape"] == "cylinder" for r in reqs[:6])
+    assert all(r["answers"] == {"orienting": "no"} and r["name"] == "arm" for r in reqs[:6])
+    assert reqs[6]["name"] == "rolling" and reqs[6]["params"] == {}
+    assert opts["catalog"] is None and opts["ontology"] == []
+    assert default_out(study) == tmp_path / "s.sweep"
+
+
+BAD = {
+    "unknown top-level key": ("colour = 1\n" + TINY, "unknown key 'colour'"),
+    "no requests": ('catalog = "c.toml"\n', "no [[request]] tables"),
+    "unknown request key": (
+        '[[request]]\nabilities = ["rolling"]\nparam = { payload = "1kg" }\n',
+        "request 1: unknown key 'param'",
+    ),
+    "no abilities": ('[[request]]\nname = "x"\n', "request 1: abilities"),
+    "a number for a value": (
+        '[[request]]\nabilities = ["rolling"]\nparams = { payload = [0.1, 0.2] }\n',
+        "request 1 (rolling): params: payload: expected a value with its unit",
+    ),
+    "an empty list": (
+        '[[request]]\nabilities = ["rolling"]\nparams = { payload = [] }\n',
+        "params: payload: expected",
+    ),
+    "a value listed twice": (
+        '[[request]]\nabilities = ["rolling"]\nparams = { payload = ["1kg", "1kg"] }\n',
+        "params: payload: '1kg' listed twice",
+    ),
+    "a value without its unit": (
+        TINY + '\n[[request]]\nname = "bare"\nabilities = ["driving"]\n'
+        'params = { speed = ["0.2m/s", "0.3"] }\n',
+        "request 5 (bare): --param speed",
+    ),
+    "unknown ability": (
+        TINY + '\n[[request]]\nabilities = ["rollin"]\n',
+        "request 5 (rollin): unknown ability 'rollin' (did you mean: rolling",
+    ),
+    "an answer that is not yes or no": (
+        '[[request]]\nabilities = ["walking"]\nanswers = { grasping = "maybe" }\n',
+        "request 1 (walking): --answer 'grasping=maybe'",
+    ),
+    "the same request twice": (
+        TINY + '\n[[request]]\nname = "again"\nabilities = ["rolling"]\n'
+        'params = { payload = "0.05kg" }\n',
+        "request 5 (again): the same request as",
+    ),
+    "a catalog that is not there": ('catalog = "none.toml"\n' + TINY, "none.toml"),
+    "bad TOML": ("[[request]\n", "s.toml"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_input_names_file_and_key_exits_2_and_writes_nothing(
+    cli, tmp_path: Path, case: str
+) -> None:
+    text, message = BAD[case]
+    study = write(tmp_path / "s.toml", text)
+    r = cli("sweep", str(study), "--no-simulate")
+    assert r.code == 2, r.err
+    assert message in r.err and str(study) in r.err
+    assert "Traceback" not in r.err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+def test_bad_jobs_and_a_foreign_out_folder_are_bad_input(cli, tmp_path: Path) -> None:
+    study = write(tmp_path / "s.toml")
+    r = cli("sweep", str(study), "--jobs", "0", "--no-simulate")
+    assert r.code == 2 and "--jobs 0" in r.err
+    foreign = tmp_path / "mine"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("keep me")
+    r = cli("sweep", str(study), "--out", str(foreign), "--no-simulate")
+    assert r.code == 2 and "holds no sweep" in r.err
+    assert [p.name for p in foreign.iterdir()] == ["notes.txt"]
+    assert not default_out(study).exists()
+
+
+# --- running it ----------------------------------------------------------------------------
+
+
+def test_rows_statuses_and_reasons(cli, tmp_path: Path) -> None:
+    study = write(tmp_path / "s.toml")
+    r = cli("sweep", str(study), "--no-simulate", "--jobs", "1")
+    assert r.code == 0, r.err
+    out = default_out(study)
+    assert "wrote" in r.out and str(out) in r.out
+    got = rows(out)
+    assert len(got) == N_TINY  # one row per request: nothing simulated
+    assert list(got[0])[:5] == ["request", "id", "robot_type", "payload", "speed"]
+    by = {(g["request"], g["payload"], g["speed"]): g for g in got}
+    snake = by[("snake", "0.05kg", "")]
+    assert snake["robot_type"] == "SnakeRobot" and snake["status"] == "accepted"
+    assert float(snake["mass_kg"]) > 0 and snake["abilities"] == "rolling"
+    assert by[("cart", "0.5kg", "0.2m/s")]["robot_type"] == "DifferentialDriveRobot"
+    fast = by[("fast-cart", "0.5kg", "0.6m/s")]
+    assert fast["status"] == "refused" and fast["robot_type"] == "DifferentialDriveRobot"
+    assert "0.60 m/s" in fast["reason"] and fast["mass_kg"] == ""
+    none = by[("rolling+grasping", "", "")]
+    assert none["status"] == "refused" and none["robot_type"] == ""
+    assert none["reason"] == "no robot can meet the request: rolling + grasping"
+    summary = (out / "summary.md").read_text()
+    assert "| SnakeRobot | 2 | 2 | 0 |" in summary
+    assert "| DifferentialDriveRobot | 3 | 2 | 1 |" in summary
+    assert "## Requests not accepted" in summary
+    assert "rolling + grasping" in summary and "0.60 m/s" in summary
+    assert "plots/SnakeRobot-payload.png" in summary
+    assert (out / "plots" / "SnakeRobot-payload.png").read_bytes()[:4] == b"\x89PNG"
+    assert len(list((out / "requests").glob("*.json"))) == N_TINY
+
+
+def test_same_files_with_one_or_two_jobs(cli, tmp_path: Path) -> None:
+    study = write(tmp_path / "s.toml")
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert cli("sweep", str(study), "--no-simulate", "--jobs", "1", "--out", str(a)).code == 0
+    assert cli("sweep", str(study), "--no-simulate", "--jobs", "2", "--out", str(b)).code == 0
+    assert outputs(a) == outputs(b)
+    assert sorted(p.name for p in (a / "requests").iterdir()) == sorted(
+        p.name for p in (b / "requests").iterdir()
+    )
+
+
+def test_an_interrupted_sweep_resumes_to_the_same_bytes(
+    cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    study = write(tmp_path / "s.toml")
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    assert cli("sweep", str(study), "--no-simulate", "--jobs", "1", "--out", str(whole)).code == 0
+    real = synth.sweep.design_one
+    calls = []
+
+    def interrupted(*args, **kwargs):
+        if len(calls) == 3:
+            raise KeyboardInterrupt  # Ctrl-C while the fourth request is designed
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(synth.sweep, "design_one", interrupted)
+    r = cli("sweep", str(study), "--no-simulate", "--jobs", "1", "--out", str(cut))
+    assert r.code == 130 and "3 of 6 requests stored" in r.err and "run the same" in r.err
+    assert len(list((cut / "requests").glob("*.json"))) == 3
+    assert not (cut / "results.csv").exists()
+    monkeypatch.setattr(synth.sweep, "design_one", real)
+    r = cli("sweep", str(study), "--no-simulate", "--jobs", "2", "--out", str(cut), "--json")
+    assert r.code == 0, r.err
+    s = json.loads(r.out)
+    assert (s["computed"], s["reused"]) == (3, 3)
+    assert outputs(cut) == outputs(whole)
+    # a third run designs nothing and rewrites the same files
+    r = cli("sweep", str(study), "--no-simulate", "--out", str(cut), "--json")
+    assert json.loads(r.out)["computed"] == 0
+    assert outputs(cut) == outputs(whole)
+
+
+def fake_verify(files) -> list[dict]:
+    """Two behaviours of every design: one ok, one built to fail two criteria, with a figure
+    the real records do not have."""
+    assert "design.json" in files and "robot.xml" in files
+    return [
+        {"behavior": "a-ok", "verdict": "ok", "fell": False, "saturated_fraction": 0.0},
+        {
+            "behavior": "b-bad",
+            "verdict": ["fell", "saturated"],
+            "fell": True,
+            "saturated_fraction": 0.5,
+            "new_figure": 1.5,
+        },
+    ]
+
+
+def test_summary_counts_failures_by_criterion(
+    cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import export.verify
+
+    monkeypatch.setattr(export.verify, "verify_files", fake_verify)
+    study = write(
+        tmp_path / "s.toml",
+        '[[request]]\nname = "snake"\nabilities = ["rolling"]\n'
+        'params = { payload = ["0kg", "0.05kg"] }\n\n'
+        '[[request]]\nabilities = ["rolling", "grasping"]\n',
+    )
+    r = cli("sweep", str(study), "--jobs", "1", "--json")
+    assert r.code == 0, r.err
+    s = json.loads(r.out)
+    assert s["types"]["SnakeRobot"] == {
+        "requests": 2,
+        "accepted": 2,
+        "refused": 0,
+        "all_ok": 0,
+        "failures": {"fell": 2, "saturated": 2},
+    }
+    out = default_out(study)
+    got = rows(out)
+    assert [(g["payload"], g["behavior"], g["verdict"]) for g in got] == [
+        ("0kg", "a-ok", "ok"),
+        ("0kg", "b-bad", "fell;saturated"),
+        ("0.05kg", "a-ok", "ok"),
+        ("0.05kg", "b-bad", "fell;saturated"),
+        ("", "", ""),
+    ]
+    assert got[1]["new_figure"] == "1.5" and got[0]["new_figure"] == ""
+    assert got[1]["fell"] == "true" and got[1]["saturated_fraction"] == "0.5"
+    summary = (out / "summary.md").read_text()
+    assert "| SnakeRobot | 2 | 2 | 0 | 0 % |" in summary
+    assert "| SnakeRobot | b-bad | fell | 2 |" in summary
+    assert "| SnakeRobot | b-bad | saturated | 2 |" in summary
+    assert "| SnakeRobot | a-ok | 2 | 2 |" in summary
+
+
+def test_a_crash_is_reported_not_stored_and_tried_again(
+    cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import export.verify
+
+    def broken(files):
+        raise RuntimeError("simulator exploded")
+
+    monkeypatch.setattr(export.verify, "verify_files", broken)
+    study = write(tmp_path / "s.toml", '[[request]]\nabilities = ["rolling"]\n')
+    r = cli("sweep", str(study), "--jobs", "1")
+    assert r.code == 0 and "1 request(s) failed with an error" in r.err
+    out = default_out(study)
+    assert rows(out)[0]["status"] == "error"
+    assert "RuntimeError: simulator exploded" in rows(out)[0]["reason"]
+    assert not list((out / "requests").glob("*.json"))
+    monkeypatch.setattr(export.verify, "verify_files", fake_verify)
+    r = cli("sweep", str(study), "--jobs", "1")
+    assert r.code == 0 and [g["status"] for g in rows(out)] == ["accepted", "accepted"]
+
+
+def test_simulated_sweep_of_a_differential_drive(cli, tmp_path: Path) -> None:
+    """The real harness: every figure of the behaviour's simulation record is a column."""
+    from export.verify import verify_files  # noqa: F401 (the harness this test runs)
+
+    study = write(tmp_path / "s.toml", '[[request]]\nabilities = ["driving"]\n')
+    r = cli("sweep", str(study), "--jobs", "1", "--json")
+    assert r.code == 0, r.err
+    out = default_out(study)
+    got = rows(out)
+    assert [g["behavior"] for g in got] == ["driving"]
+    stored = json.loads(next((out / "requests").glob("*.json")).read_text())
+    record = stored["result"]["behaviors"][0]
+    assert set(record) <= set(got[0])
+    v = record["verdict"]
+    assert got[0]["verdict"] == (v if v == "ok" else ";".join(v))
+    assert got[0]["saturated_fraction"] == json.dumps(record["saturated_fraction"])
+    assert json.loads(r.out)["types"]["DifferentialDriveRobot"]["accepted"] == 1
