@@ -195,8 +195,9 @@ def design_one(q: dict, designer, sopts, simulate: bool) -> dict:
             pending = d.questions[-1]
             res["status"] = "ambiguous"
             res["reason"] = (
-                f"an answer is needed: {pending.text} (answers: {pending.ability} = yes|no; "
-                f"candidates {', '.join(c.robot_type for c in d.candidates)})"
+                f'an answer is needed: {pending.text} (add {pending.ability} = "yes" or '
+                f'"no" to the request\'s answers; candidates '
+                f"{', '.join(c.robot_type for c in d.candidates)})"
             )
         else:
             res["status"] = "refused"
@@ -307,10 +308,9 @@ def run_study(
     simulate: bool = True,
     err: TextIO | None = None,
     allow_scripts: bool = False,
-    limit: int | None = None,
 ) -> dict:
-    """Run a study; returns the summary object (``--json``). ``limit`` stops after that
-    many newly designed requests (an interrupted run, for tests) and writes no outputs."""
+    """Run a study: design (and simulate) the requests without a stored result, then write
+    the outputs from every stored result; returns the summary object (``--json``)."""
     path = Path(study)
     if jobs is not None and jobs < 1:
         raise InputError(f"--jobs {jobs}: expected 1 or more")
@@ -338,13 +338,9 @@ def run_study(
             results[i] = r
     reused = len(results)
     pending = [(i, requests[i]) for i in range(len(requests)) if i not in results]
-    if limit is not None:
-        pending = pending[:limit]
     n_jobs = min(jobs or os.cpu_count() or 1, max(len(pending), 1))
     _compute(pending, results, keys, store, opts, simulate, n_jobs, err, len(requests))
     computed = len(results) - reused
-    if limit is not None and len(results) < len(requests):
-        return {"study": str(path), "out": str(out), "finished": len(results)}
     rows = [_merged(q, results[i], keys[i]) for i, q in enumerate(requests)]
     files = write_outputs(out, path, rows, simulate)
     summary = summary_object(rows, simulate)
@@ -378,7 +374,7 @@ def _compute(
         done_iter = map(_work, pending)
     step = _progress(err, total, total - len(pending)) if err is not None and err.isatty() else None
     todo = dict(pending)
-    interrupted = False
+    stopped: BaseException | None = None
     try:
         for i, res in done_iter:
             if res["status"] != "error":
@@ -386,19 +382,19 @@ def _compute(
             results[i] = res
             if step:
                 step(todo[i]["name"])
-    except KeyboardInterrupt:
-        interrupted = True
+    except BaseException as e:  # Ctrl-C, or a result that cannot be stored: stop at once
+        stopped = e
         raise
     finally:
         if step:
             step(None)
         if pool is not None:
-            if interrupted:
+            if stopped is not None:
                 pool.terminate()
             else:
                 pool.close()
             pool.join()
-        if interrupted and err is not None:
+        if isinstance(stopped, KeyboardInterrupt) and err is not None:
             done = sum(1 for r in results.values() if r["status"] != "error")
             err.write(
                 f"parmor: sweep interrupted: {done} of {total} requests stored in {store}; "

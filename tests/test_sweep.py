@@ -14,8 +14,8 @@ import pytest
 import synth.sweep
 from synth.sweep import default_out, load_study
 
-# cheap designs: a snake, a differential drive, one too fast to size, and a request no robot
-# can meet
+# cheap designs: a snake, a differential drive, one too fast to size, a request no robot can
+# meet and one that needs an answer
 TINY = """\
 [[request]]
 name = "snake"
@@ -34,8 +34,11 @@ params = { payload = "0.5kg", speed = "0.6m/s" }
 
 [[request]]
 abilities = ["rolling", "grasping"]
+
+[[request]]
+abilities = ["walking"]
 """
-N_TINY = 6
+N_TINY = 7
 
 
 def write(path: Path, text: str = TINY) -> Path:
@@ -116,11 +119,11 @@ BAD = {
     "a value without its unit": (
         TINY + '\n[[request]]\nname = "bare"\nabilities = ["driving"]\n'
         'params = { speed = ["0.2m/s", "0.3"] }\n',
-        "request 5 (bare): --param speed",
+        "request 6 (bare): --param speed",
     ),
     "unknown ability": (
         TINY + '\n[[request]]\nabilities = ["rollin"]\n',
-        "request 5 (rollin): unknown ability 'rollin' (did you mean: rolling",
+        "request 6 (rollin): unknown ability 'rollin' (did you mean: rolling",
     ),
     "an answer that is not yes or no": (
         '[[request]]\nabilities = ["walking"]\nanswers = { grasping = "maybe" }\n',
@@ -129,7 +132,7 @@ BAD = {
     "the same request twice": (
         TINY + '\n[[request]]\nname = "again"\nabilities = ["rolling"]\n'
         'params = { payload = "0.05kg" }\n',
-        "request 5 (again): the same request as",
+        "request 6 (again): the same request as",
     ),
     "a catalog that is not there": ('catalog = "none.toml"\n' + TINY, "none.toml"),
     "bad TOML": ("[[request]\n", "s.toml"),
@@ -185,6 +188,9 @@ def test_rows_statuses_and_reasons(cli, tmp_path: Path) -> None:
     none = by[("rolling+grasping", "", "")]
     assert none["status"] == "refused" and none["robot_type"] == ""
     assert none["reason"] == "no robot can meet the request: rolling + grasping"
+    asks = by[("walking", "", "")]
+    assert asks["status"] == "ambiguous" and "Does the robot need to grasp?" in asks["reason"]
+    assert 'add grasping = "yes" or "no"' in asks["reason"]
     summary = (out / "summary.md").read_text()
     assert "| SnakeRobot | 2 | 2 | 0 |" in summary
     assert "| DifferentialDriveRobot | 3 | 2 | 1 |" in summary
@@ -223,14 +229,14 @@ def test_an_interrupted_sweep_resumes_to_the_same_bytes(
 
     monkeypatch.setattr(synth.sweep, "design_one", interrupted)
     r = cli("sweep", str(study), "--no-simulate", "--jobs", "1", "--out", str(cut))
-    assert r.code == 130 and "3 of 6 requests stored" in r.err and "run the same" in r.err
+    assert r.code == 130 and "3 of 7 requests stored" in r.err and "run the same" in r.err
     assert len(list((cut / "requests").glob("*.json"))) == 3
     assert not (cut / "results.csv").exists()
     monkeypatch.setattr(synth.sweep, "design_one", real)
     r = cli("sweep", str(study), "--no-simulate", "--jobs", "2", "--out", str(cut), "--json")
     assert r.code == 0, r.err
     s = json.loads(r.out)
-    assert (s["computed"], s["reused"]) == (3, 3)
+    assert (s["computed"], s["reused"]) == (4, 3)
     assert outputs(cut) == outputs(whole)
     # a third run designs nothing and rewrites the same files
     r = cli("sweep", str(study), "--no-simulate", "--out", str(cut), "--json")
