@@ -137,7 +137,11 @@ def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None)
         if behaviors is None
         else list(behaviors)
     )
-    return [figures(*run_behavior(model, controller, n)) for n in names]
+    out = []
+    for n in names:
+        fig = figures(*run_behavior(model, controller, n))
+        out.append({"behavior": n, "ability": controller.behaviors[n].realises} | fig)
+    return out
 
 
 def verify_files(

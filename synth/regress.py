@@ -19,7 +19,7 @@ from adron.kb import read_user_file
 if TYPE_CHECKING:
     from synth.conceptual import Designer, Request
 
-SUITE_KEYS = {"ontology", "rules", "catalog", "conceptual", "query"}
+SUITE_KEYS = {"ontology", "rules", "catalog", "conceptual", "query", "verify"}
 QUERY_KEYS = {"name", "abilities", "answers", "params"}
 
 
@@ -78,8 +78,12 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
     data = read_toml(path, SUITE_KEYS)
     opts = kb_options(data, path)
     opts["conceptual"] = data.get("conceptual", False)
-    if not isinstance(opts["conceptual"], bool):
-        raise InputError(f"{path}: conceptual: expected true or false")
+    # simulating every behaviour makes a suite slow and its snapshot hold simulator
+    # figures; a suite asks for it with verify = true
+    opts["verify"] = data.get("verify", False)
+    for key in ("conceptual", "verify"):
+        if not isinstance(opts[key], bool):
+            raise InputError(f"{path}: {key}: expected true or false")
     queries = data.get("query", [])
     if not isinstance(queries, list) or not queries:
         raise InputError(f"{path}: no [[query]] tables")
@@ -135,7 +139,7 @@ def run_queries(opts: dict, queries: list[dict]) -> dict[str, dict]:
     from synth.pipeline import StructureOptions, run
 
     designer = designer_for(opts)
-    sopts = StructureOptions(opts["catalog"], opts["conceptual"])
+    sopts = StructureOptions(opts["catalog"], opts["conceptual"], verify=opts["verify"])
     results = {}
     for i, q in enumerate(queries, 1):
         try:
