@@ -265,10 +265,11 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "sweep",
         help="design (and simulate) every request of a parameter study",
-        description="Design every request of STUDY.toml as 'parmor design --no-input' "
-        "would, a [[request]] table whose params hold lists expanding into their product, "
-        "and simulate every behaviour of each accepted design with its default parameters "
-        "(unless --no-simulate). Requests run in parallel on local processes. Writes "
+        description="Design every request of STUDY.toml (a [[request]] table whose params "
+        "hold lists expands into their product) as 'parmor design --no-input' would: sized, "
+        "and every behaviour the design lists simulated with its default parameters, "
+        "failures fed back (--no-simulate designs as --no-verify does). Requests run in "
+        "parallel on local processes. Writes "
         "DIR/results.csv (one row per request and behaviour: parameters, accepted or the "
         "reason, every verdict figure), DIR/summary.md (pass rates per robot type, failures "
         "by criterion, the refused requests and why) and DIR/plots/*.png (outcome over each "
@@ -294,7 +295,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--no-simulate",
         action="store_true",
-        help="design only: accepted or refused, no simulation (much faster)",
+        help="design as 'design --no-verify' does: no simulation (much faster)",
     )
     p.add_argument(
         "--allow-scripts",

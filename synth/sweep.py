@@ -3,8 +3,10 @@
 A study is a TOML file of ``[[request]]`` tables (``abilities``, optional ``name``,
 ``answers`` and ``params``, as in regression suites) whose ``params`` values may be lists:
 a table expands into the product of its lists. Each expanded request is designed as
-``parmor design --no-input`` would, and (unless ``--no-simulate``) every behaviour of the
-accepted design is simulated with default parameters (``export.verify.verify_files``).
+``parmor design --no-input`` would: sized and (unless ``--no-simulate``, which designs
+as ``--no-verify`` does) every behaviour it lists simulated with default parameters and fed
+back (``synth.verify``). The figures of each simulated behaviour (``export.verify``, the
+records of ``parmor simulate --json``) become the rows of ``results.csv``.
 
 The requests run on local worker processes. Each finished request is stored as
 ``DIR/requests/<key>.json``, ``key`` a hash of the request, the mode (simulated or not)
@@ -36,12 +38,12 @@ from synth.regress import designer_for, kb_options, read_toml, request_for, str_
 
 STUDY_KEYS = {"ontology", "rules", "catalog", "request"}
 REQUEST_KEYS = {"name", "abilities", "answers", "params"}
-RESULT_FORMAT = 1  # of the stored per-request results; part of their key
+RESULT_FORMAT = 2  # of the stored per-request results; part of their key
 KEY_LENGTH = 16  # hex digits of the request key (64 bits)
 NO_TYPE = "(none)"  # the robot type column of a request no robot type met
 # CSV columns before the parameters, between parameters and figures, and last
 HEAD_COLUMNS = ("request", "id", "robot_type")
-MIDDLE_COLUMNS = ("status", "reason", "abilities", "mass_kg", "behavior")
+MIDDLE_COLUMNS = ("status", "reason", "abilities", "mass_kg", "sizings", "behavior", "listed")
 TAIL_COLUMNS = ("verdict",)
 
 
@@ -164,7 +166,9 @@ def _init_worker(opts: dict, simulate: bool, in_pool: bool) -> None:
     if in_pool:  # Ctrl-C reaches the main process, which terminates the pool
         signal.signal(signal.SIGINT, signal.SIG_IGN)
     _WORKER.update(
-        designer=designer_for(opts), sopts=StructureOptions(opts["catalog"]), simulate=simulate
+        designer=designer_for(opts),
+        sopts=StructureOptions(opts["catalog"], verify=simulate),
+        simulate=simulate,
     )
 
 
@@ -175,12 +179,13 @@ def _work(item: tuple[int, dict]) -> tuple[int, dict]:
 
 def design_one(q: dict, designer, sopts, simulate: bool) -> dict:
     """The stored result of one request: status (accepted, refused, ambiguous; error for
-    an unexpected exception), reason, robot type, abilities, mass, and the simulation
-    record of each behaviour (None when not simulated)."""
+    an unexpected exception), reason, robot type, abilities, mass, and what the design's
+    verification found: the simulation record of each behaviour (None when not simulated),
+    the abilities it dropped (ability -> why) and the sizings it took."""
     from synth.pipeline import run
 
     res: dict = {"status": "error", "reason": "", "robot_type": None, "abilities": []}
-    res.update(mass_kg=None, behaviors=None)
+    res.update(mass_kg=None, behaviors=None, dropped={}, sizings=None)
     try:
         outcome = run(designer, request_for(q), sopts)
         d = outcome.design
@@ -206,10 +211,11 @@ def design_one(q: dict, designer, sopts, simulate: bool) -> dict:
                 + " + ".join(d.conflict)
                 + (f" ({d.note})" if d.note else "")
             )
-        if simulate and res["status"] == "accepted" and outcome.structure is not None:
-            from export.verify import verify_files
-
-            res["behaviors"] = [dict(b) for b in verify_files(outcome.files(designer))]
+        v = outcome.verification
+        if simulate and v is not None:
+            res["behaviors"] = [dict(b) for b in v.behaviors]
+            res["dropped"] = dict(sorted(v.dropped.items()))
+            res["sizings"] = v.rounds
     except Exception as e:  # noqa: BLE001 - a sweep records a crash and goes on
         res["status"], res["reason"] = "error", f"{type(e).__name__}: {e}"
     return res
@@ -440,11 +446,14 @@ def results_csv(rows: Sequence[dict]) -> str:
         head = [q["name"], r["id"], r["robot_type"] or ""]
         head += [q["params"].get(p, "") for p in params]
         head += [r["status"], r["reason"], " ".join(r["abilities"]), _cell(r["mass_kg"])]
+        head.append(_cell(r["sizings"]))
         for b in r["behaviors"] or [{}]:
+            listed = _cell(_listed(r, b)) if b else ""
             w.writerow(
                 [
                     *head,
                     b.get("behavior", ""),
+                    listed,
                     *(_cell(b.get(f)) for f in figures),
                     verdict_text(b),
                 ]
@@ -452,31 +461,43 @@ def results_csv(rows: Sequence[dict]) -> str:
     return buf.getvalue()
 
 
+def _listed(r: dict, b: dict) -> bool:
+    """Whether the design lists behaviour ``b`` (its ability was not dropped)."""
+    return b.get("ability", b.get("behavior")) not in r["dropped"]
+
+
+def _failed(b: dict) -> list[str]:
+    """The failed criteria of a behaviour's record (empty when ok)."""
+    v = b.get("verdict")
+    if v == "ok":
+        return []
+    return [v] if isinstance(v, str) else [str(c) for c in v or ["(no verdict)"]]
+
+
 def _all_ok(r: dict) -> bool:
-    bs = r["behaviors"]
-    return bool(bs) and all(b.get("verdict") == "ok" for b in bs)
+    """An accepted request whose every listed behaviour was simulated and kept its promise."""
+    bs = [b for b in r["behaviors"] or () if _listed(r, b)]
+    return r["status"] == "accepted" and bool(bs) and not any(_failed(b) for b in bs)
 
 
 def summary_object(rows: Sequence[dict], simulate: bool) -> dict:
-    """Counts per status, and per robot type: requests, accepted, every behaviour ok,
-    behaviours failing each criterion."""
+    """Counts per status, and per robot type: requests, accepted, accepted with every
+    listed behaviour ok, refused (and how many of them by a simulated behaviour), abilities
+    dropped, and the simulated behaviours failing each criterion (of every design)."""
     status = Counter(r["status"] for r in rows)
     types: dict[str, dict] = {}
     for t in sorted({r["robot_type"] or NO_TYPE for r in rows}):
         mine = [r for r in rows if (r["robot_type"] or NO_TYPE) == t]
         acc = [r for r in mine if r["status"] == "accepted"]
-        crit: Counter = Counter()
-        for r in acc:
-            for b in r["behaviors"] or ():
-                if b.get("verdict") != "ok":
-                    crit.update(
-                        [b.get("verdict")] if isinstance(b.get("verdict"), str) else b["verdict"]
-                    )
+        refused = [r for r in mine if r["status"] == "refused"]
+        crit: Counter = Counter(c for r in mine for b in r["behaviors"] or () for c in _failed(b))
         types[t] = {
             "requests": len(mine),
             "accepted": len(acc),
-            "refused": sum(r["status"] == "refused" for r in mine),
             "all_ok": sum(_all_ok(r) for r in acc) if simulate else None,
+            "refused": len(refused),
+            "refused_by_simulation": sum(bool(r["behaviors"]) for r in refused),
+            "dropped": dict(sorted(Counter(a for r in acc for a in r["dropped"]).items())),
             "failures": dict(sorted(crit.items())),
         }
     return {
@@ -487,8 +508,9 @@ def summary_object(rows: Sequence[dict], simulate: bool) -> dict:
     }
 
 
-def _describe(q: dict) -> str:
-    bits = [", ".join(q["abilities"])]
+def _describe(q: dict, name: str) -> str:
+    """``name: abilities answers params`` of a request."""
+    bits = [f"{name}: " + ", ".join(q["abilities"])]
     bits += [f"{k}={v}" for k, v in q["answers"].items()]
     bits += [f"{k}={v}" for k, v in q["params"].items()]
     return " ".join(bits)
@@ -499,8 +521,9 @@ def _md(text: str) -> str:
 
 
 def summary_md(study: Path, rows: Sequence[dict], simulate: bool, plots: Sequence[str]) -> str:
-    """The study's pass rates per robot type, the failures by criterion and behaviour,
-    the refused (and unanswered, and crashed) requests with their reasons, the plots."""
+    """The study's pass rates per robot type, the behaviours and their failures by
+    criterion, the abilities dropped, the requests not accepted with their reasons, the
+    plots."""
     s = summary_object(rows, simulate)
     st = s["status"]
     lines = [
@@ -511,9 +534,12 @@ def summary_md(study: Path, rows: Sequence[dict], simulate: bool, plots: Sequenc
         + (f", {st['error']} failed with an error" if st["error"] else "")
         + ". "
         + (
-            "Every behaviour of each accepted design was simulated with its default parameters."
+            "Designed as `parmor design` does: every behaviour a design lists simulated with "
+            "its default parameters, failures fed back, a demanded ability that still fails "
+            "refuses the request and a bonus one is dropped."
             if simulate
-            else "Designed only (--no-simulate): no behaviour was simulated."
+            else "Designed only (--no-simulate, as `parmor design --no-verify`): no behaviour "
+            "was simulated."
         ),
         "",
         "## Pass rates per robot type",
@@ -521,19 +547,38 @@ def summary_md(study: Path, rows: Sequence[dict], simulate: bool, plots: Sequenc
     ]
     if simulate:
         lines += [
-            "| robot type | requests | accepted | every behaviour ok | share of accepted |",
-            "|---|---|---|---|---|",
+            "| robot type | requests | accepted | every listed behaviour ok | share of accepted "
+            "| refused (of them by simulation) | abilities dropped |",
+            "|---|---|---|---|---|---|---|",
         ]
     else:
         lines += ["| robot type | requests | accepted | refused |", "|---|---|---|---|"]
     for t, v in s["types"].items():
         if simulate:
             share = f"{100 * v['all_ok'] / v['accepted']:.0f} %" if v["accepted"] else "-"
-            lines.append(f"| {t} | {v['requests']} | {v['accepted']} | {v['all_ok']} | {share} |")
+            dropped = ", ".join(f"{a} {n}" for a, n in v["dropped"].items()) or "-"
+            lines.append(
+                f"| {t} | {v['requests']} | {v['accepted']} | {v['all_ok']} | {share} | "
+                f"{v['refused']} ({v['refused_by_simulation']}) | {dropped} |"
+            )
         else:
             lines.append(f"| {t} | {v['requests']} | {v['accepted']} | {v['refused']} |")
     if simulate:
-        lines += _failures_md(rows)
+        lines += _behaviors_md(rows)
+    dropped = [(r, a, why) for r in rows for a, why in r["dropped"].items()]
+    if dropped:
+        lines += [
+            "",
+            "## Abilities dropped",
+            "",
+            "| request | robot type | ability | why |",
+            "|---|---|---|---|",
+        ]
+        lines += [
+            f"| {_md(_describe(r['request'], r['request']['name']))} | {r['robot_type']} | "
+            f"{a} | {_md(why)} |"
+            for r, a, why in dropped
+        ]
     refused = [r for r in rows if r["status"] != "accepted"]
     if refused:
         lines += [
@@ -544,7 +589,7 @@ def summary_md(study: Path, rows: Sequence[dict], simulate: bool, plots: Sequenc
             "|---|---|---|---|",
         ]
         lines += [
-            f"| {_md(r['request']['name'])}: {_md(_describe(r['request']))} | "
+            f"| {_md(_describe(r['request'], r['request']['name']))} | "
             f"{r['robot_type'] or '-'} | {r['status']} | {_md(r['reason'])} |"
             for r in refused
         ]
@@ -555,9 +600,9 @@ def summary_md(study: Path, rows: Sequence[dict], simulate: bool, plots: Sequenc
             "",
             "Outcome over each pair of parameters that vary for a robot type (each cell: "
             + (
-                "share of the accepted requests whose every behaviour passed"
+                "accepted requests whose every listed behaviour passed / accepted requests"
                 if simulate
-                else "accepted or refused"
+                else "accepted / requested"
             )
             + "; x: every request there was refused).",
             "",
@@ -566,24 +611,25 @@ def summary_md(study: Path, rows: Sequence[dict], simulate: bool, plots: Sequenc
     return "\n".join(lines) + "\n"
 
 
-def _failures_md(rows: Sequence[dict]) -> list[str]:
+def _behaviors_md(rows: Sequence[dict]) -> list[str]:
+    """Each behaviour's simulations and passes, and the failures by criterion, over every
+    simulated behaviour (of accepted designs, dropped abilities included, and of refused
+    requests)."""
     per: dict[tuple[str, str], list[int]] = defaultdict(lambda: [0, 0])
     crit: Counter = Counter()
     for r in rows:
-        if r["status"] != "accepted":
-            continue
         for b in r["behaviors"] or ():
             key = (r["robot_type"] or NO_TYPE, b.get("behavior", ""))
             per[key][0] += 1
-            v = b.get("verdict")
-            if v == "ok":
-                per[key][1] += 1
-            else:
-                for c in [v] if isinstance(v, str) else v or ["(no verdict)"]:
-                    crit[(*key, str(c))] += 1
+            failed = _failed(b)
+            per[key][1] += not failed
+            crit.update((*key, c) for c in failed)
     lines = [
         "",
         "## Behaviours",
+        "",
+        "Every simulation counts: those of accepted designs (of dropped abilities too) and "
+        "those that made a request refused.",
         "",
         "| robot type | behaviour | simulated | ok |",
         "|---|---|---|---|",

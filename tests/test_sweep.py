@@ -246,12 +246,17 @@ def test_an_interrupted_sweep_resumes_to_the_same_bytes(
 
 def fake_verify(files) -> list[dict]:
     """Two behaviours of every design: one ok, one built to fail two criteria, with a figure
-    the real records do not have."""
-    assert "design.json" in files and "robot.xml" in files
+    the real records do not have. The failing one realises a bonus ability (dropped from the
+    design) unless the payload is 50 g, where it realises the demanded one (the request is
+    refused)."""
+    record = json.loads(files["design.json"])
+    assert "robot.xml" in files
+    demanded = record["request"]["params"].get("payload") == "0.05kg"
     return [
-        {"behavior": "a-ok", "verdict": "ok", "fell": False, "saturated_fraction": 0.0},
+        {"behavior": "a-ok", "ability": "rolling", "verdict": "ok", "saturated_fraction": 0.0},
         {
             "behavior": "b-bad",
+            "ability": "rolling" if demanded else "bonus",
             "verdict": ["fell", "saturated"],
             "fell": True,
             "saturated_fraction": 0.5,
@@ -269,35 +274,42 @@ def test_summary_counts_failures_by_criterion(
     study = write(
         tmp_path / "s.toml",
         '[[request]]\nname = "snake"\nabilities = ["rolling"]\n'
-        'params = { payload = ["0kg", "0.05kg"] }\n\n'
+        'params = { payload = ["0kg", "0.01kg", "0.05kg"] }\n\n'
         '[[request]]\nabilities = ["rolling", "grasping"]\n',
     )
     r = cli("sweep", str(study), "--jobs", "1", "--json")
     assert r.code == 0, r.err
     s = json.loads(r.out)
     assert s["types"]["SnakeRobot"] == {
-        "requests": 2,
+        "requests": 3,
         "accepted": 2,
-        "refused": 0,
-        "all_ok": 0,
-        "failures": {"fell": 2, "saturated": 2},
+        "all_ok": 2,  # the failing behaviour's ability was dropped: the design does not list it
+        "refused": 1,
+        "refused_by_simulation": 1,
+        "dropped": {"bonus": 2},
+        "failures": {"fell": 3, "saturated": 3},
     }
     out = default_out(study)
     got = rows(out)
-    assert [(g["payload"], g["behavior"], g["verdict"]) for g in got] == [
-        ("0kg", "a-ok", "ok"),
-        ("0kg", "b-bad", "fell;saturated"),
-        ("0.05kg", "a-ok", "ok"),
-        ("0.05kg", "b-bad", "fell;saturated"),
-        ("", "", ""),
+    assert [(g["payload"], g["status"], g["behavior"], g["listed"], g["verdict"]) for g in got] == [
+        ("0kg", "accepted", "a-ok", "true", "ok"),
+        ("0kg", "accepted", "b-bad", "false", "fell;saturated"),
+        ("0.01kg", "accepted", "a-ok", "true", "ok"),
+        ("0.01kg", "accepted", "b-bad", "false", "fell;saturated"),
+        ("0.05kg", "refused", "a-ok", "true", "ok"),
+        ("0.05kg", "refused", "b-bad", "true", "fell;saturated"),
+        ("", "refused", "", "", ""),
     ]
+    assert got[4]["reason"].startswith("b-bad failed in simulation: fell")
     assert got[1]["new_figure"] == "1.5" and got[0]["new_figure"] == ""
     assert got[1]["fell"] == "true" and got[1]["saturated_fraction"] == "0.5"
+    assert got[1]["ability"] == "bonus" and got[0]["sizings"] == "1"
     summary = (out / "summary.md").read_text()
-    assert "| SnakeRobot | 2 | 2 | 0 | 0 % |" in summary
-    assert "| SnakeRobot | b-bad | fell | 2 |" in summary
-    assert "| SnakeRobot | b-bad | saturated | 2 |" in summary
-    assert "| SnakeRobot | a-ok | 2 | 2 |" in summary
+    assert "| SnakeRobot | 3 | 2 | 2 | 100 % | 1 (1) | bonus 2 |" in summary
+    assert "| SnakeRobot | b-bad | fell | 3 |" in summary
+    assert "| SnakeRobot | b-bad | saturated | 3 |" in summary
+    assert "| SnakeRobot | a-ok | 3 | 3 |" in summary
+    assert "## Abilities dropped" in summary and "| SnakeRobot | bonus | b-bad failed" in summary
 
 
 def test_a_crash_is_reported_not_stored_and_tried_again(
@@ -319,6 +331,7 @@ def test_a_crash_is_reported_not_stored_and_tried_again(
     monkeypatch.setattr(export.verify, "verify_files", fake_verify)
     r = cli("sweep", str(study), "--jobs", "1")
     assert r.code == 0 and [g["status"] for g in rows(out)] == ["accepted", "accepted"]
+    assert [g["listed"] for g in rows(out)] == ["true", "false"]
 
 
 def test_simulated_sweep_of_a_differential_drive(cli, tmp_path: Path) -> None:
@@ -337,4 +350,6 @@ def test_simulated_sweep_of_a_differential_drive(cli, tmp_path: Path) -> None:
     v = record["verdict"]
     assert got[0]["verdict"] == (v if v == "ok" else ";".join(v))
     assert got[0]["saturated_fraction"] == json.dumps(record["saturated_fraction"])
-    assert json.loads(r.out)["types"]["DifferentialDriveRobot"]["accepted"] == 1
+    # accepted, or refused naming the behaviour that failed: either way simulated
+    assert got[0]["status"] == "accepted" or got[0]["reason"].startswith("driving failed")
+    assert json.loads(r.out)["types"]["DifferentialDriveRobot"]["requests"] == 1
