@@ -10,7 +10,8 @@ records of ``parmor simulate --json``) become the rows of ``results.csv``.
 
 The requests run on local worker processes. Each finished request is stored as
 ``DIR/requests/<key>.json``, ``key`` a hash of the request, the mode (simulated or not)
-and the contents of the study's ontology, rules and catalog files; a rerun designs only
+and the contents of the study's ontology, rules and catalog files and of parmor's own
+source and data files; a rerun designs only
 the requests without a stored result and rebuilds ``results.csv``, ``summary.md`` and
 ``plots/*.png`` from the stored results alone, so they are byte-identical to those of an
 uninterrupted run. Requests that raised an unexpected error are not stored (a rerun tries
@@ -112,8 +113,28 @@ def load_study(path: Path) -> tuple[dict, list[dict]]:
     return opts, out
 
 
-def _digest(paths: Iterable[str | None]) -> str:
-    """A hash of the contents of the study's knowledge files (None: the shipped one)."""
+#: The packages whose files decide a design: a change to any of them designs everything again.
+CODE_PACKAGES = ("adron", "asp", "synth", "kinematics", "gaits", "export")
+CODE_SUFFIXES = (".py", ".lp", ".kif", ".toml")
+
+
+def code_files() -> list[Path]:
+    """parmor's own source and data files (the packages are located, not imported)."""
+    import importlib.util
+
+    out = []
+    for pkg in CODE_PACKAGES:
+        spec = importlib.util.find_spec(pkg)
+        roots = (spec.submodule_search_locations or ()) if spec is not None else ()
+        for root in roots:
+            out += sorted(
+                f for f in Path(root).rglob("*") if f.suffix in CODE_SUFFIXES and f.is_file()
+            )
+    return out
+
+
+def _digest(paths: Iterable[str | Path | None]) -> str:
+    """A hash of the contents of ``paths`` (None: a file not given)."""
     h = hashlib.sha256()
     for p in paths:
         h.update(b"\0" if p is None else Path(p).read_bytes())
@@ -122,7 +143,8 @@ def _digest(paths: Iterable[str | None]) -> str:
 
 
 def request_key(q: dict, simulate: bool, files_digest: str) -> str:
-    """The stable key of a request's result: abilities, answers, params, mode, files."""
+    """The stable key of a request's result: abilities, answers, params, mode, and the
+    digest of the study's files and parmor's own."""
     ident = {
         "format": RESULT_FORMAT,
         "simulate": simulate,
@@ -325,7 +347,7 @@ def run_study(
     out = Path(out_dir) if out_dir is not None else default_out(path)
     _check_out(out)
     validate(opts, requests)
-    digest = _digest([opts["catalog"], *opts["ontology"], *opts["rules"]])
+    digest = _digest([opts["catalog"], *opts["ontology"], *opts["rules"], *code_files()])
     keys = [request_key(q, simulate, digest) for q in requests]
     seen: dict[str, int] = {}
     for i, (q, k) in enumerate(zip(requests, keys, strict=True)):

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 import synth.sweep
-from synth.sweep import default_out, load_study
+from synth.sweep import code_files, default_out, load_study, request_key
 
 # cheap designs: a snake, a differential drive, one too fast to size, a request no robot can
 # meet and one that needs an answer
@@ -353,3 +353,17 @@ def test_simulated_sweep_of_a_differential_drive(cli, tmp_path: Path) -> None:
     # accepted, or refused naming the behaviour that failed: either way simulated
     assert got[0]["status"] == "accepted" or got[0]["reason"].startswith("driving failed")
     assert json.loads(r.out)["types"]["DifferentialDriveRobot"]["requests"] == 1
+
+
+def test_the_key_follows_request_mode_and_files() -> None:
+    q = {"abilities": ["walking"], "answers": {"a": "yes", "b": "no"}, "params": {"x": "1kg"}}
+    same = {"abilities": ["walking"], "answers": {"b": "no", "a": "yes"}, "params": {"x": "1kg"}}
+    key = request_key(q, True, "d")
+    assert key == request_key(same, True, "d") and len(key) == 16
+    assert key != request_key(q, False, "d")  # simulated or not
+    assert key != request_key(q, True, "e")  # the study's files or parmor's own changed
+    assert key != request_key({**q, "params": {"x": "2kg"}}, True, "d")
+    names = {p.name for p in code_files()}
+    assert {"sweep.py", "catalog.toml", "verify.py"} <= names and any(
+        n.endswith(".kif") for n in names
+    )
