@@ -626,7 +626,8 @@ def summary_md(study: Path, rows: Sequence[dict], simulate: bool, plots: Sequenc
                 if simulate
                 else "accepted / requested"
             )
-            + "; x: every request there was refused).",
+            + "; x: every request there was refused, red where a simulated behaviour "
+            "refused one).",
             "",
         ]
         lines += [f"![{Path(p).stem}]({p})" for p in plots]
@@ -726,8 +727,9 @@ def _plot(t: str, rows: Sequence[dict], a: str, b: str | None, simulate: bool) -
     cmap = plt.get_cmap("RdYlGn")
     for (x, y), rs in sorted(cells.items()):
         acc = [r for r in rs if r["status"] == "accepted"]
-        if not acc:
-            ax.scatter([x], [y], marker="x", s=120, color="0.4")
+        if not acc:  # red: refused because a simulated behaviour failed
+            simulated = any(r["behaviors"] for r in rs)
+            ax.scatter([x], [y], marker="x", s=120, color="tab:red" if simulated else "0.4")
             continue
         good = sum(_all_ok(r) for r in acc) if simulate else len(acc)
         whole = len(acc) if simulate else len(rs)
@@ -741,7 +743,7 @@ def _plot(t: str, rows: Sequence[dict], a: str, b: str | None, simulate: bool) -
     ax.set_ylim(-0.6, len(ys) - 0.4)
     ax.set_xlabel(a)
     ax.set_ylabel(b or "")
-    what = "every behaviour ok / accepted" if simulate else "accepted / requests"
+    what = "every listed behaviour ok / accepted" if simulate else "accepted / requests"
     ax.set_title(f"{t}: {what}", fontsize=9)
     fig.tight_layout()
     buf = io.BytesIO()
