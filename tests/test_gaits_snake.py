@@ -15,6 +15,7 @@ from export.simulate import load_bundle_model, simulate
 from gaits.base import DesignGeometry, Trajectory
 from gaits.snake import (
     GAITS,
+    RECTILINEAR_ARCH,
     SPEED_SHARE,
     SnakeController,
     WaveParams,
@@ -70,15 +71,24 @@ def test_joint_waves_are_eq_7_on_alternating_modules() -> None:
 
 def test_gait_parameter_sets() -> None:
     deg = math.radians
-    for m in (3, 5, 8, 14):
+    for m in (3, 5, 6, 8, 14):
         roll = gait_params("rolling", m)
         assert roll.a_v == roll.a_h and roll.dphi_v == roll.dphi_h == 0
         assert abs(roll.dphi_vh) == pytest.approx(math.pi / 2)
         rect = gait_params("rectilinear", m)
         assert rect.a_h == 0 and abs(rect.dphi_v) == pytest.approx(deg(120))
+        # the arch is shared by the vertical joints
+        if m >= 5:  # the gait's least M (ontology)
+            assert rect.o_v * math.ceil(m / 2) == pytest.approx(RECTILINEAR_ARCH)
         side = gait_params("sidewinding", m)
-        assert side.dphi_v == side.dphi_h != 0 and abs(side.dphi_vh) == pytest.approx(deg(90))
-        assert side.a_v < side.a_h
+        assert side.dphi_v == side.dphi_h != 0
+        # 90 degrees between the waves where they bend the body: the horizontal module is
+        # half a phase step behind its vertical one
+        assert side.dphi_vh - side.dphi_v / 2 == pytest.approx(deg(90))
+        # the other sense is the mirror image: the horizontal wave half a cycle later
+        back = gait_params("sidewinding", m, -1)
+        assert side.dphi_vh - back.dphi_vh == pytest.approx(math.pi)
+        assert back.a_v == side.a_v and back.dphi_v == side.dphi_v
         rot = gait_params("rotating", m)  # different k: twice the phase step vertically
         assert rot.dphi_v == pytest.approx(2 * rot.dphi_h)
         circ = gait_params("circular-path", m, bend=0.3)
@@ -88,6 +98,8 @@ def test_gait_parameter_sets() -> None:
             assert gait_params(g, m, -1).peak() == gait_params(g, m, 1).peak()
     # the rolling arc's bend is shared by the joints: bigger amplitudes on short snakes
     assert gait_params("rolling", 3).a_v > gait_params("rolling", 8).a_v >= deg(30)
+    # so is the sidewinding lift: short snakes (relatively heavier heads) lift more
+    assert gait_params("sidewinding", 6).a_v > gait_params("sidewinding", 14).a_v >= deg(10)
     assert gait_params("rectilinear", 5, -1).dphi_v == -gait_params("rectilinear", 5).dphi_v
     with pytest.raises(ValueError, match="unknown gait"):
         gait_params("slithering", 8)
