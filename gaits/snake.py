@@ -179,13 +179,17 @@ TRAVEL_STEP = 2 * math.pi / 3
 #: Winding angles alpha (rad) of eqs. 8-9 per gait: (vertical, horizontal).
 RECTILINEAR_ALPHA = math.radians(45)  # A_v = 78 degrees: humps tall enough to lift the head
 #: Total vertical offset rad of ``rectilinear`` (and ``circular-path``), shared by the
-#: vertical joints: O_v = RECTILINEAR_ARCH / ceil(M / 2), each bending the tail down, so
-#: the body arches and the head is tilted nose up. Simulated on the designed snakes
-#: (M = 5-14, payload 0-0.5 kg): without it the heavy head rocks back and forth with the
+#: vertical joints, each bending the tail down, so that the body arches and the head is
+#: tilted nose up: O_v = RECTILINEAR_ARCH * min(1, (ARCH_MODULES / M)^2) / ceil(M / 2).
+#: The arch is for the heavy head (main module, battery, payload) of the short snakes; a
+#: long snake holds its arched ends up as cantilevers, whose torque grows as M^2, so
+#: beyond ARCH_MODULES its arch shrinks as 1 / M^2. Simulated on the designed snakes
+#: (M = 5-14, payload 0-0.5 kg): without the arch the head rocks back and forth with the
 #: humps and the short snakes hardly move (M = 5: 0.17, M = 6 with 0.25 kg: 0.24 body
-#: length per 10 s); with 30 degrees M = 5-8 crawl 0.28-0.64; a fixed 10 degrees per joint
-#: instead curls the long snakes (M = 10-12: 0.15-0.22).
+#: length per 10 s); with 30 degrees M = 5-8 crawl 0.28-0.64; 30 degrees at M = 14
+#: saturate a module 7 % of the time tail first, 10 degrees 2 %.
 RECTILINEAR_ARCH = math.radians(30)
+ARCH_MODULES = 8
 SIDEWINDING_ALPHA = math.radians(20)  # horizontal: A_h = 35 degrees
 #: Total vertical bend rad of ``sidewinding``, shared by the vertical joints: A_v =
 #: SIDEWINDING_LIFT / (M / 2). The lifted parts must leave the ground although the heavy
@@ -227,7 +231,8 @@ def gait_params(gait: str, modules: int, direction: int = 1, bend: float = 0.0) 
     if gait in ("rectilinear", "circular-path"):
         a_v = wave_amplitude(RECTILINEAR_ALPHA, k, modules)
         # (within the joints' +-90 degrees on snakes too short for the gait, M < 5)
-        o_v = min(RECTILINEAR_ARCH / math.ceil(modules / 2), math.pi / 2 - a_v)
+        arch = RECTILINEAR_ARCH * min(1.0, (ARCH_MODULES / modules) ** 2)
+        o_v = min(arch / math.ceil(modules / 2), math.pi / 2 - a_v)
         p = WaveParams(a_v, 0.0, direction * wave_phase_step(k, modules), o_v=o_v)
         if gait == "circular-path":
             if not abs(bend) <= BEND_MAX:
