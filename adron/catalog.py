@@ -130,6 +130,16 @@ class DesignRules:
     gravity_m_s2: float
     max_slope_rad: float
     rolling_resistance: float
+    # torque safety factor on the behaviours' own inverse dynamics (optional key; default:
+    # torque_safety_factor)
+    behaviour_torque_factor: float = 0.0
+
+    @property
+    def behaviour_scale(self) -> float:
+        """Factor on a behaviour's peak torque that makes it comparable with usable torque
+        (stall / torque_safety_factor)."""
+        f = self.behaviour_torque_factor or self.torque_safety_factor
+        return f / self.torque_safety_factor
 
 
 @dataclass(frozen=True)
@@ -479,7 +489,7 @@ def _material(t: _Table) -> Material:
 
 
 def _design(t: _Table) -> DesignRules:
-    t.check_keys(_DESIGN_KEYS)
+    t.check_keys(_DESIGN_KEYS, ("behaviour_torque_factor",))
     slope = t.q("max_slope", "angle", allow_zero=True)
     if slope >= math.pi / 2:
         raise t.fail(f"'{t.data['max_slope']}' is not less than 90 deg", "max_slope")
@@ -496,6 +506,11 @@ def _design(t: _Table) -> DesignRules:
         gravity_m_s2=t.q("gravity", "acceleration"),
         max_slope_rad=slope,
         rolling_resistance=rolling,
+        behaviour_torque_factor=(
+            t.number("behaviour_torque_factor", minimum=1.0)
+            if "behaviour_torque_factor" in t.data
+            else 0.0
+        ),
     )
 
 

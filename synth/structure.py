@@ -494,9 +494,11 @@ class StructureDesigner:
         hand = dict(torque)
         behaviour_points: dict[str, list[tuple[float, float]]] = {}
         tube_loads: dict[str, list[np.ndarray]] = {}  # length name -> (B, 6) free-end loads
+        # behaviour peaks count at the catalog's behaviour torque factor, not the hand cases'
+        scale = self.catalog.design.behaviour_scale
         for bc in self._behaviour_cases(analysis, sizing, actuator_sets):
             tau_b, W = analyse(analysis, bc)
-            tau_b = np.abs(tau_b)
+            tau_b = np.abs(tau_b) * scale
             for k, name in enumerate(m.q_names):
                 i = int(np.argmax(tau_b[:, k]))
                 if tau_b[i, k] > torque.get(name, -1.0):
@@ -1044,7 +1046,7 @@ class _TorqueModel:
         b = [np.zeros((0, m.nv))]
         w = [np.zeros((0, m.nv))]
         for bc in d._behaviour_cases(analysis, sizing, d.actuator_sets):
-            b.append(analyse(analysis, bc)[0])
+            b.append(analyse(analysis, bc)[0] * d.catalog.design.behaviour_scale)
             w.append(np.abs(bc.v))
         names = [j.name for j in m.joints if m.q_index[m.joint(j.name)] >= 0]
         return names, t, np.concatenate(b), np.concatenate(w)
