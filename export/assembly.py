@@ -146,10 +146,19 @@ def _box_use(
 # --- the parts of each kind ----------------------------------------------------------------
 
 
-def _actuator(b: _Builder, lp: LabelledPart, axis: np.ndarray, models: dict) -> PartUse:
+def _actuator(
+    b: _Builder, lp: LabelledPart, body: str, axis: np.ndarray, models: dict, tmpl: Template
+) -> PartUse:
+    """The joint's catalog module, shaft (size z) along the joint axis. It sits on the
+    joint's own body (``axis``, body frame), or on its parent (a wheel's servo is on the
+    chassis): then the axis is the joint's, turned into the parent's frame."""
     a = models.get(lp.label)
     if a is None:
         raise ExportError(f"joint '{lp.label}' has no actuator in the structure")
+    m = tmpl.model
+    j = m.joints[m.joint(lp.label)]
+    if m.bodies[j.child].name != body:
+        axis = j.origin[:3, :3] @ j.axis
     placement = transform_from(_frame_z(axis), lp.placement[:3, 3])
     return _box_use(a.model, "module", a.mass_kg, a.size_m, placement)
 
@@ -310,7 +319,7 @@ def _part_uses(
     b: _Builder, lp: LabelledPart, body: str, axis: np.ndarray, models: dict, tmpl: Template
 ) -> list[PartUse]:
     if lp.kind == "actuator":
-        return [_actuator(b, lp, axis, models)]
+        return [_actuator(b, lp, body, axis, models, tmpl)]
     if lp.kind == "link":
         return [_link(b, lp, tmpl)]
     if lp.kind == "foot":
