@@ -39,7 +39,7 @@ from gaits.base import (
     min_jerk_integral,
 )
 from kinematics.dynamics import center_of_mass, forward_kinematics
-from kinematics.templates import Template
+from kinematics.templates import Template, TemplateParams, build
 
 __all__ = [
     "DriveGeometry",
@@ -66,6 +66,10 @@ SPEED_MARGIN = 1.0
 TYRE_FRICTION = 1.0
 CASTER_FRICTION = 0.05
 GRAVITY = 9.81
+#: A turn in place of default duration peaks at this fraction of the design's travel speed
+#: (its wheels' rim speed): the operating point the wheels are sized to turn at
+#: (``synth.sizing.TURN_SPEED_FRACTION``, equal; a test checks it).
+TURN_SPEED_FRACTION = 0.25
 #: Yaw rate rad/s over which the scrubbing torque of a skid-steer's wheels builds up from 0
 #: (Coulomb friction switches sign with the slip; a tanh keeps the command continuous).
 SKID_RATE = 0.02
@@ -176,6 +180,7 @@ class DriveGeometry:
     yaw_inertia: float = 0.0
     caster_x: float | None = None
     caster_share: float = 0.0
+    com_x: float = 0.0
 
     @classmethod
     def from_template(
@@ -184,9 +189,11 @@ class DriveGeometry:
         joint_speed: Mapping[str, float],
         mass: float = 0.0,
         joint_torque: Mapping[str, float] | None = None,
+        layout: Template | None = None,
     ) -> DriveGeometry:
         """Read the drive off the template's wheel joints (positions in the chassis frame);
-        ``mass`` kg and ``joint_torque`` (stall torques N m) enable the load model."""
+        ``mass`` kg and ``joint_torque`` (stall torques N m) enable the load model, whose
+        mass layout is that of ``layout`` (default: ``template``)."""
         m = template.model
         wheels = [j for j in m.joints if j.kind == "continuous"]
         if not wheels:
@@ -216,11 +223,11 @@ class DriveGeometry:
         torque = joint_torque or {}
         stall = min((torque.get(n, 0.0) for n in pos), default=0.0)
         if mass <= 0 or stall <= 0:
-            mass, kv, inertia, caster_x, share = 0.0, 0.0, 0.0, None, 0.0
+            mass, kv, inertia, caster_x, share, com_x = 0.0, 0.0, 0.0, None, 0.0, 0.0
         else:
             kv = stall / min(speeds)
-            inertia, caster_x, share = _mass_layout(
-                template, mass, float(np.mean([pos[n][0] for n in pos]))
+            inertia, caster_x, share, com_x = _mass_layout(
+                layout or template, mass, float(np.mean([pos[n][0] for n in pos]))
             )
         return cls(
             left,
@@ -236,6 +243,7 @@ class DriveGeometry:
             inertia,
             caster_x,
             share,
+            com_x,
         )
 
     @property
@@ -272,8 +280,12 @@ class DriveGeometry:
         zero = np.zeros_like(v)
         if self.mass <= 0:
             return zero, zero
-        fx = self.mass * np.asarray(accel, dtype=float)  # sum of the sides' forces, N
-        mz = self.yaw_inertia * np.asarray(alpha, dtype=float)  # their moment, N m
+        # the chassis' equations of motion in its own frame, the root at the wheels' middle
+        # (no side slip there) and the centre of mass at (com_x, 0): forward force
+        # m (dv/dt - w^2 com_x), yaw moment I dw/dt + m com_x v w (I about the root)
+        xg = self.com_x
+        fx = self.mass * (np.asarray(accel, dtype=float) - w * w * xg)  # sides' forces, N
+        mz = self.yaw_inertia * np.asarray(alpha, dtype=float) + self.mass * xg * v * w
         if self.caster_x is not None and self.caster_share > 0:
             # the caster slides where the chassis carries it: velocity (v, w x_c)
             cx, cy = v, w * self.caster_x
@@ -331,10 +343,10 @@ class DriveGeometry:
 
 def _mass_layout(
     template: Template, mass: float, axle_x: float
-) -> tuple[float, float | None, float]:
-    """(yaw inertia kg m^2 about the root's z, caster x m, caster's share of the weight) of
-    a robot of ``mass`` kg laid out as its template (the template's masses are stand-ins:
-    the inertia is scaled to ``mass``; the centre of mass is the template's)."""
+) -> tuple[float, float | None, float, float]:
+    """(yaw inertia kg m^2 about the root's z, caster x m or None, the caster's share of
+    the weight, the centre of mass' x m) of a robot of ``mass`` kg laid out as
+    ``template`` (whose masses are stand-ins: the inertia is scaled to ``mass``)."""
     m = template.model
     T = forward_kinematics(m, np.zeros(m.nv))
     total = sum(b.mass for b in m.bodies)
@@ -344,12 +356,12 @@ def _mass_layout(
         c = R @ np.asarray(b.com) + p
         inertia += float((R @ np.asarray(b.inertia) @ R.T)[2, 2]) + b.mass * (c[0] ** 2 + c[1] ** 2)
     inertia *= mass / total
-    if not template.casters:
-        return inertia, None, 0.0
-    caster_x = float(T[m.body(template.casters[0]), 0, 3])
     com_x = float(center_of_mass(m, np.zeros(m.nv))[0])
+    if not template.casters:
+        return inertia, None, 0.0, com_x
+    caster_x = float(T[m.body(template.casters[0]), 0, 3])
     share = min(max((axle_x - com_x) / (axle_x - caster_x), 0.0), 1.0)
-    return inertia, caster_x, share
+    return inertia, caster_x, share, com_x
 
 
 class WheeledController(Controller):
@@ -375,8 +387,22 @@ class WheeledController(Controller):
 
     def __init__(self, geometry: DesignGeometry) -> None:
         super().__init__(geometry)
+        # the load model's mass layout: the template with the design's payload on the chassis
+        layout = build(
+            geometry.template,
+            TemplateParams(
+                lengths=geometry.lengths,
+                modules=geometry.modules,
+                wheel_radius=geometry.wheel_radius,
+                payload=float(geometry.params.get("payload", 0.0)),
+            ),
+        )
         self.drive = DriveGeometry.from_template(
-            self.template, geometry.joint_speed, geometry.mass_kg, geometry.joint_torque
+            self.template,
+            geometry.joint_speed,
+            geometry.mass_kg,
+            geometry.joint_torque,
+            layout=layout,
         )
         self.joints = (*self.drive.left, *self.drive.right)
 
@@ -445,7 +471,7 @@ class WheeledController(Controller):
                         "seconds",
                         "float",
                         0.0,
-                        "duration (0: the shortest within the wheel speeds)",
+                        "duration (0: peak rim speed a quarter of the design's travel speed)",
                         "s",
                         low=0.0,
                         high=3600,
@@ -526,6 +552,10 @@ class WheeledController(Controller):
                     f"the scrubbing torque ({self.drive.skid_torque():.3g} N m)"
                 )
         if seconds == 0:
+            travel = float(self.geometry.params.get("speed", 0.0))
+            if travel > 0:  # peak rim speed TURN_SPEED_FRACTION x the travel speed
+                rim = TURN_SPEED_FRACTION * travel
+                shortest = max(shortest, 1.875 * abs(angle) * self.drive.effective_track / 2 / rim)
             seconds = max(round(math.ceil(shortest / SAMPLE_DT) * SAMPLE_DT, 9), SAMPLE_DT * 2)
         elif seconds < shortest * (1 - 1e-9):
             raise ValueError(
