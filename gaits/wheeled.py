@@ -39,7 +39,7 @@ from gaits.base import (
     min_jerk_integral,
 )
 from kinematics.dynamics import center_of_mass, forward_kinematics
-from kinematics.templates import Template, TemplateParams, build
+from kinematics.templates import WHEEL_WIDTH, Template, TemplateParams, build
 
 __all__ = [
     "DriveGeometry",
@@ -66,10 +66,14 @@ SPEED_MARGIN = 1.0
 TYRE_FRICTION = 1.0
 CASTER_FRICTION = 0.05
 GRAVITY = 9.81
-#: A turn in place of default duration peaks at this fraction of the design's travel speed
-#: (its wheels' rim speed): the operating point the wheels are sized to turn at
-#: (``synth.sizing.TURN_SPEED_FRACTION``, equal; a test checks it).
+#: A turn in place of default duration peaks at this fraction of the wheels' top speed (at
+#: their rims): slow enough for the chassis' inertia to stay a small load, fast enough
+#: that the load model's error stays small against the speed.
 TURN_SPEED_FRACTION = 0.25
+#: Lever of a tyre's scrub, as a fraction of the wheel's width: a wheel turning about the
+#: vertical drags its flat rim across the floor; with the load spread evenly across the
+#: width the Coulomb moment is mu N (width / 4).
+SCRUB_LEVER = 0.25
 #: Yaw rate rad/s over which the scrubbing torque of a skid-steer's wheels builds up from 0
 #: (Coulomb friction switches sign with the slip; a tanh keeps the command continuous).
 SKID_RATE = 0.02
@@ -269,6 +273,13 @@ class DriveGeometry:
         a, l_ = self.wheel_base, self.track
         return TYRE_FRICTION * self.mass * GRAVITY / n * self.radius * a / math.hypot(a, l_)
 
+    def scrub_moment(self) -> float:
+        """The yaw moment N m all tyres' scrubbing resists a turn with (Coulomb): each wheel
+        mu N_i SCRUB_LEVER WHEEL_WIDTH, N_i its share of the weight (the caster's share
+        off)."""
+        load = self.mass * GRAVITY * (1 - self.caster_share)
+        return TYRE_FRICTION * load * SCRUB_LEVER * WHEEL_WIDTH
+
     def wheel_torques(
         self, v: np.ndarray, w: np.ndarray, accel: np.ndarray, alpha: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
@@ -294,6 +305,8 @@ class DriveGeometry:
             scale = np.divide(f, speed, out=np.zeros_like(speed), where=speed > 1e-9)
             fx = fx + scale * cx
             mz = mz - self.caster_x * (-scale * cy)
+        # each tyre's scrub while the chassis turns: mu N (SCRUB_LEVER x width) per wheel
+        mz = mz + self.scrub_moment() * np.tanh(w / SKID_RATE)
         left_f = fx / 2 - mz / self.track
         right_f = fx / 2 + mz / self.track
         skid = self.skid_torque() * np.tanh(w / SKID_RATE)
@@ -471,7 +484,7 @@ class WheeledController(Controller):
                         "seconds",
                         "float",
                         0.0,
-                        "duration (0: peak rim speed a quarter of the design's travel speed)",
+                        "duration (0: peak rim speed a quarter of the wheels' top speed)",
                         "s",
                         low=0.0,
                         high=3600,
@@ -552,10 +565,8 @@ class WheeledController(Controller):
                     f"the scrubbing torque ({self.drive.skid_torque():.3g} N m)"
                 )
         if seconds == 0:
-            travel = float(self.geometry.params.get("speed", 0.0))
-            if travel > 0:  # peak rim speed TURN_SPEED_FRACTION x the travel speed
-                rim = TURN_SPEED_FRACTION * travel
-                shortest = max(shortest, 1.875 * abs(angle) * self.drive.effective_track / 2 / rim)
+            rim = TURN_SPEED_FRACTION * self.v_max  # the peak rim speed
+            shortest = max(shortest, 1.875 * abs(angle) * self.drive.effective_track / 2 / rim)
             seconds = max(round(math.ceil(shortest / SAMPLE_DT) * SAMPLE_DT, 9), SAMPLE_DT * 2)
         elif seconds < shortest * (1 - 1e-9):
             raise ValueError(
