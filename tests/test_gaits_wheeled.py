@@ -394,7 +394,10 @@ def test_commands_feed_forward_the_load() -> None:
     assert d.skid_torque() == pytest.approx(1.0 * 2.0 * 9.81 / 4 * 0.03 * a / math.hypot(a, l_))
     left, right = d.commands(np.array([0.0]), np.array([1.0]), np.zeros(1), np.zeros(1))
     ql, qr = d.wheel_speeds(0.0, 1.0)
-    droop = d.skid_torque() * math.tanh(1.0 / SKID_RATE) / d.kv
+    # the wheels scrub sideways (skid torque) and each tyre across its width (scrub moment)
+    scrub = d.radius * d.scrub_moment() / d.track / 2
+    droop = (d.skid_torque() + scrub) * math.tanh(1.0 / SKID_RATE) / d.kv
+    assert d.scrub_moment() == pytest.approx(2.0 * 9.81 * 0.01 / 4)
     assert (left[0], right[0]) == pytest.approx((ql - droop, qr + droop))
     # straight and steady on flat ground: no load, no droop
     left, right = d.commands(np.array([0.1]), np.zeros(1), np.zeros(1), np.zeros(1))
@@ -404,9 +407,12 @@ def test_commands_feed_forward_the_load() -> None:
     WheeledController(g).drive.check(0.0, w)
     with pytest.raises(ValueError, match="needs a wheel speed"):
         d.check(0.0, w)
+    # the droop leaves less speed to turn with: the shortest unloaded turn is refused
+    fast = 1.01 * 1.875 * math.pi / c.w_max
+    WheeledController(g).run("turning", angle=math.pi, seconds=fast)
+    with pytest.raises(ValueError, match="at least"):
+        c.run("turning", angle=math.pi, seconds=fast)
     slow = c.run("turning", angle=math.pi)
-    unloaded = WheeledController(g).run("turning", angle=math.pi)
-    assert slow.duration > unloaded.duration  # the droop leaves less speed to turn with
     assert np.abs(slow.velocities).max() <= d.max_speed * (1 + 1e-9)
 
 
