@@ -68,7 +68,7 @@ its joint between ``lower`` (closed, 0) and ``upper`` (open, pi/2) of its limits
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from functools import lru_cache
 
 import numpy as np
@@ -423,6 +423,9 @@ class ManipulatorController(Controller):
     design's masses (gravity compensation, :meth:`peak_torques`); default see the module
     docstring. ``stiffness``: joint name -> servo stiffness N m/rad (the MJCF's ``kp``):
     when given, positions are compensated for the servos' droop under gravity.
+    ``gravity``: (N, nj) positions -> (N, nj) gravity torques N m of the joints, used for the
+    droop instead of ``model`` (e.g. the simulator's own model, so the compensation matches
+    the masses it simulates).
     ``speed_margin``: fraction of each no-load speed used; ``max_acceleration`` rad/s^2;
     ``elbow``: the preferred elbow branch, "up" or "down".
     """
@@ -433,6 +436,7 @@ class ManipulatorController(Controller):
         base_position: Sequence[float] = (0.0, 0.0, 0.0),
         model: Model | None = None,
         stiffness: Mapping[str, float] | None = None,
+        gravity: Callable[[np.ndarray], np.ndarray] | None = None,
         speed_margin: float = SPEED_MARGIN,
         max_acceleration: float = MAX_ACCELERATION,
         elbow: str = "up",
@@ -484,6 +488,7 @@ class ManipulatorController(Controller):
             if not np.all(k > 0):
                 raise ValueError("stiffness values must be > 0 N m/rad")
             self.stiffness = k
+        self.gravity = gravity
         self.home = self._home()
         self._behaviors = self._specs()
 
@@ -714,6 +719,7 @@ class ManipulatorController(Controller):
             up = np.array([0.0, 0.0, P["clearance"]])
             self._grasp(plan, target, up)
             info["grasped_at_s"] = plan.now
+            info["placed_at_s"] = plan.now  # the gripper closes on the object here
             self._line(plan, "lift", target, target + up, self._rot(target))
         elif name in ("positioning", "move_to", "orienting"):
             target = np.array([P["x"], P["y"], P["z"]])
@@ -723,6 +729,8 @@ class ManipulatorController(Controller):
                 info["orientation_rpy"] = (P["roll"], P["pitch"], P["yaw"])
         else:  # pragma: no cover - run() checks the names
             raise ValueError(f"unknown behaviour {name!r}")
+        info["motion"] = "orient" if "orientation_rpy" in info else "place"
+        info["tool_body"] = "tool_roll_link" if self.six else "gripper_link"
         info["target"] = tuple(float(c) for c in self.base_position + target)
         info["target_base"] = tuple(float(c) for c in target)
         info["base_position"] = tuple(float(c) for c in self.base_position)
@@ -838,7 +846,8 @@ class ManipulatorController(Controller):
         info["accelerations"] = qdd
         positions = q
         if self.stiffness is not None:
-            droop = gravity_torques(self.model, q) / self.stiffness
+            g = self.gravity(q) if self.gravity is not None else gravity_torques(self.model, q)
+            droop = g / self.stiffness
             positions = np.clip(q + droop, self.lower, self.upper)
             info["planned_positions"] = q
         return Trajectory(name, t, self.joints, positions, qd, info)

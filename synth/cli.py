@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import sys
 from collections.abc import Sequence
 from typing import TextIO
@@ -140,6 +141,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--no-input", action="store_true", help="never ask; exit 3 when an answer is still needed"
     )
     _structure_options(p)
+    p.add_argument(
+        "--no-verify",
+        action="store_true",
+        help="do not simulate the sized design's behaviours in MuJoCo (faster; the record "
+        "says it was not simulated)",
+    )
     p.add_argument(
         "--out",
         metavar="DIR",
@@ -324,12 +331,16 @@ def _options(args: argparse.Namespace):
     from synth.pipeline import StructureOptions, parse_objective
 
     return StructureOptions(
-        args.catalog, args.conceptual, not args.no_symmetry, parse_objective(args.objective)
+        args.catalog,
+        args.conceptual,
+        not args.no_symmetry,
+        parse_objective(args.objective),
+        verify=not getattr(args, "no_verify", False),
     )
 
 
 def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from export.record import design_text, to_json
+    from export.record import design_text, to_json, verification_text
     from synth.pipeline import run
 
     designer = _designer(args, err)
@@ -358,7 +369,11 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
         files = result.files(designer)
         write_bundle(args.out, files, force=args.force)
-    out.write(to_json(rec) if args.json else design_text(d, designer.short, result.structure))
+    if args.json:
+        out.write(to_json(rec))
+    else:
+        out.write(design_text(d, designer.short, result.structure))
+        out.write(verification_text(rec.get("verified")))
     if d.status == "ambiguous":
         q = d.questions[-1]
         err.write(
@@ -596,6 +611,10 @@ def cmd_regress(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     )
 
 
+#: Longest simulated time of one ``simulate`` run, s (the samples are held in memory).
+MAX_SIM_SECONDS = 600.0
+
+
 def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     import json
     from pathlib import Path
@@ -611,9 +630,10 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         ) from None
     except (OSError, json.JSONDecodeError) as e:
         raise InputError(f"{folder / 'design.json'}: {e}") from None
-    from export.simulate import load_bundle_model, simulate
-    from gaits import controller_for
-    from gaits.base import DesignGeometry
+    if not isinstance(record, dict):
+        raise InputError(f"{folder / 'design.json'}: not a design record (expected an object)")
+    from export.simulate import load_bundle_model
+    from export.verify import controller_for_model, figures, listed_behaviors, run_behavior
 
     params: dict[str, str] = {}
     for item in args.set:
@@ -623,59 +643,63 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         params[name.strip()] = value.strip()
     if args.gait:
         params["gait"] = args.gait
-    model = load_bundle_model(folder)
-    try:
-        # a fixed base stands where the MJCF puts its root body
-        controller = controller_for(
-            DesignGeometry.from_record(record),
-            base_position=tuple(float(x) for x in model.body(1).pos),
+    if args.seconds is not None and not (
+        math.isfinite(args.seconds) and 0 < args.seconds <= MAX_SIM_SECONDS
+    ):
+        raise InputError(
+            f"--seconds {args.seconds}: expected a number of seconds in (0, {MAX_SIM_SECONDS:g}]"
         )
+    try:
+        model = load_bundle_model(folder)
+    except (OSError, ValueError, KeyError) as e:
+        raise InputError(f"{folder}: cannot load the MuJoCo model: {e}") from None
+    try:
+        controller = controller_for_model(record, model)
         if args.behavior == "help":
+            listed = set(listed_behaviors(controller, record.get("abilities", ())))
             for name, spec in sorted(controller.behaviors.items()):
                 ps = ", ".join(
                     f"{p.name}={p.default}{' ' + p.unit if p.unit else ''}" for p in spec.params
                 )
-                out.write(f"{name}: {spec.doc}\n  parameters: {ps or 'none'}\n")
+                tag = "" if name in listed else f"  (not verified: {spec.realises} is not listed)"
+                if spec.alias_of:
+                    tag = f"  (alias of {spec.alias_of})"
+                out.write(f"{name}: {spec.doc}{tag}\n  parameters: {ps or 'none'}\n")
             return 0
-        traj = controller.run(args.behavior, **params)
+        progress = None
+        if err.isatty():
+            step = _progress(err, 100)
+
+            def progress(fraction: float) -> None:
+                step(int(fraction * 100) + 1, f"simulating {args.behavior}")
+
+        traj, result = run_behavior(
+            model, controller, args.behavior, params, args.seconds, progress
+        )
     except (ValueError, KeyError) as e:
         raise InputError(str(e).strip("'\"")) from None
-    if args.seconds is not None and args.seconds <= 0:
-        raise InputError("--seconds must be positive")
-    tmpl = controller.template
-    progress = None
-    if err.isatty():
-        step = _progress(err, 100)
-
-        def progress(fraction: float) -> None:
-            step(int(fraction * 100) + 1, f"simulating {args.behavior}")
-
-    result = simulate(
-        model,
-        traj,
-        args.seconds,
-        can_fall=bool(tmpl.feet or tmpl.wheels),
-        end_effector=tmpl.end_effectors[0] if tmpl.end_effectors else None,
-        progress=progress,
-    )
     if progress is not None:
         step(None, "")
-    rec = result.to_dict()
-    margin = traj.info.get("stability_margin_m")
-    if margin is not None:
-        rec["min_stability_margin_m"] = float(f"{min(margin):.6g}")
+    rec = figures(traj, result)
     if args.plot:
         from export.plots import write_plots
 
-        rec["plots"] = write_plots(folder / "plots", traj, result)
+        try:
+            rec["plots"] = write_plots(folder / "plots", traj, result)
+        except OSError as e:
+            raise InputError(f"{folder / 'plots'}: cannot write the plots: {e}") from None
     if args.json:
         out.write(to_json(rec))
     else:
         for key, value in rec.items():
             if value is not None:
+                if isinstance(value, list):
+                    value = ", ".join(str(v) for v in value)
                 out.write(f"{key:>22}: {value}\n")
-    if result.fell:
-        err.write(f"parmor: the robot fell at {result.fell_at_s:.2f} s\n")
+    if not result.ok:
+        why = ", ".join(result.verdict)
+        when = f" (fell at {result.fell_at_s:.2f} s)" if result.fell_at_s is not None else ""
+        err.write(f"parmor: {args.behavior} failed its verdict: {why}{when}\n")
         return 1
     return 0
 

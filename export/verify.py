@@ -1,0 +1,164 @@
+"""The design's behaviours run in MuJoCo: the harness shared by ``parmor simulate``,
+``parmor design``'s verification and ``parmor sweep``.
+
+A bundle (on disk or in memory) gives the record (``design.json``) and the MuJoCo model
+(``robot.xml`` with its meshes). The controller is built from the record as a user's
+program would build it, told where a fixed base stands and, for position servos on a fixed
+base (manipulators), the servos' stiffness and the simulated model's own gravity torques,
+so that it compensates the servos' droop. Every behaviour whose ability the design lists is
+run with its default parameters and judged by :mod:`export.verdict`.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from export.simulate import SimResult
+    from gaits.base import Controller, Trajectory
+
+
+def _fixed_base(model) -> bool:
+    import mujoco
+
+    return not (model.njnt > 0 and model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE)
+
+
+def _joint_actuators(model) -> dict[str, int]:
+    return {model.actuator(k).name: k for k in range(model.nu)}
+
+
+def mujoco_gravity(model, joints: Sequence[str]) -> Callable[[np.ndarray], np.ndarray]:
+    """(N, nj) positions of ``joints`` -> (N, nj) torques N m that hold the model still there
+    (MuJoCo's bias forces at zero velocity: gravity), the other joints at 0."""
+    import mujoco
+
+    data = mujoco.MjData(model)
+    qadr = [model.jnt_qposadr[model.joint(j).id] for j in joints]
+    dadr = [model.jnt_dofadr[model.joint(j).id] for j in joints]
+
+    def gravity(q: np.ndarray) -> np.ndarray:
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        out = np.empty_like(q)
+        data.qvel[:] = 0
+        for n, row in enumerate(q):
+            data.qpos[qadr] = row
+            mujoco.mj_forward(model, data)
+            out[n] = data.qfrc_bias[dadr]
+        return out
+
+    return gravity
+
+
+def controller_for_model(record: Mapping, model) -> Controller:
+    """The controller of the design in ``record``, set up for the MuJoCo ``model``."""
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    geometry = DesignGeometry.from_record(record)
+    options: dict[str, object] = {"base_position": tuple(float(x) for x in model.body(1).pos)}
+    if _fixed_base(model):
+        acts = _joint_actuators(model)
+        stiffness = {
+            name: float(model.actuator_gainprm[a, 0])
+            for name, a in acts.items()
+            if model.actuator_biasprm[a, 1] != 0  # position servos
+        }
+        options["stiffness"] = stiffness
+        options["gravity"] = mujoco_gravity(model, list(stiffness))
+    return controller_for(geometry, **options)
+
+
+def listed_behaviors(controller: Controller, abilities: Sequence[str]) -> list[str]:
+    """The behaviours of ``controller`` that realise one of ``abilities`` (aliases left out),
+    sorted by name."""
+    have = set(abilities)
+    return sorted(
+        name
+        for name, spec in controller.behaviors.items()
+        if spec.realises in have and spec.alias_of is None
+    )
+
+
+def unbehaved_abilities(controller: Controller, abilities: Sequence[str]) -> list[str]:
+    """The abilities in ``abilities`` that no behaviour of ``controller`` realises."""
+    realised = {spec.realises for spec in controller.behaviors.values()}
+    return sorted(set(abilities) - realised)
+
+
+def run_behavior(
+    model,
+    controller: Controller,
+    name: str,
+    params: Mapping[str, object] | None = None,
+    seconds: float | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> tuple[Trajectory, SimResult]:
+    """Run behaviour ``name`` of ``controller`` on ``model``: (trajectory, judged result).
+    ValueError for an unknown behaviour or parameter (the message lists the valid ones)."""
+    from export.simulate import simulate
+
+    traj = controller.run(name, **dict(params or {}))
+    tmpl = controller.template
+    body = traj.info.get("tool_body")
+    if body is None and tmpl.end_effectors:
+        body = tmpl.end_effectors[0]
+    result = simulate(
+        model,
+        traj,
+        seconds,
+        can_fall=bool(tmpl.feet or tmpl.wheels),
+        end_effector=str(body) if body is not None else None,
+        progress=progress,
+    )
+    return traj, result
+
+
+def figures(traj: Trajectory, result: SimResult) -> dict:
+    """The judged figures of one run (``parmor simulate --json``)."""
+    rec = result.to_dict()
+    margin = traj.info.get("stability_margin_m")
+    if margin is not None:
+        rec["min_stability_margin_m"] = float(f"{min(margin):.6g}")  # type: ignore[call-overload]
+    return rec
+
+
+def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None) -> list[dict]:
+    """Every listed behaviour of the design (default parameters) run and judged: one
+    :func:`figures` dict each, in name order."""
+    controller = controller_for_model(record, model)
+    names = (
+        listed_behaviors(controller, record.get("abilities", ()))
+        if behaviors is None
+        else list(behaviors)
+    )
+    out = []
+    for n in names:
+        fig = figures(*run_behavior(model, controller, n))
+        out.append({"behavior": n, "ability": controller.behaviors[n].realises} | fig)
+    return out
+
+
+def verify_files(
+    files: Mapping[str, str | bytes], behaviors: Sequence[str] | None = None
+) -> list[dict]:
+    """:func:`verify_model` on a bundle held in memory (``Outcome.files``)."""
+    from export.simulate import load_files_model
+
+    raw = files["design.json"]
+    record = json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
+    return verify_model(record, load_files_model(files), behaviors)
+
+
+def verify_bundle(folder: str | Path, behaviors: Sequence[str] | None = None) -> list[dict]:
+    """:func:`verify_model` on a bundle folder written by ``parmor design --out``."""
+    from export.simulate import load_bundle_model
+
+    folder = Path(folder)
+    record = json.loads((folder / "design.json").read_text(encoding="utf-8"))
+    return verify_model(record, load_bundle_model(folder), behaviors)
