@@ -74,6 +74,10 @@ TURN_SPEED_FRACTION = 0.25
 #: vertical drags its flat rim across the floor; with the load spread evenly across the
 #: width the Coulomb moment is mu N (width / 4).
 SCRUB_LEVER = 0.25
+#: Mechanical time constant (s) of a wheel servo's geared motor (``export.mjcf``'s
+#: ``WHEEL_MOTOR_TIME_CONSTANT``, equal; a test checks it): accelerating the rotor by
+#: ``alpha`` takes ``kv * tau alpha``, a droop of ``tau alpha`` rad/s.
+WHEEL_MOTOR_TIME_CONSTANT = 0.05
 #: Yaw rate rad/s over which the scrubbing torque of a skid-steer's wheels builds up from 0
 #: (Coulomb friction switches sign with the slip; a tanh keeps the command continuous).
 SKID_RATE = 0.02
@@ -320,13 +324,19 @@ class DriveGeometry:
         self, v: np.ndarray, w: np.ndarray, accel: np.ndarray, alpha: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """(left, right) servo commands rad/s (forward positive): the wheel speeds of eq. 5
-        plus the droop of each servo's motor line under its load, ``torque / kv``."""
+        plus the droop of each servo's motor line under its load, ``torque / kv``, and
+        while accelerating its rotor, ``WHEEL_MOTOR_TIME_CONSTANT`` x the wheel's
+        acceleration."""
         v, w = np.asarray(v, dtype=float), np.asarray(w, dtype=float)
-        left = (v - w * self.effective_track / 2) / self.radius
-        right = (v + w * self.effective_track / 2) / self.radius
+        half = self.effective_track / 2
+        left = (v - w * half) / self.radius
+        right = (v + w * half) / self.radius
         if self.kv > 0:
             tl, tr = self.wheel_torques(v, w, accel, alpha)
-            left, right = left + tl / self.kv, right + tr / self.kv
+            a, al = np.asarray(accel, dtype=float), np.asarray(alpha, dtype=float)
+            tau = WHEEL_MOTOR_TIME_CONSTANT
+            left = left + tl / self.kv + tau * (a - al * half) / self.radius
+            right = right + tr / self.kv + tau * (a + al * half) / self.radius
         return left, right
 
     def check_commands(self, left: np.ndarray, right: np.ndarray, what: str) -> None:

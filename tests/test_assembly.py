@@ -179,8 +179,8 @@ def _recomputed(part, printed: dict, catalog, template) -> tuple[float, np.ndarr
             m = template.params.caster_mass
             inertia = sphere_inertia(m, g.size[0])
         c = np.zeros(3)
-    elif part.source == "contact":  # a leg's massless rounded contact point
-        assert part.mass == 0 and g.kind == "sphere" and g.contact
+    elif part.source == "contact":  # a leg's massless rounded point, a wheel's rim cylinder
+        assert part.mass == 0 and g.kind in ("sphere", "cylinder") and g.contact
         return 0.0, part.com, np.zeros((3, 3))
     else:
         assert part.source == "payload" and g is None

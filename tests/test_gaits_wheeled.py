@@ -20,6 +20,7 @@ from gaits.wheeled import (
     CASTER_FRICTION,
     SKID_RATE,
     TYRE_FRICTION,
+    WHEEL_MOTOR_TIME_CONSTANT,
     DriveGeometry,
     WheeledController,
     body_velocity,
@@ -417,9 +418,11 @@ def test_commands_feed_forward_the_load() -> None:
 
 
 def test_wheeled_constants_agree_with_sizing_and_the_mjcf() -> None:
+    from export import mjcf
     from export.mjcf import CONTACT_CLASSES
     from synth import sizing
 
     assert TYRE_FRICTION == sizing.TYRE_FRICTION
+    assert WHEEL_MOTOR_TIME_CONSTANT == mjcf.WHEEL_MOTOR_TIME_CONSTANT
     friction = {name: f[0] for name, _, f in CONTACT_CLASSES}
     assert (friction["wheel"], friction["caster"]) == (TYRE_FRICTION, CASTER_FRICTION)
