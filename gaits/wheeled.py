@@ -17,8 +17,24 @@ wheels' friction forces balance (steady turn in place) when the wheels roll at
 ``w (l/2) (1 + (a/l)^2)``, so ``chi = 1 + (a/l)^2`` (:func:`skid_steer_chi`); Mandow et al.
 measured chi = 1.5 on a Pioneer 3-AT, whose wheel base and track give 1.46 by this formula.
 
+The same balance holds on an arc (v, w) with front and rear wheels equally loaded: the
+sides' longitudinal slips are then +-w a^2 / (2 l), so eq. 5 with ``l_eff`` gives the wheel
+speeds of any (v, w), and each wheel carries the Coulomb torque ``mu N r a / sqrt(a^2 +
+l^2)`` (driving on the outer side, braking on the inner) whenever w != 0.
+
+Load feed-forward. A wheel servo is a DC motor line (MJCF velocity servo): under a load
+torque tau it turns ``tau / kv`` slower than commanded (kv = stall torque / no-load speed).
+The commands are therefore the wheel speeds plus that droop, from a quasi-static load
+model of the design (:meth:`DriveGeometry.wheel_torques`): the chassis' inertia (with
+its centre of mass off the wheels' middle: centripetal terms), the rotor's inertia
+(``WHEEL_MOTOR_TIME_CONSTANT``), the caster sliding, each tyre scrubbing across its width
+while the chassis turns, and a skid-steer's wheels scrubbing sideways. Without the
+design's mass and stall torques (a bare geometry) the commands are the wheel speeds.
+
 Everything is read from the design's template: the wheel radius, and the track and wheel
 base from the wheel joints' positions on the chassis (``DriveGeometry.from_template``).
+The root frame is the wheels' middle (a differential drive's axle centre), the point the
+equations describe, so ``info["planned_pose"]`` is the root's.
 """
 
 from __future__ import annotations

@@ -277,6 +277,24 @@ def test_skid_steer_drives_forward(designs) -> None:
     assert not r.fell
 
 
+@pytest.mark.parametrize("angle", [math.pi / 2, -2.0])
+def test_skid_steer_turns_in_place(designs, angle: float) -> None:
+    """The wheels skid: the effective track and the scrubbing torque's droop (fed forward)
+    make the turn; without them it reached 28-45 % of the angle (issue 8)."""
+    c, traj, r = _run(designs, "SkidSteerRobot", "turning", angle=angle)
+    d, yaw = _pose(r)
+    assert yaw == pytest.approx(angle, rel=0.10)  # measured 97-100 %
+    assert np.hypot(*d) < 0.10 * traj.info["body_length_m"]
+
+
+def test_skid_steer_follows_an_arc(designs) -> None:
+    c, traj, r = _run(designs, "SkidSteerRobot", "driving", v=0.12, w=0.4, seconds=4.0)
+    d, yaw = _pose(r)
+    dx, dy, dyaw = traj.info["planned_pose"]
+    assert np.hypot(d[0] - dx, d[1] - dy) < 0.10 * traj.info["path_length_m"]
+    assert abs(yaw - dyaw) < 0.10 * abs(dyaw)
+
+
 # --- the model: only the wheels (and the caster) touch the ground ---------------------------
 
 
