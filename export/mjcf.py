@@ -340,7 +340,7 @@ def mjcf_string(assembly: Assembly, mesh_dir: str = "meshes") -> str:
 
     root = ET.Element("mujoco", model=assembly.robot_type)
     asset, world = _preamble(root, mesh_dir)
-    if assembly.wheels:
+    if assembly.wheels and not assembly.casters:
         root.find("option").set("cone", WHEELED_CONE)  # type: ignore[union-attr]
 
     meshes: dict[str, str] = {}  # mesh asset name -> file

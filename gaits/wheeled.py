@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -94,6 +95,8 @@ SCRUB_LEVER = 0.25
 #: ``WHEEL_MOTOR_TIME_CONSTANT``, equal; a test checks it): accelerating the rotor by
 #: ``alpha`` takes ``kv * tau alpha``, a droop of ``tau alpha`` rad/s.
 WHEEL_MOTOR_TIME_CONSTANT = 0.05
+#: Default minimum-jerk ramp of ``driving``, s (longer where the servos need it).
+RAMP = 0.5
 #: Yaw rate rad/s over which the scrubbing torque of a skid-steer's wheels builds up from 0
 #: (Coulomb friction switches sign with the slip; a tanh keeps the command continuous).
 SKID_RATE = 0.02
@@ -455,6 +458,22 @@ class WheeledController(Controller):
         """Top yaw rate rad/s of a turn in place within the usable wheel speed (unloaded)."""
         return 2 * self.v_max / self.drive.effective_track
 
+    @cached_property
+    def default_ramp(self) -> float:
+        """The default ramp s: RAMP, or longer (by 25 % steps) until the servos can
+        accelerate the robot to the default speed (their droop under the chassis' inertia
+        fits within their no-load speed)."""
+        v = round(self.v_max / 2, 3)
+        ramp = RAMP
+        for _ in range(30):
+            t = _grid(2 * ramp)
+            s, ds, _ = min_jerk(t / ramp)
+            left, right = self.drive.commands(v * s, 0 * s, v * ds / ramp, 0 * s)
+            if max(np.max(np.abs(left)), np.max(np.abs(right))) <= self.drive.max_speed:
+                break
+            ramp = round(ramp * 1.25, 2)
+        return ramp
+
     @property
     def body_length(self) -> float:
         """The robot's length m: the chassis, or the wheels' span if longer."""
@@ -489,7 +508,13 @@ class WheeledController(Controller):
                     ),
                     Parameter("seconds", "float", 5.0, "duration", "s", low=0.05, high=3600),
                     Parameter(
-                        "ramp", "float", 0.5, "minimum-jerk ramp-up time", "s", low=0.0, high=60
+                        "ramp",
+                        "float",
+                        self.default_ramp,
+                        "minimum-jerk ramp-up time",
+                        "s",
+                        low=0.0,
+                        high=60,
                     ),
                 ),
             ),
