@@ -146,10 +146,19 @@ def _box_use(
 # --- the parts of each kind ----------------------------------------------------------------
 
 
-def _actuator(b: _Builder, lp: LabelledPart, axis: np.ndarray, models: dict) -> PartUse:
+def _actuator(
+    b: _Builder, lp: LabelledPart, body: str, axis: np.ndarray, models: dict, tmpl: Template
+) -> PartUse:
+    """The joint's catalog module, shaft (size z) along the joint axis. It sits on the
+    joint's own body (``axis``, body frame), or on its parent (a wheel's servo is on the
+    chassis): then the axis is the joint's, turned into the parent's frame."""
     a = models.get(lp.label)
     if a is None:
         raise ExportError(f"joint '{lp.label}' has no actuator in the structure")
+    m = tmpl.model
+    j = m.joints[m.joint(lp.label)]
+    if m.bodies[j.child].name != body:
+        axis = j.origin[:3, :3] @ j.axis
     placement = transform_from(_frame_z(axis), lp.placement[:3, 3])
     return _box_use(a.model, "module", a.mass_kg, a.size_m, placement)
 
@@ -210,7 +219,10 @@ def _point_foot(uses: list[PartUse], sole: np.ndarray) -> list[PartUse]:
     return out
 
 
-def _wheel(b: _Builder, lp: LabelledPart) -> PartUse:
+def _wheel(b: _Builder, lp: LabelledPart) -> list[PartUse]:
+    """The printed wheel (seen, not touching: its mesh is a polygon that would roll
+    bumpily) and its contact with the ground: a cylinder of the wheel's radius and width,
+    the printed rim flat across its width."""
     r, w = lp.dims[0], b.catalog.passive.wheel_width_m
     bore = meshes.WHEEL_BORE
     d = b.design(
@@ -220,7 +232,11 @@ def _wheel(b: _Builder, lp: LabelledPart) -> PartUse:
         lambda: meshes.wheel_mesh(r, w),
         np.pi * (r * r - bore * bore) * w,
     )
-    return b.printed(d, lp.placement @ transform((0.0, 0.0, -w / 2)))
+    use = b.printed(d, lp.placement @ transform((0.0, 0.0, -w / 2)))
+    seen = replace(use, geometry=replace(use.geometry, contact=False))
+    rim = Geometry("cylinder", lp.placement, (r, w), rgba=PRINTED_RGBA, name="wheel_contact")
+    centre = lp.placement[:3, 3].copy()
+    return [seen, PartUse("wheel_contact", "contact", 0.0, centre, np.zeros((3, 3)), rim)]
 
 
 def _trunk_modules(b: _Builder) -> list[Module]:
@@ -310,13 +326,13 @@ def _part_uses(
     b: _Builder, lp: LabelledPart, body: str, axis: np.ndarray, models: dict, tmpl: Template
 ) -> list[PartUse]:
     if lp.kind == "actuator":
-        return [_actuator(b, lp, axis, models)]
+        return [_actuator(b, lp, body, axis, models, tmpl)]
     if lp.kind == "link":
         return [_link(b, lp, tmpl)]
     if lp.kind == "foot":
         return [_foot(b, lp)]
     if lp.kind == "wheel":
-        return [_wheel(b, lp)]
+        return _wheel(b, lp)
     if lp.kind == "trunk":
         return _trunk(b, lp, body)
     if lp.mass <= 0.0:
@@ -346,6 +362,14 @@ def _geometry_points(g: Geometry, mesh_of: dict[str, np.ndarray]) -> np.ndarray:
     elif g.kind == "sphere":
         c = T[:3, 3]
         return np.array([c - [0.0, 0.0, g.size[0]]])
+    elif g.kind == "cylinder":  # the lowest point of each end's circle (a wheel's contact)
+        r, length = g.size
+        axis = T[:3, 2]
+        down = np.array([0.0, 0.0, 1.0]) - axis[2] * axis
+        norm = float(np.linalg.norm(down))
+        off = r * down / norm if norm > 1e-12 else np.zeros(3)
+        ends = [T[:3, 3] + k * length / 2 * axis for k in (-1, 1)]
+        return np.array([e - off for e in ends])
     else:
         raise ExportError(f"no bounds for geometry kind '{g.kind}'")
     return local @ T[:3, :3].T + T[:3, 3]

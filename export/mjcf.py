@@ -40,15 +40,17 @@ Choices, all in one place:
   with ``ctrlrange = +-velocity`` is exactly the DC motor line (stall torque at rest, zero
   torque at the no-load speed; ``kv = effort / 1 rad/s`` when no speed is given), and
   ``forcerange = +-effort``. Every revolute and continuous joint must have ``effort > 0``.
-- **Joint dynamics**: ``armature = (effort / 0.05 rad) * (4 dt)^2``, the gear-reflected rotor
-  inertia the catalog does not give, of the order of a hobby servo's (1e-4..1e-3 kg m^2);
-  it keeps each position loop's natural frequency at most ``1 / (4 dt)`` = 125 rad/s, well
-  inside the step's stability limit even for an unloaded joint. A revolute joint's passive
-  ``damping = effort / velocity`` is the motor's back-EMF: with the servo saturated at its
-  stall torque the joint tends to the no-load speed, as on the motor line. The position
-  servo's derivative gain ``kv`` (inside ``forcerange``, as in a real servo's controller)
-  tops the damping up to critical, ``2 sqrt(kp (I + armature))``, with ``I`` the inertia of
-  the joint's subtree about its axis at ``q = 0``.
+- **Joint dynamics**: ``armature = (effort / 0.05 rad) * (4 dt)^2``, the gear-reflected
+  rotor inertia the catalog does not give, of the order of a hobby servo's (1e-4..1e-3 kg
+  m^2); it keeps each position loop's natural frequency at most ``1 / (4 dt)`` = 125 rad/s,
+  well inside the step's stability limit even for an unloaded joint. A wheel's armature is
+  at least ``kv * WHEEL_MOTOR_TIME_CONSTANT`` (its geared motor's reflected inertia), and a
+  model with wheels uses MuJoCo's elliptic friction cone (``WHEELED_CONE``). A revolute
+  joint's passive ``damping = effort / velocity`` is the motor's back-EMF: with the servo
+  saturated at its stall torque the joint tends to the no-load speed, as on the motor line.
+  The position servo's derivative gain ``kv`` (inside ``forcerange``, as in a real servo's
+  controller) tops the damping up to critical, ``2 sqrt(kp (I + armature))``, with ``I`` the
+  inertia of the joint's subtree about its axis at ``q = 0``.
 """
 
 from __future__ import annotations
@@ -81,6 +83,15 @@ SERVO_BAND = 0.05
 #: Robot geoms: contype, conaffinity; the floor's are (1, 1). See the module docstring.
 ROBOT_CONTACT = (2, 1)
 FLOOR_CONTACT = (1, 1)
+#: Mechanical time constant (s) of a wheel servo's geared motor: the gear-reflected rotor
+#: inertia is ``kv * WHEEL_MOTOR_TIME_CONSTANT`` (kv = stall torque / no-load speed, the
+#: motor line's slope), a small geared DC motor's 20-50 ms. Controllers that feed forward a
+#: wheel's acceleration use the same value (``gaits.wheeled``).
+WHEEL_MOTOR_TIME_CONSTANT = 0.05
+#: Friction cone of models with wheels: elliptic (MuJoCo's pyramid lets a sliding tyre
+#: push sideways harder than along its rolling direction, so a skid-steer robot turning
+#: in place scrubs as if its wheel base were about twice as long; measured).
+WHEELED_CONE = "elliptic"
 #: Geom default classes: (class, condim, friction sliding/torsional/rolling).
 CONTACT_CLASSES = (
     ("robot", 3, (0.5, 0.005, 0.0001)),
@@ -184,7 +195,8 @@ def _gains(j: JointSpec) -> tuple[float, float]:
     armature = kp * (4.0 * TIMESTEP) ** 2
     if j.kind == "continuous":
         speed = j.velocity if math.isfinite(j.velocity) and j.velocity > 0 else 1.0
-        return j.effort / speed, armature
+        kv = j.effort / speed
+        return kv, max(armature, kv * WHEEL_MOTOR_TIME_CONSTANT)
     return kp, armature
 
 
@@ -328,6 +340,8 @@ def mjcf_string(assembly: Assembly, mesh_dir: str = "meshes") -> str:
 
     root = ET.Element("mujoco", model=assembly.robot_type)
     asset, world = _preamble(root, mesh_dir)
+    if assembly.wheels and not assembly.casters:
+        root.find("option").set("cone", WHEELED_CONE)  # type: ignore[union-attr]
 
     meshes: dict[str, str] = {}  # mesh asset name -> file
     spawn = numbers((0.0, 0.0, assembly.spawn_height), SNAP)

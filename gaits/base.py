@@ -180,6 +180,8 @@ class DesignGeometry:
     params: Mapping[str, float]  # the structural parameters used (SI)
     abilities: tuple[str, ...]
     joint_speed: Mapping[str, float]  # rad/s the chosen actuator reaches (no load)
+    mass_kg: float = 0.0  # the whole robot's mass (0: unknown)
+    joint_torque: Mapping[str, float] = field(default_factory=dict)  # stall torque, N m
 
     @classmethod
     def from_record(cls, record: Mapping) -> DesignGeometry:
@@ -196,6 +198,11 @@ class DesignGeometry:
             abilities=tuple(record.get("abilities", ())),
             joint_speed={
                 j["name"]: float(j.get("no_load_speed_rad_s", 0.0))
+                for j in record.get("joints", [])
+            },
+            mass_kg=float(record.get("mass_kg") or 0.0),
+            joint_torque={
+                j["name"]: float(j.get("actuator_torque_Nm") or 0.0)
                 for j in record.get("joints", [])
             },
         )

@@ -17,8 +17,24 @@ wheels' friction forces balance (steady turn in place) when the wheels roll at
 ``w (l/2) (1 + (a/l)^2)``, so ``chi = 1 + (a/l)^2`` (:func:`skid_steer_chi`); Mandow et al.
 measured chi = 1.5 on a Pioneer 3-AT, whose wheel base and track give 1.46 by this formula.
 
+The same balance holds on an arc (v, w) with front and rear wheels equally loaded: the
+sides' longitudinal slips are then +-w a^2 / (2 l), so eq. 5 with ``l_eff`` gives the wheel
+speeds of any (v, w), and each wheel carries the Coulomb torque ``mu N r a / sqrt(a^2 +
+l^2)`` (driving on the outer side, braking on the inner) whenever w != 0.
+
+Load feed-forward. A wheel servo is a DC motor line (MJCF velocity servo): under a load
+torque tau it turns ``tau / kv`` slower than commanded (kv = stall torque / no-load speed).
+The commands are therefore the wheel speeds plus that droop, from a quasi-static load
+model of the design (:meth:`DriveGeometry.wheel_torques`): the chassis' inertia (with
+its centre of mass off the wheels' middle: centripetal terms), the rotor's inertia
+(``WHEEL_MOTOR_TIME_CONSTANT``), the caster sliding, each tyre scrubbing across its width
+while the chassis turns, and a skid-steer's wheels scrubbing sideways. Without the
+design's mass and stall torques (a bare geometry) the commands are the wheel speeds.
+
 Everything is read from the design's template: the wheel radius, and the track and wheel
 base from the wheel joints' positions on the chassis (``DriveGeometry.from_template``).
+The root frame is the wheels' middle (a differential drive's axle centre), the point the
+equations describe, so ``info["planned_pose"]`` is the root's.
 """
 
 from __future__ import annotations
@@ -26,6 +42,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -38,7 +55,8 @@ from gaits.base import (
     min_jerk,
     min_jerk_integral,
 )
-from kinematics.templates import Template
+from kinematics.dynamics import center_of_mass, forward_kinematics
+from kinematics.templates import WHEEL_WIDTH, Template, TemplateParams, build
 
 __all__ = [
     "DriveGeometry",
@@ -59,6 +77,29 @@ SAMPLE_DT = 0.01
 #: commanded whatever the command, so the whole range is usable; on flat ground the
 #: designed differential robot tracks 99 % of its top speed within 1 % (measured).
 SPEED_MARGIN = 1.0
+#: The load model's floor: tyre-on-floor Coulomb friction (the MJCF's wheel contact class and
+#: the sizing use the same value), the ball caster's (modelled as a low-friction slider, as
+#: in the MJCF), and gravity, m/s^2.
+TYRE_FRICTION = 1.0
+CASTER_FRICTION = 0.05
+GRAVITY = 9.81
+#: A turn in place of default duration peaks at this fraction of the wheels' top speed (at
+#: their rims): slow enough for the chassis' inertia to stay a small load, fast enough
+#: that the load model's error stays small against the speed.
+TURN_SPEED_FRACTION = 0.25
+#: Lever of a tyre's scrub, as a fraction of the wheel's width: a wheel turning about the
+#: vertical drags its flat rim across the floor; with the load spread evenly across the
+#: width the Coulomb moment is mu N (width / 4).
+SCRUB_LEVER = 0.25
+#: Mechanical time constant (s) of a wheel servo's geared motor (``export.mjcf``'s
+#: ``WHEEL_MOTOR_TIME_CONSTANT``, equal; a test checks it): accelerating the rotor by
+#: ``alpha`` takes ``kv * tau alpha``, a droop of ``tau alpha`` rad/s.
+WHEEL_MOTOR_TIME_CONSTANT = 0.05
+#: Default minimum-jerk ramp of ``driving``, s (longer where the servos need it).
+RAMP = 0.5
+#: Yaw rate rad/s over which the scrubbing torque of a skid-steer's wheels builds up from 0
+#: (Coulomb friction switches sign with the slip; a tanh keeps the command continuous).
+SKID_RATE = 0.02
 
 
 def wheel_speeds(v: float, w: float, radius: float, track: float) -> tuple[float, float]:
@@ -146,7 +187,11 @@ class DriveGeometry:
     ``radius`` m; ``track`` m between the side's wheel centres; ``wheel_base`` m between
     the front and rear wheels of a side (0 for one wheel a side); ``effective_track`` m,
     ``track * skid_steer_chi(wheel_base, track)``; ``max_speed`` rad/s: the slowest wheel's
-    usable speed (``SPEED_MARGIN`` times its no-load speed).
+    usable speed (``SPEED_MARGIN`` times its no-load speed). The load model
+    (:meth:`wheel_torques`) uses ``mass`` kg (0: unknown, no load feed-forward), ``kv``
+    N m s (the wheel servo's motor line: stall torque / no-load speed), ``yaw_inertia``
+    kg m^2 about the root's z, ``caster_x`` m (root frame; None without a caster) and
+    ``caster_share`` (of the weight on the caster).
     """
 
     left: tuple[str, ...]
@@ -157,10 +202,25 @@ class DriveGeometry:
     wheel_base: float
     effective_track: float
     max_speed: float
+    mass: float = 0.0
+    kv: float = 0.0
+    yaw_inertia: float = 0.0
+    caster_x: float | None = None
+    caster_share: float = 0.0
+    com_x: float = 0.0
 
     @classmethod
-    def from_template(cls, template: Template, joint_speed: Mapping[str, float]) -> DriveGeometry:
-        """Read the drive off the template's wheel joints (positions in the chassis frame)."""
+    def from_template(
+        cls,
+        template: Template,
+        joint_speed: Mapping[str, float],
+        mass: float = 0.0,
+        joint_torque: Mapping[str, float] | None = None,
+        layout: Template | None = None,
+    ) -> DriveGeometry:
+        """Read the drive off the template's wheel joints (positions in the chassis frame);
+        ``mass`` kg and ``joint_torque`` (stall torques N m) enable the load model, whose
+        mass layout is that of ``layout`` (default: ``template``)."""
         m = template.model
         wheels = [j for j in m.joints if j.kind == "continuous"]
         if not wheels:
@@ -187,6 +247,15 @@ class DriveGeometry:
             missing = [n for n in pos if joint_speed.get(n, 0.0) <= 0]
             raise ValueError(f"no speed for the wheel(s) {', '.join(missing)} in the design")
         radius = float(template.params.wheel_radius)
+        torque = joint_torque or {}
+        stall = min((torque.get(n, 0.0) for n in pos), default=0.0)
+        if mass <= 0 or stall <= 0:
+            mass, kv, inertia, caster_x, share, com_x = 0.0, 0.0, 0.0, None, 0.0, 0.0
+        else:
+            kv = stall / min(speeds)
+            inertia, caster_x, share, com_x = _mass_layout(
+                layout or template, mass, float(np.mean([pos[n][0] for n in pos]))
+            )
         return cls(
             left,
             right,
@@ -196,6 +265,12 @@ class DriveGeometry:
             base,
             track * skid_steer_chi(base, track),
             SPEED_MARGIN * min(speeds),
+            mass,
+            kv,
+            inertia,
+            caster_x,
+            share,
+            com_x,
         )
 
     @property
@@ -211,19 +286,124 @@ class DriveGeometry:
         """(v m/s, w rad/s) from the sides' wheel speeds rad/s (forward positive)."""
         return body_velocity(left, right, self.radius, self.effective_track)
 
+    def skid_torque(self) -> float:
+        """The torque N m each wheel of a skid-steer robot exerts while it turns (Coulomb
+        friction, equal loads): ``mu (m g / n) r a / sqrt(a^2 + l^2)``, driving on the outer
+        side and braking on the inner (see the module docstring); 0 without skidding."""
+        if not self.skid or self.mass <= 0:
+            return 0.0
+        n = len(self.left) + len(self.right)
+        a, l_ = self.wheel_base, self.track
+        return TYRE_FRICTION * self.mass * GRAVITY / n * self.radius * a / math.hypot(a, l_)
+
+    def scrub_moment(self) -> float:
+        """The yaw moment N m all tyres' scrubbing resists a turn with (Coulomb): each wheel
+        mu N_i SCRUB_LEVER WHEEL_WIDTH, N_i its share of the weight (the caster's share
+        off)."""
+        load = self.mass * GRAVITY * (1 - self.caster_share)
+        return TYRE_FRICTION * load * SCRUB_LEVER * WHEEL_WIDTH
+
+    def wheel_torques(
+        self, v: np.ndarray, w: np.ndarray, accel: np.ndarray, alpha: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(left, right) torque N m on each wheel of a side (forward positive) to drive the
+        chassis at ``v`` m/s and ``w`` rad/s while accelerating by ``accel`` m/s^2 and
+        ``alpha`` rad/s^2 (arrays of one shape), on flat ground: the chassis' inertia, the
+        caster's sliding friction and a skid-steer's scrubbing. Zero without a mass."""
+        v, w = np.asarray(v, dtype=float), np.asarray(w, dtype=float)
+        zero = np.zeros_like(v)
+        if self.mass <= 0:
+            return zero, zero
+        # the chassis' equations of motion in its own frame, the root at the wheels' middle
+        # (no side slip there) and the centre of mass at (com_x, 0): forward force
+        # m (dv/dt - w^2 com_x), yaw moment I dw/dt + m com_x v w (I about the root)
+        xg = self.com_x
+        fx = self.mass * (np.asarray(accel, dtype=float) - w * w * xg)  # sides' forces, N
+        mz = self.yaw_inertia * np.asarray(alpha, dtype=float) + self.mass * xg * v * w
+        if self.caster_x is not None and self.caster_share > 0:
+            # the caster slides where the chassis carries it: velocity (v, w x_c)
+            cx, cy = v, w * self.caster_x
+            speed = np.hypot(cx, cy)
+            f = CASTER_FRICTION * self.caster_share * self.mass * GRAVITY
+            scale = np.divide(f, speed, out=np.zeros_like(speed), where=speed > 1e-9)
+            fx = fx + scale * cx
+            mz = mz - self.caster_x * (-scale * cy)
+        # each tyre's scrub while the chassis turns: mu N (SCRUB_LEVER x width) per wheel
+        mz = mz + self.scrub_moment() * np.tanh(w / SKID_RATE)
+        left_f = fx / 2 - mz / self.track
+        right_f = fx / 2 + mz / self.track
+        skid = self.skid_torque() * np.tanh(w / SKID_RATE)
+        r = self.radius
+        return (
+            r * left_f / len(self.left) - skid,
+            r * right_f / len(self.right) + skid,
+        )
+
+    def commands(
+        self, v: np.ndarray, w: np.ndarray, accel: np.ndarray, alpha: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(left, right) servo commands rad/s (forward positive): the wheel speeds of eq. 5
+        plus the droop of each servo's motor line under its load, ``torque / kv``, and
+        while accelerating its rotor, ``WHEEL_MOTOR_TIME_CONSTANT`` x the wheel's
+        acceleration."""
+        v, w = np.asarray(v, dtype=float), np.asarray(w, dtype=float)
+        half = self.effective_track / 2
+        left = (v - w * half) / self.radius
+        right = (v + w * half) / self.radius
+        if self.kv > 0:
+            tl, tr = self.wheel_torques(v, w, accel, alpha)
+            a, al = np.asarray(accel, dtype=float), np.asarray(alpha, dtype=float)
+            tau = WHEEL_MOTOR_TIME_CONSTANT
+            left = left + tl / self.kv + tau * (a - al * half) / self.radius
+            right = right + tr / self.kv + tau * (a + al * half) / self.radius
+        return left, right
+
+    def check_commands(self, left: np.ndarray, right: np.ndarray, what: str) -> None:
+        """ValueError when a command exceeds ``max_speed``."""
+        top = float(max(np.max(np.abs(left)), np.max(np.abs(right))))
+        if top > self.max_speed * (1 + 1e-9):
+            raise ValueError(
+                f"{what} needs a wheel command of {top:.3g} rad/s (its speed plus the droop "
+                f"of the servo under the load), above the usable {self.max_speed:.3g} rad/s "
+                f"of the wheels ({SPEED_MARGIN:.0%} of their no-load speed)"
+            )
+
     def check(self, v: float, w: float) -> None:
-        """ValueError when (v, w) needs a wheel faster than ``max_speed``."""
-        ql, qr = self.wheel_speeds(v, w)
-        top = max(abs(ql), abs(qr))
+        """ValueError when (v, w) needs a wheel faster than ``max_speed`` (steady, loaded)."""
+        left, right = self.commands(np.array([v]), np.array([w]), np.zeros(1), np.zeros(1))
+        top = float(max(abs(left[0]), abs(right[0])))
         if top > self.max_speed * (1 + 1e-9):
             scale = self.max_speed / top
             raise ValueError(
                 f"(v, w) = ({v:g} m/s, {w:g} rad/s) needs a wheel speed of {top:.3g} rad/s, "
                 f"above the usable {self.max_speed:.3g} rad/s of the wheels "
-                f"({SPEED_MARGIN:.0%} of their no-load speed); at most "
+                f"({SPEED_MARGIN:.0%} of their no-load speed); at most about "
                 f"({v * scale:.3g}, {w * scale:.3g}) in this direction, v alone up to "
                 f"{self.max_speed * self.radius:.3g} m/s"
             )
+
+
+def _mass_layout(
+    template: Template, mass: float, axle_x: float
+) -> tuple[float, float | None, float, float]:
+    """(yaw inertia kg m^2 about the root's z, caster x m or None, the caster's share of
+    the weight, the centre of mass' x m) of a robot of ``mass`` kg laid out as
+    ``template`` (whose masses are stand-ins: the inertia is scaled to ``mass``)."""
+    m = template.model
+    T = forward_kinematics(m, np.zeros(m.nv))
+    total = sum(b.mass for b in m.bodies)
+    inertia = 0.0
+    for k, b in enumerate(m.bodies):
+        R, p = T[k, :3, :3], T[k, :3, 3]
+        c = R @ np.asarray(b.com) + p
+        inertia += float((R @ np.asarray(b.inertia) @ R.T)[2, 2]) + b.mass * (c[0] ** 2 + c[1] ** 2)
+    inertia *= mass / total
+    com_x = float(center_of_mass(m, np.zeros(m.nv))[0])
+    if not template.casters:
+        return inertia, None, 0.0, com_x
+    caster_x = float(T[m.body(template.casters[0]), 0, 3])
+    share = min(max((axle_x - com_x) / (axle_x - caster_x), 0.0), 1.0)
+    return inertia, caster_x, share, com_x
 
 
 class WheeledController(Controller):
@@ -233,19 +413,39 @@ class WheeledController(Controller):
       ``w`` rad/s with a minimum-jerk ramp of ``ramp`` s, then hold them until ``seconds``;
       the wheels keep the commanded speeds after the trajectory's end (a velocity command
       stays in force until the next one, as with ROS's diff_drive_controller; run
-      ``driving`` with v = w = 0 to stop). ``info["command"] = (v, w)``.
+      ``driving`` with v = w = 0 to stop). ``info["command"] = (v, w)``; motion
+      ``"straight"`` (w = 0), ``"arc"`` or, for v = 0, ``"turn"``.
     - ``turning(angle, seconds)``: turn in place by ``angle`` rad (counter-clockwise
-      positive) with a minimum-jerk heading profile, starting and ending at rest.
-      ``info["heading_rad"] = angle``.
+      positive) with a minimum-jerk heading profile, starting and ending at rest (ability
+      ``driving``). ``info["heading_rad"] = angle``; motion ``"turn"``.
 
-    Commands that need a wheel faster than the usable speed (``SPEED_MARGIN`` of the
-    no-load speed of the design's wheel actuators) raise ValueError with the largest
-    feasible command: clipping would silently drive a different path than the one asked.
+    ``info["planned_pose"]`` is the exact end pose of the commanded profile (the root is
+    the point eq. 5 describes), ``info["path_length_m"]`` its arc length. The wheel
+    velocities are servo commands: each wheel's speed plus the droop of its motor line
+    under the predicted load (:meth:`DriveGeometry.wheel_torques`). Commands that need a
+    wheel faster than the usable speed raise ValueError with the largest feasible command:
+    clipping would silently drive a different path than the one asked.
     """
 
     def __init__(self, geometry: DesignGeometry) -> None:
         super().__init__(geometry)
-        self.drive = DriveGeometry.from_template(self.template, geometry.joint_speed)
+        # the load model's mass layout: the template with the design's payload on the chassis
+        layout = build(
+            geometry.template,
+            TemplateParams(
+                lengths=geometry.lengths,
+                modules=geometry.modules,
+                wheel_radius=geometry.wheel_radius,
+                payload=float(geometry.params.get("payload", 0.0)),
+            ),
+        )
+        self.drive = DriveGeometry.from_template(
+            self.template,
+            geometry.joint_speed,
+            geometry.mass_kg,
+            geometry.joint_torque,
+            layout=layout,
+        )
         self.joints = (*self.drive.left, *self.drive.right)
 
     @property
@@ -255,8 +455,30 @@ class WheeledController(Controller):
 
     @property
     def w_max(self) -> float:
-        """Top yaw rate rad/s of a turn in place within the usable wheel speed."""
+        """Top yaw rate rad/s of a turn in place within the usable wheel speed (unloaded)."""
         return 2 * self.v_max / self.drive.effective_track
+
+    @cached_property
+    def default_ramp(self) -> float:
+        """The default ramp s: RAMP, or longer (by 25 % steps) until the servos can
+        accelerate the robot to the default speed (their droop under the chassis' inertia
+        fits within their no-load speed)."""
+        v = round(self.v_max / 2, 3)
+        ramp = RAMP
+        for _ in range(30):
+            t = _grid(2 * ramp)
+            s, ds, _ = min_jerk(t / ramp)
+            left, right = self.drive.commands(v * s, 0 * s, v * ds / ramp, 0 * s)
+            if max(np.max(np.abs(left)), np.max(np.abs(right))) <= self.drive.max_speed:
+                break
+            ramp = round(ramp * 1.25, 2)
+        return ramp
+
+    @property
+    def body_length(self) -> float:
+        """The robot's length m: the chassis, or the wheels' span if longer."""
+        d = self.drive
+        return max(float(self.template.lengths.get("L1", 0.0)), d.wheel_base + 2 * d.radius)
 
     @property
     def behaviors(self) -> Mapping[str, BehaviorSpec]:
@@ -286,7 +508,13 @@ class WheeledController(Controller):
                     ),
                     Parameter("seconds", "float", 5.0, "duration", "s", low=0.05, high=3600),
                     Parameter(
-                        "ramp", "float", 0.5, "minimum-jerk ramp-up time", "s", low=0.0, high=60
+                        "ramp",
+                        "float",
+                        self.default_ramp,
+                        "minimum-jerk ramp-up time",
+                        "s",
+                        low=0.0,
+                        high=60,
                     ),
                 ),
             ),
@@ -307,12 +535,13 @@ class WheeledController(Controller):
                         "seconds",
                         "float",
                         0.0,
-                        "duration (0: the shortest within the wheel speeds)",
+                        "duration (0: peak rim speed a quarter of the wheels' top speed)",
                         "s",
                         low=0.0,
                         high=3600,
                     ),
                 ),
+                ability="driving",
             ),
         }
 
@@ -332,50 +561,99 @@ class WheeledController(Controller):
             raise ValueError(f"ramp ({ramp} s) is longer than the drive ({seconds} s)")
         t = _grid(seconds)
         if ramp > 0:
-            s = min_jerk(t / ramp)[0]
-            integral = min_jerk_integral(t / ramp)
-            dist = np.where(t < ramp, ramp * integral, ramp / 2 + (t - ramp))
+            s, ds, _ = min_jerk(t / ramp)
+            ds = ds / ramp
+            dist = np.where(t < ramp, ramp * min_jerk_integral(t / ramp), ramp / 2 + (t - ramp))
         else:
-            s, dist = np.ones_like(t), t
-        ql, qr = self.drive.wheel_speeds(v, w)
-        speed = {n: ql for n in self.drive.left} | {n: qr for n in self.drive.right}
-        return self._trajectory("driving", t, s, dist, speed, {"command": (v, w)})
+            s, ds, dist = np.ones_like(t), np.zeros_like(t), t
+        left, right = self.drive.commands(v * s, w * s, v * ds, w * ds)
+        self.drive.check_commands(left, right, f"driving at ({v:g} m/s, {w:g} rad/s)")
+        # the exact end pose: the path is one circle (curvature w / v), travelled for the
+        # integral of the profile, D = seconds - ramp / 2
+        D = float(dist[-1])
+        yaw = w * D
+        if w == 0:
+            pose = (v * D, 0.0, 0.0)
+        else:
+            pose = (v / w * math.sin(yaw), v / w * (1 - math.cos(yaw)), yaw)
+        info: dict[str, object] = {
+            "command": (v, w),
+            "planned_pose": pose,
+            "path_length_m": abs(v) * D,
+        }
+        if v == 0 and w == 0:
+            info["motion"] = "hold"
+        elif v == 0:
+            info["motion"] = "turn"
+        elif w == 0:
+            info["motion"] = "straight"
+            info["direction"] = (math.copysign(1.0, v), 0.0)
+        else:
+            info["motion"] = "arc"
+        return self._trajectory("driving", t, left, right, info)
+
+    def _turn_profile(self, angle: float, seconds: float):
+        t = _grid(seconds)
+        s, ds, dds = min_jerk(t / seconds)
+        w = angle * ds / seconds
+        alpha = angle * dds / seconds**2
+        zero = np.zeros_like(t)
+        return t, s, *self.drive.commands(zero, w, zero, alpha)
 
     def _turning(self, angle: float, seconds: float) -> Trajectory:
-        # heading theta(t) = angle s(t / T); peak rate 1.875 angle / T (min-jerk)
-        shortest = 1.875 * abs(angle) / self.w_max
+        # heading theta(t) = angle s(t / T); peak rate 1.875 angle / T (min-jerk); the
+        # shortest T is the first (on a 1 % grid) whose loaded commands fit the wheels
+        shortest = max(1.875 * abs(angle) / self.w_max, SAMPLE_DT * 2)
+        if angle != 0:
+            for _ in range(400):
+                _, _, left, right = self._turn_profile(angle, shortest)
+                if max(np.max(np.abs(left)), np.max(np.abs(right))) <= self.drive.max_speed:
+                    break
+                shortest *= 1.01
+            else:
+                raise ValueError(
+                    f"the wheels cannot turn the robot in place: their servos stall under "
+                    f"the scrubbing torque ({self.drive.skid_torque():.3g} N m)"
+                )
         if seconds == 0:
+            rim = TURN_SPEED_FRACTION * self.v_max  # the peak rim speed
+            shortest = max(shortest, 1.875 * abs(angle) * self.drive.effective_track / 2 / rim)
             seconds = max(round(math.ceil(shortest / SAMPLE_DT) * SAMPLE_DT, 9), SAMPLE_DT * 2)
-        elif seconds < shortest:
+        elif seconds < shortest * (1 - 1e-9):
             raise ValueError(
                 f"turning {angle:g} rad in {seconds:g} s needs a wheel speed above the "
                 f"usable {self.drive.max_speed:.3g} rad/s; it takes at least {shortest:.3g} s"
             )
-        t = _grid(seconds)
-        s, ds, _ = min_jerk(t / seconds)
-        w_rate = angle * ds / seconds  # rad/s of the chassis
-        ql, qr = self.drive.wheel_speeds(0.0, 1.0)  # per rad/s of yaw rate
-        speed = {n: ql for n in self.drive.left} | {n: qr for n in self.drive.right}
-        # the wheels' speeds scale with w(t) and their angles with theta(t)
-        return self._trajectory(
-            "turning", t, w_rate, angle * s, speed, {"heading_rad": angle, "command": None}
-        )
+        t, _, left, right = self._turn_profile(angle, seconds)
+        self.drive.check_commands(left, right, f"turning {angle:g} rad in {seconds:g} s")
+        info = {
+            "heading_rad": angle,
+            "motion": "turn",
+            "planned_pose": (0.0, 0.0, angle),
+            "path_length_m": 0.0,
+        }
+        return self._trajectory("turning", t, left, right, info)
 
     def _trajectory(
         self,
         name: str,
         t: np.ndarray,
-        rate: np.ndarray,
-        integral: np.ndarray,
-        speed: Mapping[str, float],
+        left: np.ndarray,
+        right: np.ndarray,
         info: Mapping[str, object],
     ) -> Trajectory:
-        """Wheel speed = ``speed[j] * rate(t)``, angle = ``speed[j] * integral(t)``, with
-        each joint's forward sign."""
-        vel = np.column_stack([self.drive.sign[n] * speed[n] * rate for n in self.joints])
-        pos = np.column_stack([self.drive.sign[n] * speed[n] * integral for n in self.joints])
-        info = {k: x for k, x in info.items() if x is not None}
-        info |= {"radius_m": self.drive.radius, "effective_track_m": self.drive.effective_track}
+        """Wheel commands per side (forward positive) -> joint velocities with each joint's
+        forward sign; positions are their integral (trapezoidal)."""
+        side = {n: left for n in self.drive.left} | {n: right for n in self.drive.right}
+        vel = np.column_stack([self.drive.sign[n] * side[n] for n in self.joints])
+        steps = (vel[1:] + vel[:-1]) / 2 * np.diff(t)[:, None]
+        pos = np.vstack([np.zeros((1, len(self.joints))), np.cumsum(steps, axis=0)])
+        info = dict(info) | {
+            "locomotion": "wheeled",
+            "body_length_m": self.body_length,
+            "radius_m": self.drive.radius,
+            "effective_track_m": self.drive.effective_track,
+        }
         return Trajectory(name, t, self.joints, pos, vel, info)
 
 

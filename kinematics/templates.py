@@ -57,12 +57,16 @@ Templates (length names and defaults in ``DEFAULTS``):
   Module i (1-based) is ``joint_i`` with body ``module_i``: the actuator and a bracket tube
   of length ``module`` along +x; odd modules pitch (y, vertical modules), even ones yaw
   (z, horizontal modules). Zero pose: straight along +x. Limits +-pi/2.
-- ``DifferentialDriveRobot`` (section 4.3.1): chassis plate ``L1`` (x) by ``L2`` (y) centred
-  on the origin, at the wheel axle height. ``left_wheel``/``right_wheel`` (continuous, y,
-  group wheel) at (L1/4, +-L2/2, 0); a ball caster (fixed joint ``caster``) at
-  (-L1/2, 0, -wheel_radius), touching the ground at its origin. Ground at z = -wheel_radius.
-- ``SkidSteerRobot``: the same chassis with ``front_left_wheel``, ``front_right_wheel``,
-  ``rear_left_wheel``, ``rear_right_wheel`` at (+-L1/2, +-L2/2, 0).
+- ``DifferentialDriveRobot`` (section 4.3.1): the chassis frame's origin is the axle centre
+  (ROS's base_link), at the wheel axle height; the chassis plate ``L1`` (x) by ``L2`` (y)
+  and the payload are centred at (-L1/4, 0, 0). ``left_wheel``/``right_wheel``
+  (continuous, y, group wheel) at (0, +-L2/2, 0); a ball caster (fixed joint ``caster``)
+  at (-3 L1/4, 0, -wheel_radius), touching the ground at its origin. Ground at
+  z = -wheel_radius.
+- ``SkidSteerRobot``: the chassis plate centred on the origin, with ``front_left_wheel``,
+  ``front_right_wheel``, ``rear_left_wheel``, ``rear_right_wheel`` at (+-L1/2, +-L2/2, 0).
+- Wheeled robots: a wheel's body is the wheel alone; its actuator module is on the
+  chassis, beside the wheel on the inner side (see ``_servos_on_chassis``).
 """
 
 from __future__ import annotations
@@ -227,7 +231,8 @@ class LabelledPart:
     <- part frame. ``label``: the joint name (actuator), the segment name (link), the body
     name (other kinds). ``dims`` (m) and the part frame by ``kind``:
 
-    - "actuator": (x, y, z) box (``params.actuator_size``) centred on the joint, body axes;
+    - "actuator": (x, y, z) box (``params.actuator_size``) centred on the joint, body axes
+      (a wheel's: on the chassis beside the wheel, its frame's z along the axle);
     - "link": (length, r_outer, r_inner, face_side, face_thickness, fillet); frame origin
       at the tube's start, z along the tube, x and y along the face plates' edges;
     - "trunk": (x, y, z) box of the root body centred on the frame origin; the frame's z
@@ -787,14 +792,19 @@ def _wheeled(b: _Builder, skid: bool) -> dict:
     r = p.wheel_radius
     if not (isfinite(r) and r > 0):
         raise ValueError(f"wheel_radius must be positive, got {r}")
+    # the root frame is the point the drive's kinematics (eqs. 5-6) describe: the middle of
+    # the wheels (a differential drive's axle centre, ROS's base_link); the plate is centred
+    # on it for a skid-steer and a quarter of its length behind the axle for a differential
+    # drive, whose caster trails at the plate's rear edge
+    centre = (0.0, 0.0, 0.0) if skid else (-L["L1"] / 4, 0.0, 0.0)
     chassis = b.add(
         "root",
         None,
         "fixed",
         np.eye(4),
         [
-            _trunk("chassis", p.trunk_mass, (L["L1"], L["L2"], CHASSIS_THICKNESS), (0, 0, 0), _UP),
-            _point("chassis", "payload", p.payload),
+            _trunk("chassis", p.trunk_mass, (L["L1"], L["L2"], CHASSIS_THICKNESS), centre, _UP),
+            _point("chassis", "payload", p.payload, centre),
         ],
         body="chassis",
     )
@@ -816,8 +826,7 @@ def _wheeled(b: _Builder, skid: bool) -> dict:
         places = [(n, (fx * L["L1"] / 2, side * L["L2"] / 2, 0)) for n, fx, side in spots]
     else:
         places = [
-            (n, (L["L1"] / 4, side * L["L2"] / 2, 0))
-            for n, side in (("left_wheel", 1), ("right_wheel", -1))
+            (n, (0, side * L["L2"] / 2, 0)) for n, side in (("left_wheel", 1), ("right_wheel", -1))
         ]
     wheels = tuple(
         b.add(
@@ -831,6 +840,7 @@ def _wheeled(b: _Builder, skid: bool) -> dict:
         )
         for n, xyz in places
     )
+    _servos_on_chassis(b, chassis, wheels)
     casters: tuple[str, ...] = ()
     if not skid:
         ball = LabelledPart(
@@ -842,8 +852,38 @@ def _wheeled(b: _Builder, skid: bool) -> dict:
             transform((0, 0, CASTER_RADIUS)),
             (CASTER_RADIUS,),
         )
-        casters = (b.add("caster", chassis, "fixed", transform((-L["L1"] / 2, 0, -r)), [ball]),)
+        rear = (centre[0] - L["L1"] / 2, 0, -r)
+        casters = (b.add("caster", chassis, "fixed", transform(rear), [ball]),)
     return {"wheels": wheels, "casters": casters}
+
+
+def _servos_on_chassis(b: _Builder, chassis: str, wheels: tuple[str, ...]) -> None:
+    """Move each wheel's actuator module from the wheel's body to the chassis: the servo's
+    case is fixed to the chassis and only its shaft turns with the wheel, so nothing but
+    the wheel turns or touches the ground. The case sits beside the wheel on the inner
+    side, its frame's z (the shaft) along the axle, centred on the axle's height."""
+    moved: list[LabelledPart] = []
+    for body in wheels:
+        i = b.index(body)
+        joint = next(j for j in b.joints if j.child == i)
+        act = next(lp for lp in b.parts[body] if lp.kind == "actuator")
+        rest = tuple(lp for lp in b.parts[body] if lp is not act)
+        b.parts[body] = rest
+        b.bodies[i] = Body.from_parts(body, [lp.part for lp in rest])
+        pos = joint.origin[:3, 3]
+        size = act.dims
+        inboard = -np.sign(pos[1]) * (WHEEL_WIDTH / 2 + size[2] / 2)
+        R = joint.origin[:3, :3] @ rot_x(-pi / 2)  # part z along the wheel's axle
+        centre = pos + np.array([0.0, inboard, 0.0])
+        inertia = R @ box_inertia(act.mass, size) @ R.T
+        moved.append(
+            LabelledPart(
+                act.label, "actuator", act.mass, centre, inertia, transform_from(R, centre), size
+            )
+        )
+    k = b.index(chassis)
+    b.parts[chassis] = (*b.parts[chassis], *moved)
+    b.bodies[k] = Body.from_parts(chassis, [lp.part for lp in b.parts[chassis]])
 
 
 _BUILDERS: dict[str, Callable[[_Builder], dict]] = {

@@ -490,7 +490,13 @@ class Wheeled(Family):
     continuous-rotation servo both holds the wheel's share of the traction force and turns
     fast enough under it (its speed falls linearly with torque) for the travel speed; worst
     case climbing the slope with the payload while accelerating to the travel speed in
-    ACCELERATION_TIME."""
+    ACCELERATION_TIME. The wheel also lifts its servo off the ground: the servo's case is
+    on the chassis, centred on the axle (``kinematics.templates``), so the radius is at
+    least half the case's largest side across the shaft plus GROUND_CLEARANCE."""
+
+    #: Ground clearance under a wheel servo's case, m: floor bumps, thresholds and cable
+    #: covers of an indoor floor (about 1 cm) pass under it, and only the wheels touch.
+    GROUND_CLEARANCE = 0.01
 
     def size(self, robot_type, p, catalog):
         area = p["load_area"]
@@ -534,8 +540,11 @@ class Wheeled(Family):
         point (rim force N, ground speed m/s; speeds with SPEED_MARGIN)."""
         sf = catalog.design.torque_safety_factor
         r_min, r_max = catalog.passive.wheel_min_radius_m, catalog.passive.wheel_max_radius_m
+        servos = catalog.actuators_of("ContinuousRotationServomotor")
+        # whichever servo the assignment picks, its case clears the ground
+        r_min = max(r_min, self.servo_clearance_radius(servos))
         best: float | None = None
-        for a in catalog.actuators_of("ContinuousRotationServomotor"):
+        for a in servos:
             # at each point, the speed under load w0 (1 - F r / Ts) r must reach v: r at
             # least the smaller root of -(w0 F / Ts) r^2 + w0 r - v = 0; F r <= Ts / sf
             w0, ts = a.no_load_speed_rad_s, a.stall_torque_Nm
@@ -555,12 +564,21 @@ class Wheeled(Family):
         if best is None:
             force, _ = max(points)
             raise InfeasibleError(
-                f"no catalog wheel servo drives a printable wheel ({r_min * 1000:.0f}-"
-                f"{r_max * 1000:.0f} mm) at {p['speed']:.2f} m/s while pushing {force:.2f} N "
+                "no catalog wheel servo drives a printable wheel clearing its servo "
+                f"({r_min * 1000:.0f}-{r_max * 1000:.0f} mm) at {p['speed']:.2f} m/s while "
+                f"pushing {force:.2f} N "
                 f"(climbing a {math.degrees(p['slope']):.0f} deg slope, or turning in place); "
                 "ask for less speed, payload or slope"
             )
         return best
+
+    @classmethod
+    def servo_clearance_radius(cls, servos) -> float:
+        """The smallest wheel radius (m) that keeps every one of ``servos`` (catalog
+        actuators; the case's size z is its shaft) GROUND_CLEARANCE above the ground when
+        its case is centred on the axle: half the case's largest side across the shaft."""
+        half = max((max(a.size_m[0], a.size_m[1]) / 2 for a in servos), default=0.0)
+        return half + cls.GROUND_CLEARANCE
 
     def load_cases(self, tmpl, p, catalog):
         g = catalog.design.gravity_m_s2

@@ -59,10 +59,12 @@ def test_bodies_are_their_labelled_parts(robot_type: str, faces: bool) -> None:
             np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
             assert np.linalg.det(R) == pytest.approx(1.0)
         actuators = [lp for lp in parts if lp.kind == "actuator"]
-        if m.joints[i].movable:
+        # a wheel's servo is on the chassis (its parent); other joints' on their own body
+        wheel_servos = [j.name for j in m.joints if j.kind == "continuous" and j.parent == i]
+        if m.joints[i].movable and m.joints[i].kind != "continuous":
             assert [lp.label for lp in actuators] == [m.joints[i].name]
         else:
-            assert not actuators
+            assert [lp.label for lp in actuators] == wheel_servos
     links = {lp.label: (name, lp) for name, ps in t.parts.items() for lp in ps if lp.kind == "link"}
     assert sorted(links) == sorted(s.name for s in t.segments)
     for s in t.segments:
@@ -177,8 +179,8 @@ def _recomputed(part, printed: dict, catalog, template) -> tuple[float, np.ndarr
             m = template.params.caster_mass
             inertia = sphere_inertia(m, g.size[0])
         c = np.zeros(3)
-    elif part.source == "contact":  # a leg's massless rounded contact point
-        assert part.mass == 0 and g.kind == "sphere" and g.contact
+    elif part.source == "contact":  # a leg's massless rounded point, a wheel's rim cylinder
+        assert part.mass == 0 and g.kind in ("sphere", "cylinder") and g.contact
         return 0.0, part.com, np.zeros((3, 3))
     else:
         assert part.source == "payload" and g is None
@@ -283,9 +285,19 @@ def test_joints_carry_the_chosen_actuators(assemblies, faced, catalog) -> None:
             spec = specs[jd.name]
             assert spec.effort == a.stall_torque_Nm and spec.velocity == a.no_load_speed_rad_s
             assert spec.actuator == jd.actuator
-            box = next(u for u in asm.body(spec.child).parts if u.source == "module")
+            if spec.kind == "continuous":  # a wheel's servo: on the chassis, beside the wheel
+                axis = spec.origin[:3, :3] @ spec.axis
+                boxes = [u for u in asm.body(spec.parent).parts if u.name == jd.actuator]
+                box = min(
+                    boxes,
+                    key=lambda u: np.linalg.norm(u.geometry.origin[:3, 3] - spec.origin[:3, 3]),
+                )
+                assert not any(u.source == "module" for u in asm.body(spec.child).parts)
+            else:
+                axis = spec.axis
+                box = next(u for u in asm.body(spec.child).parts if u.source == "module")
             assert box.name == jd.actuator and box.mass == a.mass_kg
-            np.testing.assert_allclose(box.geometry.origin[:3, 2], spec.axis, atol=1e-12)
+            np.testing.assert_allclose(box.geometry.origin[:3, 2], axis, atol=1e-12)
 
 
 def test_the_robot_stands_on_the_ground(assemblies, faced) -> None:

@@ -250,7 +250,8 @@ def test_snake_and_wheeled_geometry() -> None:
     d = build("DifferentialDriveRobot", TemplateParams(lengths={"L1": 0.2, "L2": 0.15}))
     left, right = (world_point(d, w) for w in d.wheels)
     assert left[1] - right[1] == pytest.approx(0.15)
-    np.testing.assert_allclose(world_point(d, d.casters[0]), [-0.1, 0, -0.03])
+    assert left[0] == right[0] == 0  # the root frame is the axle centre
+    np.testing.assert_allclose(world_point(d, d.casters[0]), [-0.15, 0, -0.03])
     s = build("SkidSteerRobot", TemplateParams(lengths={"L1": 0.2, "L2": 0.15}))
     centres = np.array([world_point(s, w) for w in s.wheels])
     np.testing.assert_allclose(np.ptp(centres, axis=0), [0.2, 0.15, 0.0])
