@@ -52,7 +52,7 @@ from math import pi
 import numpy as np
 
 from gaits.base import BehaviorSpec, Controller, DesignGeometry, Parameter, Trajectory
-from kinematics.dynamics import center_of_mass, forward_kinematics
+from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics, rnea
 from kinematics.templates import (
     DEFAULTS,
     FOOT_WIDTH_RATIO,
@@ -86,6 +86,7 @@ __all__ = [
     "reference_template",
     "stability_margin",
     "stance_height",
+    "stance_torques",
     "synthesize",
 ]
 
@@ -647,6 +648,62 @@ def odometry(template: Template, names: tuple[str, ...], q: np.ndarray) -> np.nd
     return out
 
 
+#: m: a foot whose sole is within this of the lowest sole carries part of the weight.
+CONTACT = 0.0005
+
+
+def stance_torques(
+    template: Template, names: tuple[str, ...], q: np.ndarray, dt: float
+) -> np.ndarray:
+    """(n, len(names)) N m: the joint torques that carry the robot along the joint
+    trajectories ``q`` (n, len(names)) rad sampled every ``dt`` s, with ``template``'s
+    masses: the ground's force under the feet and gravity, by RNEA.
+
+    The trunk stays upright and moves as :func:`odometry` says (the stance foot does not
+    slide); the centre of mass (COM) then moves along ``c(t)`` and the ground pushes with
+    ``M (c'' + g)`` at the zero-moment point ``c - z c'' / (z'' + g)`` (z: the COM's height
+    over the ground). Feet within ``CONTACT`` m of the lowest sole share that force by the
+    lever rule along the line between their soles (both pressure points shifted alike, so
+    that the force stays at the zero-moment point); a lifted foot carries nothing. The
+    bodies' own accelerations relative to the trunk are left out (slow gaits)."""
+    model = template.model
+    Q = _q_full(model.q_names, names, np.atleast_2d(q))
+    n = len(Q)
+    frames = forward_kinematics(model, Q)
+    feet = [model.body(f) for f in template.feet]
+    soles = np.array(
+        [
+            frames[:, b, :3, 3] + frames[:, b, :3, :3] @ p
+            for b, p in zip(feet, template.foot_points, strict=True)
+        ]
+    )  # (2, n, 3), trunk frame
+    ground = soles[:, :, 2].min(axis=0)
+    trunk = odometry(template, names, q)
+    trunk[:, 2] = -ground  # the trunk's height over the ground
+    com = trunk + center_of_mass(model, Q)  # world (ground at z = 0)
+    acc = np.zeros_like(com)
+    if n >= 3:  # the COM's acceleration, m/s^2
+        acc = np.gradient(np.gradient(com, dt, axis=0), dt, axis=0)
+    force = model.total_mass * (acc + np.array([0.0, 0.0, G]))  # (n, 3), world = trunk axes
+    zmp = com[:, :2] - com[:, 2:3] * acc[:, :2] / force[:, 2:3] * model.total_mass
+    world = soles + trunk[None]  # (2, n, 3)
+    on = soles[:, :, 2] <= ground[None] + CONTACT  # (2, n)
+    a, b = world[0, :, :2], world[1, :, :2]
+    ab = b - a
+    s = np.einsum("ij,ij->i", zmp - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12)
+    s = np.clip(s, 0.0, 1.0)
+    share = np.where(on[0] & on[1], 1 - s, on[0].astype(float))  # the left foot's share
+    offset = zmp - (a + s[:, None] * ab)
+    fext = np.zeros((n, len(model.bodies), 6))
+    for k, (body, w) in enumerate(zip(feet, (share, 1 - share), strict=True)):
+        cop = world[k].copy()
+        cop[:, :2] = np.where((on[0] & on[1])[:, None], world[k, :, :2] + offset, zmp)
+        fext[:, body] = external_force_at(model, Q, body, cop - trunk, w[:, None] * force)
+    tau = rnea(model, Q, np.zeros_like(Q), np.zeros_like(Q), fext)
+    index = {name: k for k, name in enumerate(model.q_names)}
+    return tau[:, [index[name] for name in names]]
+
+
 #: Grasping: the arms reach forward (shoulder and elbow pitch, rad; negative turns forward)
 #: with the grippers open, close both grippers, and hold.
 REACH_SHOULDER = -pi / 4
@@ -680,13 +737,40 @@ class HumanoidController(Controller):
     never extrapolated.
     """
 
-    def __init__(self, geometry: DesignGeometry) -> None:
+    def __init__(
+        self,
+        geometry: DesignGeometry,
+        stiffness: Mapping[str, float] | None = None,
+        damping: Mapping[str, float] | None = None,
+    ) -> None:
         super().__init__(geometry)
         L = self.template.lengths
         self.femur, self.tibia = float(L["femur"]), float(L["tibia"])
         self.leg = self.femur + self.tibia
         self.size = self.leg / 2  # the maps' x, m
         self.joints = _joint_names(LEG_JOINTS) + _joint_names(ARM_JOINTS)
+        #: the template with the design's payload on the trunk: its masses
+        self.masses = build(
+            geometry.template,
+            TemplateParams(
+                lengths=geometry.lengths,
+                modules=geometry.modules,
+                payload=float(geometry.params.get("payload", 0.0)),
+            ),
+        )
+        self.stiffness = None if stiffness is None else self._per_joint(stiffness, "stiffness")
+        self.damping = None if damping is None else self._per_joint(damping, "damping", 0.0)
+
+    def _per_joint(self, values: Mapping[str, float], what: str, low: float = 1e-300) -> np.ndarray:
+        """(len(joints),) values of ``values`` by joint name; ValueError when one is missing
+        or below ``low``."""
+        missing = sorted(set(self.joints) - set(values))
+        if missing:
+            raise ValueError(f"{what}: no value for {', '.join(missing)}")
+        out = np.array([float(values[j]) for j in self.joints])
+        if not np.all(out >= low):
+            raise ValueError(f"{what} values must be >= {low:g}")
+        return out
 
     def default_step(self, shape: GaitShape = WALK) -> float:
         """Default step length m of ``shape`` for this design's legs."""
@@ -867,14 +951,7 @@ class HumanoidController(Controller):
         over its start: a hold stays put)."""
         arms = partial(self._arms, hold=hold)
         duration = CROUCH_TIME + REACH_TIME + GRIP_TIME + hold + REACH_TIME
-        model = build(
-            self.geometry.template,
-            TemplateParams(
-                lengths=self.geometry.lengths,
-                modules=self.geometry.modules,
-                payload=float(self.geometry.params.get("payload", 0.0)),
-            ),
-        ).model
+        model = self.masses.model
         index = {n: k for k, n in enumerate(model.q_names)}
         cols = [index[n] for n in self.joints]
 
@@ -931,4 +1008,15 @@ class HumanoidController(Controller):
         info["planned_pose"] = (float(moved[0]), float(moved[1]), 0.0)
         if info.get("motion") == "straight":
             info["expected_distance_m"] = float(np.hypot(moved[0], moved[1]))
-        return Trajectory(name, t, self.joints, q, v, info)
+        positions = q
+        if self.stiffness is not None:  # the servos' give under the stance loads
+            tau = stance_torques(self.masses, self.joints, q, SAMPLE_DT)
+            if self.damping is not None:  # what the servo's velocity gain holds back
+                tau = tau + self.damping * v
+            droop = tau / self.stiffness
+            lo = np.array([low[index[j]] for j in self.joints])
+            hi = np.array([high[index[j]] for j in self.joints])
+            positions = np.clip(q + droop, lo, hi)
+            v = v + np.gradient(positions - q, SAMPLE_DT, axis=0)
+            info["planned_positions"] = q
+        return Trajectory(name, t, self.joints, positions, v, info)
