@@ -194,8 +194,12 @@ class GaitShape:
 
 #: The walking gait: tuned in MuJoCo on the default design (see the module docstring).
 WALK = GaitShape("walking", 0.75, 0.25, 0.96, 0.12, 0.12, 0.8)
-#: The faster gait (``running``): a shorter period and double support, longer steps.
-RUN = GaitShape("running", 0.5, 0.15, 0.96, 0.15, 0.12, 0.8)
+#: The faster gait (``running``): a shorter period and double support, longer steps. Its
+#: period is bounded by the servos' speed at the smallest legs: the same Froude number gives
+#: short legs fast joints (``1 / sqrt(leg)``), and at the 40 mm leg modules a 0.5 s step
+#: needs the knee at 6.6 rad/s, beyond the catalog's stronger servos' no-load 6.2-6.5 rad/s
+#: (measured in MuJoCo: saturated); 0.6 s steps peak at 5.5 rad/s and pass at every size.
+RUN = GaitShape("running", 0.6, 0.15, 0.96, 0.15, 0.12, 0.8)
 
 
 @dataclass(frozen=True)
@@ -648,8 +652,10 @@ def odometry(template: Template, names: tuple[str, ...], q: np.ndarray) -> np.nd
     return out
 
 
-#: m: a foot whose sole is within this of the lowest sole carries part of the weight.
-CONTACT = 0.0005
+#: m: a foot's share of the weight fades out smoothly as its sole rises this high over the
+#: lowest one (a foot lifting off or setting down, or one a hair higher, loads the servos
+#: continuously).
+CONTACT = 0.002
 
 
 def stance_torques(
@@ -662,9 +668,10 @@ def stance_torques(
     The trunk stays upright and moves as :func:`odometry` says (the stance foot does not
     slide); the centre of mass (COM) then moves along ``c(t)`` and the ground pushes with
     ``M (c'' + g)`` at the zero-moment point ``c - z c'' / (z'' + g)`` (z: the COM's height
-    over the ground). Feet within ``CONTACT`` m of the lowest sole share that force by the
-    lever rule along the line between their soles (both pressure points shifted alike, so
-    that the force stays at the zero-moment point); a lifted foot carries nothing. The
+    over the ground). The feet share that force by the lever rule along the line between
+    their soles (both pressure points shifted alike, so that the force stays at the
+    zero-moment point), a foot's share fading out as it rises ``CONTACT`` m over the lowest
+    one. The
     bodies' own accelerations relative to the trunk are left out (slow gaits)."""
     model = template.model
     Q = _q_full(model.q_names, names, np.atleast_2d(q))
@@ -687,18 +694,21 @@ def stance_torques(
     force = model.total_mass * (acc + np.array([0.0, 0.0, G]))  # (n, 3), world = trunk axes
     zmp = com[:, :2] - com[:, 2:3] * acc[:, :2] / force[:, 2:3] * model.total_mass
     world = soles + trunk[None]  # (2, n, 3)
-    on = soles[:, :, 2] <= ground[None] + CONTACT  # (2, n)
+    down = _smooth(1 - (soles[:, :, 2] - ground[None]) / CONTACT)  # (2, n): 1 on the ground
     a, b = world[0, :, :2], world[1, :, :2]
     ab = b - a
     s = np.einsum("ij,ij->i", zmp - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12)
     s = np.clip(s, 0.0, 1.0)
-    share = np.where(on[0] & on[1], 1 - s, on[0].astype(float))  # the left foot's share
-    offset = zmp - (a + s[:, None] * ab)
+    lever = np.stack([(1 - s) * down[0], s * down[1]])  # (2, n)
+    total = lever.sum(axis=0)
+    share = np.where(total > 1e-9, lever / np.maximum(total, 1e-9), down / down.sum(axis=0))
+    # both pressure points shifted alike, so that the resultant acts at the ZMP
+    offset = zmp - (share[0, :, None] * a + share[1, :, None] * b)
     fext = np.zeros((n, len(model.bodies), 6))
-    for k, (body, w) in enumerate(zip(feet, (share, 1 - share), strict=True)):
+    for k, body in enumerate(feet):
         cop = world[k].copy()
-        cop[:, :2] = np.where((on[0] & on[1])[:, None], world[k, :, :2] + offset, zmp)
-        fext[:, body] = external_force_at(model, Q, body, cop - trunk, w[:, None] * force)
+        cop[:, :2] += offset
+        fext[:, body] = external_force_at(model, Q, body, cop - trunk, share[k, :, None] * force)
     tau = rnea(model, Q, np.zeros_like(Q), np.zeros_like(Q), fext)
     index = {name: k for k, name in enumerate(model.q_names)}
     return tau[:, [index[name] for name in names]]
@@ -759,17 +769,17 @@ class HumanoidController(Controller):
             ),
         )
         self.stiffness = None if stiffness is None else self._per_joint(stiffness, "stiffness")
-        self.damping = None if damping is None else self._per_joint(damping, "damping", 0.0)
+        self.damping = None if damping is None else self._per_joint(damping, "damping", zero=True)
 
-    def _per_joint(self, values: Mapping[str, float], what: str, low: float = 1e-300) -> np.ndarray:
-        """(len(joints),) values of ``values`` by joint name; ValueError when one is missing
-        or below ``low``."""
+    def _per_joint(self, values: Mapping[str, float], what: str, zero: bool = False) -> np.ndarray:
+        """(len(joints),) ``values`` by joint name; ValueError when one is missing or not
+        positive (negative with ``zero``)."""
         missing = sorted(set(self.joints) - set(values))
         if missing:
             raise ValueError(f"{what}: no value for {', '.join(missing)}")
         out = np.array([float(values[j]) for j in self.joints])
-        if not np.all(out >= low):
-            raise ValueError(f"{what} values must be >= {low:g}")
+        if not np.all((out >= 0) if zero else (out > 0)):
+            raise ValueError(f"{what} values must be {'>= 0' if zero else '> 0'}")
         return out
 
     def default_step(self, shape: GaitShape = WALK) -> float:
