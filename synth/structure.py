@@ -240,7 +240,7 @@ class StructureDesigner:
         shares = [
             n / d
             for gait, n, d in kb.translation.relation("liftedModuleShare")
-            if gait in (candidate.needed or candidate.abilities)
+            if gait in candidate.abilities  # every gait it lists, asked for or not
             and isinstance(n, int)
             and isinstance(d, int)
             and d > 0
