@@ -98,6 +98,7 @@ __all__ = [
     "reference_template",
     "stability_margin",
     "stance_height",
+    "stance_loads",
     "stance_torques",
     "synthesize",
 ]
@@ -675,7 +676,20 @@ def stance_torques(
 ) -> np.ndarray:
     """(n, len(names)) N m: the joint torques that carry the robot along the joint
     trajectories ``q`` (n, len(names)) rad sampled every ``dt`` s, with ``template``'s
-    masses: the ground's force under the feet and gravity, by RNEA.
+    masses: RNEA with the ground's forces of :func:`stance_loads` and gravity."""
+    model = template.model
+    Q, fext = stance_loads(template, names, q, dt)
+    tau = rnea(model, Q, np.zeros_like(Q), np.zeros_like(Q), fext)
+    index = {name: k for k, name in enumerate(model.q_names)}
+    return tau[:, [index[name] for name in names]]
+
+
+def stance_loads(
+    template: Template, names: tuple[str, ...], q: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(model coordinates (n, nq) rad, the ground's wrenches on the feet (n, nbodies, 6) in
+    :func:`kinematics.dynamics.rnea`'s ``fext`` form) along the joint trajectories ``q``
+    (n, len(names)) rad sampled every ``dt`` s, with ``template``'s masses.
 
     The trunk stays upright and moves as :func:`odometry` says (the stance foot does not
     slide); the centre of mass (COM) then moves along ``c(t)`` and the ground pushes with
@@ -720,9 +734,7 @@ def stance_torques(
         cop = world[k].copy()
         cop[:, :2] += offset
         fext[:, body] = external_force_at(model, Q, body, cop - trunk, share[k, :, None] * force)
-    tau = rnea(model, Q, np.zeros_like(Q), np.zeros_like(Q), fext)
-    index = {name: k for k, name in enumerate(model.q_names)}
-    return tau[:, [index[name] for name in names]]
+    return Q, fext
 
 
 #: Grasping: the arms reach forward (shoulder and elbow pitch, rad; negative turns forward)

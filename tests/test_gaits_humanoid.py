@@ -608,3 +608,49 @@ def test_sizing_holds_the_centre_of_pressure_off_the_ankle():
     left = forward_kinematics(model, held[0].q)[model.body(tmpl.feet[0]), :3, 3]
     hw = tmpl.lengths["hip_width"] / 2
     assert abs(com[1] - left[1]) < 0.5 * hw
+
+
+def test_sizing_takes_each_joints_peak_load_of_the_gaits():
+    from adron.catalog import load_catalog
+    from synth.sizing import HUMANOID, Humanoid
+
+    catalog = load_catalog()
+    tmpl = build("HumanoidRobot", TemplateParams({k: f * 0.4 for k, f in HUMANOID.items()}))
+    model = tmpl.model
+    cases = Humanoid().load_cases(tmpl, {"height": 0.4, "payload": 0.0}, catalog)
+    gait = [c for c in cases if c.name.startswith(("walking at", "running at"))]
+    stance = [c for c in cases if c not in gait]
+    assert gait and stance
+
+    def peak(cs, joint):
+        k = model.q_index[model.joint(joint)]
+        return max(abs(float(rnea(model, c.q, c.v, c.a, c.fext)[k])) for c in cs)
+
+    # the gaits' own peaks, by the controller's stance loads on the planned angles
+    plans = Humanoid.gait_plans(tmpl)
+    for _, t, joints, q, _ in plans:
+        tau = np.abs(stance_torques(tmpl, joints, q, float(t[1] - t[0])))
+        for j in ("l_hip_roll", "l_knee_pitch", "l_ankle_roll"):
+            assert peak(gait, j) >= tau[:, joints.index(j)].max() - 1e-9
+    # the walking stance alone misses the ankle roll's load while the weight moves between
+    # the feet (the case the gait cases were added for: an SG90 ankle roll saturated)
+    assert peak(gait, "l_ankle_roll") > 1.5 * peak(stance, "l_ankle_roll")
+
+
+def test_sizing_holds_each_joints_fastest_instant_of_the_gaits():
+    from adron.catalog import load_catalog
+    from synth.sizing import HUMANOID, Humanoid
+
+    catalog = load_catalog()
+    tmpl = build("HumanoidRobot", TemplateParams({k: f * 0.2 for k, f in HUMANOID.items()}))
+    holds = Humanoid().holds(tmpl, {"height": 0.2, "payload": 0.0}, catalog)
+    fastest = {}
+    for _, _, joints, _, v in Humanoid.gait_plans(tmpl):
+        for k, j in enumerate(joints):
+            fastest[j] = max(fastest.get(j, 0.0), float(np.abs(v[:, k]).max()))
+    torque, speed, what = holds["l_knee_pitch"]
+    assert speed == pytest.approx(fastest["l_knee_pitch"])
+    assert "running" in what  # the faster gait
+    assert speed > 4.0  # short legs swing fast (1 / sqrt(leg)): a slow servo fails it
+    assert torque < 0.1  # the swinging knee carries its shank only
+    assert "l_gripper" not in holds  # still in both gaits
