@@ -15,8 +15,8 @@ serpenoid curve sampled by the modules) has (eqs. 8, 9)::
     A = 2 alpha sin(2 pi k / M),   |dphi| = 4 pi k / M
 
 (two modules apart: the vertical modules are every other module). The offsets O_v, O_h
-are not in the paper's eq. 7; they bend the snake into a fixed arc (Gonzalez-Gomez's
-turning gait, here ``circular-path``).
+are not in the paper's eq. 7; O_h bends the snake into a fixed arc (Gonzalez-Gomez's
+turning gait, here ``circular-path``), O_v arches it (``rectilinear``).
 
 The gaits follow Gonzalez-Gomez et al. ("Locomotion capabilities of a modular robot with
 eight pitch-yaw-connecting modules", CLAWAR 2006, and the same authors' minimal PYP
@@ -31,11 +31,12 @@ on the designed snakes (M = 3, 5, 6, 8), see the tests.
   needs A >= 60 degrees).
 - ``rectilinear`` (1D sinusoidal): only the vertical wave travels, 120 degrees between
   consecutive vertical modules, the horizontal modules straight: humps travel along the
-  body and the snake inches along its axis.
-- ``sidewinding``: both waves travel with the same k, 90 degrees apart, a low vertical
-  wave lifting the body where the horizontal wave sweeps it sideways. (Simulated, the
-  M = 8 snake sidewinds; the M = 6 one turns instead, pushed off-centre by its heavy
-  head: a known limitation, see tests/test_gaits_snake.py.)
+  body and the snake inches along its axis. A small constant vertical offset arches the
+  body (``RECTILINEAR_ARCH``), which short snakes with a heavy head need to move.
+- ``sidewinding``: both waves travel with the same k, a vertical wave lifting the body
+  where the horizontal wave sweeps it sideways, 90 degrees apart *where they bend the
+  body*: a horizontal module sits one module behind its vertical one, half a phase step
+  of the travelling wave, so dphi_vh = +-90 degrees + dphi / 2 (see ``SIDEWINDING_LIFT``).
 - ``rotating``: both waves travel with different k (k_v = 2 k_h), 90 degrees apart: the
   snake turns about its vertical axis.
 - ``circular-path``: the rectilinear wave on a body bent into an arc by a constant
@@ -177,7 +178,27 @@ ROLL_MAX = math.radians(80)
 TRAVEL_STEP = 2 * math.pi / 3
 #: Winding angles alpha (rad) of eqs. 8-9 per gait: (vertical, horizontal).
 RECTILINEAR_ALPHA = math.radians(45)  # A_v = 78 degrees: humps tall enough to lift the head
-SIDEWINDING_ALPHA = (math.radians(6), math.radians(20))  # A_v = 10, A_h = 35 degrees
+#: Total vertical offset rad of ``rectilinear`` (and ``circular-path``), shared by the
+#: vertical joints, each bending the tail down, so that the body arches and the head is
+#: tilted nose up: O_v = RECTILINEAR_ARCH * min(1, (ARCH_MODULES / M)^2) / ceil(M / 2).
+#: The arch is for the heavy head (main module, battery, payload) of the short snakes; a
+#: long snake holds its arched ends up as cantilevers, whose torque grows as M^2, so
+#: beyond ARCH_MODULES its arch shrinks as 1 / M^2. Simulated on the designed snakes
+#: (M = 5-14, payload 0-0.5 kg): without the arch the head rocks back and forth with the
+#: humps and the short snakes hardly move (M = 5: 0.17, M = 6 with 0.25 kg: 0.24 body
+#: length per 10 s); with 30 degrees M = 5-8 crawl 0.28-0.64; 30 degrees at M = 14
+#: saturate a module 7 % of the time tail first, 10 degrees 2 %.
+RECTILINEAR_ARCH = math.radians(30)
+ARCH_MODULES = 8
+SIDEWINDING_ALPHA = math.radians(20)  # horizontal: A_h = 35 degrees
+#: Total vertical bend rad of ``sidewinding``, shared by the vertical joints: A_v =
+#: SIDEWINDING_LIFT / (M / 2). The lifted parts must leave the ground although the heavy
+#: head (main module, battery, payload) presses the front down; the fewer the modules the
+#: more each must lift. Simulated on the designed snakes (M = 6-14, payload 0-0.5 kg): a
+#: fixed A_v = 10 degrees leaves M = 6-8 dragging and turning about the head (0.0-0.2
+#: body length per 10 s); 20-30 degrees at M = 6-8 sidewind at 0.4-0.7, but at M = 12 with
+#: 0.25 kg 20 degrees saturates a module sized near its limit, 10-15 degrees do not.
+SIDEWINDING_LIFT = math.radians(100)
 ROTATING_ALPHA = (math.radians(5), math.radians(32))  # M = 8: A_v = 10, A_h = 45 degrees
 #: Horizontal undulations k_h of ``rotating`` along the body whatever M (k_v = 2 k_h).
 #: Simulated on the designed snakes (M = 8, 10, 14, payload 0-0.5 kg): k_h = 0.75 turns
@@ -209,17 +230,22 @@ def gait_params(gait: str, modules: int, direction: int = 1, bend: float = 0.0) 
     k = modules * TRAVEL_STEP / (4 * math.pi)  # undulations giving the 120 degree step
     if gait in ("rectilinear", "circular-path"):
         a_v = wave_amplitude(RECTILINEAR_ALPHA, k, modules)
-        p = WaveParams(a_v, 0.0, direction * wave_phase_step(k, modules))
+        # (within the joints' +-90 degrees on snakes too short for the gait, M < 5)
+        arch = RECTILINEAR_ARCH * min(1.0, (ARCH_MODULES / modules) ** 2)
+        o_v = min(arch / math.ceil(modules / 2), math.pi / 2 - a_v)
+        p = WaveParams(a_v, 0.0, direction * wave_phase_step(k, modules), o_v=o_v)
         if gait == "circular-path":
             if not abs(bend) <= BEND_MAX:
                 raise ValueError(f"bend must be within +-{BEND_MAX:.3g} rad, got {bend!r}")
             p = replace(p, o_h=bend)
         return p
     if gait == "sidewinding":
+        # the horizontal module i is one module behind the vertical one: the vertical wave
+        # there has the phase of module i plus half a step; 90 degrees from that
         step = -wave_phase_step(k, modules)
-        a_v = wave_amplitude(SIDEWINDING_ALPHA[0], k, modules)
-        a_h = wave_amplitude(SIDEWINDING_ALPHA[1], k, modules)
-        return WaveParams(a_v, a_h, step, step, direction * math.pi / 2)
+        a_v = min(SIDEWINDING_LIFT / (modules / 2), ROLL_MAX)
+        a_h = wave_amplitude(SIDEWINDING_ALPHA, k, modules)
+        return WaveParams(a_v, a_h, step, step, direction * math.pi / 2 + step / 2)
     if gait == "rotating":
         k_h = ROTATING_WAVES  # horizontal undulations; the vertical wave has twice as many
         a_v = wave_amplitude(ROTATING_ALPHA[0], 2 * k_h, modules)

@@ -261,7 +261,69 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="accept the suite's rule files that contain #script",
     )
+
+    p = sub.add_parser(
+        "sweep",
+        help="design (and simulate) every request of a parameter study",
+        description="Design every request of STUDY.toml (a [[request]] table whose params "
+        "hold lists expands into their product) as 'parmor design --no-input' would: sized, "
+        "and every behaviour the design lists simulated with its default parameters, "
+        "failures fed back (--no-simulate designs as --no-verify does). Requests run in "
+        "parallel on local processes. Writes "
+        "DIR/results.csv (one row per request and behaviour: parameters, accepted or the "
+        "reason, every verdict figure), DIR/summary.md (pass rates per robot type, failures "
+        "by criterion, the refused requests and why) and DIR/plots/*.png (outcome over each "
+        "pair of swept parameters per robot type). Each finished request is stored in "
+        "DIR/requests/, so an interrupted sweep (Ctrl-C) continues where it stopped when "
+        "run again, and gives the same files as an uninterrupted run. Exit 0 when the "
+        "sweep ran, whatever its pass rates; 2 on bad input (nothing is written then).",
+        epilog=SWEEP_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("study", metavar="STUDY.toml")
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="folder of the results (default: the study's name with .sweep, beside it)",
+    )
+    p.add_argument(
+        "--jobs",
+        type=int,
+        metavar="N",
+        help="worker processes (default: the machine's cores)",
+    )
+    p.add_argument(
+        "--no-simulate",
+        action="store_true",
+        help="design as 'design --no-verify' does: no simulation (much faster)",
+    )
+    p.add_argument(
+        "--allow-scripts",
+        action="store_true",
+        help="accept the study's rule files that contain #script",
+    )
+    _json_option(p)
     return parser
+
+
+SWEEP_HELP = """\
+study format (TOML; paths are relative to the study file):
+  ontology = ["mine.kif"]          # optional, like --ontology
+  rules = ["extra.lp"]             # optional, like --rules
+  catalog = "my-catalog.toml"      # optional, like --catalog
+  [[request]]
+  name = "hexapod"                 # optional (default: the abilities joined by +)
+  abilities = ["rough-terrain-walking"]
+  answers = { grasping = "no" }    # optional
+  params = { payload = ["0.1kg", "0.3kg"], speed = ["0.03m/s", "0.05m/s"], obstacle_height = "4cm" }
+  # a list expands into the product with the other lists: 4 requests here
+
+examples:
+  parmor sweep studies/parameter-range.toml --no-simulate   designs only (fast)
+  parmor sweep studies/parameter-range.toml --jobs 4        into studies/parameter-range.sweep/
+  parmor sweep mine.toml --out runs/mine --json             the summary as JSON on stdout
+  parmor sweep mine.toml --out runs/mine                    again: only what is not stored yet
+"""
 
 
 REGRESS_HELP = """\
@@ -611,6 +673,12 @@ def cmd_regress(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     )
 
 
+def cmd_sweep(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from synth.sweep import cmd_sweep as sweep
+
+    return sweep(args, out, err)
+
+
 #: Longest simulated time of one ``simulate`` run, s (the samples are held in memory).
 MAX_SIM_SECONDS = 600.0
 
@@ -711,6 +779,7 @@ COMMANDS = {
     "explain": cmd_explain,
     "regress": cmd_regress,
     "simulate": cmd_simulate,
+    "sweep": cmd_sweep,
 }
 
 

@@ -11,10 +11,13 @@ import difflib
 import json
 import tomllib
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 from adron.errors import InputError
 from adron.kb import read_user_file
+
+if TYPE_CHECKING:
+    from synth.conceptual import Designer, Request
 
 SUITE_KEYS = {"ontology", "rules", "catalog", "conceptual", "query", "verify"}
 QUERY_KEYS = {"name", "abilities", "answers", "params"}
@@ -24,50 +27,63 @@ def snapshot_path(suite: Path) -> Path:
     return suite.with_name(suite.stem + ".snapshot.json")
 
 
-def _str_list(value: object, where: str) -> tuple[str, ...]:
+def str_list(value: object, where: str) -> tuple[str, ...]:
     if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
         raise InputError(f"{where}: expected a list of strings")
     return tuple(value)
 
 
-def _str_table(value: object, where: str) -> dict[str, str]:
+def str_table(value: object, where: str) -> dict[str, str]:
     if not isinstance(value, dict) or not all(isinstance(v, str) for v in value.values()):
         raise InputError(f"{where}: expected a table of strings")
     return value
 
 
-def load_suite(path: Path) -> tuple[dict, list[dict]]:
-    """The suite's options and its queries, validated (errors name file and key)."""
+def read_toml(path: Path, keys: set[str]) -> dict:
+    """The TOML table of a user's file whose top-level keys are among ``keys``."""
     _, text = read_user_file(path)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"{path}: {e}") from None
-    unknown = sorted(set(data) - SUITE_KEYS)
+    unknown = sorted(set(data) - keys)
     if unknown:
         raise InputError(f"{path}: unknown key {unknown[0]!r}")
+    return data
+
+
+def kb_options(data: dict, path: Path) -> dict:
+    """The ``ontology``, ``rules`` and ``catalog`` of a suite or study file (paths relative
+    to it), validated; ``allow_scripts`` is False."""
     base = path.parent
     opts = {
         "suite": str(path),
         "ontology": [
-            str(base / p) for p in _str_list(data.get("ontology", []), f"{path}: ontology")
+            str(base / p) for p in str_list(data.get("ontology", []), f"{path}: ontology")
         ],
-        "rules": [str(base / p) for p in _str_list(data.get("rules", []), f"{path}: rules")],
-        "conceptual": data.get("conceptual", False),
-        # simulating every behaviour makes a suite slow and its snapshot hold simulator
-        # figures; a suite asks for it with verify = true
-        "verify": data.get("verify", False),
+        "rules": [str(base / p) for p in str_list(data.get("rules", []), f"{path}: rules")],
         # running a rule file's scripts is the user's call on the command line, never the
         # suite file's (a suite can come from anywhere)
         "allow_scripts": False,
     }
-    for key in ("conceptual", "verify"):
-        if not isinstance(opts[key], bool):
-            raise InputError(f"{path}: {key}: expected true or false")
     catalog = data.get("catalog")
     if catalog is not None and not isinstance(catalog, str):
         raise InputError(f"{path}: catalog: expected a path")
     opts["catalog"] = str(base / catalog) if catalog else None
+    return opts
+
+
+def load_suite(path: Path) -> tuple[dict, list[dict]]:
+    """The suite's options and its queries, validated (errors name file and key)."""
+    data = read_toml(path, SUITE_KEYS)
+    opts = kb_options(data, path)
+    opts["conceptual"] = data.get("conceptual", False)
+    # simulating every behaviour makes a suite slow and its snapshot hold simulator
+    # figures; a suite asks for it with verify = true
+    opts["verify"] = data.get("verify", False)
+    for key in ("conceptual", "verify"):
+        if not isinstance(opts[key], bool):
+            raise InputError(f"{path}: {key}: expected true or false")
     queries = data.get("query", [])
     if not isinstance(queries, list) or not queries:
         raise InputError(f"{path}: no [[query]] tables")
@@ -89,33 +105,45 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
         out.append(
             {
                 "name": name,
-                "abilities": _str_list(q.get("abilities", []), f"{where} ({name}): abilities"),
-                "answers": _str_table(q.get("answers", {}), f"{where} ({name}): answers"),
-                "params": _str_table(q.get("params", {}), f"{where} ({name}): params"),
+                "abilities": str_list(q.get("abilities", []), f"{where} ({name}): abilities"),
+                "answers": str_table(q.get("answers", {}), f"{where} ({name}): answers"),
+                "params": str_table(q.get("params", {}), f"{where} ({name}): params"),
             }
         )
     return opts, out
 
 
-def run_queries(opts: dict, queries: list[dict]) -> dict[str, dict]:
-    """name -> design record, for every query of a suite (one grounding for all)."""
+def designer_for(opts: dict) -> Designer:
+    """The Designer of a suite's (or study's) ``ontology``, ``rules``, ``allow_scripts``."""
     from adron.kb import load
-    from synth.conceptual import Designer, Request, parse_answer
-    from synth.pipeline import StructureOptions, run
+    from synth.conceptual import Designer
     from synth.solver import Reasoner
 
     kb = load(opts["ontology"])
-    designer = Designer(kb, Reasoner(kb, opts["rules"], opts["allow_scripts"]))
+    return Designer(kb, Reasoner(kb, opts["rules"], opts["allow_scripts"]))
+
+
+def request_for(q: dict) -> Request:
+    """The Request of a query table (``abilities``, ``answers`` yes/no, ``params``)."""
+    from synth.conceptual import Request, parse_answer
+
+    return Request(
+        abilities=tuple(q["abilities"]),
+        answers=tuple(parse_answer(f"{k}={v}") for k, v in q["answers"].items()),
+        params=tuple(q["params"].items()),
+    )
+
+
+def run_queries(opts: dict, queries: list[dict]) -> dict[str, dict]:
+    """name -> design record, for every query of a suite (one grounding for all)."""
+    from synth.pipeline import StructureOptions, run
+
+    designer = designer_for(opts)
     sopts = StructureOptions(opts["catalog"], opts["conceptual"], verify=opts["verify"])
     results = {}
     for i, q in enumerate(queries, 1):
         try:
-            req = Request(
-                abilities=q["abilities"],
-                answers=tuple(parse_answer(f"{k}={v}") for k, v in q["answers"].items()),
-                params=tuple(q["params"].items()),
-            )
-            results[q["name"]] = run(designer, req, sopts).record(designer)
+            results[q["name"]] = run(designer, request_for(q), sopts).record(designer)
         except InputError as e:
             raise InputError(f"{opts['suite']}: query {i} ({q['name']}): {e}") from None
     return results

@@ -99,7 +99,9 @@ def test_snapshot_records_are_what_design_json_prints(cli, suite: Path) -> None:
         ("walk-ambiguous", ["walking"]),
         ("snake-grasp", ["rolling", "grasping"]),
     ]:
-        assert data[name] == json.loads(cli("design", *argv, "--no-input", "--json").out), name
+        # a suite does not simulate unless it says verify = true: as design --no-verify
+        printed = cli("design", *argv, "--no-input", "--no-verify", "--json").out
+        assert data[name] == json.loads(printed), name
 
 
 def test_update_is_deterministic(cli, suite: Path) -> None:
@@ -372,3 +374,19 @@ def test_rules_change_the_result(cli, tmp_path: Path) -> None:
     assert r.code == 1
     assert status_lines(r.out) == {"quad": "CHANGED"}
     assert '+  "status": "unsatisfiable",' in r.out.splitlines()
+
+
+def test_a_suite_that_asks_for_it_simulates_every_behaviour(cli, tmp_path: Path) -> None:
+    suite = tmp_path / "arm.toml"
+    suite.write_text(
+        'verify = true\n[[query]]\nname = "arm"\nabilities = ["pick-and-place"]\n'
+        'params = { object_shape = "cylinder" }\n',
+        encoding="utf-8",
+    )
+    assert cli("regress", str(suite), "--update").code == 0
+    rec = json.loads(snapshot_path(suite).read_text(encoding="utf-8"))["arm"]
+    assert rec["verified"]["simulated"] is True
+    assert {b["verdict"] for b in rec["verified"]["behaviors"]} == {"ok"}
+    suite.write_text("verify = 1\n", encoding="utf-8")
+    r = cli("regress", str(suite))
+    assert r.code == 2 and "verify: expected true or false" in r.err
