@@ -115,8 +115,11 @@ TRANSITION_S = 1.0
 #: the swing before the foot starts (after it stops) moving horizontally.
 LIFT_FRACTION = 0.4
 SWING_EDGE = 0.15
-#: Duty factor of the quadruped's crawl (one leg at a time needs >= 3/4).
+#: Duty factor of the quadruped's crawl (one leg at a time needs >= 3/4), and the shortest
+#: one a crawl may be given (a four-foot phase of 2 x duty - 3/2 cycles must remain between
+#: the sides for the trunk to sway across).
 CRAWL_DUTY = 5 / 6
+MIN_CRAWL_DUTY = 0.8
 #: The sway's B-spline knot spans, and the samples its linear programmes constrain, per
 #: gait cycle (the plan then checks every sample).
 SWAY_KNOTS = 12
@@ -376,7 +379,11 @@ def _ranked(
 
 
 def gait_pattern(
-    name: str, legs: Sequence[Leg], direction: float = 0.0, turn: float = 0.0
+    name: str,
+    legs: Sequence[Leg],
+    direction: float = 0.0,
+    turn: float = 0.0,
+    duty: float | None = None,
 ) -> GaitPattern:
     """The named gait for these legs, travelling towards ``direction`` rad (trunk frame),
     or turning in place when ``turn`` is not 0 (its sign: counter-clockwise > 0).
@@ -386,8 +393,9 @@ def gait_pattern(
     trailing-to-leading wave, duty 1 - 1/rows, the second group half a cycle after the
     first; wave: one leg at a time, the first group then the second, duty 1 - 1/legs;
     crawl (quadruped): as ripple with duty ``CRAWL_DUTY``, so that the two swings of a
-    group follow each other and four-foot phases separate the groups. ValueError for a
-    gait the legs cannot do.
+    group follow each other and four-foot phases separate the groups; ``duty`` (crawl
+    only) a shorter one, at least ``MIN_CRAWL_DUTY``. ValueError for a gait the legs cannot
+    do.
     """
     n = len(legs)
     valid = GAITS.get(n, ())
@@ -395,6 +403,8 @@ def gait_pattern(
         raise ValueError(
             f"gait: a {n}-legged robot walks with {', '.join(valid) or 'no gait'}, not {name!r}"
         )
+    if duty is not None and (name != "crawl" or not MIN_CRAWL_DUTY <= duty <= CRAWL_DUTY):
+        raise ValueError(f"duty: only a crawl takes one, in [{MIN_CRAWL_DUTY:g}, {CRAWL_DUTY:.4g}]")
     left, right = _ranked(
         legs, 0.0 if name == "tripod" else direction, 0.0 if name == "tripod" else turn
     )
@@ -410,7 +420,8 @@ def gait_pattern(
         for k, leg in enumerate([*left, *right]):
             phases[leg.name] = k / n
     else:  # ripple, crawl
-        duty = CRAWL_DUTY if name == "crawl" else 1 - 1 / rows
+        own = CRAWL_DUTY if name == "crawl" else 1 - 1 / rows
+        duty = own if duty is None else duty
         for s, side in enumerate((left, right)):
             for r, leg in enumerate(side):
                 phases[leg.name] = (0.5 * s + r * (1 - duty)) % 1.0
