@@ -107,6 +107,12 @@ MIN_MARGIN = 0.01
 #: Trunk sway limits: offset per axis m, acceleration per axis m/s^2.
 SWAY_MAX = 0.02
 SWAY_ACCEL = 0.5
+#: The sway keeps the best margin it can reach, but no more than this (m): a larger sway
+#: tilts the tibias of the stance legs (see below) for a margin the gait does not need.
+SWAY_TARGET_MARGIN = 0.015
+#: Weight of the sway's radial share (its component along the legs, which tilts the stance
+#: tibias: their servos carry the leg's load at that lever) against its smoothness.
+SWAY_RADIAL_WEIGHT = 0.2
 #: Standing still before the first and after the last swing when the trunk sways, cycles.
 SWAY_LEAD = 0.25
 #: Duration of the rise from q = 0 to a higher stance, s.
@@ -685,9 +691,14 @@ def plan_gait(
         break
     if sway_on:
         g = float(np.linalg.norm(template.model.gravity))
+        # how much a sway along trunk x / y moves the stance feet radially (the tibia's
+        # lever), averaged over the legs
+        out = np.array([leg.neutral[:2] - leg.mount[:2] for leg in legs])
+        out /= np.linalg.norm(out, axis=1)[:, None]
+        radial = (float(np.mean(np.abs(out[:, 0]))), float(np.mean(np.abs(out[:, 1]))))
         for _ in range(2):  # the legs' share of the COM follows the sway: iterate
             com = center_of_mass(template.model, q)[:, :2]
-            d = _sway_lp(times, plan, pos, yaw, com, height / g, t_rise, tm.t_end, period)
+            d = _sway_lp(times, plan, pos, yaw, com, height / g, t_rise, tm.t_end, period, radial)
             q, feet_b = _joint_plan(template, legs, plan, pos, yaw, d)
         margin = stability_margins(template, legs, q, plan["stance"])
     world = pos + np.einsum("nij,nj->ni", _rot(yaw), d)
@@ -795,6 +806,7 @@ def _sway_lp(
     t0: float,
     t1: float,
     period: float,
+    radial: tuple[float, float] = (0.0, 0.0),
 ) -> np.ndarray:
     """Trunk sway (N, 2) m (trunk axes) maximising the smallest stability margin of the
     centre of mass and of the cart-table ZMP (``COM - kz * acceleration``, kz = trunk
@@ -865,25 +877,44 @@ def _sway_lp(
     if res is None:
         raise ValueError("no trunk sway keeps the gait statically stable")
     best = float(res.x[-1])
-    # the smoothest sway (least sum of |second differences| of the coefficients) keeping
-    # 95 % of the best margin
-    keep = best - 0.05 * abs(best)
+    # the smoothest, least radial sway (sum of |second differences| of the coefficients
+    # plus SWAY_RADIAL_WEIGHT x their radial share) keeping 95 % of the best margin, or
+    # SWAY_TARGET_MARGIN when that is less
+    keep = min(best - 0.05 * abs(best), SWAY_TARGET_MARGIN)
     nd = nf - 2
     D = sparse.diags([np.ones(nd), -2 * np.ones(nd), np.ones(nd)], [0, 1, 2], shape=(nd, nf))
     Zd, Id, Zdd = sparse.csr_matrix((nd, nf)), sparse.identity(nd), sparse.csr_matrix((nd, nd))
+    Zf, If = sparse.csr_matrix((nf, nf)), sparse.identity(nf)
+    Zdf = sparse.csr_matrix((nd, 2 * nf))
     A_s = sparse.vstack(
         [
-            sparse.hstack([D, Zd, -Id, Zdd]),
-            sparse.hstack([-D, Zd, -Id, Zdd]),
-            sparse.hstack([Zd, D, Zdd, -Id]),
-            sparse.hstack([Zd, -D, Zdd, -Id]),
+            sparse.hstack([D, Zd, -Id, Zdd, Zdf]),
+            sparse.hstack([-D, Zd, -Id, Zdd, Zdf]),
+            sparse.hstack([Zd, D, Zdd, -Id, Zdf]),
+            sparse.hstack([Zd, -D, Zdd, -Id, Zdf]),
         ]
     )
-    pad = sparse.csr_matrix((A_m.shape[0] + A_acc.shape[0], 2 * nd))
-    A2 = sparse.vstack([sparse.hstack([sparse.vstack([A_m, A_acc]), pad]), A_s]).tocsr()
-    b2 = np.concatenate([b_m - keep, b_acc, np.zeros(4 * nd)])
-    cost2 = np.concatenate([np.zeros(2 * nf), np.ones(2 * nd)])
-    res2 = _linprog(linprog, cost2, A2, b2, [*box, *[(0.0, None)] * (2 * nd)])
+    Zfd = sparse.csr_matrix((nf, 2 * nd))
+    A_a = sparse.vstack(  # |w| <= a
+        [
+            sparse.hstack([If, Zf, Zfd, -If, Zf]),
+            sparse.hstack([-If, Zf, Zfd, -If, Zf]),
+            sparse.hstack([Zf, If, Zfd, Zf, -If]),
+            sparse.hstack([Zf, -If, Zfd, Zf, -If]),
+        ]
+    )
+    pad = sparse.csr_matrix((A_m.shape[0] + A_acc.shape[0], 2 * nd + 2 * nf))
+    A2 = sparse.vstack([sparse.hstack([sparse.vstack([A_m, A_acc]), pad]), A_s, A_a]).tocsr()
+    b2 = np.concatenate([b_m - keep, b_acc, np.zeros(4 * nd + 4 * nf)])
+    cost2 = np.concatenate(
+        [
+            np.zeros(2 * nf),
+            np.ones(2 * nd),
+            np.full(nf, SWAY_RADIAL_WEIGHT * radial[0]),
+            np.full(nf, SWAY_RADIAL_WEIGHT * radial[1]),
+        ]
+    )
+    res2 = _linprog(linprog, cost2, A2, b2, [*box, *[(0.0, None)] * (2 * nd + 2 * nf)])
     w = (res2 if res2 is not None else res).x[: 2 * nf]
     inside = (times >= t0) & (times <= t1)
     full = BSpline.design_matrix(times[inside], knots, 3).tocsc()[:, free]

@@ -82,6 +82,8 @@ RUN_GAITS: dict[int, tuple[str, float | None]] = {
     6: ("tripod", None),
     4: ("crawl", MIN_CRAWL_DUTY),
 }
+#: Duties tried for running, from the shortest to the gait's own.
+RUN_DUTY_STEPS = 3
 #: Named directions of travel, rad (counter-clockwise from the trunk's +x).
 DIRECTIONS = {"forward": 0.0, "backward": math.pi, "left": math.pi / 2, "right": -math.pi / 2}
 
@@ -229,13 +231,15 @@ class LeggedController(Controller):
         )
         run_gait, run_duty = RUN_GAITS[len(self.legs)]
         duty = run_duty or gait_pattern(run_gait, self.legs).duty
+        own = gait_pattern(run_gait, self.legs).duty
+        duties = f"{duty:.2f}" if abs(duty - own) < 1e-9 else f"{duty:.2f} (up to {own:.2f})"
         out = {
             "walking": BehaviorSpec(
                 "walking", "Walk a straight line with a statically stable gait.", walk
             ),
             "running": BehaviorSpec(
                 "running",
-                f"Travel a straight line fast: a {run_gait} of duty {duty:.2f} at "
+                f"Travel a straight line fast: a {run_gait} of duty {duties} at "
                 f"{RUN_SPEED_FACTOR:g}x the walking speed within the actuators' speeds "
                 "(statically stable, no flight phase).",
                 tuple(p for p in walk if p.name != "gait"),
@@ -294,9 +298,18 @@ class LeggedController(Controller):
         )
         if name == "running":
             gait, duty = RUN_GAITS[len(self.legs)]
-            return self._walking(
-                name, {**params, "gait": gait}, step, duty, RUN_SPEED_FACTOR * self.speed
-            )
+            own = gait_pattern(gait, self.legs).duty
+            # the shortest duty first; longer ones (up to the gait's own) when a design's
+            # trunk cannot sway far enough for it
+            duties = [None] if duty is None else list(np.linspace(duty, own, RUN_DUTY_STEPS))
+            for k, d in enumerate(duties):
+                try:
+                    return self._walking(
+                        name, {**params, "gait": gait}, step, d, RUN_SPEED_FACTOR * self.speed
+                    )
+                except ValueError:
+                    if k == len(duties) - 1:
+                        raise
         return self._walking(name, params, step)
 
     # -- planning ------------------------------------------------------------------------------
