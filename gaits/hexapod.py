@@ -100,6 +100,9 @@ COXA_SWING = math.pi / 4
 #: Largest tibia tilt from vertical in stance, rad: the tibia servo carries the leg's load
 #: at a lever of tibia x sin(tilt).
 TIBIA_TILT = 0.3
+#: Share of the outward bulge of a stance sweep taken back by pulling the footholds in
+#: (:func:`stance_inset`; 1: the tibia tilts as far out as in).
+TIBIA_CENTRING = 1.0
 #: Distance kept from every joint limit, rad.
 JOINT_MARGIN = 0.05
 #: Smallest static stability margin a plan must keep, m.
@@ -465,6 +468,18 @@ def _segment_distance(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.nda
     return float(np.min(np.linalg.norm(pa[:, None, :] - pb[None, :, :], axis=2)))
 
 
+def stance_inset(leg: Leg, sweep: np.ndarray) -> float:
+    """How far m to pull a stance segment (the foot's sweep (2,) m relative to the trunk,
+    centred on the leg's neutral point) towards the mount so that the foot's distance from
+    the coxa axis, and so the tibia's tilt, varies as much outward as inward of the
+    neutral one (a sweep across the leg bulges outward at its ends): ``TIBIA_CENTRING`` of
+    half that bulge."""
+    n = leg.neutral[:2] - leg.mount[:2]
+    s = np.linspace(-0.5, 0.5, 21)[:, None] * np.asarray(sweep, dtype=float)
+    r = np.linalg.norm(n + s, axis=1)
+    return float(TIBIA_CENTRING * max(0.0, 0.5 * (r.max() + r.min()) - np.linalg.norm(n)))
+
+
 def max_stride(
     legs: Sequence[Leg],
     travel: Mapping[str, np.ndarray],
@@ -673,6 +688,16 @@ def plan_gait(
     t_rise = TRANSITION_S if abs(height - h0) > 1e-6 else 0.0
     sway_on = bool(sway)
     vx, vy, wz = twist
+    # footholds pulled in on straight travel (a turn's sweeps cross the legs less)
+    inset = {
+        leg.name: 0.0
+        if wz
+        else stance_inset(
+            leg,
+            pattern.duty * period * np.array([vx - wz * leg.neutral[1], vy + wz * leg.neutral[0]]),
+        )
+        for leg in legs
+    }
     while True:
         lead = SWAY_LEAD * period if (sway_on or stand) else 0.0
         tm = gait_timing(pattern, legs, cycles, period, t_rise, lead)
@@ -681,7 +706,7 @@ def plan_gait(
         yaw = wz * tm.progress
         vel = np.einsum("nij,j->ni", _rot(yaw), np.array([vx, vy])) * e[:, None]
         pos = np.stack([_progress(times, vel[:, 0]), _progress(times, vel[:, 1])], axis=1)
-        plan = _feet_plan(legs, tm.swings, times, pos, yaw, t_rise, h0, height, step_height)
+        plan = _feet_plan(legs, tm.swings, times, pos, yaw, t_rise, h0, height, step_height, inset)
         d = np.zeros((n, 2))
         q, feet_b = _joint_plan(template, legs, plan, pos, yaw, d)
         margin = stability_margins(template, legs, q, plan["stance"])
@@ -737,9 +762,11 @@ def _feet_plan(
     h0: float,
     height: float,
     step: float,
+    inset: Mapping[str, float] | None = None,
 ) -> dict[str, np.ndarray]:
     """World feet (N, legs, 2), lift above the ground (N, legs), stance (N, legs) and the
-    trunk height (N,) of a gait."""
+    trunk height (N,) of a gait; the footholds between the first and the last stance are
+    ``inset[leg]`` m closer to the leg's mount than its neutral point."""
     n, nl = len(times), len(legs)
     feet = np.zeros((n, nl, 2))
     lift = np.zeros((n, nl))
@@ -752,8 +779,16 @@ def _feet_plan(
     for k, leg in enumerate(legs):
         iv = swings[leg.name]
         holds = [neutral_world(leg, 0.0)]
+        pull = (inset or {}).get(leg.name, 0.0)
         for c in range(1, len(iv)):
-            holds.append(0.5 * (neutral_world(leg, iv[c - 1, 1]) + neutral_world(leg, iv[c, 0])))
+            a, b = iv[c - 1, 1], iv[c, 0]
+            hold = 0.5 * (neutral_world(leg, a) + neutral_world(leg, b))
+            mount = 0.5 * (
+                _rot(np.interp(a, times, yaw)) @ leg.mount[:2]
+                + _rot(np.interp(b, times, yaw)) @ leg.mount[:2]
+            ) + np.array([np.interp(0.5 * (a + b), times, pos[:, k]) for k in range(2)])
+            out = hold - mount
+            holds.append(hold - pull * out / max(float(np.linalg.norm(out)), 1e-12))
         holds.append(neutral_world(leg, float(times[-1])))
         holds_a = np.array(holds)
         # index of the stance each sample is in or after: number of swings started
