@@ -35,11 +35,14 @@ the mirrored descent) while it moves to the next foothold along a minimum-jerk s
 line that starts and ends ``SWING_EDGE`` of the swing later/earlier, so it is above the
 obstacle for most of its way. Each foothold is the mean of the leg's neutral point (its
 foot at q = 0) at the beginning and end of the stance it carries, so a stance sweeps the
-stride symmetrically about the neutral point; the robot starts standing at q = 0 and ends
-with every foot on its neutral point. The body's speed ramps up and down with
-minimum-jerk envelopes just long enough that the first and last stances stay within half
-a stride of neutral. A stance higher than the zero pose starts with a ``TRANSITION_S``
-minimum-jerk rise from q = 0 with the feet in place.
+stride symmetrically about the neutral point, pulled towards the leg's mount on straight
+travel by half the outward bulge of that sweep (:func:`stance_inset`: a sweep across the
+leg takes the foot farther from the coxa axis at its ends), so that the stance tibia tilts
+as far inward as outward and its servo carries the leg's load at the smallest lever; the
+robot starts standing at q = 0 and ends with every foot on its neutral point. The body's
+speed ramps up and down with minimum-jerk envelopes just long enough that the first and
+last stances stay within half a stride of neutral. A stance higher than the zero pose
+starts with a ``TRANSITION_S`` minimum-jerk rise from q = 0 with the feet in place.
 
 **Stride** (:func:`max_stride`): the longest stance segment about each neutral point
 that keeps the coxa within ``COXA_SWING`` (the designer's working swing), the tibia within
@@ -57,7 +60,9 @@ centre), the trunk sways: a clamped cubic B-spline offset of the trunk in the ho
 plane that a linear programme (scipy HiGHS) chooses to maximise the smallest margin of both
 the centre of mass and the cart-table zero-moment point (``COM - z_c / g * acceleration``),
 within ``SWAY_MAX`` and ``SWAY_ACCEL``; a second programme then minimises the sway's
-acceleration at 95 % of that margin.
+acceleration plus ``SWAY_RADIAL_WEIGHT`` times its share along the legs (a sway along a leg
+moves its stance foot radially, tilting the tibia) at 95 % of that margin, or at
+``SWAY_TARGET_MARGIN`` when that is less: the gait needs ``MIN_MARGIN``, not the most sway.
 """
 
 from __future__ import annotations
