@@ -91,6 +91,7 @@ __all__ = [
     "max_stride",
     "plan_gait",
     "stability_margins",
+    "stance_inset",
     "standing_height",
     "support_margin",
     "tibia_tilt",
