@@ -471,6 +471,7 @@ def test_quadruped_crawls_forward(designs):
     forward = result.series["root"][-1, 0] - result.series["root"][0, 0]
     assert forward >= 0.5 * traj.info["planned_distance_m"] > 0
     assert abs(result.heading_rad) < 0.1
+    assert result.verdict == [], result.to_dict()
 
 
 # --- what the behaviours promise; running ----------------------------------------------------
@@ -541,12 +542,12 @@ def test_stance_inset_centres_the_tibia_tilt():
 
 
 @pytest.mark.parametrize("rt", TYPES)
-def test_every_listed_behaviour_keeps_its_promise(rt, designs):
-    """Issue 8: the default designs' listed behaviours pass the verdict in MuJoCo."""
-    from export.verify import listed_behaviors, run_behavior
+def test_running_keeps_its_promise(rt, designs):
+    """Issue 8: the default designs run (two cycles) by the verdict's criteria in MuJoCo:
+    upright, no servo at its limit for more than 5 % of the time, the planned distance
+    and heading, half a body length per 10 s."""
+    from export.verify import run_behavior
 
     d = designs[rt]
-    c, model = d.controller(), d.model()
-    for name in listed_behaviors(c, d.geometry.abilities):
-        _, result = run_behavior(model, c, name)
-        assert result.verdict == [], (name, result.to_dict())
+    _, result = run_behavior(d.model(), d.controller(), "running", {"steps": 2})
+    assert result.verdict == [], result.to_dict()
