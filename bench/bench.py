@@ -121,6 +121,49 @@ def bench_process() -> list[str]:
     return lines
 
 
+#: One request per base configuration (as in studies/ and the README's examples).
+TYPE_REQUESTS = {
+    "HexapodRobot": ["rough-terrain-walking"],
+    "QuadrupedRobot": [
+        "walking",
+        "--answer",
+        "grasping=no",
+        "--answer",
+        "rough-terrain-walking=no",
+    ],
+    "HumanoidRobot": ["walking", "--answer", "grasping=yes"],
+    "SnakeRobot": ["sidewinding"],
+    "DifferentialDriveRobot": ["driving"],
+    "SkidSteerRobot": ["driving", "--param", "payload=2kg"],
+    "Manipulator3DOF": ["pick-and-place", "--param", "object_shape=cylinder"],
+    "Manipulator6DOF": ["pick-and-place", "--param", "object_shape=oval"],
+}
+
+
+def bench_verified() -> list[str]:
+    """``parmor design`` with every behaviour simulated, per type, against the same design
+    without the simulation (--no-verify) in the same run."""
+    lines = [
+        "design with verification per type (best of 2, as a process; target < 10 s; "
+        "ratio to --no-verify)"
+    ]
+    for name, argv in TYPE_REQUESTS.items():
+        times = {}
+        for extra in ([], ["--no-verify"]):
+            cmd = [sys.executable, "-m", "synth.cli", "design", *argv, "--no-input", "--json"]
+
+            def run(cmd: list[str] = cmd + extra) -> None:
+                subprocess.run(cmd, cwd=REPO, capture_output=True)
+
+            times[bool(extra)] = timed(run, 2)[0]
+        full, bare = times[False], times[True]
+        lines.append(
+            f"  {mark(full < 10_000):<4} {name:<24} {full / 1000:6.2f} s  "
+            f"({full / bare:4.1f} x --no-verify {bare / 1000:.2f} s)"
+        )
+    return lines
+
+
 def main() -> int:
     sections = []
     if SUMO.is_dir():
@@ -136,6 +179,7 @@ def main() -> int:
         bench_stl(),
         bench_sim(),
         bench_process(),
+        bench_verified(),
     ]
     for lines in sections:
         print("\n".join(lines))

@@ -52,13 +52,15 @@ def bundle_files(
 
 def trajectory_files(record: dict) -> dict[str, str]:
     """``trajectories/<behaviour>.csv``: each behaviour of the design's controller that
-    realises one of its abilities, with default parameters (joint angles over time)."""
+    realises one of its abilities (``turning`` of a walking robot too; aliases left out),
+    with default parameters (joint angles over time)."""
+    from export.verify import listed_behaviors
     from gaits import controller_for
     from gaits.base import DesignGeometry
 
     controller = controller_for(DesignGeometry.from_record(record))
     out = {}
-    for name in sorted(set(controller.behaviors) & set(record.get("abilities", ()))):
+    for name in listed_behaviors(controller, record.get("abilities", ())):
         if not _SAFE_BEHAVIOR.fullmatch(name):
             raise ExportError(f"behaviour name {name!r} is not a safe file name")
         out[f"trajectories/{name}.csv"] = controller.run(name).csv()

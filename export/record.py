@@ -239,6 +239,36 @@ def structure_text(s: Structure, indent: str = "  ") -> str:
     return "\n".join(out)
 
 
+def verification_text(verified: dict | None, indent: str = "  ") -> str:
+    """The ``verified`` part of a record as lines: each behaviour's verdict and figures."""
+    if not verified:
+        return ""
+    if not verified.get("simulated"):
+        return f"{indent}verified:   {verified.get('note', 'no')}\n"
+    out = [f"{indent}verified:   in MuJoCo, {verified['rounds']} sizing(s)"]
+    for b in verified["behaviors"]:
+        verdict = b["verdict"] if b["verdict"] == "ok" else "FAILED " + ", ".join(b["verdict"])
+        figs = [f"saturated {b['saturated_fraction']:.0%}"]
+        if b.get("planned_distance_m"):
+            figs.append(f"{b['distance_m']:.3f} of {b['planned_distance_m']:.3f} m")
+        elif b.get("distance_m") and b.get("planned_heading_rad") is None:
+            figs.append(f"{b['distance_m']:.3f} m")
+        if b.get("planned_heading_rad"):
+            figs.append(f"turned {b['heading_rad']:.2f} of {b['planned_heading_rad']:.2f} rad")
+        if b.get("placing_error_m") is not None:
+            figs.append(f"placed within {b['placing_error_m'] * 1000:.2f} mm")
+        out.append(f"{indent}  {b['behavior']:<22} {verdict:<8} {', '.join(figs)}")
+    for j, t in verified.get("strengthened", {}).items():
+        out.append(f"{indent}  strengthened {j}: saturated in simulation, sized for >= {t:.3f} N m")
+    for a, why in verified.get("dropped", {}).items():
+        out.append(f"{indent}  dropped {a}: {why}")
+    if verified.get("not_simulated"):
+        out.append(
+            f"{indent}  not simulated (no behaviour): {', '.join(verified['not_simulated'])}"
+        )
+    return "\n".join(out) + "\n"
+
+
 def design_text(d: Design, short: Short, structure: Structure | None = None) -> str:
     """A human-readable account of a design outcome."""
     out: list[str] = []

@@ -47,7 +47,9 @@ class SimResult:
     drift_m: float | None = None
     min_height_ratio: float | None = None
     max_tilt_rad: float | None = None
+    saturated_joints: dict[str, float] = field(default_factory=dict)  # actuator -> share
     verdict: list[str] = field(default_factory=list)
+    complete: bool = True  # ran to the behaviour's end: its promise was judged too
     series: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     @property
@@ -62,6 +64,7 @@ class SimResult:
             "behavior": self.behavior,
             "seconds": r(self.seconds),
             "verdict": "ok" if self.ok else list(self.verdict),
+            "complete": self.complete,
             "distance_m": r(self.distance_m),
             "planned_distance_m": r(self.planned_distance_m),
             "heading_rad": r(self.heading_rad),
@@ -76,6 +79,7 @@ class SimResult:
             "max_torque_ratio": r(self.max_torque_ratio),
             "demand_ratio_max": r(self.demand_ratio_max),
             "saturated_fraction": r(self.saturated_fraction),
+            "saturated_joints": {k: r(v) for k, v in sorted(self.saturated_joints.items())},
             "tracking_error": r(self.tracking_error),
             "placing_error_m": r(self.placing_error_m),
             "orientation_error_rad": r(self.orientation_error_rad),
@@ -168,6 +172,7 @@ def simulate(
     bias = model.actuator_biasprm[:, :3].copy()
     demand = 0.0
     saturated_steps = 0
+    saturated_each = np.zeros(model.nu, dtype=int)
     min_height = math.inf
     max_tilt = 0.0
     times, roots, qs, refs, forces, demands = [], [], [], [], [], []
@@ -195,8 +200,10 @@ def simulate(
             placed_rot = data.xmat[model.body(end_effector).id].reshape(3, 3).copy()
         force = np.abs(data.actuator_force) / limit
         ratio = max(ratio, float(force.max()))
-        if force.max() >= SATURATION_LEVEL:
+        at_limit = force >= SATURATION_LEVEL
+        if at_limit.any():
             saturated_steps += 1
+            saturated_each += at_limit
         effort = (
             gain * data.ctrl
             + bias[:, 0]
@@ -237,6 +244,11 @@ def simulate(
         ratio,
         demand_ratio_max=demand,
         saturated_fraction=saturated_steps / steps,
+        saturated_joints={
+            model.actuator(k).name: float(saturated_each[k] / steps)
+            for k in range(model.nu)
+            if saturated_each[k]
+        },
         min_height_ratio=min_height if judge_fall else None,
         max_tilt_rad=max_tilt if judge_fall else None,
         series={
@@ -288,7 +300,10 @@ def simulate(
             result.orientation_error_rad = _rotation_angle(
                 base @ matrix_from_rpy(tuple(float(c) for c in rpy)), rot
             )
-    result.verdict = judge(result.to_dict() | {"path_length_m": result.path_length_m}, info, free)
+    # a run stopped before the behaviour's end is judged on falling and saturation only
+    result.complete = seconds >= traj.duration - 1e-9
+    promise = info if result.complete else {}
+    result.verdict = judge(result.to_dict(), promise, free and result.complete)
     return result
 
 

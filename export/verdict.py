@@ -117,3 +117,48 @@ def judge(fig: Mapping[str, object], info: Mapping[str, object], free: bool) -> 
     else:
         failed.append("unplanned")
     return failed
+
+
+def explain(fig: Mapping[str, object], failed: list[str]) -> str:
+    """The failed criteria of ``fig`` with the figure and the threshold of each, e.g.
+    ``saturated (saturated_fraction 0.25 > 0.05)``."""
+
+    def f(key: str, scale: float = 1.0, unit: str = "") -> str:
+        x = fig.get(key)
+        return "none" if x is None else f"{float(x) * scale:.3g}{unit}"  # type: ignore[arg-type]
+
+    deg = 180 / math.pi
+    what = {
+        "fell": lambda: (
+            f"fell at {f('fell_at_s')} s (height {f('min_height_ratio')} of standing, "
+            f"limit {COLLAPSE_HEIGHT}; tilt {f('max_tilt_rad', deg)} deg, "
+            f"limit {COLLAPSE_TILT * deg:.0f})"
+        ),
+        "saturated": lambda: (
+            f"saturated_fraction {f('saturated_fraction')} > {MAX_SATURATED_FRACTION}"
+        ),
+        "distance": lambda: (
+            f"distance {f('distance_m')} m of {f('planned_distance_m')} m planned, "
+            f"needs {STRAIGHT_DISTANCE[0]}-{STRAIGHT_DISTANCE[1]} x"
+        ),
+        "heading": lambda: (
+            f"heading {f('heading_rad', deg)} deg, planned {f('planned_heading_rad', deg)}"
+            f" +- {STRAIGHT_HEADING * deg:.0f}"
+        ),
+        "turn": lambda: (
+            f"turned {f('heading_rad', deg)} deg of {f('planned_heading_rad', deg)} planned "
+            f"(+- {TURN_FRACTION:.0%})"
+        ),
+        "pose": lambda: f"ended {f('final_pose_error_m')} m from the planned pose",
+        "progress": lambda: (
+            f"moved {f('distance_m')} m / turned {f('heading_rad', deg)} deg in "
+            f"{f('seconds')} s (too slow)"
+        ),
+        "drift": lambda: f"drifted {f('drift_m')} m",
+        "placing": lambda: f"placing error {f('placing_error_m', 1000)} mm > {PLACING * 1000:g}",
+        "orientation": lambda: (
+            f"orientation error {f('orientation_error_rad', deg)} deg > {ORIENTATION * deg:g}"
+        ),
+        "unplanned": lambda: "the behaviour does not say what it promises",
+    }
+    return "; ".join(f"{c} ({what[c]()})" if c in what else c for c in failed)

@@ -3,9 +3,10 @@
 
 A bundle (on disk or in memory) gives the record (``design.json``) and the MuJoCo model
 (``robot.xml`` with its meshes). The controller is built from the record as a user's
-program would build it, told where a fixed base stands and, for position servos on a fixed
-base (manipulators), the servos' stiffness and the simulated model's own gravity torques,
-so that it compensates the servos' droop. Every behaviour whose ability the design lists is
+program would build it, told where a fixed base stands, its position servos' stiffness
+(``stiffness``: joint -> N m/rad, the MJCF's ``kp``) and, on a fixed base (manipulators),
+the simulated model's own gravity torques, so that it can compensate the servos' droop
+(controllers that take neither are given neither). Every behaviour whose ability the design lists is
 run with its default parameters and judged by :mod:`export.verdict`.
 """
 
@@ -62,14 +63,16 @@ def controller_for_model(record: Mapping, model) -> Controller:
 
     geometry = DesignGeometry.from_record(record)
     options: dict[str, object] = {"base_position": tuple(float(x) for x in model.body(1).pos)}
+    acts = _joint_actuators(model)
+    stiffness = {
+        name: float(model.actuator_gainprm[a, 0])
+        for name, a in acts.items()
+        if model.actuator_biasprm[a, 1] != 0  # position servos
+    }
+    # every controller that takes them gets its servos' stiffness (N m/rad); a fixed base
+    # also the simulated model's gravity torques, for the servos' droop
+    options["stiffness"] = stiffness
     if _fixed_base(model):
-        acts = _joint_actuators(model)
-        stiffness = {
-            name: float(model.actuator_gainprm[a, 0])
-            for name, a in acts.items()
-            if model.actuator_biasprm[a, 1] != 0  # position servos
-        }
-        options["stiffness"] = stiffness
         options["gravity"] = mujoco_gravity(model, list(stiffness))
     return controller_for(geometry, **options)
 
@@ -137,7 +140,11 @@ def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None)
         if behaviors is None
         else list(behaviors)
     )
-    return [figures(*run_behavior(model, controller, n)) for n in names]
+    out = []
+    for n in names:
+        fig = figures(*run_behavior(model, controller, n))
+        out.append({"behavior": n, "ability": controller.behaviors[n].realises} | fig)
+    return out
 
 
 def verify_files(

@@ -46,7 +46,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, partial
 from math import pi
 
 import numpy as np
@@ -63,10 +63,12 @@ from kinematics.templates import (
 
 __all__ = [
     "ARM_JOINTS",
+    "GRIPPER_OPEN",
     "HARMONICS",
     "LEG_JOINTS",
     "MAP_RATIOS",
     "MAP_SIZES",
+    "REACH_SHOULDER",
     "RUN",
     "WALK",
     "ConversionMaps",
@@ -78,6 +80,8 @@ __all__ = [
     "conversion_maps",
     "fit_maps",
     "leg_ik",
+    "leg_module_range",
+    "odometry",
     "reference_gait",
     "reference_template",
     "stability_margin",
@@ -89,18 +93,25 @@ G = 9.81  # m/s^2
 SIDES = ("l", "r")  # left (+y), right (-y)
 LEG_JOINTS = ("hip_yaw", "hip_roll", "hip_pitch", "knee_pitch", "ankle_pitch", "ankle_roll")
 ARM_JOINTS = ("shoulder_pitch", "elbow_pitch", "gripper")
-#: Leg module lengths x (m, femur = tibia = x) of the reference gaits the maps are fitted on.
-MAP_SIZES = (0.06, 0.075, 0.09, 0.105, 0.12)
+#: Leg module lengths x (m, femur = tibia = x) of the reference gaits the maps are fitted on:
+#: every link length the reference catalog prints (40-200 mm), so that no design's gait is
+#: extrapolated; a leg outside them is refused (:func:`leg_module_range`).
+MAP_SIZES = (0.04, 0.06, 0.08, 0.10, 0.12, 0.15, 0.20)
 #: Step lengths (fractions of the gait's default) of the reference gaits of the maps.
 MAP_RATIOS = (0.0, 0.5, 1.0, 1.25)
 #: The reference size of the synthetic locomotion (m): the template's default femur.
 REFERENCE_SIZE = 0.09
+#: Leg length (femur + tibia, m) at which a ``GaitShape``'s step period is given.
+REFERENCE_LEG = 2 * REFERENCE_SIZE
 #: Harmonics of the stride frequency kept per joint (besides the mean).
 HARMONICS = 8
 SAMPLES = 256  # samples of one stride of a reference gait
 CROUCH_TIME = 1.0  # s from q = 0 to the gait's mean pose
 SAMPLE_DT = 0.01  # s between trajectory samples
 SETTLE_TIME = 0.5  # s of standing still at the end of a behaviour
+#: Default full steps of a walk or run: enough that the starting and stopping half steps
+#: and the crouch take under half of the behaviour's time.
+DEFAULT_STEPS = 6
 
 
 # --- leg kinematics ------------------------------------------------------------------------------
@@ -155,7 +166,8 @@ def _q_full(model_names: tuple[str, ...], names: tuple[str, ...], q: np.ndarray)
 class GaitShape:
     """A periodic gait in proportions of the leg length ``L = femur + tibia``.
 
-    ``step_period`` s per step (a stride is two steps); ``double_support`` fraction of a
+    ``step_period`` s per step (a stride is two steps) of legs of ``REFERENCE_LEG`` m; other
+    legs step with the same Froude number (:meth:`period`); ``double_support`` fraction of a
     step with both feet down; ``height`` hip-ankle distance / L with the COM over the
     stance ankle (< 1: crouched); ``step`` default step length / L; ``lift`` swing foot
     lift / L; ``sway`` lateral ZMP position in single support as a fraction of half the
@@ -169,6 +181,14 @@ class GaitShape:
     step: float
     lift: float
     sway: float
+
+    def period(self, leg: float) -> float:
+        """Step period s of legs of length ``leg`` m: ``step_period`` scaled with
+        ``sqrt(leg / REFERENCE_LEG)``, so that every size walks with the same Froude number
+        (a pendulum's period grows with the square root of its length). The crouched
+        inverted pendulum's dynamics ``zc / g`` then scale with the period squared, and the
+        gait's joint angles are the same at every size up to the actuators' fixed size."""
+        return self.step_period * float(np.sqrt(leg / REFERENCE_LEG))
 
 
 #: The walking gait: tuned in MuJoCo on the default design (see the module docstring).
@@ -259,7 +279,7 @@ def reference_gait(
     tmpl = template if template is not None else reference_template(size)
     femur, tibia = tmpl.lengths["femur"], tmpl.lengths["tibia"]
     leg = femur + tibia
-    T, d = shape.step_period, shape.double_support
+    T, d = shape.period(leg), shape.double_support
     period = 2 * T
     n = samples
     t = np.arange(n) * period / n
@@ -420,6 +440,14 @@ class ConversionMaps:
     ratios: tuple[float, ...]
     residual: float
 
+    def stride(self, x: float) -> float:
+        """Stride period s (two steps) of the mapped gait at leg module length ``x`` m."""
+        return 2 * self.shape.period(2 * x)
+
+    def covers(self, x: float) -> bool:
+        """Whether ``x`` m is within the sizes the maps were fitted on (no extrapolation)."""
+        return self.sizes[0] - 1e-12 <= x <= self.sizes[-1] + 1e-12
+
     def scale(self, x: float, r: float) -> tuple[np.ndarray, np.ndarray]:
         """(in-phase, quadrature) scale factors (J, K) at leg module length ``x`` m and step
         ratio ``r``."""
@@ -427,8 +455,11 @@ class ConversionMaps:
         return s[..., 0], s[..., 1]
 
     def trajectory(self, x: float, r: float, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(positions rad, velocities rad/s) (n, J) of the mapped gait at times ``t`` (n,) s."""
-        return self.reference(t, *self.scale(x, r))
+        """(positions rad, velocities rad/s) (n, J) of the mapped gait at times ``t`` (n,) s
+        (its stride lasts :meth:`stride` s: the reference's time is scaled)."""
+        k = self.reference.period / self.stride(x)
+        q, v = self.reference(np.asarray(t, dtype=float) * k, *self.scale(x, r))
+        return q, v * k
 
     def components(self, x: float, r: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(mean, oscillation) (n, J) rad of the mapped gait at times ``t`` (n,) s with a
@@ -437,7 +468,8 @@ class ConversionMaps:
         basis = np.stack([np.full_like(r, x), np.ones_like(r), r * x, r, r * r * x, r * r], 1)
         s = np.einsum("jkcb,nb->njkc", self.coef, basis)  # (n, J, K, 2)
         ref = self.reference
-        arg = ref.omegas * np.asarray(t, dtype=float)[:, None, None] + ref.phases
+        k = ref.period / self.stride(x)  # the reference's time per second of this size
+        arg = ref.omegas * (k * np.asarray(t, dtype=float))[:, None, None] + ref.phases
         terms = ref.amplitudes * (s[..., 0] * np.sin(arg) + s[..., 1] * np.cos(arg))
         mean = ref.harmonics == 0
         return (terms * mean).sum(-1), (terms * ~mean).sum(-1)
@@ -571,8 +603,9 @@ class GaitPlan:
     end: float
 
     @classmethod
-    def of(cls, shape: GaitShape, steps: int) -> GaitPlan:
-        T, d = shape.step_period, shape.double_support
+    def of(cls, shape: GaitShape, steps: int, leg: float = REFERENCE_LEG) -> GaitPlan:
+        """The plan of ``steps`` full steps of ``shape`` for legs of ``leg`` m."""
+        T, d = shape.period(leg), shape.double_support
         ramp = 2 * T
         first = d * T / 2  # the first single-support window starts after half a DS
         up = first + T * np.ceil((ramp - first) / T - 1e-9)
@@ -591,23 +624,60 @@ class GaitPlan:
         )
 
 
+def leg_module_range() -> tuple[float, float]:
+    """(shortest, longest) leg module length x m (femur = tibia) whose gaits the conversion
+    maps give without extrapolation (``MAP_SIZES``); the design refuses other legs."""
+    return MAP_SIZES[0], MAP_SIZES[-1]
+
+
+def odometry(template: Template, names: tuple[str, ...], q: np.ndarray) -> np.ndarray:
+    """(n, 3) m: the trunk's displacement in the world along joint trajectories ``q`` (n,
+    len(names)), with the trunk upright and the lower foot (the stance foot) never sliding:
+    at each sample the trunk moves by minus the stance ankle's motion in the trunk frame.
+    What a gait commands, from its joint angles alone."""
+    model = template.model
+    frames = forward_kinematics(model, _q_full(model.q_names, names, np.atleast_2d(q)))
+    feet = np.array([frames[:, model.body(f), :3, 3] for f in template.feet])  # (2, n, 3)
+    stance = np.argmin(feet[:, :, 2], axis=0)  # (n,)
+    step = (
+        feet[stance[1:], np.arange(1, len(stance))] - feet[stance[1:], np.arange(len(stance) - 1)]
+    )
+    out = np.zeros((len(stance), 3))
+    out[1:] = -np.cumsum(step, axis=0)
+    return out
+
+
+#: Grasping: the arms reach forward (shoulder and elbow pitch, rad; negative turns forward)
+#: with the grippers open, close both grippers, and hold.
+REACH_SHOULDER = -pi / 4
+REACH_ELBOW = -pi / 4
+GRIPPER_OPEN = pi / 2  # rad: the gripper joint's open end (0: closed)
+REACH_TIME = 1.5  # s to raise the arms
+GRIP_TIME = 0.5  # s to close the grippers
+HOLD_TIME = 1.5  # s holding
+
+
 class HumanoidController(Controller):
     """Behaviours of a designed humanoid, from the synthetic locomotion's conversion maps.
 
     ``walking`` and ``running``: ``steps`` full steps of ``step_length`` m (default: a
     fixed fraction of the leg length, ``GaitShape.step``) between a half step that starts
     and one that ends the walk, ``direction`` forward or backward (the pendulum gait is
-    time-symmetric: backward is the forward gait played in reverse). ``balancing``:
-    standing crouched, shifting the weight from foot to foot (this design's leg IK, not
-    the maps). Arms hang still (q = 0). Every trajectory starts at q = 0 and ends standing
-    crouched; ``info`` gives the planned ``expected_distance_m`` and the static
-    ``stability_margin_m`` (COM inside the planned support polygon; the pendulum gait
-    leaves it by a few mm while the weight moves between the feet).
+    time-symmetric: backward is the forward gait played in reverse), with the step period
+    scaled with the legs (``GaitShape.period``). ``grasping``: the arms reach forward with
+    the grippers open, both grippers close and hold, the pelvis shifted back so that the
+    centre of mass stays over the feet. ``balancing`` (the ability a humanoid gains with a
+    sensor): standing crouched, shifting the weight from foot to foot. Arms hang still
+    (q = 0) but in grasping. Every trajectory starts at q = 0 and ends standing crouched.
 
-    Measured in MuJoCo on the default design (40 cm, 1.69 kg): walking, 4 steps of 21 mm,
-    0.16 m forward in 9 s without falling (16 steps: 0.50 m); running, 4 steps of 26 mm,
-    0.16 m in 6.5 s; balancing, no fall. Backward the robot falls on its back (at 4.5 s,
-    in the first full step): its COM sits behind the ankles, whose servos saturate.
+    ``info`` follows the shared contract: ``motion`` ("straight" for the gaits, "hold"
+    otherwise), ``planned_pose`` (the trunk's displacement the joint angles command, by
+    :func:`odometry`, and no change of yaw), ``direction``, ``locomotion`` "legged" and
+    ``body_length_m``: the leg length (femur + tibia), the humanoid's natural unit of
+    stride (its walking speed scales with it); plus ``stability_margin_m`` (COM inside the
+    planned support polygon; the pendulum gait leaves it by a few mm while the weight
+    moves between the feet). A leg module outside the maps' sizes is refused (ValueError),
+    never extrapolated.
     """
 
     def __init__(self, geometry: DesignGeometry) -> None:
@@ -633,7 +703,7 @@ class HumanoidController(Controller):
                     Parameter(
                         "steps",
                         "int",
-                        4,
+                        DEFAULT_STEPS,
                         "full steps between the starting and the stopping half step",
                         low=1,
                         high=200,
@@ -655,6 +725,7 @@ class HumanoidController(Controller):
                         choices=("forward", "backward"),
                     ),
                 ),
+                ability=shape.name,
             )
 
         return {
@@ -663,6 +734,23 @@ class HumanoidController(Controller):
                 RUN,
                 "a faster gait: shorter step period and double support, "
                 "longer steps (no flight phase)",
+            ),
+            "grasping": BehaviorSpec(
+                "grasping",
+                "stand crouched, reach forward with both arms, close both grippers, hold, "
+                "bring the arms back",
+                (
+                    Parameter(
+                        "hold",
+                        "float",
+                        HOLD_TIME,
+                        "time holding with the grippers closed",
+                        unit="s",
+                        low=0.0,
+                        high=60.0,
+                    ),
+                ),
+                ability="grasping",
             ),
             "balancing": BehaviorSpec(
                 "balancing",
@@ -687,6 +775,7 @@ class HumanoidController(Controller):
                         high=20.0,
                     ),
                 ),
+                ability="balancing",
             ),
         }
 
@@ -695,17 +784,26 @@ class HumanoidController(Controller):
             return self._balancing(
                 int(params["shifts"]), float(params["amount"]), float(params["period"])
             )
+        if name == "grasping":
+            return self._grasping(float(params["hold"]))
         shape = WALK if name == WALK.name else RUN
         return self._gait(
             shape, int(params["steps"]), float(params["step_length"]), str(params["direction"])
         )
 
     def _gait(self, shape: GaitShape, steps: int, step: float, direction: str) -> Trajectory:
+        lo, hi = leg_module_range()
+        if not lo - 1e-12 <= self.size <= hi + 1e-12:
+            raise ValueError(
+                f"{shape.name}: leg module {self.size * 1000:.1f} mm is outside the conversion "
+                f"maps' sizes {lo * 1000:.0f}-{hi * 1000:.0f} mm (not extrapolated)"
+            )
         maps = conversion_maps(shape.name)
-        plan = GaitPlan.of(shape, steps)
+        plan = GaitPlan.of(shape, steps, self.leg)
         sign = 1.0 if direction == "forward" else -1.0
         ratio = step / self.default_step(shape)
-        start = shape.double_support * shape.step_period / 2  # mid double support
+        period = shape.period(self.leg)
+        start = shape.double_support * period / 2  # mid double support
 
         def legs(t: np.ndarray) -> np.ndarray:
             tau = t - CROUCH_TIME
@@ -714,33 +812,87 @@ class HumanoidController(Controller):
             return crouch * mean + plan.envelope(tau)[:, None] * osc
 
         info: dict[str, object] = {
+            "motion": "straight",
             "direction": (sign, 0.0),
+            "locomotion": "legged",
+            "body_length_m": self.leg,
             "steps": steps,
             "step_length_m": step,
-            "step_period_s": shape.step_period,
-            "expected_distance_m": (steps + 1) * step,
+            "step_period_s": period,
             "leg_module_m": self.size,
-            "maps_extrapolated": not MAP_SIZES[0] <= self.size <= MAP_SIZES[-1],
         }
         return self._trajectory(shape.name, CROUCH_TIME + plan.end, legs, info)
+
+    def _stance(self, dx: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """(n, 12) leg angles: both ankles ``dx`` (n,) m ahead of their hips and ``-y`` (n,)
+        m beside them (the pelvis moved back and sideways), at the walking gait's stance
+        height."""
+        hw = self.template.lengths["hip_width"] / 2
+        height = stance_height(WALK, self.leg, hw)
+        ankle = np.stack([dx, -y, np.full_like(dx, -height)], axis=1)
+        one = leg_ik(ankle, self.femur, self.tibia)  # both legs alike, side by side
+        return np.concatenate([one, one], axis=1)
 
     def _balancing(self, shifts: int, amount: float, period: float) -> Trajectory:
         """Crouch (this design's leg IK), sway the pelvis ``shifts`` times left and right
         by ``amount`` times half the hip width under a smooth envelope, stand still."""
         hw = self.template.lengths["hip_width"] / 2
-        height = stance_height(WALK, self.leg, hw)
         duration = shifts * period
 
         def legs(t: np.ndarray) -> np.ndarray:
             tau = np.clip(t - CROUCH_TIME, 0.0, duration)
             y = amount * hw * np.sin(2 * pi * tau / period) * np.sin(pi * tau / duration) ** 2
-            ankle = np.stack([np.zeros_like(t), -y, np.full_like(t, -height)], axis=1)
-            one = leg_ik(ankle, self.femur, self.tibia)  # both legs alike, side by side
-            one *= _smooth(t / CROUCH_TIME)[:, None]  # the crouch from q = 0 (y = 0 then)
-            return np.concatenate([one, one], axis=1)
+            # the crouch from q = 0 (y = 0 then)
+            return self._stance(np.zeros_like(t), y) * _smooth(t / CROUCH_TIME)[:, None]
 
-        info: dict[str, object] = {"direction": (0.0, 0.0)}
+        info: dict[str, object] = {"motion": "hold", "body_length_m": self.leg}
         return self._trajectory("balancing", CROUCH_TIME + duration, legs, info)
+
+    @staticmethod
+    def _arms(t: np.ndarray, hold: float) -> np.ndarray:
+        """(n, 6) arm angles of grasping (``ARM_JOINTS`` per side): the grippers open while
+        crouching, the arms reach forward, the grippers close and stay closed, the arms come
+        back down after the hold."""
+        back = CROUCH_TIME + REACH_TIME + GRIP_TIME + hold
+        reach = _smooth((t - CROUCH_TIME) / REACH_TIME) - _smooth((t - back) / REACH_TIME)
+        opened = _smooth(t / CROUCH_TIME) - _smooth((t - CROUCH_TIME - REACH_TIME) / GRIP_TIME)
+        one = np.stack([REACH_SHOULDER * reach, REACH_ELBOW * reach, GRIPPER_OPEN * opened], 1)
+        return np.concatenate([one, one], axis=1)
+
+    def _grasping(self, hold: float) -> Trajectory:
+        """Crouch with the grippers opening, reach forward with both arms while the pelvis
+        moves back so that the centre of mass stays over the ankles (this design's
+        geometry with the template's masses and the design's payload on the trunk), close
+        both grippers, hold ``hold`` s, bring the arms back down holding (the trunk back
+        over its start: a hold stays put)."""
+        arms = partial(self._arms, hold=hold)
+        duration = CROUCH_TIME + REACH_TIME + GRIP_TIME + hold + REACH_TIME
+        model = build(
+            self.geometry.template,
+            TemplateParams(
+                lengths=self.geometry.lengths,
+                modules=self.geometry.modules,
+                payload=float(self.geometry.params.get("payload", 0.0)),
+            ),
+        ).model
+        index = {n: k for k, n in enumerate(model.q_names)}
+        cols = [index[n] for n in self.joints]
+
+        def legs(t: np.ndarray) -> np.ndarray:
+            crouch = _smooth(t / CROUCH_TIME)[:, None]
+            dx = np.zeros_like(t)
+            Q = np.zeros((len(t), model.nq))
+            Q[:, cols[12:]] = arms(t)
+            for _ in range(4):  # the legs' pose moves the COM a little too: iterate
+                q = self._stance(dx, np.zeros_like(t)) * crouch
+                Q[:, cols[:12]] = q
+                com = center_of_mass(model, Q)
+                ankle = forward_kinematics(model, Q)[:, model.body(self.template.feet[0]), 0, 3]
+                dx = dx + (com[:, 0] - ankle)
+            return q
+
+        info: dict[str, object] = {"motion": "hold", "body_length_m": self.leg}
+        return self._trajectory("grasping", duration, legs, info, arms)
 
     def _trajectory(
         self,
@@ -748,17 +900,21 @@ class HumanoidController(Controller):
         duration: float,
         legs: Callable[[np.ndarray], np.ndarray],
         info: dict[str, object],
+        arms: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> Trajectory:
-        """The trajectory of leg angles ``legs(t)`` (n, 12) rad over ``duration`` s and
-        ``SETTLE_TIME`` s more (arms hanging), velocities by central differences of
-        ``legs``, and its stability margin; ValueError if it leaves a joint's limits (an
-        extrapolation of the maps far from their sizes)."""
+        """The trajectory of leg angles ``legs(t)`` (n, 12) rad and arm angles ``arms(t)``
+        (n, 6) rad (default: hanging, 0) over ``duration`` s and ``SETTLE_TIME`` s more,
+        velocities by central differences, its stability margin and its ``planned_pose``
+        (:func:`odometry`); ValueError if it leaves a joint's limits."""
         t = np.arange(0.0, duration + SETTLE_TIME, SAMPLE_DT)
         h = 1e-6  # s
         q = np.zeros((len(t), len(self.joints)))
         v = np.zeros_like(q)
         q[:, :12] = legs(t)
         v[:, :12] = (legs(t + h) - legs(t - h)) / (2 * h)
+        if arms is not None:
+            q[:, 12:] = arms(t)
+            v[:, 12:] = (arms(t + h) - arms(t - h)) / (2 * h)
         model = self.template.model
         index = {n: k for k, n in enumerate(model.q_names)}
         low, high = model.lower, model.upper
@@ -768,8 +924,11 @@ class HumanoidController(Controller):
                 raise ValueError(
                     f"{name}: joint {joint} would leave its limits [{low[i]:.3f}, "
                     f"{high[i]:.3f}] rad (reaching [{q[:, k].min():.3f}, "
-                    f"{q[:, k].max():.3f}]); leg module {self.size:.3f} m, maps fitted for "
-                    f"{MAP_SIZES[0]}..{MAP_SIZES[-1]} m"
+                    f"{q[:, k].max():.3f}]); leg module {self.size:.3f} m"
                 )
         info["stability_margin_m"] = stability_margin(self.template, self.joints, q)
+        moved = odometry(self.template, self.joints, q)[-1]
+        info["planned_pose"] = (float(moved[0]), float(moved[1]), 0.0)
+        if info.get("motion") == "straight":
+            info["expected_distance_m"] = float(np.hypot(moved[0], moved[1]))
         return Trajectory(name, t, self.joints, q, v, info)

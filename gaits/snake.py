@@ -73,8 +73,13 @@ SAMPLES_PER_CYCLE = 100
 #: Fraction of a joint's no-load speed the waves may ask for (a position servo tracking
 #: a sine at its no-load speed would lag and shrink the wave).
 SPEED_MARGIN = 0.8
+#: Fraction of the no-load speed the default frequency asks of the joints at the waves'
+#: peak: a servo's torque falls linearly with speed (the motor line), so at this speed it
+#: keeps 1 - SPEED_SHARE = 2/3 of its stall torque for the body's loads, which the
+#: structure generator sizes to at most stall / 1.5 (the catalog's torque safety factor).
+SPEED_SHARE = 1 / 3
 #: Cycles over which the waves fade in at the start and out at the end.
-FADE_CYCLES = 1.0
+FADE_CYCLES = 0.5
 #: Default wave frequency Hz (lower when the modules are too slow for it).
 DEFAULT_FREQUENCY = 0.4
 
@@ -173,9 +178,18 @@ TRAVEL_STEP = 2 * math.pi / 3
 #: Winding angles alpha (rad) of eqs. 8-9 per gait: (vertical, horizontal).
 RECTILINEAR_ALPHA = math.radians(45)  # A_v = 78 degrees: humps tall enough to lift the head
 SIDEWINDING_ALPHA = (math.radians(6), math.radians(20))  # A_v = 10, A_h = 35 degrees
-ROTATING_ALPHA = (math.radians(5), math.radians(32))  # k_v = M/4: A_v = 10; k_h = M/8: 45
+ROTATING_ALPHA = (math.radians(5), math.radians(32))  # M = 8: A_v = 10, A_h = 45 degrees
+#: Horizontal undulations k_h of ``rotating`` along the body whatever M (k_v = 2 k_h).
+#: Simulated on the designed snakes (M = 8, 10, 14, payload 0-0.5 kg): k_h = 0.75 turns
+#: them 130-170 degrees per 10 s, the horizontal wave lagging the vertical one by 90
+#: degrees turning counter-clockwise; k_h = M / 8 (one undulation at M = 8) turns M = 8
+#: at 45 degrees per 10 s and M = 10 and 14 hardly, M = 14 the wrong way.
+ROTATING_WAVES = 0.75
 #: Largest horizontal offset rad of ``circular-path`` (the horizontal joints hold it).
 BEND_MAX = math.radians(60)
+#: Default total bend rad of ``circular-path``, shared by the horizontal joints: a circle
+#: of a few body lengths, so that a run of a few wave cycles follows an arc of it.
+CIRCLE_BEND = math.radians(30)
 
 
 def gait_params(gait: str, modules: int, direction: int = 1, bend: float = 0.0) -> WaveParams:
@@ -207,7 +221,7 @@ def gait_params(gait: str, modules: int, direction: int = 1, bend: float = 0.0) 
         a_h = wave_amplitude(SIDEWINDING_ALPHA[1], k, modules)
         return WaveParams(a_v, a_h, step, step, direction * math.pi / 2)
     if gait == "rotating":
-        k_h = modules / 8  # 90 degrees between horizontal modules, twice that vertically
+        k_h = ROTATING_WAVES  # horizontal undulations; the vertical wave has twice as many
         a_v = wave_amplitude(ROTATING_ALPHA[0], 2 * k_h, modules)
         a_h = wave_amplitude(ROTATING_ALPHA[1], k_h, modules)
         return WaveParams(
@@ -215,7 +229,7 @@ def gait_params(gait: str, modules: int, direction: int = 1, bend: float = 0.0) 
             a_h,
             wave_phase_step(2 * k_h, modules),
             wave_phase_step(k_h, modules),
-            direction * math.pi / 2,
+            -direction * math.pi / 2,
         )
     raise ValueError(f"unknown gait {gait!r}; gaits: {', '.join(GAITS)}")
 
@@ -274,11 +288,22 @@ class SnakeController(Controller):
         _, _, v, _ = self._trajectory(gait, 1.0, 3, direction, bend)
         return self.max_speed / float(np.abs(v).max())
 
+    def default_frequency(self, gait: str) -> float:
+        """Default wave frequency Hz of ``gait``: ``DEFAULT_FREQUENCY``, lower when the waves
+        would ask a joint for more than ``SPEED_SHARE`` of its no-load speed."""
+        share = SPEED_SHARE / SPEED_MARGIN
+        return float(f"{min(DEFAULT_FREQUENCY, share * self.max_frequency(gait)):.3g}")
+
+    @property
+    def body_length(self) -> float:
+        """Length m of the module chain (M module pitches)."""
+        return self.modules * float(self.template.lengths["module"])
+
     @property
     def behaviors(self) -> Mapping[str, BehaviorSpec]:
         out = {}
         for gait in self.gaits:
-            f = round(min(DEFAULT_FREQUENCY, 0.8 * self.max_frequency(gait)), 3)
+            f = self.default_frequency(gait)
             params = [
                 Parameter("frequency", "float", f, "wave frequency", "Hz", low=1e-3, high=10),
                 Parameter(
@@ -297,7 +322,7 @@ class SnakeController(Controller):
                     Parameter(
                         "bend",
                         "float",
-                        math.radians(20),
+                        round(CIRCLE_BEND / (self.modules // 2), 4),
                         "horizontal offset of the arc, positive curls the tail left",
                         "rad",
                         low=-BEND_MAX,
@@ -323,7 +348,13 @@ class SnakeController(Controller):
             )
         if np.any(q < self.lower - 1e-9) or np.any(q > self.upper + 1e-9):
             raise ValueError(f"{name}: the waves leave the joints' range")
-        info: dict[str, object] = {"waves": p, "frequency_hz": freq}
+        info: dict[str, object] = {
+            "motion": "rotate" if name == "rotating" else "crawl",
+            "locomotion": "snake",
+            "body_length_m": self.body_length,
+            "waves": p,
+            "frequency_hz": freq,
+        }
         if name in ("rectilinear", "circular-path"):
             info["direction"] = (-float(direction), 0.0)
         elif name in ("rolling", "sidewinding"):

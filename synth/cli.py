@@ -142,6 +142,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _structure_options(p)
     p.add_argument(
+        "--no-verify",
+        action="store_true",
+        help="do not simulate the sized design's behaviours in MuJoCo (faster; the record "
+        "says it was not simulated)",
+    )
+    p.add_argument(
         "--out",
         metavar="DIR",
         help="write the bundle into the folder DIR: "
@@ -325,12 +331,16 @@ def _options(args: argparse.Namespace):
     from synth.pipeline import StructureOptions, parse_objective
 
     return StructureOptions(
-        args.catalog, args.conceptual, not args.no_symmetry, parse_objective(args.objective)
+        args.catalog,
+        args.conceptual,
+        not args.no_symmetry,
+        parse_objective(args.objective),
+        verify=not getattr(args, "no_verify", False),
     )
 
 
 def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from export.record import design_text, to_json
+    from export.record import design_text, to_json, verification_text
     from synth.pipeline import run
 
     designer = _designer(args, err)
@@ -359,7 +369,11 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
         files = result.files(designer)
         write_bundle(args.out, files, force=args.force)
-    out.write(to_json(rec) if args.json else design_text(d, designer.short, result.structure))
+    if args.json:
+        out.write(to_json(rec))
+    else:
+        out.write(design_text(d, designer.short, result.structure))
+        out.write(verification_text(rec.get("verified")))
     if d.status == "ambiguous":
         q = d.questions[-1]
         err.write(

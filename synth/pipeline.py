@@ -13,17 +13,20 @@ from synth.conceptual import Design, Designer, Request
 if TYPE_CHECKING:  # numpy-heavy: imported only when a structure is sized
     from adron.catalog import Catalog
     from synth.structure import Structure
+    from synth.verify import Verification
 
 
 @dataclass(frozen=True, slots=True)
 class StructureOptions:
     """How to size the structure: catalog file (None: the shipped one), whether to stop at
-    the conceptual design, symmetry of alike joints, the actuator objective order."""
+    the conceptual design, symmetry of alike joints, the actuator objective order, and
+    whether to simulate every behaviour of the sized design (``synth.verify``)."""
 
     catalog: str | None = None
     conceptual: bool = False
     symmetric: bool = True
     objective: tuple[str, ...] = ("mass", "cost")
+    verify: bool = True
 
 
 def parse_objective(text: str) -> tuple[str, ...]:
@@ -52,6 +55,9 @@ class Outcome:
     infeasible: str | None = None  # the infeasibility message
     note: str | None = None  # why the design stayed conceptual
     catalog: Catalog | None = None  # the catalog the structure was sized with
+    verification: Verification | None = None  # what the simulation found (None: not run)
+    verify_skipped: bool = False  # sized but not simulated (--no-verify)
+    bundle: dict[str, str | bytes] | None = None  # the files the verification simulated
 
     @property
     def status(self) -> str:
@@ -64,6 +70,10 @@ class Outcome:
         rec = self.record(designer)
         if self.structure is None or self.catalog is None:
             return {"design.json": to_json(rec)}
+        v = self.verification
+        if self.bundle is not None and v is not None and not v.dropped:
+            # the simulated bundle itself, its record now carrying the verification
+            return {**self.bundle, "design.json": to_json(rec)}
         from export.bundle import bundle_files
 
         doc = designer.kb.translation.documentation.get(self.structure.robot_type, "")
@@ -73,6 +83,17 @@ class Outcome:
         from export.record import design_record
 
         rec = design_record(self.design, designer.short, self.structure)
+        v = self.verification
+        if v is not None:
+            rec["verified"] = v.record()
+            if v.dropped:
+                rec["abilities"] = [a for a in rec["abilities"] if a not in v.dropped]
+                rec["notes"] = [
+                    *rec.get("notes", []),
+                    *(f"dropped {a}: {why}" for a, why in sorted(v.dropped.items())),
+                ]
+        elif self.verify_skipped:
+            rec["verified"] = {"simulated": False, "note": "not simulated (--no-verify)"}
         if self.infeasible:
             rec["status"] = "infeasible"
             rec["infeasible"] = self.infeasible
@@ -99,4 +120,8 @@ def run(designer: Designer, req: Request, opts: StructureOptions) -> Outcome:
         )
     except InfeasibleError as e:
         return Outcome(d, infeasible=str(e), catalog=catalog)
-    return Outcome(d, s, catalog=catalog)
+    if not opts.verify:
+        return Outcome(d, s, catalog=catalog, verify_skipped=True)
+    from synth.verify import verify
+
+    return verify(designer, req, opts, Outcome(d, s, catalog=catalog))

@@ -16,7 +16,7 @@ from typing import TextIO
 from adron.errors import InputError
 from adron.kb import read_user_file
 
-SUITE_KEYS = {"ontology", "rules", "catalog", "conceptual", "query"}
+SUITE_KEYS = {"ontology", "rules", "catalog", "conceptual", "query", "verify"}
 QUERY_KEYS = {"name", "abilities", "answers", "params"}
 
 
@@ -54,12 +54,16 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
         ],
         "rules": [str(base / p) for p in _str_list(data.get("rules", []), f"{path}: rules")],
         "conceptual": data.get("conceptual", False),
+        # simulating every behaviour makes a suite slow and its snapshot hold simulator
+        # figures; a suite asks for it with verify = true
+        "verify": data.get("verify", False),
         # running a rule file's scripts is the user's call on the command line, never the
         # suite file's (a suite can come from anywhere)
         "allow_scripts": False,
     }
-    if not isinstance(opts["conceptual"], bool):
-        raise InputError(f"{path}: conceptual: expected true or false")
+    for key in ("conceptual", "verify"):
+        if not isinstance(opts[key], bool):
+            raise InputError(f"{path}: {key}: expected true or false")
     catalog = data.get("catalog")
     if catalog is not None and not isinstance(catalog, str):
         raise InputError(f"{path}: catalog: expected a path")
@@ -102,7 +106,7 @@ def run_queries(opts: dict, queries: list[dict]) -> dict[str, dict]:
 
     kb = load(opts["ontology"])
     designer = Designer(kb, Reasoner(kb, opts["rules"], opts["allow_scripts"]))
-    sopts = StructureOptions(opts["catalog"], opts["conceptual"])
+    sopts = StructureOptions(opts["catalog"], opts["conceptual"], verify=opts["verify"])
     results = {}
     for i, q in enumerate(queries, 1):
         try:

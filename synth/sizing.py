@@ -51,6 +51,10 @@ GRIP_FRICTION = 0.5
 JAW_LEVER = 0.03
 GRIPPER_SPEED = 1.0
 SNAKE_SPEED = 0.5 * 2 * math.pi * 0.5  # the peak of a sinusoid: amplitude x frequency
+#: Share of the snake's head (base: main module, battery, sensors, payload) a lifted segment
+#: carries at its free end. Simulated, the rolling gait of 3 and 4 SG90 modules saturates
+#: with half the head counted (the square head rolls over its edge): the whole head.
+HEAD_SHARE = 1.0
 #: Humanoid proportions of the standing height (Fig. 21).
 HUMANOID = {
     "femur": 0.22,
@@ -62,8 +66,9 @@ HUMANOID = {
     "upper_arm": 0.17,
     "forearm": 0.19,
 }
-#: Humanoid walking pose (rad): knees bent so that the pitch joints carry the weight.
-CROUCH = {"hip_pitch": -0.3, "knee_pitch": 0.6, "ankle_pitch": -0.3}
+#: Humanoid: share of the half foot length ahead of and behind the centre of mass over
+#: which the ankle must move the centre of pressure (the open-loop gait's balance margin).
+ANKLE_COP_REACH = 0.5
 
 
 @dataclass
@@ -330,8 +335,12 @@ class Multipeds(Family):
 
 
 class Humanoid(Family):
-    """HumanoidRobot: limb lengths in proportion to the standing height; worst case on one
-    foot in a walking crouch, the ground force under the centre of mass."""
+    """HumanoidRobot: limb lengths in proportion to the standing height, within the leg
+    module lengths whose gaits the conversion maps give (``gaits.humanoid``); worst cases
+    on one foot in the walking gait's stance (crouched, the pelvis swayed over the stance
+    ankle), the ground force under the centre of mass and at ``ANKLE_COP_REACH`` of the
+    half foot ahead of and behind it (the ankle and the hip pitch move the centre of
+    pressure to catch the open-loop gait's errors)."""
 
     def size(self, robot_type, p, catalog):
         H = p["height"]
@@ -341,17 +350,72 @@ class Humanoid(Family):
         for k, v in lengths.items():
             tube = k in ("femur", "tibia", "upper_arm", "forearm")
             out[k] = _clamp_length(k, v, catalog, why) if tube else v
+        self._check_gait_range(H, out, catalog)
         return Sizing(out)
 
-    def load_cases(self, tmpl, p, catalog):
-        q = _joint_q(tmpl, CROUCH)
-        weight = tmpl.model.total_mass * catalog.design.gravity_m_s2
-        foot = [f for f in tmpl.feet if f.startswith("l")][:1]
-        fext = _support(tmpl, q, foot, weight, under_com=True)
-        v = np.zeros(tmpl.model.nv)
-        return _accel_cases(
-            tmpl, q, v, catalog.design.max_joint_acceleration_rad_s2, fext, "on one foot, crouched"
+    @staticmethod
+    def _check_gait_range(H: float, lengths: Mapping[str, float], catalog: Catalog) -> None:
+        """InfeasibleError when the legs' module length is outside the sizes the gait's
+        conversion maps were fitted on (never extrapolated), naming the nearest height
+        that works."""
+        from gaits.humanoid import leg_module_range
+
+        lo, hi = leg_module_range()
+        x = (lengths["femur"] + lengths["tibia"]) / 2
+        if lo - 1e-12 <= x <= hi + 1e-12:
+            return
+        f = (HUMANOID["femur"] + HUMANOID["tibia"]) / 2
+        lo_h = max(lo, catalog.passive.min_link_length_m) / f
+        hi_h = min(hi, catalog.passive.max_link_length_m) / f
+        best = lo_h if x < lo else hi_h
+        raise InfeasibleError(
+            f"height {H * 100:.0f} cm gives leg modules of {x * 1000:.0f} mm, outside the "
+            f"{lo * 1000:.0f}-{hi * 1000:.0f} mm the walking gait's conversion maps were "
+            f"fitted for (not extrapolated); the {'smallest' if x < lo else 'largest'} "
+            f"height that works is {best * 100:.1f} cm"
         )
+
+    @staticmethod
+    def stance(tmpl: Template) -> np.ndarray:
+        """The walking gait's single-support pose (nv,): crouched to the gait's stance
+        height, the pelvis swayed over the left ankle by the gait's sway, arms hanging."""
+        from gaits.humanoid import WALK, leg_ik, stance_height
+
+        L = tmpl.lengths
+        hw = L["hip_width"] / 2
+        leg = L["femur"] + L["tibia"]
+        y = WALK.sway * hw
+        ankle = np.array([0.0, -y, -stance_height(WALK, leg, hw)])
+        angles = leg_ik(ankle, L["femur"], L["tibia"])
+        names = ("hip_yaw", "hip_roll", "hip_pitch", "knee_pitch", "ankle_pitch", "ankle_roll")
+        return _joint_q(tmpl, dict(zip(names, (float(a) for a in angles), strict=True)))
+
+    def load_cases(self, tmpl, p, catalog):
+        q = self.stance(tmpl)
+        model = tmpl.model
+        weight = model.total_mass * catalog.design.gravity_m_s2
+        foot = [f for f in tmpl.feet if f.startswith("l")][0]
+        T = forward_kinematics(model, q)
+        com = center_of_mass(model, q)
+        sole = (T[model.body(foot)] @ np.append(tmpl.foot_points[tmpl.feet.index(foot)], 1.0))[:3]
+        reach = ANKLE_COP_REACH * tmpl.lengths["foot"] / 2
+        v = np.zeros(model.nv)
+        cases = []
+        for where, dx in (("under the centre of mass", 0.0), ("toe", reach), ("heel", -reach)):
+            fext = np.zeros((len(model.bodies), 6))
+            point = np.array([com[0] + dx, com[1], sole[2]])
+            fext[model.body(foot)] = external_force_at(
+                model, q, foot, point, np.array([0.0, 0.0, weight])
+            )
+            cases += _accel_cases(
+                tmpl,
+                q,
+                v,
+                catalog.design.max_joint_acceleration_rad_s2,
+                fext,
+                f"on one foot in the walking stance, pressure {where}",
+            )
+        return cases
 
     def speeds(self, tmpl, p, sizing):
         L = tmpl.lengths
@@ -365,8 +429,10 @@ class Humanoid(Family):
 
 class Snake(Family):
     """SnakeRobot: M from the ontology (the conceptual design); worst case lifting the
-    longest unsupported segment its gaits need (the ontology's ``liftedModuleShare`` of
-    each gait), straight and horizontal, accelerating."""
+    longest unsupported segment of the gaits the robot lists (the largest of the ontology's
+    ``liftedModuleShare`` over them), straight and horizontal, accelerating, its free end
+    carrying ``HEAD_SHARE`` of the head (the base: main module, battery, sensors and the
+    payload)."""
 
     def size(self, robot_type, p, catalog):
         return Sizing(default_lengths(robot_type))
@@ -375,15 +441,24 @@ class Snake(Family):
         return max(1, math.ceil(modules * lifted_share))
 
     def load_cases(self, tmpl, p, catalog):
-        q = np.zeros(tmpl.model.nv)
-        v = np.full(tmpl.model.nv, SNAKE_SPEED)
+        model = tmpl.model
+        q = np.zeros(model.nv)
+        v = np.full(model.nv, SNAKE_SPEED)
+        head = HEAD_SHARE * (tmpl.params.trunk_mass + p.get("payload", 0.0))
+        tip = model.bodies[-1].name
+        point = forward_kinematics(model, q)[model.body(tip)] @ np.array(
+            [tmpl.lengths["module"], 0.0, 0.0, 1.0]
+        )
+        fext = np.zeros((len(model.bodies), 6))
+        weight = head * catalog.design.gravity_m_s2
+        fext[model.body(tip)] = external_force_at(model, q, tip, point[:3], (0.0, 0.0, -weight))
         return _accel_cases(
             tmpl,
             q,
             v,
             catalog.design.max_joint_acceleration_rad_s2,
-            None,
-            f"lifting {tmpl.model.nv} modules",
+            fext,
+            f"lifting {model.nv} modules and {head:.3f} kg of the head",
         )
 
     def speeds(self, tmpl, p, sizing):

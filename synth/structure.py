@@ -240,7 +240,7 @@ class StructureDesigner:
         shares = [
             n / d
             for gait, n, d in kb.translation.relation("liftedModuleShare")
-            if gait in (candidate.needed or candidate.abilities)
+            if gait in candidate.abilities  # every gait it lists, asked for or not
             and isinstance(n, int)
             and isinstance(d, int)
             and d > 0
@@ -285,6 +285,9 @@ class StructureDesigner:
                     f"(or a class above it) for joint '{s.name}'"
                 )
         self.by_model = {a.model: a for a in catalog.actuators}
+        #: joint -> torque N m it must be sized for at least (the verification loop's
+        #: feedback: a joint that saturated in simulation needs more than its actuator gave)
+        self.torque_floor: dict[str, float] = {}
 
     # -- fixed modules ------------------------------------------------------------------
     def _fixed_modules(self) -> list[tuple[str, str, int, float, float, float]]:
@@ -380,6 +383,9 @@ class StructureDesigner:
                 same = [holds[o.name] for o in self.slots if o.group == s.group and o.name in holds]
                 if same:
                     holds[s.name] = max(same)
+        for name, floor in sorted(self.torque_floor.items()):  # found in simulation
+            if floor > torque.get(name, 0.0):
+                torque[name], case_of[name] = floor, "simulation"
         return _Requirements(torque, case_of, speeds, loads, holds), analysis
 
     def capable(self, req: _Requirements) -> dict[str, list[str]]:

@@ -132,7 +132,7 @@ def test_abilities_json(cli, kb) -> None:
 
 
 def test_design_no_input_needs_an_answer(cli) -> None:
-    r = cli("design", "walking", "--no-input")
+    r = cli("design", "--no-verify", "walking", "--no-input")
     assert r.code == 3
     for t in LEGGED:
         assert t in r.out
@@ -142,7 +142,7 @@ def test_design_no_input_needs_an_answer(cli) -> None:
 
 
 def test_design_no_input_json(cli) -> None:
-    r = cli("design", "walking", "--no-input", "--json")
+    r = cli("design", "--no-verify", "walking", "--no-input", "--json")
     assert r.code == 3
     d = json.loads(r.out)
     assert d["status"] == "ambiguous"
@@ -154,13 +154,13 @@ def test_design_no_input_json(cli) -> None:
 
 
 def test_design_non_terminal_stdin_needs_an_answer(cli) -> None:
-    r = cli("design", "walking", stdin="y\n", tty=False)
+    r = cli("design", "--no-verify", "walking", stdin="y\n", tty=False)
     assert r.code == 3
     assert GRASP_QUESTION in r.err
 
 
 def test_design_answered(cli) -> None:
-    r = cli("design", "walking", "--answer", "grasping=yes", "--json")
+    r = cli("design", "--no-verify", "walking", "--answer", "grasping=yes", "--json")
     assert r.code == 0, r.err
     d = json.loads(r.out)
     assert set(d) >= DESIGN_KEYS
@@ -186,7 +186,7 @@ def test_design_answered(cli) -> None:
 
 
 def test_design_text(cli) -> None:
-    r = cli("design", "walking", "--answer", "grasping=yes")
+    r = cli("design", "--no-verify", "walking", "--answer", "grasping=yes")
     assert r.code == 0
     assert "HumanoidRobot" in r.out
     assert "BipedLeg x2" in r.out
@@ -201,7 +201,7 @@ def test_design_text(cli) -> None:
     [("n\nn\n", "QuadrupedRobot"), ("n\ny\n", "HexapodRobot"), ("y\n", "HumanoidRobot")],
 )
 def test_dialogue(cli, replies: str, robot: str) -> None:
-    r = cli("design", "walking", "--json", stdin=replies, tty=True)
+    r = cli("design", "--no-verify", "walking", "--json", stdin=replies, tty=True)
     assert r.code == 0, r.err
     d = json.loads(r.out)
     assert d["status"] == "designed"
@@ -214,7 +214,7 @@ def test_dialogue(cli, replies: str, robot: str) -> None:
 
 
 def test_dialogue_second_question_is_rough_terrain(cli) -> None:
-    r = cli("design", "walking", "--json", stdin="n\nn\n", tty=True)
+    r = cli("design", "--no-verify", "walking", "--json", stdin="n\nn\n", tty=True)
     d = json.loads(r.out)
     assert [(q["ability"], q["answer"]) for q in d["questions"]] == [
         ("grasping", "no"),
@@ -223,7 +223,7 @@ def test_dialogue_second_question_is_rough_terrain(cli) -> None:
 
 
 def test_dialogue_reasks_after_invalid_reply(cli) -> None:
-    r = cli("design", "walking", "--json", stdin="maybe\nyes\n", tty=True)
+    r = cli("design", "--no-verify", "walking", "--json", stdin="maybe\nyes\n", tty=True)
     assert r.code == 0, r.err
     assert json.loads(r.out)["robot_type"] == "HumanoidRobot"
     assert r.err.count(GRASP_QUESTION) == 2
@@ -232,13 +232,13 @@ def test_dialogue_reasks_after_invalid_reply(cli) -> None:
 
 @pytest.mark.parametrize("stdin", ["", "n\n"])
 def test_dialogue_eof_needs_an_answer(cli, stdin: str) -> None:
-    r = cli("design", "walking", stdin=stdin, tty=True)
+    r = cli("design", "--no-verify", "walking", stdin=stdin, tty=True)
     assert r.code == 3
     no_traceback(r)
 
 
 def test_dialogue_not_used_with_no_input(cli) -> None:
-    r = cli("design", "walking", "--no-input", stdin="y\n", tty=True)
+    r = cli("design", "--no-verify", "walking", "--no-input", stdin="y\n", tty=True)
     assert r.code == 3
 
 
@@ -275,10 +275,10 @@ def test_bad_input_exits_2(cli, argv: list[str], expect: list[str]) -> None:
 
 
 def test_suggestions_are_did_you_mean(cli) -> None:
-    assert "did you mean: walking" in cli("design", "walkin").err
-    r = cli("design", "walking", "--param", "object_shap=a")
+    assert "did you mean: walking" in cli("design", "--no-verify", "walkin").err
+    r = cli("design", "--no-verify", "walking", "--param", "object_shap=a")
     assert "did you mean: object_shape" in r.err
-    r = cli("design", "pick-and-place", "--param", "object_shape=ovall")
+    r = cli("design", "--no-verify", "pick-and-place", "--param", "object_shape=ovall")
     assert "did you mean: oval" in r.err
     assert "did you mean: HexapodRobot" in cli("explain", "HexapodRobt").err
 
@@ -288,7 +288,7 @@ def test_suggestions_are_did_you_mean(cli) -> None:
 
 @pytest.mark.parametrize("order", [("rolling", "grasping"), ("grasping", "rolling")])
 def test_unsatisfiable_names_the_conflict(cli, order: tuple[str, str]) -> None:
-    r = cli("design", *order, "--json")
+    r = cli("design", "--no-verify", *order, "--json")
     assert r.code == 1
     d = json.loads(r.out)
     assert d["status"] == "unsatisfiable"
@@ -300,7 +300,7 @@ def test_unsatisfiable_names_the_conflict(cli, order: tuple[str, str]) -> None:
 
 
 def test_unsatisfiable_conflict_is_minimal(cli) -> None:
-    r = cli("design", "rolling", "grasping", "line-tracking", "--json")
+    r = cli("design", "--no-verify", "rolling", "grasping", "line-tracking", "--json")
     assert r.code == 1
     assert json.loads(r.out)["conflict"] == ["rolling", "grasping"]
     assert "rolling" in r.err and "grasping" in r.err
@@ -308,7 +308,7 @@ def test_unsatisfiable_conflict_is_minimal(cli) -> None:
 
 
 def test_unsatisfiable_answer_is_part_of_the_conflict(cli) -> None:
-    r = cli("design", "rough-terrain-walking", "--answer", "walking=no", "--json")
+    r = cli("design", "--no-verify", "rough-terrain-walking", "--answer", "walking=no", "--json")
     assert r.code == 1
     assert json.loads(r.out)["conflict"] == ["rough-terrain-walking", "walking=no"]
 
@@ -318,7 +318,9 @@ def test_unsatisfiable_answer_is_part_of_the_conflict(cli) -> None:
 
 def test_out_writes_design_json(cli, tmp_path: Path) -> None:
     out = tmp_path / "bundle"
-    r = cli("design", "walking", "--answer", "grasping=yes", "--json", "--out", str(out))
+    r = cli(
+        "design", "--no-verify", "walking", "--answer", "grasping=yes", "--json", "--out", str(out)
+    )
     assert r.code == 0, r.err
     assert (out / "design.json").read_text(encoding="utf-8") == r.out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bundle"]  # no temp folders left
@@ -350,9 +352,9 @@ def test_out_writes_design_json(cli, tmp_path: Path) -> None:
 
 def test_out_text_mode_writes_the_json_record(cli, tmp_path: Path) -> None:
     out = tmp_path / "bundle"
-    r = cli("design", "walking", "--answer", "grasping=yes", "--out", str(out))
+    r = cli("design", "--no-verify", "walking", "--answer", "grasping=yes", "--out", str(out))
     assert r.code == 0
-    want = cli("design", "walking", "--answer", "grasping=yes", "--json").out
+    want = cli("design", "--no-verify", "walking", "--answer", "grasping=yes", "--json").out
     assert (out / "design.json").read_text(encoding="utf-8") == want
 
 
@@ -360,7 +362,7 @@ def test_out_existing_needs_force(cli, tmp_path: Path) -> None:
     out = tmp_path / "bundle"
     out.mkdir()
     (out / "mine.txt").write_text("keep me", encoding="utf-8")
-    r = cli("design", "walking", "--answer", "grasping=yes", "--out", str(out))
+    r = cli("design", "--no-verify", "walking", "--answer", "grasping=yes", "--out", str(out))
     assert r.code == 2
     assert "--force" in r.err
     assert r.out == ""
@@ -368,7 +370,17 @@ def test_out_existing_needs_force(cli, tmp_path: Path) -> None:
     assert (out / "mine.txt").read_text(encoding="utf-8") == "keep me"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bundle"]
 
-    r = cli("design", "walking", "--answer", "grasping=yes", "--json", "--out", str(out), "--force")
+    r = cli(
+        "design",
+        "--no-verify",
+        "walking",
+        "--answer",
+        "grasping=yes",
+        "--json",
+        "--out",
+        str(out),
+        "--force",
+    )
     assert r.code == 0, r.err
     assert "mine.txt" not in [p.name for p in out.iterdir()]
     assert (out / "design.json").read_text(encoding="utf-8") == r.out
@@ -381,7 +393,7 @@ def test_out_existing_needs_force(cli, tmp_path: Path) -> None:
 )
 def test_out_not_written_unless_designed(cli, tmp_path: Path, argv: list[str], code: int) -> None:
     out = tmp_path / "bundle"
-    r = cli("design", *argv, "--out", str(out), "--force")
+    r = cli("design", "--no-verify", *argv, "--out", str(out), "--force")
     assert r.code == code
     assert not out.exists()
     assert list(tmp_path.iterdir()) == []
@@ -553,12 +565,12 @@ NO_GRASP_NO_ROUGH = ["--answer", "grasping=no", "--answer", "rough-terrain-walki
 
 
 def test_rules_file_changes_the_result(cli, tmp_path: Path) -> None:
-    r = cli("design", "walking", *NO_GRASP_NO_ROUGH, "--json")
+    r = cli("design", "--no-verify", "walking", *NO_GRASP_NO_ROUGH, "--json")
     assert r.code == 0
     assert json.loads(r.out)["robot_type"] == "QuadrupedRobot"
     rules = tmp_path / "no-quadruped.lp"
     rules.write_text(':- chosen("QuadrupedRobot").\n', encoding="utf-8")
-    r = cli("design", "walking", *NO_GRASP_NO_ROUGH, "--rules", str(rules), "--json")
+    r = cli("design", "--no-verify", "walking", *NO_GRASP_NO_ROUGH, "--rules", str(rules), "--json")
     assert r.code == 1
     assert json.loads(r.out)["status"] == "unsatisfiable"
 
@@ -566,7 +578,7 @@ def test_rules_file_changes_the_result(cli, tmp_path: Path) -> None:
 def test_rules_file_with_script_is_refused(cli, tmp_path: Path) -> None:
     rules = tmp_path / "script.lp"
     rules.write_text("#script (python)\ndef f():\n    return 1\n#end.\n", encoding="utf-8")
-    r = cli("design", "walking", "--answer", "grasping=yes", "--rules", str(rules))
+    r = cli("design", "--no-verify", "walking", "--answer", "grasping=yes", "--rules", str(rules))
     assert r.code == 2
     assert "--allow-scripts" in r.err
     assert f"{rules}:1:1" in r.err
@@ -577,7 +589,7 @@ def test_rules_file_mentioning_script_anywhere_is_refused(cli, tmp_path: Path) -
     # a comment is refused too: parmor does not guess where clingo's lexer sees comments
     rules = tmp_path / "comment.lp"
     rules.write_text("% #script (python) is not used here\n", encoding="utf-8")
-    r = cli("design", "walking", "--answer", "grasping=yes", "--rules", str(rules))
+    r = cli("design", "--no-verify", "walking", "--answer", "grasping=yes", "--rules", str(rules))
     assert r.code == 2 and "comment.lp:1:3" in r.err
     r = cli(
         "design",
@@ -595,7 +607,7 @@ def test_rules_file_mentioning_script_anywhere_is_refused(cli, tmp_path: Path) -
 def test_rules_file_syntax_error(cli, tmp_path: Path) -> None:
     rules = tmp_path / "broken.lp"
     rules.write_text("foo( :- .\n", encoding="utf-8")
-    r = cli("design", "walking", "--answer", "grasping=yes", "--rules", str(rules))
+    r = cli("design", "--no-verify", "walking", "--answer", "grasping=yes", "--rules", str(rules))
     assert r.code == 2
     assert r.err.startswith("parmor: error: ")
     no_traceback(r)
@@ -604,13 +616,13 @@ def test_rules_file_syntax_error(cli, tmp_path: Path) -> None:
 def test_rules_file_syntax_error_names_the_file(cli, tmp_path: Path) -> None:
     rules = tmp_path / "broken.lp"
     rules.write_text("a.\nfoo( :- .\n", encoding="utf-8")
-    r = cli("design", "walking", "--answer", "grasping=yes", "--rules", str(rules))
+    r = cli("design", "--no-verify", "walking", "--answer", "grasping=yes", "--rules", str(rules))
     assert r.code == 2
     assert "broken.lp:2" in r.err
 
 
 def test_rules_file_missing(cli, tmp_path: Path) -> None:
-    r = cli("design", "walking", "--rules", str(tmp_path / "none.lp"))
+    r = cli("design", "--no-verify", "walking", "--rules", str(tmp_path / "none.lp"))
     assert r.code == 2
     assert "none.lp" in r.err
 
@@ -635,7 +647,7 @@ def test_user_ontology_adds_a_base_configuration(cli, tmp_path: Path) -> None:
     assert [c["robot_type"] for c in d["candidates"]][:2] == ["QuadrupedRobot", "PentapodRobot"]
     assert r.err == ""  # every form of the file translates: no note
 
-    r = cli("design", "walking", *NO_GRASP_NO_ROUGH, "--ontology", str(f), "--json")
+    r = cli("design", "--no-verify", "walking", *NO_GRASP_NO_ROUGH, "--ontology", str(f), "--json")
     assert r.code == 0, r.err
     d = json.loads(r.out)
     assert d["status"] == "designed"
@@ -657,7 +669,7 @@ def test_user_ontology_over_the_bus_limit_is_excluded(cli, tmp_path: Path) -> No
     d = enumerated(r.out)
     assert "OctopodRobot" not in [c["robot_type"] for c in d["candidates"]]
     assert d["count"] == 3
-    r = cli("design", "rough-terrain-walking", "--ontology", str(f), "--json")
+    r = cli("design", "--no-verify", "rough-terrain-walking", "--ontology", str(f), "--json")
     assert r.code == 0
     assert json.loads(r.out)["candidates"] == ["HexapodRobot"]
 
@@ -665,7 +677,7 @@ def test_user_ontology_over_the_bus_limit_is_excluded(cli, tmp_path: Path) -> No
 def test_user_ontology_untranslated_note(cli, tmp_path: Path) -> None:
     f = tmp_path / "extra.kif"
     f.write_text("(subclass Gizmo Device)\n\n(forall (?X) (p ?X))\n", encoding="utf-8")
-    r = cli("design", "walking", "--answer", "grasping=yes", "--ontology", str(f))
+    r = cli("design", "--no-verify", "walking", "--answer", "grasping=yes", "--ontology", str(f))
     assert r.code == 0
     assert f"{f}:3:1" in r.err
     assert "not translated" in r.err
@@ -686,7 +698,7 @@ def test_user_ontology_named_like_a_shipped_file_still_gets_the_note(
 def test_user_ontology_syntax_error(cli, tmp_path: Path) -> None:
     f = tmp_path / "bad.kif"
     f.write_text("(subclass A B\n", encoding="utf-8")
-    r = cli("design", "walking", "--ontology", str(f))
+    r = cli("design", "--no-verify", "walking", "--ontology", str(f))
     assert r.code == 2
     assert f"{f}:1:1" in r.err
     no_traceback(r)

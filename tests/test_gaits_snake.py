@@ -12,9 +12,10 @@ from adron.catalog import load_catalog
 from export.bundle import bundle_files, write_bundle
 from export.record import design_record
 from export.simulate import load_bundle_model, simulate
-from gaits.base import DesignGeometry
+from gaits.base import DesignGeometry, Trajectory
 from gaits.snake import (
     GAITS,
+    SPEED_SHARE,
     SnakeController,
     WaveParams,
     gait_params,
@@ -23,7 +24,6 @@ from gaits.snake import (
     wave_phase_step,
 )
 from synth.conceptual import Design, Request
-from synth.solver import Query
 from synth.structure import design_structure
 
 ALL = tuple(GAITS)
@@ -154,21 +154,55 @@ def test_bad_parameters_raise() -> None:
         SnakeController(_geometry(3, speed=0.0))
 
 
-# --- MuJoCo: the rolling and rectilinear gaits move the designed snakes ----------------------
+def test_info_declares_what_each_gait_promises() -> None:
+    c = SnakeController(_geometry(14))
+    for gait in ALL:
+        for direction in (1, -1):
+            info = c.run(gait, direction=direction, cycles=2).info
+            assert info["locomotion"] == "snake"
+            assert info["body_length_m"] == pytest.approx(14 * 0.06)
+            if gait == "rotating":
+                assert info["motion"] == "rotate" and info["turn"] == direction
+                assert "direction" not in info
+            else:
+                assert info["motion"] == "crawl"
+                assert np.hypot(*info["direction"]) == pytest.approx(1.0)
+
+
+def test_default_frequency_keeps_torque_for_the_load() -> None:
+    """At the default frequency no joint runs faster than SPEED_SHARE of its no-load
+    speed; slower modules get a slower wave."""
+    fast, slow = SnakeController(_geometry(8, speed=10.0)), SnakeController(_geometry(8, speed=3.0))
+    for gait in ("rolling", "rectilinear", "rotating"):
+        traj = slow.run(gait)
+        assert np.abs(traj.velocities).max() <= SPEED_SHARE * 3.0 * (1 + 1e-2)
+        assert traj.info["frequency_hz"] < fast.run(gait).info["frequency_hz"]
+
+
+# --- MuJoCo: every gait of the paper's snakes moves as its info promises --------------------
+
+#: The paper's snakes (section 4.3.2): the gaits asked for; each lists every gait its M allows.
+PAPER = {3: ("rolling",), 5: ("rectilinear",), 6: ("sidewinding",), 8: ("rotating",)}
+PAPER[14] = ("rolling", "circular-path")
+#: Issue 8's thresholds: crawl >= 0.25 body length, rotate >= 45 degrees per 10 s; at most
+#: 5 % of the samples with an actuator at its torque limit.
+LEAST_CRAWL, LEAST_TURN, MOST_SATURATED = 0.25, math.radians(45), 0.05
+#: Known shortfalls (measured, default parameters, payload 0).
+SHORT = {
+    (5, "rectilinear"): "0.17 body length per 10 s: three vertical modules make a short stride",
+    (8, "rectilinear"): "6 % of the samples at the torque limit (MG996R lifting the humps)",
+    (6, "sidewinding"): "turns instead (1.5-3.5 rad in a run): its heavy head (battery and "
+    "main module) takes the lateral shift's thrust off-centre",
+}
 
 
 @pytest.fixture(scope="module")
 def snakes(kb, designer, tmp_path_factory):
-    """M -> (controller, model): the default snake (M = 3, rolling only) and those designed
-    for rolling and rectilinear motion (M = 5), sidewinding (M = 6) and rotating and
-    sidewinding (M = 8: sized for both gaits the tests run on it)."""
+    """M -> (controller, model) of the paper's snakes, designed with default parameters."""
     catalog = load_catalog()
-    default = next(
-        c for c in designer.reasoner.solve(Query()).candidates if c.robot_type == "SnakeRobot"
-    )
-    asked = [("rolling", "rectilinear"), ("sidewinding",), ("rotating", "sidewinding")]
     out = {}
-    for cand in [default] + [designer.step(Request(abilities=a)).chosen for a in asked]:
+    for m, asked in PAPER.items():
+        cand = designer.step(Request(abilities=asked)).chosen
         s = design_structure(kb, cand, catalog, {})
         rec = design_record(
             Design("designed", Request(), (cand,), cand, "only candidate"), designer.short, s
@@ -176,68 +210,101 @@ def snakes(kb, designer, tmp_path_factory):
         folder = tmp_path_factory.mktemp("snake") / f"m{rec['dof']}"
         write_bundle(folder, bundle_files(rec, s, catalog))
         c = SnakeController(DesignGeometry.from_record(rec))
-        out[c.modules] = (c, load_bundle_model(folder))
-    assert set(out) == {3, 5, 6, 8}
-    assert out[8][0].gaits == ("rolling", "rectilinear", "sidewinding", "rotating")
+        assert c.modules == m
+        out[m] = (c, load_bundle_model(folder))
     return out
 
 
-def _travel(snakes, modules: int, gait: str, **params):
-    """(displacement (2,) m, the trajectory, the SimResult) of 10 s of ``gait``."""
-    c, model = snakes[modules]
-    traj = c.run(gait, cycles=4, **params)  # 4 cycles at the default 0.4 Hz: 10 s
-    assert traj.duration == pytest.approx(10.0)
+def _yaws(root: np.ndarray) -> np.ndarray:
+    w, x, y, z = root[:, 3:7].T
+    return np.unwrap(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+
+
+def judge(c: SnakeController, model, gait: str, **params) -> tuple[float, float]:
+    """(progress per 10 s: body lengths along info["direction"], or rad in info["turn"]'s
+    sense; share of samples with an actuator at its torque limit) of a run of ``gait``."""
+    traj = c.run(gait, **params)
     r = simulate(model, traj, can_fall=False)
+    limit = np.abs(model.actuator_forcerange).max(axis=1)
+    saturated = float(np.mean(np.any(np.abs(r.series["force"]) >= limit * (1 - 1e-3), axis=1)))
     root = r.series["root"]
-    return root[-1, :2] - root[0, :2], traj, r
+    if traj.info["motion"] == "rotate":
+        yaw = _yaws(root)
+        done = float(yaw[-1] - yaw[0]) * traj.info["turn"]
+    else:
+        moved = root[-1, :2] - root[0, :2]
+        done = float(moved @ np.asarray(traj.info["direction"])) / traj.info["body_length_m"]
+    return done * 10.0 / traj.duration, saturated
 
 
-def _along(snakes, modules: int, gait: str, **params):
-    """(displacement m along the intended direction, the SimResult) of 10 s of ``gait``."""
-    moved, traj, r = _travel(snakes, modules, gait, **params)
-    return float(moved @ np.asarray(traj.info["direction"])), r
-
-
-def _max_roll(r) -> float:
-    """Largest |rotation| rad of the base about its own long axis (x) in the run."""
-    w, x, y, z = r.series["root"][:, 3:7].T
-    return float(np.max(np.abs(np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)))))
-
-
-@pytest.mark.parametrize("modules", [3, 5])
-@pytest.mark.parametrize("direction", [1, -1])
-def test_rolling_moves_the_snake_sideways(snakes, modules: int, direction: int) -> None:
-    along, r = _along(snakes, modules, "rolling", direction=direction)
-    # one roll of the ~5 cm square body covers ~0.2 m; measured 0.42 m (M = 3), 0.65 (M = 5)
-    assert along > 0.2
-    assert _max_roll(r) > 2.5  # it really rolls over
-
-
-@pytest.mark.parametrize("direction, least", [(1, 0.05), (-1, 0.01)])
-def test_rectilinear_moves_the_snake_along_its_axis(snakes, direction, least) -> None:
-    along, r = _along(snakes, 5, "rectilinear", direction=direction)
-    # measured 7.1 cm head first, 2.6 cm tail first (the heavy head drags): at least the
-    # module pitch's 6 cm less a margin, and clearly tail first
-    assert along > least
-    assert abs(r.heading_rad) < 0.05
-    assert _max_roll(r) < math.radians(5)  # statically stable: never tips over
-
-
-def test_sidewinding_and_rotating_on_the_eight_module_snake(snakes) -> None:
-    for direction in (1, -1):
-        along, r = _along(snakes, 8, "sidewinding", direction=direction)
-        assert along > 0.1 and abs(r.heading_rad) < 0.2  # measured 0.21 m, 0.02 rad
-        moved, traj, r = _travel(snakes, 8, "rotating", direction=direction)
-        assert r.heading_rad * traj.info["turn"] > 0.2  # measured 0.41 rad in 10 s
-        assert np.hypot(*moved) < 0.05  # in place: measured 1 cm
-
-
-@pytest.mark.xfail(
-    strict=True,
-    reason="the 6-module snake designed for sidewinding turns instead (measured: 2.5 cm "
-    "the wrong way and 1.8 rad of heading in 10 s): its heavy head (base with battery and "
-    "main module, 0.23 kg of 0.92) takes the lateral shift's thrust off-centre",
+@pytest.mark.parametrize(
+    "modules, gait",
+    [
+        pytest.param(m, g, marks=pytest.mark.xfail(strict=True, reason=SHORT.get((m, g), "")))
+        if (m, g) in SHORT
+        else (m, g)
+        for m in PAPER
+        for g in GAITS[: {3: 1, 5: 2, 6: 3, 8: 4, 14: 5}[m]]
+    ],
 )
-def test_sidewinding_on_the_six_module_snake(snakes) -> None:
-    along, r = _along(snakes, 6, "sidewinding")
-    assert along > 0.1 and abs(r.heading_rad) < 0.3
+def test_every_listed_gait_of_the_paper_snakes_moves(snakes, modules: int, gait: str) -> None:
+    c, model = snakes[modules]
+    assert gait in c.gaits
+    done, saturated = judge(c, model, gait)
+    assert saturated <= MOST_SATURATED
+    assert done >= (LEAST_TURN if gait == "rotating" else LEAST_CRAWL)
+
+
+@pytest.mark.parametrize("modules, gait", [(3, "rolling"), (8, "rotating"), (14, "circular-path")])
+def test_the_other_sense_goes_the_other_way(snakes, modules: int, gait: str) -> None:
+    c, model = snakes[modules]
+    done, saturated = judge(c, model, gait, direction=-1)
+    assert saturated <= MOST_SATURATED
+    assert done >= (LEAST_TURN if gait == "rotating" else LEAST_CRAWL)
+
+
+def test_judge_fails_a_gait_that_goes_the_wrong_way(snakes) -> None:
+    """A case built to fail: rotating with its sense declared backwards scores negative."""
+    c, model = snakes[8]
+    real = c._run
+
+    def backwards(name, params):
+        t = real(name, params)
+        return Trajectory(
+            t.behavior,
+            t.times,
+            t.joints,
+            t.positions,
+            t.velocities,
+            {**t.info, "turn": -t.info["turn"]},
+        )
+
+    c._run = backwards
+    try:
+        done, _ = judge(c, model, "rotating", cycles=3)
+    finally:
+        c._run = real
+    assert done < 0
+
+
+# --- sizing: every listed gait, and the payload ----------------------------------------------
+
+
+def _torque(designer, kb, abilities: tuple[str, ...], payload: float = 0.0) -> float:
+    cand = designer.step(Request(abilities=abilities)).chosen
+    s = design_structure(kb, cand, load_catalog(), {"payload": payload})
+    return max(j.required_torque_Nm for j in s.joints)
+
+
+def test_the_snake_is_sized_for_every_gait_it_lists(designer, kb) -> None:
+    """``design circular-path`` lists rolling: it is sized as ``design rolling
+    circular-path``, which is buildable."""
+    assert _torque(designer, kb, ("circular-path",)) == _torque(
+        designer, kb, ("rolling", "circular-path")
+    )
+    assert _torque(designer, kb, ("rolling",)) > 0
+
+
+def test_the_payload_loads_the_snake(designer, kb) -> None:
+    light = _torque(designer, kb, ("rolling",), 0.01)
+    assert _torque(designer, kb, ("rolling",), 0.3) > light + 0.3 * 9.81 * 0.06 * 0.9

@@ -26,16 +26,36 @@ def test_simulate_reports_the_run_as_json(cli, cart) -> None:
     r = cli("simulate", str(cart), "--behavior", "driving", "--set", "v=0.15", "--json")
     assert r.code == 0, r.err
     d = json.loads(r.out)
-    assert d["behavior"] == "driving" and d["fell"] is False
-    assert d["distance_m"] > 0.3 and d["tracking_error"] < 0.1
-    assert 0 < d["max_torque_ratio"] <= 1.0
+    assert d["behavior"] == "driving" and d["fell"] is False and d["verdict"] == "ok"
+    assert d["complete"] is True and d["saturated_fraction"] <= 0.05
+    assert 0.8 <= d["distance_m"] / d["planned_distance_m"] <= 1.25
+    assert d["tracking_error"] < 0.1
+    assert 0 < d["max_torque_ratio"] <= 1.0 and d["demand_ratio_max"] >= d["max_torque_ratio"]
+
+
+def test_simulate_exits_1_when_the_verdict_fails(cli, cart, tmp_path) -> None:
+    # the same cart with motors of a thousandth of a newton metre: it cannot drive
+    import re
+    import shutil
+
+    weak = tmp_path / "weak"
+    shutil.copytree(cart, weak)
+    xml = (weak / "robot.xml").read_text(encoding="utf-8")
+    xml = re.sub(r'forcerange="[^"]*"', 'forcerange="-0.001 0.001"', xml)
+    (weak / "robot.xml").write_text(xml, encoding="utf-8")
+    r = cli("simulate", str(weak), "--behavior", "driving", "--json")
+    d = json.loads(r.out)
+    assert r.code == 1 and "failed its verdict" in r.err and "Traceback" not in r.err
+    assert "distance" in d["verdict"] and "saturated" in d["verdict"]
+    assert d["demand_ratio_max"] > 1 and d["max_torque_ratio"] <= 1 + 1e-9
 
 
 def test_simulate_lists_behaviours_and_plots(cli, cart) -> None:
     r = cli("simulate", str(cart), "--behavior", "help")
     assert r.code == 0 and "driving:" in r.out and "parameters:" in r.out
     r = cli("simulate", str(cart), "--behavior", "driving", "--seconds", "1", "--plot")
-    assert r.code == 0, r.err
+    assert r.code == 0, r.err  # a run stopped early is judged on falls and saturation only
+    assert "complete: False" in r.out
     assert sorted(p.name for p in (cart / "plots").iterdir()) == [
         "driving_joints.png",
         "driving_torques.png",
@@ -50,6 +70,8 @@ def test_simulate_lists_behaviours_and_plots(cli, cart) -> None:
         (["--behavior", "driving", "--set", "speed=1"], "no parameter 'speed'"),
         (["--behavior", "driving", "--set", "v=fast"], "expected a number"),
         (["--behavior", "driving", "--seconds", "-1"], "--seconds"),
+        (["--behavior", "driving", "--seconds", "nan"], "--seconds"),
+        (["--behavior", "driving", "--seconds", "1e9"], "--seconds"),
     ],
 )
 def test_simulate_bad_input_exits_2(cli, cart, argv, message) -> None:
@@ -63,3 +85,6 @@ def test_simulate_needs_a_bundle(cli, tmp_path) -> None:
     (tmp_path / "design.json").write_text("{not json", encoding="utf-8")
     r = cli("simulate", str(tmp_path), "--behavior", "driving")
     assert r.code == 2 and "design.json" in r.err
+    (tmp_path / "design.json").write_text("[]", encoding="utf-8")
+    r = cli("simulate", str(tmp_path), "--behavior", "driving")
+    assert r.code == 2 and "not a design record" in r.err

@@ -1,0 +1,135 @@
+"""Closing the loop: a sized design's behaviours simulated, and failures fed back.
+
+After the structure generator, every behaviour the design will list (its abilities'
+behaviours, default parameters) runs in MuJoCo on the bundle's own model
+(:mod:`export.verify`) and is judged on its outcome (:mod:`export.verdict`). A behaviour
+that failed because an actuator sat at its torque limit feeds back: every joint that
+saturated must get an actuator stronger than the one it had (a torque floor for the
+structure generator, which sizes again, links included), then everything is simulated
+again, up to ``MAX_ROUNDS`` sizings. What still fails then:
+
+- a behaviour of an ability the request demands (``needed``) fails the request: the
+  design is infeasible, naming the behaviour, the criterion and the figure;
+- a behaviour of an ability the design only has as a bonus drops that ability from the
+  design's ``abilities``, with a note.
+
+Feedback other than stronger actuators (a larger wheel, a slower or lower gait, more
+modules lifting) is each family's sizing rule, not this loop's.
+
+The record keeps each behaviour's figures (``verified``). This module runs the simulator,
+so it imports ``export`` and ``gaits`` (lazily): it is the one place where ``synth`` looks
+downstream, because the pipeline's last step is to check what it built.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+from adron.errors import InfeasibleError
+
+if TYPE_CHECKING:
+    from synth.conceptual import Designer, Request
+    from synth.pipeline import Outcome, StructureOptions
+
+#: Sizings tried in all (the first one included) before a failure is final.
+MAX_ROUNDS = 3
+#: A saturated joint's next actuator must give at least this much more usable torque.
+STRONGER = 1.0001
+
+
+@dataclass(frozen=True)
+class Verification:
+    """What the simulation found: each behaviour's figures (with ``ability``), the sizings
+    it took, the joints it strengthened (joint -> N m floor), the abilities it dropped
+    (ability -> why) and, when a demanded ability failed, why the design is infeasible."""
+
+    behaviors: tuple[dict, ...]
+    rounds: int
+    strengthened: dict[str, float]
+    dropped: dict[str, str]
+    unsimulated: tuple[str, ...]  # abilities no behaviour simulates (sensing modules)
+    failure: str | None = None
+
+    def record(self) -> dict:
+        return {
+            "simulated": True,
+            "rounds": self.rounds,
+            "strengthened": {k: round(v, 6) for k, v in sorted(self.strengthened.items())},
+            "dropped": dict(sorted(self.dropped.items())),
+            "not_simulated": list(self.unsimulated),
+            "behaviors": list(self.behaviors),
+        }
+
+
+def _floors(results: list[dict], record: dict) -> dict[str, float]:
+    """Joint -> torque floor for every joint that saturated in a failing behaviour."""
+    usable = {j["name"]: float(j["usable_torque_Nm"]) for j in record.get("joints", ())}
+    out: dict[str, float] = {}
+    for r in results:
+        if r["verdict"] == "ok":
+            continue
+        for joint in r.get("saturated_joints") or {}:
+            if joint in usable:
+                out[joint] = max(out.get(joint, 0.0), usable[joint] * STRONGER)
+    return out
+
+
+def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Outcome) -> Outcome:
+    """``outcome`` (a sized design) simulated, repaired where it can be, and judged."""
+    from export.verdict import explain
+    from export.verify import controller_for_model, unbehaved_abilities, verify_files
+    from synth.structure import StructureDesigner
+
+    floors: dict[str, float] = {}
+    rounds = 0
+    while True:
+        rounds += 1
+        files = outcome.files(designer)
+        record = outcome.record(designer)
+        results = verify_files(files)
+        failing = [r for r in results if r["verdict"] != "ok"]
+        more = _floors(results, record)
+        new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
+        if not failing or not new or rounds >= MAX_ROUNDS:
+            break
+        floors |= new
+        sizer = StructureDesigner(
+            designer.kb,
+            outcome.design.chosen,
+            outcome.catalog,
+            designer.structural(req),
+            opts.symmetric,
+            opts.objective,
+        )
+        sizer.torque_floor = dict(floors)
+        try:
+            structure = sizer.run()
+        except InfeasibleError:
+            break  # no stronger actuator: the failure below stands
+        outcome = replace(outcome, structure=structure)
+    from export.simulate import load_files_model
+
+    controller = controller_for_model(record, load_files_model(files))
+    unsimulated = tuple(unbehaved_abilities(controller, record.get("abilities", ())))
+    needed = set(record.get("needed") or record.get("abilities", ()))
+    dropped: dict[str, str] = {}
+    failure = None
+    for r in failing:
+        why = f"{r['behavior']} failed in simulation: {explain(r, r['verdict'])}"
+        if r["ability"] in needed:
+            failure = failure or why
+        else:
+            dropped.setdefault(r["ability"], why)
+    v = Verification(
+        tuple(results),
+        rounds,
+        {j: floors[j] for j in sorted(floors)},
+        dropped,
+        unsimulated,
+        failure,
+    )
+    out = replace(outcome, verification=v, bundle=files)
+    if failure is not None:
+        return replace(out, infeasible=failure)
+    return out

@@ -1,0 +1,138 @@
+"""The verification loop of ``parmor design`` (synth/verify.py).
+
+The loop's decisions are checked with the simulator's answers replaced (a saturated joint,
+a failing bonus ability, a failing demanded one); one design is verified for real.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import export.verify
+from synth.conceptual import Request
+from synth.pipeline import StructureOptions, run
+
+ARM = Request(abilities=("pick-and-place",), params=(("object_shape", "cylinder"),))
+
+
+def _fake(results_by_round):
+    """A stand-in for export.verify.verify_files answering round by round."""
+    calls = []
+
+    def verify_files(files, behaviors=None):
+        record = json.loads(files["design.json"])
+        calls.append(record)
+        return results_by_round[min(len(calls), len(results_by_round)) - 1]
+
+    return verify_files, calls
+
+
+def _result(behavior, ability, verdict="ok", **kw):
+    return {"behavior": behavior, "ability": ability, "verdict": verdict, "seconds": 1.0} | kw
+
+
+def test_a_real_arm_is_verified_in_mujoco(designer):
+    out = run(designer, ARM, StructureOptions())
+    rec = out.record(designer)
+    v = rec["verified"]
+    assert v["simulated"] and v["rounds"] == 1 and not v["dropped"]
+    assert sorted(b["behavior"] for b in v["behaviors"]) == [
+        "grasping",
+        "pick-and-place",
+        "positioning",
+    ]
+    assert all(b["verdict"] == "ok" and b["placing_error_m"] < 0.005 for b in v["behaviors"])
+    # the written bundle's record is the one that says so
+    assert json.loads(out.files(designer)["design.json"])["verified"] == v
+
+
+def test_no_verify_says_so(designer):
+    rec = run(designer, ARM, StructureOptions(verify=False)).record(designer)
+    assert rec["verified"] == {"simulated": False, "note": "not simulated (--no-verify)"}
+
+
+def test_a_saturated_joint_gets_a_stronger_actuator(designer, monkeypatch):
+    base = run(designer, ARM, StructureOptions(verify=False)).record(designer)
+    before = {j["name"]: j for j in base["joints"]}
+    sat = _result(
+        "pick-and-place",
+        "pick-and-place",
+        ["saturated"],
+        saturated_fraction=0.3,
+        saturated_joints={"elbow_pitch": 0.3},
+    )
+    fake, calls = _fake([[sat], [_result("pick-and-place", "pick-and-place")]])
+    monkeypatch.setattr(export.verify, "verify_files", fake)
+    out = run(designer, ARM, StructureOptions())
+    rec = out.record(designer)
+    after = {j["name"]: j for j in rec["joints"]}
+    assert len(calls) == 2 and rec["verified"]["rounds"] == 2 and out.infeasible is None
+    assert after["elbow_pitch"]["usable_torque_Nm"] > before["elbow_pitch"]["usable_torque_Nm"]
+    assert after["elbow_pitch"]["load_case"] == "simulation"
+    assert set(rec["verified"]["strengthened"]) == {"elbow_pitch"}
+
+
+def test_a_failing_demanded_ability_fails_the_request(designer, monkeypatch):
+    bad = _result("pick-and-place", "pick-and-place", ["placing"], placing_error_m=0.012)
+    fake, calls = _fake([[bad]])
+    monkeypatch.setattr(export.verify, "verify_files", fake)
+    out = run(designer, ARM, StructureOptions())
+    assert len(calls) == 1  # nothing saturated: nothing to strengthen
+    assert out.status == "infeasible"
+    assert "pick-and-place failed in simulation: placing (placing error 12 mm > 5)" in (
+        out.infeasible
+    )
+
+
+def test_a_failing_bonus_ability_is_dropped_with_a_note(designer, monkeypatch):
+    # the arm has positioning without being asked for it
+    bad = _result("positioning", "positioning", ["placing"], placing_error_m=0.02)
+    ok = _result("pick-and-place", "pick-and-place")
+    fake, _ = _fake([[ok, bad]])
+    monkeypatch.setattr(export.verify, "verify_files", fake)
+    out = run(designer, ARM, StructureOptions())
+    rec = out.record(designer)
+    assert out.infeasible is None
+    assert "positioning" not in rec["abilities"] and "pick-and-place" in rec["abilities"]
+    assert any(n.startswith("dropped positioning: positioning failed") for n in rec["notes"])
+    # the bundle is rebuilt without it: no trajectory of a dropped ability
+    files = out.files(designer)
+    assert "trajectories/positioning.csv" not in files
+
+
+def test_no_stronger_actuator_leaves_the_failure_standing(designer, monkeypatch):
+    # the shoulder already has the catalog's strongest servo
+    sat = _result(
+        "pick-and-place",
+        "pick-and-place",
+        ["saturated"],
+        saturated_fraction=0.2,
+        saturated_joints={"shoulder_pitch": 0.2},
+    )
+    fake, calls = _fake([[sat]])
+    monkeypatch.setattr(export.verify, "verify_files", fake)
+    out = run(designer, ARM, StructureOptions())
+    assert len(calls) == 1 and out.status == "infeasible"
+
+
+@pytest.mark.parametrize("rounds", [3])
+def test_the_loop_stops_after_its_rounds(designer, monkeypatch, rounds):
+    def sat(k):  # every round a different joint saturates: the loop must still stop
+        joint = ["base_yaw", "elbow_pitch", "base_yaw", "elbow_pitch"][k]
+        return [
+            _result(
+                "pick-and-place",
+                "pick-and-place",
+                ["saturated"],
+                saturated_fraction=0.5,
+                saturated_joints={joint: 0.5},
+            )
+        ]
+
+    fake, calls = _fake([sat(0), sat(1), sat(2), sat(3)])
+    monkeypatch.setattr(export.verify, "verify_files", fake)
+    out = run(designer, ARM, StructureOptions())
+    assert len(calls) == rounds and out.status == "infeasible"
+    assert "saturated (saturated_fraction 0.5 > 0.05)" in out.infeasible
