@@ -6,10 +6,11 @@ modules are imported on demand.
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 from importlib import import_module
 
-from gaits.base import Controller, DesignGeometry
+from gaits.base import Controller, DesignGeometry, _plain
 
 #: template -> (module, controller class)
 CONTROLLERS: dict[str, tuple[str, str]] = {
@@ -38,4 +39,8 @@ def controller_for(geometry: DesignGeometry, **options: object) -> Controller:
     module, name = entry
     cls = getattr(import_module(module), name)
     accepted = inspect.signature(cls).parameters
-    return cls(geometry, **{k: v for k, v in options.items() if k in accepted})
+    given = {k: v for k, v in sorted(options.items()) if k in accepted}
+    controller = cls(geometry, **given)
+    key = _plain({"geometry": dataclasses.asdict(geometry), "options": given})
+    controller.identity = None if key is None else (module, name, key)
+    return controller

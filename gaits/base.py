@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import io
 from abc import ABC, abstractmethod
+from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -217,12 +218,47 @@ class DesignGeometry:
         )
 
 
+#: Trajectories already planned in this process, by (controller identity, behaviour,
+#: resolved parameters): a design plans each behaviour to size it, to write it into the
+#: bundle and to simulate it, with the same geometry; the gaits are deterministic.
+_PLANNED: OrderedDict[tuple, Trajectory] = OrderedDict()
+_PLANNED_MAX = 64
+
+
+class _NotPlain(Exception):
+    pass
+
+
+def _plain(value: object) -> object:
+    """``value`` as a hashable key if it is plain data (numbers, strings, sequences and
+    mappings of them), else None."""
+    try:
+        return _key(value)
+    except _NotPlain:
+        return None
+
+
+def _key(value: object) -> object:
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, (np.integer, np.floating)):
+        return value.item()
+    if isinstance(value, Mapping):
+        return tuple(sorted((str(k), _key(v)) for k, v in value.items()))
+    if isinstance(value, (tuple, list, np.ndarray)):
+        return tuple(_key(v) for v in value)
+    raise _NotPlain
+
+
 class Controller(ABC):
     """The behaviours of one design."""
 
     def __init__(self, geometry: DesignGeometry) -> None:
         self.geometry = geometry
         self.template = geometry.build()
+        #: what identifies this controller's plans (set by ``gaits.controller_for``): None
+        #: when it was given something that is not plain data (e.g. a function)
+        self.identity: tuple | None = None
 
     @property
     @abstractmethod
@@ -242,7 +278,21 @@ class Controller(ABC):
                 f"{self.geometry.robot_type} has no behaviour {name!r} "
                 f"(behaviours: {', '.join(sorted(self.behaviors))})"
             )
-        return self._run(name, spec.resolve(params))
+        resolved = spec.resolve(params)
+        if self.identity is None:
+            return self._run(name, resolved)
+        key = (self.identity, name, _plain(resolved))
+        traj = _PLANNED.get(key)
+        if traj is None:
+            traj = self._run(name, resolved)
+            for a in (traj.times, traj.positions, traj.velocities):
+                a.setflags(write=False)  # shared by every caller of the cache
+            _PLANNED[key] = traj
+            while len(_PLANNED) > _PLANNED_MAX:
+                _PLANNED.popitem(last=False)
+        else:
+            _PLANNED.move_to_end(key)
+        return traj
 
     def movable_joints(self) -> tuple[str, ...]:
         m = self.template.model

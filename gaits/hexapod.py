@@ -318,7 +318,7 @@ def support_margin(feet: np.ndarray, com: np.ndarray) -> float:
     if len(feet) == 0:
         return -math.inf
     h = _hull(feet)
-    if len(h) == 1:
+    if len(h) == 1 or float(np.ptp(h, axis=0).max()) == 0.0:  # one point (maybe repeated)
         return -float(np.linalg.norm(c - h[0]))
     a, e = h[0], h[-1] - h[0]
     u = np.clip((c - a) @ e / (e @ e), 0.0, 1.0)
@@ -344,7 +344,47 @@ def stability_margins(
         ],
         axis=1,
     )
-    return np.array([support_margin(feet[i, stance[i], :2], com[i, :2]) for i in range(len(q))])
+    out = np.empty(len(q))
+    stance = np.asarray(stance, dtype=bool)
+    masks, which = np.unique(stance, axis=0, return_inverse=True)
+    for m, mask in enumerate(masks):  # the samples of one stance pattern at once
+        rows = np.flatnonzero(which.reshape(-1) == m)
+        out[rows] = support_margins(feet[rows][:, mask, :2], com[rows, :2])
+    return out
+
+
+def support_margins(feet: np.ndarray, com: np.ndarray) -> np.ndarray:
+    """:func:`support_margin` of many samples at once: feet (N, k, 2), com (N, 2) -> (N,).
+
+    An ordered pair of feet (i, j) is a counter-clockwise edge of the hull when no other
+    foot lies to its right; the margin is the smallest signed distance of the centre of
+    mass to those edges' lines. Samples whose feet give no such edge of positive length
+    (fewer than three feet, or feet in a line) take :func:`support_margin` one by one."""
+    feet = np.asarray(feet, dtype=float)
+    com = np.asarray(com, dtype=float)
+    n, k = feet.shape[:2]
+    out = np.full(n, np.inf)
+    if k >= 3:
+        for i in range(k):
+            for j in range(k):
+                if i == j:
+                    continue
+                e = feet[:, j] - feet[:, i]  # (N, 2)
+                length = np.hypot(e[:, 0], e[:, 1])
+                rel = feet - feet[:, i : i + 1]  # (N, k, 2)
+                cross = e[:, None, 0] * rel[:, :, 1] - e[:, None, 1] * rel[:, :, 0]
+                tol = 1e-12 * np.maximum(length, 1e-300)[:, None]
+                edge = (length > 1e-12) & np.all(cross >= -tol, axis=1)
+                # inward normal of a counter-clockwise edge: e rotated by +90 degrees
+                d = e[:, 0] * (com[:, 1] - feet[:, i, 1]) - e[:, 1] * (com[:, 0] - feet[:, i, 0])
+                dist = d / np.where(length > 1e-12, length, 1.0)
+                # every foot on the edge's line (collinear feet) is no polygon
+                flat = np.all(np.abs(cross) <= tol, axis=1)
+                use = edge & ~flat
+                out[use] = np.minimum(out[use], dist[use])
+    for r in np.flatnonzero(~np.isfinite(out)):
+        out[r] = support_margin(feet[r], com[r])
+    return out
 
 
 # --- gaits ---------------------------------------------------------------------------------------

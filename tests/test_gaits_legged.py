@@ -551,3 +551,24 @@ def test_running_keeps_its_promise(rt, designs):
     d = designs[rt]
     _, result = run_behavior(d.model(), d.controller(), "running", {"steps": 2})
     assert result.verdict == [], result.to_dict()
+
+
+def test_batched_support_margins_equal_the_one_by_one_margins() -> None:
+    """Random feet (0-6 of them, with repeated feet, a foot between two others, all in a
+    line) and centres of mass inside and outside their hull."""
+    from gaits.hexapod import support_margin, support_margins
+
+    rng = np.random.default_rng(7)
+    for k in range(7):
+        for trial in range(60):
+            feet = rng.uniform(-1, 1, (4, k, 2))
+            if trial % 5 == 0 and k >= 2:
+                feet[:, 1] = feet[:, 0]
+            if trial % 7 == 0 and k >= 3:
+                feet[:, 2] = 0.5 * (feet[:, 0] + feet[:, 1])
+            if trial % 11 == 0:
+                feet[:, :, 1] = 0.3 * feet[:, :, 0]
+            com = rng.uniform(-1.5, 1.5, (4, 2))
+            got = support_margins(feet, com)
+            want = [support_margin(feet[i], com[i]) for i in range(4)]
+            np.testing.assert_allclose(got, want, atol=1e-9)
