@@ -18,12 +18,12 @@ from export.simulate import load_bundle_model, simulate
 from gaits.base import DesignGeometry, min_jerk_integral
 from gaits.wheeled import (
     CASTER_FRICTION,
-    SKID_RATE,
     TYRE_FRICTION,
     WHEEL_MOTOR_TIME_CONSTANT,
     DriveGeometry,
     WheeledController,
     body_velocity,
+    creep_speed,
     integrate_odometry,
     min_jerk,
     skid_steer_chi,
@@ -415,9 +415,15 @@ def test_commands_feed_forward_the_load() -> None:
     ql, qr = d.wheel_speeds(0.0, 1.0)
     # the wheels scrub sideways (skid torque) and each tyre across its width (scrub moment)
     scrub = d.radius * d.scrub_moment() / d.track / 2
-    droop = (d.skid_torque() + scrub) * math.tanh(1.0 / SKID_RATE) / d.kv
+    droop = (d.skid_torque() + scrub) / d.kv  # at 1 rad/s the contacts slide (Coulomb)
     assert d.scrub_moment() == pytest.approx(2.0 * 9.81 * 0.01 / 4)
+    assert 0 < d.creep < 1.0 * d.skid_slip()
     assert (left[0], right[0]) == pytest.approx((ql - droop, qr + droop))
+    # below the creep speed MuJoCo's friction is viscous: the load grows with the slip
+    w = 0.25 * d.creep / d.skid_slip()
+    left, right = d.commands(np.array([0.0]), np.array([w]), np.zeros(1), np.zeros(1))
+    ql, qr = d.wheel_speeds(0.0, w)
+    assert right[0] - qr == pytest.approx(0.25 * droop)
     # straight and steady on flat ground: no load, no droop
     left, right = d.commands(np.array([0.1]), np.zeros(1), np.zeros(1), np.zeros(1))
     assert left[0] == right[0] == pytest.approx(0.1 / 0.03)
@@ -444,3 +450,32 @@ def test_wheeled_constants_agree_with_sizing_and_the_mjcf() -> None:
     assert WHEEL_MOTOR_TIME_CONSTANT == mjcf.WHEEL_MOTOR_TIME_CONSTANT
     friction = {name: f[0] for name, _, f in CONTACT_CLASSES}
     assert (friction["wheel"], friction["caster"]) == (TYRE_FRICTION, CASTER_FRICTION)
+
+
+def test_creep_speed_is_mujocos_regularised_friction() -> None:
+    """The slip speed at which a tyre's friction saturates: MuJoCo's soft contact (default
+    solref/solimp) gives f = b v / R below it. A contact that creeps at a tenth of it
+    carries a tenth of mu N; one pushed at twice the saturating force slides."""
+    import mujoco
+
+    xml = """<mujoco><option timestep="0.002" cone="elliptic"/><worldbody>
+      <geom type="plane" size="1 1 0.1"/>
+      <body pos="0 0 0.05"><freejoint/><geom type="box" size="0.05 0.05 0.05" mass="1"
+        friction="1 0.005 0.0001"/></body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    for _ in range(200):
+        mujoco.mj_step(model, data)
+    weight = 9.81
+    vc = creep_speed(1.0, weight / 4, float(model.body_invweight0[1, 0]))  # 4 corners
+    # a steady horizontal push of 0.1 mu m g creeps at about 0.1 vc (the box's own weight
+    # rides on the four corner contacts)
+    data.xfrc_applied[1, 0] = 0.1 * weight
+    for _ in range(500):
+        mujoco.mj_step(model, data)
+    assert data.qvel[0] == pytest.approx(0.1 * vc, rel=0.15)
+    # and a push beyond mu m g accelerates it: the friction has saturated
+    data.xfrc_applied[1, 0] = 2.0 * weight
+    for _ in range(50):
+        mujoco.mj_step(model, data)
+    assert data.qvel[0] > 10 * vc
