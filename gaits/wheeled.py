@@ -91,10 +91,17 @@ GRAVITY = 9.81
 #: their rims): slow enough for the chassis' inertia to stay a small load, fast enough
 #: that the load model's error stays small against the speed.
 TURN_SPEED_FRACTION = 0.25
-#: Lever of a tyre's scrub, as a fraction of the wheel's width: a wheel turning about the
-#: vertical drags its flat rim across the floor; with the load spread evenly across the
-#: width the Coulomb moment is mu N (width / 4).
-SCRUB_LEVER = 0.25
+#: Lever of a tyre's scrub, as a fraction of the wheel's width: MuJoCo touches a level
+#: cylinder on a plane at the two ends of its lowest line, each carrying half the wheel's
+#: load, so a wheel turning about the vertical drags them +-width / 2 from its middle and
+#: the Coulomb moment is mu N (width / 2).
+SCRUB_LEVER = 0.5
+#: The same for a skid-steer's wheels, whose contacts already slide across the wheel:
+#: measured, not derived. MuJoCo's skidding wheels resist a turn more than the Coulomb
+#: balance of the module docstring predicts (a turn in place needs wheel speeds of an
+#: effective track 1.4-1.5 x ``l_eff``, the contact forces ~14 deg off the slip); this
+#: extra moment brings the skid-steer turns of the parameter grid to 0.8-1.1 x the command.
+SKID_SCRUB_LEVER = 0.25
 #: Contacts of a wheel's rim with the floor (the cylinder's two ends, see SCRUB_LEVER).
 CONTACTS_PER_WHEEL = 2
 #: MuJoCo's default contact softness, which the MJCF keeps (``export.mjcf``): ``solref``'s
@@ -339,10 +346,11 @@ class DriveGeometry:
 
     def scrub_moment(self) -> float:
         """The yaw moment N m all tyres' scrubbing resists a turn with (Coulomb): each wheel
-        mu N_i SCRUB_LEVER WHEEL_WIDTH, N_i its share of the weight (the caster's share
-        off)."""
+        mu N_i SCRUB_LEVER WHEEL_WIDTH (a skid-steer's: SKID_SCRUB_LEVER), N_i its share of
+        the weight (the caster's share off)."""
         load = self.mass * GRAVITY * (1 - self.caster_share)
-        return TYRE_FRICTION * load * SCRUB_LEVER * WHEEL_WIDTH
+        lever = SKID_SCRUB_LEVER if self.skid else SCRUB_LEVER
+        return TYRE_FRICTION * load * lever * WHEEL_WIDTH
 
     def wheel_torques(
         self, v: np.ndarray, w: np.ndarray, accel: np.ndarray, alpha: np.ndarray

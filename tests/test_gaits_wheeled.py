@@ -479,3 +479,32 @@ def test_creep_speed_is_mujocos_regularised_friction() -> None:
     for _ in range(50):
         mujoco.mj_step(model, data)
     assert data.qvel[0] > 10 * vc
+
+
+def test_every_wheeled_model_has_the_elliptic_cone(designs) -> None:
+    """MuJoCo's pyramidal cone is anisotropic in the world's x/y (a caster's drag changes
+    with the heading); every wheeled model, with or without caster, uses the elliptic one."""
+    import mujoco
+
+    for robot_type in ("DifferentialDriveRobot", "SkidSteerRobot"):
+        _, model = designs[robot_type]
+        assert model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC, robot_type
+
+
+def test_differential_tyres_scrub_at_their_edges() -> None:
+    """A differential robot's tyre touches MuJoCo's floor at its rim's two edges: turning
+    drags them +-width / 2 (lever width / 2); the load grows linearly up to the creep
+    speed, so a slow turn loads the wheels less than a fast one."""
+    g = _geometry("DifferentialDriveRobot")
+    wheels = tuple(g.joint_speed)
+    d = WheeledController(replace(g, mass_kg=2.0, joint_torque=dict.fromkeys(wheels, 1.0))).drive
+    assert not d.skid and d.creep > 0
+    load = 2.0 * 9.81 * (1 - d.caster_share)
+    assert d.scrub_moment() == pytest.approx(1.0 * load * 0.01 / 2)
+    d = replace(d, com_x=0.0)  # no centripetal load
+    zero = np.zeros(1)
+    slow, fast = 0.5 * d.creep / 0.005, 4 * d.creep / 0.005  # edge slip 0.5 and 4 x creep
+    slow_r = d.wheel_torques(zero, np.array([slow]), zero, zero)[1][0]
+    fast_r = d.wheel_torques(zero, np.array([fast]), zero, zero)[1][0]
+    # (the caster's Coulomb drag is the same at both rates; the scrub half of it at slow)
+    assert fast_r - slow_r == pytest.approx(d.radius * 0.5 * d.scrub_moment() / d.track)
