@@ -7,6 +7,7 @@ and part names are KIF class names; abilities are short command-line names.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -257,7 +258,9 @@ def verification_text(verified: dict | None, indent: str = "  ") -> str:
         if b.get("planned_heading_rad"):
             figs.append(f"turned {b['heading_rad']:.2f} of {b['planned_heading_rad']:.2f} rad")
         if b.get("placing_error_m") is not None:
-            figs.append(f"placed within {b['placing_error_m'] * 1000:.2f} mm")
+            figs.append(f"placed within {b['placing_error_m'] * 1000:.3f} mm")
+        if b.get("orientation_error_rad") is not None:
+            figs.append(f"tool within {math.degrees(b['orientation_error_rad']):.2f} deg")
         out.append(f"{indent}  {b['behavior']:<22} {verdict:<8} {', '.join(figs)}")
     for j, t in verified.get("strengthened", {}).items():
         out.append(f"{indent}  strengthened {j}: saturated in simulation, sized for >= {t:.3f} N m")

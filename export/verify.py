@@ -4,7 +4,8 @@
 A bundle (on disk or in memory) gives the record (``design.json``) and the MuJoCo model
 (``robot.xml`` with its meshes). The controller is built from the record as a user's
 program would build it, told where a fixed base stands, its position servos' stiffness
-(``stiffness``: joint -> N m/rad, the MJCF's ``kp``) and, on a fixed base (manipulators),
+(``stiffness``: joint -> N m/rad, the MJCF's ``kp``; ``damping``: joint -> N m s/rad, its
+``kv`` plus the joint's damping) and, on a fixed base (manipulators),
 the simulated model's own gravity torques, so that it can compensate the servos' droop
 (controllers that take neither are given neither). Every behaviour whose ability the design lists is
 run with its default parameters and judged by :mod:`export.verdict`.
@@ -69,9 +70,18 @@ def controller_for_model(record: Mapping, model) -> Controller:
         for name, a in acts.items()
         if model.actuator_biasprm[a, 1] != 0  # position servos
     }
-    # every controller that takes them gets its servos' stiffness (N m/rad); a fixed base
-    # also the simulated model's gravity torques, for the servos' droop
+    # every controller that takes them gets its servos' stiffness (N m/rad) and velocity
+    # gain (N m s/rad: kv plus the joint's damping; a servo lags a moving reference by
+    # damping / kp s); a fixed base also the simulated model's gravity torques, for the droop
     options["stiffness"] = stiffness
+    options["damping"] = {
+        name: float(
+            -model.actuator_biasprm[a, 2]
+            + model.dof_damping[model.jnt_dofadr[model.actuator_trnid[a, 0]]]
+        )
+        for name, a in acts.items()
+        if name in stiffness
+    }
     if _fixed_base(model):
         options["gravity"] = mujoco_gravity(model, list(stiffness))
     return controller_for(geometry, **options)

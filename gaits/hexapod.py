@@ -35,11 +35,14 @@ the mirrored descent) while it moves to the next foothold along a minimum-jerk s
 line that starts and ends ``SWING_EDGE`` of the swing later/earlier, so it is above the
 obstacle for most of its way. Each foothold is the mean of the leg's neutral point (its
 foot at q = 0) at the beginning and end of the stance it carries, so a stance sweeps the
-stride symmetrically about the neutral point; the robot starts standing at q = 0 and ends
-with every foot on its neutral point. The body's speed ramps up and down with
-minimum-jerk envelopes just long enough that the first and last stances stay within half
-a stride of neutral. A stance higher than the zero pose starts with a ``TRANSITION_S``
-minimum-jerk rise from q = 0 with the feet in place.
+stride symmetrically about the neutral point, pulled towards the leg's mount on straight
+travel by half the outward bulge of that sweep (:func:`stance_inset`: a sweep across the
+leg takes the foot farther from the coxa axis at its ends), so that the stance tibia tilts
+as far inward as outward and its servo carries the leg's load at the smallest lever; the
+robot starts standing at q = 0 and ends with every foot on its neutral point. The body's
+speed ramps up and down with minimum-jerk envelopes just long enough that the first and
+last stances stay within half a stride of neutral. A stance higher than the zero pose
+starts with a ``TRANSITION_S`` minimum-jerk rise from q = 0 with the feet in place.
 
 **Stride** (:func:`max_stride`): the longest stance segment about each neutral point
 that keeps the coxa within ``COXA_SWING`` (the designer's working swing), the tibia within
@@ -57,7 +60,9 @@ centre), the trunk sways: a clamped cubic B-spline offset of the trunk in the ho
 plane that a linear programme (scipy HiGHS) chooses to maximise the smallest margin of both
 the centre of mass and the cart-table zero-moment point (``COM - z_c / g * acceleration``),
 within ``SWAY_MAX`` and ``SWAY_ACCEL``; a second programme then minimises the sway's
-acceleration at 95 % of that margin.
+acceleration plus ``SWAY_RADIAL_WEIGHT`` times its share along the legs (a sway along a leg
+moves its stance foot radially, tilting the tibia) at 95 % of that margin, or at
+``SWAY_TARGET_MARGIN`` when that is less: the gait needs ``MIN_MARGIN``, not the most sway.
 """
 
 from __future__ import annotations
@@ -86,6 +91,7 @@ __all__ = [
     "max_stride",
     "plan_gait",
     "stability_margins",
+    "stance_inset",
     "standing_height",
     "support_margin",
     "tibia_tilt",
@@ -100,6 +106,9 @@ COXA_SWING = math.pi / 4
 #: Largest tibia tilt from vertical in stance, rad: the tibia servo carries the leg's load
 #: at a lever of tibia x sin(tilt).
 TIBIA_TILT = 0.3
+#: Share of the outward bulge of a stance sweep taken back by pulling the footholds in
+#: (:func:`stance_inset`; 1: the tibia tilts as far out as in).
+TIBIA_CENTRING = 1.0
 #: Distance kept from every joint limit, rad.
 JOINT_MARGIN = 0.05
 #: Smallest static stability margin a plan must keep, m.
@@ -107,6 +116,12 @@ MIN_MARGIN = 0.01
 #: Trunk sway limits: offset per axis m, acceleration per axis m/s^2.
 SWAY_MAX = 0.02
 SWAY_ACCEL = 0.5
+#: The sway keeps the best margin it can reach, but no more than this (m): a larger sway
+#: tilts the tibias of the stance legs (see below) for a margin the gait does not need.
+SWAY_TARGET_MARGIN = 0.015
+#: Weight of the sway's radial share (its component along the legs, which tilts the stance
+#: tibias: their servos carry the leg's load at that lever) against its smoothness.
+SWAY_RADIAL_WEIGHT = 0.2
 #: Standing still before the first and after the last swing when the trunk sways, cycles.
 SWAY_LEAD = 0.25
 #: Duration of the rise from q = 0 to a higher stance, s.
@@ -115,8 +130,11 @@ TRANSITION_S = 1.0
 #: the swing before the foot starts (after it stops) moving horizontally.
 LIFT_FRACTION = 0.4
 SWING_EDGE = 0.15
-#: Duty factor of the quadruped's crawl (one leg at a time needs >= 3/4).
+#: Duty factor of the quadruped's crawl (one leg at a time needs >= 3/4), and the shortest
+#: one a crawl may be given (a four-foot phase of 2 x duty - 3/2 cycles must remain between
+#: the sides for the trunk to sway across).
 CRAWL_DUTY = 5 / 6
+MIN_CRAWL_DUTY = 0.8
 #: The sway's B-spline knot spans, and the samples its linear programmes constrain, per
 #: gait cycle (the plan then checks every sample).
 SWAY_KNOTS = 12
@@ -376,7 +394,11 @@ def _ranked(
 
 
 def gait_pattern(
-    name: str, legs: Sequence[Leg], direction: float = 0.0, turn: float = 0.0
+    name: str,
+    legs: Sequence[Leg],
+    direction: float = 0.0,
+    turn: float = 0.0,
+    duty: float | None = None,
 ) -> GaitPattern:
     """The named gait for these legs, travelling towards ``direction`` rad (trunk frame),
     or turning in place when ``turn`` is not 0 (its sign: counter-clockwise > 0).
@@ -386,8 +408,9 @@ def gait_pattern(
     trailing-to-leading wave, duty 1 - 1/rows, the second group half a cycle after the
     first; wave: one leg at a time, the first group then the second, duty 1 - 1/legs;
     crawl (quadruped): as ripple with duty ``CRAWL_DUTY``, so that the two swings of a
-    group follow each other and four-foot phases separate the groups. ValueError for a
-    gait the legs cannot do.
+    group follow each other and four-foot phases separate the groups; ``duty`` (crawl
+    only) a shorter one, at least ``MIN_CRAWL_DUTY``. ValueError for a gait the legs cannot
+    do.
     """
     n = len(legs)
     valid = GAITS.get(n, ())
@@ -395,6 +418,8 @@ def gait_pattern(
         raise ValueError(
             f"gait: a {n}-legged robot walks with {', '.join(valid) or 'no gait'}, not {name!r}"
         )
+    if duty is not None and (name != "crawl" or not MIN_CRAWL_DUTY <= duty <= CRAWL_DUTY):
+        raise ValueError(f"duty: only a crawl takes one, in [{MIN_CRAWL_DUTY:g}, {CRAWL_DUTY:.4g}]")
     left, right = _ranked(
         legs, 0.0 if name == "tripod" else direction, 0.0 if name == "tripod" else turn
     )
@@ -410,7 +435,8 @@ def gait_pattern(
         for k, leg in enumerate([*left, *right]):
             phases[leg.name] = k / n
     else:  # ripple, crawl
-        duty = CRAWL_DUTY if name == "crawl" else 1 - 1 / rows
+        own = CRAWL_DUTY if name == "crawl" else 1 - 1 / rows
+        duty = own if duty is None else duty
         for s, side in enumerate((left, right)):
             for r, leg in enumerate(side):
                 phases[leg.name] = (0.5 * s + r * (1 - duty)) % 1.0
@@ -446,6 +472,18 @@ def _segment_distance(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.nda
     pa = a0 + s * (a1 - a0)
     pb = b0 + s * (b1 - b0)
     return float(np.min(np.linalg.norm(pa[:, None, :] - pb[None, :, :], axis=2)))
+
+
+def stance_inset(leg: Leg, sweep: np.ndarray) -> float:
+    """How far m to pull a stance segment (the foot's sweep (2,) m relative to the trunk,
+    centred on the leg's neutral point) towards the mount so that the foot's distance from
+    the coxa axis, and so the tibia's tilt, varies as much outward as inward of the
+    neutral one (a sweep across the leg bulges outward at its ends): ``TIBIA_CENTRING`` of
+    half that bulge."""
+    n = leg.neutral[:2] - leg.mount[:2]
+    s = np.linspace(-0.5, 0.5, 21)[:, None] * np.asarray(sweep, dtype=float)
+    r = np.linalg.norm(n + s, axis=1)
+    return float(TIBIA_CENTRING * max(0.0, 0.5 * (r.max() + r.min()) - np.linalg.norm(n)))
 
 
 def max_stride(
@@ -656,6 +694,16 @@ def plan_gait(
     t_rise = TRANSITION_S if abs(height - h0) > 1e-6 else 0.0
     sway_on = bool(sway)
     vx, vy, wz = twist
+    # footholds pulled in on straight travel (a turn's sweeps cross the legs less)
+    inset = {
+        leg.name: 0.0
+        if wz
+        else stance_inset(
+            leg,
+            pattern.duty * period * np.array([vx - wz * leg.neutral[1], vy + wz * leg.neutral[0]]),
+        )
+        for leg in legs
+    }
     while True:
         lead = SWAY_LEAD * period if (sway_on or stand) else 0.0
         tm = gait_timing(pattern, legs, cycles, period, t_rise, lead)
@@ -664,7 +712,7 @@ def plan_gait(
         yaw = wz * tm.progress
         vel = np.einsum("nij,j->ni", _rot(yaw), np.array([vx, vy])) * e[:, None]
         pos = np.stack([_progress(times, vel[:, 0]), _progress(times, vel[:, 1])], axis=1)
-        plan = _feet_plan(legs, tm.swings, times, pos, yaw, t_rise, h0, height, step_height)
+        plan = _feet_plan(legs, tm.swings, times, pos, yaw, t_rise, h0, height, step_height, inset)
         d = np.zeros((n, 2))
         q, feet_b = _joint_plan(template, legs, plan, pos, yaw, d)
         margin = stability_margins(template, legs, q, plan["stance"])
@@ -674,9 +722,14 @@ def plan_gait(
         break
     if sway_on:
         g = float(np.linalg.norm(template.model.gravity))
+        # how much a sway along trunk x / y moves the stance feet radially (the tibia's
+        # lever), averaged over the legs
+        out = np.array([leg.neutral[:2] - leg.mount[:2] for leg in legs])
+        out /= np.linalg.norm(out, axis=1)[:, None]
+        radial = (float(np.mean(np.abs(out[:, 0]))), float(np.mean(np.abs(out[:, 1]))))
         for _ in range(2):  # the legs' share of the COM follows the sway: iterate
             com = center_of_mass(template.model, q)[:, :2]
-            d = _sway_lp(times, plan, pos, yaw, com, height / g, t_rise, tm.t_end, period)
+            d = _sway_lp(times, plan, pos, yaw, com, height / g, t_rise, tm.t_end, period, radial)
             q, feet_b = _joint_plan(template, legs, plan, pos, yaw, d)
         margin = stability_margins(template, legs, q, plan["stance"])
     world = pos + np.einsum("nij,nj->ni", _rot(yaw), d)
@@ -715,9 +768,11 @@ def _feet_plan(
     h0: float,
     height: float,
     step: float,
+    inset: Mapping[str, float] | None = None,
 ) -> dict[str, np.ndarray]:
     """World feet (N, legs, 2), lift above the ground (N, legs), stance (N, legs) and the
-    trunk height (N,) of a gait."""
+    trunk height (N,) of a gait; the footholds between the first and the last stance are
+    ``inset[leg]`` m closer to the leg's mount than its neutral point."""
     n, nl = len(times), len(legs)
     feet = np.zeros((n, nl, 2))
     lift = np.zeros((n, nl))
@@ -730,8 +785,16 @@ def _feet_plan(
     for k, leg in enumerate(legs):
         iv = swings[leg.name]
         holds = [neutral_world(leg, 0.0)]
+        pull = (inset or {}).get(leg.name, 0.0)
         for c in range(1, len(iv)):
-            holds.append(0.5 * (neutral_world(leg, iv[c - 1, 1]) + neutral_world(leg, iv[c, 0])))
+            a, b = iv[c - 1, 1], iv[c, 0]
+            hold = 0.5 * (neutral_world(leg, a) + neutral_world(leg, b))
+            mount = 0.5 * (
+                _rot(np.interp(a, times, yaw)) @ leg.mount[:2]
+                + _rot(np.interp(b, times, yaw)) @ leg.mount[:2]
+            ) + np.array([np.interp(0.5 * (a + b), times, pos[:, k]) for k in range(2)])
+            out = hold - mount
+            holds.append(hold - pull * out / max(float(np.linalg.norm(out)), 1e-12))
         holds.append(neutral_world(leg, float(times[-1])))
         holds_a = np.array(holds)
         # index of the stance each sample is in or after: number of swings started
@@ -784,6 +847,7 @@ def _sway_lp(
     t0: float,
     t1: float,
     period: float,
+    radial: tuple[float, float] = (0.0, 0.0),
 ) -> np.ndarray:
     """Trunk sway (N, 2) m (trunk axes) maximising the smallest stability margin of the
     centre of mass and of the cart-table ZMP (``COM - kz * acceleration``, kz = trunk
@@ -854,25 +918,44 @@ def _sway_lp(
     if res is None:
         raise ValueError("no trunk sway keeps the gait statically stable")
     best = float(res.x[-1])
-    # the smoothest sway (least sum of |second differences| of the coefficients) keeping
-    # 95 % of the best margin
-    keep = best - 0.05 * abs(best)
+    # the smoothest, least radial sway (sum of |second differences| of the coefficients
+    # plus SWAY_RADIAL_WEIGHT x their radial share) keeping 95 % of the best margin, or
+    # SWAY_TARGET_MARGIN when that is less
+    keep = min(best - 0.05 * abs(best), SWAY_TARGET_MARGIN)
     nd = nf - 2
     D = sparse.diags([np.ones(nd), -2 * np.ones(nd), np.ones(nd)], [0, 1, 2], shape=(nd, nf))
     Zd, Id, Zdd = sparse.csr_matrix((nd, nf)), sparse.identity(nd), sparse.csr_matrix((nd, nd))
+    Zf, If = sparse.csr_matrix((nf, nf)), sparse.identity(nf)
+    Zdf = sparse.csr_matrix((nd, 2 * nf))
     A_s = sparse.vstack(
         [
-            sparse.hstack([D, Zd, -Id, Zdd]),
-            sparse.hstack([-D, Zd, -Id, Zdd]),
-            sparse.hstack([Zd, D, Zdd, -Id]),
-            sparse.hstack([Zd, -D, Zdd, -Id]),
+            sparse.hstack([D, Zd, -Id, Zdd, Zdf]),
+            sparse.hstack([-D, Zd, -Id, Zdd, Zdf]),
+            sparse.hstack([Zd, D, Zdd, -Id, Zdf]),
+            sparse.hstack([Zd, -D, Zdd, -Id, Zdf]),
         ]
     )
-    pad = sparse.csr_matrix((A_m.shape[0] + A_acc.shape[0], 2 * nd))
-    A2 = sparse.vstack([sparse.hstack([sparse.vstack([A_m, A_acc]), pad]), A_s]).tocsr()
-    b2 = np.concatenate([b_m - keep, b_acc, np.zeros(4 * nd)])
-    cost2 = np.concatenate([np.zeros(2 * nf), np.ones(2 * nd)])
-    res2 = _linprog(linprog, cost2, A2, b2, [*box, *[(0.0, None)] * (2 * nd)])
+    Zfd = sparse.csr_matrix((nf, 2 * nd))
+    A_a = sparse.vstack(  # |w| <= a
+        [
+            sparse.hstack([If, Zf, Zfd, -If, Zf]),
+            sparse.hstack([-If, Zf, Zfd, -If, Zf]),
+            sparse.hstack([Zf, If, Zfd, Zf, -If]),
+            sparse.hstack([Zf, -If, Zfd, Zf, -If]),
+        ]
+    )
+    pad = sparse.csr_matrix((A_m.shape[0] + A_acc.shape[0], 2 * nd + 2 * nf))
+    A2 = sparse.vstack([sparse.hstack([sparse.vstack([A_m, A_acc]), pad]), A_s, A_a]).tocsr()
+    b2 = np.concatenate([b_m - keep, b_acc, np.zeros(4 * nd + 4 * nf)])
+    cost2 = np.concatenate(
+        [
+            np.zeros(2 * nf),
+            np.ones(2 * nd),
+            np.full(nf, SWAY_RADIAL_WEIGHT * radial[0]),
+            np.full(nf, SWAY_RADIAL_WEIGHT * radial[1]),
+        ]
+    )
+    res2 = _linprog(linprog, cost2, A2, b2, [*box, *[(0.0, None)] * (2 * nd + 2 * nf)])
     w = (res2 if res2 is not None else res).x[: 2 * nf]
     inside = (times >= t0) & (times <= t1)
     full = BSpline.design_matrix(times[inside], knots, 3).tocsc()[:, free]

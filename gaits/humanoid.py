@@ -38,6 +38,18 @@ parameter search in MuJoCo on the default design (40 cm tall): a shallow crouch
 steps (12 % of the leg), a high foot lift, and 80 % of the lateral sway to the stance
 ankle (a full sway rolls the ankle's actuator box onto the floor).
 
+The servos' give. A position servo is a spring (``kp``, N m/rad) with a velocity gain
+(``kv`` plus the motor's back-EMF, N m s/rad): it settles ``tau / kp`` short of its
+reference under a load ``tau`` and lags a moving reference by ``(kv + damping) / kp`` s
+(15-35 ms here, different per joint). Measured in MuJoCo on the default design, the walk
+then went 1.31 x the distance its joint angles command (its stance foot rolled forward
+about 3 mm per step and its steps landed long; the joints' tracking error was mostly
+that lag, 30 mrad rms at the hip pitch); with 20 x stiffer servos it went 1.02 x. Given the
+servos' ``stiffness`` and ``damping`` (``export.verify`` passes the MJCF's), the
+controller commands ``q + (tau + damping q') / kp`` with ``tau`` the stance loads of
+:func:`stance_torques` (the template's masses with the design's payload): 1.02 x. The
+plan (``planned_pose``, ``info["planned_positions"]``) stays the bare angles ``q``.
+
 Units: m, s, rad. Frames: trunk frame at the pelvis centre, x forward, z up (the
 template's); a reference gait's world frame has the ground at z = 0.
 """
@@ -52,7 +64,7 @@ from math import pi
 import numpy as np
 
 from gaits.base import BehaviorSpec, Controller, DesignGeometry, Parameter, Trajectory
-from kinematics.dynamics import center_of_mass, forward_kinematics
+from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics, rnea
 from kinematics.templates import (
     DEFAULTS,
     FOOT_WIDTH_RATIO,
@@ -86,6 +98,8 @@ __all__ = [
     "reference_template",
     "stability_margin",
     "stance_height",
+    "stance_loads",
+    "stance_torques",
     "synthesize",
 ]
 
@@ -193,8 +207,12 @@ class GaitShape:
 
 #: The walking gait: tuned in MuJoCo on the default design (see the module docstring).
 WALK = GaitShape("walking", 0.75, 0.25, 0.96, 0.12, 0.12, 0.8)
-#: The faster gait (``running``): a shorter period and double support, longer steps.
-RUN = GaitShape("running", 0.5, 0.15, 0.96, 0.15, 0.12, 0.8)
+#: The faster gait (``running``): a shorter period and double support, longer steps. Its
+#: period is bounded by the servos' speed at the smallest legs: the same Froude number gives
+#: short legs fast joints (``1 / sqrt(leg)``), and at the 40 mm leg modules a 0.5 s step
+#: needs the knee at 6.6 rad/s, beyond the catalog's stronger servos' no-load 6.2-6.5 rad/s
+#: (measured in MuJoCo: saturated); 0.6 s steps peak at 5.5 rad/s and pass at every size.
+RUN = GaitShape("running", 0.6, 0.15, 0.96, 0.15, 0.12, 0.8)
 
 
 @dataclass(frozen=True)
@@ -647,6 +665,78 @@ def odometry(template: Template, names: tuple[str, ...], q: np.ndarray) -> np.nd
     return out
 
 
+#: m: a foot's share of the weight fades out smoothly as its sole rises this high over the
+#: lowest one (a foot lifting off or setting down, or one a hair higher, loads the servos
+#: continuously).
+CONTACT = 0.002
+
+
+def stance_torques(
+    template: Template, names: tuple[str, ...], q: np.ndarray, dt: float
+) -> np.ndarray:
+    """(n, len(names)) N m: the joint torques that carry the robot along the joint
+    trajectories ``q`` (n, len(names)) rad sampled every ``dt`` s, with ``template``'s
+    masses: RNEA with the ground's forces of :func:`stance_loads` and gravity."""
+    model = template.model
+    Q, fext = stance_loads(template, names, q, dt)
+    tau = rnea(model, Q, np.zeros_like(Q), np.zeros_like(Q), fext)
+    index = {name: k for k, name in enumerate(model.q_names)}
+    return tau[:, [index[name] for name in names]]
+
+
+def stance_loads(
+    template: Template, names: tuple[str, ...], q: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(model coordinates (n, nq) rad, the ground's wrenches on the feet (n, nbodies, 6) in
+    :func:`kinematics.dynamics.rnea`'s ``fext`` form) along the joint trajectories ``q``
+    (n, len(names)) rad sampled every ``dt`` s, with ``template``'s masses.
+
+    The trunk stays upright and moves as :func:`odometry` says (the stance foot does not
+    slide); the centre of mass (COM) then moves along ``c(t)`` and the ground pushes with
+    ``M (c'' + g)`` at the zero-moment point ``c - z c'' / (z'' + g)`` (z: the COM's height
+    over the ground). The feet share that force by the lever rule along the line between
+    their soles (both pressure points shifted alike, so that the force stays at the
+    zero-moment point), a foot's share fading out as it rises ``CONTACT`` m over the lowest
+    one. The bodies' own accelerations relative to the trunk are left out (slow gaits)."""
+    model = template.model
+    Q = _q_full(model.q_names, names, np.atleast_2d(q))
+    n = len(Q)
+    frames = forward_kinematics(model, Q)
+    feet = [model.body(f) for f in template.feet]
+    soles = np.array(
+        [
+            frames[:, b, :3, 3] + frames[:, b, :3, :3] @ p
+            for b, p in zip(feet, template.foot_points, strict=True)
+        ]
+    )  # (2, n, 3), trunk frame
+    ground = soles[:, :, 2].min(axis=0)
+    trunk = odometry(template, names, q)
+    trunk[:, 2] = -ground  # the trunk's height over the ground
+    com = trunk + center_of_mass(model, Q)  # world (ground at z = 0)
+    acc = np.zeros_like(com)
+    if n >= 3:  # the COM's acceleration, m/s^2
+        acc = np.gradient(np.gradient(com, dt, axis=0), dt, axis=0)
+    force = model.total_mass * (acc + np.array([0.0, 0.0, G]))  # (n, 3), world = trunk axes
+    zmp = com[:, :2] - com[:, 2:3] * acc[:, :2] / force[:, 2:3] * model.total_mass
+    world = soles + trunk[None]  # (2, n, 3)
+    down = _smooth(1 - (soles[:, :, 2] - ground[None]) / CONTACT)  # (2, n): 1 on the ground
+    a, b = world[0, :, :2], world[1, :, :2]
+    ab = b - a
+    s = np.einsum("ij,ij->i", zmp - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12)
+    s = np.clip(s, 0.0, 1.0)
+    lever = np.stack([(1 - s) * down[0], s * down[1]])  # (2, n)
+    total = lever.sum(axis=0)
+    share = np.where(total > 1e-9, lever / np.maximum(total, 1e-9), down / down.sum(axis=0))
+    # both pressure points shifted alike, so that the resultant acts at the ZMP
+    offset = zmp - (share[0, :, None] * a + share[1, :, None] * b)
+    fext = np.zeros((n, len(model.bodies), 6))
+    for k, body in enumerate(feet):
+        cop = world[k].copy()
+        cop[:, :2] += offset
+        fext[:, body] = external_force_at(model, Q, body, cop - trunk, share[k, :, None] * force)
+    return Q, fext
+
+
 #: Grasping: the arms reach forward (shoulder and elbow pitch, rad; negative turns forward)
 #: with the grippers open, close both grippers, and hold.
 REACH_SHOULDER = -pi / 4
@@ -672,21 +762,53 @@ class HumanoidController(Controller):
 
     ``info`` follows the shared contract: ``motion`` ("straight" for the gaits, "hold"
     otherwise), ``planned_pose`` (the trunk's displacement the joint angles command, by
-    :func:`odometry`, and no change of yaw), ``direction``, ``locomotion`` "legged" and
-    ``body_length_m``: the leg length (femur + tibia), the humanoid's natural unit of
-    stride (its walking speed scales with it); plus ``stability_margin_m`` (COM inside the
-    planned support polygon; the pendulum gait leaves it by a few mm while the weight
-    moves between the feet). A leg module outside the maps' sizes is refused (ValueError),
-    never extrapolated.
+    :func:`odometry` of the planned angles, and no change of yaw), ``direction``,
+    ``locomotion`` "legged" and ``body_length_m``: the leg length (femur + tibia), the
+    humanoid's natural unit of stride (its walking speed scales with it); plus
+    ``stability_margin_m`` (COM inside the planned support polygon; the pendulum gait
+    leaves it by a few mm while the weight moves between the feet). A leg module outside
+    the maps' sizes is refused (ValueError), never extrapolated.
+
+    ``stiffness`` (joint -> N m/rad) and ``damping`` (joint -> N m s/rad, may be left
+    out): the servos' ``kp`` and velocity gain; given them, the positions sent are the
+    planned angles plus the servos' give (module docstring), and
+    ``info["planned_positions"]`` keeps the planned angles.
     """
 
-    def __init__(self, geometry: DesignGeometry) -> None:
+    def __init__(
+        self,
+        geometry: DesignGeometry,
+        stiffness: Mapping[str, float] | None = None,
+        damping: Mapping[str, float] | None = None,
+    ) -> None:
         super().__init__(geometry)
         L = self.template.lengths
         self.femur, self.tibia = float(L["femur"]), float(L["tibia"])
         self.leg = self.femur + self.tibia
         self.size = self.leg / 2  # the maps' x, m
         self.joints = _joint_names(LEG_JOINTS) + _joint_names(ARM_JOINTS)
+        #: the template with the design's payload on the trunk: its masses
+        self.masses = build(
+            geometry.template,
+            TemplateParams(
+                lengths=geometry.lengths,
+                modules=geometry.modules,
+                payload=float(geometry.params.get("payload", 0.0)),
+            ),
+        )
+        self.stiffness = None if stiffness is None else self._per_joint(stiffness, "stiffness")
+        self.damping = None if damping is None else self._per_joint(damping, "damping", zero=True)
+
+    def _per_joint(self, values: Mapping[str, float], what: str, zero: bool = False) -> np.ndarray:
+        """(len(joints),) ``values`` by joint name; ValueError when one is missing or not
+        positive (negative with ``zero``)."""
+        missing = sorted(set(self.joints) - set(values))
+        if missing:
+            raise ValueError(f"{what}: no value for {', '.join(missing)}")
+        out = np.array([float(values[j]) for j in self.joints])
+        if not np.all((out >= 0) if zero else (out > 0)):
+            raise ValueError(f"{what} values must be {'>= 0' if zero else '> 0'}")
+        return out
 
     def default_step(self, shape: GaitShape = WALK) -> float:
         """Default step length m of ``shape`` for this design's legs."""
@@ -867,14 +989,7 @@ class HumanoidController(Controller):
         over its start: a hold stays put)."""
         arms = partial(self._arms, hold=hold)
         duration = CROUCH_TIME + REACH_TIME + GRIP_TIME + hold + REACH_TIME
-        model = build(
-            self.geometry.template,
-            TemplateParams(
-                lengths=self.geometry.lengths,
-                modules=self.geometry.modules,
-                payload=float(self.geometry.params.get("payload", 0.0)),
-            ),
-        ).model
+        model = self.masses.model
         index = {n: k for k, n in enumerate(model.q_names)}
         cols = [index[n] for n in self.joints]
 
@@ -931,4 +1046,15 @@ class HumanoidController(Controller):
         info["planned_pose"] = (float(moved[0]), float(moved[1]), 0.0)
         if info.get("motion") == "straight":
             info["expected_distance_m"] = float(np.hypot(moved[0], moved[1]))
-        return Trajectory(name, t, self.joints, q, v, info)
+        positions = q
+        if self.stiffness is not None:  # the servos' give under the stance loads
+            tau = stance_torques(self.masses, self.joints, q, SAMPLE_DT)
+            if self.damping is not None:  # what the servo's velocity gain holds back
+                tau = tau + self.damping * v
+            droop = tau / self.stiffness
+            lo = np.array([low[index[j]] for j in self.joints])
+            hi = np.array([high[index[j]] for j in self.joints])
+            positions = np.clip(q + droop, lo, hi)
+            v = v + np.gradient(positions - q, SAMPLE_DT, axis=0)
+            info["planned_positions"] = q
+        return Trajectory(name, t, self.joints, positions, v, info)

@@ -1,6 +1,6 @@
 """Behaviours of multiped designs (paper section 4.3.4; issue 5's hexapod and quadruped):
-``walking``, ``rough-terrain-walking`` and ``turning``, built on the gait generator of
-``gaits.hexapod`` (leg kinematics, gaits, foot trajectories, stability margin).
+``walking``, ``rough-terrain-walking``, ``running`` and ``turning``, built on the gait
+generator of ``gaits.hexapod`` (leg kinematics, gaits, foot trajectories, stability margin).
 
 **Stance height**: the zero pose (tibia vertical, the trunk ``tibia`` m up) unless the
 trunk's underside (``TRUNK_THICKNESS`` / 2 below its frame) would be less than
@@ -15,9 +15,15 @@ the direction of travel; plans whose margin falls below ``MIN_MARGIN`` or that l
 joint limits are retried with a shorter stride.
 
 **Timing**: the cycle time is stride / (duty x speed); the default speed is the design's
-(``params["speed"]``) or ``DEFAULT_SPEED``, slowed down when a joint would exceed
-``SPEED_MARGIN`` of its actuator's no-load speed; an explicit speed that needs faster
-joints raises ValueError with the largest feasible one.
+(``params["speed"]``) or ``DEFAULT_SPEED``, at least ``MIN_PACE`` body lengths a second,
+slowed down when a joint would exceed ``SPEED_MARGIN`` of its actuator's no-load speed; an
+explicit speed that needs faster joints raises ValueError with the largest feasible one.
+
+**Running** is not a run (no flight phase: the servos are too slow for one) but the
+fastest statically stable travel: the gait of ``RUN_GAITS`` (the fewest feet on the
+ground that keeps the centre of mass over its support: the hexapod's tripod, the
+quadruped's crawl at its shortest duty) at ``RUN_SPEED_FACTOR`` times the walking speed,
+slowed down to the actuators' speeds like walking.
 
 **Masses**: the stability margins use the sized template with the design's masses when
 the controller is given it (``LeggedController(geometry, template=structure.template)``);
@@ -37,6 +43,7 @@ import numpy as np
 from gaits.base import BehaviorSpec, Controller, DesignGeometry, Parameter, Trajectory
 from gaits.hexapod import (
     GAITS,
+    MIN_CRAWL_DUTY,
     MIN_MARGIN,
     SWAY_LEAD,
     TRANSITION_S,
@@ -65,6 +72,18 @@ STRIDE_FRACTION = 0.8
 SPEED_MARGIN = 0.6
 #: Body speed when the design names none, m/s.
 DEFAULT_SPEED = 0.05
+#: Slowest default trunk speed, body lengths per s: twice the verdict's floor of 0.5 per
+#: 10 s, leaving room for the start and stop ramps and the standing lead-in and -out.
+MIN_PACE = 0.1
+#: Running: this times the walking speed (slowed down to the actuators' speeds).
+RUN_SPEED_FACTOR = 2.0
+#: Running's gait by leg count: (gait, duty; None: the gait's own).
+RUN_GAITS: dict[int, tuple[str, float | None]] = {
+    6: ("tripod", None),
+    4: ("crawl", MIN_CRAWL_DUTY),
+}
+#: Duties tried for running, from the shortest to the gait's own.
+RUN_DUTY_STEPS = 3
 #: Named directions of travel, rad (counter-clockwise from the trunk's +x).
 DIRECTIONS = {"forward": 0.0, "backward": math.pi, "left": math.pi / 2, "right": -math.pi / 2}
 
@@ -102,12 +121,18 @@ class LeggedController(Controller):
       design's obstacle height + ``STEP_MARGIN``).
     - ``rough-terrain-walking``: the same with a step ``ROUGH_STEP_FACTOR`` times higher
       (offered when the design has that ability, or names no abilities).
+    - ``running(steps, seconds, direction, speed, stride, step_height)``: like walking with
+      the gait of ``RUN_GAITS`` at ``RUN_SPEED_FACTOR`` times the walking speed (see the
+      module docstring: a fast statically stable walk, not a run).
     - ``turning(angle, gait, speed, step_height)``: turn in place by ``angle`` rad
       (counter-clockwise positive) at up to ``speed`` rad/s (0: the design's trunk speed
       at the farthest foot, within the actuators' speeds).
 
-    ``Trajectory.info``: ``direction`` (x, y) unit vector of the travel (walking; trunk
-    frame at the start = world), ``stability_margin_m`` (N,), ``min_stability_margin_m``,
+    ``Trajectory.info``: ``motion`` ("straight" for walking, rough-terrain walking and
+    running; "turn" for turning), ``planned_pose`` (dx m, dy m, dyaw rad: the trunk's
+    planned displacement in the world frame, which is the trunk's at the start),
+    ``locomotion`` ("legged"), ``direction`` (x, y) unit vector of the travel (not when
+    turning), ``stability_margin_m`` (N,), ``min_stability_margin_m``,
     ``gait``, ``duty``, ``cycle_s``, ``cycles``, ``stride_m``, ``step_height_m``,
     ``stance_height_m``,
     ``speed`` (m/s, or rad/s when turning), ``planned_distance_m`` (walking) or
@@ -142,7 +167,10 @@ class LeggedController(Controller):
         self.height = max(
             standing_height(self.legs), self.obstacle + STEP_MARGIN + TRUNK_THICKNESS / 2
         )
-        self.speed = float(geometry.params.get("speed") or DEFAULT_SPEED)
+        self.body_length = float(np.ptp([leg.mount[0] for leg in self.legs]))
+        self.speed = max(
+            float(geometry.params.get("speed") or DEFAULT_SPEED), MIN_PACE * self.body_length
+        )
         m = self.template.model
         self._limits = np.array(
             [
@@ -201,9 +229,20 @@ class LeggedController(Controller):
             Parameter("stride", "float", 0.0, "stride (0: automatic)", "m", low=0.0, high=10.0),
             step,
         )
+        run_gait, run_duty = RUN_GAITS[len(self.legs)]
+        duty = run_duty or gait_pattern(run_gait, self.legs).duty
+        own = gait_pattern(run_gait, self.legs).duty
+        duties = f"{duty:.2f}" if abs(duty - own) < 1e-9 else f"{duty:.2f} (up to {own:.2f})"
         out = {
             "walking": BehaviorSpec(
                 "walking", "Walk a straight line with a statically stable gait.", walk
+            ),
+            "running": BehaviorSpec(
+                "running",
+                f"Travel a straight line fast: a {run_gait} of duty {duties} at "
+                f"{RUN_SPEED_FACTOR:g}x the walking speed within the actuators' speeds "
+                "(statically stable, no flight phase).",
+                tuple(p for p in walk if p.name != "gait"),
             ),
             "turning": BehaviorSpec(
                 "turning",
@@ -230,6 +269,7 @@ class LeggedController(Controller):
                     ),
                     step,
                 ),
+                ability="walking",
             ),
         }
         abilities = self.geometry.abilities
@@ -256,6 +296,20 @@ class LeggedController(Controller):
         step = float(params["step_height"]) or self.step_height * (  # type: ignore[arg-type]
             ROUGH_STEP_FACTOR if rough else 1.0
         )
+        if name == "running":
+            gait, duty = RUN_GAITS[len(self.legs)]
+            own = gait_pattern(gait, self.legs).duty
+            # the shortest duty first; longer ones (up to the gait's own) when a design's
+            # trunk cannot sway far enough for it
+            duties = [None] if duty is None else list(np.linspace(duty, own, RUN_DUTY_STEPS))
+            for k, d in enumerate(duties):
+                try:
+                    return self._walking(
+                        name, {**params, "gait": gait}, step, d, RUN_SPEED_FACTOR * self.speed
+                    )
+                except ValueError:
+                    if k == len(duties) - 1:
+                        raise
         return self._walking(name, params, step)
 
     # -- planning ------------------------------------------------------------------------------
@@ -294,11 +348,21 @@ class LeggedController(Controller):
     def _rise(self) -> float:
         return TRANSITION_S if abs(self.height - standing_height(self.legs)) > 1e-6 else 0.0
 
-    def _walking(self, name: str, params: Mapping[str, object], step: float) -> Trajectory:
+    def _walking(
+        self,
+        name: str,
+        params: Mapping[str, object],
+        step: float,
+        duty: float | None = None,
+        speed: float | None = None,
+    ) -> Trajectory:
+        """Straight travel with ``params["gait"]`` (of ``duty``; None: the gait's own) at
+        ``params["speed"]`` or else ``speed`` m/s (None: the walking speed)."""
         self._check_step(step)
         direction = float(params["direction"])  # type: ignore[arg-type]
         u = np.array([math.cos(direction), math.sin(direction)])
-        pattern = gait_pattern(str(params["gait"]), self.legs, direction)
+        pattern = gait_pattern(str(params["gait"]), self.legs, direction, duty=duty)
+        default_speed = self.speed if speed is None else speed
         s_max = self._stride({leg.name: u for leg in self.legs}, step)
         asked_stride = float(params["stride"])  # type: ignore[arg-type]
         if asked_stride > s_max:
@@ -315,7 +379,7 @@ class LeggedController(Controller):
                 step,
                 u,
                 0.0,
-                asked_speed or self.speed,
+                asked_speed or default_speed,
                 bool(asked_speed),
                 int(params["steps"]),  # type: ignore[call-overload]
                 float(params["seconds"]),
@@ -336,6 +400,7 @@ class LeggedController(Controller):
             plan,
             pattern,
             {
+                "motion": "straight",
                 "direction": (float(u[0]), float(u[1])),
                 "planned_distance_m": plan.speed * plan.progress,
             },
@@ -389,7 +454,9 @@ class LeggedController(Controller):
             turn *= 0.85
         else:
             raise ValueError(f"no stable {pattern.name} turn found for this design")
-        return self._trajectory("turning", plan, pattern, {"heading_rad": float(plan.body[-1, 2])})
+        return self._trajectory(
+            "turning", plan, pattern, {"motion": "turn", "heading_rad": float(plan.body[-1, 2])}
+        )
 
     def _fit(
         self,
@@ -506,7 +573,9 @@ class LeggedController(Controller):
             "stance_height_m": plan.height,
             "speed": plan.speed,
             "obstacle_height_m": self.obstacle,
-            "body_length_m": float(np.ptp([leg.mount[0] for leg in self.legs])),
+            "body_length_m": self.body_length,
+            "locomotion": "legged",
+            "planned_pose": tuple(float(x) for x in plan.body[-1]),
             "body_path": plan.body,
             "legs": tuple(leg.name for leg in self.legs),
             "stance": plan.stance,

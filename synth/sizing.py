@@ -359,7 +359,79 @@ class Humanoid(Family):
     on one foot in the walking gait's stance (crouched, the pelvis swayed over the stance
     ankle), the ground force under the centre of mass and at ``ANKLE_COP_REACH`` of the
     half foot ahead of and behind it (the ankle and the hip pitch move the centre of
-    pressure to catch the open-loop gait's errors)."""
+    pressure to catch the open-loop gait's errors); and the gaits themselves (``GAITS``,
+    default parameters): each joint's most loaded instant of each gait (the ground's force
+    at the zero-moment point of the planned motion, ``gaits.humanoid.stance_loads``), and,
+    as a second operating point, its fastest instant (that speed under that torque)."""
+
+    #: The behaviours whose own loads and speeds a humanoid is sized for.
+    GAITS = ("walking", "running")
+    #: (lengths) -> per gait (name, times s, joint names, positions rad, velocities rad/s):
+    #: the planned gaits depend on the lengths only (the sizing iterates on masses).
+    _plans: dict[tuple, list[tuple[str, np.ndarray, tuple[str, ...], np.ndarray, np.ndarray]]]
+    _plans = {}
+
+    @classmethod
+    def gait_plans(
+        cls, tmpl: Template
+    ) -> list[tuple[str, np.ndarray, tuple[str, ...], np.ndarray, np.ndarray]]:
+        """Per gait of ``GAITS``: (name, times s, joint names, planned positions rad (n, J),
+        velocities rad/s (n, J)) of its default run on ``tmpl``'s legs."""
+        from gaits.base import DesignGeometry
+        from gaits.humanoid import HumanoidController
+
+        key = tuple(sorted((k, round(float(v), 12)) for k, v in tmpl.lengths.items()))
+        if key not in cls._plans:
+            geometry = DesignGeometry(
+                robot_type=tmpl.robot_type,
+                template=tmpl.robot_type,
+                lengths=dict(tmpl.lengths),
+                modules=1,
+                wheel_radius=0.03,
+                params={},
+                abilities=(),
+                joint_speed={},
+            )
+            controller = HumanoidController(geometry)
+            runs = [controller.run(name) for name in cls.GAITS]
+            cls._plans[key] = [
+                (r.behavior, r.times, r.joints, r.positions, r.velocities) for r in runs
+            ]
+        return cls._plans[key]
+
+    def _gait_loads(
+        self, tmpl: Template
+    ) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+        """Per gait: (name, times s, model coordinates (n, nq) rad, joint speeds (n, nq)
+        rad/s, the ground's wrenches (n, nbodies, 6)) with ``tmpl``'s masses."""
+        from gaits.humanoid import stance_loads
+
+        model = tmpl.model
+        index = {n: k for k, n in enumerate(model.q_names)}
+        out = []
+        for name, t, joints, q, v in self.gait_plans(tmpl):
+            Q, fext = stance_loads(tmpl, joints, q, float(t[1] - t[0]))
+            V = np.zeros_like(Q)
+            V[:, [index[j] for j in joints]] = v
+            out.append((name, t, Q, V, fext))
+        return out
+
+    def holds(self, tmpl, p, catalog):
+        """Each joint's fastest instant of the gaits: (the torque then, that speed)."""
+        from kinematics.dynamics import rnea
+
+        model = tmpl.model
+        best: dict[str, tuple[float, float, str]] = {}
+        zero = np.zeros(model.nv)
+        for name, _, Q, V, fext in self._gait_loads(tmpl):
+            for j in _movable(tmpl):
+                k = model.q_index[model.joint(j)]
+                i = int(np.argmax(np.abs(V[:, k])))
+                speed = float(abs(V[i, k]))
+                if speed > best.get(j, (0.0, 0.0, ""))[1]:
+                    tau = float(abs(rnea(model, Q[i], zero, zero, fext[i])[k]))
+                    best[j] = (tau, speed, f"{name}, its fastest instant")
+        return best
 
     def size(self, robot_type, p, catalog):
         H = p["height"]
@@ -410,6 +482,8 @@ class Humanoid(Family):
         return _joint_q(tmpl, dict(zip(names, (float(a) for a in angles), strict=True)))
 
     def load_cases(self, tmpl, p, catalog):
+        from kinematics.dynamics import rnea
+
         q = self.stance(tmpl)
         model = tmpl.model
         weight = model.total_mass * catalog.design.gravity_m_s2
@@ -434,6 +508,11 @@ class Humanoid(Family):
                 fext,
                 f"on one foot in the walking stance, pressure {where}",
             )
+        zero = np.zeros(model.nv)
+        for name, t, Q, _, fext in self._gait_loads(tmpl):
+            tau = np.abs(rnea(model, Q, np.zeros_like(Q), np.zeros_like(Q), fext))
+            for i in sorted({int(i) for i in np.argmax(tau, axis=0)}):  # each joint's peak
+                cases.append(LoadCase(f"{name} at {t[i]:.2f} s", Q[i], zero, zero, fext[i]))
         return cases
 
     def speeds(self, tmpl, p, sizing):

@@ -51,8 +51,8 @@ def test_the_quadruped_tibia_is_sized_for_its_walk(quadruped) -> None:
     """The zero-pose hand case asked 0.001-0.003 N m of the tibias (SG90s that stalled in
     MuJoCo); the walk asks a realistic torque, named by its trajectory sample."""
     tibia = next(j for j in quadruped.joints if j.name == "lf_tibia")
-    assert tibia.required_torque_Nm > 0.1
-    assert re.fullmatch(r"walking@\d+\.\d\ds", tibia.load_case)
+    assert tibia.required_torque_Nm > 0.05  # the hand case gave 0.003
+    assert re.fullmatch(r"(walking|turning|running)@\d+\.\d\ds", tibia.load_case)
     assert tibia.usable_torque_Nm >= tibia.required_torque_Nm
 
 
@@ -172,9 +172,8 @@ def test_speeds_come_from_the_trajectories(quadruped) -> None:
         )
         assert j.required_speed_rad_s >= peak - 1e-9
     femur = next(j for j in quadruped.joints if j.name == "lf_femur")
-    walk = trajs["walking"]
     assert femur.required_speed_rad_s == pytest.approx(
-        np.abs(walk.velocities[:, walk.joints.index("lf_femur")]).max()
+        max(np.abs(t.velocities[:, t.joints.index("lf_femur")]).max() for t in trajs.values())
     )
 
 

@@ -334,7 +334,7 @@ def test_out_writes_design_json(cli, tmp_path: Path) -> None:
         "trajectories",
     ]
     walks = sorted(p.name for p in (out / "trajectories").iterdir())
-    assert walks == ["running.csv", "walking.csv"]
+    assert walks == ["grasping.csv", "running.csv", "walking.csv"]
     assert all(p.suffix == ".stl" for p in (out / "meshes").iterdir())
     r = cli(
         "design",

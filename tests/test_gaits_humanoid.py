@@ -27,9 +27,10 @@ from gaits.humanoid import (
     odometry,
     reference_gait,
     reference_template,
+    stance_torques,
     synthesize,
 )
-from kinematics.dynamics import center_of_mass, forward_kinematics
+from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics, rnea
 from kinematics.templates import DEFAULTS, TemplateParams, build
 
 LEGS = tuple(f"{s}_{j}" for s in "lr" for j in LEG_JOINTS)
@@ -259,8 +260,11 @@ def _check_smooth_and_limited(controller, traj, speed=None):
     model = controller.template.model
     index = {n: k for k, n in enumerate(model.q_names)}
     assert traj.joints == controller.joints
-    np.testing.assert_allclose(traj.positions[0], 0.0, atol=1e-12)  # starts from q = 0
-    np.testing.assert_allclose(traj.velocities[0], 0.0, atol=1e-9)
+    planned = traj.info.get("planned_positions", traj.positions)
+    np.testing.assert_allclose(planned[0], 0.0, atol=1e-12)  # starts from q = 0
+    # starting still (the servos' give may change a little as the crouch starts)
+    still = 1e-9 if planned is traj.positions else 0.02
+    np.testing.assert_allclose(traj.velocities[0], 0.0, atol=still)
     for k, name in enumerate(traj.joints):
         i = index[name]
         assert model.lower[i] <= traj.positions[:, k].min()
@@ -445,6 +449,71 @@ def test_gait_plan_changes_the_step_only_in_single_support():
     assert r.max() == pytest.approx(1.0)
 
 
+# --- the servos' give: stance loads and lag ------------------------------------------------
+
+
+def test_stance_torques_put_the_weight_on_the_feet_that_touch_the_ground(controller):
+    tmpl = reference_template(REFERENCE_SIZE)
+    model = tmpl.model
+    foot = tmpl.feet[0]
+    y = np.zeros(40)
+    for _ in range(8):  # standing still, the pelvis moved until the COM is over the left sole
+        legs = controller._stance(np.zeros(40), y)
+        q = np.concatenate([legs, np.zeros((40, 6))], axis=1)
+        Q = _full(model, controller.joints, q[:1])
+        ankle = forward_kinematics(model, Q)[0, model.body(foot), :3, 3]
+        y = y + (ankle[1] - center_of_mass(model, Q)[0, 1])
+    tau = stance_torques(tmpl, controller.joints, q, 0.01)
+    # as the weight under the COM on the left foot: RNEA with that force alone
+    sole = forward_kinematics(model, Q)[0, model.body(foot), :3, 3] + tmpl.foot_points[0]
+    com = center_of_mass(model, Q)[0]
+    fext = np.zeros((len(model.bodies), 6))
+    weight = np.array([0.0, 0.0, model.total_mass * G])
+    fext[model.body(foot)] = external_force_at(
+        model, Q[0], foot, np.array([com[0], com[1], sole[2]]), weight
+    )
+    want = rnea(model, Q[0], np.zeros(model.nv), np.zeros(model.nv), fext)
+    index = {n: k for k, n in enumerate(model.q_names)}
+    np.testing.assert_allclose(tau[20], want[[index[n] for n in controller.joints]], atol=1e-4)
+    # the right foot, beside the COM, carries nothing: its leg holds only itself
+    right = [controller.joints.index(n) for n in LEGS[6:]]
+    alone = rnea(model, Q[0], np.zeros(model.nv), np.zeros(model.nv))
+    np.testing.assert_allclose(tau[20, right], alone[[index[n] for n in LEGS[6:]]], atol=1e-4)
+    # the left knee carries the robot (a case the right one must not match)
+    knee = controller.joints.index("l_knee_pitch")
+    assert abs(tau[20, knee]) > 5 * abs(tau[20, controller.joints.index("r_knee_pitch")])
+    # standing evenly (COM midway), both feet carry half
+    legs = controller._stance(np.zeros(40), np.zeros(40))
+    q = np.concatenate([legs, np.zeros((40, 6))], axis=1)
+    even = stance_torques(tmpl, controller.joints, q, 0.01)
+    assert even[20, knee] == pytest.approx(even[20, controller.joints.index("r_knee_pitch")])
+
+
+def test_stiffness_and_damping_add_the_servos_give_to_the_command():
+    geometry = _geometry()
+    plain = HumanoidController(geometry)
+    names = plain.joints
+    kp = {n: 4.0 + k for k, n in enumerate(names)}
+    kd = {n: 0.05 for n in names}
+    stiff = HumanoidController(geometry, stiffness=kp, damping=kd)
+    a, b = plain.run("walking", steps=1), stiff.run("walking", steps=1)
+    np.testing.assert_allclose(b.info["planned_positions"], a.positions)
+    assert b.info["planned_pose"] == a.info["planned_pose"]  # what the joints command
+    k = np.array([kp[n] for n in names])
+    tau = stance_torques(stiff.masses, names, a.positions, a.times[1] - a.times[0])
+    want = a.positions + (tau + 0.05 * a.velocities) / k
+    model = plain.template.model
+    index = {n: i for i, n in enumerate(model.q_names)}
+    lo = np.array([model.lower[index[n]] for n in names])
+    hi = np.array([model.upper[index[n]] for n in names])
+    np.testing.assert_allclose(b.positions, np.clip(want, lo, hi), atol=1e-12)
+    assert np.abs(b.positions - a.positions).max() > 1e-3
+    with pytest.raises(ValueError, match="stiffness: no value for l_gripper"):
+        HumanoidController(geometry, stiffness={n: 1.0 for n in names if n != "l_gripper"})
+    with pytest.raises(ValueError, match="damping values"):
+        HumanoidController(geometry, stiffness=kp, damping={n: -1.0 for n in names})
+
+
 # --- MuJoCo acceptance on the default HumanoidRobot design -----------------------------------
 
 
@@ -467,30 +536,32 @@ def design(kb, designer, tmp_path_factory):
     )
     folder = tmp_path_factory.mktemp("humanoid") / "bundle"
     write_bundle(folder, bundle_files(rec, s, load_catalog()))
-    return DesignGeometry.from_record(rec), load_bundle_model(folder)
+    return DesignGeometry.from_record(rec), load_bundle_model(folder), rec
 
 
-def _verdict(design, name, **params):
-    from export.verify import figures, run_behavior
+def _verdict(design, name, compensated=True, **params):
+    from export.verify import controller_for_model, figures, run_behavior
 
-    geometry, model = design
-    ctl = HumanoidController(geometry)
+    geometry, model, record = design
+    ctl = controller_for_model(record, model) if compensated else HumanoidController(geometry)
+    assert isinstance(ctl, HumanoidController)
     traj, result = run_behavior(model, ctl, name, params)
     _check_smooth_and_limited(ctl, traj, geometry.joint_speed)
     return figures(traj, result)
 
 
-#: Open: the default design's walk creeps about 4.5 mm per step beyond what its joints
-#: command (whatever the step length: 1.3 x the planned distance); smaller designs pass.
-CREEPS = pytest.mark.xfail(reason="walks 1.3 x its planned distance", strict=True)
-
-
-@pytest.mark.parametrize(
-    "name", [pytest.param("walking", marks=CREEPS), "running", "grasping", "balancing"]
-)
+@pytest.mark.parametrize("name", ["walking", "running", "grasping", "balancing"])
 def test_default_design_keeps_every_promise(design, name):
     fig = _verdict(design, name)
     assert fig["verdict"] == "ok", fig
+
+
+def test_default_design_walks_too_far_when_the_servos_give(design):
+    """The servos lag their references (velocity gain) and give under the stance loads:
+    commanded the bare angles, the default design walks about 1.3 x its plan."""
+    fig = _verdict(design, "walking", compensated=False)
+    assert "distance" in fig["verdict"], fig
+    assert fig["distance_m"] > 1.25 * fig["planned_distance_m"]
 
 
 # --- sizing (synth.sizing.Humanoid) ------------------------------------------------------
@@ -537,3 +608,49 @@ def test_sizing_holds_the_centre_of_pressure_off_the_ankle():
     left = forward_kinematics(model, held[0].q)[model.body(tmpl.feet[0]), :3, 3]
     hw = tmpl.lengths["hip_width"] / 2
     assert abs(com[1] - left[1]) < 0.5 * hw
+
+
+def test_sizing_takes_each_joints_peak_load_of_the_gaits():
+    from adron.catalog import load_catalog
+    from synth.sizing import HUMANOID, Humanoid
+
+    catalog = load_catalog()
+    tmpl = build("HumanoidRobot", TemplateParams({k: f * 0.4 for k, f in HUMANOID.items()}))
+    model = tmpl.model
+    cases = Humanoid().load_cases(tmpl, {"height": 0.4, "payload": 0.0}, catalog)
+    gait = [c for c in cases if c.name.startswith(("walking at", "running at"))]
+    stance = [c for c in cases if c not in gait]
+    assert gait and stance
+
+    def peak(cs, joint):
+        k = model.q_index[model.joint(joint)]
+        return max(abs(float(rnea(model, c.q, c.v, c.a, c.fext)[k])) for c in cs)
+
+    # the gaits' own peaks, by the controller's stance loads on the planned angles
+    plans = Humanoid.gait_plans(tmpl)
+    for _, t, joints, q, _ in plans:
+        tau = np.abs(stance_torques(tmpl, joints, q, float(t[1] - t[0])))
+        for j in ("l_hip_roll", "l_knee_pitch", "l_ankle_roll"):
+            assert peak(gait, j) >= tau[:, joints.index(j)].max() - 1e-9
+    # the walking stance alone misses the ankle roll's load while the weight moves between
+    # the feet (the case the gait cases were added for: an SG90 ankle roll saturated)
+    assert peak(gait, "l_ankle_roll") > 1.5 * peak(stance, "l_ankle_roll")
+
+
+def test_sizing_holds_each_joints_fastest_instant_of_the_gaits():
+    from adron.catalog import load_catalog
+    from synth.sizing import HUMANOID, Humanoid
+
+    catalog = load_catalog()
+    tmpl = build("HumanoidRobot", TemplateParams({k: f * 0.2 for k, f in HUMANOID.items()}))
+    holds = Humanoid().holds(tmpl, {"height": 0.2, "payload": 0.0}, catalog)
+    fastest = {}
+    for _, _, joints, _, v in Humanoid.gait_plans(tmpl):
+        for k, j in enumerate(joints):
+            fastest[j] = max(fastest.get(j, 0.0), float(np.abs(v[:, k]).max()))
+    torque, speed, what = holds["l_knee_pitch"]
+    assert speed == pytest.approx(fastest["l_knee_pitch"])
+    assert "running" in what  # the faster gait
+    assert speed > 4.0  # short legs swing fast (1 / sqrt(leg)): a slow servo fails it
+    assert torque < 0.1  # the swinging knee carries its shank only
+    assert "l_gripper" not in holds  # still in both gaits

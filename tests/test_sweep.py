@@ -343,15 +343,15 @@ def test_simulated_sweep_of_a_differential_drive(cli, tmp_path: Path) -> None:
     assert r.code == 0, r.err
     out = default_out(study)
     got = rows(out)
-    assert [g["behavior"] for g in got] == ["driving"]
+    assert [g["behavior"] for g in got] == ["driving", "turning"]
     stored = json.loads(next((out / "requests").glob("*.json")).read_text())
     record = stored["result"]["behaviors"][0]
     assert set(record) <= set(got[0])
     v = record["verdict"]
     assert got[0]["verdict"] == (v if v == "ok" else ";".join(v))
     assert got[0]["saturated_fraction"] == json.dumps(record["saturated_fraction"])
-    # accepted, or refused naming the behaviour that failed: either way simulated
-    assert got[0]["status"] == "accepted" or got[0]["reason"].startswith("driving failed")
+    # the default differential drive keeps both promises
+    assert [(g["status"], g["verdict"]) for g in got] == [("accepted", "ok")] * 2
     assert json.loads(r.out)["types"]["DifferentialDriveRobot"]["requests"] == 1
 
 
