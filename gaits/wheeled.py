@@ -58,7 +58,7 @@ from gaits.base import (
     min_jerk,
     min_jerk_integral,
 )
-from kinematics.dynamics import center_of_mass, forward_kinematics
+from kinematics.dynamics import forward_kinematics
 from kinematics.templates import WHEEL_WIDTH, Template, TemplateParams, build
 
 __all__ = [
@@ -253,10 +253,12 @@ class DriveGeometry:
         mass: float = 0.0,
         joint_torque: Mapping[str, float] | None = None,
         layout: Template | None = None,
+        payload: float = 0.0,
     ) -> DriveGeometry:
         """Read the drive off the template's wheel joints (positions in the chassis frame);
         ``mass`` kg and ``joint_torque`` (stall torques N m) enable the load model, whose
-        mass layout is that of ``layout`` (default: ``template``)."""
+        mass layout is that of ``template`` with ``payload`` kg where ``layout`` (the
+        template built with it) puts it."""
         m = template.model
         wheels = [j for j in m.joints if j.kind == "continuous"]
         if not wheels:
@@ -290,7 +292,7 @@ class DriveGeometry:
         else:
             kv = stall / min(speeds)
             inertia, caster_x, share, com_x, inv_weight = _mass_layout(
-                layout or template, mass, np.array([pos[n] for n in pos])
+                template, mass, np.array([pos[n] for n in pos]), layout, payload
             )
             normal = mass * GRAVITY * (1 - share) / len(pos) / CONTACTS_PER_WHEEL
             creep = creep_speed(TYRE_FRICTION, normal, inv_weight)
@@ -435,44 +437,65 @@ class DriveGeometry:
             )
 
 
+def _moments(template: Template) -> tuple[float, np.ndarray, np.ndarray]:
+    """(mass kg, first moment (3,) kg m, inertia (3, 3) kg m^2 about the root's origin) of
+    the template's bodies at q = 0, in the root frame."""
+    m = template.model
+    T = forward_kinematics(m, np.zeros(m.nv))
+    total, first, second = 0.0, np.zeros(3), np.zeros((3, 3))
+    for k, b in enumerate(m.bodies):
+        R, p = T[k, :3, :3], T[k, :3, 3]
+        c = R @ np.asarray(b.com) + p
+        total += b.mass
+        first += b.mass * c
+        second += R @ np.asarray(b.inertia) @ R.T + b.mass * (
+            float(c @ c) * np.eye(3) - np.outer(c, c)
+        )
+    return total, first, second
+
+
 def _mass_layout(
-    template: Template, mass: float, wheels: np.ndarray
+    template: Template,
+    mass: float,
+    wheels: np.ndarray,
+    loaded: Template | None = None,
+    payload: float = 0.0,
 ) -> tuple[float, float | None, float, float, float]:
     """(yaw inertia kg m^2 about the root's z, caster x m or None, the caster's share of
     the weight, the centre of mass' x m, the wheels' mean inverse weight 1/kg) of a robot
-    of ``mass`` kg laid out as ``template`` (whose masses are stand-ins: the inertia is
-    scaled to ``mass``); ``wheels`` (n, 3) m: the wheel centres in the root frame.
+    of ``mass`` kg laid out as ``template``, whose masses are stand-ins: they are scaled to
+    the design's ``mass`` less its ``payload`` kg, which sits where ``loaded`` (the template
+    with the payload) puts it; ``wheels`` (n, 3) m: the wheel centres in the root frame.
 
     The inverse weight is MuJoCo's ``body_invweight0`` of a wheel on the free-floating
     robot taken as one rigid body: ``1 / m + trace(S I_c^-1 S^T) / 3``, ``S`` the cross
     product matrix of the wheel's offset from the centre of mass, ``I_c`` the inertia
     about it."""
-    m = template.model
-    T = forward_kinematics(m, np.zeros(m.nv))
-    total = sum(b.mass for b in m.bodies)
-    com = np.asarray(center_of_mass(m, np.zeros(m.nv)), dtype=float)
-    inertia = 0.0
-    I_c = np.zeros((3, 3))
-    for k, b in enumerate(m.bodies):
-        R, p = T[k, :3, :3], T[k, :3, 3]
-        c = R @ np.asarray(b.com) + p
-        own = R @ np.asarray(b.inertia) @ R.T
-        inertia += float(own[2, 2]) + b.mass * (c[0] ** 2 + c[1] ** 2)
-        e = c - com
-        I_c += own + b.mass * (float(e @ e) * np.eye(3) - np.outer(e, e))
-    inertia *= mass / total
-    I_c *= mass / total
+    m0, h0, J0 = _moments(template)
+    if loaded is not None and payload > 0:
+        m1, h1, J1 = _moments(loaded)
+        mp, hp, Jp = m1 - m0, h1 - h0, J1 - J0  # the payload's share
+        scale = max(mass - mp, 0.0) / m0
+    else:
+        mp, hp, Jp = 0.0, np.zeros(3), np.zeros((3, 3))
+        scale = mass / m0
+    h, J = scale * h0 + hp, scale * J0 + Jp
+    total = scale * m0 + mp
+    com = h / total
+    inertia = float(J[2, 2])
+    I_c = J - total * (float(com @ com) * np.eye(3) - np.outer(com, com))
     inv = np.linalg.inv(I_c)
     weights = []
     for pw in np.asarray(wheels, dtype=float):
         S = _skew(pw - com)
-        weights.append(1 / mass + float(np.trace(S @ inv @ S.T)) / 3)
+        weights.append(1 / total + float(np.trace(S @ inv @ S.T)) / 3)
     inv_weight = float(np.mean(weights))
     com_x = float(com[0])
     axle_x = float(np.mean(np.asarray(wheels)[:, 0]))
     if not template.casters:
         return inertia, None, 0.0, com_x, inv_weight
-    caster_x = float(T[m.body(template.casters[0]), 0, 3])
+    T = forward_kinematics(template.model, np.zeros(template.model.nv))
+    caster_x = float(T[template.model.body(template.casters[0]), 0, 3])
     share = min(max((axle_x - com_x) / (axle_x - caster_x), 0.0), 1.0)
     return inertia, caster_x, share, com_x, inv_weight
 
@@ -521,6 +544,7 @@ class WheeledController(Controller):
             geometry.mass_kg,
             geometry.joint_torque,
             layout=layout,
+            payload=float(geometry.params.get("payload", 0.0)),
         )
         self.joints = (*self.drive.left, *self.drive.right)
 
