@@ -20,7 +20,10 @@ measured chi = 1.5 on a Pioneer 3-AT, whose wheel base and track give 1.46 by th
 The same balance holds on an arc (v, w) with front and rear wheels equally loaded: the
 sides' longitudinal slips are then +-w a^2 / (2 l), so eq. 5 with ``l_eff`` gives the wheel
 speeds of any (v, w), and each wheel carries the Coulomb torque ``mu N r a / sqrt(a^2 +
-l^2)`` (driving on the outer side, braking on the inner) whenever w != 0.
+l^2)`` (driving on the outer side, braking on the inner) once its contact slides, at
+``|w| a sqrt(a^2 + l^2) / (2 l)`` m/s, faster than the friction's creep speed
+(:func:`creep_speed`: MuJoCo's soft contacts are viscous below it, so a gentle arc loads the
+wheels in proportion to w, not with the full Coulomb torque).
 
 Load feed-forward. A wheel servo is a DC motor line (MJCF velocity servo): under a load
 torque tau it turns ``tau / kv`` slower than commanded (kv = stall torque / no-load speed).
@@ -55,7 +58,7 @@ from gaits.base import (
     min_jerk,
     min_jerk_integral,
 )
-from kinematics.dynamics import center_of_mass, forward_kinematics
+from kinematics.dynamics import forward_kinematics
 from kinematics.templates import WHEEL_WIDTH, Template, TemplateParams, build
 
 __all__ = [
@@ -64,6 +67,7 @@ __all__ = [
     "body_velocity",
     "integrate_odometry",
     "min_jerk",
+    "creep_speed",
     "skid_steer_chi",
     "turning_radius",
     "wheel_speeds",
@@ -87,19 +91,32 @@ GRAVITY = 9.81
 #: their rims): slow enough for the chassis' inertia to stay a small load, fast enough
 #: that the load model's error stays small against the speed.
 TURN_SPEED_FRACTION = 0.25
-#: Lever of a tyre's scrub, as a fraction of the wheel's width: a wheel turning about the
-#: vertical drags its flat rim across the floor; with the load spread evenly across the
-#: width the Coulomb moment is mu N (width / 4).
-SCRUB_LEVER = 0.25
+#: Lever of a tyre's scrub, as a fraction of the wheel's width: MuJoCo touches a level
+#: cylinder on a plane at the two ends of its lowest line, each carrying half the wheel's
+#: load, so a wheel turning about the vertical drags them +-width / 2 from its middle and
+#: the Coulomb moment is mu N (width / 2).
+SCRUB_LEVER = 0.5
+#: The same for a skid-steer's wheels, whose contacts already slide across the wheel:
+#: measured, not derived. MuJoCo's skidding wheels resist a turn more than the Coulomb
+#: balance of the module docstring predicts (a turn in place needs wheel speeds of an
+#: effective track 1.4-1.5 x ``l_eff``, the contact forces ~14 deg off the slip); this
+#: extra moment brings the skid-steer turns of the parameter grid to 0.8-1.1 x the command.
+SKID_SCRUB_LEVER = 0.25
+#: Contacts of a wheel's rim with the floor (the cylinder's two ends, see SCRUB_LEVER).
+CONTACTS_PER_WHEEL = 2
+#: MuJoCo's default contact softness, which the MJCF keeps (``export.mjcf``): ``solref``'s
+#: time constant s, ``solimp``'s impedance at zero penetration and its maximum, and the
+#: cone's ``impratio``. They set the friction's regularised region (see :func:`creep_speed`).
+SOLREF_TIMECONST = 0.02
+SOLIMP_D0 = 0.9
+SOLIMP_DMAX = 0.95
+IMPRATIO = 1.0
 #: Mechanical time constant (s) of a wheel servo's geared motor (``export.mjcf``'s
 #: ``WHEEL_MOTOR_TIME_CONSTANT``, equal; a test checks it): accelerating the rotor by
 #: ``alpha`` takes ``kv * tau alpha``, a droop of ``tau alpha`` rad/s.
 WHEEL_MOTOR_TIME_CONSTANT = 0.05
 #: Default minimum-jerk ramp of ``driving``, s (longer where the servos need it).
 RAMP = 0.5
-#: Yaw rate rad/s over which the scrubbing torque of a skid-steer's wheels builds up from 0
-#: (Coulomb friction switches sign with the slip; a tanh keeps the command continuous).
-SKID_RATE = 0.02
 
 
 def wheel_speeds(v: float, w: float, radius: float, track: float) -> tuple[float, float]:
@@ -173,6 +190,23 @@ def skid_steer_chi(wheel_base: float, track: float) -> float:
     return 1.0 + (wheel_base / track) ** 2
 
 
+def creep_speed(friction: float, normal: float, inverse_weight: float) -> float:
+    """The slip speed m/s below which MuJoCo's soft friction stays in its regularised
+    (viscous) region: a contact of ``friction`` coefficient carrying ``normal`` N on a body
+    of MuJoCo's ``body_invweight0`` ``inverse_weight`` 1/kg.
+
+    A sliding contact's friction force satisfies ``R f = -b v`` in steady state (MuJoCo's
+    soft constraints: ``b = 2 / (dmax timeconst)``, ``R = (1 - d) / d x`` the row's
+    diagonal, the inverse weight; elliptic cone: the friction rows' R is the normal's over
+    ``impratio``), so it grows linearly with the slip v up to the cone's ``mu N`` at
+    ``v = mu N R / b``. A pyramidal cone's edge rows (diagonal ``(1 + mu^2)`` x) saturate
+    at ``N R_edge / (2 mu b)``: the same for mu = 1 (tyres)."""
+    d = SOLIMP_D0
+    r = (1 - d) / d * inverse_weight / IMPRATIO
+    b = 2 / (SOLIMP_DMAX * SOLREF_TIMECONST)
+    return friction * normal * r / b
+
+
 def _check_geometry(radius: float, track: float) -> None:
     if not (math.isfinite(radius) and radius > 0 and math.isfinite(track) and track > 0):
         raise ValueError(f"wheel radius and track must be positive, got {radius}, {track}")
@@ -190,8 +224,9 @@ class DriveGeometry:
     usable speed (``SPEED_MARGIN`` times its no-load speed). The load model
     (:meth:`wheel_torques`) uses ``mass`` kg (0: unknown, no load feed-forward), ``kv``
     N m s (the wheel servo's motor line: stall torque / no-load speed), ``yaw_inertia``
-    kg m^2 about the root's z, ``caster_x`` m (root frame; None without a caster) and
-    ``caster_share`` (of the weight on the caster).
+    kg m^2 about the root's z, ``caster_x`` m (root frame; None without a caster),
+    ``caster_share`` (of the weight on the caster), ``com_x`` m and ``creep`` m/s, the slip
+    speed up to which a tyre's friction grows linearly (:func:`creep_speed`).
     """
 
     left: tuple[str, ...]
@@ -208,6 +243,7 @@ class DriveGeometry:
     caster_x: float | None = None
     caster_share: float = 0.0
     com_x: float = 0.0
+    creep: float = 0.0
 
     @classmethod
     def from_template(
@@ -217,10 +253,12 @@ class DriveGeometry:
         mass: float = 0.0,
         joint_torque: Mapping[str, float] | None = None,
         layout: Template | None = None,
+        payload: float = 0.0,
     ) -> DriveGeometry:
         """Read the drive off the template's wheel joints (positions in the chassis frame);
         ``mass`` kg and ``joint_torque`` (stall torques N m) enable the load model, whose
-        mass layout is that of ``layout`` (default: ``template``)."""
+        mass layout is that of ``template`` with ``payload`` kg where ``layout`` (the
+        template built with it) puts it."""
         m = template.model
         wheels = [j for j in m.joints if j.kind == "continuous"]
         if not wheels:
@@ -250,12 +288,14 @@ class DriveGeometry:
         torque = joint_torque or {}
         stall = min((torque.get(n, 0.0) for n in pos), default=0.0)
         if mass <= 0 or stall <= 0:
-            mass, kv, inertia, caster_x, share, com_x = 0.0, 0.0, 0.0, None, 0.0, 0.0
+            mass, kv, inertia, caster_x, share, com_x, creep = 0.0, 0.0, 0.0, None, 0.0, 0.0, 0.0
         else:
             kv = stall / min(speeds)
-            inertia, caster_x, share, com_x = _mass_layout(
-                layout or template, mass, float(np.mean([pos[n][0] for n in pos]))
+            inertia, caster_x, share, com_x, inv_weight = _mass_layout(
+                template, mass, np.array([pos[n] for n in pos]), layout, payload
             )
+            normal = mass * GRAVITY * (1 - share) / len(pos) / CONTACTS_PER_WHEEL
+            creep = creep_speed(TYRE_FRICTION, normal, inv_weight)
         return cls(
             left,
             right,
@@ -271,6 +311,7 @@ class DriveGeometry:
             caster_x,
             share,
             com_x,
+            creep,
         )
 
     @property
@@ -296,12 +337,22 @@ class DriveGeometry:
         a, l_ = self.wheel_base, self.track
         return TYRE_FRICTION * self.mass * GRAVITY / n * self.radius * a / math.hypot(a, l_)
 
+    def skid_slip(self) -> float:
+        """Slip speed m/s of a skid-steer's wheel contact per rad/s of yaw (any v, equal
+        loads): across the wheel ``w a / 2``, along it ``w a^2 / (2 l)`` (module
+        docstring), together ``w a sqrt(a^2 + l^2) / (2 l)``; 0 without skidding."""
+        if not self.skid:
+            return 0.0
+        a, l_ = self.wheel_base, self.track
+        return a * math.hypot(a, l_) / (2 * l_)
+
     def scrub_moment(self) -> float:
         """The yaw moment N m all tyres' scrubbing resists a turn with (Coulomb): each wheel
-        mu N_i SCRUB_LEVER WHEEL_WIDTH, N_i its share of the weight (the caster's share
-        off)."""
+        mu N_i SCRUB_LEVER WHEEL_WIDTH (a skid-steer's: SKID_SCRUB_LEVER), N_i its share of
+        the weight (the caster's share off)."""
         load = self.mass * GRAVITY * (1 - self.caster_share)
-        return TYRE_FRICTION * load * SCRUB_LEVER * WHEEL_WIDTH
+        lever = SKID_SCRUB_LEVER if self.skid else SCRUB_LEVER
+        return TYRE_FRICTION * load * lever * WHEEL_WIDTH
 
     def wheel_torques(
         self, v: np.ndarray, w: np.ndarray, accel: np.ndarray, alpha: np.ndarray
@@ -329,10 +380,13 @@ class DriveGeometry:
             fx = fx + scale * cx
             mz = mz - self.caster_x * (-scale * cy)
         # each tyre's scrub while the chassis turns: mu N (SCRUB_LEVER x width) per wheel
-        mz = mz + self.scrub_moment() * np.tanh(w / SKID_RATE)
+        # (each rim contact slides +-w width / 2 along the wheel, a skid-steer's faster across
+        # it; MuJoCo's friction is viscous below the creep speed)
+        slip = w * max(WHEEL_WIDTH / 2, self.skid_slip())
+        mz = mz + self.scrub_moment() * np.clip(slip / (self.creep or 1e-12), -1, 1)
         left_f = fx / 2 - mz / self.track
         right_f = fx / 2 + mz / self.track
-        skid = self.skid_torque() * np.tanh(w / SKID_RATE)
+        skid = self.skid_torque() * np.clip(w * self.skid_slip() / (self.creep or 1e-12), -1, 1)
         r = self.radius
         return (
             r * left_f / len(self.left) - skid,
@@ -383,27 +437,72 @@ class DriveGeometry:
             )
 
 
-def _mass_layout(
-    template: Template, mass: float, axle_x: float
-) -> tuple[float, float | None, float, float]:
-    """(yaw inertia kg m^2 about the root's z, caster x m or None, the caster's share of
-    the weight, the centre of mass' x m) of a robot of ``mass`` kg laid out as
-    ``template`` (whose masses are stand-ins: the inertia is scaled to ``mass``)."""
+def _moments(template: Template) -> tuple[float, np.ndarray, np.ndarray]:
+    """(mass kg, first moment (3,) kg m, inertia (3, 3) kg m^2 about the root's origin) of
+    the template's bodies at q = 0, in the root frame."""
     m = template.model
     T = forward_kinematics(m, np.zeros(m.nv))
-    total = sum(b.mass for b in m.bodies)
-    inertia = 0.0
+    total, first, second = 0.0, np.zeros(3), np.zeros((3, 3))
     for k, b in enumerate(m.bodies):
         R, p = T[k, :3, :3], T[k, :3, 3]
         c = R @ np.asarray(b.com) + p
-        inertia += float((R @ np.asarray(b.inertia) @ R.T)[2, 2]) + b.mass * (c[0] ** 2 + c[1] ** 2)
-    inertia *= mass / total
-    com_x = float(center_of_mass(m, np.zeros(m.nv))[0])
+        total += b.mass
+        first += b.mass * c
+        second += R @ np.asarray(b.inertia) @ R.T + b.mass * (
+            float(c @ c) * np.eye(3) - np.outer(c, c)
+        )
+    return total, first, second
+
+
+def _mass_layout(
+    template: Template,
+    mass: float,
+    wheels: np.ndarray,
+    loaded: Template | None = None,
+    payload: float = 0.0,
+) -> tuple[float, float | None, float, float, float]:
+    """(yaw inertia kg m^2 about the root's z, caster x m or None, the caster's share of
+    the weight, the centre of mass' x m, the wheels' mean inverse weight 1/kg) of a robot
+    of ``mass`` kg laid out as ``template``, whose masses are stand-ins: they are scaled to
+    the design's ``mass`` less its ``payload`` kg, which sits where ``loaded`` (the template
+    with the payload) puts it; ``wheels`` (n, 3) m: the wheel centres in the root frame.
+
+    The inverse weight is MuJoCo's ``body_invweight0`` of a wheel on the free-floating
+    robot taken as one rigid body: ``1 / m + trace(S I_c^-1 S^T) / 3``, ``S`` the cross
+    product matrix of the wheel's offset from the centre of mass, ``I_c`` the inertia
+    about it."""
+    m0, h0, J0 = _moments(template)
+    if loaded is not None and payload > 0:
+        m1, h1, J1 = _moments(loaded)
+        mp, hp, Jp = m1 - m0, h1 - h0, J1 - J0  # the payload's share
+        scale = max(mass - mp, 0.0) / m0
+    else:
+        mp, hp, Jp = 0.0, np.zeros(3), np.zeros((3, 3))
+        scale = mass / m0
+    h, J = scale * h0 + hp, scale * J0 + Jp
+    total = scale * m0 + mp
+    com = h / total
+    inertia = float(J[2, 2])
+    I_c = J - total * (float(com @ com) * np.eye(3) - np.outer(com, com))
+    inv = np.linalg.inv(I_c)
+    weights = []
+    for pw in np.asarray(wheels, dtype=float):
+        S = _skew(pw - com)
+        weights.append(1 / total + float(np.trace(S @ inv @ S.T)) / 3)
+    inv_weight = float(np.mean(weights))
+    com_x = float(com[0])
+    axle_x = float(np.mean(np.asarray(wheels)[:, 0]))
     if not template.casters:
-        return inertia, None, 0.0, com_x
-    caster_x = float(T[m.body(template.casters[0]), 0, 3])
+        return inertia, None, 0.0, com_x, inv_weight
+    T = forward_kinematics(template.model, np.zeros(template.model.nv))
+    caster_x = float(T[template.model.body(template.casters[0]), 0, 3])
     share = min(max((axle_x - com_x) / (axle_x - caster_x), 0.0), 1.0)
-    return inertia, caster_x, share, com_x
+    return inertia, caster_x, share, com_x, inv_weight
+
+
+def _skew(d: np.ndarray) -> np.ndarray:
+    """The cross product matrix of ``d`` (3,)."""
+    return np.array([[0.0, -d[2], d[1]], [d[2], 0.0, -d[0]], [-d[1], d[0], 0.0]])
 
 
 class WheeledController(Controller):
@@ -445,6 +544,7 @@ class WheeledController(Controller):
             geometry.mass_kg,
             geometry.joint_torque,
             layout=layout,
+            payload=float(geometry.params.get("payload", 0.0)),
         )
         self.joints = (*self.drive.left, *self.drive.right)
 
