@@ -912,7 +912,52 @@ def design_structure(
             raise InfeasibleError(
                 f"{e}; the largest payload that works here is {shown:.3f} kg"
             ) from None
+        for name, (unit, scale, digits) in EASIER_WHEN_SMALLER.items():
+            if name not in params:  # only what the user asked for
+                continue
+            best = largest_value(designer, name)
+            if best is not None:
+                step = 10.0**-digits
+                shown = math.floor(best * scale / step) * step  # round down: it must work
+                raise InfeasibleError(
+                    f"{e}; the largest {name} that works here is {shown:.{digits}f} {unit}"
+                ) from None
         raise
+
+
+#: Parameters a design is easier to build with less of, besides the payload: name -> (unit
+#: shown, factor from SI, decimals), tried in this order when a request is infeasible.
+EASIER_WHEN_SMALLER = {"speed": ("m/s", 1.0, 2), "slope": ("deg", 180 / math.pi, 1)}
+
+
+def largest_value(designer: StructureDesigner, name: str, steps: int = 12) -> float | None:
+    """The largest value of parameter ``name`` (SI, at most the asked one) with which the
+    design succeeds, all else equal, by bisection from a hundredth of the asked value (0 for
+    a slope), with the behaviours analysed; None when even that fails."""
+    asked = designer.values.get(name)
+    if not asked or asked <= 0:
+        return None
+    values = designer.values
+    low = 0.0 if name == "slope" else asked / 100
+
+    def ok(x: float) -> bool:
+        designer.values = {**values, name: x}
+        try:
+            designer.run()
+            return True
+        except InfeasibleError:
+            return False
+
+    try:
+        if not ok(low):
+            return None
+        lo, hi = low, asked
+        for _ in range(steps):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+        return lo
+    finally:
+        designer.values = values
 
 
 #: Bisection steps of ``largest_payload`` with the behaviours analysed (after those with the

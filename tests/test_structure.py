@@ -4,6 +4,7 @@ meets every limit; the paper's Fig. 8 behaviour; infeasible requests name the li
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
@@ -349,3 +350,14 @@ def test_every_snake_gait_designs_with_defaults(designer, kb, catalog) -> None:
         cand = designer.step(Request(abilities=(gait,))).chosen
         s = design_structure(kb, cand, catalog, {})
         assert len(s.joints) == cand.dof
+
+
+def test_a_refusal_names_the_largest_speed_that_works(cli) -> None:
+    r = cli("design", "driving", "--param", "speed=0.5m/s", "--no-verify", "--json")
+    assert r.code == 1
+    m = re.search(r"the largest speed that works here is (\d+\.\d+) m/s", r.err)
+    assert m, r.err
+    best = m.group(1)
+    assert 0.05 < float(best) < 0.5
+    ok = cli("design", "driving", "--param", f"speed={best}m/s", "--no-verify", "--json")
+    assert ok.code == 0, ok.err
