@@ -44,6 +44,22 @@ def designer(kb: KnowledgeBase) -> Designer:
     return Designer(kb, Reasoner(kb))
 
 
+@pytest.fixture(scope="session")
+def catalog():
+    """The shipped module catalog."""
+    from adron.catalog import load_catalog
+
+    return load_catalog()
+
+
+@pytest.fixture(scope="session")
+def bases(designer: Designer) -> dict:
+    """Robot type -> conceptual design of every base configuration of the ontology."""
+    from synth.solver import Query
+
+    return {c.robot_type: c for c in designer.reasoner.solve(Query()).candidates}
+
+
 @dataclass
 class Run:
     code: int

@@ -4,16 +4,11 @@ from __future__ import annotations
 
 import pytest
 
-from adron.catalog import catalog_facts, load_catalog
+from adron.catalog import catalog_facts
 from adron.errors import InputError
 from synth.solver import ActuatorAssigner, JointSlot
 
 POS = ("SG90", "MG996R", "DS3218")
-
-
-@pytest.fixture(scope="module")
-def catalog():
-    return load_catalog()
 
 
 def legs(n: int) -> list[JointSlot]:

@@ -19,7 +19,6 @@ import numpy as np
 import pytest
 import trimesh
 
-from adron.catalog import load_catalog
 from export import meshes
 from export.assembly import build_assembly
 from kinematics.spatial import box_inertia, combine_parts, sphere_inertia
@@ -111,11 +110,6 @@ def test_face_parameters_are_checked() -> None:
 
 
 # --- assemblies of the default designs ---------------------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def catalog():
-    return load_catalog()
 
 
 @pytest.fixture(scope="module")

@@ -9,14 +9,12 @@ import re
 import numpy as np
 import pytest
 
-from adron.catalog import load_catalog
 from export.record import to_json
 from gaits.base import Trajectory
 from kinematics.dynamics import center_of_mass, rnea
 from kinematics.templates import build
 from synth import behaviour_loads as bl
 from synth.sizing import support_shares
-from synth.solver import Query
 from synth.structure import (
     StructureDesigner,
     alternatives,
@@ -30,16 +28,6 @@ from synth.structure import (
 #: simulated stance torques closely (the femur's to a few per cent); the position servos
 #: add transients at touchdown and lift-off that it does not see (up to about 2x).
 SIM_OVER_PREDICTED = (0.7, 2.5)
-
-
-@pytest.fixture(scope="module")
-def catalog():
-    return load_catalog()
-
-
-@pytest.fixture(scope="module")
-def bases(designer):
-    return {c.robot_type: c for c in designer.reasoner.solve(Query()).candidates}
 
 
 @pytest.fixture(scope="module")

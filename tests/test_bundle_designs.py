@@ -14,7 +14,6 @@ import pytest
 import trimesh
 import yourdfpy
 
-from adron.catalog import load_catalog
 from export.bundle import bundle_files, write_bundle
 from export.mjcf import load_mjcf
 from export.record import design_record
@@ -22,11 +21,6 @@ from synth.conceptual import Design, Request
 from synth.solver import Query
 from synth.structure import design_structure
 from tests.conftest import CI
-
-
-@pytest.fixture(scope="module")
-def catalog():
-    return load_catalog()
 
 
 @pytest.fixture(scope="module")

@@ -8,9 +8,7 @@ import re
 
 import pytest
 
-from adron.catalog import load_catalog
 from adron.errors import InfeasibleError
-from synth.solver import Query
 from synth.structure import (
     StructureDesigner,
     alternatives,
@@ -18,16 +16,6 @@ from synth.structure import (
     design_structure,
     speed_at,
 )
-
-
-@pytest.fixture(scope="module")
-def catalog():
-    return load_catalog()
-
-
-@pytest.fixture(scope="module")
-def bases(designer):
-    return {c.robot_type: c for c in designer.reasoner.solve(Query()).candidates}
 
 
 @pytest.fixture(scope="module")
