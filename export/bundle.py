@@ -54,13 +54,12 @@ def trajectory_files(record: dict) -> dict[str, str]:
     """``trajectories/<behaviour>.csv``: each behaviour of the design's controller that
     realises one of its abilities (``turning`` of a walking robot too; aliases left out),
     with default parameters (joint angles over time)."""
-    from export.verify import listed_behaviors
     from gaits import controller_for
     from gaits.base import DesignGeometry
 
     controller = controller_for(DesignGeometry.from_record(record))
     out = {}
-    for name in listed_behaviors(controller, record.get("abilities", ())):
+    for name in controller.listed(record.get("abilities", ())):
         if not _SAFE_BEHAVIOR.fullmatch(name):
             raise ExportError(f"behaviour name {name!r} is not a safe file name")
         out[f"trajectories/{name}.csv"] = controller.run(name).csv()

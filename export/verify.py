@@ -87,23 +87,6 @@ def controller_for_model(record: Mapping, model) -> Controller:
     return controller_for(geometry, **options)
 
 
-def listed_behaviors(controller: Controller, abilities: Sequence[str]) -> list[str]:
-    """The behaviours of ``controller`` that realise one of ``abilities`` (aliases left out),
-    sorted by name."""
-    have = set(abilities)
-    return sorted(
-        name
-        for name, spec in controller.behaviors.items()
-        if spec.realises in have and spec.alias_of is None
-    )
-
-
-def unbehaved_abilities(controller: Controller, abilities: Sequence[str]) -> list[str]:
-    """The abilities in ``abilities`` that no behaviour of ``controller`` realises."""
-    realised = {spec.realises for spec in controller.behaviors.values()}
-    return sorted(set(abilities) - realised)
-
-
 def run_behavior(
     model,
     controller: Controller,
@@ -145,11 +128,7 @@ def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None)
     """Every listed behaviour of the design (default parameters) run and judged: one
     :func:`figures` dict each, in name order."""
     controller = controller_for_model(record, model)
-    names = (
-        listed_behaviors(controller, record.get("abilities", ()))
-        if behaviors is None
-        else list(behaviors)
-    )
+    names = controller.listed(record.get("abilities", ())) if behaviors is None else list(behaviors)
     out = []
     for n in names:
         fig = figures(*run_behavior(model, controller, n))

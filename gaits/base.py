@@ -16,7 +16,7 @@ from __future__ import annotations
 import io
 from abc import ABC, abstractmethod
 from collections import OrderedDict
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -293,6 +293,20 @@ class Controller(ABC):
         else:
             _PLANNED.move_to_end(key)
         return traj
+
+    def listed(self, abilities: Sequence[str]) -> list[str]:
+        """The behaviours that realise one of ``abilities`` (aliases left out), by name:
+        what a design with those abilities lists, bundles and verifies."""
+        have = set(abilities)
+        return sorted(
+            name
+            for name, spec in self.behaviors.items()
+            if spec.realises in have and spec.alias_of is None
+        )
+
+    def unbehaved(self, abilities: Sequence[str]) -> list[str]:
+        """The abilities among ``abilities`` that no behaviour realises, sorted."""
+        return sorted(set(abilities) - {spec.realises for spec in self.behaviors.values()})
 
     def movable_joints(self) -> tuple[str, ...]:
         m = self.template.model

@@ -201,12 +201,7 @@ def behaviour_trajectories(geometry) -> tuple[dict, tuple[str, ...]]:
         out: tuple[dict, tuple[str, ...]] = ({}, (f"no behaviours analysed: {e}",))
     else:
         trajs, notes = {}, []
-        abilities = set(geometry.abilities)
-        for name, spec in sorted(controller.behaviors.items()):
-            if getattr(spec, "alias_of", None):
-                continue
-            if (getattr(spec, "ability", None) or name) not in abilities:
-                continue
+        for name in controller.listed(geometry.abilities):
             try:
                 trajs[name] = controller.run(name)
             except ValueError as e:

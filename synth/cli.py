@@ -701,7 +701,7 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if not isinstance(record, dict):
         raise InputError(f"{folder / 'design.json'}: not a design record (expected an object)")
     from export.simulate import load_bundle_model
-    from export.verify import controller_for_model, figures, listed_behaviors, run_behavior
+    from export.verify import controller_for_model, figures, run_behavior
 
     params: dict[str, str] = {}
     for item in args.set:
@@ -724,7 +724,7 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     try:
         controller = controller_for_model(record, model)
         if args.behavior == "help":
-            listed = set(listed_behaviors(controller, record.get("abilities", ())))
+            listed = set(controller.listed(record.get("abilities", ())))
             for name, spec in sorted(controller.behaviors.items()):
                 ps = ", ".join(
                     f"{p.name}={p.default}{' ' + p.unit if p.unit else ''}" for p in spec.params

@@ -78,7 +78,9 @@ def _floors(results: list[dict], record: dict) -> dict[str, float]:
 def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Outcome) -> Outcome:
     """``outcome`` (a sized design) simulated, repaired where it can be, and judged."""
     from export.verdict import explain
-    from export.verify import controller_for_model, unbehaved_abilities, verify_files
+    from export.verify import verify_files
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
     from synth.structure import StructureDesigner
 
     floors: dict[str, float] = {}
@@ -108,10 +110,9 @@ def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Ou
         except InfeasibleError:
             break  # no stronger actuator: the failure below stands
         outcome = replace(outcome, structure=structure)
-    from export.simulate import load_files_model
-
-    controller = controller_for_model(record, load_files_model(files))
-    unsimulated = tuple(unbehaved_abilities(controller, record.get("abilities", ())))
+    # which abilities no behaviour simulates: the controller alone tells (no model needed)
+    controller = controller_for(DesignGeometry.from_record(record))
+    unsimulated = tuple(controller.unbehaved(record.get("abilities", ())))
     needed = set(record.get("needed") or record.get("abilities", ()))
     dropped: dict[str, str] = {}
     failure = None

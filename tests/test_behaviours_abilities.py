@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import pytest
 
-from export.verify import listed_behaviors, unbehaved_abilities
 from gaits import controller_for
 from gaits.base import DesignGeometry
 from synth.conceptual import Request
@@ -35,13 +34,13 @@ def test_abilities_and_behaviours_match(designer, robot) -> None:
     rec = out.record(designer)
     assert rec["robot_type"] == robot
     controller = controller_for(DesignGeometry.from_record(rec))
-    assert unbehaved_abilities(controller, rec["abilities"]) == []
+    assert controller.unbehaved(rec["abilities"]) == []
     known = {designer.short(a) for a in designer.kb.translation.documentation} | set(
         rec["abilities"]
     )
     realised = {s.realises for s in controller.behaviors.values()}
     assert realised <= known, realised - known
-    listed = listed_behaviors(controller, rec["abilities"])
+    listed = controller.listed(rec["abilities"])
     assert {controller.behaviors[b].realises for b in listed} == set(rec["abilities"])
 
 
@@ -51,7 +50,5 @@ def test_a_behaviour_outside_the_abilities_is_not_listed(designer) -> None:
     controller = controller_for(DesignGeometry.from_record(rec))
     # balancing needs a sensor module this humanoid does not have
     assert "balancing" in controller.behaviors and "balancing" not in rec["abilities"]
-    assert "balancing" not in listed_behaviors(controller, rec["abilities"])
-    assert unbehaved_abilities(controller, [*rec["abilities"], "line-tracking"]) == [
-        "line-tracking"
-    ]
+    assert "balancing" not in controller.listed(rec["abilities"])
+    assert controller.unbehaved([*rec["abilities"], "line-tracking"]) == ["line-tracking"]

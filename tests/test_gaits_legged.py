@@ -479,14 +479,13 @@ def test_quadruped_crawls_forward(designs):
 
 @pytest.mark.parametrize("rt", TYPES)
 def test_info_contract_and_abilities(rt, designs):
-    from export.verify import listed_behaviors, unbehaved_abilities
 
     c = designs[rt].controller()
     abilities = designs[rt].geometry.abilities
     assert "running" in abilities
-    assert unbehaved_abilities(c, abilities) == []
+    assert c.unbehaved(abilities) == []
     assert c.behaviors["turning"].realises == "walking"
-    assert {"walking", "running", "turning"} <= set(listed_behaviors(c, abilities))
+    assert {"walking", "running", "turning"} <= set(c.listed(abilities))
     for name in c.behaviors:
         traj = c.run(name, steps=1) if name != "turning" else c.run(name)
         info = traj.info
