@@ -906,16 +906,10 @@ def design_structure(
     try:
         return designer.run()
     except InfeasibleError as e:
-        hint = largest_payload(designer)
-        if hint is not None:
-            shown = math.floor(hint * 1000) / 1000  # round down: the shown value must work
-            raise InfeasibleError(
-                f"{e}; the largest payload that works here is {shown:.3f} kg"
-            ) from None
-        for name, (unit, scale, digits) in EASIER_WHEN_SMALLER.items():
-            if name not in params:  # only what the user asked for
+        for name, (unit, scale, digits, floor, always) in EASIER_WHEN_SMALLER.items():
+            if not (always or name in params):  # the others only where the user asked
                 continue
-            best = largest_value(designer, name)
+            best = largest_value(designer, name, floor)
             if best is not None:
                 step = 10.0**-digits
                 shown = math.floor(best * scale / step) * step  # round down: it must work
@@ -925,61 +919,39 @@ def design_structure(
         raise
 
 
-#: Parameters a design is easier to build with less of, besides the payload: name -> (unit
-#: shown, factor from SI, decimals), tried in this order when a request is infeasible.
-EASIER_WHEN_SMALLER = {"speed": ("m/s", 1.0, 2), "slope": ("deg", 180 / math.pi, 1)}
+#: Parameters a design is easier to build with less of, tried in this order when a request
+#: is infeasible: name -> (unit shown, factor from SI, decimals shown, the smallest value
+#: tried as a share of the asked one, whether tried when the user did not ask for it).
+EASIER_WHEN_SMALLER = {
+    "payload": ("kg", 1.0, 3, 0.0, True),
+    "speed": ("m/s", 1.0, 2, 0.01, False),
+    "slope": ("deg", 180 / math.pi, 1, 0.0, False),
+}
 
-
-def largest_value(designer: StructureDesigner, name: str, steps: int = 12) -> float | None:
-    """The largest value of parameter ``name`` (SI, at most the asked one) with which the
-    design succeeds, all else equal, by bisection from a hundredth of the asked value (0 for
-    a slope), with the behaviours analysed; None when even that fails."""
-    asked = designer.values.get(name)
-    if not asked or asked <= 0:
-        return None
-    values = designer.values
-    low = 0.0 if name == "slope" else asked / 100
-
-    def ok(x: float) -> bool:
-        designer.values = {**values, name: x}
-        try:
-            designer.run()
-            return True
-        except InfeasibleError:
-            return False
-
-    try:
-        if not ok(low):
-            return None
-        lo, hi = low, asked
-        for _ in range(steps):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if ok(mid) else (lo, mid)
-        return lo
-    finally:
-        designer.values = values
-
-
-#: Bisection steps of ``largest_payload`` with the behaviours analysed (after those with the
+#: Bisection steps of ``largest_value`` with the behaviours analysed (after those with the
 #: hand cases alone, which bound it from above).
 BEHAVIOUR_BISECTIONS = 6
 
 
-def largest_payload(designer: StructureDesigner, steps: int = 24) -> float | None:
-    """The largest payload (kg) with which ``designer``'s design succeeds, all else equal
-    (bisection), or None when it fails even empty-handed (the payload is not the limit).
+def largest_value(
+    designer: StructureDesigner, name: str, floor: float = 0.0, steps: int = 24
+) -> float | None:
+    """The largest value of parameter ``name`` (SI, at most the asked one) with which
+    ``designer``'s design succeeds, all else equal (bisection down to ``floor`` x the asked
+    value), or None when it fails even there (``name`` is not the limit).
 
     The hand cases alone bound it from above (``steps`` bisections, fast); below that bound
     ``BEHAVIOUR_BISECTIONS`` more with the behaviours analysed, their trajectories planned
-    with the parameters at the bound (payload included: planning once per actuator choice
-    keeps the search fast; the plans are kinematic, the payload changes masses)."""
-    asked = designer.values.get("payload")
-    if not asked:
+    with the parameters at the bound (planning once per actuator choice keeps the search
+    fast; a smaller payload, speed or slope asks less of the same plan)."""
+    asked = designer.values.get(name)
+    if not asked or asked <= 0:
         return None
     values = designer.values
+    low = floor * asked
 
-    def ok(payload: float, behaviours: bool) -> bool:
-        designer.values = {**values, "payload": payload}
+    def ok(x: float, behaviours: bool) -> bool:
+        designer.values = {**values, name: x}
         designer.behaviours = behaviours
         try:
             designer.run()
@@ -987,21 +959,21 @@ def largest_payload(designer: StructureDesigner, steps: int = 24) -> float | Non
         except InfeasibleError:
             return False
 
+    def bisect(lo: float, hi: float, n: int, behaviours: bool) -> float:
+        for _ in range(n):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if ok(mid, behaviours) else (lo, mid)
+        return lo
+
     try:
-        if not ok(0.0, False):
+        if not ok(low, False):
             return None
-        lo, hi = 0.0, asked
-        for _ in range(steps):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if ok(mid, False) else (lo, mid)
-        designer.plan_values = {**values, "payload": lo}
-        if ok(lo, True):
-            return lo
-        lo, hi = 0.0, lo
-        for _ in range(BEHAVIOUR_BISECTIONS):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if ok(mid, True) else (lo, mid)
-        return lo if lo > 0 or ok(0.0, True) else None
+        bound = bisect(low, asked, steps, False)
+        designer.plan_values = {**values, name: bound}
+        if ok(bound, True):
+            return bound
+        best = bisect(low, bound, BEHAVIOUR_BISECTIONS, True)
+        return best if best > low or ok(low, True) else None
     finally:
         designer.values = values
         designer.behaviours = True
