@@ -10,6 +10,7 @@ from __future__ import annotations
 import difflib
 import json
 import tomllib
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
@@ -52,6 +53,23 @@ def read_toml(path: Path, keys: set[str]) -> dict:
     return data
 
 
+def array_tables(data: dict, key: str, allowed: set[str], path: Path) -> Iterator[tuple[str, dict]]:
+    """``(where, table)`` for each ``[[key]]`` table of a suite or study (``where`` names
+    the file and the table for messages); InputError for none, a non-table or a key
+    outside ``allowed``."""
+    tables = data.get(key, [])
+    if not isinstance(tables, list) or not tables:
+        raise InputError(f"{path}: no [[{key}]] tables")
+    for i, t in enumerate(tables, 1):
+        where = f"{path}: {key} {i}"
+        if not isinstance(t, dict):
+            raise InputError(f"{where}: expected a table ([[{key}]])")
+        bad = sorted(set(t) - allowed)
+        if bad:
+            raise InputError(f"{where}: unknown key {bad[0]!r}")
+        yield where, t
+
+
 def kb_options(data: dict, path: Path) -> dict:
     """The ``ontology``, ``rules`` and ``catalog`` of a suite or study file (paths relative
     to it), validated; ``allow_scripts`` is False."""
@@ -84,18 +102,9 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
     for key in ("conceptual", "verify"):
         if not isinstance(opts[key], bool):
             raise InputError(f"{path}: {key}: expected true or false")
-    queries = data.get("query", [])
-    if not isinstance(queries, list) or not queries:
-        raise InputError(f"{path}: no [[query]] tables")
     names: set[str] = set()
     out = []
-    for i, q in enumerate(queries, 1):
-        where = f"{path}: query {i}"
-        if not isinstance(q, dict):
-            raise InputError(f"{where}: expected a table ([[query]])")
-        bad = sorted(set(q) - QUERY_KEYS)
-        if bad:
-            raise InputError(f"{where}: unknown key {bad[0]!r}")
+    for where, q in array_tables(data, "query", QUERY_KEYS, path):
         name = q.get("name")
         if not isinstance(name, str) or not name:
             raise InputError(f"{where}: missing 'name'")

@@ -35,7 +35,15 @@ from pathlib import Path
 from typing import TextIO
 
 from adron.errors import ExportError, InputError
-from synth.regress import designer_for, kb_options, read_toml, request_for, str_list, str_table
+from synth.regress import (
+    array_tables,
+    designer_for,
+    kb_options,
+    read_toml,
+    request_for,
+    str_list,
+    str_table,
+)
 
 STUDY_KEYS = {"ontology", "rules", "catalog", "request"}
 REQUEST_KEYS = {"name", "abilities", "answers", "params"}
@@ -77,17 +85,8 @@ def load_study(path: Path) -> tuple[dict, list[dict]]:
     string), ``where`` (file and table, for messages). Errors name the file and key."""
     data = read_toml(path, STUDY_KEYS)
     opts = kb_options(data, path)
-    tables = data.get("request", [])
-    if not isinstance(tables, list) or not tables:
-        raise InputError(f"{path}: no [[request]] tables")
     out = []
-    for i, t in enumerate(tables, 1):
-        where = f"{path}: request {i}"
-        if not isinstance(t, dict):
-            raise InputError(f"{where}: expected a table ([[request]])")
-        bad = sorted(set(t) - REQUEST_KEYS)
-        if bad:
-            raise InputError(f"{where}: unknown key {bad[0]!r}")
+    for where, t in array_tables(data, "request", REQUEST_KEYS, path):
         abilities = str_list(t.get("abilities"), f"{where}: abilities")
         if not abilities:
             raise InputError(f"{where}: abilities: name at least one ability")
