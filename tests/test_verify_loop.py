@@ -33,6 +33,17 @@ def _result(behavior, ability, verdict="ok", **kw):
     return {"behavior": behavior, "ability": ability, "verdict": verdict, "seconds": 1.0} | kw
 
 
+def _saturated(joint, fraction):
+    """pick-and-place failing with ``joint`` at its torque limit ``fraction`` of the time."""
+    return _result(
+        "pick-and-place",
+        "pick-and-place",
+        ["saturated"],
+        saturated_fraction=fraction,
+        saturated_joints={joint: fraction},
+    )
+
+
 def test_a_real_arm_is_verified_in_mujoco(designer):
     out = run(designer, ARM, StructureOptions())
     rec = out.record(designer)
@@ -56,13 +67,7 @@ def test_no_verify_says_so(designer):
 def test_a_saturated_joint_gets_a_stronger_actuator(designer, monkeypatch):
     base = run(designer, ARM, StructureOptions(verify=False)).record(designer)
     before = {j["name"]: j for j in base["joints"]}
-    sat = _result(
-        "pick-and-place",
-        "pick-and-place",
-        ["saturated"],
-        saturated_fraction=0.3,
-        saturated_joints={"elbow_pitch": 0.3},
-    )
+    sat = _saturated("elbow_pitch", 0.3)
     fake, calls = _fake([[sat], [_result("pick-and-place", "pick-and-place")]])
     monkeypatch.setattr(export.verify, "verify_files", fake)
     out = run(designer, ARM, StructureOptions())
@@ -104,13 +109,7 @@ def test_a_failing_bonus_ability_is_dropped_with_a_note(designer, monkeypatch):
 
 def test_no_stronger_actuator_leaves_the_failure_standing(designer, monkeypatch):
     # the shoulder already has the catalog's strongest servo
-    sat = _result(
-        "pick-and-place",
-        "pick-and-place",
-        ["saturated"],
-        saturated_fraction=0.2,
-        saturated_joints={"shoulder_pitch": 0.2},
-    )
+    sat = _saturated("shoulder_pitch", 0.2)
     fake, calls = _fake([[sat]])
     monkeypatch.setattr(export.verify, "verify_files", fake)
     out = run(designer, ARM, StructureOptions())
@@ -121,15 +120,7 @@ def test_no_stronger_actuator_leaves_the_failure_standing(designer, monkeypatch)
 def test_the_loop_stops_after_its_rounds(designer, monkeypatch, rounds):
     def sat(k):  # every round a different joint saturates: the loop must still stop
         joint = ["base_yaw", "elbow_pitch", "base_yaw", "elbow_pitch"][k]
-        return [
-            _result(
-                "pick-and-place",
-                "pick-and-place",
-                ["saturated"],
-                saturated_fraction=0.5,
-                saturated_joints={joint: 0.5},
-            )
-        ]
+        return [_saturated(joint, 0.5)]
 
     fake, calls = _fake([sat(0), sat(1), sat(2), sat(3)])
     monkeypatch.setattr(export.verify, "verify_files", fake)
