@@ -138,9 +138,7 @@ class Player:
         threading.Thread(target=self._play, daemon=True).start()
 
     def publish(self, traj):
-        start = rospy.Time.now()
         msg = JointTrajectory()
-        msg.header.stamp = start
         msg.joint_names = list(traj["joints"])
         for t, q, v in zip(traj["times"], traj["positions"], traj["velocities"]):  # noqa: B905 (Python 3.8)
             msg.points.append(
@@ -151,9 +149,11 @@ class Player:
                 )
             )
         columns = (list(zip(*traj["positions"])), list(zip(*traj["velocities"])))  # noqa: B905
-        with self.lock:
+        with self.lock:  # every joint state of the previous trajectory is stamped before this
+            start = rospy.Time.now()
+            msg.header.stamp = start
             self.current = (start, traj, columns)
-        self.trajectory.publish(msg)
+            self.trajectory.publish(msg)
         self.wake.set()
 
     def _state(self, start, traj, columns, t):
@@ -170,20 +170,17 @@ class Player:
         while not rospy.is_shutdown():
             with self.lock:
                 current = self.current
-            if current is None:
-                self.wake.wait(0.5)
-                self.wake.clear()
-                continue
-            start, traj, columns = current
-            t = (rospy.Time.now() - start).to_sec()
-            end = traj["times"][-1]
-            self.states.publish(self._state(start, traj, columns, min(t, end)))
-            if t >= end:
-                with self.lock:
-                    if self.current is current:
+                if current is not None:
+                    start, traj, columns = current
+                    t = (rospy.Time.now() - start).to_sec()
+                    end = traj["times"][-1]
+                    self.states.publish(self._state(start, traj, columns, min(t, end)))
+                    if t >= end:
                         self.current = None
-                continue
-            self.wake.wait(min(period, end - t))
+            if current is None or t >= end:
+                self.wake.wait(0.5)
+            else:
+                self.wake.wait(min(period, end - t))
             self.wake.clear()
 
 
