@@ -548,7 +548,8 @@ def test_rosservice_call_with_defaults(ros, packages, name) -> None:
     choices empty: the defaults the .srv comments name)."""
     path, iface = packages[name]
     controller = controller_of(path)
-    for s in iface["services"]:
+    calls = {}
+    for s in iface["services"]:  # all at once: each waits on the node, not on the others
         fields = {
             f["field"]: (
                 ".nan" if f["ros"] == "float64" else "''" if f["ros"] == "string" else f["default"]
@@ -556,22 +557,23 @@ def test_rosservice_call_with_defaults(ros, packages, name) -> None:
             for f in s["request"]
         }
         arg = "{" + ", ".join(f"{k}: {v}" for k, v in fields.items()) + "}"
-        name_ = f"/{iface['robot']}/{s['service']}"
-        proc = subprocess.run(
-            ["rosservice", "call", name_, arg],
-            capture_output=True,
+        calls[s["service"]] = subprocess.Popen(
+            ["rosservice", "call", f"/{iface['robot']}/{s['service']}", arg],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
             text=True,
             env=ros.package_env(path),
-            timeout=120,
         )
-        assert proc.returncode == 0, proc.stderr
+    for s in iface["services"]:
+        out, err = calls[s["service"]].communicate(timeout=120)
+        assert calls[s["service"]].returncode == 0, err
         reply = {}
-        for line in proc.stdout.splitlines():
+        for line in out.splitlines():
             key, sep, value = line.partition(": ")
             if sep and not line.startswith(" "):
                 reply[key] = yaml_scalar(value)
         want = controller.run(s["behavior"])
-        assert reply["ok"] is True, proc.stdout
+        assert reply["ok"] is True, out
         assert reply["duration_s"] == pytest.approx(want.duration, abs=1e-9)
         if "motion" in want.info:
             assert reply["motion"] == want.info["motion"]
