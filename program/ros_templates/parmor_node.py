@@ -17,7 +17,10 @@ at ``~rate`` Hz, each stamped with the start plus its time, the last at the end)
 answers at once with the worker's response: ``ok``, ``message``, ``duration_s`` and what
 the behaviour promises. A refused call (a value out of range) publishes nothing, and the
 node keeps serving; a plan that takes longer than ``~plan_timeout`` s restarts the worker.
-Written by parmor; the same file for every robot.
+When the ``python3`` that ``#!/usr/bin/env`` finds has no rospy (a virtualenv or pyenv
+comes first on PATH), the node runs itself again with the interpreter of the ROS tools
+(the ``#!`` line of ``roslaunch`` or ``rosmaster`` on PATH). Written by parmor; the same
+file for every robot.
 """
 
 import bisect
@@ -28,9 +31,36 @@ import subprocess
 import sys
 import threading
 
-import rospy
-from sensor_msgs.msg import JointState
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+def ros_python():
+    """The interpreter named by the ``#!`` line of the ROS tools on PATH, or None."""
+    import shutil
+
+    for tool in ("roslaunch", "rosmaster"):
+        path = shutil.which(tool)
+        if path is None:
+            continue
+        try:
+            with open(path, encoding="utf-8", errors="replace") as f:
+                first = f.readline()
+        except OSError:
+            continue
+        words = first[2:].split() if first.startswith("#!") else []
+        if words and os.path.isabs(words[0]) and os.path.basename(words[0]) != "env":
+            return words[0]
+    return None
+
+
+try:
+    import rospy
+except ImportError:
+    _python = ros_python()
+    if _python is None or os.path.realpath(_python) == os.path.realpath(sys.executable):
+        raise
+    os.execv(_python, [_python, os.path.realpath(__file__), *sys.argv[1:]])
+
+from sensor_msgs.msg import JointState  # noqa: E402
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
 PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 sys.path.insert(0, os.path.join(PACKAGE_DIR, "src"))
