@@ -32,7 +32,7 @@ from gaits.base import DesignGeometry
 from program.ros import interface, robot_name, srv_text, type_name
 from program.rosworker import Worker, serve
 from synth.cli import main
-from tests.conftest import CI
+from tests.conftest import CI, REPO
 
 #: The acceptance designs: name -> ``parmor design`` arguments (README's requests).
 DESIGNS = {
@@ -596,6 +596,62 @@ def test_stopping_a_node_ends_its_worker(ros) -> None:
     while any(alive(p) for p in below) and time.monotonic() < end:
         time.sleep(0.1)
     assert not any(alive(p) for p in below)
+
+
+SLOW_WORKER = '''"""A parmor worker that hangs on turning by 0.5 rad (the node's time limit)."""
+import sys
+import time
+
+from program import rosworker
+
+_call = rosworker.Worker.call
+
+
+def call(self, request):
+    if request.get("service") == "turning" and request.get("fields", {}).get("angle") == 0.5:
+        time.sleep(3600)
+    return _call(self, request)
+
+
+rosworker.Worker.call = call
+if __name__ == "__main__":
+    sys.exit(rosworker.main())
+'''
+
+
+def test_a_plan_beyond_the_time_limit_restarts_the_worker(ros, bundles, tmp_path) -> None:
+    """PARMOR_PYTHON and PARMOR_PYTHONPATH choose the worker; a worker that hangs is killed
+    after ``~plan_timeout`` s, the call gets an error reply, and the next call a new worker."""
+    folder = tmp_path / "cart"
+    shutil.copytree(bundles["cart"], folder, ignore=shutil.ignore_patterns("ros"))
+    assert parmor("ros", str(folder), "--name", "slow_cart")[0] == 0
+    path = folder / "ros" / "parmor_slow_cart"
+    iface = json.loads((path / "interface.json").read_text())
+    iface["worker"] = {"python": "/nonexistent/python", "module": "slowworker"}
+    (path / "interface.json").write_text(json.dumps(iface))
+    (tmp_path / "slowworker.py").write_text(SLOW_WORKER)
+    env = ros.package_env(path) | {
+        "PARMOR_PYTHON": sys.executable,
+        "PARMOR_PYTHONPATH": os.pathsep.join([str(tmp_path), str(REPO)]),
+    }
+    node = ros.start(
+        [ros.python, str(path / "nodes" / "parmor_node"), "_plan_timeout:=5"], "slow", env
+    )
+    for s in iface["services"]:
+        wait_for(s["service"], lambda s=s: ros.has_service(f"/slow_cart/{s['service']}"), node)
+    first = descendants(node.pid)
+    assert len(first) == 1
+    turning = next(s for s in iface["services"] if s["service"] == "turning")
+    calls = [
+        {"service": "turning", "type": turning["type"], "fields": {"angle": a, "seconds": 0.0}}
+        for a in (0.5, 1.0)
+    ]
+    hung, answered = run_client(ros, path, iface, calls)
+    assert not hung["response"]["ok"] and "no answer within 5 s" in hung["response"]["message"]
+    check_reply(answered, turning, controller_of(path), calls[1]["fields"])
+    assert not alive(first[0])
+    assert len(descendants(node.pid)) == 1 and node.poll() is None
+    ros.stop(node)
 
 
 def test_the_launch_file_runs_the_node(ros, packages) -> None:

@@ -70,8 +70,13 @@ class WorkerError(Exception):
     pass
 
 
+#: Longest wait for a starting worker to say it is ready, s (it imports numpy and parmor).
+START_TIMEOUT_S = 120.0
+
+
 class Worker:
-    """The parmor worker process: one request at a time, restarted when it fails."""
+    """The parmor worker process: one request at a time, restarted when it fails; one
+    that gives no answer within ``timeout`` s is killed."""
 
     def __init__(self, command, env, timeout):
         self.command, self.env, self.timeout = command, env, timeout
@@ -90,7 +95,7 @@ class Worker:
         )
         self.lines = queue.Queue()
         threading.Thread(target=self._read, args=(self.proc, self.lines), daemon=True).start()
-        hello = self._line(self.timeout)
+        hello = self._line(START_TIMEOUT_S)
         if not hello.get("ready"):
             self.stop()
             raise WorkerError(
@@ -108,7 +113,7 @@ class Worker:
         try:
             line = self.lines.get(timeout=timeout)
         except queue.Empty:
-            self.stop()
+            self.stop(kill=True)
             raise WorkerError(f"the parmor worker gave no answer within {timeout:g} s") from None
         if line is None:
             code = self.proc.wait()
@@ -128,16 +133,20 @@ class Worker:
             self.proc.stdin.flush()
             return self._line(self.timeout)
 
-    def stop(self):
+    def stop(self, kill=False):
+        """End the worker: close its input (it ends at EOF), or kill it."""
         proc, self.proc = self.proc, None
         if proc is None:
             return
-        try:
-            proc.stdin.close()
-            proc.wait(timeout=5)
-        except (OSError, subprocess.TimeoutExpired):
-            proc.kill()
-            proc.wait()
+        if not kill:
+            try:
+                proc.stdin.close()
+                proc.wait(timeout=5)
+                return
+            except (OSError, subprocess.TimeoutExpired):
+                pass
+        proc.kill()
+        proc.wait()
 
 
 def interp(times, column, t):
