@@ -32,6 +32,10 @@ BLEND_SPEED_SHARE = 0.3  # of a servo's no-load speed, for that move's peak spee
 END_POSE_FRACTION = 0.25  # of the commanded path: how far from the commanded end it may end
 ANIMATION_FPS = 20  # frames per simulated second in ``animation``
 PATH_HZ = 20  # path samples per simulated second
+#: A behaviour parameter of this name is filled, when the program does not set it, with the
+#: root body's roll about its own x axis (rad, right-handed) since the start, as an IMU on
+#: it would read it: a snake that rolled on its side plans its next gait for that.
+SENSED_ROLL = "roll"
 
 
 def _yaw(quat: np.ndarray) -> float:
@@ -65,6 +69,9 @@ class Session:
         self.data = mujoco.MjData(self.model)
         mujoco.mj_forward(self.model, self.data)
         self.free = self.model.njnt > 0 and self.model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
+        tmpl = self.controller.template
+        #: a robot on feet or wheels can fall; a snake rolls over by design, an arm is fixed
+        self.can_fall = self.free and bool(tmpl.feet or tmpl.wheels)
         self.progress = progress
         self.started = False
         self.time = 0.0
@@ -94,6 +101,9 @@ class Session:
                 f"{behavior!r}: the design has no behaviour of that name "
                 f"(behaviours: {', '.join(sorted(self.behaviors))})"
             )
+        params = dict(params)
+        if SENSED_ROLL in {p.name for p in spec.params} and SENSED_ROLL not in params:
+            params[SENSED_ROLL] = self._roll() if self.started else 0.0
         try:
             traj = self.controller.run(behavior, **params)
         except ValueError as exc:
@@ -113,7 +123,7 @@ class Session:
         result = simulate(
             self.model,
             traj,
-            can_fall=bool(tmpl.feet or tmpl.wheels),
+            can_fall=self.can_fall,
             end_effector=str(body) if body is not None else None,
             data=self.data,
             observe=lambda t, d: self._observe(t0 + t, d),
@@ -254,6 +264,22 @@ class Session:
         q = self.data.qpos
         return np.array([q[0], q[1], _yaw(q[3:7])])
 
+    def _roll(self) -> float:
+        """Roll (rad) of the root body about its own x axis since the model's start pose:
+        atan2 of the z components of its y and z axes, less the same at the start."""
+        if not self.free:
+            return 0.0
+        import mujoco
+
+        def roll(quat: np.ndarray) -> float:
+            r = np.empty(9)
+            mujoco.mju_quat2Mat(r, quat)
+            r = r.reshape(3, 3)
+            return math.atan2(r[2, 1], r[2, 2])
+
+        a = roll(self.data.qpos[3:7]) - roll(self.model.qpos0[3:7])
+        return (a + math.pi) % (2 * math.pi) - math.pi
+
     def _held(self) -> tuple[tuple[str, ...], np.ndarray]:
         """Every actuated joint and the position it is at now."""
         m = self.model
@@ -301,7 +327,7 @@ class Session:
                 d.ctrl[a] = vel[r, k] if velocity else pos[r, k]
             mujoco.mj_step(m, d)
             self._observe(t0 + (i + 1) * m.opt.timestep, d)
-            if self.free and not self.fell:
+            if self.can_fall and not self.fell:
                 self.fell = self._fallen()
         self.time = t0 + steps * m.opt.timestep
 
