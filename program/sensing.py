@@ -319,7 +319,11 @@ class _Driver:
         )
 
     def step(self, v: float, w: float) -> None:
-        traj = self._plan(v, w)
+        """Run one control period at (v, w), both scaled down if the wheels cannot."""
+        try:
+            traj = self._plan(v, w)
+        except ValueError:
+            traj = self._plan(*self.fit(v, w))
         self.session._play(traj.joints, traj.positions, traj.velocities, self.period)
 
 
