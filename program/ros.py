@@ -185,12 +185,18 @@ def _request_field(p: Parameter) -> dict:
 
 def _plans(controller: Controller, spec: BehaviorSpec) -> list[Trajectory]:
     """The behaviour planned with its defaults and with each value of each choice
-    parameter (the others at their defaults)."""
-    plans = [controller.run(spec.name)]
-    for p in spec.params:
-        for c in p.choices:
-            if c != p.default:
-                plans.append(controller.run(spec.name, **{p.name: c}))
+    parameter (the others at their defaults); those the controller refuses are left out,
+    and ExportError when it refuses them all."""
+    tries: list[dict[str, object]] = [{}]
+    tries += [{p.name: c} for p in spec.params for c in p.choices if c != p.default]
+    plans, why = [], ""
+    for params in tries:
+        try:
+            plans.append(controller.run(spec.name, **params))
+        except ValueError as e:
+            why = why or str(e)
+    if not plans:
+        raise ExportError(f"{spec.name}: cannot be planned with its defaults: {why}")
     return plans
 
 

@@ -164,6 +164,25 @@ def test_bad_bundles_exit_2_and_write_nothing(bundles, tmp_path) -> None:
     assert code == 2 and "ROS name" in err
 
 
+def test_a_behaviour_its_controller_cannot_plan_is_an_error(bundles, tmp_path, monkeypatch) -> None:
+    """A case built to fail: the controller refuses turning with every value tried."""
+    from gaits.base import Controller
+
+    run = Controller.run
+
+    def refusing(self, name, **params):
+        if name == "turning":
+            raise ValueError("turning refused for the test")
+        return run(self, name, **params)
+
+    monkeypatch.setattr(Controller, "run", refusing)
+    folder = tmp_path / "cart"
+    shutil.copytree(bundles["cart"], folder, ignore=shutil.ignore_patterns("ros"))
+    code, _, err = parmor("ros", str(folder))
+    assert code == 2 and "turning: cannot be planned" in err and "refused for the test" in err
+    assert not (folder / "ros").exists()
+
+
 def test_worker_answers_plans_refusals_and_malformed_lines(packages) -> None:
     path, iface = packages["arm"]
     worker = Worker.load(path)
