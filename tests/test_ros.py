@@ -243,7 +243,7 @@ def ros_python() -> str:
     if tool is not None:
         first = Path(tool).read_text(errors="replace").splitlines()[0]
         python = first[2:].strip().split()[-1] if first.startswith("#!") else ""
-        if python and shutil.which("rosservice"):
+        if python and shutil.which("rosservice") and shutil.which("roslaunch"):
             check = subprocess.run(
                 [python, "-c", "import rospy, genpy, trajectory_msgs.msg, sensor_msgs.msg"],
                 capture_output=True,
