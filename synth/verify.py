@@ -13,6 +13,12 @@ again, up to ``MAX_ROUNDS`` sizings. What still fails then:
 - a behaviour of an ability the design only has as a bonus drops that ability from the
   design's ``abilities``, with a note.
 
+Before each round's verification, a controller whose open-loop model needs figures only a
+run can give (:meth:`gaits.base.Controller.calibration_probes`: a skid-steer's effective
+track and turning load) has its probe runs simulated and the design's ``calibration``
+measured (:func:`calibrate`); the behaviours are then planned with it and verified. The
+verdicts judge the outcome with it, unchanged.
+
 Feedback other than stronger actuators (a larger wheel, a slower or lower gait, more
 modules lifting) is each family's sizing rule, not this loop's.
 
@@ -23,6 +29,8 @@ downstream, because the pipeline's last step is to check what it built.
 
 from __future__ import annotations
 
+import json
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -75,6 +83,28 @@ def _floors(results: list[dict], record: dict) -> dict[str, float]:
     return out
 
 
+def calibrate(files: Mapping[str, str | bytes]) -> dict[str, float]:
+    """The design's ``calibration`` measured on its controller's probe runs in MuJoCo
+    (:meth:`gaits.base.Controller.calibration_probes`; a skid-steer's effective track and
+    turning load); empty when its controller needs none (no model is compiled then)."""
+    from export.simulate import load_files_model
+    from export.verify import controller_for_model, run_behavior
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    raw = files["design.json"]
+    record = json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
+    if not controller_for(DesignGeometry.from_record(record)).calibration_probes():
+        return {}
+    model = load_files_model(files)
+    controller = controller_for_model(record, model)
+    runs = []
+    for name, params in controller.calibration_probes():
+        traj, result = run_behavior(model, controller, name, params)
+        runs.append((traj, result.series))
+    return controller.calibrate(runs)
+
+
 def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Outcome) -> Outcome:
     """``outcome`` (a sized design) simulated, repaired where it can be, and judged."""
     from export.verdict import explain
@@ -88,6 +118,10 @@ def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Ou
     while True:
         rounds += 1
         files = outcome.files(designer)
+        calibration = calibrate(files)
+        if calibration:
+            outcome = replace(outcome, calibration=calibration)
+            files = outcome.files(designer)
         record = outcome.record(designer)
         results = verify_files(files)
         failing = [r for r in results if r["verdict"] != "ok"]
@@ -109,7 +143,7 @@ def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Ou
             structure = sizer.run()
         except InfeasibleError:
             break  # no stronger actuator: the failure below stands
-        outcome = replace(outcome, structure=structure)
+        outcome = replace(outcome, structure=structure, calibration=None)
     # which abilities no behaviour simulates: the controller alone tells (no model needed)
     controller = controller_for(DesignGeometry.from_record(record))
     unsimulated = tuple(controller.unbehaved(record.get("abilities", ())))
