@@ -44,6 +44,10 @@ if TYPE_CHECKING:
 MAX_ROUNDS = 3
 #: A saturated joint's next actuator must give at least this much more usable torque.
 STRONGER = 1.0001
+#: A refusal's hint (:func:`best_value`): sizings with verification at most, and the
+#: bisection steps after the floor's test.
+HINT_ROUNDS = 6
+HINT_BISECTIONS = 4
 
 
 @dataclass(frozen=True)
@@ -106,7 +110,80 @@ def calibrate(files: Mapping[str, str | bytes]) -> dict[str, float]:
 
 
 def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Outcome) -> Outcome:
-    """``outcome`` (a sized design) simulated, repaired where it can be, and judged."""
+    """``outcome`` (a sized design) simulated, repaired where it can be, and judged; a
+    refusal also names the largest value of a parameter that designs and verifies
+    (:func:`best_value`)."""
+    params = designer.structural(req)
+    out = _verified(designer, params, opts, outcome)
+    if out.infeasible is None:
+        return out
+    hint = best_value(designer, params, opts, outcome)
+    return out if hint is None else replace(out, infeasible=f"{out.infeasible}; {hint}")
+
+
+def best_value(
+    designer: Designer, params: Mapping[str, float], opts: StructureOptions, outcome: Outcome
+) -> str | None:
+    """``"the largest payload that works here is 1.400 kg"``: the largest value of the
+    first parameter in ``synth.structure.EASIER_WHEN_SMALLER`` (payload always; speed and
+    slope where the request gives them) with which the design is sized and every
+    behaviour verified, all else equal (``synth.structure.bisect_largest``; each test a
+    full sizing and verification); None when none works even at its floor.
+
+    At most ``HINT_ROUNDS`` sizings with verification in all: each takes one to a few
+    seconds (every behaviour simulated, maybe resized), and the floor's test plus
+    ``HINT_BISECTIONS`` halvings bound the value within 1/16 of the asked one, which the
+    hint rounds down anyway."""
+    from synth.structure import (
+        EASIER_WHEN_SMALLER,
+        StructureDesigner,
+        bisect_largest,
+        shown_value,
+    )
+
+    budget = [HINT_ROUNDS]
+
+    def sizer(values: Mapping[str, float]) -> StructureDesigner:
+        return StructureDesigner(
+            designer.kb,
+            outcome.design.chosen,
+            outcome.catalog,
+            dict(values),
+            opts.symmetric,
+            opts.objective,
+        )
+
+    asked_values = sizer(params).values  # the parameters with the type's defaults
+
+    for name, (*_, floor, always) in EASIER_WHEN_SMALLER.items():
+        asked = asked_values.get(name)
+        if not (always or name in params) or not asked or asked <= 0:
+            continue
+
+        def ok(x: float, name: str = name) -> bool:
+            if budget[0] <= 0:
+                return False  # out of rounds: not shown to work
+            budget[0] -= 1
+            values = {**params, name: x}
+            try:
+                structure = sizer(values).run()
+            except InfeasibleError:
+                return False
+            trial = replace(outcome, structure=structure, calibration=None, bundle=None)
+            return _verified(designer, values, opts, trial).infeasible is None
+
+        low = floor * asked
+        if not ok(low):
+            continue
+        best = bisect_largest(ok, low, asked, HINT_BISECTIONS)
+        return f"the largest {name} that works here is {shown_value(name, best)}"
+    return None
+
+
+def _verified(
+    designer: Designer, params: Mapping[str, float], opts: StructureOptions, outcome: Outcome
+) -> Outcome:
+    """The loop of the module docstring on ``outcome``, sized for ``params`` (SI)."""
     from export.verdict import explain
     from export.verify import verify_files
     from gaits import controller_for
@@ -134,7 +211,7 @@ def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Ou
             designer.kb,
             outcome.design.chosen,
             outcome.catalog,
-            designer.structural(req),
+            dict(params),
             opts.symmetric,
             opts.objective,
         )
