@@ -237,8 +237,9 @@ class DriveGeometry:
     -> +1 or -1, the sign of the joint speed that rolls the wheel forward (+x);
     ``radius`` m; ``track`` m between the side's wheel centres; ``wheel_base`` m between
     the front and rear wheels of a side (0 for one wheel a side); ``effective_track`` m,
-    ``track * skid_steer_chi(wheel_base, track)``; ``max_speed`` rad/s: the slowest wheel's
-    usable speed (``SPEED_MARGIN`` times its no-load speed). The load model
+    ``track * skid_steer_chi(wheel_base, track)`` (a calibrated design: the measured one);
+    ``max_speed`` rad/s: the slowest wheel's usable speed (``SPEED_MARGIN`` times its
+    no-load speed). The load model
     (:meth:`wheel_torques`) uses ``mass`` kg (0: unknown, no load feed-forward), ``kv``
     N m s (the wheel servo's motor line: stall torque / no-load speed), ``yaw_inertia``
     kg m^2 about the root's z, ``caster_x`` m (root frame; None without a caster),
@@ -547,6 +548,10 @@ class WheeledController(Controller):
     under the predicted load (:meth:`DriveGeometry.wheel_torques`). Commands that need a
     wheel faster than the usable speed raise ValueError with the largest feasible command:
     clipping would silently drive a different path than the one asked.
+
+    A design record's ``calibration`` (``effective_track_m``, ``turn_load_scale``; measured
+    by :meth:`calibrate` on the runs of :meth:`calibration_probes`) replaces the model's
+    effective track and scales its turning load, for a skid-steer.
     """
 
     def __init__(self, geometry: DesignGeometry) -> None:
