@@ -173,3 +173,27 @@ def test_a_refusal_without_a_working_value_names_none(designer, monkeypatch):
     out = run(designer, ARM, StructureOptions())
     assert out.status == "infeasible" and "largest" not in out.infeasible
     assert len(calls) == 2  # the request and the floor: the payload is not the limit
+
+
+def test_a_skid_steer_is_calibrated_before_it_is_verified(designer):
+    """Its probe runs measure the effective track its skidding wheels turn it with; the
+    record keeps it, the bundle's trajectories and its controller use it."""
+    from export.bundle import trajectory_files
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    req = Request(("driving",), params=(("payload", "2kg"),))
+    out = run(designer, req, StructureOptions())
+    rec = json.loads(out.files(designer)["design.json"])
+    cal = rec["calibration"]
+    drive = controller_for(DesignGeometry.from_record(rec)).drive
+    bare = {k: v for k, v in rec.items() if k != "calibration"}
+    model = controller_for(DesignGeometry.from_record(bare)).drive
+    assert drive.effective_track == cal["effective_track_m"] > model.effective_track
+    assert 0 < cal["turn_load_scale"] == drive.turn_load_scale
+    assert all(b["verdict"] == "ok" for b in rec["verified"]["behaviors"])
+    turning = out.files(designer)["trajectories/turning.csv"]
+    assert turning == trajectory_files(rec)["trajectories/turning.csv"]
+    assert turning != trajectory_files(bare)["trajectories/turning.csv"]
+    # not simulated: nothing measured
+    assert "calibration" not in run(designer, req, StructureOptions(verify=False)).record(designer)
