@@ -942,6 +942,14 @@ def bisect_largest(ok: Callable[[float], bool], lo: float, hi: float, steps: int
     return lo
 
 
+def rounded_down(name: str, value: float) -> float:
+    """``value`` (SI) of the ``EASIER_WHEN_SMALLER`` parameter ``name`` rounded down to the
+    decimals a refusal shows (SI again): a smaller value, easier to build."""
+    _, scale, digits, _, _ = EASIER_WHEN_SMALLER[name]
+    step = 10.0**-digits
+    return math.floor(value * scale / step) * step / scale
+
+
 def shown_value(name: str, value: float) -> str:
     """``value`` (SI) of the ``EASIER_WHEN_SMALLER`` parameter ``name`` as a refusal names
     it, rounded down to its decimals (it must still work): ``"1.400 kg"``."""

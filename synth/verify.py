@@ -46,7 +46,7 @@ MAX_ROUNDS = 3
 STRONGER = 1.0001
 #: A refusal's hint (:func:`best_value`): sizings with verification at most, and the
 #: bisection steps after the floor's test.
-HINT_ROUNDS = 6
+HINT_ROUNDS = 7
 HINT_BISECTIONS = 4
 
 
@@ -131,13 +131,17 @@ def best_value(
     full sizing and verification); None when none works even at its floor.
 
     At most ``HINT_ROUNDS`` sizings with verification in all: each takes one to a few
-    seconds (every behaviour simulated, maybe resized), and the floor's test plus
-    ``HINT_BISECTIONS`` halvings bound the value within 1/16 of the asked one, which the
-    hint rounds down anyway."""
+    seconds (every behaviour simulated, maybe resized); the floor's test and
+    ``HINT_BISECTIONS`` halvings bound the value within 1/16 of the asked one, and the
+    value named, rounded down to the decimals shown, is tested too (the floor's when it
+    fails), so the hint names a value that designs and verifies. That is six tests for the
+    first parameter, one more when its floor fails and the next is tried; out of rounds, a
+    value counts as failing."""
     from synth.structure import (
         EASIER_WHEN_SMALLER,
         StructureDesigner,
         bisect_largest,
+        rounded_down,
         shown_value,
     )
 
@@ -176,7 +180,10 @@ def best_value(
         if not ok(low):
             continue
         best = bisect_largest(ok, low, asked, HINT_BISECTIONS)
-        return f"the largest {name} that works here is {shown_value(name, best)}"
+        shown = rounded_down(name, best)
+        if low <= shown < best and not ok(shown):
+            shown = low  # the value named is one that was shown to work
+        return f"the largest {name} that works here is {shown_value(name, shown)}"
     return None
 
 
