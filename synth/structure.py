@@ -931,13 +931,25 @@ EASIER_WHEN_SMALLER = {
 BEHAVIOUR_BISECTIONS = 6
 
 
-def bisect_largest(ok: Callable[[float], bool], lo: float, hi: float, steps: int) -> float:
+def bisect_largest(
+    ok: Callable[[float], bool],
+    lo: float,
+    hi: float,
+    steps: int,
+    snap: Callable[[float], float] | None = None,
+) -> float:
     """The largest x found in [lo, hi] with ``ok(x)`` by ``steps`` bisections (``ok`` is
     taken to hold at ``lo`` and to fail above its limit once it fails): ``lo`` when every
-    test failed. One bisection for every refusal hint: the sizing's (:func:`largest_value`)
-    and the simulation's (``synth.verify``)."""
+    test failed. ``snap`` moves each midpoint onto a grid (e.g. :func:`rounded_down`), so
+    that the value returned is one that was tested (or ``lo``); the bisection stops when the
+    grid has no point left between the bounds. One bisection for every refusal hint: the
+    sizing's (:func:`largest_value`) and the simulation's (``synth.verify``)."""
     for _ in range(steps):
         mid = 0.5 * (lo + hi)
+        if snap is not None:
+            mid = snap(mid)
+            if not lo < mid < hi:
+                break
         lo, hi = (mid, hi) if ok(mid) else (lo, mid)
     return lo
 

@@ -32,6 +32,7 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import TYPE_CHECKING
 
 from adron.errors import InfeasibleError
@@ -132,10 +133,11 @@ def best_value(
 
     At most ``HINT_ROUNDS`` sizings with verification in all: each takes one to a few
     seconds (every behaviour simulated, maybe resized); the floor's test and
-    ``HINT_BISECTIONS`` halvings bound the value within 1/16 of the asked one, and the
-    value named, rounded down to the decimals shown, is tested too (the floor's when it
-    fails), so the hint names a value that designs and verifies. That is six tests for the
-    first parameter, one more when its floor fails and the next is tried; out of rounds, a
+    ``HINT_BISECTIONS`` halvings bound the value within 1/16 of the asked one. Each
+    midpoint is rounded down to the decimals the hint shows, so the value named is one
+    that was tested: it designs and verifies (the predicate need not be monotone: near a
+    verdict's threshold it often is not). That is five tests for the parameter that is
+    the limit and one for each parameter before it whose floor failed; out of rounds, a
     value counts as failing."""
     from synth.structure import (
         EASIER_WHEN_SMALLER,
@@ -179,11 +181,13 @@ def best_value(
         low = floor * asked
         if not ok(low):
             continue
-        best = bisect_largest(ok, low, asked, HINT_BISECTIONS)
-        shown = rounded_down(name, best)
-        if low <= shown < best and not ok(shown):
-            shown = low  # the value named is one that was shown to work
-        return f"the largest {name} that works here is {shown_value(name, shown)}"
+        # midpoints on the grid of the decimals shown: the value named is one that was tested
+        snap = partial(rounded_down, name)
+        best = bisect_largest(ok, low, asked, HINT_BISECTIONS, snap)
+        if best == low:  # the floor: maybe off the grid, shown rounded down
+            return f"the largest {name} that works here is {shown_value(name, best)}"
+        unit, scale, digits, *_ = EASIER_WHEN_SMALLER[name]
+        return f"the largest {name} that works here is {best * scale:.{digits}f} {unit}"
     return None
 
 

@@ -158,11 +158,11 @@ def test_a_refusal_by_simulation_names_the_largest_payload_that_verifies(designe
     assert out.status == "infeasible"
     msg = out.infeasible
     assert msg.startswith("pick-and-place failed in simulation: placing (placing error 20 mm")
-    # 0.1 ok, 0.15 and 0.125 fail, 0.1125 ok: shown rounded down, and tested
+    # on the grid of the grams shown: 0.1 ok, 0.15 and 0.125 fail, 0.112 ok
     assert msg.endswith("; the largest payload that works here is 0.112 kg")
-    # bounded: the request, the floor (0 kg), HINT_BISECTIONS halvings, the value shown
-    assert calls[-1] == pytest.approx(0.112)
-    assert len(calls) == 1 + 1 + synth.verify.HINT_BISECTIONS + 1 <= 1 + synth.verify.HINT_ROUNDS
+    assert calls[-1] == pytest.approx(0.112)  # the value named was tested
+    # bounded: the request, the floor (0 kg) and HINT_BISECTIONS halvings
+    assert len(calls) == 1 + 1 + synth.verify.HINT_BISECTIONS <= 1 + synth.verify.HINT_ROUNDS
     # the named value designs and verifies
     named = Request(ARM.abilities, params=(*ARM.params, ("payload", "0.112kg")))
     assert run(designer, named, StructureOptions()).status == "designed"
