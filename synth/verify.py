@@ -21,11 +21,11 @@ verdicts judge the outcome with it, unchanged.
 
 Feedback other than stronger actuators (a larger wheel, a slower or lower gait, more
 modules lifting) is each family's sizing rule, not this loop's: no failure class was found
-that such a remedy fixes (measured on 147 requests off the shipped study's grid: none
-refused by simulation once a skid-steer is calibrated; the failures left, a snake's bonus
-``rolling`` with 0.3-0.5 kg on its strongest servos, which no rolling frequency fixes
-either, and a skid-steer under 0.5 kg drifting while it turns in place, worse when
-slower, have no remedy in that list), so there is no remedy table to apply.
+that such a remedy fixes (measured on 96 requests off the shipped study's grid and on its
+51 wheeled ones: none refused by simulation once a skid-steer is calibrated; the failures
+left, a snake's bonus ``rolling`` with 0.3-0.5 kg on its strongest servos, which no
+rolling frequency fixes either, and a skid-steer under 0.5 kg drifting while it turns in
+place, worse when slower, have no remedy in that list), so there is no remedy table.
 
 The record keeps each behaviour's figures (``verified``). This module runs the simulator,
 so it imports ``export`` and ``gaits`` (lazily): it is the one place where ``synth`` looks
