@@ -378,7 +378,7 @@
     const svg = svgEl('svg', { id: 'path-svg', viewBox: [x0, -(y0 + h), w, h].join(' '),
       preserveAspectRatio: 'xMidYMid meet' });
     const g = svgEl('g', { transform: 'scale(1,-1)' });
-    const sw = (0.006 * span).toPrecision(3);
+    const sw = Number((0.006 * span).toPrecision(3));
     // a 10 cm grid
     const step = Math.pow(10, Math.floor(Math.log10(span))) / (span / Math.pow(10, Math.floor(Math.log10(span))) < 3 ? 5 : 1);
     for (let gx = Math.ceil(x0 / step) * step; gx <= x0 + w; gx += step) {
@@ -390,7 +390,7 @@
     const points = xs.map((x, i) => x.toFixed(4) + ',' + ys[i].toFixed(4)).join(' ');
     g.appendChild(svgEl('polyline', { id: 'travelled', points, fill: 'none', stroke: '#1f6feb',
       'stroke-width': 2 * sw, 'data-points': xs.length }));
-    const r = (0.02 * span).toPrecision(3);
+    const r = Number((0.02 * span).toPrecision(3));
     g.appendChild(svgEl('circle', { cx: xs.length ? xs[0] : 0, cy: ys.length ? ys[0] : 0, r, fill: '#2da44e' }));
     if (result.final_pose) {
       const [fx, fy, fyaw] = result.final_pose;
@@ -424,13 +424,21 @@
     return v === 'ok' ? 'ok' : 'failed: ' + [].concat(v).join(', ');
   }
 
-  function figuresText(fig) {
+  //: the verdict figures shown in the table (the others are in the cell's tooltip)
+  const MAIN_FIGURES = [
+    'distance_m', 'planned_distance_m', 'heading_rad', 'planned_heading_rad',
+    'final_pose_error_m', 'drift_m', 'placing_error_m', 'orientation_error_rad', 'fell',
+    'max_torque_ratio', 'saturated_fraction',
+  ];
+
+  function figuresText(fig, all) {
     const keep = [];
     for (const [k, v] of Object.entries(fig || {})) {
       if (k === 'behavior' || k === 'verdict' || v === null || typeof v === 'object') continue;
+      if (!all && !MAIN_FIGURES.includes(k)) continue;
       keep.push(k + ' ' + (typeof v === 'number' ? short(v) : String(v)));
     }
-    return keep.join(', ');
+    return keep.join(all ? '\n' : ', ');
   }
 
   function pose(p) {
@@ -463,7 +471,7 @@
       cell(tr, s.behaviour || s.behavior || '');
       cell(tr, Object.entries(s.params || {}).map(([k, v]) => k + '=' + v).join(', '));
       cell(tr, verdictText(s.verdict), s.verdict === 'ok' ? 'ok' : 'failed');
-      cell(tr, figuresText(s.figures));
+      cell(tr, figuresText(s.figures, false)).title = figuresText(s.figures, true);
       table.appendChild(tr);
     });
     box.appendChild(table);
@@ -554,7 +562,7 @@
     }
     box.textContent = '';
     box.appendChild(renderer.domElement);
-    const width = box.clientWidth || 400, height = 280;
+    const width = box.clientWidth || 400, height = 240;
     renderer.setSize(width, height, false);
     renderer.setClearColor(0xf4f6f8);
     const scene = new THREE.Scene();
@@ -595,7 +603,7 @@
     }
     const camera = new THREE.PerspectiveCamera(40, width / height, 0.01, 100);
     camera.up.set(0, 0, 1);
-    camera.position.set(c[0] + 1.2 * ext, c[1] - 1.6 * ext, c[2] + 1.0 * ext);
+    camera.position.set(c[0] + 0.9 * ext, c[1] - 1.3 * ext, c[2] + 0.8 * ext);
     camera.lookAt(c[0], c[1], c[2]);
     const fps = a.fps || 30;
     let stopped = false;
