@@ -164,13 +164,16 @@ def _open(chromium, url: str):
 
 # --- drag and drop -------------------------------------------------------------------------
 
-_FLYOUT_BLOCK = """([type]) => {
+_FLYOUT_BLOCK = """async ([type]) => {
+  await Blockly.renderManagement.finishQueuedRenders();
   const flyout = parmor.workspace.getToolbox().getFlyout();
   const block = flyout.getWorkspace().getTopBlocks(false).find((b) => b.type === type);
-  const r = block.getSvgRoot().getBoundingClientRect();
+  const xy = block.getRelativeToSurfaceXY();
+  const off = block.previousConnection.getOffsetInBlock();
   const c = Blockly.utils.svgMath.wsToScreenCoordinates(flyout.getWorkspace(),
-    new Blockly.utils.Coordinate(block.previousConnection.x, block.previousConnection.y));
-  return {x: r.left + 6, y: r.top + 6, cx: c.x, cy: c.y};
+    new Blockly.utils.Coordinate(xy.x + off.x, xy.y + off.y));
+  const r = block.getSvgRoot().querySelector('.blocklyPath').getBoundingClientRect();
+  return {x: r.left + 12, y: r.top + 12, cx: c.x, cy: c.y};
 }"""
 
 _SHOWS = """([type]) => {
@@ -179,11 +182,25 @@ _SHOWS = """([type]) => {
     flyout.getWorkspace().getTopBlocks(false).some((b) => b.type === type);
 }"""
 
-_TARGET = """([id, input]) => {
+_DRAGGED = """async ([type, before]) => {
+  await Blockly.renderManagement.finishQueuedRenders();
+  const b = parmor.workspace.getAllBlocks(false).find(
+    (b) => b.type === type && !before.includes(b.id));
+  const xy = b.getRelativeToSurfaceXY();
+  const off = b.previousConnection.getOffsetInBlock();
+  const c = Blockly.utils.svgMath.wsToScreenCoordinates(parmor.workspace,
+    new Blockly.utils.Coordinate(xy.x + off.x, xy.y + off.y));
+  return {x: c.x, y: c.y};
+}"""
+
+_TARGET = """async ([id, input]) => {
+  await Blockly.renderManagement.finishQueuedRenders();  // connections move when rendered
   const block = parmor.workspace.getBlockById(id);
   const conn = input ? block.getInput(input).connection : block.nextConnection;
+  const xy = block.getRelativeToSurfaceXY();
+  const off = conn.getOffsetInBlock();
   const c = Blockly.utils.svgMath.wsToScreenCoordinates(parmor.workspace,
-    new Blockly.utils.Coordinate(conn.x, conn.y));
+    new Blockly.utils.Coordinate(xy.x + off.x, xy.y + off.y));
   return {x: c.x, y: c.y};
 }"""
 
@@ -200,14 +217,22 @@ def drag(page, category: str, block_type: str, target_id: str, input_name: str |
     page.wait_for_function(_SHOWS, arg=[block_type])
     src = page.evaluate(_FLYOUT_BLOCK, [block_type])
     dst = page.evaluate(_TARGET, [target_id, input_name])
+    # the block's connection follows the pointer at the grab's offset; come to the target
+    # from below right, so that the preview of an earlier connection on the way (Blockly's
+    # insertion marker) does not move the target away
+    ex, ey = dst["x"] + src["x"] - src["cx"], dst["y"] + src["y"] - src["cy"]
     page.mouse.move(src["x"], src["y"])
     page.mouse.down()
-    for k in range(1, 11):
-        f = k / 10
+    page.mouse.move(src["x"] + 5, src["y"] + 5)
+    for k in range(1, 9):
+        f = k / 8
         page.mouse.move(
-            src["x"] + f * (dst["x"] - src["cx"]), src["y"] + f * (dst["y"] - src["cy"])
+            src["x"] + f * (ex + 80 - src["x"]), src["y"] + f * (ey + 160 - src["y"])
         )
+    page.mouse.move(ex + 20, ey + 40)
+    page.mouse.move(ex, ey)
     page.mouse.up()
+    page.evaluate("Blockly.renderManagement.finishQueuedRenders()")
     after = page.evaluate(
         "parmor.workspace.getAllBlocks(false).map((b) => [b.id, b.type])"
     )
@@ -221,7 +246,13 @@ def drag(page, category: str, block_type: str, target_id: str, input_name: str |
         }""",
         [new[0], target_id, input_name],
     )
-    assert connected, f"{block_type} did not snap into {input_name or 'next'}"
+    where = page.evaluate(
+        _DRAGGED, [block_type, sorted(before)]
+    )
+    assert connected, (
+        f"{block_type} did not snap into {input_name or 'next'}: its connection is at "
+        f"{where}, the target at {dst}; grabbed at {src}"
+    )
     return new[0]
 
 
@@ -248,6 +279,10 @@ def build(page, program) -> None:
     set_fields(page, after, pb)
 
 
+#: the page shows the Python text of its blocks (Blockly reports changes asynchronously)
+_PYTHON_SHOWN = "document.getElementById('python').textContent === parmor.python()"
+
+
 def run_in_page(page, body: str | None = None) -> dict:
     """Press Run (or post ``body`` through the page) and wait for the reply in the page."""
     runs = page.evaluate("parmor.state.runs")
@@ -264,10 +299,10 @@ def run_in_page(page, body: str | None = None) -> dict:
 # --- tests ---------------------------------------------------------------------------------
 
 
-def test_two_hexapods_of_different_sizes_get_identical_toolboxes(tmp_path) -> None:
+def test_two_hexapods_of_different_sizes_get_identical_toolboxes(bundles, tmp_path) -> None:
     from program.blocks import bundle_controller, read_record
 
-    small = _design(tmp_path / "small", DESIGNS["hexapod"][0])
+    small = bundles["hexapod"]
     large = _design(tmp_path / "large", [*DESIGNS["hexapod"][0], "--param", "obstacle_height=6cm"])
     recs = [read_record(f) for f in (small, large)]
     assert recs[0]["lengths_m"] != recs[1]["lengths_m"]
@@ -325,6 +360,7 @@ def test_page_offline_shows_the_python_of_the_blocks(chromium, bundles) -> None:
             }"""
         )
         program = page.evaluate("parmor.programJson()")
+        page.wait_for_function(_PYTHON_SHOWN)
         text = page.inner_text("#python")
         assert text == page.evaluate("parmor.python()")
         assert text == to_python(program)
@@ -355,6 +391,7 @@ def test_drag_and_drop_program_runs_end_to_end(chromium, servers, name, tmp_path
         assert [s.get("do") or "repeat" for s in program["program"]] == ["repeat", b]
         assert program["program"][0]["repeat"] == times
         assert program["program"][0]["body"][0]["do"] == a
+        page.wait_for_function(_PYTHON_SHOWN)
         assert page.inner_text("#python") == to_python(program)
         reply = run_in_page(page)
         assert reply["error"] is None, reply
