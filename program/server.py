@@ -46,6 +46,11 @@ DEFAULT_MAX_RUNS = max(1, (os.cpu_count() or 1))
 SERVED_DIRS = ("blocks", "meshes")
 
 
+def _no_constant(name: str) -> object:
+    """JSON's extensions NaN and Infinity are not numbers a program may hold."""
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
 class RunFailed(Exception):
     """A run that ended without a result: ``status`` is the HTTP status of the reply."""
 
@@ -131,8 +136,9 @@ class Runner:
             self.slots.release()
         reply = json.loads(data)
         if "error" in reply:
-            status = HTTPStatus.UNPROCESSABLE_ENTITY if reply.get("input") else (
-                HTTPStatus.INTERNAL_SERVER_ERROR
+            bad_input = reply.get("input")
+            status = (
+                HTTPStatus.UNPROCESSABLE_ENTITY if bad_input else HTTPStatus.INTERNAL_SERVER_ERROR
             )
             raise RunFailed(status, reply["error"])
         return reply["result"]
@@ -256,14 +262,21 @@ class Handler(BaseHTTPRequestHandler):
             return
         raw = self.rfile.read(length)
         try:
-            program = json.loads(raw.decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as e:
+            program = json.loads(raw.decode("utf-8"), parse_constant=_no_constant)
+        except (UnicodeDecodeError, ValueError) as e:
             self._error(HTTPStatus.BAD_REQUEST, f"the program is not JSON: {e}")
             return
         try:
             self.server.validate(program)
         except InputError as e:
             self._error(HTTPStatus.UNPROCESSABLE_ENTITY, str(e))
+            return
+        except Exception as e:  # a bug in the validation: say so, keep serving
+            self.log_message("validation failed: %s: %s", type(e).__name__, e)
+            self._error(
+                HTTPStatus.INTERNAL_SERVER_ERROR,
+                f"the program could not be checked: {type(e).__name__}: {e}",
+            )
             return
         try:
             result = self.server.runner.run(program)

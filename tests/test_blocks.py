@@ -102,8 +102,17 @@ class Server:
     def __init__(self, bundle: Path, *extra: str) -> None:
         env = dict(os.environ, PYTHONPATH=str(REPO), PYTHONUNBUFFERED="1")
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "synth.cli", "blocks", str(bundle), "--serve", "--port", "0",
-             *extra],
+            [
+                sys.executable,
+                "-m",
+                "synth.cli",
+                "blocks",
+                str(bundle),
+                "--serve",
+                "--port",
+                "0",
+                *extra,
+            ],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
@@ -226,16 +235,12 @@ def drag(page, category: str, block_type: str, target_id: str, input_name: str |
     page.mouse.move(src["x"] + 5, src["y"] + 5)
     for k in range(1, 9):
         f = k / 8
-        page.mouse.move(
-            src["x"] + f * (ex + 80 - src["x"]), src["y"] + f * (ey + 160 - src["y"])
-        )
+        page.mouse.move(src["x"] + f * (ex + 80 - src["x"]), src["y"] + f * (ey + 160 - src["y"]))
     page.mouse.move(ex + 20, ey + 40)
     page.mouse.move(ex, ey)
     page.mouse.up()
     page.evaluate("Blockly.renderManagement.finishQueuedRenders()")
-    after = page.evaluate(
-        "parmor.workspace.getAllBlocks(false).map((b) => [b.id, b.type])"
-    )
+    after = page.evaluate("parmor.workspace.getAllBlocks(false).map((b) => [b.id, b.type])")
     new = [i for i, t in after if i not in before and t == block_type]
     assert len(new) == 1, f"dragging {block_type} made {len(new)} blocks"
     connected = page.evaluate(
@@ -246,9 +251,7 @@ def drag(page, category: str, block_type: str, target_id: str, input_name: str |
         }""",
         [new[0], target_id, input_name],
     )
-    where = page.evaluate(
-        _DRAGGED, [block_type, sorted(before)]
-    )
+    where = page.evaluate(_DRAGGED, [block_type, sorted(before)])
     assert connected, (
         f"{block_type} did not snap into {input_name or 'next'}: its connection is at "
         f"{where}, the target at {dst}; grabbed at {src}"
@@ -306,7 +309,10 @@ def test_two_hexapods_of_different_sizes_get_identical_toolboxes(bundles, tmp_pa
     large = _design(tmp_path / "large", [*DESIGNS["hexapod"][0], "--param", "obstacle_height=6cm"])
     recs = [read_record(f) for f in (small, large)]
     assert recs[0]["lengths_m"] != recs[1]["lengths_m"]
-    boxes = [toolbox(bundle_controller(f, r), r["abilities"]) for f, r in zip((small, large), recs)]
+    boxes = [
+        toolbox(bundle_controller(f, r), r["abilities"])
+        for f, r in zip((small, large), recs, strict=True)
+    ]
     assert boxes[0] == boxes[1]
     assert {b["name"] for b in boxes[0]} >= {"walking", "turning"}
     # every parameter is shown with its unit and limits
@@ -396,7 +402,8 @@ def test_drag_and_drop_program_runs_end_to_end(chromium, servers, name, tmp_path
         reply = run_in_page(page)
         assert reply["error"] is None, reply
         result = page.evaluate("parmor.state.reply")
-        assert [s.get("behavior") or s.get("behaviour") for s in result["steps"]] == [a] * times + [b]
+        ran = [s.get("behavior") or s.get("behaviour") for s in result["steps"]]
+        assert ran == [a] * times + [b]
         # the robot ends where the program says: every behaviour within its verdict criteria
         assert result["verdict"] == "ok", [s["verdict"] for s in result["steps"]]
         assert all(s["verdict"] == "ok" for s in result["steps"])
