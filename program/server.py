@@ -214,9 +214,24 @@ class Handler(BaseHTTPRequestHandler):
     def _error(self, status: HTTPStatus, message: str) -> None:
         self._json(status, {"error": message})
 
+    def _foreign(self) -> bool:
+        """Answer 403 and True for a request another site's page makes through the
+        browser (its Host or Origin is not this server's: DNS rebinding, cross-site posts)."""
+        port = self.server.server_address[1]
+        ours = {f"{HOST}:{port}", f"localhost:{port}"}
+        host = self.headers.get("Host", "")
+        origin = self.headers.get("Origin")
+        if host in ours and (origin is None or urlsplit(origin).netloc in ours):
+            return False
+        self._drain()
+        self._error(HTTPStatus.FORBIDDEN, "requests from other sites are refused")
+        return True
+
     # -- files ---------------------------------------------------------------------------
 
     def do_GET(self) -> None:
+        if self._foreign():
+            return
         path = unquote(urlsplit(self.path).path)
         if path in ("/", "/index.html"):
             self.send_response(HTTPStatus.FOUND)
@@ -243,6 +258,8 @@ class Handler(BaseHTTPRequestHandler):
     # -- runs ----------------------------------------------------------------------------
 
     def do_POST(self) -> None:
+        if self._foreign():
+            return
         if urlsplit(self.path).path != "/run":
             self._drain()
             self._error(HTTPStatus.NOT_FOUND, f"no such action: {self.path}")

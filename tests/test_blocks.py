@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import io
 import json
-import math
 import os
 import shutil
 import signal
 import subprocess
 import sys
 import threading
+import urllib.error
 import urllib.request
 from pathlib import Path
 
@@ -482,7 +482,20 @@ def test_a_program_over_the_time_limit_is_stopped(chromium, servers) -> None:
     assert not any("Traceback" in line for line in server.log)
 
 
-def test_the_server_listens_on_loopback_only(servers) -> None:
+def test_the_server_listens_on_loopback_only_and_refuses_other_sites(servers) -> None:
     server = servers("cart")
     assert server.url.startswith("http://127.0.0.1:")
-    assert math.isfinite(float(server.url.rsplit(":", 1)[1]))
+    port = int(server.url.rsplit(":", 1)[1])
+    assert server.get("/blocks/index.html") == 200
+    for headers in ({"Host": f"evil.example:{port}"}, {"Origin": "http://evil.example"}):
+        req = urllib.request.Request(
+            server.url + "/run", data=b'{"program": []}', headers=headers, method="POST"
+        )
+        with pytest.raises(urllib.error.HTTPError) as e:
+            urllib.request.urlopen(req, timeout=30)
+        assert e.value.code == 403
+    # the bundle's other files are not served, nor anything outside it
+    for path in ("/design.json", "/blocks/../design.json", "/meshes/../../etc/passwd"):
+        with pytest.raises(urllib.error.HTTPError) as e:
+            server.get(path)
+        assert e.value.code == 404
