@@ -132,7 +132,9 @@ class Parameter:
         except (TypeError, ValueError):
             raise ValueError(f"{self.name}: expected a number, got {value!r}") from None
         if (self.low is not None and x < self.low) or (self.high is not None and x > self.high):
-            raise ValueError(f"{self.name}: {x} is outside [{self.low}, {self.high}]")
+            lo = "-inf" if self.low is None else f"{self.low:g}"
+            hi = "inf" if self.high is None else f"{self.high:g}"
+            raise ValueError(f"{self.name}: {x:g} is outside [{lo}, {hi}]")
         return x
 
 

@@ -171,7 +171,11 @@ class BlocksServer(ThreadingHTTPServer):
         self.bundle = bundle.resolve()
         self.record = read_record(self.bundle)
         self.controller = bundle_controller(self.bundle, self.record)
-        self.abilities = tuple(self.record.get("abilities", ()))
+        #: the behaviours a program may call (as program.session.Session offers them)
+        self.behaviors = {
+            n: self.controller.behaviors[n]
+            for n in self.controller.listed(self.record.get("abilities", ()))
+        }
         self.runner = Runner(self.bundle, time_limit, max_runs)
         self.log = log
         super().__init__((HOST, port), Handler)
@@ -180,7 +184,7 @@ class BlocksServer(ThreadingHTTPServer):
         """ProgramError (an InputError) when ``program`` is not one the design can run."""
         from program.script import validate
 
-        validate(program, self.controller, self.abilities)
+        validate(program, self.behaviors)
 
     def server_close(self) -> None:
         self.runner.stop()

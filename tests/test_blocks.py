@@ -336,7 +336,7 @@ def test_blocks_needs_the_npm_files_and_a_bundle(tmp_path, monkeypatch, bundles)
 
 
 def test_page_offline_shows_the_python_of_the_blocks(chromium, bundles) -> None:
-    from program.script import to_python
+    from program.script import number_text, to_python
 
     out, err = io.StringIO(), io.StringIO()
     assert main(["blocks", str(bundles["hexapod"])], out, err) == 0, err.getvalue()
@@ -374,10 +374,8 @@ def test_page_offline_shows_the_python_of_the_blocks(chromium, bundles) -> None:
         assert program["program"][1]["else"] == []
         assert "robot.wait(0.25)" in text and "stride=1e-05" in text
         # Python's repr of floats, whatever JavaScript's String() says
-        for x in (0.1, 1e-5, 2.5e-7, 1e16, -3.0, 123456.789, 1e22, 5e-324):
-            assert page.evaluate(f"parmor.pyNumber({x!r})") == (
-                str(int(x)) if float(x).is_integer() else repr(x)
-            )
+        for x in (0.1, 1e-5, 2.5e-7, 1e16, -3.0, -0.0, 123456.789, 1e21, 1e22, 5e-324, 1 / 3):
+            assert page.evaluate(f"parmor.pyNumber({x!r})") == number_text(x), x
         assert not page.errors
     finally:
         page.close()

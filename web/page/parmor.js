@@ -19,9 +19,10 @@
 
   // --- numbers and strings as Python writes them ---------------------------------------
 
-  /** Python's text of a number: integral values as integers, others as repr(float). */
+  /** The program's text of a number (program.script.number_text): integral values below
+   * 1e21 as integers, others as Python's repr(float). */
   function pyNumber(x) {
-    if (Number.isInteger(x)) return BigInt(x).toString();
+    if (Number.isInteger(x) && Math.abs(x) < 1e21) return BigInt(x).toString();
     if (!Number.isFinite(x)) throw new Error('not a finite number: ' + x);
     // the shortest digits that read back as x (both languages use them), then Python's
     // layout: fixed for 1e-4 <= |x| < 1e16, else d.ddde-XX (two exponent digits at least)
