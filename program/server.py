@@ -106,7 +106,16 @@ class Runner:
             )
             with self.lock:
                 self.children.add(proc)
-            proc.start()
+            try:
+                proc.start()
+            except (OSError, RuntimeError) as e:
+                with self.lock:
+                    self.children.discard(proc)
+                recv.close()
+                send.close()
+                raise RunFailed(
+                    HTTPStatus.INTERNAL_SERVER_ERROR, f"cannot start the run: {e}"
+                ) from None
             send.close()
             try:
                 left = max(0.0, self.time_limit - (time.monotonic() - t0))
@@ -303,6 +312,10 @@ class Handler(BaseHTTPRequestHandler):
             result = self.server.runner.run(program)
         except RunFailed as e:
             self._error(e.status, str(e))
+            return
+        except Exception as e:  # a bug: an error reply, and the server keeps serving
+            self.log_message("run failed: %s: %s", type(e).__name__, e)
+            self._error(HTTPStatus.INTERNAL_SERVER_ERROR, f"the run failed: {e}")
             return
         self._json(HTTPStatus.OK, {"result": result})
 

@@ -431,6 +431,7 @@ def test_bad_programs_get_errors_in_the_page_and_the_server_keeps_serving(
             "oversized": (json.dumps({"program": [{"wait": 1}] * 20000}), "too large"),
             "unknown behaviour": (json.dumps({"program": [{"do": "flying"}]}), "flying"),
             "not a program": ("[1, 2]", "program"),
+            "NaN": ('{"program": [{"wait": NaN}]}', "NaN is not a number JSON allows"),
         }
         for case, (body, expected) in cases.items():
             reply = run_in_page(page, body)
@@ -441,6 +442,12 @@ def test_bad_programs_get_errors_in_the_page_and_the_server_keeps_serving(
         start = page.evaluate("parmor.workspace.getTopBlocks(false)[0].id")
         block = drag(page, "Behaviours", "parmor_do:driving", start, "BODY")
         set_fields(page, block, {"v": 99})
+        page.wait_for_function(_PYTHON_SHOWN)
+        warned = page.evaluate(
+            "(id) => parmor.workspace.getBlockById(id).hasIcon(Blockly.icons.IconType.WARNING)",
+            block,
+        )
+        assert warned  # the page marks the field before the server refuses it
         reply = run_in_page(page)
         assert reply["error"].startswith("program[0].params.v"), reply
         assert "99" in reply["error"]
@@ -497,3 +504,15 @@ def test_the_server_listens_on_loopback_only_and_refuses_other_sites(servers) ->
         with pytest.raises(urllib.error.HTTPError) as e:
             server.get(path)
         assert e.value.code == 404
+
+
+def test_a_run_waits_for_a_free_slot_within_its_time_limit(bundles) -> None:
+    from http import HTTPStatus
+
+    from program.server import RunFailed, Runner
+
+    runner = Runner(bundles["cart"], time_limit=0.2, max_runs=1)
+    assert runner.slots.acquire(timeout=1)  # another run holds the only slot
+    with pytest.raises(RunFailed) as e:
+        runner.run({"program": [{"wait": 1}]})
+    assert e.value.status == HTTPStatus.SERVICE_UNAVAILABLE and "busy" in str(e.value)
