@@ -18,6 +18,7 @@ re-anchored where the robot is after them.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -52,20 +53,52 @@ class Session:
 
     def __init__(
         self,
-        folder: str | Path,
+        folder: str | Path | None = None,
         progress: Callable[[str], None] | None = None,
+        files: Mapping[str, str | bytes] | None = None,
     ) -> None:
+        """The bundle in ``folder``, or held in memory as ``files`` (``Outcome.files``)."""
         import mujoco
 
-        from export.verify import controller_for_model, load_bundle
+        from export.simulate import load_files_model
+        from export.verify import bundle_record, controller_for_model
+        from program.sensing import scene_xml, sensing_behaviors
 
-        folder = Path(folder)
-        self.record, self.model = load_bundle(folder)
+        if files is None:
+            if folder is None:
+                raise ValueError("a Session needs a bundle folder or its files")
+            folder = Path(folder)
+            self.record = bundle_record(folder)
+            try:
+                files = {"robot.xml": (folder / "robot.xml").read_bytes()}
+                files.update(
+                    {f"meshes/{p.name}": p.read_bytes() for p in (folder / "meshes").glob("*.stl")}
+                )
+            except OSError as e:
+                raise InputError(f"{folder}: cannot read the model: {e}") from None
+        else:
+            raw = files["design.json"]
+            self.record = json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
+        xml = files["robot.xml"]
+        xml = xml.decode("utf-8") if isinstance(xml, bytes) else xml
+        try:
+            self.model = load_files_model({**files, "robot.xml": scene_xml(xml)})
+        except (ValueError, KeyError) as e:
+            raise InputError(f"{folder or 'bundle'}: cannot load the MuJoCo model: {e}") from None
         self.folder = folder
         self.controller = controller_for_model(self.record, self.model)
-        names = self.controller.listed(self.record.get("abilities", ()))
+        abilities = tuple(self.record.get("abilities", ()))
+        names = self.controller.listed(abilities)
         #: the behaviours a program may call: name -> BehaviorSpec
         self.behaviors = {n: self.controller.behaviors[n] for n in names}
+        #: the sensing behaviours among them (closed loops, :mod:`program.sensing`)
+        self.sensing = sensing_behaviors(self.controller.behaviors, abilities)
+        self.behaviors.update(self.sensing)
+        #: the line a line follower follows, (N, 2) m, once one ran
+        self.scene_line: np.ndarray | None = None
+        self._counts = {"steps": 0, "saturated": 0, "contacts": 0}
+        #: a geom whose contacts ``_play`` counts (an obstacle), or None
+        self.watched_geom: int | None = None
         self.data = mujoco.MjData(self.model)
         mujoco.mj_forward(self.model, self.data)
         self.free = self.model.njnt > 0 and self.model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
@@ -101,6 +134,8 @@ class Session:
                 f"{behavior!r}: the design has no behaviour of that name "
                 f"(behaviours: {', '.join(sorted(self.behaviors))})"
             )
+        if behavior in self.sensing:
+            return self._sense(behavior, spec, params)
         params = dict(params)
         if SENSED_ROLL in {p.name for p in spec.params} and SENSED_ROLL not in params:
             params[SENSED_ROLL] = self._roll() if self.started else 0.0
@@ -145,6 +180,43 @@ class Session:
         self.steps.append(step)
         return step
 
+    def _sense(self, behavior: str, spec, params: Mapping[str, object]) -> dict:
+        """Run a sensing behaviour (a closed loop, :mod:`program.sensing`); its figures."""
+        from export.verdict import judge
+        from program import sensing
+
+        try:
+            resolved = spec.resolve(params)
+        except ValueError as exc:
+            raise ProgramError(f"{behavior}: {exc}") from None
+        self._note(f"{behavior} {self._params_text(params)}")
+        if not self.started:
+            steer = sensing.steering(self.controller.behaviors)
+            traj = self.controller.run(steer.behavior)  # type: ignore[union-attr]
+            self._start(traj.positions[0], traj.joints)
+        start, t0, fell0 = self._pose(), self.time, self.fell
+        before = dict(self._counts)
+        fig, info = sensing.run(self, behavior, resolved)
+        steps = max(self._counts["steps"] - before["steps"], 1)
+        fig["fell"] = self.fell and not fell0
+        fig["saturated_fraction"] = (self._counts["saturated"] - before["saturated"]) / steps
+        verdict = judge(fig, info, self.free)
+        fig = {k: (_round(v) if isinstance(v, float) else v) for k, v in fig.items()}
+        fig = {"behavior": behavior, "verdict": verdict or "ok", **fig}
+        end = self._pose()
+        self._last_distance = float(np.hypot(*(end[:2] - start[:2])))
+        self._last_ok = not verdict
+        self._compose({}, start, end)
+        step = {
+            "behavior": behavior,
+            "params": resolved,
+            "start_s": _round(t0),
+            "verdict": fig["verdict"],
+            "figures": fig,
+        }
+        self.steps.append(step)
+        return step
+
     def wait(self, seconds: float) -> None:
         """Hold the current pose for ``seconds``."""
         seconds = float(seconds)
@@ -154,7 +226,7 @@ class Session:
             )
         self._note(f"wait {seconds:g} s")
         if not self.started:
-            first = next(iter(self.behaviors), None)
+            first = next((n for n in self.behaviors if n not in self.sensing), None)
             if first is None:
                 self._start(None, ())
             else:
@@ -316,9 +388,14 @@ class Session:
         time, the last held) with velocity servos following ``vel``."""
         import mujoco
 
+        from export.verdict import SATURATION_LEVEL
+
         m, d = self.model, self.data
         cols = self._columns(joints)
         steps = max(1, int(round(seconds / m.opt.timestep)))
+        self._check_time(steps * m.opt.timestep)
+        limit = np.maximum(np.abs(m.actuator_forcerange).max(axis=1), 1e-12)
+        watch = self.watched_geom
         rows = len(pos)
         t0 = self.time
         for i in range(steps):
@@ -329,6 +406,13 @@ class Session:
             self._observe(t0 + (i + 1) * m.opt.timestep, d)
             if self.can_fall and not self.fell:
                 self.fell = self._fallen()
+            self._counts["steps"] += 1
+            if np.any(np.abs(d.actuator_force) / limit >= SATURATION_LEVEL):
+                self._counts["saturated"] += 1
+            if watch is not None and d.ncon:
+                c = d.contact
+                if np.any((c.geom1 == watch) | (c.geom2 == watch)):
+                    self._counts["contacts"] += 1
         self.time = t0 + steps * m.opt.timestep
 
     def _fallen(self) -> bool:
