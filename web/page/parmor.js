@@ -365,6 +365,14 @@
   function drawPath(result) {
     const box = document.getElementById('path');
     box.textContent = '';
+    if (!result.final_pose) {
+      const p = document.createElement('p');
+      p.id = 'no-path';
+      p.className = 'hint';
+      p.textContent = 'This robot stands on a fixed base: it travels no path.';
+      box.appendChild(p);
+      return;
+    }
     const xs = result.path.x.slice();
     const ys = result.path.y.slice();
     const marks = [result.expected_pose, result.final_pose].filter((p) => Array.isArray(p));
