@@ -194,6 +194,24 @@ class Rig:
         ]
         self.ranger = self.forward * reach + np.array([0, 0, (low + high) / 2])
 
+    def extent(self) -> tuple[float, float]:
+        """(reach m of the robot's parts from the trunk's origin in the ground plane, half
+        width m across the forward direction), from every part's bounding box now."""
+        m, d = self.session.model, self.session.data
+        rot0, pos0 = d.xmat[1].reshape(3, 3), d.xpos[1]
+        reach = half = 0.0
+        for g in range(m.ngeom):
+            b = m.geom_bodyid[g]
+            if b == 0 or m.body_mocapid[b] >= 0:
+                continue
+            c, h = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
+            rot = d.geom_xmat[g].reshape(3, 3)
+            for corner in _corners():
+                p = rot0.T @ (d.geom_xpos[g] + rot @ (c + h * corner) - pos0)
+                reach = max(reach, float(np.hypot(p[0], p[1])))
+                half = max(half, abs(float(p @ self.left)))
+        return reach, half
+
     def world(self, p: np.ndarray) -> np.ndarray:
         d = self.session.data
         return d.xpos[1] + d.xmat[1].reshape(3, 3) @ p
@@ -376,12 +394,9 @@ def _avoid(session: Session, steer: Steering, rig: Rig, params: Mapping) -> tupl
     m, d = session.model, session.data
     driver = _Driver(session, steer)
     v, _ = driver.fit(speed, 0.0)
-    # the trunk's corner sweeps this radius when it turns in place
-    corner = 0.0
-    for g in range(m.ngeom):
-        if m.geom_bodyid[g] != 0 and m.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE:
-            rel = d.geom_xpos[g] - d.xpos[1]
-            corner = max(corner, float(np.hypot(rel[0], rel[1])) + float(m.geom_rbound[g]) * 0.5)
+    # the robot's reach from its turning axis (what sweeps when it turns in place) and its
+    # half width across the way it drives, from its parts' boxes
+    corner, half = rig.extent()
     corner = max(corner, rig.front)
     safe = corner - rig.front + CLEARANCE_M + v / CONTROL_HZ * 2
     _, w_turn = driver.fit(0.0, 2 * v / max(corner, 0.05))
@@ -405,7 +420,9 @@ def _avoid(session: Session, steer: Steering, rig: Rig, params: Mapping) -> tupl
     mujoco.mj_forward(m, d)
     budget = 3 * distance / max(v, 1e-6) + 10.0
     t0 = session.time
-    state, passed_at, min_range = "go", 0.0, RANGER_MAX_M
+    state, min_range, seen = "go", RANGER_MAX_M, RANGER_MAX_M
+    passed_from = origin
+    cleared: tuple[float, float] | None = None
     progress = 0.0
     contacts0 = session._counts["contacts"]
     session.watched_geom = gid
@@ -415,16 +432,24 @@ def _avoid(session: Session, steer: Steering, rig: Rig, params: Mapping) -> tupl
             min_range = min(min_range, r)
             here = rig.world(rig.ranger)[:2]
             if state == "go" and r < safe:
-                state = "turn"
+                state, seen = "turn", r
             if state == "turn":
-                if r >= 2 * safe:
-                    state, passed_at = "pass", float((here - origin) @ fwd)
+                if r < 2 * safe:
+                    seen = r  # the obstacle's edge is still in the beam
+                elif cleared is None:
+                    # the beam has just passed the edge, seen ``seen`` ahead at about the
+                    # beam's half angle: turn on until the body's half width clears it
+                    need = math.asin(min(1.0, (half + CLEARANCE_M) / max(seen, 1e-3)))
+                    cleared = (rig.heading(), max(0.0, need - RANGER_HALF_ANGLE))
+                if cleared is not None and _turned(rig.heading(), cleared[0]) >= cleared[1]:
+                    state, passed_from, cleared = "pass", here.copy(), None
                     driver.step(v, 0.0)
                 else:
                     driver.step(0.0, w_turn)
             elif state == "pass":
                 driver.step(v, 0.0)
-                if float((here - origin) @ fwd) - passed_at > safe + corner:
+                # on past the obstacle's depth and the robot's own length
+                if float(np.hypot(*(here - passed_from))) > safe + 2 * corner + OBSTACLE_DEPTH_M:
                     state = "go"
             else:
                 err = (heading0 - rig.heading() + math.pi) % (2 * math.pi) - math.pi
@@ -444,6 +469,15 @@ def _avoid(session: Session, steer: Steering, rig: Rig, params: Mapping) -> tupl
         "min_range_m": min_range,
     }
     return fig, {"motion": "avoid"}
+
+
+def _corners() -> list[np.ndarray]:
+    return [np.array([x, y, z], dtype=float) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+
+
+def _turned(now: float, then: float) -> float:
+    """Counter-clockwise turn (rad) from heading ``then`` to ``now``, in (-pi, pi]."""
+    return (now - then + math.pi) % (2 * math.pi) - math.pi
 
 
 def verify_sensing(files: Mapping[str, str | bytes]) -> list[dict]:
