@@ -204,6 +204,7 @@ def _verified(
     from export.verify import verify_files
     from gaits import controller_for
     from gaits.base import DesignGeometry
+    from program.sensing import simulated_abilities, verify_sensing
     from synth.structure import StructureDesigner
 
     floors: dict[str, float] = {}
@@ -216,7 +217,8 @@ def _verified(
             outcome = replace(outcome, calibration=calibration)
             files = outcome.files(designer)
         record = outcome.record(designer)
-        results = verify_files(files)
+        # the behaviours' trajectories, then the sensing abilities' closed loops
+        results = verify_files(files) + verify_sensing(files)
         failing = [r for r in results if r["verdict"] != "ok"]
         more = _floors(results, record)
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
@@ -239,7 +241,10 @@ def _verified(
         outcome = replace(outcome, structure=structure, calibration=None)
     # which abilities no behaviour simulates: the controller alone tells (no model needed)
     controller = controller_for(DesignGeometry.from_record(record))
-    unsimulated = tuple(controller.unbehaved(record.get("abilities", ())))
+    sensed = set(simulated_abilities(record, controller.behaviors))
+    unsimulated = tuple(
+        a for a in controller.unbehaved(record.get("abilities", ())) if a not in sensed
+    )
     needed = set(record.get("needed") or record.get("abilities", ()))
     dropped: dict[str, str] = {}
     failure = None
