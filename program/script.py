@@ -211,9 +211,9 @@ def _run(body: Sequence[Mapping], robot: Robot) -> None:
 
 
 def number_text(x: float) -> str:
-    """A number as the program's Python text writes it: integral values as integers,
-    others as the shortest text that reads back the same (JavaScript's ``String(x)`` for
-    1e-6 <= |x| < 1e21, so the block page writes the same text)."""
+    """A number as the program's Python text writes it: integral values below 1e21 as
+    integers, others as Python's ``repr`` (the shortest text that reads back the same; the
+    block page's generator writes exactly this, exponents included: ``1e-05``)."""
     x = float(x)
     if x == int(x) and abs(x) < 1e21:
         return str(int(x))

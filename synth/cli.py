@@ -248,6 +248,35 @@ def build_parser() -> argparse.ArgumentParser:
     _json_option(p)
 
     p = sub.add_parser(
+        "blocks",
+        help="write a drag-and-drop block page for a design bundle (and serve it)",
+        description="Write DIR/blocks/index.html for the design in DIR (written by 'parmor "
+        "design --out DIR'): a Blockly page whose blocks are the design's behaviours with "
+        "their parameters (units and limits shown), repeat, wait and if/else on what the robot "
+        "reports, and the Python program the blocks stand for (run it with 'parmor run "
+        "PROGRAM.py DIR'). The page works offline from the bundle. With --serve, a local server "
+        "on 127.0.0.1 serves it and runs the programs its Run button sends (as JSON, never "
+        "code): validated against the design's behaviours and limits, simulated in MuJoCo, "
+        "answered with the path, the verdict figures and the robot moving. Needs the npm "
+        "packages ('make web').",
+        epilog="examples:\n  parmor blocks hexapod            then open hexapod/blocks/index.html"
+        "\n  parmor blocks hexapod --serve    then open http://127.0.0.1:8765/",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("dir", metavar="DIR", help="a bundle folder written by 'parmor design --out'")
+    p.add_argument("--serve", action="store_true", help="serve the page and run its programs")
+    p.add_argument(
+        "--port", type=int, default=None, metavar="P", help="port of --serve (default 8765)"
+    )
+    p.add_argument(
+        "--time-limit",
+        type=float,
+        default=None,
+        metavar="S",
+        help="wall-clock seconds a run may take before it is stopped (default 120)",
+    )
+
+    p = sub.add_parser(
         "run",
         help="run a program of behaviours on a design in simulation",
         description="Run PROGRAM on the design in DIR (a folder written by 'parmor design "
@@ -832,6 +861,28 @@ def cmd_ros(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     return 0
 
 
+def cmd_blocks(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from pathlib import Path
+
+    from program.blocks import write_page
+    from program.server import DEFAULT_PORT, DEFAULT_TIME_LIMIT, serve
+
+    if not args.serve and (args.port is not None or args.time_limit is not None):
+        raise InputError("--port and --time-limit need --serve")
+    port = DEFAULT_PORT if args.port is None else args.port
+    if not 0 <= port <= 65535:
+        raise InputError(f"--port {port}: expected a port number in [0, 65535] (0: any free)")
+    limit = DEFAULT_TIME_LIMIT if args.time_limit is None else args.time_limit
+    if not (math.isfinite(limit) and limit > 0):
+        raise InputError(f"--time-limit {limit}: expected a positive number of seconds")
+    page = write_page(Path(args.dir))
+    err.write(f"parmor: wrote {page}\n")
+    if args.serve:
+        serve(args.dir, port, limit, out=out, log=err)
+        err.write("parmor: stopped serving\n")
+    return 0
+
+
 def cmd_run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     import json
     from pathlib import Path
@@ -903,6 +954,7 @@ def run_text(result: dict) -> str:
 
 COMMANDS = {
     "abilities": cmd_abilities,
+    "blocks": cmd_blocks,
     "design": cmd_design,
     "enumerate": cmd_enumerate,
     "explain": cmd_explain,

@@ -58,6 +58,7 @@ class Outcome:
     verification: Verification | None = None  # what the simulation found (None: not run)
     verify_skipped: bool = False  # sized but not simulated (--no-verify)
     bundle: dict[str, str | bytes] | None = None  # the files the verification simulated
+    calibration: dict[str, float] | None = None  # measured on a run (synth.verify)
 
     @property
     def status(self) -> str:
@@ -83,6 +84,8 @@ class Outcome:
         from export.record import design_record
 
         rec = design_record(self.design, designer.short, self.structure)
+        if self.calibration:
+            rec["calibration"] = dict(sorted(self.calibration.items()))
         v = self.verification
         if v is not None:
             rec["verified"] = v.record()

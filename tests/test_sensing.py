@@ -113,3 +113,30 @@ def test_sensing_needs_a_steerable_behaviour() -> None:
     assert list(got) == ["line-tracking"]
     speed = {p.name: p for p in got["line-tracking"].params}["speed"]
     assert speed.high == 0.4 and speed.default == 0.2
+
+
+def test_design_verifies_sensing_abilities_where_it_can(cli) -> None:
+    """A wheeled design's sensing abilities are simulated and recorded like its behaviours;
+    a hexapod's cannot be steered by a turn rate and stay ``not_simulated``."""
+    import json
+
+    r = cli("design", "driving", "line-tracking", "--json")
+    assert r.code == 0, r.err
+    v = json.loads(r.out)["verified"]
+    line = {b["behavior"]: b for b in v["behaviors"]}["line-tracking"]
+    assert line["verdict"] == "ok" and line["ability"] == "line-tracking"
+    assert line["line_progress_m"] >= 0.9 * line["planned_distance_m"]
+    assert "line-tracking" not in v["not_simulated"]
+    r = cli(
+        "design",
+        "walking",
+        "line-tracking",
+        "--answer",
+        "grasping=no",
+        "--answer",
+        "rough-terrain-walking=no",
+        "--json",
+    )
+    assert r.code == 0, r.err
+    rec = json.loads(r.out)
+    assert rec["verified"]["not_simulated"] == ["line-tracking"], rec["robot_type"]
