@@ -60,6 +60,28 @@ def _structure_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _backend_options(p: argparse.ArgumentParser, what: str, jobs_default: str) -> None:
+    g = p.add_argument_group(f"where the {what} run")
+    g.add_argument(
+        "--jobs",
+        type=int,
+        metavar="N",
+        help=f"worker processes, or Ray tasks at once (default: {jobs_default})",
+    )
+    g.add_argument(
+        "--backend",
+        choices=("local", "ray"),
+        default="local",
+        help=f"local: the {what} run on local processes (default); ray: on a Ray cluster "
+        "(pip install 'parmor[ray]'), with the same results",
+    )
+    g.add_argument(
+        "--address",
+        metavar="HOST:PORT",
+        help="the Ray cluster's head to join (default: RAY_ADDRESS, else a new local Ray instance)",
+    )
+
+
 def _kb_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("knowledge base")
     g.add_argument(
@@ -182,6 +204,7 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="also print each candidate's mass/cost Pareto front of assignments",
     )
+    _backend_options(p, "candidates' sizings", "1 here, the cluster's CPUs on Ray")
 
     p = sub.add_parser(
         "explain",
@@ -324,7 +347,7 @@ def build_parser() -> argparse.ArgumentParser:
         "hold lists expands into their product) as 'parmor design --no-input' would: sized, "
         "and every behaviour the design lists simulated with its default parameters, "
         "failures fed back (--no-simulate designs as --no-verify does). Requests run in "
-        "parallel on local processes. Writes "
+        "parallel on local processes, or on a Ray cluster (--backend ray). Writes "
         "DIR/results.csv (one row per request and behaviour: parameters, accepted or the "
         "reason, every verdict figure), DIR/summary.md (pass rates per robot type, failures "
         "by criterion, the refused requests and why) and DIR/plots/*.png (outcome over each "
@@ -341,12 +364,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="folder of the results (default: the study's name with .sweep, beside it)",
     )
-    p.add_argument(
-        "--jobs",
-        type=int,
-        metavar="N",
-        help="worker processes (default: the machine's cores)",
-    )
+    _backend_options(p, "requests", "the machine's cores, the cluster's CPUs on Ray")
     p.add_argument(
         "--no-simulate",
         action="store_true",
@@ -395,6 +413,7 @@ examples:
   parmor sweep studies/parameter-range.toml --jobs 4        into studies/parameter-range.sweep/
   parmor sweep mine.toml --out runs/mine --json             the summary as JSON on stdout
   parmor sweep mine.toml --out runs/mine                    again: only what is not stored yet
+  parmor sweep mine.toml --backend ray --address head:6379  on a Ray cluster (README)
 """
 
 
@@ -545,7 +564,10 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     import json
 
     from export.record import candidate_record, candidate_text
+    from synth.backend import Backend, tasks
 
+    local = args.backend == "local"
+    engine = Backend(args.backend, args.jobs or (1 if local else None), args.address)
     designer = _designer(args, err)
     req = _request(args)
     opts = _options(args)
@@ -557,14 +579,11 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     physical = designer.structural(req)
     cands, over = designer.within_limits(sol.candidates, physical)
     shown = cands[: args.limit] if args.limit is not None else cands
-    sizer = None if opts.conceptual else _Sizer(designer, opts, physical, args)
-    progress = _progress(err, len(shown)) if sizer and err.isatty() else None
-    for i, c in enumerate(shown, 1):
-        rec = candidate_record(c, designer.short)
-        if sizer is not None:
-            if progress:
-                progress(i, c.robot_type)
-            rec.update(sizer.size(c))
+    sizing = not opts.conceptual
+    progress = _progress(err, len(shown)) if sizing and shown and err.isatty() else None
+
+    def emit(i: int, rec: dict) -> None:
+        c = shown[i - 1]
         if args.json:
             out.write(
                 json.dumps({"type": "candidate", "rank": i, **rec}, ensure_ascii=False) + "\n"
@@ -572,8 +591,31 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             out.flush()
         else:
             out.write(f"{i}. {c.robot_type}\n{candidate_text(c, designer.short, '   ')}\n")
-            if sizer is not None:
-                out.write(sizer.text(rec, "   "))
+            if sizing:
+                out.write(_Sizer.text(rec, "   "))
+        if progress and i < len(shown):
+            progress(i + 1, shown[i].robot_type)
+
+    records = [candidate_record(c, designer.short) for c in shown]
+    if not sizing:
+        for i, rec in enumerate(records, 1):
+            emit(i, rec)
+    else:  # sized on the engine; printed in rank order as soon as each is done
+        if progress:
+            progress(1, shown[0].robot_type)
+        arg = (args.ontology, args.rules, args.allow_scripts, opts, physical)
+        arg += (args.assignments, args.pareto)
+        here = _Sizer(designer, opts, physical, args.assignments, args.pareto)
+        files = (args.catalog, args.ontology, args.rules)
+        items = list(enumerate(shown, 1))
+        sized: dict[int, dict] = {}
+        nxt = 1
+        with tasks(engine, _sizer_init, arg, _sizer_work, items, files, here=here) as done:
+            for i, result in done:
+                sized[i] = result
+                while nxt in sized:
+                    emit(nxt, {**records[nxt - 1], **sized.pop(nxt)})
+                    nxt += 1
     if progress:
         progress(None, "")
     conflict = list(designer.conflict(req)) if not sol.candidates else []
@@ -604,11 +646,11 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 class _Sizer:
     """Sizes each enumerated candidate and lists its feasible actuator assignments."""
 
-    def __init__(self, designer, opts, physical, args: argparse.Namespace) -> None:
+    def __init__(self, designer, opts, physical, k: int, pareto: bool) -> None:
         from synth.pipeline import load_checked_catalog
 
         self.designer, self.opts, self.physical = designer, opts, physical
-        self.k, self.pareto = args.assignments, args.pareto
+        self.k, self.pareto = k, pareto
         self.catalog = load_checked_catalog(opts.catalog, designer)
 
     def size(self, c) -> dict:
@@ -661,6 +703,19 @@ class _Sizer:
                 for x in a["pareto"]
             ]
         return "\n".join(lines) + "\n"
+
+
+def _sizer_init(arg: tuple) -> _Sizer:
+    """A worker's sizer (``synth.backend``): the knowledge base grounded again there."""
+    from synth.regress import designer_for
+
+    ontology, rules, allow_scripts, opts, physical, k, pareto = arg
+    kb = {"ontology": ontology, "rules": rules, "allow_scripts": allow_scripts}
+    return _Sizer(designer_for(kb), opts, physical, k, pareto)
+
+
+def _sizer_work(sizer: _Sizer, c) -> dict:
+    return sizer.size(c)
 
 
 def _progress(err: TextIO, total: int):

@@ -8,7 +8,8 @@ as ``--no-verify`` does) every behaviour it lists simulated with default paramet
 back (``synth.verify``). The figures of each simulated behaviour (``export.verify``, the
 records of ``parmor simulate --json``) become the rows of ``results.csv``.
 
-The requests run on local worker processes. Each finished request is stored as
+The requests run on local worker processes, or on a Ray cluster with ``--backend ray``
+(``synth.backend``); the results are the same either way. Each finished request is stored as
 ``DIR/requests/<key>.json``, ``key`` a hash of the request, the mode (simulated or not)
 and the contents of the study's ontology, rules and catalog files and of parmor's own
 source and data files; a rerun designs only
@@ -27,7 +28,6 @@ import io
 import itertools
 import json
 import os
-import signal
 import tempfile
 from collections import Counter, defaultdict
 from collections.abc import Callable, Iterable, Sequence
@@ -35,6 +35,8 @@ from pathlib import Path
 from typing import TextIO
 
 from adron.errors import ExportError, InputError
+from synth.backend import Backend, files_digest, tasks
+from synth.backend import code_files as code_files  # re-exported: the files keys depend on
 from synth.regress import (
     array_tables,
     designer_for,
@@ -112,35 +114,6 @@ def load_study(path: Path) -> tuple[dict, list[dict]]:
     return opts, out
 
 
-#: The packages whose files decide a design: a change to any of them designs everything again.
-CODE_PACKAGES = ("adron", "asp", "synth", "kinematics", "gaits", "export")
-CODE_SUFFIXES = (".py", ".lp", ".kif", ".toml")
-
-
-def code_files() -> list[Path]:
-    """parmor's own source and data files (the packages are located, not imported)."""
-    import importlib.util
-
-    out = []
-    for pkg in CODE_PACKAGES:
-        spec = importlib.util.find_spec(pkg)
-        roots = (spec.submodule_search_locations or ()) if spec is not None else ()
-        for root in roots:
-            out += sorted(
-                f for f in Path(root).rglob("*") if f.suffix in CODE_SUFFIXES and f.is_file()
-            )
-    return out
-
-
-def _digest(paths: Iterable[str | Path | None]) -> str:
-    """A hash of the contents of ``paths`` (None: a file not given)."""
-    h = hashlib.sha256()
-    for p in paths:
-        h.update(b"\0" if p is None else Path(p).read_bytes())
-        h.update(b"\1")
-    return h.hexdigest()
-
-
 def request_key(q: dict, simulate: bool, files_digest: str) -> str:
     """The stable key of a request's result: abilities, answers, params, mode, and the
     digest of the study's files and parmor's own."""
@@ -177,25 +150,18 @@ def validate(opts: dict, requests: Sequence[dict]) -> None:
 
 # --- designing and simulating one request (in a worker process) ---------------------------
 
-_WORKER: dict = {}
 
-
-def _init_worker(opts: dict, simulate: bool, in_pool: bool) -> None:
-    """Ground the knowledge base of the study in this process."""
+def _init_worker(arg: tuple[dict, bool]) -> tuple:
+    """The state of a worker: the study's knowledge base grounded, the structure options."""
     from synth.pipeline import StructureOptions
 
-    if in_pool:  # Ctrl-C reaches the main process, which terminates the pool
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _WORKER.update(
-        designer=designer_for(opts),
-        sopts=StructureOptions(opts["catalog"], verify=simulate),
-        simulate=simulate,
-    )
+    opts, simulate = arg
+    return designer_for(opts), StructureOptions(opts["catalog"], verify=simulate), simulate
 
 
-def _work(item: tuple[int, dict]) -> tuple[int, dict]:
-    i, q = item
-    return i, design_one(q, _WORKER["designer"], _WORKER["sopts"], _WORKER["simulate"])
+def _work(state: tuple, q: dict) -> dict:
+    designer, sopts, simulate = state
+    return design_one(q, designer, sopts, simulate)
 
 
 def design_one(q: dict, designer, sopts, simulate: bool) -> dict:
@@ -335,19 +301,21 @@ def run_study(
     simulate: bool = True,
     err: TextIO | None = None,
     allow_scripts: bool = False,
+    backend: str = "local",
+    address: str | None = None,
 ) -> dict:
-    """Run a study: design (and simulate) the requests without a stored result, then write
-    the outputs from every stored result; returns the summary object (``--json``)."""
+    """Run a study: design (and simulate) the requests without a stored result on the
+    ``backend`` (local processes, or Ray: ``synth.backend``), then write the outputs from
+    every stored result; returns the summary object (``--json``)."""
     path = Path(study)
-    if jobs is not None and jobs < 1:
-        raise InputError(f"--jobs {jobs}: expected 1 or more")
+    engine = Backend(backend, jobs, address)
     opts, requests = load_study(path)
     opts["allow_scripts"] = allow_scripts
     out = Path(out_dir) if out_dir is not None else default_out(path)
     _check_out(out)
     validate(opts, requests)
-    digest = _digest([opts["catalog"], *opts["ontology"], *opts["rules"], *code_files()])
-    keys = [request_key(q, simulate, digest) for q in requests]
+    files = (opts["catalog"], opts["ontology"], opts["rules"])
+    keys = [request_key(q, simulate, files_digest(*files)) for q in requests]
     seen: dict[str, int] = {}
     for i, (q, k) in enumerate(zip(requests, keys, strict=True)):
         if k in seen:
@@ -365,13 +333,13 @@ def run_study(
             results[i] = r
     reused = len(results)
     pending = [(i, requests[i]) for i in range(len(requests)) if i not in results]
-    n_jobs = min(jobs or os.cpu_count() or 1, max(len(pending), 1))
-    _compute(pending, results, keys, store, opts, simulate, n_jobs, err, len(requests))
+    _compute(pending, results, keys, store, (opts, simulate), engine, err, len(requests))
     computed = len(results) - reused
     rows = [_merged(q, results[i], keys[i]) for i, q in enumerate(requests)]
-    files = write_outputs(out, path, rows, simulate)
+    written = write_outputs(out, path, rows, simulate)
     summary = summary_object(rows, simulate)
-    summary.update(study=str(path), out=str(out), computed=computed, reused=reused, files=files)
+    summary.update(study=str(path), out=str(out), computed=computed, reused=reused)
+    summary["files"] = written
     return summary
 
 
@@ -380,53 +348,41 @@ def _compute(
     results: dict[int, dict],
     keys: list[str],
     store: Path,
-    opts: dict,
-    simulate: bool,
-    n_jobs: int,
+    arg: tuple[dict, bool],
+    engine: Backend,
     err: TextIO | None,
     total: int,
 ) -> None:
-    """Design the pending requests on ``n_jobs`` processes, storing each as it finishes."""
+    """Design the pending requests on the engine, storing each as it finishes."""
     if not pending:
         return
     store.mkdir(parents=True, exist_ok=True)
-    pool = None
-    if n_jobs > 1:
-        import multiprocessing
-
-        pool = multiprocessing.Pool(n_jobs, _init_worker, (opts, simulate, True))
-        done_iter = pool.imap_unordered(_work, pending, chunksize=1)
-    else:
-        _init_worker(opts, simulate, False)
-        done_iter = map(_work, pending)
+    opts = arg[0]
+    files = (opts["catalog"], opts["ontology"], opts["rules"])
     step = _progress(err, total, total - len(pending)) if err is not None and err.isatty() else None
     todo = dict(pending)
-    stopped: BaseException | None = None
     try:
-        for i, res in done_iter:
-            if res["status"] != "error":
-                _store(store / f"{keys[i]}.json", todo[i], res)
-            results[i] = res
+        with tasks(engine, _init_worker, arg, _work, pending, files) as done:
+            for i, res in done:
+                if res["status"] != "error":
+                    _store(store / f"{keys[i]}.json", todo[i], res)
+                results[i] = res
+                if step:
+                    step(todo[i]["name"])
+    except KeyboardInterrupt:  # the workers are stopped, what finished is stored
+        if err is not None:
             if step:
-                step(todo[i]["name"])
-    except BaseException as e:  # Ctrl-C, or a result that cannot be stored: stop at once
-        stopped = e
+                step(None)
+                step = None
+            n = sum(1 for r in results.values() if r["status"] != "error")
+            err.write(
+                f"parmor: sweep interrupted: {n} of {total} requests stored in {store}; "
+                "run the same command again to continue\n"
+            )
         raise
     finally:
         if step:
             step(None)
-        if pool is not None:
-            if stopped is not None:
-                pool.terminate()
-            else:
-                pool.close()
-            pool.join()
-        if isinstance(stopped, KeyboardInterrupt) and err is not None:
-            done = sum(1 for r in results.values() if r["status"] != "error")
-            err.write(
-                f"parmor: sweep interrupted: {done} of {total} requests stored in {store}; "
-                "run the same command again to continue\n"
-            )
 
 
 def _merged(q: dict, res: dict, key: str) -> dict:
@@ -794,6 +750,8 @@ def cmd_sweep(args, out: TextIO, err: TextIO) -> int:
         simulate=not args.no_simulate,
         err=err,
         allow_scripts=args.allow_scripts,
+        backend=args.backend,
+        address=args.address,
     )
     if args.json:
         out.write(json.dumps(s, indent=2, ensure_ascii=False) + "\n")
