@@ -159,6 +159,26 @@ def _import_ray():
     return ray
 
 
+PROBE_TIMEOUT = 10.0  # s: how long the head of --address HOST:PORT may take to accept
+
+
+def _probe(address: str) -> None:
+    """Fail at once when HOST:PORT accepts no connection (Ray itself retries for minutes).
+    Other forms Ray knows (auto, ray://...) are left to Ray."""
+    import socket
+
+    host, sep, port = address.rpartition(":")
+    if not sep or "/" in address or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), PROBE_TIMEOUT).close()
+    except OSError as e:
+        raise BackendError(
+            f"--address {address}: no Ray cluster answers there ({e.strerror or e}); start "
+            "one with 'ray start --head' and give its address"
+        ) from None
+
+
 @contextlib.contextmanager
 def tasks(
     backend: Backend,
@@ -213,6 +233,8 @@ def _ray_tasks(backend, init, arg, work, items, files) -> Iterator[Iterator[tupl
         }
         if backend.address is None:
             kwargs["include_dashboard"] = False
+        else:
+            _probe(backend.address)
         try:
             ray.init(address=backend.address, **kwargs)
         except (ConnectionError, RuntimeError, ValueError) as e:

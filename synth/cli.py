@@ -566,8 +566,8 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from export.record import candidate_record, candidate_text
     from synth.backend import Backend, tasks
 
-    local = args.backend == "local"
-    engine = Backend(args.backend, args.jobs or (1 if local else None), args.address)
+    jobs = 1 if args.jobs is None and args.backend == "local" else args.jobs  # 1: in-process
+    engine = Backend(args.backend, jobs, args.address)
     designer = _designer(args, err)
     req = _request(args)
     opts = _options(args)

@@ -367,3 +367,81 @@ def test_the_key_follows_request_mode_and_files() -> None:
     assert {"sweep.py", "catalog.toml", "verify.py"} <= names and any(
         n.endswith(".kif") for n in names
     )
+
+
+# --- the engine: local processes or Ray (synth.backend; tests/test_ray.py runs Ray) ---------
+
+
+@pytest.mark.parametrize("command", ["sweep", "enumerate"])
+def test_ray_absent_is_bad_input_naming_the_extra(
+    cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, command: str
+) -> None:
+    import sys
+
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray raises ImportError
+    study = write(tmp_path / "s.toml", '[[request]]\nabilities = ["driving"]\n')
+    argv = [str(study), "--no-simulate"] if command == "sweep" else ["driving"]
+    r = cli(command, *argv, "--backend", "ray")
+    assert r.code == 2 and "pip install 'parmor[ray]'" in r.err, r.err
+    assert "Traceback" not in r.err
+    if command == "sweep":  # nothing stored, nothing written
+        assert not list((default_out(study) / "requests").glob("*.json"))
+
+
+def test_backend_options_are_checked(cli, tmp_path: Path) -> None:
+    study = write(tmp_path / "s.toml")
+    r = cli("sweep", str(study), "--no-simulate", "--address", "head:6379")
+    assert r.code == 2 and "--address" in r.err and "--backend ray" in r.err
+    r = cli("enumerate", "driving", "--jobs", "0")
+    assert r.code == 2 and "--jobs 0" in r.err
+    r = cli("enumerate", "driving", "--backend", "spark")
+    assert r.code == 2 and "invalid choice" in r.err
+    assert not default_out(study).exists()
+
+
+def test_start_up_does_not_import_ray() -> None:
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, io; from synth.cli import main; "
+        "main(['sweep', '--help'], io.StringIO(), io.StringIO()); "
+        "main(['enumerate', 'driving', '--conceptual'], io.StringIO(), io.StringIO()); "
+        "print('ray' in sys.modules)"
+    )
+    repo = Path(__file__).resolve().parents[1]
+    r = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=repo, timeout=120
+    )
+    assert r.stdout.strip() == "False", r.stderr
+
+
+def test_enumerate_on_two_local_processes_prints_the_same_lines(cli) -> None:
+    one = cli("enumerate", "driving", "--assignments", "2", "--json")
+    two = cli("enumerate", "driving", "--assignments", "2", "--json", "--jobs", "2")
+    assert one.code == two.code == 0 and one.out == two.out
+    assert one.out.count('"type": "candidate"') == 2
+
+
+def test_a_node_whose_files_differ_refuses_the_work(tmp_path: Path) -> None:
+    """The check a Ray worker makes before its first task (built to fail: a digest of other
+    files, a study file missing on the node)."""
+    from synth.backend import BackendError, _ray_work, files_digest
+
+    mine = tmp_path / "mine.kif"
+    mine.write_text("(subclass Gizmo Robot)\n")
+    files = (None, [str(mine)], [])
+
+    def init(arg):
+        return arg
+
+    def work(state, item):
+        return state + item
+
+    good = (files, files_digest(*files))
+    assert _ray_work(init, 1, "t-good", good, work, "k", 2) == ("k", 3)
+    with pytest.raises(BackendError, match="differ"):
+        _ray_work(init, 1, "t-other", (files, "0" * 64), work, "k", 2)
+    mine.unlink()
+    with pytest.raises(BackendError, match="mine.kif.*same paths"):
+        _ray_work(init, 1, "t-missing", good, work, "k", 2)
