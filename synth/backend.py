@@ -271,7 +271,7 @@ def _ray_results(ray, remote, head: tuple, items, width: int, inflight: dict):
         ref = ready[0]
         del inflight[ref]
         try:
-            yield ray.get(ref)
+            result = ray.get(ref)
         except ray.exceptions.RayTaskError as e:
             cause = getattr(e, "cause", None)
             if isinstance(cause, ParmorError):
@@ -279,3 +279,4 @@ def _ray_results(ray, remote, head: tuple, items, width: int, inflight: dict):
             raise BackendError(f"a Ray task failed: {cause or e}") from None
         except ray.exceptions.RayError as e:
             raise BackendError(f"a Ray worker was lost: {e}") from None
+        yield result

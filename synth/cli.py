@@ -204,7 +204,7 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="also print each candidate's mass/cost Pareto front of assignments",
     )
-    _backend_options(p, "candidates' sizings", "1 here, the cluster's CPUs on Ray")
+    _backend_options(p, "candidates' sizings", "1, in this process; on Ray the cluster's CPUs")
 
     p = sub.add_parser(
         "explain",
@@ -364,7 +364,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="folder of the results (default: the study's name with .sweep, beside it)",
     )
-    _backend_options(p, "requests", "the machine's cores, the cluster's CPUs on Ray")
+    _backend_options(p, "requests", "the machine's cores; on Ray the cluster's CPUs")
     p.add_argument(
         "--no-simulate",
         action="store_true",
