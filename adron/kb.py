@@ -14,7 +14,7 @@ from importlib import resources
 from pathlib import Path
 
 from adron.errors import InputError, OntologyError
-from adron.kif import Form, parse
+from adron.kif import MAX_DEPTH, Form, parse
 from adron.translate import Translation, translate
 
 
@@ -100,7 +100,7 @@ def load(extra: Sequence[str | Path] = (), builtin: bool = True) -> KnowledgeBas
     sources = (builtin_files() if builtin else []) + [read_user_file(p) for p in extra]
     forms: list[Form] = []
     for name, text in sources:
-        forms.extend(parse(text, name))
+        forms.extend(parse(text, name, MAX_DEPTH))
     tr = translate(forms)
     verbs = {kif: verb for kif, verb in facts(tr, "abilityVerb", 2)}
     abilities, seen = [], {}

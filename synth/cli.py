@@ -478,6 +478,8 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from export.record import design_text, to_json, verification_text
     from synth.pipeline import run
 
+    if args.out is not None and not args.out.strip():
+        raise InputError(f"--out {args.out!r}: expected the name of a folder")
     designer = _designer(args, err)
     req = _request(args)
     opts = _options(args)
