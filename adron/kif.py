@@ -227,9 +227,8 @@ def parse(text: str, file: str = "<string>", max_depth: int | None = None) -> li
     bad = _CONTROL.search(text)
     if bad:
         line, col = _Locator(text)(bad.start())
-        raise KifSyntaxError(
-            f"control character U+{ord(bad.group()):04X} is not allowed in KIF text", file, line, col
-        )
+        what = f"control character U+{ord(bad.group()):04X} is not allowed in KIF text"
+        raise KifSyntaxError(what, file, line, col)
     try:
         return _parse(text, file, max_depth)
     except _BadNumber as exc:

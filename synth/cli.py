@@ -756,6 +756,8 @@ def cmd_sweep(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 #: Longest simulated time of one ``simulate`` run, s (the samples are held in memory).
 MAX_SIM_SECONDS = 600.0
+#: Shortest one, s: a behaviour's verdict needs some motion to judge (50 MuJoCo steps).
+MIN_SIM_SECONDS = 0.1
 
 
 def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -766,8 +768,6 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     folder = Path(args.dir)
     from export.verify import controller_for_model, figures, load_bundle, run_behavior
 
-    record, model = load_bundle(folder)
-
     params: dict[str, str] = {}
     for item in args.set:
         name, sep, value = item.partition("=")
@@ -777,11 +777,13 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.gait:
         params["gait"] = args.gait
     if args.seconds is not None and not (
-        math.isfinite(args.seconds) and 0 < args.seconds <= MAX_SIM_SECONDS
+        math.isfinite(args.seconds) and MIN_SIM_SECONDS <= args.seconds <= MAX_SIM_SECONDS
     ):
         raise InputError(
-            f"--seconds {args.seconds}: expected a number of seconds in (0, {MAX_SIM_SECONDS:g}]"
+            f"--seconds {args.seconds:g}: expected a number of seconds in "
+            f"[{MIN_SIM_SECONDS:g}, {MAX_SIM_SECONDS:g}]"
         )
+    record, model = load_bundle(folder)
     try:
         controller = controller_for_model(record, model)
         if args.behavior == "help":
@@ -806,7 +808,7 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             model, controller, args.behavior, params, args.seconds, progress
         )
     except (ValueError, KeyError) as e:
-        raise InputError(str(e).strip("'\"")) from None
+        raise InputError(e.args[0] if isinstance(e, KeyError) and e.args else str(e)) from None
     if progress is not None:
         step(None, "")
     rec = figures(traj, result)

@@ -7,9 +7,9 @@ section" (``deflection``, ``slope``).
 
 | name | dimension | used by | default | range |
 |---|---|---|---|---|
-| payload | mass | all | kg: 3-DOF arm 0.2, 6-DOF 0.1, multipeds 0.1, humanoid 0.05, wheeled 0.5 | 0-50 kg |
+| payload | mass | all | kg: arm 0.2/0.1 (3/6-DOF); legs 0.1 (humanoid 0.05); wheels 0.5 | 0-50 kg |
 | reach | length | Manipulator3DOF, Manipulator6DOF | 0.25 m | 5 cm-2 m |
-| speed | speed | all but the snake | manipulators 0.2 m/s (tip), legged 0.05 m/s, wheeled 0.3 m/s | 1 mm/s-10 m/s |
+| speed | speed | all but snake | m/s: arms 0.2 (tip), legged 0.05, wheeled 0.3 | 1 mm/s-10 m/s |
 | obstacle_height | length | HexapodRobot, QuadrupedRobot | 0.03 m | 1 mm-1 m |
 | load_area | area | DifferentialDriveRobot, SkidSteerRobot | 0.03 m^2 (300 cm^2) | 25 cm^2-1 m^2 |
 | height | length | HumanoidRobot | 0.40 m | 5 cm-2 m |
