@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import math
+import os
 import sys
 from collections.abc import Sequence
 from typing import TextIO
 
-from adron.errors import AnswerNeeded, InputError, ParmorError
+from adron.errors import AnswerNeeded, ExportError, InputError, ParmorError
 
 EPILOG = """\
 examples:
@@ -953,13 +955,33 @@ def main(
         return int(e.code or 0)
     handler = cmd_ontology_check if args.command == "ontology" else COMMANDS[args.command]
     try:
-        return handler(args, out, err)
+        code = handler(args, out, err)
+        out.flush()
+        return code
     except ParmorError as e:
         err.write(f"parmor: error: {e}\n")
         return e.exit_code
     except KeyboardInterrupt:
         err.write("parmor: interrupted\n")
         return 130
+    except OSError as e:
+        # the output went away (``| head -1``: a broken pipe) or is full (``> /dev/full``)
+        if e.errno not in (errno.EPIPE, errno.ENOSPC, errno.EDQUOT, errno.EIO):
+            raise
+        _discard_output(out)
+        why = "closed early (broken pipe)" if e.errno == errno.EPIPE else e.strerror
+        err.write(f"parmor: error: cannot write the output: {why}\n")
+        return ExportError.exit_code
+
+
+def _discard_output(out: TextIO) -> None:
+    """Point the standard output that failed at /dev/null, so that the interpreter's last
+    flush of what is still buffered does not fail again with a traceback."""
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        if out is sys.stdout or out is sys.__stdout__:
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, out.fileno())
+            os.close(null)
 
 
 if __name__ == "__main__":
