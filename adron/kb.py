@@ -73,7 +73,7 @@ def read_user_file(path: str | Path) -> tuple[str, str]:
     """(display name, text) of a user's file; a missing or unreadable file is an InputError."""
     p = Path(path)
     try:
-        return str(path), p.read_text(encoding="utf-8-sig")  # a leading BOM is ignored
+        return str(path), p.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise InputError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError) as e:

@@ -48,7 +48,7 @@ def read_toml(path: Path, keys: set[str]) -> dict:
     """The TOML table of a user's file whose top-level keys are among ``keys``."""
     _, text = read_user_file(path)
     try:
-        data = tomllib.loads(text)
+        data = tomllib.loads(text.removeprefix("\ufeff"))  # a byte order mark is ignored
     except tomllib.TOMLDecodeError as e:
         at = re.fullmatch(r"(?s)(.*) \(at line (\d+), column (\d+)\)", str(e))
         raise InputError(f"{path}:{at[2]}:{at[3]}: {at[1]}" if at else f"{path}: {e}") from None
