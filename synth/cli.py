@@ -947,6 +947,11 @@ def main(
     """Run the command line; returns the exit code (never raises for user errors)."""
     out = out or sys.stdout
     err = err or sys.stderr
+    argv = sys.argv[1:] if argv is None else list(argv)
+    for arg in argv:  # a shell cannot pass one; a caller in Python can (open() would raise)
+        if "\x00" in arg:
+            err.write(f"parmor: error: argument {arg!r} contains a NUL character\n")
+            return InputError.exit_code
     parser = build_parser()
     try:
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
@@ -959,7 +964,7 @@ def main(
         out.flush()
         return code
     except ParmorError as e:
-        err.write(f"parmor: error: {e}\n")
+        err.write(f"parmor: error: {_one_line(str(e))}\n")
         return e.exit_code
     except KeyboardInterrupt:
         err.write("parmor: interrupted\n")
@@ -972,6 +977,22 @@ def main(
         why = "closed early (broken pipe)" if e.errno == errno.EPIPE else e.strerror
         err.write(f"parmor: error: cannot write the output: {why}\n")
         return ExportError.exit_code
+
+
+#: Longest error message printed, characters (a message quoting a huge input is cut).
+MAX_MESSAGE = 2000
+
+
+def _one_line(message: str) -> str:
+    """``message`` on one line (line breaks shown as ' | '), its middle cut past MAX_MESSAGE."""
+    message = " | ".join(part.strip() for part in message.strip().splitlines() if part.strip())
+    if len(message) > MAX_MESSAGE:
+        cut = len(message) - MAX_MESSAGE
+        message = (
+            f"{message[: MAX_MESSAGE // 2]} [... {cut} characters ...] "
+            + message[-MAX_MESSAGE // 2 :]
+        )
+    return message
 
 
 def _discard_output(out: TextIO) -> None:

@@ -29,25 +29,21 @@ from synth.cli import build_parser, main
 #: Hostile values for any option or positional argument.
 HOSTILE = (
     "1e308",
-    "-1e308",
     "1e-300",
     "0",
     "-1",
     "nan",
     "inf",
-    "-inf",
     "☃é\u202eא",
     "",
-    " ",
     "a\x00b",
     "a\nb",
-    "=",
     "x=y=z",
     "..",
 )
 
 #: Hostile magnitudes for a physical parameter (a unit of the right kind is appended).
-MAGNITUDES = ("1e308", "1e-300", "0", "-1", "nan", "inf", "1e-9", "1e9")
+MAGNITUDES = ("1e308", "1e-300", "0", "-1", "nan", "inf")
 
 KIF = """\
 ; a small user ontology
@@ -92,6 +88,9 @@ def main(robot):
 
 SEED = 11
 
+#: A cheap request that is designed (conceptually): hostile values meet every stage.
+DESIGN = ["design", "pick-and-place", "--param", "object_shape=oval", "--conceptual", "--no-input"]
+
 
 # ---- helpers ------------------------------------------------------------------------------
 
@@ -108,10 +107,15 @@ def check(argv: list[str]) -> int:
     code, _, err = run(argv)
     assert "Traceback" not in err, err
     assert code in (0, 1, 2, 3), (code, err)
-    if code in (2, 3) or (code == 1 and "error:" in err):
-        errors = [line for line in err.splitlines() if "error:" in line]
-        assert len(errors) == 1, err  # argparse adds its usage line, but one error line
-        assert len(errors[0]) < 2000, errors[0][:200]
+    if code:
+        # one line says why; besides it only notes and argparse's usage (indented lines)
+        said = [
+            line
+            for line in err.splitlines()
+            if line.strip() and not line.startswith(("parmor: note:", "usage:", " "))
+        ]
+        assert len(said) == 1, err
+        assert said[0].startswith(("parmor: ", "parmor ")), said[0]
     return code
 
 
@@ -198,7 +202,7 @@ def base_argv(command: str, f: dict[str, Path]) -> list[str]:
     sweep_out = str(f["dir"] / "sweep-out")
     return {
         "abilities": ["abilities"],
-        "design": ["design", "walking", "--conceptual", "--no-input"],
+        "design": DESIGN,
         "enumerate": ["enumerate", "walking", "--conceptual"],
         "explain": ["explain", "HexapodRobot"],
         "ontology check": ["ontology", "check", str(f["kif"])],
@@ -210,21 +214,22 @@ def base_argv(command: str, f: dict[str, Path]) -> list[str]:
     }[command]
 
 
-def _values_for(action: argparse.Action) -> list[str]:
+def _values_for(command: str, action: argparse.Action) -> list[str]:
     dest = action.dest
     if dest == "param":
         from adron.units import DIMENSIONS
         from synth.params import PARAMS
 
         out = []
-        for spec in PARAMS:
+        # every parameter through design; enumerate parses them with the same code
+        for spec in PARAMS if command == "design" else PARAMS[:2]:
             unit = DIMENSIONS[spec.dimension].example.split(" ", 1)[1]
             out += [f"{spec.name}={m} {unit}" for m in MAGNITUDES]
             out += [f"{spec.name}=", f"{spec.name}=☃", f"{spec.name}=5"]
-        return out + [f"{h}=1" for h in HOSTILE[8:]]
+        return out + [f"{h}=1" for h in HOSTILE[6:]]
     if dest in ("answer", "set"):
         name = "grasping" if dest == "answer" else "v"
-        return [f"{name}={h}" for h in HOSTILE] + [f"{h}=yes" for h in HOSTILE[8:]]
+        return [f"{name}={h}" for h in HOSTILE] + [f"{h}=yes" for h in HOSTILE[6:]]
     return list(HOSTILE)
 
 
@@ -232,7 +237,7 @@ def _option_cases() -> list[tuple[str, str, str]]:
     cases = []
     for words, action in value_options(build_parser()):
         name = action.option_strings[0] if action.option_strings else action.dest
-        for v in _values_for(action):
+        for v in _values_for(words, action):
             cases.append((words, name, v))
     return cases
 
@@ -254,14 +259,15 @@ def _with_value(argv: list[str], action_name: str, value: str, command: str) -> 
 
 
 @pytest.mark.parametrize(("command", "option", "value"), OPTION_CASES)
-def test_every_option_with_hostile_values(files, command, option, value) -> None:
+def test_every_option_with_hostile_values(files, tmp_path, monkeypatch, command, option, value):
+    monkeypatch.chdir(tmp_path)  # an --out that is accepted writes here
     argv = _with_value(base_argv(command, files), option, value, command)
     check(argv)
 
 
 # ---- files -------------------------------------------------------------------------------
 
-N = 40  # mutations per file kind
+N = 30  # mutations per file kind
 
 
 def _file_cases() -> list[tuple[str, int]]:
@@ -291,9 +297,9 @@ def test_mutated_input_files(files, tmp_path, kind, i) -> None:
     if kind == "kif":
         check(["ontology", "check", str(path)])
         if i % 8 == 0:  # the shipped ontology too, through the reasoner
-            check(["design", "walking", "--ontology", str(path), "--conceptual", "--no-input"])
+            check([*DESIGN, "--ontology", str(path)])
     elif kind == "lp":
-        check(["design", "walking", "--rules", str(path), "--conceptual", "--no-input"])
+        check([*DESIGN, "--rules", str(path)])
     elif kind == "suite":
         path.with_name("mutated.snapshot.json").unlink(missing_ok=True)
         check(["regress", str(path), "--update"])
@@ -309,12 +315,12 @@ def hash_of(text: str) -> int:
     return sum(ord(c) * (k + 1) for k, c in enumerate(text)) % 1000
 
 
-@pytest.mark.parametrize("i", range(60))
+@pytest.mark.parametrize("i", range(40))
 def test_mutated_catalogs(tmp_path, i) -> None:
     from adron.catalog import load_catalog
     from adron.errors import InputError
 
-    text = mutations(_catalog_text(), 60, salt=7)[i]
+    text = mutations(_catalog_text(), 40, salt=7)[i]
     path = tmp_path / "catalog.toml"
     path.write_bytes(text.encode("utf-8", "surrogatepass"))
     try:
