@@ -211,6 +211,7 @@ def base_argv(command: str, f: dict[str, Path]) -> list[str]:
         "sweep": ["sweep", str(f["study"]), "--no-simulate", "--jobs", "1", "--out", sweep_out],
         "run": ["run", str(f["json"]), str(f["bundle"])],
         "blocks": ["blocks", str(f["bundle"])],
+        "ros": ["ros", str(f["bundle"]), "--force"],
     }[command]
 
 
