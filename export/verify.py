@@ -50,9 +50,15 @@ def bundle_record(folder: str | Path, structure: bool = True) -> dict:
 
 def load_bundle(folder: str | Path) -> tuple[dict, object]:
     """(record, MuJoCo model) of a bundle folder; InputError when either cannot be read."""
+    record = bundle_record(folder)
+    return record, load_model(folder)
+
+
+def load_model(folder: str | Path):
+    """The MuJoCo model of a bundle folder (robot.xml and its meshes), checked to hold a
+    robot; InputError naming the folder when it cannot be read or holds none."""
     from export.simulate import load_bundle_model
 
-    record = bundle_record(folder)
     try:
         model = load_bundle_model(folder)
     except (OSError, ValueError, KeyError, SyntaxError) as e:  # xml.etree's ParseError too
@@ -60,7 +66,7 @@ def load_bundle(folder: str | Path) -> tuple[dict, object]:
         raise InputError(f"{folder}: cannot load the MuJoCo model robot.xml: {why}") from None
     if model.nbody < 2:
         raise InputError(f"{folder}/robot.xml: no robot body (not a model parmor wrote)")
-    return record, model
+    return model
 
 
 def _fixed_base(model) -> bool:
