@@ -77,6 +77,21 @@ def test_kif_nesting_is_bounded_where_translated() -> None:
     parse("(a " * 5000 + ")" * 5000, "f.kif")  # the reader alone needs no bound
 
 
+def test_the_translator_takes_the_deepest_forms_the_reader_passes() -> None:
+    from adron.kif import MAX_DEPTH, parse
+    from adron.translate import translate
+
+    n = MAX_DEPTH - 3
+    text = "\n".join(
+        [
+            "(=> (instance ?X Robot) " + "(and (p ?X) " * n + "(q ?X)" + ")" * n + ")",
+            "(=> " + "(and " * n + "(instance ?X Robot)" + ")" * n + " (q ?X))",
+            "(p " * (MAX_DEPTH - 1) + "a" + ")" * (MAX_DEPTH - 1),
+        ]
+    )
+    assert translate(parse(text, "deep.kif", MAX_DEPTH)).forms == 3
+
+
 def test_kif_control_characters_are_refused_and_a_bom_ignored() -> None:
     from adron.kif import parse
 
