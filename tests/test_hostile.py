@@ -173,6 +173,13 @@ def mutations(text: str, n: int, salt: int) -> list[str]:
 # ---- fixtures -----------------------------------------------------------------------------
 
 
+@pytest.fixture(autouse=True)
+def _in_tmp(tmp_path, monkeypatch) -> None:
+    """Every case runs in its own folder: an accepted --out, a sweep's output or MuJoCo's
+    log lands there, never in the working folder."""
+    monkeypatch.chdir(tmp_path)
+
+
 @pytest.fixture(scope="module")
 def files(tmp_path_factory) -> dict[str, Path]:
     """Valid input files of every kind, and a small bundle (an unverified cart)."""
@@ -260,8 +267,7 @@ def _with_value(argv: list[str], action_name: str, value: str, command: str) -> 
 
 
 @pytest.mark.parametrize(("command", "option", "value"), OPTION_CASES)
-def test_every_option_with_hostile_values(files, tmp_path, monkeypatch, command, option, value):
-    monkeypatch.chdir(tmp_path)  # an --out that is accepted writes here
+def test_every_option_with_hostile_values(files, command, option, value) -> None:
     argv = _with_value(base_argv(command, files), option, value, command)
     check(argv)
 
