@@ -223,7 +223,7 @@ def parse(text: str, file: str = "<string>", max_depth: int | None = None) -> li
     forms recursively do).
     """
     if text.startswith(_BOM):
-        text = text[1:]
+        text = " " + text[1:]  # whitespace of the same length: locations stay as they were
     bad = _CONTROL.search(text)
     if bad:
         line, col = _Locator(text)(bad.start())

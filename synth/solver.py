@@ -111,7 +111,8 @@ def check_rules_file(path: str | Path, allow_scripts: bool) -> str:
 
 #: Outside strings and comments clingo's lexer reads ASCII only, and its message about any
 #: other byte is cut mid-character, which aborts the process inside clingo's Python logger.
-_ASP_TOKEN = re.compile(r'"(?:[^"\\\n]|\\.)*"?|%\*.*?(?:\*%|\Z)|%[^\n]*|[^"%]+|.', re.S)
+# Only closed strings and comments are skipped: clingo echoes an unclosed one's text.
+_ASP_TOKEN = re.compile(r'"(?:[^"\\\n]|\\.)*"|%\*.*?\*%|%[^\n]*|[^"%]+|.', re.S)
 _UNLEXABLE = re.compile(r"[^\t\n\r\x20-\x7e]")
 
 
