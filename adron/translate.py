@@ -368,3 +368,72 @@ def translate(forms: Iterable[Form]) -> Translation:
         ground={k: tuple(v) for k, v in ground.items()},
         ground_at={k: tuple(v) for k, v in ground_at.items()},
     )
+
+
+# -- the taxonomy closure, computed once in Python ----------------------------------------
+
+_STR = r'"(?:[^"\\]|\\.)*"'
+_TERM = rf"(?:{_STR}|-?\d+)"
+_EDGE = re.compile(rf'^holds\("(subclass|subrelation)",({_TERM}),({_TERM})\)\.$')
+_LITERAL = re.compile(_STR)
+_TAXO_HEAD = re.compile(r'holds\("sub(?:class|relation)"')
+_TAXO_FREE = re.compile(r'holds\("sub(?:class|relation)",V_\w+,V_\w+\)')
+#: what a user's rule file may not mention for the Python closure to be exact: it could
+#: derive new taxonomy facts or read pairs between classes that nothing else names
+_TAXO_USER = re.compile(r'"sub(?:class|relation)"|\b(?:isa|rel_isa|class|relation)\s*\(')
+
+
+def taxonomy_closure(
+    program: str, others: Iterable[str] = (), user: Iterable[str] = ()
+) -> str | None:
+    """The transitive ``subclass`` and ``subrelation`` pairs a program needs, as ASP facts,
+    or None when only the recursive rules of ``asp/closure.lp`` give exact answers.
+
+    Recursive ASP over every pair explodes on deep taxonomies (a chain of n classes has
+    n^2/2 pairs: 5e9 for n = 100,000). The encodings only ever ask ``isa(C, D)`` with C or
+    D a class that the program names outside the subclass facts (an *anchor*: a robot
+    type, a part kind, "Robot", a catalog class...), so this emits every direct edge and,
+    for each anchor, the pairs to its ancestors and from its descendants. ``program`` is
+    the KIF translation; ``others`` the rest of the program's text (encodings, facts);
+    ``user`` the user's rule files. None (exact fallback) when a translated rule derives
+    taxonomy facts or reads them with both arguments free, or a user rule file mentions
+    the taxonomy at all, or an edge is not between plain names.
+    """
+    up: dict[str, dict[str, list[str]]] = {"subclass": {}, "subrelation": {}}
+    down: dict[str, dict[str, list[str]]] = {"subclass": {}, "subrelation": {}}
+    rest: list[str] = []
+    for line in program.splitlines():
+        if line.startswith(('holds("subclass",', 'holds("subrelation",')):
+            m = _EDGE.match(line)
+            if m is None:
+                return None
+            rel, a, b = m.groups()
+            up[rel].setdefault(a, []).append(b)
+            down[rel].setdefault(b, []).append(a)
+            continue
+        if ":-" in line:
+            head = line.split(":-", 1)[0]
+            if _TAXO_HEAD.search(head) or _TAXO_FREE.search(line):
+                return None
+        rest.append(line)
+    user = list(user)
+    if any(_TAXO_USER.search(text) for text in user):
+        return None
+    anchors: set[str] = set()
+    for text in ["\n".join(rest), *others, *user]:
+        anchors.update(_LITERAL.findall(text))
+    out: list[str] = []
+    for rel in ("subclass", "subrelation"):
+        pairs: set[tuple[str, str]] = set()
+        for graph, forward in ((up[rel], True), (down[rel], False)):
+            for start in anchors & graph.keys():
+                seen: set[str] = set()
+                stack = list(graph[start])
+                while stack:
+                    x = stack.pop()
+                    if x not in seen:
+                        seen.add(x)
+                        stack.extend(graph.get(x, ()))
+                pairs.update((start, x) if forward else (x, start) for x in seen)
+        out.extend(f'holds("{rel}",{a},{b}).' for a, b in sorted(pairs))
+    return "\n".join(out) + "\n"
