@@ -119,3 +119,20 @@ def check(where: str | None = None) -> None:
     left = remaining()
     if left is not None and left <= 0:
         raise LimitExceeded(_current.describe("time"), where or _stage)
+
+
+@contextlib.contextmanager
+def paused() -> Iterator[None]:
+    """Stop the clock inside (waiting for a person's answer); the time spent is given back."""
+    global _deadline
+    if _deadline is None:
+        yield
+        return
+    disarm()
+    t0 = time.monotonic()
+    try:
+        yield
+    finally:
+        _deadline += time.monotonic() - t0
+        if threading.current_thread() is threading.main_thread():
+            signal.setitimer(signal.ITIMER_REAL, max(_deadline - time.monotonic(), 1e-3))

@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import functools
+import itertools
 import os
 import re
 import resource
@@ -109,6 +110,8 @@ _LEXICAL = re.compile(
     r'|"(?:[^"\\\n]|\\.)*"',
     re.DOTALL,
 )
+#: atoms counted per predicate when a size limit is reached (then 100 times this)
+_SAMPLE = 1000
 #: predicates of the KB vocabulary a rule file may define (knowledge, not answers)
 OPEN_PREDICATES = frozenset({"holds"})
 
@@ -136,6 +139,14 @@ def _directives(text: str) -> list[tuple[int, int, str]]:
             target = m.group(2) if m.group(2) is not None else m.group(3)
             out.append((m.start(), m.end(), target.replace('\\"', '"').replace("\\\\", "\\")))
     return out
+
+
+def _blank_includes(text: str) -> str:
+    """``text`` with its ``#include`` directives replaced by spaces (positions kept)."""
+    chars = list(text)
+    for start, end, _ in _directives(text):
+        chars[start:end] = [c if c == "\n" else " " for c in chars[start:end]]
+    return "".join(chars)
 
 
 def _refuse_scripts(name: str, text: str) -> None:
@@ -169,9 +180,8 @@ def read_rule_files(paths: Sequence[str | Path], allow_scripts: bool) -> tuple[R
         seen.add(real)
         if not allow_scripts:
             _refuse_scripts(name, text)
-        blanked = list(text)
         includes = []
-        for start, end, target in _directives(text):
+        for start, _end, target in _directives(text):
             line, col = _position(text, start)
             where = f"{name}:{line}:{col}"
             inc = Path(target)
@@ -184,11 +194,8 @@ def read_rule_files(paths: Sequence[str | Path], allow_scripts: bool) -> tuple[R
                 )
             if not inc.is_file():
                 raise InputError(f"{where}: #include {target!r}: no such file")
-            for i in range(start, end):
-                if blanked[i] != "\n":
-                    blanked[i] = " "
             includes.append(str(inc))
-        body = "".join(blanked)
+        body = _blank_includes(text)
         _refuse_protected(name, body)
         out.append(RuleFile(name, real, body))
         todo.extend((p, name) for p in reversed(includes))
@@ -253,10 +260,10 @@ def protected_predicates() -> frozenset[tuple[str, int]]:
     A user's rule file may constrain them (``:- chosen("X").``) but not define them."""
     global _PROTECTED
     if _PROTECTED is None:
-        found = set()
+        found = {("focus", 1)}  # explain's mode switch (a fact the solver adds)
         for lp in sorted(encoding_dir().glob("*.lp")):
-            for stmt in _parse(lp.read_text(encoding="utf-8")):
-                found.update((n, a) for n, a, _ in _heads(stmt) if n not in OPEN_PREDICATES)
+            for stmt in _parse(_blank_includes(lp.read_text(encoding="utf-8"))):
+                found.update((n, a) for n, a, _ in _heads(stmt) if n and n not in OPEN_PREDICATES)
         _PROTECTED = frozenset(found)
     return _PROTECTED
 
@@ -355,7 +362,7 @@ class _Core:
         atoms = self._ctl.symbolic_atoms
         if size is not None and len(atoms) > size:
             raise limits.LimitExceeded(
-                limits.Limits(size_atoms=size).describe("size"), "size", self._largest()
+                limits.Limits(size_atoms=size).describe("size"), "size", self._largest(rules)
             )
         self.externals = {
             a.symbol
@@ -367,15 +374,27 @@ class _Core:
             sorted(a.symbol.arguments[0].string for a in atoms.by_signature("robot_class", 1))
         )
 
-    def _largest(self) -> str:
-        """The predicate with the most ground atoms (what grew)."""
+    def _largest(self, rules: Sequence[RuleFile]) -> str:
+        """What grew: the predicate with the most ground atoms (counted up to a cap, in
+        two rounds, to stay quick) and where a rule file defines it."""
         atoms = self._ctl.symbolic_atoms
-        counts = sorted(
-            ((sum(1 for _ in atoms.by_signature(n, a, p)), n, a) for n, a, p in atoms.signatures),
-            reverse=True,
-        )
-        n, name, arity = counts[0]
-        return f"{n} ground atoms of {name}/{arity}"
+
+        def count(sig: tuple[str, int, bool], cap: int) -> int:
+            return sum(1 for _ in itertools.islice(atoms.by_signature(*sig), cap))
+
+        sigs = list(atoms.signatures)
+        first = {sig: count(sig, _SAMPLE) for sig in sigs}
+        big = [sig for sig, n in first.items() if n >= _SAMPLE] or sigs
+        n, (name, arity, _) = max((count(sig, 100 * _SAMPLE), sig) for sig in big)
+        amount = f"over {n}" if n >= 100 * _SAMPLE else str(n)
+        where = ""
+        for r in rules:
+            with contextlib.suppress(RuntimeError):
+                for stmt in _parse(r.text):
+                    for pred, ar, loc in _heads(stmt):
+                        if (pred, ar) == (name, arity) and not where:
+                            where = f" (defined at {r.name}:{loc.begin.line}:{loc.begin.column})"
+        return f"{amount} ground atoms of {name}/{arity}{where}"
 
     def _log(self, code: clingo.MessageCode, message: str) -> None:
         self._messages.append(message.strip().replace("\n", " "))
