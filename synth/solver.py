@@ -549,13 +549,21 @@ class _Worker:
             return self.result("solve")
 
 
+#: killed workers not reaped yet (reaped without waiting at the next kill)
+_UNREAPED: list[int] = []
+
+
 def _kill(pid: int, conn: Connection) -> None:
     with contextlib.suppress(OSError):
         conn.close()
     with contextlib.suppress(OSError):
         os.kill(pid, signal.SIGKILL)
-    with contextlib.suppress(OSError):
-        os.waitpid(pid, 0)
+    _UNREAPED.append(pid)
+    for p in list(_UNREAPED):  # a killed process takes a few ms to go: do not wait for it
+        with contextlib.suppress(ChildProcessError):
+            if os.waitpid(p, os.WNOHANG)[0] == 0:
+                continue
+        _UNREAPED.remove(p)
 
 
 class Reasoner:
