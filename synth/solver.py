@@ -18,6 +18,7 @@ import resource
 import signal
 import sys
 import tempfile
+import threading
 import weakref
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
@@ -440,12 +441,15 @@ def _address_space_kb() -> int:
         return 0
 
 
-def _serve(conn: Connection, make: Callable[[], _Core], memory_mb: int | None) -> None:
+def _serve(
+    conn: Connection, make: Callable[[], _Core], memory_mb: int | None, orphan_dies: bool
+) -> None:
     """The worker's loop: build the core, then answer calls until the pipe closes."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides, and kills us
     signal.setitimer(signal.ITIMER_REAL, 0)
     signal.signal(signal.SIGALRM, signal.SIG_IGN)
-    if sys.platform.startswith("linux"):
+    # the kernel's "parent" is the forking thread: only the main thread lives as long as us
+    if orphan_dies and sys.platform.startswith("linux"):
         with contextlib.suppress(OSError, AttributeError):
             ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
     if memory_mb is not None:
@@ -496,19 +500,20 @@ class _Worker:
         lim = limits.current()
         self.what = what
         parent, child = Pipe()
+        from_main = threading.current_thread() is threading.main_thread()
         pid = os.fork()
         if pid == 0:  # the worker
             code = 0
             try:
                 parent.close()
-                _serve(child, make, lim.memory_mb)
+                _serve(child, make, lim.memory_mb, from_main)
             except BaseException:  # noqa: BLE001 - a worker never returns into the caller
                 code = 1
             finally:
                 os._exit(code)
         child.close()
         self.pid, self.conn = pid, parent
-        self._finalizer = weakref.finalize(self, _kill, pid, parent)
+        self._finalizer = weakref.finalize(self, _kill, pid, parent, os.getpid())
 
     def close(self) -> None:
         self._finalizer()
@@ -553,9 +558,11 @@ class _Worker:
 _UNREAPED: list[int] = []
 
 
-def _kill(pid: int, conn: Connection) -> None:
+def _kill(pid: int, conn: Connection, owner: int) -> None:
     with contextlib.suppress(OSError):
         conn.close()
+    if os.getpid() != owner:  # a forked copy of the owner (a pool worker): not ours to kill
+        return
     with contextlib.suppress(OSError):
         os.kill(pid, signal.SIGKILL)
     _UNREAPED.append(pid)
