@@ -371,7 +371,11 @@ class _Core:
             for a in atoms.by_signature(*sig)
             if a.is_external
         }
-        self.robot_types: tuple[str, ...] = tuple(
+
+    def robot_types(self) -> tuple[str, ...]:
+        """Every subclass of Robot (asked for by name checks only: can be 100,000)."""
+        atoms = self._ctl.symbolic_atoms
+        return tuple(
             sorted(a.symbol.arguments[0].string for a in atoms.by_signature("robot_class", 1))
         )
 
@@ -462,7 +466,7 @@ def _serve(
         try:
             if core is None:
                 core = make()
-                reply: tuple = ("ok", ({str(x) for x in core.externals}, core.robot_types))
+                reply: tuple = ("ok", {str(x) for x in core.externals})
             else:
                 try:
                     method, args = conn.recv()
@@ -597,10 +601,16 @@ class Reasoner:
         what = " + ".join(["the knowledge base", *(f.name for f in files)])
         self._worker = _Worker(lambda: _Core(kb, files, focus, size), what)
         with limits.stage("ground"):
-            externals, types = self._worker.result("ground")
+            externals = self._worker.result("ground")
         self._externals: set[str] = externals  # as text: symbols do not cross processes
-        #: every subclass of Robot, as the taxonomy closure found them
-        self.robot_types: tuple[str, ...] = types
+        self._robot_types: tuple[str, ...] | None = None
+
+    @property
+    def robot_types(self) -> tuple[str, ...]:
+        """Every subclass of Robot, as the taxonomy closure found them (asked once)."""
+        if self._robot_types is None:
+            self._robot_types = self._worker.call("robot_types")
+        return self._robot_types
 
     def close(self) -> None:
         """Stop the worker (also done when the Reasoner is collected)."""
