@@ -29,6 +29,9 @@ demo: $(STAMP) $(WEB_STAMP)
 	$(BIN)/parmor design walking --no-input || test $$? -eq 3
 	$(BIN)/parmor design walking --answer grasping=yes
 	$(BIN)/parmor design pick-and-place --param object_shape=oval --json
+	$(BIN)/parmor design driving line-tracking obstacle-avoidance --out demo/cart --force
+	$(BIN)/parmor run examples/square.py demo/cart
+	$(BIN)/parmor blocks demo/cart
 
 test: $(STAMP) $(WEB_STAMP)
 	$(BIN)/python -m pytest

@@ -399,6 +399,23 @@ def build_parser() -> argparse.ArgumentParser:
         help="accept the study's rule files that contain #script",
     )
     _json_option(p)
+
+    p = sub.add_parser(
+        "ros",
+        help="write a ROS 1 package that serves the design's behaviours",
+        description="Write DIR/ros/parmor_<robot>/ for the design in DIR (written by 'parmor "
+        "design --out DIR'): package.xml, CMakeLists.txt, one service per behaviour "
+        "(/<robot>/<behaviour>, its parameters as request fields), a rospy node that plans "
+        "them with a parmor worker and publishes the joint trajectory and joint states, a "
+        "launch file and the URDF. Exit 2 when DIR has no design with a structure.",
+        epilog="example:\n  parmor ros hexapod && source hexapod/ros/parmor_hexapod_robot/"
+        "setup.bash && roslaunch parmor_hexapod_robot parmor.launch",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("dir", metavar="DIR", help="a bundle folder written by 'parmor design --out'")
+    p.add_argument("--name", metavar="NAME", help="the robot's ROS name (default: from its type)")
+    p.add_argument("--force", action="store_true", help="replace the package if it exists")
+    _json_option(p)
     return parser
 
 
@@ -883,6 +900,19 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     return 0
 
 
+def cmd_ros(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from export.record import to_json
+    from program.ros import ros_package
+
+    path, iface = ros_package(args.dir, args.name, args.force)
+    services = [f"/{iface['robot']}/{s['service']}" for s in iface["services"]]
+    if args.json:
+        out.write(to_json({"package": str(path), "services": services}))
+    else:
+        out.write(f"{path}\n" + "".join(f"  {s}\n" for s in services))
+    return 0
+
+
 def cmd_blocks(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from pathlib import Path
 
@@ -981,6 +1011,7 @@ COMMANDS = {
     "enumerate": cmd_enumerate,
     "explain": cmd_explain,
     "regress": cmd_regress,
+    "ros": cmd_ros,
     "run": cmd_run,
     "simulate": cmd_simulate,
     "sweep": cmd_sweep,

@@ -335,3 +335,13 @@ def test_parmor_run_explains_bad_programs(cli, cart, tmp_path, monkeypatch) -> N
     js.write_text('{"program": [{"do": "driving"}, {"do": "driving"}]}')
     r = cli("run", str(js), str(cart))
     assert r.code == 2 and "would simulate more than 3 s" in r.err
+
+
+def test_the_shipped_example_drives_a_square(cli, cart) -> None:
+    """examples/square.py (run by make demo) comes back where it started."""
+    example = Path(__file__).resolve().parent.parent / "examples" / "square.py"
+    r = cli("run", str(example), str(cart), "--json")
+    assert r.code == 0, r.err
+    res = json.loads(r.out)
+    assert res["verdict"] == "ok" and len(res["steps"]) == 8
+    assert math.hypot(*res["final_pose"][:2]) < 0.05 and res["end_pose_error_m"] < 0.05
