@@ -452,3 +452,55 @@ def taxonomy_closure(
                     pair = f"{start},{pool}" if forward else f"{pool},{start}"
                     out.append(f'holds("{rel}",{pair}).')
     return "\n".join(out) + "\n"
+
+
+_CLASS_DECL = re.compile(rf"^(?:exists_axiom\(\d+,({_STR})\)|witness\(\d+,{_STR},({_STR})\))\.$")
+
+
+def isa_facts(program: str, classes: Iterable[str], relations: Iterable[str]) -> str | None:
+    """``isa(C, D)`` facts for the given ``classes`` (ASP strings: themselves, if they are
+    classes, and every ancestor) and the program's ground facts of ``relations``, or None
+    when only grounding the whole program with ``asp/taxonomy.lp`` is exact: a translated
+    rule derives taxonomy facts or one of ``relations``, or a subrelation of one exists.
+
+    For a program part that asks only these (the actuator assignment), so that a 100,000
+    class taxonomy is not grounded again for it."""
+    wanted = {asp_string(r) for r in relations}
+    up: dict[str, list[str]] = {}
+    known: set[str] = set()
+    keep: list[str] = []
+    for line in program.splitlines():
+        m = _EDGE.match(line)
+        if m is not None:
+            rel, a, b = m.groups()
+            if rel == "subclass":
+                up.setdefault(a, []).append(b)
+                known.update((a, b))
+            elif b in wanted:
+                return None
+            continue
+        if line.startswith(('holds("subclass",', 'holds("subrelation",')):
+            return None
+        if ":-" in line:
+            head = line.split(":-", 1)[0]
+            if _TAXO_HEAD.search(head) or any(f"holds({r}" in head for r in wanted):
+                return None
+            continue
+        d = _CLASS_DECL.match(line)
+        if d is not None:
+            known.add(d.group(1) or d.group(2))
+        elif any(line.startswith(f"holds({r},") for r in wanted):
+            keep.append(line)
+    out = []
+    for c in sorted(set(classes)):
+        seen: set[str] = set()
+        stack = list(up.get(c, ()))
+        while stack:
+            x = stack.pop()
+            if x not in seen:
+                seen.add(x)
+                stack.extend(up.get(x, ()))
+        if c in known:
+            seen.add(c)
+        out.extend(f"isa({c},{d})." for d in sorted(seen))
+    return "\n".join(out + keep) + "\n"

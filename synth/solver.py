@@ -30,7 +30,7 @@ import clingo
 
 from adron.errors import InputError, OntologyError, ParmorError
 from adron.kb import KnowledgeBase, read_user_file
-from adron.translate import asp_string, taxonomy_closure
+from adron.translate import asp_string, isa_facts, taxonomy_closure
 from synth import limits
 
 _SCRIPT = re.compile(r"#\s*script", re.IGNORECASE)
@@ -770,11 +770,16 @@ class ActuatorAssigner:
             f"joint({asp_string(j.name)},{asp_string(j.group)},{asp_string(j.module_class)})."
             for j in self.joints
         ]
-        self._ctl.add("base", [], kb.translation.program)
         self._ctl.add("base", [], catalog_facts)
         self._ctl.add("base", [], "\n".join(facts))
-        self._ctl.add("base", [], taxonomy_program(kb, [catalog_facts, *facts], ()))
-        self._ctl.load(str(encoding_dir() / "taxonomy.lp"))
+        classes = [asp_string(robot_type), *(asp_string(j.module_class) for j in self.joints)]
+        known = isa_facts(kb.translation.program, classes, ["activeModuleLimit"])
+        if known is not None:  # what actuators.lp asks of the KB, without grounding it
+            self._ctl.add("base", [], known)
+        else:
+            self._ctl.add("base", [], kb.translation.program)
+            self._ctl.add("base", [], taxonomy_program(kb, [catalog_facts, *facts], ()))
+            self._ctl.load(str(encoding_dir() / "taxonomy.lp"))
         self._ctl.load(str(encoding_dir() / "actuators.lp"))
         self._ctl.ground([("base", [])])
         self._blocks = 0

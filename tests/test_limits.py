@@ -195,3 +195,28 @@ def test_a_derived_subclass_is_closed(tmp_path: Path) -> None:
     )
     kb = load([path])
     assert "Walker9" in Reasoner(kb).robot_types
+
+
+def test_actuator_assignment_isa_facts_match_the_grounded_taxonomy() -> None:
+    """The actuator assignment takes isa/2 from Python (isa_facts); the same pairs as
+    grounding the whole knowledge base with the exact recursive closure, for every class."""
+    import clingo
+
+    from adron.translate import asp_string, isa_facts
+    from synth.solver import encoding_dir
+
+    kb = load()
+    ctl = clingo.Control(["--warn=none"])
+    ctl.add("base", [], kb.translation.program)
+    ctl.load(str(encoding_dir() / "closure.lp"))
+    ctl.load(str(encoding_dir() / "taxonomy.lp"))
+    ctl.ground([("base", [])])
+    grounded = {str(a.symbol) for a in ctl.symbolic_atoms.by_signature("isa", 2)}
+    names = sorted({c for args in kb.translation.relation("subclass") for c in args} | {"Nope"})
+    facts = isa_facts(kb.translation.program, [asp_string(c) for c in names], ["activeModuleLimit"])
+    assert facts is not None
+    mine = {line[:-1] for line in facts.splitlines() if line.startswith("isa(")}
+    assert mine == grounded  # every class of ADROn (and one that is none) asked
+    assert 'holds("activeModuleLimit",' in facts
+    derived = kb.translation.program + 'holds("activeModuleLimit","X",1) :- q.\n'
+    assert isa_facts(derived, ['"Robot"'], ["activeModuleLimit"]) is None
