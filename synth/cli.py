@@ -1031,7 +1031,7 @@ def main(
     except SystemExit as e:  # argparse: --help (0) or a usage error (2)
         return int(e.code or 0)
     handler = cmd_ontology_check if args.command == "ontology" else COMMANDS[args.command]
-    limited = hasattr(args, "time_limit")
+    limited = hasattr(args, "size_limit")  # the reasoning commands (blocks has its own)
     try:
         if limited:
             from synth import limits
