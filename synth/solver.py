@@ -294,7 +294,8 @@ def _str(sym: clingo.Symbol) -> str:
 
 
 def _models(ctl: clingo.Control, where: str = "solve") -> Iterator[clingo.Model]:
-    """The models of a solve, waiting in slices so signals and the time limit get in."""
+    """The models of a solve in this process, waiting in slices so that signals and the
+    time limit get in (a plain solve does not return to Python until the next model)."""
     with ctl.solve(yield_=True, async_=True) as handle:
         while True:
             handle.resume()
@@ -304,6 +305,12 @@ def _models(ctl: clingo.Control, where: str = "solve") -> Iterator[clingo.Model]
             if model is None:
                 return
             yield model
+
+
+def _worker_models(ctl: clingo.Control) -> Iterator[clingo.Model]:
+    """The models of a solve in a worker: synchronous (its parent kills it to stop it)."""
+    with ctl.solve(yield_=True) as handle:
+        yield from handle
 
 
 @functools.cache
@@ -410,7 +417,7 @@ class _Core:
 
     def satisfiable(self, on: set[str]) -> bool:
         self._assign(on)
-        for _ in _models(self._ctl):
+        for _ in _worker_models(self._ctl):
             return True
         return False
 
@@ -418,12 +425,12 @@ class _Core:
         self._assign(on)
         return frozenset(
             frozenset(str(s) for s in m.symbols(shown=True) if keep is None or s.name in keep)
-            for m in _models(self._ctl)
+            for m in _worker_models(self._ctl)
         )
 
     def solve(self, on: set[str]) -> list[tuple[tuple, tuple[int, ...]]]:
         self._assign(on)
-        return [(_symbols(m.symbols(shown=True)), tuple(m.cost)) for m in _models(self._ctl)]
+        return [(_symbols(m.symbols(shown=True)), tuple(m.cost)) for m in _worker_models(self._ctl)]
 
 
 def _symbols(symbols: Iterable[clingo.Symbol]) -> tuple:
