@@ -162,6 +162,30 @@ def _refuse_scripts(name: str, text: str) -> None:
             )
 
 
+#: Outside strings and comments clingo's lexer reads ASCII only, and its message about any
+#: other byte is cut mid-character, which aborts the process inside clingo's Python logger.
+# Only closed strings and comments are skipped: clingo echoes an unclosed one's text.
+_ASP_TOKEN = re.compile(r'"(?:[^"\\\n]|\\.)*"|%\*.*?\*%|%[^\n]*|[^"%]+|.', re.S)
+_UNLEXABLE = re.compile(r"[^\t\n\r\x20-\x7e]")
+
+
+def check_lexable(name: str, text: str) -> None:
+    """InputError (file:line:col) for a character clingo cannot read outside strings and
+    comments: non-ASCII (a byte order mark too) or a control character."""
+    for m in _ASP_TOKEN.finditer(text):
+        if m.group()[0] in '"%':
+            continue
+        bad = _UNLEXABLE.search(m.group())
+        if bad:
+            at = m.start() + bad.start()
+            line = text.count("\n", 0, at) + 1
+            col = at - (text.rfind("\n", 0, at) + 1) + 1
+            raise InputError(
+                f"{name}:{line}:{col}: character U+{ord(bad.group()):04X} outside a string or "
+                "comment (ASP reads ASCII there)"
+            )
+
+
 def read_rule_files(paths: Sequence[str | Path], allow_scripts: bool) -> tuple[RuleFile, ...]:
     """The user's rule files and every file they ``#include`` (each once, in load order).
 
@@ -179,6 +203,7 @@ def read_rule_files(paths: Sequence[str | Path], allow_scripts: bool) -> tuple[R
         if real in seen:
             continue
         seen.add(real)
+        check_lexable(name, text)
         if not allow_scripts:
             _refuse_scripts(name, text)
         includes = []
