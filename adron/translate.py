@@ -344,6 +344,17 @@ def translate(forms: Iterable[Form]) -> Translation:
                 continue
             if op in LOGICAL:
                 raise _Skip(f"top-level '{op}'")
+            items = f.items
+            if len(items) >= 2 and items[0] != "equal" and all(type(a) is Symbol for a in items):
+                # the common case (subclass, instance ...): names only, quoted directly
+                args = tuple(str(a) for a in items[1:])
+                lines.append(
+                    "holds(" + ",".join([asp_string(items[0]), *map(asp_string, args)]) + ")."
+                )
+                ground.setdefault(str(items[0]), []).append(args)
+                ground_at.setdefault(str(items[0]), []).append(f"{f.file}:{f.line}:{f.col}")
+                n_facts += 1
+                continue
             if _has_vars(f):
                 raise _Skip("free variables in a top-level fact")
             lines.append(_atom(f) + ".")
@@ -368,3 +379,128 @@ def translate(forms: Iterable[Form]) -> Translation:
         ground={k: tuple(v) for k, v in ground.items()},
         ground_at={k: tuple(v) for k, v in ground_at.items()},
     )
+
+
+# -- the taxonomy closure, computed once in Python ----------------------------------------
+
+_STR = r'"(?:[^"\\]|\\.)*"'
+_TERM = rf"(?:{_STR}|-?\d+)"
+_EDGE = re.compile(rf'^holds\("(subclass|subrelation)",({_TERM}),({_TERM})\)\.$')
+_LITERAL = re.compile(_STR)
+_TAXO_HEAD = re.compile(r'holds\("sub(?:class|relation)"')
+_TAXO_FREE = re.compile(r'holds\("sub(?:class|relation)",V_\w+,V_\w+\)')
+#: what a user's rule file may not mention for the Python closure to be exact: it could
+#: derive new taxonomy facts or read pairs between classes that nothing else names
+_TAXO_USER = re.compile(r'"sub(?:class|relation)"|\b(?:isa|rel_isa|class|relation)\s*\(')
+
+
+def taxonomy_closure(
+    program: str, others: Iterable[str] = (), user: Iterable[str] = ()
+) -> str | None:
+    """The transitive ``subclass`` and ``subrelation`` pairs a program needs, as ASP facts,
+    or None when only the recursive rules of ``asp/closure.lp`` give exact answers.
+
+    Recursive ASP over every pair explodes on deep taxonomies (a chain of n classes has
+    n^2/2 pairs: 5e9 for n = 100,000). The encodings only ever ask ``isa(C, D)`` with C or
+    D a class that the program names outside the subclass facts (an *anchor*: a robot
+    type, a part kind, "Robot", a catalog class...), so this gives, for each anchor, the
+    pairs to its ancestors and from its descendants (the direct edges are in ``program``):
+    linear in the hierarchy's size for a fixed set of anchors. ``program`` is
+    the KIF translation; ``others`` the rest of the program's text (encodings, facts);
+    ``user`` the user's rule files. None (exact fallback) when a translated rule derives
+    taxonomy facts or reads them with both arguments free, or a user rule file mentions
+    the taxonomy at all, or an edge is not between plain names.
+    """
+    up: dict[str, dict[str, list[str]]] = {"subclass": {}, "subrelation": {}}
+    down: dict[str, dict[str, list[str]]] = {"subclass": {}, "subrelation": {}}
+    rest: list[str] = []
+    for line in program.splitlines():
+        if line.startswith(('holds("subclass",', 'holds("subrelation",')):
+            m = _EDGE.match(line)
+            if m is None:
+                return None
+            rel, a, b = m.groups()
+            up[rel].setdefault(a, []).append(b)
+            down[rel].setdefault(b, []).append(a)
+            continue
+        if ":-" in line:
+            head = line.split(":-", 1)[0]
+            if _TAXO_HEAD.search(head) or _TAXO_FREE.search(line):
+                return None
+        rest.append(line)
+    user = list(user)
+    if any(_TAXO_USER.search(text) for text in user):
+        return None
+    anchors: set[str] = set()
+    for text in ["\n".join(rest), *others, *user]:
+        anchors.update(_LITERAL.findall(text))
+    out: list[str] = []
+    for rel in ("subclass", "subrelation"):
+        for start in sorted(anchors & (up[rel].keys() | down[rel].keys())):
+            for graph, forward in ((up[rel], True), (down[rel], False)):
+                seen: set[str] = set()
+                stack = list(graph.get(start, ()))
+                while stack:
+                    x = stack.pop()
+                    if x not in seen:
+                        seen.add(x)
+                        stack.extend(graph.get(x, ()))
+                if not forward:  # pairs between anchors came with the lower one's ancestors
+                    seen -= anchors
+                if seen:  # one fact with a pool: clingo parses it 3x faster than many
+                    pool = "(" + ";".join(sorted(seen)) + ")"
+                    pair = f"{start},{pool}" if forward else f"{pool},{start}"
+                    out.append(f'holds("{rel}",{pair}).')
+    return "\n".join(out) + "\n"
+
+
+_CLASS_DECL = re.compile(rf"^(?:exists_axiom\(\d+,({_STR})\)|witness\(\d+,{_STR},({_STR})\))\.$")
+
+
+def isa_facts(program: str, classes: Iterable[str], relations: Iterable[str]) -> str | None:
+    """``isa(C, D)`` facts for the given ``classes`` (ASP strings: themselves, if they are
+    classes, and every ancestor) and the program's ground facts of ``relations``, or None
+    when only grounding the whole program with ``asp/taxonomy.lp`` is exact: a translated
+    rule derives taxonomy facts or one of ``relations``, or a subrelation of one exists.
+
+    For a program part that asks only these (the actuator assignment), so that a 100,000
+    class taxonomy is not grounded again for it."""
+    wanted = {asp_string(r) for r in relations}
+    up: dict[str, list[str]] = {}
+    known: set[str] = set()
+    keep: list[str] = []
+    for line in program.splitlines():
+        m = _EDGE.match(line)
+        if m is not None:
+            rel, a, b = m.groups()
+            if rel == "subclass":
+                up.setdefault(a, []).append(b)
+                known.update((a, b))
+            elif b in wanted:
+                return None
+            continue
+        if line.startswith(('holds("subclass",', 'holds("subrelation",')):
+            return None
+        if ":-" in line:
+            head = line.split(":-", 1)[0]
+            if _TAXO_HEAD.search(head) or any(f"holds({r}" in head for r in wanted):
+                return None
+            continue
+        d = _CLASS_DECL.match(line)
+        if d is not None:
+            known.add(d.group(1) or d.group(2))
+        elif any(line.startswith(f"holds({r},") for r in wanted):
+            keep.append(line)
+    out = []
+    for c in sorted(set(classes)):
+        seen: set[str] = set()
+        stack = list(up.get(c, ()))
+        while stack:
+            x = stack.pop()
+            if x not in seen:
+                seen.add(x)
+                stack.extend(up.get(x, ()))
+        if c in known:
+            seen.add(c)
+        out.extend(f"isa({c},{d})." for d in sorted(seen))
+    return "\n".join(out + keep) + "\n"

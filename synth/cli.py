@@ -103,8 +103,49 @@ def _kb_options(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--allow-scripts",
         action="store_true",
-        help="accept rule files that contain #script (clingo runs their code)",
+        help="accept rule files that contain #script or #include files outside their folder",
     )
+    _limit_options(p)
+
+
+def _limit_options(p: argparse.ArgumentParser) -> None:
+    from synth.limits import DEFAULT_MEMORY_MB, DEFAULT_SIZE_ATOMS, DEFAULT_TIME_S
+
+    g = p.add_argument_group("limits (0 turns one off; reaching one: exit 1)")
+    g.add_argument(
+        "--time-limit",
+        type=_limit_value(float),
+        default=DEFAULT_TIME_S,
+        metavar="SECONDS",
+        help=f"wall time of the command, questions excepted (default {DEFAULT_TIME_S:g})",
+    )
+    g.add_argument(
+        "--memory-limit",
+        type=_limit_value(int),
+        default=DEFAULT_MEMORY_MB,
+        metavar="MB",
+        help=f"memory of the clingo worker (default {DEFAULT_MEMORY_MB})",
+    )
+    g.add_argument(
+        "--size-limit",
+        type=_limit_value(int),
+        default=DEFAULT_SIZE_ATOMS,
+        metavar="ATOMS",
+        help=f"ground program size (default {DEFAULT_SIZE_ATOMS})",
+    )
+
+
+def _limit_value(kind: type):
+    def parse(text: str) -> float | int:
+        try:
+            v = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r}: expected a number >= 0") from None
+        if not math.isfinite(v) or v < 0 or v > 1e12:
+            raise argparse.ArgumentTypeError(f"{text!r}: expected a number from 0 to 1e12")
+        return v
+
+    return parse
 
 
 def _request_options(p: argparse.ArgumentParser) -> None:
@@ -455,9 +496,11 @@ def _designer(args: argparse.Namespace, err: TextIO):
     """Load the knowledge base and ground it; returns a Designer."""
     from adron.kb import load
     from synth.conceptual import Designer
+    from synth.limits import stage
     from synth.solver import Reasoner
 
-    kb = load(args.ontology)
+    with stage("parse"):
+        kb = load(args.ontology)
     _warn_untranslated(kb, err)
     return Designer(kb, Reasoner(kb, args.rules, args.allow_scripts))
 
@@ -486,6 +529,13 @@ def _request(args: argparse.Namespace):
 
 
 def _ask(question, err: TextIO) -> bool:
+    from synth.limits import paused
+
+    with paused():  # a person thinking is not the command hanging
+        return _ask_now(question, err)
+
+
+def _ask_now(question, err: TextIO) -> bool:
     while True:
         err.write(f"{question.text} [y/n] ")
         err.flush()
@@ -514,6 +564,7 @@ def _options(args: argparse.Namespace):
 
 def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from export.record import design_text, to_json, verification_text
+    from synth.limits import stage
     from synth.pipeline import run
 
     if args.out is not None and not args.out.strip():
@@ -529,7 +580,8 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         err.write("Candidates: " + ", ".join(c.robot_type for c in d.candidates) + "\n")
         q = d.questions[-1]
         req = req.answer(q.ability, _ask(q, err))
-    result = run(designer, req, opts)
+    with stage("structure/simulate"):
+        result = run(designer, req, opts)
     d = result.design
     if result.note:
         err.write(f"parmor: note: {result.note}\n")
@@ -1045,7 +1097,16 @@ def main(
     except SystemExit as e:  # argparse: --help (0) or a usage error (2)
         return int(e.code or 0)
     handler = cmd_ontology_check if args.command == "ontology" else COMMANDS[args.command]
+    limited = hasattr(args, "size_limit")  # the reasoning commands (blocks has its own)
     try:
+        if limited:
+            from synth import limits
+
+            limits.configure(
+                limits.Limits(
+                    args.time_limit or None, args.memory_limit or None, args.size_limit or None
+                )
+            )
         code = handler(args, out, err)
         out.flush()
         return code
@@ -1063,6 +1124,9 @@ def main(
         why = "closed early (broken pipe)" if e.errno == errno.EPIPE else e.strerror
         err.write(f"parmor: error: cannot write the output: {why}\n")
         return ExportError.exit_code
+    finally:
+        if limited:
+            limits.configure(limits.Limits())
 
 
 #: Longest error message printed, characters (a message quoting a huge input is cut).

@@ -8,17 +8,30 @@ and enumerates all answer sets: one per candidate robot type.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import functools
+import itertools
+import os
 import re
-from collections.abc import Iterable, Mapping, Sequence
+import resource
+import signal
+import sys
+import tempfile
+import threading
+import weakref
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from importlib import resources
+from multiprocessing.connection import Connection, Pipe
 from pathlib import Path
 
 import clingo
 
-from adron.errors import InputError, OntologyError
+from adron.errors import InputError, OntologyError, ParmorError
 from adron.kb import KnowledgeBase, read_user_file
-from adron.translate import asp_string
+from adron.translate import asp_string, isa_facts, taxonomy_closure
+from synth import limits
 
 _SCRIPT = re.compile(r"#\s*script", re.IGNORECASE)
 
@@ -89,24 +102,64 @@ def encoding_dir() -> Path:
     return Path(str(resources.files("asp")))
 
 
-def check_rules_file(path: str | Path, allow_scripts: bool) -> str:
-    """Read a user's .lp file; refuse one with ``#script`` unless scripts are allowed.
+# -- user rule files: includes resolved by parmor, scripts and protected predicates -------
 
-    (Files it includes are not read: clingo would resolve them. A user who includes
-    scripts indirectly has chosen to run them.)"""
-    name, text = read_user_file(path)
-    check_lexable(name, text)
-    if not allow_scripts:
-        # anywhere in the text, comments and strings included: refusing too much is safe,
-        # guessing where clingo's lexer sees a comment is not
-        for lineno, line in enumerate(text.splitlines(), 1):
-            m = _SCRIPT.search(line)
-            if m:
-                raise InputError(
-                    f"{name}:{lineno}:{m.start() + 1}: refusing a rule file that contains "
-                    "#script (clingo would run its code); pass --allow-scripts to trust it"
-                )
-    return text
+#: a comment, an #include directive (group 2: quoted target, 3: <target>) or a string:
+#: scanning left to right skips directives inside comments and strings, as clingo does
+_LEXICAL = re.compile(
+    r'%\*.*?\*%|%[^\n]*|(#include\s*(?:"((?:[^"\\]|\\.)*)"|<([^>]*)>)\s*\.)'
+    r'|"(?:[^"\\\n]|\\.)*"',
+    re.DOTALL,
+)
+#: atoms counted per predicate when a size limit is reached (then 100 times this)
+_SAMPLE = 1000
+#: predicates of the KB vocabulary a rule file may define (knowledge, not answers)
+OPEN_PREDICATES = frozenset({"holds"})
+
+
+@dataclass(frozen=True, slots=True)
+class RuleFile:
+    """A user's rule file as clingo gets it: ``text`` with its ``#include`` directives
+    blanked (positions kept), ``name`` as the user gave it."""
+
+    name: str
+    path: Path
+    text: str
+
+
+def _position(text: str, offset: int) -> tuple[int, int]:
+    line = text.count("\n", 0, offset) + 1
+    return line, offset - (text.rfind("\n", 0, offset) + 1) + 1
+
+
+def _directives(text: str) -> list[tuple[int, int, str]]:
+    """(start, end, target) of every ``#include`` outside comments and strings."""
+    out = []
+    for m in _LEXICAL.finditer(text):
+        if m.group(1):
+            target = m.group(2) if m.group(2) is not None else m.group(3)
+            out.append((m.start(), m.end(), target.replace('\\"', '"').replace("\\\\", "\\")))
+    return out
+
+
+def _blank_includes(text: str) -> str:
+    """``text`` with its ``#include`` directives replaced by spaces (positions kept)."""
+    chars = list(text)
+    for start, end, _ in _directives(text):
+        chars[start:end] = [c if c == "\n" else " " for c in chars[start:end]]
+    return "".join(chars)
+
+
+def _refuse_scripts(name: str, text: str) -> None:
+    # anywhere in the text, comments and strings included: refusing too much is safe,
+    # guessing where clingo's lexer sees a comment is not
+    for lineno, line in enumerate(text.splitlines(), 1):
+        m = _SCRIPT.search(line)
+        if m:
+            raise InputError(
+                f"{name}:{lineno}:{m.start() + 1}: refusing a rule file that contains "
+                "#script (clingo would run its code); pass --allow-scripts to trust it"
+            )
 
 
 #: Outside strings and comments clingo's lexer reads ASCII only, and its message about any
@@ -133,12 +186,436 @@ def check_lexable(name: str, text: str) -> None:
             )
 
 
+def read_rule_files(paths: Sequence[str | Path], allow_scripts: bool) -> tuple[RuleFile, ...]:
+    """The user's rule files and every file they ``#include`` (each once, in load order).
+
+    parmor resolves ``#include`` itself: an included path is relative to the including
+    file's folder and, unless ``allow_scripts``, must stay inside it; every file is
+    refused when it contains ``#script`` (unless ``allow_scripts``) or defines a predicate
+    the encodings derive (:func:`protected_predicates`)."""
+    out: list[RuleFile] = []
+    seen: set[Path] = set()
+    todo: list[tuple[str | Path, str | None]] = [(p, None) for p in reversed(paths)]
+    while todo:
+        path, _ = todo.pop()
+        name, text = read_user_file(path)
+        real = Path(path).resolve()
+        if real in seen:
+            continue
+        seen.add(real)
+        check_lexable(name, text)
+        if not allow_scripts:
+            _refuse_scripts(name, text)
+        includes = []
+        for start, _end, target in _directives(text):
+            line, col = _position(text, start)
+            where = f"{name}:{line}:{col}"
+            inc = Path(target)
+            inc = inc if inc.is_absolute() else real.parent / inc
+            folder = real.parent
+            if not allow_scripts and not inc.resolve().is_relative_to(folder):
+                raise InputError(
+                    f"{where}: #include {target!r} leaves the folder of {name}; "
+                    "pass --allow-scripts to trust it"
+                )
+            if not inc.is_file():
+                raise InputError(f"{where}: #include {target!r}: no such file")
+            includes.append(str(inc))
+        body = _blank_includes(text)
+        _refuse_protected(name, body)
+        out.append(RuleFile(name, real, body))
+        todo.extend((p, name) for p in reversed(includes))
+    return tuple(out)
+
+
+def check_rules_file(path: str | Path, allow_scripts: bool) -> str:
+    """Read a user's .lp file (and what it includes), refusing ``#script`` unless scripts
+    are allowed, includes outside its folder and protected predicates; its text."""
+    return read_rule_files([path], allow_scripts)[0].text
+
+
+_PROTECTED: frozenset[tuple[str, int]] | None = None
+
+
+def _heads(stmt: object) -> list[tuple[str, int, object]]:
+    """(name, arity, location) of the atoms a parsed statement defines or shows."""
+    from clingo import ast
+
+    out: list[tuple[str, int, object]] = []
+
+    def atom(lit: object, loc: object) -> None:
+        a = getattr(lit, "atom", None)
+        sym = getattr(a, "symbol", None)
+        if sym is not None and sym.ast_type == ast.ASTType.Function:
+            out.append((sym.name, len(sym.arguments), getattr(lit, "location", loc)))
+
+    t = stmt.ast_type
+    if t == ast.ASTType.Rule:
+        h = stmt.head
+        if h.ast_type == ast.ASTType.Literal:
+            atom(h, stmt.location)
+        elif h.ast_type in (ast.ASTType.Disjunction, ast.ASTType.Aggregate):
+            for e in h.elements:
+                atom(e.literal, stmt.location)
+        elif h.ast_type == ast.ASTType.HeadAggregate:
+            for e in h.elements:
+                atom(e.condition.literal, stmt.location)
+    elif t == ast.ASTType.External:
+        sym = stmt.atom.symbol if hasattr(stmt.atom, "symbol") else stmt.atom
+        if getattr(sym, "ast_type", None) == ast.ASTType.Function:
+            out.append((sym.name, len(sym.arguments), stmt.location))
+    elif t == ast.ASTType.ShowTerm:
+        if stmt.term.ast_type == ast.ASTType.Function:
+            out.append((stmt.term.name, len(stmt.term.arguments), stmt.location))
+    elif t == ast.ASTType.ShowSignature:
+        out.append((stmt.name, stmt.arity, stmt.location))
+    return out
+
+
+def _parse(text: str) -> list[object]:
+    from clingo import ast
+
+    stmts: list[object] = []
+    ast.parse_string(text, stmts.append, logger=lambda c, m: None)
+    return stmts
+
+
+def protected_predicates() -> frozenset[tuple[str, int]]:
+    """(name, arity) of every predicate a shipped encoding derives, declares external or
+    shows (``chosen/1``, ``isa/2``, ``need/1`` ...), except the KB vocabulary ``holds``.
+    A user's rule file may constrain them (``:- chosen("X").``) but not define them."""
+    global _PROTECTED
+    if _PROTECTED is None:
+        found = {("focus", 1)}  # explain's mode switch (a fact the solver adds)
+        for lp in sorted(encoding_dir().glob("*.lp")):
+            for stmt in _parse(_blank_includes(lp.read_text(encoding="utf-8"))):
+                found.update((n, a) for n, a, _ in _heads(stmt) if n and n not in OPEN_PREDICATES)
+        _PROTECTED = frozenset(found)
+    return _PROTECTED
+
+
+def _refuse_protected(name: str, text: str) -> None:
+    try:
+        stmts = _parse(text)
+    except RuntimeError:
+        return  # a syntax error: clingo reports it with its location when grounding
+    protected = protected_predicates()
+    for stmt in stmts:
+        for pred, arity, loc in _heads(stmt):
+            if (pred, arity) in protected:
+                line, col = loc.begin.line, loc.begin.column
+                raise InputError(
+                    f"{name}:{line}:{col}: a rule file may not define {pred}/{arity}: parmor "
+                    "derives it (asp/doc.lp); constrain it instead, e.g. ':- "
+                    f"{pred}(...).'"
+                )
+
+
+# -- the clingo worker ---------------------------------------------------------------------
+
+
 def _str(sym: clingo.Symbol) -> str:
     return sym.string if sym.type == clingo.SymbolType.String else str(sym)
 
 
+def _models(ctl: clingo.Control, where: str = "solve") -> Iterator[clingo.Model]:
+    """The models of a solve in this process, waiting in slices so that signals and the
+    time limit get in (a plain solve does not return to Python until the next model)."""
+    with ctl.solve(yield_=True, async_=True) as handle:
+        while True:
+            handle.resume()
+            while not handle.wait(0.05):
+                limits.check(where)
+            model = handle.model()
+            if model is None:
+                return
+            yield model
+
+
+def _worker_models(ctl: clingo.Control) -> Iterator[clingo.Model]:
+    """The models of a solve in a worker: synchronous (its parent kills it to stop it)."""
+    with ctl.solve(yield_=True) as handle:
+        yield from handle
+
+
+@functools.cache
+def _encoding_texts() -> tuple[str, ...]:
+    return tuple(
+        p.read_text(encoding="utf-8")
+        for p in sorted(encoding_dir().glob("*.lp"))
+        if p.name != "closure.lp"
+    )
+
+
+def taxonomy_program(kb: KnowledgeBase, others: Sequence[str], rules: Sequence[str]) -> str:
+    """The taxonomy closure the program needs (facts), or the recursive rules when only
+    they are exact (adron/translate.py: taxonomy_closure)."""
+    facts = taxonomy_closure(kb.translation.program, [*_encoding_texts(), *others], rules)
+    if facts is None:
+        return (encoding_dir() / "closure.lp").read_text(encoding="utf-8")
+    return facts
+
+
+class _Core:
+    """The Control of a :class:`Reasoner`, in its worker process."""
+
+    def __init__(
+        self, kb: KnowledgeBase, rules: Sequence[RuleFile], focus: str | None, size: int | None
+    ) -> None:
+        self._messages: list[str] = []
+        self._ctl = clingo.Control(
+            ["--models=0", "--opt-mode=enum"], logger=self._log, message_limit=20
+        )
+        extra = [f"focus({asp_string(focus)})."] if focus is not None else []
+        try:
+            self._ctl.add("base", [], kb.translation.program)
+            self._ctl.add("base", [], taxonomy_program(kb, extra, [r.text for r in rules]))
+            self._ctl.load(str(encoding_dir() / "conceptual.lp"))
+            for text in extra:
+                self._ctl.add("base", [], text)
+            self._tmp: dict[str, str] = {}
+            with (
+                tempfile.TemporaryDirectory(prefix="parmor-rules-")
+                if rules
+                else (contextlib.nullcontext("")) as tmp
+            ):
+                for i, r in enumerate(rules):
+                    copy = Path(tmp) / f"{i}.lp"
+                    copy.write_text(r.text, encoding="utf-8")
+                    self._tmp[str(copy)] = r.name
+                    self._ctl.load(str(copy))
+            self._ctl.ground([("base", [])])
+        except RuntimeError as e:
+            if "bad_alloc" in str(e):
+                raise MemoryError from None
+            detail = "; ".join(self._messages) or str(e)
+            for copy, name in self._tmp.items():
+                detail = detail.replace(copy, name)
+            raise OntologyError(f"the rules do not ground: {detail}") from None
+        atoms = self._ctl.symbolic_atoms
+        if size is not None and len(atoms) > size:
+            raise limits.LimitExceeded(
+                limits.Limits(size_atoms=size).describe("size"), "size", self._largest(rules)
+            )
+        self.externals = {
+            a.symbol
+            for sig in (("request", 1), ("answer", 2), ("param", 2))
+            for a in atoms.by_signature(*sig)
+            if a.is_external
+        }
+
+    def robot_types(self) -> tuple[str, ...]:
+        """Every subclass of Robot (asked for by name checks only: can be 100,000)."""
+        atoms = self._ctl.symbolic_atoms
+        return tuple(
+            sorted(a.symbol.arguments[0].string for a in atoms.by_signature("robot_class", 1))
+        )
+
+    def _largest(self, rules: Sequence[RuleFile]) -> str:
+        """What grew: the predicate with the most ground atoms (counted up to a cap, in
+        two rounds, to stay quick) and where a rule file defines it."""
+        atoms = self._ctl.symbolic_atoms
+
+        def count(sig: tuple[str, int, bool], cap: int) -> int:
+            return sum(1 for _ in itertools.islice(atoms.by_signature(*sig), cap))
+
+        sigs = list(atoms.signatures)
+        first = {sig: count(sig, _SAMPLE) for sig in sigs}
+        big = [sig for sig, n in first.items() if n >= _SAMPLE] or sigs
+        n, (name, arity, _) = max((count(sig, 100 * _SAMPLE), sig) for sig in big)
+        amount = f"over {n}" if n >= 100 * _SAMPLE else str(n)
+        where = ""
+        for r in rules:
+            with contextlib.suppress(RuntimeError):
+                for stmt in _parse(r.text):
+                    for pred, ar, loc in _heads(stmt):
+                        if (pred, ar) == (name, arity) and not where:
+                            where = f" (defined at {r.name}:{loc.begin.line}:{loc.begin.column})"
+        return f"{amount} ground atoms of {name}/{arity}{where}"
+
+    def _log(self, code: clingo.MessageCode, message: str) -> None:
+        self._messages.append(message.strip().replace("\n", " "))
+
+    def _assign(self, on: set[str]) -> None:
+        for sym in self.externals:
+            self._ctl.assign_external(sym, str(sym) in on)
+
+    def satisfiable(self, on: set[str]) -> bool:
+        self._assign(on)
+        for _ in _worker_models(self._ctl):
+            return True
+        return False
+
+    def answer_sets(self, on: set[str], keep: set[str] | None) -> frozenset:
+        self._assign(on)
+        return frozenset(
+            frozenset(str(s) for s in m.symbols(shown=True) if keep is None or s.name in keep)
+            for m in _worker_models(self._ctl)
+        )
+
+    def solve(self, on: set[str]) -> list[tuple[tuple, tuple[int, ...]]]:
+        self._assign(on)
+        return [(_symbols(m.symbols(shown=True)), tuple(m.cost)) for m in _worker_models(self._ctl)]
+
+
+def _symbols(symbols: Iterable[clingo.Symbol]) -> tuple:
+    """Shown atoms as plain (name, args) tuples (picklable)."""
+    return tuple(
+        (
+            s.name,
+            tuple(_str(a) if a.type != clingo.SymbolType.Number else a.number for a in s.arguments),
+        )
+        for s in symbols
+    )
+
+
+def _address_space_kb() -> int:
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[0]) * resource.getpagesize() // 1024
+    except OSError:
+        return 0
+
+
+def _serve(
+    conn: Connection, make: Callable[[], _Core], memory_mb: int | None, orphan_dies: bool
+) -> None:
+    """The worker's loop: build the core, then answer calls until the pipe closes."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides, and kills us
+    signal.setitimer(signal.ITIMER_REAL, 0)
+    signal.signal(signal.SIGALRM, signal.SIG_IGN)
+    # the kernel's "parent" is the forking thread: only the main thread lives as long as us
+    if orphan_dies and sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    if memory_mb is not None:
+        cap = (_address_space_kb() + memory_mb * 1024) * 1024
+        with contextlib.suppress(ValueError, OSError):
+            resource.setrlimit(resource.RLIMIT_AS, (cap, resource.getrlimit(resource.RLIMIT_AS)[1]))
+    core = None
+    where = "ground"
+    while True:
+        try:
+            if core is None:
+                core = make()
+                reply: tuple = ("ok", {str(x) for x in core.externals})
+            else:
+                try:
+                    method, args = conn.recv()
+                except EOFError:
+                    return
+                where = "solve"
+                reply = ("ok", getattr(core, method)(*args))
+        except MemoryError:
+            core = None
+            reply = ("limit", "memory", where, "")
+        except limits.LimitExceeded as e:
+            reply = ("limit", "size", e.stage, str(e).split(": ", 1)[-1])
+        except ParmorError as e:
+            reply = ("error", type(e).__name__, str(e))
+        except Exception as e:  # noqa: BLE001 - reported to the parent, which raises
+            if "bad_alloc" in str(e):
+                reply = ("limit", "memory", where, "")
+            else:
+                reply = ("error", "RuntimeError", f"{type(e).__name__}: {e}")
+        try:
+            conn.send(reply)
+        except (OSError, MemoryError):
+            return
+        if reply[0] != "ok" and where == "ground":
+            return
+
+
+_ERRORS = {"InputError": InputError, "OntologyError": OntologyError}
+
+
+class _Worker:
+    """A forked process that owns one :class:`_Core`; killed on SIGINT or a limit."""
+
+    def __init__(self, make: Callable[[], _Core], what: str) -> None:
+        lim = limits.current()
+        self.what = what
+        parent, child = Pipe()
+        from_main = threading.current_thread() is threading.main_thread()
+        pid = os.fork()
+        if pid == 0:  # the worker
+            code = 0
+            try:
+                parent.close()
+                _serve(child, make, lim.memory_mb, from_main)
+            except BaseException:  # noqa: BLE001 - a worker never returns into the caller
+                code = 1
+            finally:
+                os._exit(code)
+        child.close()
+        self.pid, self.conn = pid, parent
+        self._finalizer = weakref.finalize(self, _kill, pid, parent, os.getpid())
+
+    def close(self) -> None:
+        self._finalizer()
+
+    def result(self, where: str) -> object:
+        """The worker's next reply; raises what it reports, LimitExceeded, or
+        KeyboardInterrupt (the worker is killed at once)."""
+        try:
+            while not self.conn.poll(0.05):
+                limits.check(where)
+            try:
+                reply = self.conn.recv()
+            except EOFError:
+                # killed from outside (the kernel's OOM killer, kill -9)
+                raise limits.LimitExceeded(
+                    limits.current().describe("memory"),
+                    where,
+                    f"the clingo worker of {self.what} died",
+                ) from None
+        except BaseException:
+            self.close()
+            raise
+        if reply[0] == "ok":
+            return reply[1]
+        self.close()
+        if reply[0] == "limit":
+            _, limit, stage, detail = reply
+            detail = "; ".join(x for x in (detail, f"grounding {self.what}") if x)
+            raise limits.LimitExceeded(limits.current().describe(limit), stage, detail)
+        _, kind, message = reply
+        raise _ERRORS.get(kind, OntologyError)(message)
+
+    def call(self, method: str, *args: object) -> object:
+        if not self._finalizer.alive:
+            raise OntologyError(f"the reasoner of {self.what} was stopped")
+        with limits.stage("solve"):
+            self.conn.send((method, args))
+            return self.result("solve")
+
+
+#: killed workers not reaped yet (reaped without waiting at the next kill)
+_UNREAPED: list[int] = []
+
+
+def _kill(pid: int, conn: Connection, owner: int) -> None:
+    with contextlib.suppress(OSError):
+        conn.close()
+    if os.getpid() != owner:  # a forked copy of the owner (a pool worker): not ours to kill
+        return
+    with contextlib.suppress(OSError):
+        os.kill(pid, signal.SIGKILL)
+    _UNREAPED.append(pid)
+    for p in list(_UNREAPED):  # a killed process takes a few ms to go: do not wait for it
+        with contextlib.suppress(ChildProcessError):
+            if os.waitpid(p, os.WNOHANG)[0] == 0:
+                continue
+        _UNREAPED.remove(p)
+
+
 class Reasoner:
-    """Grounds once; :meth:`solve` and :meth:`satisfiable` re-solve under new externals."""
+    """Grounds once; :meth:`solve` and :meth:`satisfiable` re-solve under new externals.
+
+    The clingo Control lives in a forked worker process, so that Ctrl-C and the limits of
+    :mod:`synth.limits` stop grounding too (clingo's grounder does not return to Python
+    until it is done): the worker is killed, this raises KeyboardInterrupt or
+    LimitExceeded. The worker's memory is capped (``RLIMIT_AS``) by the memory limit."""
 
     def __init__(
         self,
@@ -151,43 +628,31 @@ class Reasoner:
         the program describes that class instead of choosing among candidates."""
         self.kb = kb
         self._rules, self._allow_scripts = tuple(rules), allow_scripts
-        self._messages: list[str] = []
-        self._ctl = clingo.Control(
-            ["--models=0", "--opt-mode=enum"], logger=self._log, message_limit=20
-        )
-        self._externals: set[clingo.Symbol] = set()
-        try:
-            self._ctl.add("base", [], kb.translation.program)
-            self._ctl.load(str(encoding_dir() / "conceptual.lp"))
-            if focus is not None:
-                self._ctl.add("base", [], f"focus({asp_string(focus)}).")
-            for path in rules:
-                check_rules_file(path, allow_scripts)
-                self._ctl.load(str(path))
-            self._ctl.ground([("base", [])])
-        except RuntimeError as e:
-            detail = "; ".join(self._messages) or str(e)
-            raise OntologyError(f"the rules do not ground: {detail}") from None
-        atoms = self._ctl.symbolic_atoms
-        self._externals = {
-            a.symbol
-            for sig in (("request", 1), ("answer", 2), ("param", 2))
-            for a in atoms.by_signature(*sig)
-            if a.is_external
-        }
-        #: every subclass of Robot, as the taxonomy closure found them
-        self.robot_types: tuple[str, ...] = tuple(
-            sorted(a.symbol.arguments[0].string for a in atoms.by_signature("robot_class", 1))
-        )
+        files = read_rule_files(self._rules, allow_scripts)
+        size = limits.current().size_atoms
+        what = " + ".join(["the knowledge base", *(f.name for f in files)])
+        self._worker = _Worker(lambda: _Core(kb, files, focus, size), what)
+        with limits.stage("ground"):
+            externals = self._worker.result("ground")
+        self._externals: set[str] = externals  # as text: symbols do not cross processes
+        self._robot_types: tuple[str, ...] | None = None
+
+    @property
+    def robot_types(self) -> tuple[str, ...]:
+        """Every subclass of Robot, as the taxonomy closure found them (asked once)."""
+        if self._robot_types is None:
+            self._robot_types = self._worker.call("robot_types")
+        return self._robot_types
+
+    def close(self) -> None:
+        """Stop the worker (also done when the Reasoner is collected)."""
+        self._worker.close()
 
     def focused(self, robot_type: str) -> Reasoner:
         """A reasoner over the same program that describes ``robot_type`` (explain)."""
         return Reasoner(self.kb, self._rules, self._allow_scripts, focus=robot_type)
 
-    def _log(self, code: clingo.MessageCode, message: str) -> None:
-        self._messages.append(message.strip().replace("\n", " "))
-
-    def _assign(self, query: Query) -> None:
+    def _on(self, query: Query) -> set[str]:
         on: set[clingo.Symbol] = set()
         S, F = clingo.String, clingo.Function
         for a in query.requests:
@@ -196,52 +661,35 @@ class Reasoner:
             on.add(F("answer", [S(a), F("yes" if yes else "no")]))
         for rel, term in query.params:
             on.add(F("param", [S(rel), S(term)]))
-        missing = on - self._externals
+        text = {str(x) for x in on}
+        missing = text - self._externals
         if missing:
-            raise InputError(
-                "not known to the knowledge base: " + ", ".join(sorted(map(str, missing)))
-            )
-        for sym in self._externals:
-            self._ctl.assign_external(sym, sym in on)
+            raise InputError("not known to the knowledge base: " + ", ".join(sorted(missing)))
+        return text
 
     def satisfiable(self, query: Query) -> bool:
         """True when at least one candidate meets ``query`` (stops at the first model)."""
-        self._assign(query)
-        with self._ctl.solve(yield_=True) as handle:
-            for _ in handle:
-                return True
-        return False
+        return self._worker.call("satisfiable", self._on(query))
 
     def answer_sets(
         self, query: Query, predicates: Iterable[str] | None = None
     ) -> frozenset[frozenset[str]]:
         """The shown atoms of every answer set (as text), optionally only ``predicates``."""
-        self._assign(query)
         keep = set(predicates) if predicates is not None else None
-        models = set()
-        with self._ctl.solve(yield_=True) as handle:
-            for model in handle:
-                models.add(
-                    frozenset(
-                        str(s) for s in model.symbols(shown=True) if keep is None or s.name in keep
-                    )
-                )
-        return frozenset(models)
+        return self._worker.call("answer_sets", self._on(query), keep)
 
     def solve(self, query: Query) -> Solution:
         """Every candidate of ``query``, in preference order: the cost asp/preference.lp
         gives each answer set (fewest active modules), then the type name."""
-        self._assign(query)
         found: dict[str, Candidate] = {}
         needed: set[str] = set()
         excluded: set[str] = set()
-        with self._ctl.solve(yield_=True) as handle:
-            for model in handle:
-                cand, need, excl = self._read(model.symbols(shown=True))
-                needed |= need
-                excluded |= excl
-                if cand is not None:
-                    found[cand.robot_type] = replace(cand, preference=tuple(model.cost))
+        for symbols, cost in self._worker.call("solve", self._on(query)):
+            cand, need, excl = self._read(symbols)
+            needed |= need
+            excluded |= excl
+            if cand is not None:
+                found[cand.robot_type] = replace(cand, preference=cost)
         demanded = tuple(sorted(needed))
         found = {t: replace(c, needed=demanded) for t, c in found.items()}
         order = sorted(found.values(), key=lambda c: (c.preference, c.robot_type))
@@ -250,12 +698,10 @@ class Reasoner:
         )
 
     @staticmethod
-    def _read(symbols: Iterable[clingo.Symbol]) -> tuple[Candidate | None, set, set]:
+    def _read(symbols: Iterable[tuple[str, tuple]]) -> tuple[Candidate | None, set, set]:
         by: dict[str, list[list]] = {}
-        for s in symbols:
-            by.setdefault(s.name, []).append(
-                [_str(a) if a.type != clingo.SymbolType.Number else a.number for a in s.arguments]
-            )
+        for name, args in symbols:
+            by.setdefault(name, []).append(list(args))
         need = {a[0] for a in by.get("need", [])}
         excl = {a[0] for a in by.get("excluded", [])}
         robots = [a[0] for a in by.get("chosen", [])]
@@ -356,10 +802,16 @@ class ActuatorAssigner:
             f"joint({asp_string(j.name)},{asp_string(j.group)},{asp_string(j.module_class)})."
             for j in self.joints
         ]
-        self._ctl.add("base", [], kb.translation.program)
         self._ctl.add("base", [], catalog_facts)
         self._ctl.add("base", [], "\n".join(facts))
-        self._ctl.load(str(encoding_dir() / "taxonomy.lp"))
+        classes = [asp_string(robot_type), *(asp_string(j.module_class) for j in self.joints)]
+        known = isa_facts(kb.translation.program, classes, ["activeModuleLimit"])
+        if known is not None:  # what actuators.lp asks of the KB, without grounding it
+            self._ctl.add("base", [], known)
+        else:
+            self._ctl.add("base", [], kb.translation.program)
+            self._ctl.add("base", [], taxonomy_program(kb, [catalog_facts, *facts], ()))
+            self._ctl.load(str(encoding_dir() / "taxonomy.lp"))
         self._ctl.load(str(encoding_dir() / "actuators.lp"))
         self._ctl.ground([("base", [])])
         self._blocks = 0
@@ -400,10 +852,9 @@ class ActuatorAssigner:
         blocked: list[str] = []
         while len(out) < k:
             optimal: list[Assignment] = []
-            with self._ctl.solve(yield_=True) as handle:
-                for m in handle:
-                    if m.optimality_proven:
-                        optimal.append(self._read(m))
+            for m in _models(self._ctl):
+                if m.optimality_proven:
+                    optimal.append(self._read(m))
             if not optimal:
                 break
             optimal.sort(key=lambda a: (a.cost, a.models))
@@ -428,9 +879,8 @@ class ActuatorAssigner:
         self._ctl.configuration.solve.opt_mode = "ignore"
         self._ctl.configuration.solve.models = "0"
         try:
-            with self._ctl.solve(yield_=True) as handle:
-                for m in handle:
-                    found.append(self._read(m))
+            for m in _models(self._ctl):
+                found.append(self._read(m))
         finally:
             self._ctl.configuration.solve.opt_mode = "optN"
         return found

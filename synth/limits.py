@@ -1,0 +1,138 @@
+"""Limits of a run: wall time, the reasoner's memory, the ground program's size.
+
+One :class:`Limits` per process (the command line sets it from ``--time-limit``,
+``--memory-limit`` and ``--size-limit``; a library user calls :func:`configure`, or
+leaves them off). Reaching one raises :class:`LimitExceeded` (exit 1) naming the limit and
+the stage (parse, ground, solve, size, simulate, ...) that was running. Import-light: no
+clingo here.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+from adron.errors import ParmorError
+
+#: Wall time of one command, s: room for a design with every behaviour simulated (about a
+#: minute on a loaded 2-core machine) many times over, short of "hangs".
+DEFAULT_TIME_S = 600.0
+#: Memory the clingo worker may take beyond the process it forks from, MB: a hundred times
+#: what ADROn needs (under 40 MB), within a small laptop.
+DEFAULT_MEMORY_MB = 4096
+#: Ground program size, atoms: ADROn grounds to about 5,000; a 100,000-class taxonomy to
+#: about 2 million. Beyond 10 million, solving (and memory) stop being practical.
+DEFAULT_SIZE_ATOMS = 10_000_000
+
+
+class LimitExceeded(ParmorError):
+    """A time, memory or size limit was reached; the message names it and the stage."""
+
+    exit_code = 1
+
+    def __init__(self, limit: str, stage: str, detail: str = "") -> None:
+        self.limit, self.stage = limit, stage
+        super().__init__(
+            f"{limit} reached while in stage {stage}" + (f": {detail}" if detail else "")
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Limits:
+    """``time_s`` wall seconds for the run, ``memory_mb`` for the clingo worker,
+    ``size_atoms`` for the ground program; None turns one off."""
+
+    time_s: float | None = None
+    memory_mb: int | None = None
+    size_atoms: int | None = None
+
+    def describe(self, limit: str) -> str:
+        """'time limit (600 s)' and the like, for messages."""
+        if limit == "time":
+            return f"time limit ({self.time_s:g} s, --time-limit)"
+        if limit == "memory":
+            return f"memory limit ({self.memory_mb} MB, --memory-limit)"
+        return f"ground program size limit ({self.size_atoms} atoms, --size-limit)"
+
+
+_current = Limits()
+_deadline: float | None = None
+_stage = "run"
+
+
+def current() -> Limits:
+    """The limits in force."""
+    return _current
+
+
+def stage_name() -> str:
+    """The stage that is running (for messages)."""
+    return _stage
+
+
+@contextlib.contextmanager
+def stage(name: str) -> Iterator[None]:
+    """Mark the code inside as stage ``name``."""
+    global _stage
+    before, _stage = _stage, name
+    try:
+        yield
+    finally:
+        _stage = before
+
+
+def _alarm(signum: int, frame: object) -> None:
+    raise LimitExceeded(_current.describe("time"), _stage)
+
+
+def configure(limits: Limits, arm: bool = True) -> None:
+    """Put ``limits`` in force from now. With ``arm`` (main thread only), SIGALRM ends the
+    Python stages (parse, simulate) at the deadline; the reasoner checks it itself."""
+    global _current, _deadline
+    _current = limits
+    _deadline = None if limits.time_s is None else time.monotonic() + limits.time_s
+    if arm and threading.current_thread() is threading.main_thread():
+        if limits.time_s is None:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+        else:
+            signal.signal(signal.SIGALRM, _alarm)
+            signal.setitimer(signal.ITIMER_REAL, limits.time_s)
+
+
+def disarm() -> None:
+    """Stop the time limit's alarm (the run is over)."""
+    if threading.current_thread() is threading.main_thread():
+        signal.setitimer(signal.ITIMER_REAL, 0)
+
+
+def remaining() -> float | None:
+    """Seconds left before the time limit, or None without one."""
+    return None if _deadline is None else _deadline - time.monotonic()
+
+
+def check(where: str | None = None) -> None:
+    """Raise LimitExceeded when the time limit has passed."""
+    left = remaining()
+    if left is not None and left <= 0:
+        raise LimitExceeded(_current.describe("time"), where or _stage)
+
+
+@contextlib.contextmanager
+def paused() -> Iterator[None]:
+    """Stop the clock inside (waiting for a person's answer); the time spent is given back."""
+    global _deadline
+    if _deadline is None:
+        yield
+        return
+    disarm()
+    t0 = time.monotonic()
+    try:
+        yield
+    finally:
+        _deadline += time.monotonic() - t0
+        if threading.current_thread() is threading.main_thread():
+            signal.setitimer(signal.ITIMER_REAL, max(_deadline - time.monotonic(), 1e-3))
