@@ -3,9 +3,7 @@ order and I2C addresses) and which file to open with what. Pure: returns the tex
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
-from export.model3d import PrintedPart
+from export.model3d import Assembly
 
 FILES = (
     (
@@ -33,9 +31,24 @@ def _md(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
 
-def guide_markdown(record: dict, printed: Sequence[PrintedPart], documentation: str = "") -> str:
-    """The bundle's README for the design ``record`` (as in design.json)."""
+def guide_markdown(record: dict, asm: Assembly, documentation: str = "") -> str:
+    """The bundle's README for the design ``record`` (as in design.json) built as ``asm``."""
     r = record
+    printed = asm.printed
+    payload = r.get("payload") or {}
+    load = float(payload.get("mass_kg", 0.0))
+    carried = (
+        f" It is sized and simulated for a payload of {load:.3f} kg, which is not part of "
+        "it (not in bom.csv; "
+        + (
+            "robot.urdf and robot.xml carry it"
+            if payload.get("in_models")
+            else "not in robot.urdf and robot.xml"
+        )
+        + "; design.json's `payload` says where it is held)."
+        if load > 0
+        else ""
+    )
     lines = [f"# {_md(r['robot_type'])}: a parmor design", ""]
     if documentation:
         lines += [_md(documentation), ""]
@@ -44,9 +57,10 @@ def guide_markdown(record: dict, printed: Sequence[PrintedPart], documentation: 
     lines += [
         f"Requested abilities: {_md(asked)}.",
         f"It can: {_md(', '.join(r['abilities']))}.",
-        f"Mass {r['mass_kg']:.3f} kg, modules cost {r['cost']:.2f}, {r['dof']} degrees of "
+        f"The robot weighs {asm.total_mass - (load if payload.get('in_models') else 0.0):.3f} kg "
+        f"(every part in bom.csv), modules cost {r['cost']:.2f}, {r['dof']} degrees of "
         f"freedom, {r['active_modules']} active modules on the I2C bus "
-        f"(limit {r['module_limit']}).",
+        f"(limit {r['module_limit']}).{carried}",
         "",
         "## Files",
         "",

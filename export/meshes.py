@@ -34,6 +34,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from kinematics.templates import WHEEL_BORE
+
 if TYPE_CHECKING:  # trimesh and manifold3d are imported where they are used
     import trimesh
 
@@ -55,8 +57,6 @@ __all__ = [
 
 #: The fixed 80-byte header of every binary STL parmor writes.
 STL_HEADER = b"parmor binary STL, units: m".ljust(80, b"\0")
-#: Hub bore radius of a printed wheel, m: the clearance hole of an M3 servo horn screw.
-WHEEL_BORE = 0.0017
 #: Circular segments of round surfaces by default.
 SEGMENTS = 64
 MM = 1000.0  # mm per m

@@ -328,14 +328,19 @@ def _servo(el: ET.Element, j: JointSpec, inertia: float) -> tuple[str, dict[str,
     return tag, attrs
 
 
-def mjcf_string(assembly: Assembly, mesh_dir: str = "meshes") -> str:
+def mjcf_string(assembly: Assembly, mesh_dir: str = "meshes", with_payload: bool = False) -> str:
     """MJCF text of ``assembly`` for MuJoCo (choices in the module docstring).
 
     Mesh geoms name their files relative to ``mesh_dir`` (the compiler's ``meshdir``);
     load the text with :func:`load_mjcf` or with the files beside it. Identical input gives
     identical text. Raises ``ValueError`` on an invalid tree, name or mesh file name, or a
-    movable joint without effort.
+    movable joint without effort. ``with_payload``: the payload (``Assembly.payload``) is
+    added to the body that holds it (the verification simulates the loaded robot).
     """
+    if with_payload:
+        from export.assembly import with_payload as loaded
+
+        assembly = loaded(assembly)
     bodies = check_assembly(assembly)
     if "world" in bodies:
         raise ValueError("a body cannot be named 'world' in MJCF (MuJoCo's world body)")

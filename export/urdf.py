@@ -364,11 +364,16 @@ def robot_xml(robot: yourdfpy.Robot) -> str:
     return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(root, "unicode") + "\n"
 
 
-def urdf_string(assembly: Assembly, mesh_dir: str = "meshes") -> str:
+def urdf_string(assembly: Assembly, mesh_dir: str = "meshes", with_payload: bool = False) -> str:
     """URDF text of ``assembly``: the robot is named after ``assembly.robot_type``; mesh
     files are referenced as ``mesh_dir/NAME.stl``. Identical input gives identical text.
 
     Raises ``ValueError`` on an invalid tree or name, or a mesh name that is not a plain
-    file name.
+    file name. ``with_payload``: the payload (``Assembly.payload``) is added to the body
+    that holds it (by default the URDF is the robot alone).
     """
+    if with_payload:
+        from export.assembly import with_payload as loaded
+
+        assembly = loaded(assembly)
     return robot_xml(urdf_robot(assembly, mesh_dir))

@@ -20,7 +20,7 @@ import pytest
 import trimesh
 
 from export import meshes
-from export.assembly import build_assembly
+from export.assembly import build_assembly, with_payload
 from kinematics.spatial import box_inertia, combine_parts, sphere_inertia
 from kinematics.templates import DEFAULTS, PART_KINDS, TEMPLATES, TemplateParams, build
 from synth.solver import Query
@@ -81,7 +81,8 @@ def test_bodies_are_their_labelled_parts(robot_type: str, faces: bool) -> None:
     assert bodies_of("wheel") == sorted(t.wheels)
     assert bodies_of("caster") == sorted(t.casters)
     assert len(bodies_of("trunk")) == 1 and bodies_of("trunk")[0] == m.bodies[0].name
-    assert bodies_of("gripper") == sorted(t.end_effectors)
+    # every gripper has its jaws (two by default), each a part of the gripper's body
+    assert bodies_of("gripper") == sorted(e for e in t.end_effectors for _ in range(2))
 
 
 @pytest.mark.parametrize("robot_type", TEMPLATES)
@@ -160,26 +161,28 @@ def _recomputed(part, printed: dict, catalog, template) -> tuple[float, np.ndarr
         props = mesh.mass_properties
         m, c, inertia = props["mass"] * rho, props["center_mass"], props["inertia"] * rho
     elif part.source == "module":
-        entry = {a.model: a for a in (*catalog.actuators, *catalog.modules)}.get(part.name)
-        if entry is not None:
-            m, size = entry.mass_kg, entry.size_m
-            assert g.kind == "box" and tuple(g.size) == tuple(size)
-            inertia = box_inertia(m, size)
-        elif part.name == "gripper":
-            m = template.params.gripper_mass
-            inertia = box_inertia(m, g.size)
-        else:
-            assert part.name == "ball_caster" and g.kind == "sphere"
-            m = template.params.caster_mass
-            inertia = sphere_inertia(m, g.size[0])
+        entry = {a.model: a for a in (*catalog.actuators, *catalog.modules)}[part.name]
+        m, size = entry.mass_kg, entry.size_m
+        assert g.kind == "box" and tuple(g.size) == tuple(size)
+        inertia = box_inertia(m, size)
         c = np.zeros(3)
+    elif part.source == "bought" and part.kind == "CasterModule":
+        ball = catalog.part_of("CasterModule")
+        assert part.name == ball.model and g.kind == "sphere"
+        assert g.size[0] == pytest.approx(ball.size_m[0] / 2)
+        m = ball.mass_kg
+        inertia, c = sphere_inertia(m, g.size[0]), np.zeros(3)
+    elif part.source == "bought":  # a tyre: a ring around the wheel's axle (its z)
+        assert part.kind == "Tyre" and g is None
+        r, w = template.params.wheel_radius, catalog.passive.wheel_width_m
+        m = catalog.tyre.mass_kg(r, w)
+        assert part.mass == pytest.approx(m, rel=1e-12)
+        return m, part.com, part.inertia
     elif part.source == "contact":  # a leg's massless rounded point, a wheel's rim cylinder
         assert part.mass == 0 and g.kind in ("sphere", "cylinder") and g.contact
         return 0.0, part.com, np.zeros((3, 3))
     else:
-        assert part.source == "payload" and g is None
-        assert part.mass == template.params.payload
-        return template.params.payload, part.com, np.zeros((3, 3))
+        raise AssertionError(f"a part of source {part.source!r} in the robot's model")
     R, p = g.origin[:3, :3], g.origin[:3, 3]
     return m, R @ c + p, R @ inertia @ R.T
 
@@ -212,8 +215,11 @@ def test_every_body_is_its_parts_recomputed_from_stl_and_catalog(
 
 
 def test_total_mass_is_the_structures(assemblies, faced) -> None:
+    """The structure is sized with its payload; the assembly keeps it aside."""
     for t, asm in assemblies.items():
-        assert asm.total_mass == pytest.approx(faced[t].mass_kg, rel=0.01), t
+        loaded = asm.total_mass + asm.payload_mass
+        assert loaded == pytest.approx(faced[t].mass_kg, rel=0.01), t
+        assert with_payload(asm).total_mass == pytest.approx(loaded, rel=1e-12), t
         assert not [n for n in asm.notes if "weighs" in n], (t, asm.notes)
 
 

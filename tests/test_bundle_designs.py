@@ -52,7 +52,8 @@ def test_urdf_loads_and_passes_check_urdf(bundles, tmp_path) -> None:
         write_bundle(folder, files)
         robot = yourdfpy.URDF.load(str(folder / "robot.urdf"), mesh_dir=str(folder))
         masses = sum(link.inertial.mass for link in robot.robot.links if link.inertial)
-        assert masses == pytest.approx(rec["mass_kg"], rel=0.01), t
+        robot_alone = rec["mass_kg"] - json.loads(files["design.json"])["payload"]["mass_kg"]
+        assert masses == pytest.approx(robot_alone, rel=0.01), t
         movable = [j for j in robot.robot.joints if j.type != "fixed"]
         assert len(movable) == len(rec["joints"])
         if tool:
@@ -66,13 +67,117 @@ def test_mjcf_loads_in_mujoco_with_the_design_mass(bundles) -> None:
     for t, (rec, files) in bundles.items():
         meshes = {n.split("/", 1)[1]: b for n, b in files.items() if n.startswith("meshes/")}
         model = load_mjcf(files["robot.xml"], meshes)
-        assert model.body_mass.sum() == pytest.approx(rec["mass_kg"], rel=0.01), t
+        robot_alone = rec["mass_kg"] - json.loads(files["design.json"])["payload"]["mass_kg"]
+        assert model.body_mass.sum() == pytest.approx(robot_alone, rel=0.01), t
         assert model.nu == len(rec["joints"])
         stall = {j["name"]: j["actuator_torque_Nm"] for j in rec["joints"]}
         for k in range(model.nu):
             assert model.actuator_forcerange[k][1] == pytest.approx(
                 stall[model.joint(model.actuator_trnid[k][0]).name]
             )
+
+
+#: Non-default designs (robot type, parameters SI) the BOM is checked on besides the defaults.
+NON_DEFAULT = (
+    ("Manipulator3DOF", {"reach": 0.30, "payload": 0.15}),
+    ("DifferentialDriveRobot", {"payload": 0.3, "load_area": 0.05, "speed": 0.2}),
+    ("HexapodRobot", {"obstacle_height": 0.05, "payload": 0.3}),
+)
+
+
+@pytest.fixture(scope="module")
+def other_bundles(kb, designer, catalog):
+    cands = {c.robot_type: c for c in designer.reasoner.solve(Query()).candidates}
+    out = {}
+    for t, params in NON_DEFAULT:
+        s = design_structure(kb, cands[t], catalog, params)
+        d = Design("designed", Request(), (cands[t],), cands[t], "only candidate")
+        rec = design_record(d, designer.short, s)
+        out[f"{t} {params}"] = (rec, bundle_files(rec, s, catalog, "doc"))
+    return out
+
+
+def bom_disagreements(files: dict) -> list[str]:
+    """How bom.csv and robot.urdf disagree: a part the URDF models that bom.csv lacks (a
+    printed mesh, a catalog module's box, a bought part's shape), or totals of mass more
+    than 0.1 % apart. Empty when they agree."""
+    import xml.etree.ElementTree as ET
+
+    rows = list(csv.DictReader(io.StringIO(files["bom.csv"])))
+    parts = [r for r in rows if r["type"] != "total"]
+    names = {r["name"] for r in parts}
+    files_listed = {r["file"] for r in parts if r["type"] == "printed"}
+    kinds = {r["kind"] for r in parts}
+    out = []
+    root = ET.fromstring(files["robot.urdf"])
+    for link in root.iter("link"):
+        for v in link.iter("visual"):
+            g = v.find("geometry")
+            mesh = g.find("mesh")
+            if mesh is not None:
+                if mesh.get("filename").split("meshes/")[-1] not in {
+                    f.split("meshes/")[-1] for f in files_listed
+                }:
+                    out.append(f"{link.get('name')}: mesh {mesh.get('filename')} not in bom.csv")
+            elif g.find("box") is not None and v.get("name") not in names:
+                out.append(f"{link.get('name')}: module {v.get('name')} not in bom.csv")
+            elif v.get("name") == "ball_caster" and "CasterModule" not in kinds:
+                out.append(f"{link.get('name')}: the ball caster is not in bom.csv")
+    model = sum(float(m.get("value")) for m in root.iter("mass"))
+    bom = sum(float(r["unit_mass_kg"]) * int(r["count"]) for r in parts)
+    total = float(rows[-1]["unit_mass_kg"])
+    if abs(bom - model) > 1e-3 * model or abs(total - model) > 1e-3 * model:
+        out.append(f"bom.csv {bom:.6f} kg (total line {total:.6f}), model {model:.6f} kg")
+    return out
+
+
+def test_bom_lists_every_part_of_the_model_with_its_mass(bundles, other_bundles) -> None:
+    """Every default design and three others: bom.csv and the URDF/MJCF agree part by part,
+    and their masses to 0.1 % (the payload is in neither)."""
+    for t, (rec, files) in {**bundles, **other_bundles}.items():
+        assert bom_disagreements(files) == [], t
+        meshes = {n.split("/", 1)[1]: b for n, b in files.items() if n.startswith("meshes/")}
+        model = load_mjcf(files["robot.xml"], meshes)
+        total = float(list(csv.DictReader(io.StringIO(files["bom.csv"])))[-1]["unit_mass_kg"])
+        assert model.body_mass.sum() == pytest.approx(total, rel=1e-3), t
+        payload = json.loads(files["design.json"])["payload"]
+        assert payload["in_models"] is False
+        assert total + payload["mass_kg"] == pytest.approx(rec["mass_kg"], rel=0.01), t
+    kinds = {
+        r["kind"]
+        for _, files in {**bundles, **other_bundles}.values()
+        for r in csv.DictReader(io.StringIO(files["bom.csv"]))
+    }
+    assert {"finger", "CasterModule", "Tyre"} <= kinds
+
+
+def test_bom_check_finds_a_missing_part_and_a_wrong_mass(bundles) -> None:
+    """The check above, on a BOM built to fail it: the caster's row dropped, a mass off."""
+    files = dict(bundles["DifferentialDriveRobot"][1])
+    lines = files["bom.csv"].splitlines(keepends=True)
+    files["bom.csv"] = "".join(x for x in lines if "CasterModule" not in x)
+    found = bom_disagreements(files)
+    assert any("ball caster" in f for f in found) and any("model" in f for f in found)
+    files = dict(bundles["Manipulator3DOF"][1])
+    lines = files["bom.csv"].splitlines(keepends=True)
+    files["bom.csv"] = "".join(x for x in lines if not x.startswith("printed,jaw"))
+    assert any("jaw" in f for f in bom_disagreements(files))
+
+
+def test_with_payload_puts_the_payload_in_both_models(kb, designer, catalog) -> None:
+    cand = next(
+        c for c in designer.reasoner.solve(Query()).candidates if c.robot_type == "SkidSteerRobot"
+    )
+    s = design_structure(kb, cand, catalog, {"payload": 1.0})
+    d = Design("designed", Request(), (cand,), cand, "only candidate")
+    rec = design_record(d, designer.short, s)
+    alone, loaded = (bundle_files(rec, s, catalog, with_payload=w) for w in (False, True))
+    meshes = {n.split("/", 1)[1]: b for n, b in alone.items() if n.startswith("meshes/")}
+    m0 = load_mjcf(alone["robot.xml"], meshes).body_mass.sum()
+    m1 = load_mjcf(loaded["robot.xml"], meshes).body_mass.sum()
+    assert m1 - m0 == pytest.approx(1.0)
+    assert json.loads(loaded["design.json"])["payload"]["in_models"] is True
+    assert alone["bom.csv"] == loaded["bom.csv"]
 
 
 def test_meshes_are_watertight_and_match_the_optimiser(bundles, catalog) -> None:
