@@ -1,8 +1,9 @@
 """Meshes of parmor's printed parts (manifold3d CSG), their STL bytes and print figures.
 
 Every function is pure and deterministic: identical inputs give identical vertices and
-identical STL bytes. Lengths in metres (STL files hold metres too; a slicer reading mm
-must scale by 1000). Meshes are ``trimesh.Trimesh`` objects, watertight volumes.
+identical STL bytes. Lengths in metres; the STL files hold millimetres (what every slicer
+expects; the URDF and MJCF scale them by 0.001). Meshes are ``trimesh.Trimesh`` objects,
+watertight volumes.
 
 Each part is built in its *print frame*: standing on z = 0, centred on the z axis, z up as
 it is printed:
@@ -56,7 +57,7 @@ __all__ = [
 ]
 
 #: The fixed 80-byte header of every binary STL parmor writes.
-STL_HEADER = b"parmor binary STL, units: m".ljust(80, b"\0")
+STL_HEADER = b"parmor binary STL, units: mm".ljust(80, b"\0")
 #: Circular segments of round surfaces by default.
 SEGMENTS = 64
 MM = 1000.0  # mm per m
@@ -210,8 +211,9 @@ def wheel_mesh(
 
 
 def stl_bytes(mesh: trimesh.Trimesh) -> bytes:
-    """Binary STL of ``mesh`` (metres) with the fixed header ``STL_HEADER``; deterministic."""
-    v = np.asarray(mesh.vertices, dtype=float)
+    """Binary STL of ``mesh`` (vertices in metres) in millimetres, with the fixed header
+    ``STL_HEADER``; deterministic."""
+    v = np.asarray(mesh.vertices, dtype=float) * MM
     tri = v[np.asarray(mesh.faces, dtype=np.int64)]
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     norm = np.linalg.norm(normals, axis=1, keepdims=True)

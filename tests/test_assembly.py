@@ -156,7 +156,7 @@ def _recomputed(part, printed: dict, catalog, template) -> tuple[float, np.ndarr
     rho = catalog.material.density_kg_m3
     if part.source == "printed":
         stem = g.mesh.removesuffix(".stl")
-        mesh = trimesh.load(io.BytesIO(printed[stem].stl), file_type="stl")
+        mesh = trimesh.load(io.BytesIO(printed[stem].stl), file_type="stl").apply_scale(1e-3)
         assert mesh.is_watertight
         props = mesh.mass_properties
         m, c, inertia = props["mass"] * rho, props["center_mass"], props["inertia"] * rho

@@ -188,7 +188,7 @@ def test_meshes_are_watertight_and_match_the_optimiser(bundles, catalog) -> None
         for name, data in files.items():
             if not name.startswith("meshes/"):
                 continue
-            mesh = trimesh.load(io.BytesIO(data), file_type="stl")
+            mesh = trimesh.load(io.BytesIO(data), file_type="stl").apply_scale(1e-3)
             assert mesh.is_watertight and mesh.is_volume, (t, name)
             stem = name[len("meshes/") : -len(".stl")]
             if stem in links:
@@ -222,3 +222,27 @@ def test_cli_bundle_with_readme_and_bom(cli, tmp_path) -> None:
     rows = list(csv.DictReader(io.StringIO((out / "bom.csv").read_text(encoding="utf-8"))))
     assert rows[-1]["type"] == "total"
     assert float(rows[-1]["unit_cost"]) == pytest.approx(rec["cost"])
+
+
+def test_urdf_meshes_load_in_pinocchio_and_mujoco_without_warnings(bundles, tmp_path, capfd):
+    """robot.urdf's relative mesh paths (meshes/NAME.stl, in mm, scale 0.001): MuJoCo loads
+    the URDF file with its meshes and no warning (unique geom names), and pinocchio builds
+    its visual and collision geometry with the bundle folder as its package directory
+    (pinocchio resolves a relative path only against its package directories)."""
+    import mujoco
+
+    pin = pytest.importorskip("pinocchio") if not CI else __import__("pinocchio")
+    for t, (_, files) in bundles.items():
+        folder = write_bundle(tmp_path / t, files)
+        urdf = str(folder / "robot.urdf")
+        capfd.readouterr()
+        model = mujoco.MjModel.from_xml_path(urdf)
+        out, err = capfd.readouterr()
+        assert "WARNING" not in out + err, (t, out + err)
+        assert model.nmesh == len({n for n in files if n.startswith("meshes/")}), t
+        pm = pin.buildModelFromUrdf(urdf)
+        for kind in (pin.GeometryType.VISUAL, pin.GeometryType.COLLISION):
+            geom = pin.buildGeomFromUrdf(pm, urdf, kind, package_dirs=[str(folder)])
+            assert geom.ngeoms > 0, t
+        names = [g.name for g in geom.geometryObjects]
+        assert len(names) == len(set(names)), t

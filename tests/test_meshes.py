@@ -40,7 +40,7 @@ def closed(mesh: trimesh.Trimesh) -> None:
 
 
 def load(stl: bytes) -> trimesh.Trimesh:
-    return trimesh.load(io.BytesIO(stl), file_type="stl")
+    return trimesh.load(io.BytesIO(stl), file_type="stl").apply_scale(1e-3)
 
 
 @pytest.mark.parametrize("dims", random_links(6, seed=11))
