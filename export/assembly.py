@@ -111,9 +111,10 @@ class _Design:
 
     name: str
     kind: str
-    mesh: trimesh.Trimesh
+    mesh: trimesh.Trimesh  # as printed: on the bed in its best orientation
     analytic_volume: float
-    props: tuple[float, np.ndarray, np.ndarray]  # mass kg, com, inertia (print frame)
+    props: tuple[float, np.ndarray, np.ndarray]  # mass kg, com, inertia (part frame)
+    to_bed: np.ndarray  # (4, 4): part frame -> print frame (``meshes.print_orientation``)
     count: int = 0
 
 
@@ -139,16 +140,21 @@ class _Builder:
             while unique in taken:
                 unique, k = f"{stem}_{k}", k + 1
             mesh = build()
-            d = _Design(unique, kind, mesh, analytic, meshes.mesh_mass_properties(mesh, self.rho))
+            to_bed = meshes.print_orientation(mesh)
+            props = meshes.mesh_mass_properties(mesh, self.rho)
+            on_bed = mesh.copy().apply_transform(to_bed)
+            d = _Design(unique, kind, on_bed, analytic, props, to_bed)
             self.designs[key] = d
         d.count += 1
         return d
 
     def printed(self, d: _Design, placement: np.ndarray) -> PartUse:
-        """A use of design ``d`` with its print frame at ``placement`` (body frame)."""
+        """A use of design ``d`` with its part frame at ``placement`` (body frame); the
+        mesh, as printed, sits at ``placement`` times the inverse of ``d.to_bed``."""
         m, c, inertia = d.props
         R, p = placement[:3, :3], placement[:3, 3]
-        geom = Geometry("mesh", placement, mesh=f"{d.name}.stl", rgba=PRINTED_RGBA, name=d.name)
+        at = placement @ np.linalg.inv(d.to_bed)
+        geom = Geometry("mesh", at, mesh=f"{d.name}.stl", rgba=PRINTED_RGBA, name=d.name)
         return PartUse(d.name, "printed", m, R @ c + p, rotate_inertia(R, inertia), geom)
 
 
@@ -536,6 +542,7 @@ def build_assembly(
                 size,
                 meshes.fits_bed(size, passive.printer_bed_m),
                 meshes.print_time_s(volume, passive.print_speed_m3_s),
+                meshes.orientation_figures(d.mesh, np.eye(3))[0],
             )
         )
 

@@ -83,17 +83,20 @@ def bundle_files(
 
 #: The last assembly built (structure, catalog, assembly): a bundle and its models without
 #: the payload come from one design, whose meshes are built once.
-_LAST: list[tuple[object, object, object, object]] = []
+_LAST: list[tuple] = []
 
 
 def assembly_of(structure: Structure, catalog: Catalog, record: dict):
     """The assembly of a sized design (``build_assembly``), its servos' travel placed over
     the joint spans its behaviours use (default parameters) and its trajectories
-    (behaviour -> Trajectory); reused for the same structure and catalog objects."""
+    (behaviour -> Trajectory); reused for the same structure and catalog objects and the
+    same abilities (the verification may drop one)."""
     from export.assembly import build_assembly
 
-    if _LAST and _LAST[0][0] is structure and _LAST[0][1] is catalog:
-        return _LAST[0][2], _LAST[0][3]
+    abilities = tuple(record.get("abilities", ()))
+    last = _LAST[0] if _LAST else None
+    if last and last[2] == abilities and last[3] is structure and last[4] is catalog:
+        return last[5], last[6]
     trajectories = _trajectories(record)
     used: dict[str, tuple[float, float]] = {}
     for t in trajectories.values():
@@ -102,7 +105,7 @@ def assembly_of(structure: Structure, catalog: Catalog, record: dict):
             old = used.get(joint, (lo, hi))
             used[joint] = (min(lo, old[0]), max(hi, old[1]))
     asm = build_assembly(structure, catalog, used)
-    _LAST[:] = [(structure, catalog, asm, trajectories)]
+    _LAST[:] = [(id(structure), id(catalog), abilities, structure, catalog, asm, trajectories)]
     return asm, trajectories
 
 

@@ -50,7 +50,9 @@ __all__ = [
     "link_profile_mm",
     "mesh_mass_properties",
     "mesh_volume",
+    "orientation_figures",
     "plate_mesh",
+    "print_orientation",
     "print_time_s",
     "stl_bytes",
     "wheel_mesh",
@@ -205,6 +207,72 @@ def wheel_mesh(
         hole = mf.Manifold.cylinder(w + 0.002, b, circular_segments=max(16, n // 4))
         disc = disc - hole.translate((0, 0, -0.001))
     return _to_trimesh(disc)
+
+
+# --- printing orientation ------------------------------------------------------------------
+
+#: A downward face steeper than this from the vertical (rad) needs support when printed:
+#: the usual 45 degree rule of FDM printing (PrusaSlicer's default support threshold too).
+OVERHANG_ANGLE = np.pi / 4
+#: Faces within this height (m) of the lowest point lie on the bed.
+BED_TOLERANCE = 1e-6
+
+
+def _down(n: np.ndarray) -> np.ndarray:
+    """Rotation (3,3) that turns the unit vector ``n`` to -z (a half turn about x for +z)."""
+    n = n / np.linalg.norm(n)
+    target = np.array([0.0, 0.0, -1.0])
+    c = float(n @ target)
+    if c > 1 - 1e-12:
+        return np.eye(3)
+    if c < -1 + 1e-12:
+        return np.diag([1.0, -1.0, -1.0])
+    v = np.cross(n, target)
+    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + k + k @ k / (1 + c)
+
+
+def orientation_figures(mesh: trimesh.Trimesh, R: np.ndarray) -> tuple[float, float]:
+    """(overhang m^2, area on the bed m^2) of ``mesh`` turned by ``R`` (3,3): the area of
+    the downward faces steeper than ``OVERHANG_ANGLE`` from the vertical that do not lie
+    on the bed (they need support), and the area of the faces that do."""
+    v = np.asarray(mesh.vertices, dtype=float) @ R.T
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    tri = v[faces]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    nz = np.divide(cross[:, 2], 2 * area, out=np.zeros_like(area), where=area > 0)
+    on_bed = np.all(tri[:, :, 2] <= v[:, 2].min() + BED_TOLERANCE, axis=1)
+    steep = nz < -np.cos(OVERHANG_ANGLE)
+    return float(area[steep & ~on_bed].sum()), float(area[on_bed].sum())
+
+
+def print_orientation(mesh: trimesh.Trimesh) -> np.ndarray:
+    """The rigid transform (4,4) that puts ``mesh`` on the bed in its best printing
+    orientation: of the orientations that lay one of its flat faces (its planar facets of
+    at least 1 % of the largest one's area) or one of the six axis directions down, the one
+    with the least overhang area (``orientation_figures``, rounded to 1 mm^2), then the
+    largest area on the bed; lowest point on z = 0, bounding box centred on the z axis."""
+    normals = [np.array(x, dtype=float) for x in np.vstack([np.eye(3), -np.eye(3)])]
+    if len(mesh.facets):
+        areas = np.asarray(mesh.facets_area, dtype=float)
+        keep = np.flatnonzero(areas >= 0.01 * areas.max())
+        for i in keep[np.argsort(-areas[keep], kind="stable")][:24]:
+            normals.append(np.asarray(mesh.facets_normal[i], dtype=float))
+    best = None
+    for k, n in enumerate(normals):
+        R = _down(n)
+        overhang, bed = orientation_figures(mesh, R)
+        key = (round(overhang * 1e6), -round(bed * 1e6), k)
+        if best is None or key < best[0]:
+            best = (key, R)
+    R = best[1]
+    v = np.asarray(mesh.vertices, dtype=float) @ R.T
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = (-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2])
+    return T
 
 
 # --- figures -----------------------------------------------------------------------------

@@ -90,6 +90,7 @@ class PrintedPart:
     extents_m: tuple[float, float, float]  # bounding box of the part as printed
     fits_bed: bool
     print_time_s: float
+    overhang_m2: float = 0.0  # area printed over nothing (needs support) as oriented
 
 
 @dataclass(frozen=True)

@@ -259,8 +259,18 @@ def test_printed_part_figures(assemblies, catalog) -> None:
             assert p.mass_kg == pytest.approx(p.volume_m3 * rho, rel=1e-12)
             assert p.fits_bed == meshes.fits_bed(p.extents_m, passive.printer_bed_m)
             assert p.print_time_s == pytest.approx(p.volume_m3 / passive.print_speed_m3_s)
-            if p.kind == "link":
-                assert p.extents_m[:2] == pytest.approx([passive.dovetail_face_m] * 2)
+            if p.kind == "link":  # two face sides and the length, however it lies
+                face = passive.dovetail_face_m
+                assert sum(abs(e - face) < 1e-6 for e in p.extents_m) >= 2, (t, p.name)
+            # printed as oriented: on the bed (z from 0), no orientation with less overhang
+            mesh = trimesh.load(io.BytesIO(p.stl), file_type="stl").apply_scale(1e-3)
+            assert mesh.bounds[0][2] == pytest.approx(0.0, abs=1e-9)
+            for k in range(3):
+                for sign in (1, -1):
+                    n = np.zeros(3)
+                    n[k] = sign
+                    other = meshes.orientation_figures(mesh, meshes._down(n))[0]
+                    assert p.overhang_m2 <= other + 1e-6, (t, p.name, k, sign)
 
 
 def test_joints_carry_the_chosen_actuators(assemblies, faced, catalog) -> None:

@@ -166,3 +166,23 @@ def test_print_time() -> None:
     assert meshes.print_time_s(0.0, 8e-9) == 0.0
     with pytest.raises(ValueError):
         meshes.print_time_s(1e-6, 0.0)
+
+
+def test_print_orientation_puts_the_largest_flat_face_down() -> None:
+    """A mushroom (a wide cap on a narrow stem) built cap up overhangs under its cap; the
+    chosen orientation turns it cap down, with no overhang, its cap on the bed."""
+    import manifold3d as mf
+
+    stem = mf.Manifold.cylinder(0.03, 0.005, circular_segments=32)
+    cap = mf.Manifold.cube((0.04, 0.04, 0.004)).translate((-0.02, -0.02, 0.03))
+    mesh = meshes._to_trimesh(stem + cap)
+    upright = meshes.orientation_figures(mesh, np.eye(3))
+    assert upright[0] > 0.04 * 0.04 * 0.9  # the cap's underside, printed over nothing
+    T = meshes.print_orientation(mesh)
+    R = T[:3, :3]
+    overhang, bed = meshes.orientation_figures(mesh, R)
+    assert overhang == pytest.approx(0.0, abs=1e-9)
+    assert bed == pytest.approx(0.04 * 0.04, rel=1e-6)
+    placed = mesh.copy().apply_transform(T)
+    assert placed.bounds[0][2] == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(placed.bounds[:, :2].sum(axis=0), 0.0, atol=1e-12)
