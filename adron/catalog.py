@@ -40,6 +40,7 @@ __all__ = [
     "Module",
     "Part",
     "Passive",
+    "Printer",
     "Tyre",
     "catalog_facts",
     "load_catalog",
@@ -87,6 +88,14 @@ class Part:
     mass_kg: float
     size_m: Size
     cost: float
+
+
+@dataclass(frozen=True)
+class Printer:
+    """A printer larger than ``[passive] printer_bed`` (its build volume x, y, z in m)."""
+
+    model: str
+    bed_m: Size
 
 
 @dataclass(frozen=True)
@@ -199,6 +208,7 @@ class Catalog:
     source: str
     parts: tuple[Part, ...] = ()
     tyre: Tyre | None = None
+    printers: tuple[Printer, ...] = ()
 
     def part_of(self, ontology_class: str) -> Part:
         """The first passive part of ``ontology_class``; InputError naming the file if none."""
@@ -313,7 +323,17 @@ _DESIGN_KEYS = (
 _PART_KEYS = ("model", "class", "source", "size", "cost")
 _PART_SOURCES = ("printed", "bought")
 _TYRE_KEYS = ("name", "thickness", "density", "cost_per_m")
-_TOP_KEYS = ("catalog", "actuator", "module", "part", "tyre", "passive", "material", "design")
+_TOP_KEYS = (
+    "catalog",
+    "actuator",
+    "module",
+    "part",
+    "tyre",
+    "printer",
+    "passive",
+    "material",
+    "design",
+)
 _CLASS_NAME = re.compile(r"[A-Z][A-Za-z0-9]*")
 _CURRENCY = re.compile(r"[A-Z]{3}")
 _TOML_AT = re.compile(r"(?s)(.*) \(at line (\d+), column (\d+)\)")
@@ -680,6 +700,10 @@ def parse_catalog(text: str, source: str) -> Catalog:
             )
         seen[model] = label
     tyre = _tyre(_section(doc, "tyre", source)) if "tyre" in doc else None
+    printers = []
+    for t in _entries(doc, "printer", source, required=False):
+        t.check_keys(("model", "bed"))
+        printers.append(Printer(t.text("model"), t.lengths("bed")))
     if tyre is not None and tyre.thickness_m >= passive.wheel_min_radius_m:
         raise InputError(
             f"{source}: tyre.thickness: {tyre.thickness_m * 1e3:g} mm leaves no rim in the "
@@ -697,6 +721,7 @@ def parse_catalog(text: str, source: str) -> Catalog:
         source=source,
         parts=parts,
         tyre=tyre,
+        printers=tuple(printers),
     )
     for cls, what in ((MAIN_CLASS, "the main module"), (BATTERY_CLASS, "a battery")):
         if not catalog.modules_of(cls):

@@ -59,6 +59,7 @@ from export.model3d import (
     PartUse,
     PrintedPart,
 )
+from export.slicer import SKIRT_MARGIN
 from kinematics.spatial import (
     box_inertia,
     combine_parts,
@@ -524,11 +525,14 @@ def build_assembly(
         )
 
     passive = catalog.passive
+    margin = SKIRT_MARGIN / 1000.0  # m around a part's footprint: its skirt
     printed = []
     mesh_points: dict[str, np.ndarray] = {}
     for d in sorted(b.designs.values(), key=lambda d: d.name):
         size = meshes.extents(d.mesh)
         volume = meshes.mesh_volume(d.mesh)
+        fits = meshes.fits_bed(size, passive.printer_bed_m, margin)
+        printer = "" if fits else _printer_for(size, catalog, margin)
         mesh_points[f"{d.name}.stl"] = np.asarray(d.mesh.vertices, dtype=float)
         printed.append(
             PrintedPart(
@@ -540,9 +544,10 @@ def build_assembly(
                 float(d.analytic_volume),
                 d.props[0],
                 size,
-                meshes.fits_bed(size, passive.printer_bed_m),
+                fits,
                 meshes.print_time_s(volume, passive.print_speed_m3_s),
                 meshes.orientation_figures(d.mesh, np.eye(3))[0],
+                printer,
             )
         )
 
@@ -579,6 +584,15 @@ def build_assembly(
         notes=tuple(b.notes),
         payload=tuple(b.payload),
     )
+
+
+def _printer_for(size: tuple[float, float, float], catalog: Catalog, margin: float) -> str:
+    """The first of the catalog's larger printers that fits a part of ``size`` m as it is
+    printed (with ``margin`` m of skirt), or "split" when none does."""
+    for p in catalog.printers:
+        if meshes.fits_bed(size, p.bed_m, margin):
+            return p.model
+    return "split"
 
 
 def servo_range(

@@ -22,6 +22,7 @@ COLUMNS = (
     "unit_volume_m3",
     "unit_print_time_s",
     "fits_bed",
+    "printer",
     "file",
 )
 
@@ -63,6 +64,7 @@ def bom_rows(asm: Assembly) -> list[dict]:
                 "unit_volume_m3": None,
                 "unit_print_time_s": None,
                 "fits_bed": None,
+                "printer": "",
                 "file": "",
             }
         )
@@ -77,6 +79,7 @@ def bom_rows(asm: Assembly) -> list[dict]:
             "unit_volume_m3": p.volume_m3,
             "unit_print_time_s": p.print_time_s,
             "fits_bed": p.fits_bed,
+            "printer": p.printer,
             "file": f"meshes/{p.name}.stl",
         }
         for p in sorted(asm.printed, key=lambda p: p.name)
@@ -89,7 +92,9 @@ def bom_rows(asm: Assembly) -> list[dict]:
 def bom_csv(asm: Assembly) -> str:
     """CSV text of the BOM of ``asm`` (see :func:`bom_rows`), a ``total`` line last.
 
-    A printed part that does not fit the printer bed says so in ``fits_bed`` ("NO").
+    A printed part that does not fit the catalog's ``printer_bed`` (its skirt included)
+    says so in ``fits_bed`` ("NO") and names in ``printer`` the catalog's larger printer
+    that fits it ("split" when none does); the default printer leaves ``printer`` empty.
     Masses kg, volumes m^3, times s, costs in the catalog currency (printed parts: none).
     """
     out = io.StringIO()
@@ -111,6 +116,7 @@ def bom_csv(asm: Assembly) -> str:
                 "" if r["unit_volume_m3"] is None else _num(r["unit_volume_m3"]),
                 "" if r["unit_print_time_s"] is None else _num(round(r["unit_print_time_s"])),
                 "" if r["fits_bed"] is None else ("yes" if r["fits_bed"] else "NO"),
+                r["printer"],
                 r["file"],
             ]
         )
@@ -132,6 +138,7 @@ def bom_csv(asm: Assembly) -> str:
             _num(volume),
             _num(round(time)),
             "yes" if all_fit else "NO",
+            "",
             "",
         ]
     )

@@ -10,13 +10,37 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from adron.errors import ExportError
 
 if TYPE_CHECKING:
     from adron.catalog import Catalog
+    from export.model3d import Assembly
     from synth.structure import Structure
 
 _SAFE_STEM = re.compile(r"[a-z0-9_]+")
+
+
+def picture_files(asm: Assembly, title: str) -> dict[str, bytes]:
+    """``pictures/robot.png`` (the robot at its zero pose) and ``pictures/<part>.png`` (each
+    printed part as it lies on the bed)."""
+    import io
+
+    import trimesh
+
+    from export.assembly import PRINTED_RGBA
+    from export.render import assembly_png, mesh_png
+
+    vertices = {}
+    out: dict[str, bytes] = {}
+    for p in asm.printed:
+        m = trimesh.load(io.BytesIO(p.stl), file_type="stl", process=False)
+        v, f = np.asarray(m.vertices) / 1000.0, np.asarray(m.faces)
+        vertices[f"{p.name}.stl"] = (v, f)
+        out[f"pictures/{p.name}.png"] = mesh_png(v, f, PRINTED_RGBA, f"{p.name} (as printed)")
+    out["pictures/robot.png"] = assembly_png(asm, vertices, title)
+    return out
 
 
 def payload_record(structure: Structure, with_payload: bool) -> dict:
@@ -52,6 +76,7 @@ def bundle_files(
     catalog: Catalog,
     documentation: str = "",
     with_payload: bool = False,
+    pictures: bool = True,
 ) -> dict[str, str | bytes]:
     """Every file of the bundle of a sized design: design.json, robot.urdf, robot.xml,
     meshes/*.stl, bom.csv and README.md (relative name -> content). The models carry the
@@ -60,6 +85,7 @@ def bundle_files(
     from export.guide import guide_markdown
     from export.mjcf import mjcf_string
     from export.record import to_json
+    from export.slicer import prusa_config
     from export.urdf import urdf_string
 
     asm, trajectories = assembly_of(structure, catalog, record)
@@ -72,8 +98,13 @@ def bundle_files(
         "robot.urdf": urdf_string(asm, with_payload=with_payload),
         "robot.xml": mjcf_string(asm, with_payload=with_payload),
         "bom.csv": bom_csv(asm),
-        "README.md": guide_markdown(record, asm, documentation),
+        "README.md": guide_markdown(record, asm, documentation, pictures),
+        "print/prusaslicer.ini": prusa_config(
+            [b * 1000 for b in catalog.passive.printer_bed_m], catalog.material.density_kg_m3 / 1000
+        ),
     }
+    if pictures:
+        files |= picture_files(asm, record["robot_type"])
     for p in asm.printed:
         files[f"meshes/{p.name}.stl"] = p.stl
     for name, t in trajectories.items():

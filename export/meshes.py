@@ -55,6 +55,7 @@ __all__ = [
     "print_orientation",
     "print_time_s",
     "stl_bytes",
+    "support_measure",
     "wheel_mesh",
 ]
 
@@ -275,6 +276,22 @@ def print_orientation(mesh: trimesh.Trimesh) -> np.ndarray:
     return T
 
 
+def support_measure(mesh: trimesh.Trimesh) -> float:
+    """m^3: the volume of the columns under the part's overhangs as it stands
+    (``mesh`` on the bed): each downward face steeper than ``OVERHANG_ANGLE`` from the
+    vertical and not on the bed, its area projected on the bed times its height above it.
+    The support a slicer builds is a fraction of it (``SUPPORT_FILL``)."""
+    v = np.asarray(mesh.vertices, dtype=float)
+    tri = v[np.asarray(mesh.faces, dtype=np.int64)]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    nz = np.divide(cross[:, 2], 2 * area, out=np.zeros_like(area), where=area > 0)
+    on_bed = np.all(tri[:, :, 2] <= v[:, 2].min() + BED_TOLERANCE, axis=1)
+    steep = (nz < -np.cos(OVERHANG_ANGLE)) & ~on_bed
+    height = tri[:, :, 2].mean(axis=1) - v[:, 2].min()
+    return float((area * -nz * height)[steep].sum())
+
+
 # --- figures -----------------------------------------------------------------------------
 
 
@@ -319,14 +336,17 @@ def extents(mesh: trimesh.Trimesh) -> tuple[float, float, float]:
     return x, y, z
 
 
-def fits_bed(size: Sequence[float], bed: Sequence[float]) -> bool:
-    """True if a box of the three extents ``size`` (m) fits the printer's build volume
-    ``bed`` (m) in some axis-aligned orientation (some permutation of the extents is within
-    the bed's extents: equivalently, the sorted extents are within the sorted bed)."""
-    s, b = sorted(float(x) for x in size), sorted(float(x) for x in bed)
+def fits_bed(size: Sequence[float], bed: Sequence[float], margin: float = 0.0) -> bool:
+    """True if a part of extents ``size`` (m, x y z as it is printed: ``print_orientation``)
+    fits the printer's build volume ``bed`` (m) with ``margin`` m free around its footprint
+    (the skirt): its footprint in either of the two right-angle turns about z, its height
+    as it is."""
+    s, b = [float(x) for x in size], [float(x) for x in bed]
     if len(s) != 3 or len(b) != 3:
         raise ValueError(f"need three extents and three bed sizes, got {size!r}, {bed!r}")
-    return all(x <= y for x, y in zip(s, b, strict=True))
+    x, y = s[0] + 2 * margin, s[1] + 2 * margin
+    flat = (x <= b[0] and y <= b[1]) or (y <= b[0] and x <= b[1])
+    return flat and s[2] <= b[2]
 
 
 def print_time_s(volume: float, print_speed: float) -> float:

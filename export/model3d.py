@@ -91,6 +91,8 @@ class PrintedPart:
     fits_bed: bool
     print_time_s: float
     overhang_m2: float = 0.0  # area printed over nothing (needs support) as oriented
+    printer: str = ""  # "": the catalog's printer_bed; else the larger printer that fits it
+    filament_m3: float = 0.0  # estimated filament, supports included (0: not estimated)
 
 
 @dataclass(frozen=True)

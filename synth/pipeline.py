@@ -77,19 +77,20 @@ class Outcome:
         rec = self.record(designer)
         if self.structure is None or self.catalog is None:
             return {"design.json": to_json(rec)}
-        from export.bundle import bundle_files, model_files
+        from export.bundle import bundle_files
 
-        v = self.verification
-        if self.bundle is not None and v is not None and not v.dropped:
-            # the simulated bundle itself, its record now carrying the verification
-            out = {**self.bundle, "design.json": to_json(rec)}
-            if not self.with_payload:
-                out |= model_files(rec, self.structure, self.catalog, with_payload=False)
-            return out
         doc = designer.kb.translation.documentation.get(self.structure.robot_type, "")
-        simulating = v is None and not self.verify_skipped
-        payload = self.with_payload or simulating
-        return bundle_files(rec, self.structure, self.catalog, doc, with_payload=payload)
+        # the verification's own call: the loaded robot, no pictures; afterwards the same
+        # design (its meshes and trajectories reused) as the user asked for it
+        simulating = self.verification is None and not self.verify_skipped
+        return bundle_files(
+            rec,
+            self.structure,
+            self.catalog,
+            doc,
+            with_payload=self.with_payload or simulating,
+            pictures=not simulating,
+        )
 
     def record(self, designer: Designer) -> dict:
         from export.record import design_record

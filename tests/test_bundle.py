@@ -43,7 +43,7 @@ def test_bom_lists_modules_parts_and_bought_parts_with_totals() -> None:
     assert tuple(rows[0]) == COLUMNS
     by_name = {r[1]: r for r in rows[1:-1]}
     assert by_name["SG90"][3] == "3" and by_name["SG90"][4] == "5"
-    assert by_name["link_l2"][9] == "meshes/link_l2.stl" and by_name["link_l2"][8] == "yes"
+    assert by_name["link_l2"][10] == "meshes/link_l2.stl" and by_name["link_l2"][8] == "yes"
     assert by_name["tyre band"][:4] == ["bought", "tyre band", "Tyre", "2"]
     total = rows[-1]
     assert total[0] == "total" and total[3] == str(3 + 1 + 2 + 2)
