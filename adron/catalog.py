@@ -487,7 +487,7 @@ def _travel(t: _Table) -> float:
 def _part(t: _Table, density: float) -> Part:
     source = t.data.get("source")
     if source not in _PART_SOURCES:
-        t.check_keys(_PART_KEYS)
+        t.check_keys(_PART_KEYS, ("mass",))
         raise t.fail(f"expected one of {', '.join(_PART_SOURCES)}, got {_kind(source)}", "source")
     t.check_keys((*_PART_KEYS, "mass") if source == "bought" else _PART_KEYS)
     size = t.lengths("size")
