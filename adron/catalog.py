@@ -156,7 +156,11 @@ class Passive:
     foot_max_side_m: float
     foot_thickness_m: float
     printer_bed_m: Size
-    print_speed_m3_s: float
+    #: m^3/s: an older catalog's average extrusion rate (optional, unused: the BOM's print
+    #: time is an estimate calibrated against PrusaSlicer, ``export.slicer``); 0 when absent
+    print_speed_m3_s: float = 0.0
+    #: m left on every side between a printed dovetail pin and its rail
+    print_clearance_m: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -307,8 +311,9 @@ _PASSIVE_LENGTHS = (
     "foot_min_side",
     "foot_max_side",
     "foot_thickness",
+    "print_clearance",
 )
-_PASSIVE_KEYS = (*_PASSIVE_LENGTHS, "stress_concentration", "printer_bed", "print_speed")
+_PASSIVE_KEYS = (*_PASSIVE_LENGTHS, "stress_concentration", "printer_bed")
 _MATERIAL_KEYS = ("name", "youngs_modulus", "yield_strength", "density")
 _DESIGN_KEYS = (
     "torque_safety_factor",
@@ -542,7 +547,7 @@ def _module(t: _Table) -> Module:
 
 
 def _passive(t: _Table) -> Passive:
-    t.check_keys(_PASSIVE_KEYS)
+    t.check_keys(_PASSIVE_KEYS, ("print_speed",))
     v = {key: t.q(key, "length") for key in _PASSIVE_LENGTHS}
     bed = t.lengths("printer_bed")
     p = Passive(
@@ -561,7 +566,8 @@ def _passive(t: _Table) -> Passive:
         foot_max_side_m=v["foot_max_side"],
         foot_thickness_m=v["foot_thickness"],
         printer_bed_m=bed,
-        print_speed_m3_s=t.q("print_speed", "volume_flow"),
+        print_speed_m3_s=t.q("print_speed", "volume_flow") if "print_speed" in t.data else 0.0,
+        print_clearance_m=v["print_clearance"],
     )
 
     def mm(x: float) -> str:

@@ -8,7 +8,11 @@ parts (``Template.parts``), with the real parts in place of the template's stand
   - links: the printed link module (tube + two dovetail face plates + fillets) with the
     sized tube and the catalog's ``dovetail_face_m``, ``face_thickness_m`` and
     ``fillet_radius_m``, whatever the template was built with (a note says so when the
-    template's links leave the faces out);
+    template's links leave the faces out), a dovetail pin on its far face (unless it is a
+    free end: a leg's tip) and a rail's slot in its near face sized with the catalog's
+    ``print_clearance_m`` (``meshes.link_mesh``; ``meshes.dovetail_volume`` adds them to
+    the analytic volume; the structure generator weighs the link without them: up to
+    5 % of a link's plates and tube, about 1 g);
   - feet: a square pad of the catalog's ``foot_min_side_m`` and ``foot_thickness_m`` (the
     figures the structure generator weighs) whose sole is the template's foot point, so
     the pad fills the last ``foot_thickness_m`` of the tibia's length; a humanoid's foot is
@@ -59,7 +63,7 @@ from export.model3d import (
     PartUse,
     PrintedPart,
 )
-from export.slicer import SKIRT_MARGIN
+from export.slicer import SKIRT_MARGIN, estimate
 from kinematics.spatial import (
     box_inertia,
     combine_parts,
@@ -204,12 +208,14 @@ def _link(b: _Builder, lp: LabelledPart, tmpl: Template) -> PartUse:
     faces = (p.dovetail_face_m, p.face_thickness_m, p.fillet_radius_m)
     dims = (length, ro, ri, *faces)
     design_name = seg.length_name or seg.name
+    pin = seg.distal_joint is not None  # a free end (a foot's, a tip) has no neighbour
     d = b.design(
-        ("link", design_name, *dims),
+        ("link", design_name, *dims, pin),
         f"link_{design_name}",
         "link",
-        lambda: meshes.link_mesh(*dims),
-        link_part_volume(*dims),
+        lambda: meshes.link_mesh(*dims, clearance=p.print_clearance_m, pin=pin),
+        link_part_volume(*dims)
+        + meshes.dovetail_volume(p.dovetail_face_m, ri, p.print_clearance_m, pin),
     )
     return b.printed(d, lp.placement)
 
@@ -533,6 +539,7 @@ def build_assembly(
         volume = meshes.mesh_volume(d.mesh)
         fits = meshes.fits_bed(size, passive.printer_bed_m, margin)
         printer = "" if fits else _printer_for(size, catalog, margin)
+        time, filament = estimate(meshes.print_features(d.mesh))
         mesh_points[f"{d.name}.stl"] = np.asarray(d.mesh.vertices, dtype=float)
         printed.append(
             PrintedPart(
@@ -545,9 +552,10 @@ def build_assembly(
                 d.props[0],
                 size,
                 fits,
-                meshes.print_time_s(volume, passive.print_speed_m3_s),
+                time,
                 meshes.orientation_figures(d.mesh, np.eye(3))[0],
                 printer,
+                filament,
             )
         )
 

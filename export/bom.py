@@ -1,9 +1,10 @@
 """The bill of materials (``bom.csv``): every physical part of the robot's model, from the
 assembly the URDF and MJCF are written from, so that the BOM's masses add up to the
 model's: the catalog's active modules (actuators, main module, battery, sensors), the
-printed parts (file, count, volume, mass, print time and filament, the printer that fits
-it) and the bought parts (ball caster, tyres), with totals. The payload is not a part of
-the robot and is not listed. Pure: returns the CSV text."""
+printed parts (file, count, volume, mass, print time and filament estimated for the
+bundle's PrusaSlicer settings, ``export.slicer``; the printer that fits it) and the bought
+parts (ball caster, tyres), with totals. The payload is not a part of the robot and is not
+listed. Pure: returns the CSV text."""
 
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ COLUMNS = (
     "unit_mass_kg",
     "unit_volume_m3",
     "unit_print_time_s",
+    "unit_filament_m3",
     "fits_bed",
     "printer",
     "file",
@@ -63,6 +65,7 @@ def bom_rows(asm: Assembly) -> list[dict]:
                 "unit_mass_kg": sum(g["masses"]) / n,
                 "unit_volume_m3": None,
                 "unit_print_time_s": None,
+                "unit_filament_m3": None,
                 "fits_bed": None,
                 "printer": "",
                 "file": "",
@@ -78,6 +81,7 @@ def bom_rows(asm: Assembly) -> list[dict]:
             "unit_mass_kg": p.mass_kg,
             "unit_volume_m3": p.volume_m3,
             "unit_print_time_s": p.print_time_s,
+            "unit_filament_m3": p.filament_m3,
             "fits_bed": p.fits_bed,
             "printer": p.printer,
             "file": f"meshes/{p.name}.stl",
@@ -100,7 +104,7 @@ def bom_csv(asm: Assembly) -> str:
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
     w.writerow(COLUMNS)
-    cost = mass = volume = time = 0.0
+    cost = mass = volume = time = filament = 0.0
     n = 0
     all_fit = True
     for r in bom_rows(asm):
@@ -115,6 +119,7 @@ def bom_csv(asm: Assembly) -> str:
                 _num(r["unit_mass_kg"]),
                 "" if r["unit_volume_m3"] is None else _num(r["unit_volume_m3"]),
                 "" if r["unit_print_time_s"] is None else _num(round(r["unit_print_time_s"])),
+                "" if r["unit_filament_m3"] is None else _num(r["unit_filament_m3"]),
                 "" if r["fits_bed"] is None else ("yes" if r["fits_bed"] else "NO"),
                 r["printer"],
                 r["file"],
@@ -125,6 +130,7 @@ def bom_csv(asm: Assembly) -> str:
         cost += (r["unit_cost"] or 0.0) * k
         volume += (r["unit_volume_m3"] or 0.0) * k
         time += (r["unit_print_time_s"] or 0.0) * k
+        filament += (r["unit_filament_m3"] or 0.0) * k
         if r["fits_bed"] is False:
             all_fit = False
     w.writerow(
@@ -137,6 +143,7 @@ def bom_csv(asm: Assembly) -> str:
             _num(mass),
             _num(volume),
             _num(round(time)),
+            _num(filament),
             "yes" if all_fit else "NO",
             "",
             "",

@@ -124,7 +124,12 @@ def guide_markdown(
         "|---|---|---|---|---|---|",
     ]
     for p in sorted(printed, key=lambda p: p.name):
-        printer = "catalog printer" if p.fits_bed else f"**{_md(p.printer)}** (too big for the bed)"
+        if p.fits_bed:
+            printer = "the catalog's"
+        elif p.printer in ("", "split"):
+            printer = "**none of the catalog's: split it**"
+        else:
+            printer = f"**{_md(p.printer)}** (too big for the catalog's bed)"
         pic = f"![{p.name}](pictures/{p.name}.png)" if pictures else ""
         lines.append(
             f"| `meshes/{p.name}.stl` | {p.count} | {p.mass_kg * 1000:.1f} | "

@@ -89,7 +89,7 @@ class PrintedPart:
     mass_kg: float
     extents_m: tuple[float, float, float]  # bounding box of the part as printed
     fits_bed: bool
-    print_time_s: float
+    print_time_s: float  # estimated for the bundle's slicer settings (export.slicer)
     overhang_m2: float = 0.0  # area printed over nothing (needs support) as oriented
     printer: str = ""  # "": the catalog's printer_bed; else the larger printer that fits it
     filament_m3: float = 0.0  # estimated filament, supports included (0: not estimated)

@@ -21,6 +21,7 @@ import trimesh
 
 from export import meshes
 from export.assembly import build_assembly, with_payload
+from export.slicer import estimate
 from kinematics.spatial import box_inertia, combine_parts, sphere_inertia
 from kinematics.templates import DEFAULTS, PART_KINDS, TEMPLATES, TemplateParams, build
 from synth.solver import Query
@@ -236,7 +237,11 @@ def test_printed_parts_add_up_to_the_template(assemblies, faced) -> None:
         per_length: dict[str, int] = {}
         for s in tmpl.segments:
             per_length[s.length_name] = per_length.get(s.length_name, 0) + 1
-        links = {p.name: p.count for p in asm.printed if p.kind == "link"}
+        links: dict[str, int] = {}
+        for p in asm.printed:  # a design per length (and whether its far end has a pin)
+            if p.kind == "link":
+                stem = re.sub(r"_\d+$", "", p.name)
+                links[stem] = links.get(stem, 0) + p.count
         assert links == {f"link_{n.lower()}": k for n, k in per_length.items()}, t
         uses: dict[str, int] = {}
         for b in asm.bodies:
@@ -244,6 +249,11 @@ def test_printed_parts_add_up_to_the_template(assemblies, faced) -> None:
                 if u.source == "printed":
                     uses[u.name] = uses.get(u.name, 0) + 1
         assert uses == {p.name: p.count for p in asm.printed}, t
+
+
+def load_part(p) -> trimesh.Trimesh:
+    """A printed part's mesh from its STL (mm) in metres."""
+    return trimesh.load(io.BytesIO(p.stl), file_type="stl").apply_scale(1e-3)
 
 
 def test_printed_part_figures(assemblies, catalog) -> None:
@@ -258,19 +268,27 @@ def test_printed_part_figures(assemblies, catalog) -> None:
             assert p.volume_m3 == pytest.approx(p.analytic_volume_m3, rel=0.01), (t, p.name)
             assert p.mass_kg == pytest.approx(p.volume_m3 * rho, rel=1e-12)
             assert p.fits_bed == meshes.fits_bed(p.extents_m, passive.printer_bed_m, 0.003)
-            assert p.print_time_s == pytest.approx(p.volume_m3 / passive.print_speed_m3_s)
+            t, f = estimate(meshes.print_features(load_part(p)))
+            assert p.print_time_s == pytest.approx(t) and p.filament_m3 == pytest.approx(f)
+            assert p.filament_m3 >= p.volume_m3
             if p.kind == "link":  # two face sides and the length, however it lies
                 face = passive.dovetail_face_m
                 assert sum(abs(e - face) < 1e-6 for e in p.extents_m) >= 2, (t, p.name)
-            # printed as oriented: on the bed (z from 0), no orientation with less overhang
+            # printed as oriented: on the bed (z from 0), no axis turn needs less support
             mesh = trimesh.load(io.BytesIO(p.stl), file_type="stl").apply_scale(1e-3)
             assert mesh.bounds[0][2] == pytest.approx(0.0, abs=1e-9)
+            assert p.overhang_m2 == pytest.approx(
+                meshes.orientation_figures(mesh, np.eye(3))[0], abs=1e-9
+            )
+            need = meshes.support_measure(mesh)
             for k in range(3):
                 for sign in (1, -1):
                     n = np.zeros(3)
                     n[k] = sign
-                    other = meshes.orientation_figures(mesh, meshes._down(n))[0]
-                    assert p.overhang_m2 <= other + 1e-6, (t, p.name, k, sign)
+                    turned = mesh.copy().apply_transform(
+                        np.vstack([np.column_stack([meshes._down(n), np.zeros(3)]), [0, 0, 0, 1]])
+                    )
+                    assert need <= meshes.support_measure(turned) + 1e-9, (t, p.name, k, sign)
 
 
 def test_joints_carry_the_chosen_actuators(assemblies, faced, catalog) -> None:

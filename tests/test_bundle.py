@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 
 import numpy as np
@@ -12,7 +13,7 @@ from adron.errors import ExportError
 from export.bom import COLUMNS, bom_csv
 from export.bundle import write_bundle
 from export.guide import guide_markdown
-from export.model3d import Assembly, BodySpec, PartUse, PrintedPart
+from export.model3d import Assembly, BodySpec, JointSpec, PartUse, PrintedPart
 
 
 def part(name: str, count: int, fits: bool = True) -> PrintedPart:
@@ -43,7 +44,7 @@ def test_bom_lists_modules_parts_and_bought_parts_with_totals() -> None:
     assert tuple(rows[0]) == COLUMNS
     by_name = {r[1]: r for r in rows[1:-1]}
     assert by_name["SG90"][3] == "3" and by_name["SG90"][4] == "5"
-    assert by_name["link_l2"][10] == "meshes/link_l2.stl" and by_name["link_l2"][8] == "yes"
+    assert by_name["link_l2"][11] == "meshes/link_l2.stl" and by_name["link_l2"][9] == "yes"
     assert by_name["tyre band"][:4] == ["bought", "tyre band", "Tyre", "2"]
     total = rows[-1]
     assert total[0] == "total" and total[3] == str(3 + 1 + 2 + 2)
@@ -63,7 +64,7 @@ def test_bom_leaves_the_payload_out() -> None:
 
 def test_bom_flags_a_part_too_big_for_the_bed() -> None:
     rows = list(csv.reader(io.StringIO(bom_csv(assembly([part("plate", 1, fits=False)])))))
-    assert rows[-2][8] == "NO" and rows[-1][8] == "NO"
+    assert rows[-2][9] == "NO" and rows[-1][9] == "NO"
 
 
 def record() -> dict:
@@ -95,14 +96,21 @@ def record() -> dict:
 
 
 def test_guide_tells_files_printing_and_assembly_order() -> None:
-    text = guide_markdown(record(), assembly([part("link_l2", 2, fits=False)]), "An arm.")
+    base = assembly([part("link_l2", 2, fits=False)])
+    servo = use("SG90", "module", 0.034, "PositionServomotor", 5.0)
+    arm = BodySpec("arm", (servo, use("jaw", "printed", 0.01)), 0.044, np.zeros(3), np.eye(3))
+    joint = JointSpec("base_yaw", "base", "arm", "revolute", np.eye(4), np.array([0, 0, 1.0]))
+    joint = dataclasses.replace(joint, actuator="SG90")
+    asm = dataclasses.replace(base, bodies=(*base.bodies, arm), joints=(joint,))
+    text = guide_markdown(record(), asm, "An arm.", pictures=True)
     assert text.startswith("# Arm\\|<x>: a parmor design")
     for f in ("design.json", "robot.urdf", "robot.xml", "meshes/*.stl", "bom.csv"):
         assert f"`{f}`" in text
     assert "`meshes/link_l2.stl` | 2 |" in text and "split it" in text
-    main = text.index("MainModule IntelEdison x1 on the root body (bus master)")
-    joint = text.index("Joint `base_yaw`: SG90 at 0x09")
-    assert main < joint
+    assert "![link_l2](pictures/link_l2.png)" in text and "pictures/robot.png" in text
+    root = text.index("1. The root body `base`: SG90 x3, IntelEdison, `meshes/link_l2.stl` x2.")
+    step = text.index("2. Joint `base_yaw`: the SG90 servo module (I2C 0x09) onto `base`")
+    assert root < step and "on its output: `meshes/jaw.stl`." in text
 
 
 def test_write_bundle_is_atomic_and_refuses_non_empty_folders(tmp_path) -> None:

@@ -15,6 +15,7 @@ import trimesh
 import yourdfpy
 
 from export.bundle import bundle_files, write_bundle
+from export.meshes import dovetail_volume
 from export.mjcf import load_mjcf
 from export.record import design_record
 from synth.conceptual import Design, Request
@@ -119,9 +120,9 @@ def bom_disagreements(files: dict) -> list[str]:
                     f.split("meshes/")[-1] for f in files_listed
                 }:
                     out.append(f"{link.get('name')}: mesh {mesh.get('filename')} not in bom.csv")
-            elif g.find("box") is not None and v.get("name") not in names:
+            elif g.find("box") is not None and v.get("name").split("/")[-1] not in names:
                 out.append(f"{link.get('name')}: module {v.get('name')} not in bom.csv")
-            elif v.get("name") == "ball_caster" and "CasterModule" not in kinds:
+            elif v.get("name").endswith("/ball_caster") and "CasterModule" not in kinds:
                 out.append(f"{link.get('name')}: the ball caster is not in bom.csv")
     model = sum(float(m.get("value")) for m in root.iter("mass"))
     bom = sum(float(r["unit_mass_kg"]) * int(r["count"]) for r in parts)
@@ -182,6 +183,7 @@ def test_with_payload_puts_the_payload_in_both_models(kb, designer, catalog) -> 
 
 def test_meshes_are_watertight_and_match_the_optimiser(bundles, catalog) -> None:
     bed_xyz = catalog.passive.printer_bed_m
+    face = catalog.passive.dovetail_face_m
     for t, (rec, files) in bundles.items():
         links = {f"link_{x['name'].lower()}": x for x in rec["links"]}
         rows = {r["name"]: r for r in csv.DictReader(io.StringIO(files["bom.csv"]))}
@@ -192,7 +194,15 @@ def test_meshes_are_watertight_and_match_the_optimiser(bundles, catalog) -> None
             assert mesh.is_watertight and mesh.is_volume, (t, name)
             stem = name[len("meshes/") : -len(".stl")]
             if stem in links:
-                assert mesh.volume == pytest.approx(links[stem]["part_volume_m3"], rel=0.01)
+                # the structure's part volume, plus the dovetail (with or without the pin:
+                # a leg's tip has none)
+                x = links[stem]
+                ways = [
+                    x["part_volume_m3"]
+                    + dovetail_volume(face, x["r_inner_m"], catalog.passive.print_clearance_m, pin)
+                    for pin in (True, False)
+                ]
+                assert min(abs(mesh.volume / w - 1) for w in ways) < 0.01, (t, stem)
             # as printed (the STL's own axes), with a 3 mm skirt around the footprint
             x, y, z = mesh.extents + (0.006, 0.006, 0.0)
             fits = (x <= bed_xyz[0] and y <= bed_xyz[1]) or (y <= bed_xyz[0] and x <= bed_xyz[1])
@@ -224,7 +234,12 @@ def test_cli_bundle_with_readme_and_bom(cli, tmp_path) -> None:
     assert readme.startswith("# Manipulator6DOF") and "## Assemble" in readme
     rec = json.loads((out / "design.json").read_text(encoding="utf-8"))
     for j in rec["joints"]:
-        assert f"Joint `{j['name']}`: {j['actuator']} at {j['i2c_address']}" in readme
+        assert (
+            f"Joint `{j['name']}`: the {j['actuator']} servo module (I2C {j['i2c_address']})"
+            in readme
+        )
+    assert "![the assembled robot](pictures/robot.png)" in readme
+    assert (out / "pictures" / "robot.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     rows = list(csv.DictReader(io.StringIO((out / "bom.csv").read_text(encoding="utf-8"))))
     assert rows[-1]["type"] == "total"
     assert float(rows[-1]["unit_cost"]) == pytest.approx(rec["cost"])

@@ -156,13 +156,6 @@ def test_fits_bed_keeps_the_print_orientation_and_the_skirt() -> None:
     assert not meshes.fits_bed((0.05, 0.05, 0.26), bed)
 
 
-def test_print_time() -> None:
-    assert meshes.print_time_s(8e-6, 8e-9) == pytest.approx(1000.0)
-    assert meshes.print_time_s(0.0, 8e-9) == 0.0
-    with pytest.raises(ValueError):
-        meshes.print_time_s(1e-6, 0.0)
-
-
 def test_print_orientation_puts_the_largest_flat_face_down() -> None:
     """A mushroom (a wide cap on a narrow stem) built cap up overhangs under its cap; the
     chosen orientation turns it cap down, with no overhang, its cap on the bed."""
@@ -181,3 +174,37 @@ def test_print_orientation_puts_the_largest_flat_face_down() -> None:
     placed = mesh.copy().apply_transform(T)
     assert placed.bounds[0][2] == pytest.approx(0.0, abs=1e-12)
     np.testing.assert_allclose(placed.bounds[:, :2].sum(axis=0), 0.0, atol=1e-12)
+
+
+def _manifold(mesh: trimesh.Trimesh):
+    import manifold3d as mf
+
+    v = np.asarray(mesh.vertices, dtype=np.float64) * 1000.0  # mm
+    return mf.Manifold(
+        mf.Mesh(vert_properties=v.astype(np.float32), tri_verts=mesh.faces.astype(np.uint32))
+    )
+
+
+@pytest.mark.parametrize("clearance", [0.0002, 0.0003])
+def test_dovetail_pin_slides_in_the_next_links_rail_with_the_clearance(clearance) -> None:
+    """Two printed neighbouring links, the second slid onto the first's pin: they
+    intersect in nothing, and the pin grown by a little less than the clearance still
+    intersects nothing, grown by a little more it does (the gap is the clearance)."""
+    face = (0.05, 0.004, 0.003)
+    a = meshes.link_mesh(0.1, 0.0104, 0.0092, *face, clearance=clearance)
+    b = meshes.link_mesh(0.08, 0.012, 0.0105, *face, clearance=clearance)
+    first, second = _manifold(a), _manifold(b).translate((0.0, 0.0, 100.0))
+    assert (first ^ second).volume() == pytest.approx(0.0, abs=1e-6)
+    c = clearance * 1000.0
+    for grow, empty in ((c - 0.02, True), (c + 0.02, False)):
+        pin = meshes.dovetail_solid_mm(50.0).translate((0, 0, 100.0))
+        grown = meshes.dovetail_solid_mm(50.0, grow).translate((0, 0, 100.0))
+        # the grown pin, less the pin's own root and what lies below the face, against b
+        shell = grown - pin
+        hit = (shell ^ second).volume()
+        assert (hit < 1e-6) == empty, (grow, hit)
+
+
+def test_dovetail_slot_too_deep_for_the_plate_is_refused() -> None:
+    with pytest.raises(ValueError, match="does not fit"):
+        meshes.link_mesh(0.1, 0.0104, 0.0092, 0.05, 0.002, 0.003, clearance=0.0002)
