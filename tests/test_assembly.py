@@ -354,3 +354,15 @@ def test_assembly_is_deterministic_and_notes_bare_links(structures, faced, catal
     if bare.template.params.face_side == 0:
         notes = build_assembly(bare, catalog).notes
         assert any("face plates" in n for n in notes)
+
+
+def test_servo_range_is_the_travel_over_the_span_used() -> None:
+    from export.assembly import servo_range
+
+    assert servo_range(-1.0, 1.0, pi) == (-1.0, 1.0)  # fits whole
+    assert servo_range(-pi, pi, pi) == pytest.approx((-pi / 2, pi / 2))  # about the middle
+    lo, hi = servo_range(-5 * pi / 6, 5 * pi / 6, pi, (1.5, 2.3))  # over what is used
+    assert hi - lo == pytest.approx(pi) and lo <= 1.5 and hi >= 2.3
+    assert hi <= 5 * pi / 6 + 1e-12
+    lo, hi = servo_range(-pi, pi, pi / 2, (-1.0, 1.0))  # more than the travel: centred on it
+    assert (lo, hi) == pytest.approx((-pi / 4, pi / 4))

@@ -267,3 +267,60 @@ def test_urdf_meshes_load_in_pinocchio_and_mujoco_without_warnings(bundles, tmp_
             assert geom.ngeoms > 0, t
         names = [g.name for g in geom.geometryObjects]
         assert len(names) == len(set(names)), t
+
+
+def test_joint_ranges_fit_the_servos_travel_and_the_trajectories(bundles, catalog) -> None:
+    """Every revolute joint turns no further than its servo's catalog travel, and every
+    bundled trajectory stays inside the joint ranges."""
+    import xml.etree.ElementTree as ET
+
+    travel = {a.model: a.travel_rad for a in catalog.actuators}
+    for t, (rec, files) in bundles.items():
+        actuator = {j["name"]: j["actuator"] for j in rec["joints"]}
+        limits = {}
+        for j in ET.fromstring(files["robot.urdf"]).iter("joint"):
+            lim = j.find("limit")
+            if j.get("type") == "revolute":
+                lo, hi = float(lim.get("lower")), float(lim.get("upper"))
+                assert hi - lo <= travel[actuator[j.get("name")]] + 1e-9, (t, j.get("name"))
+                limits[j.get("name")] = (lo, hi)
+            if j.get("type") != "fixed":
+                dyn = j.find("dynamics")
+                assert dyn is not None and float(dyn.get("friction")) == 0.0, (t, j.get("name"))
+        for name, text in files.items():
+            if not name.startswith("trajectories/"):
+                continue
+            rows = list(csv.reader(io.StringIO(text)))
+            for k, joint in enumerate(rows[0]):
+                if joint not in limits:
+                    continue
+                values = [float(r[k]) for r in rows[1:]]
+                lo, hi = limits[joint]
+                assert lo - 1e-6 <= min(values) and max(values) <= hi + 1e-6, (t, name, joint)
+
+
+def test_one_trajectory_per_listed_behaviour(bundles) -> None:
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    for t, (rec, files) in bundles.items():
+        listed = controller_for(DesignGeometry.from_record(rec)).listed(rec["abilities"])
+        got = sorted(n[len("trajectories/") : -4] for n in files if n.startswith("trajectories/"))
+        assert got == sorted(listed), t
+
+
+def test_urdf_damping_equals_the_mjcf_joints(bundles) -> None:
+    import xml.etree.ElementTree as ET
+
+    for t, (_, files) in bundles.items():
+        urdf = {
+            j.get("name"): float(j.find("dynamics").get("damping"))
+            for j in ET.fromstring(files["robot.urdf"]).iter("joint")
+            if j.get("type") != "fixed"
+        }
+        mjcf = {
+            j.get("name"): float(j.get("damping", "0"))
+            for j in ET.fromstring(files["robot.xml"]).iter("joint")
+            if j.get("name")
+        }
+        assert urdf == pytest.approx(mjcf, rel=1e-9), t
