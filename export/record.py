@@ -251,7 +251,17 @@ def verification_text(verified: dict | None, indent: str = "  ") -> str:
     for b in verified["behaviors"]:
         verdict = b["verdict"] if b["verdict"] == "ok" else "FAILED " + ", ".join(b["verdict"])
         figs = [f"saturated {b['saturated_fraction']:.0%}"]
-        if b.get("planned_distance_m"):
+        if b.get("line_progress_m") is not None:
+            figs.append(
+                f"followed {b['line_progress_m']:.2f} of {b['planned_distance_m']:.2f} m of "
+                f"line, off it for {b['line_lost_s']:.2f} s at most"
+            )
+        elif b.get("obstacle_contact_s") is not None:
+            figs.append(
+                f"{b['distance_m']:.2f} of {b['planned_distance_m']:.2f} m past an obstacle, "
+                f"touched it {b['obstacle_contact_s']:.2f} s"
+            )
+        elif b.get("planned_distance_m"):
             figs.append(f"{b['distance_m']:.3f} of {b['planned_distance_m']:.3f} m")
         elif b.get("distance_m") and b.get("planned_heading_rad") is None:
             figs.append(f"{b['distance_m']:.3f} m")

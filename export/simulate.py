@@ -132,17 +132,26 @@ def simulate(
     can_fall: bool = True,
     end_effector: str | None = None,
     progress: Callable[[float], None] | None = None,
+    data=None,
+    observe: Callable[[float, object], None] | None = None,
 ) -> SimResult:
     """Run ``traj`` on ``model`` (a mujoco.MjModel) for ``seconds`` (default: the
     trajectory's duration; the trajectory holds its last value after its end), measure what
     the robot did and judge it against what ``traj.info`` promises
-    (:func:`export.verdict.judge`; ``SimResult.verdict`` lists the failed criteria)."""
+    (:func:`export.verdict.judge`; ``SimResult.verdict`` lists the failed criteria).
+
+    ``data``: a ``mujoco.MjData`` to continue from (a program chaining behaviours): the
+    robot is not reset to the trajectory's first pose, and the promise (planned pose,
+    direction), given for a start at yaw 0, is turned by the yaw the robot starts with.
+    ``observe(t, data)`` is called after every physics step (``t`` s since this run began)."""
     import mujoco
 
     from export.verdict import COLLAPSE_HEIGHT, COLLAPSE_TILT, SATURATION_LEVEL, judge
 
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
+    chained = data is not None
+    if data is None:
+        data = mujoco.MjData(model)
+        mujoco.mj_forward(model, data)
     seconds = traj.duration if seconds is None else seconds
     if not (math.isfinite(seconds) and seconds > 0):
         raise ValueError(f"seconds must be a positive finite number, got {seconds}")
@@ -155,11 +164,12 @@ def simulate(
         a = act[name]  # a velocity servo has no position term in its bias
         velocity = model.actuator_biasprm[a, 1] == 0 and model.actuator_biasprm[a, 2] != 0
         columns.append((k, a, bool(velocity)))
-    q0 = traj.positions[0]
-    for k, a, _ in columns:  # start in the trajectory's first pose
-        jid = model.actuator_trnid[a, 0]
-        data.qpos[model.jnt_qposadr[jid]] = q0[k]
-    mujoco.mj_forward(model, data)
+    if not chained:
+        q0 = traj.positions[0]
+        for k, a, _ in columns:  # start in the trajectory's first pose
+            jid = model.actuator_trnid[a, 0]
+            data.qpos[model.jnt_qposadr[jid]] = q0[k]
+        mujoco.mj_forward(model, data)
     start = data.qpos[:3].copy() if free else np.zeros(3)
     com0 = data.subtree_com[1].copy() if free else np.zeros(3)
     yaw0 = _yaw(data.qpos[3:7]) if free else 0.0
@@ -195,6 +205,8 @@ def simulate(
         q = ref[i]
         data.ctrl[idx] = ctrl[i]
         mujoco.mj_step(model, data)
+        if observe is not None:
+            observe(t + model.opt.timestep, data)
         if i == placed_step and end_effector is not None:
             placed_where = data.xpos[model.body(end_effector).id].copy()
             placed_rot = data.xmat[model.body(end_effector).id].reshape(3, 3).copy()
@@ -262,10 +274,14 @@ def simulate(
     )
     info = traj.info
     motion = info.get("motion")
+    turn = np.eye(2)
+    if chained and free:  # the promise is given for a start at yaw 0
+        turn = np.array([[math.cos(yaw0), -math.sin(yaw0)], [math.sin(yaw0), math.cos(yaw0)]])
     if free:
         plan = info.get("planned_pose")
         if plan is not None:
             dx, dy, dyaw = (float(c) for c in plan)  # type: ignore[union-attr]
+            dx, dy = (float(c) for c in turn @ np.array([dx, dy]))
             result.planned_distance_m = math.hypot(dx, dy)
             result.planned_heading_rad = dyaw
             result.final_pose_error_m = float(
@@ -277,7 +293,7 @@ def simulate(
                 result.distance_m = float((end[:2] - start[:2]) @ u)
         if motion == "crawl" and info.get("direction") is not None:
             # the whole body's progress: a snake's head swings with its wave
-            u = np.asarray(info["direction"], dtype=float)[:2]
+            u = turn @ np.asarray(info["direction"], dtype=float)[:2]
             u = u / max(float(np.linalg.norm(u)), 1e-12)
             result.distance_m = float((data.subtree_com[1][:2] - com0[:2]) @ u)
         if motion == "hold":

@@ -25,6 +25,11 @@ Criteria (names as they appear in ``verdict``):
 - ``drift``: a robot asked to hold moved more than ``HOLD_DRIFT`` of its body length.
 - ``placing``, ``orientation``: a manipulator brought the gripper within ``PLACING`` of the
   target and the tool within ``ORIENTATION`` of the commanded orientation.
+- ``lost``: a line follower let the line leave the span of its two sensors for longer
+  than ``LINE_LOST_S`` at a time; ``progress``: it covered less than ``LINE_PROGRESS`` of
+  the commanded length along the line.
+- ``collision``: an obstacle avoider touched the obstacle; ``progress``: it did not reach
+  the goal line.
 """
 
 from __future__ import annotations
@@ -47,8 +52,21 @@ ROTATE_RATE = math.radians(45)  # per 10 s
 HOLD_DRIFT = 0.10  # of the body length
 PLACING = 0.005  # m
 ORIENTATION = math.radians(5)
+LINE_LOST_S = 0.5  # s the line may be outside the sensors' span at a time
+LINE_PROGRESS = 0.9  # of the commanded length along the line
 
-MOTIONS = ("straight", "arc", "turn", "crawl", "rotate", "hold", "place", "orient")
+MOTIONS = (
+    "straight",
+    "arc",
+    "turn",
+    "crawl",
+    "rotate",
+    "hold",
+    "place",
+    "orient",
+    "follow-line",
+    "avoid",
+)
 
 
 def _wrap(a: float) -> float:
@@ -114,6 +132,18 @@ def judge(fig: Mapping[str, object], info: Mapping[str, object], free: bool) -> 
             o = fig.get("orientation_error_rad")
             if o is None or float(o) > ORIENTATION:
                 failed.append("orientation")
+    elif motion == "follow-line":
+        if float(fig.get("line_lost_s") or 0.0) > LINE_LOST_S:
+            failed.append("lost")
+        planned = float(fig.get("planned_distance_m") or 0.0)
+        if float(fig.get("line_progress_m") or 0.0) < LINE_PROGRESS * planned:
+            failed.append("progress")
+    elif motion == "avoid":
+        if float(fig.get("obstacle_contact_s") or 0.0) > 0:
+            failed.append("collision")
+        planned = float(fig.get("planned_distance_m") or 0.0)
+        if float(fig.get("distance_m") or 0.0) < planned:
+            failed.append("progress")
     else:
         failed.append("unplanned")
     return failed
@@ -151,7 +181,9 @@ def explain(fig: Mapping[str, object], failed: list[str]) -> str:
         ),
         "pose": lambda: f"ended {f('final_pose_error_m')} m from the planned pose",
         "progress": lambda: (
-            f"moved {f('distance_m')} m / turned {f('heading_rad', deg)} deg in "
+            f"followed the line {f('line_progress_m')} m of {f('planned_distance_m')} m"
+            if fig.get("line_progress_m") is not None
+            else f"moved {f('distance_m')} m / turned {f('heading_rad', deg)} deg in "
             f"{f('seconds')} s (too slow)"
         ),
         "drift": lambda: f"drifted {f('drift_m')} m",
@@ -160,5 +192,7 @@ def explain(fig: Mapping[str, object], failed: list[str]) -> str:
             f"orientation error {f('orientation_error_rad', deg)} deg > {ORIENTATION * deg:g}"
         ),
         "unplanned": lambda: "the behaviour does not say what it promises",
+        "lost": lambda: f"lost the line for {f('line_lost_s')} s > {LINE_LOST_S:g}",
+        "collision": lambda: f"touched the obstacle for {f('obstacle_contact_s')} s",
     }
     return "; ".join(f"{c} ({what[c]()})" if c in what else c for c in failed)

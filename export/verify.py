@@ -20,9 +20,44 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from adron.errors import InputError
+
 if TYPE_CHECKING:
     from export.simulate import SimResult
     from gaits.base import Controller, Trajectory
+
+
+def bundle_record(folder: str | Path, structure: bool = True) -> dict:
+    """The design record (``design.json``) of a bundle folder; InputError naming the file
+    when it is missing, unreadable or not a record (or, with ``structure``, a conceptual
+    design with no structure to run)."""
+    folder = Path(folder)
+    path = folder / "design.json"
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(
+            f"{folder}: no design.json (write one with 'parmor design ... --out DIR')"
+        ) from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise InputError(f"{path}: {e}") from None
+    if not isinstance(record, dict):
+        raise InputError(f"{path}: not a design record (expected an object)")
+    if structure and record.get("template") is None:
+        raise InputError(f"{path}: the design has no structure (designed with --conceptual?)")
+    return record
+
+
+def load_bundle(folder: str | Path) -> tuple[dict, object]:
+    """(record, MuJoCo model) of a bundle folder; InputError when either cannot be read."""
+    from export.simulate import load_bundle_model
+
+    record = bundle_record(folder)
+    try:
+        model = load_bundle_model(folder)
+    except (OSError, ValueError, KeyError) as e:
+        raise InputError(f"{folder}: cannot load the MuJoCo model: {e}") from None
+    return record, model
 
 
 def _fixed_base(model) -> bool:
@@ -149,8 +184,5 @@ def verify_files(
 
 def verify_bundle(folder: str | Path, behaviors: Sequence[str] | None = None) -> list[dict]:
     """:func:`verify_model` on a bundle folder written by ``parmor design --out``."""
-    from export.simulate import load_bundle_model
-
-    folder = Path(folder)
-    record = json.loads((folder / "design.json").read_text(encoding="utf-8"))
-    return verify_model(record, load_bundle_model(folder), behaviors)
+    record, model = load_bundle(folder)
+    return verify_model(record, model, behaviors)

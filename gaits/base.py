@@ -132,7 +132,9 @@ class Parameter:
         except (TypeError, ValueError):
             raise ValueError(f"{self.name}: expected a number, got {value!r}") from None
         if (self.low is not None and x < self.low) or (self.high is not None and x > self.high):
-            raise ValueError(f"{self.name}: {x} is outside [{self.low}, {self.high}]")
+            lo = "-inf" if self.low is None else f"{self.low:g}"
+            hi = "inf" if self.high is None else f"{self.high:g}"
+            raise ValueError(f"{self.name}: {x:g} is outside [{lo}, {hi}]")
         return x
 
 
@@ -183,6 +185,10 @@ class DesignGeometry:
     joint_speed: Mapping[str, float]  # rad/s the chosen actuator reaches (no load)
     mass_kg: float = 0.0  # the whole robot's mass (0: unknown)
     joint_torque: Mapping[str, float] = field(default_factory=dict)  # stall torque, N m
+    #: figures of the design measured on a run, not derivable from its geometry (the
+    #: record's ``calibration``, e.g. a skid-steer's ``effective_track_m``): see
+    #: :meth:`Controller.calibrate`
+    calibration: Mapping[str, float] = field(default_factory=dict)
 
     @classmethod
     def from_record(cls, record: Mapping) -> DesignGeometry:
@@ -206,6 +212,7 @@ class DesignGeometry:
                 j["name"]: float(j.get("actuator_torque_Nm") or 0.0)
                 for j in record.get("joints", [])
             },
+            calibration={k: float(v) for k, v in (record.get("calibration") or {}).items()},
         )
 
     def build(self) -> Template:
@@ -293,6 +300,19 @@ class Controller(ABC):
         else:
             _PLANNED.move_to_end(key)
         return traj
+
+    def calibration_probes(self) -> list[tuple[str, dict[str, object]]]:
+        """Behaviour runs ``(name, params)`` whose measured outcome :meth:`calibrate` turns
+        into the design's ``calibration``: empty for a controller whose open-loop model
+        needs none (the default)."""
+        return []
+
+    def calibrate(self, runs: Sequence[tuple[Trajectory, Mapping[str, np.ndarray]]]) -> dict:
+        """The ``calibration`` (name -> number) that the measured ``runs`` of
+        :meth:`calibration_probes` give: each its trajectory and the simulation's series
+        (``t`` s, ``q`` joint positions rad in the trajectory's joint order, ``root`` the
+        free base's position and quaternion). Empty by default."""
+        return {}
 
     def listed(self, abilities: Sequence[str]) -> list[str]:
         """The behaviours that realise one of ``abilities`` (aliases left out), by name:

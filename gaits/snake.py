@@ -45,6 +45,18 @@ on the designed snakes (M = 3, 5, 6, 8), see the tests.
 Trajectories start and end straight and at rest: the amplitudes (and offsets) fade in and
 out with a minimum-jerk envelope over ``FADE_CYCLES`` cycles, so positions and velocities
 are continuous.
+
+A snake may lie rolled about its long axis (``rolling`` leaves it on its side): then its
+pitch joints no longer bend it vertically. Every gait takes the body's ``roll`` at the
+start and turns the waves by it (:func:`rolled_waves`): the desired vertical wave V and
+horizontal wave H, evaluated at every joint's place along the body (the continuous form of
+eq. 7), are shared between the pitch and yaw joints by their axes' directions, so that the
+gait bends the body in the world as it does from an upright start. ``roll`` = 0 is eq. 7
+exactly. Simulated on the designed snakes (M = 5, 8, 14) lying on their side, every gait
+then keeps its promise but two: M = 5's rectilinear, whose side leaves floor(M / 2) = 2
+joints to bend it vertically (the gait needs 3), and M = 8's sidewinding away from the
+side its head's main module and battery stick out to, which saturates a lifting joint at
+the default frequency (not at 0.25 Hz).
 """
 
 from __future__ import annotations
@@ -63,6 +75,7 @@ __all__ = [
     "WaveParams",
     "gait_params",
     "joint_waves",
+    "rolled_waves",
     "wave_amplitude",
     "wave_phase_step",
 ]
@@ -83,6 +96,12 @@ SPEED_SHARE = 1 / 3
 FADE_CYCLES = 0.5
 #: Default wave frequency Hz (lower when the modules are too slow for it).
 DEFAULT_FREQUENCY = 0.4
+#: The ``roll`` parameter of every gait (rad): which angle it is (see ``SnakeController``).
+ROLL_DOC = (
+    "the body's roll about its long axis at the start, as the head's IMU reads it: the "
+    "waves are turned by it (right-handed about the base's +x, the modules' direction; 0 "
+    "upright as the model starts: atan2(R[2,1], R[2,2]) of the base's rotation matrix R)"
+)
 
 
 def wave_amplitude(alpha: float, k: float, modules: int) -> float:
@@ -129,13 +148,20 @@ def joint_waves(
     modules: int,
     p: WaveParams,
     envelope: np.ndarray | float = 1.0,
+    roll: float = 0.0,
 ) -> np.ndarray:
     """Joint angles (N, M) rad of eq. 7 at ``phase`` (N,) rad; column j is ``joint_{j+1}``
     (odd joints vertical, even horizontal). ``envelope`` (N,) in [0, 1] scales amplitudes
-    and offsets (fading in and out)."""
+    and offsets (fading in and out).
+
+    ``roll`` rad: the body's roll about its long axis (see :func:`rolled_waves`); 0 is
+    eq. 7 itself."""
     _check_modules(modules)
     ph = np.atleast_1d(np.asarray(phase, dtype=float))
     env = np.broadcast_to(np.asarray(envelope, dtype=float), ph.shape)
+    if roll != 0:
+        v, h = _body_waves(ph, modules, p, env)
+        return rolled_waves(v, h, roll)
     out = np.empty((len(ph), modules))
     for j in range(modules):
         i = j // 2  # (i - 1) of eq. 7: index of the module among those of its orientation
@@ -146,6 +172,46 @@ def joint_waves(
     return out
 
 
+def _body_waves(
+    phase: np.ndarray, modules: int, p: WaveParams, envelope: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The continuous form of eq. 7: the vertical wave V and the horizontal wave H (N, M)
+    rad evaluated at every joint's place along the body. Joint column j sits at j / 2
+    vertical modules' spacing from ``joint_1`` (the horizontal modules lie between the
+    vertical ones), so V there has the phase ``(j / 2) dphi_v`` and H ``((j - 1) / 2)
+    dphi_h + dphi_vh``: on the vertical joints V is eq. 7's, on the horizontal ones H."""
+    arg_v, arg_h = _body_phases(phase, modules, p)
+    env = envelope[:, None]
+    return env * (p.o_v + p.a_v * np.sin(arg_v)), env * (p.o_h + p.a_h * np.sin(arg_h))
+
+
+def _body_phases(phase: np.ndarray, modules: int, p: WaveParams) -> tuple[np.ndarray, np.ndarray]:
+    """The arguments (N, M) rad of the sines of V and H at every joint's place."""
+    place = np.arange(modules) / 2.0
+    arg_v = phase[:, None] + place[None, :] * p.dphi_v
+    arg_h = phase[:, None] + (place[None, :] - 0.5) * p.dphi_h + p.dphi_vh
+    return arg_v, arg_h
+
+
+def rolled_waves(v: np.ndarray, h: np.ndarray, roll: float) -> np.ndarray:
+    """Joint angles (N, M) rad that bend a body rolled by ``roll`` rad about its long axis
+    (right-handed about the modules' +x, see ``SnakeController``) by the vertical wave
+    ``v`` and the horizontal wave ``h`` (N, M) of the world: every joint bends by the
+    component of the desired bend (``v`` about the world's horizontal axis across the
+    body, ``h`` about the vertical) along its own axis. Rolled by ``roll``, a pitch joint's
+    axis (the base's y) is cos(roll) y_w + sin(roll) z_w and a yaw joint's (the base's z)
+    -sin(roll) y_w + cos(roll) z_w, so::
+
+        q_pitch = v cos(roll) + h sin(roll),   q_yaw = -v sin(roll) + h cos(roll)
+
+    (odd columns pitch, even yaw, as in ``joint_waves``)."""
+    c, s = math.cos(roll), math.sin(roll)
+    out = np.empty(np.shape(v))
+    out[:, 0::2] = c * v[:, 0::2] + s * h[:, 0::2]
+    out[:, 1::2] = -s * v[:, 1::2] + c * h[:, 1::2]
+    return out
+
+
 def _joint_wave_rates(
     phase: np.ndarray,
     phase_rate: float,
@@ -153,9 +219,16 @@ def _joint_wave_rates(
     p: WaveParams,
     envelope: np.ndarray,
     envelope_rate: np.ndarray,
+    roll: float = 0.0,
 ) -> np.ndarray:
     """Time derivative (N, M) rad/s of ``joint_waves`` for d(phase)/dt = ``phase_rate``
-    rad/s and the envelope's rate (N,) 1/s."""
+    rad/s, the envelope's rate (N,) 1/s and the body's ``roll`` rad."""
+    if roll != 0:
+        arg_v, arg_h = _body_phases(phase, modules, p)
+        env, rate = envelope[:, None], envelope_rate[:, None]
+        dv = rate * (p.o_v + p.a_v * np.sin(arg_v)) + env * p.a_v * phase_rate * np.cos(arg_v)
+        dh = rate * (p.o_h + p.a_h * np.sin(arg_h)) + env * p.a_h * phase_rate * np.cos(arg_h)
+        return rolled_waves(dv, dh, roll)
     out = np.empty((len(phase), modules))
     for j in range(modules):
         i = j // 2
@@ -264,9 +337,21 @@ class SnakeController(Controller):
     """Behaviours of a pitch-yaw snake: the gaits its design's M allows (its abilities).
 
     Every behaviour takes ``frequency`` Hz (of the waves), ``cycles`` (whole waves, the
-    first and last of which fade in and out) and ``direction`` (+1 / -1);
-    ``circular-path`` also takes ``bend`` rad. Senses, in the frame of the snake's base
-    at the start (the base is the head: the modules extend from it along +x):
+    first and last of which fade in and out), ``direction`` (+1 / -1) and ``roll`` rad;
+    ``circular-path`` also takes ``bend`` rad.
+
+    ``roll`` is the body's roll about its long axis at the start (:data:`ROLL_DOC`): the
+    angle, right-handed about the base's +x axis (the modules extend from the base, the
+    head, along +x), from the upright base (its z axis up, as the model starts) to the base
+    as it lies, i.e. the roll of the base's yaw-pitch-roll (z-y-x) Euler angles relative to
+    the model's initial orientation: ``atan2(R[2, 1], R[2, 2])`` of the base's rotation
+    matrix R (base to world; ``atan2(2 (w x + y z), 1 - 2 (x^2 + y^2))`` of its unit
+    quaternion (w, x, y, z)). After ``rolling`` the body lies rolled; the waves are then
+    turned by ``roll`` (:func:`rolled_waves`) so that every gait does in the world what it
+    does from an upright start.
+
+    Senses, in the snake's heading frame at the start (the base's frame turned back about
+    +x by ``roll``: x along the body from the head, z up):
 
     - ``rectilinear``, ``circular-path``: +1 head first (-x), -1 tail first (+x);
     - ``rolling``, ``sidewinding``: +1 to the left (+y), -1 to the right;
@@ -280,7 +365,11 @@ class SnakeController(Controller):
     ``waves`` the :class:`WaveParams` used, ``frequency_hz``.
 
     A frequency whose waves need a joint faster than ``SPEED_MARGIN`` of the modules'
-    no-load speed raises ValueError naming the highest feasible one.
+    no-load speed raises ValueError naming the highest feasible one; a roll that turns the
+    waves beyond the joints' range raises ValueError naming the joint. (A roll shares the
+    vertical and horizontal waves' rates among the joints, at most sqrt(2) times the
+    upright peak: the default frequency, at most ``SPEED_SHARE`` of the no-load speed
+    upright, stays within ``SPEED_MARGIN`` whatever the roll.)
     """
 
     def __init__(self, geometry: DesignGeometry) -> None:
@@ -308,10 +397,12 @@ class SnakeController(Controller):
         """The gaits of this design: those of ``GAITS`` among its abilities."""
         return tuple(g for g in GAITS if g in self.geometry.abilities)
 
-    def max_frequency(self, gait: str, direction: int = 1, bend: float = 0.0) -> float:
+    def max_frequency(
+        self, gait: str, direction: int = 1, bend: float = 0.0, roll: float = 0.0
+    ) -> float:
         """Highest wave frequency Hz of ``gait`` within the modules' usable speed (joint
         rates scale with the frequency, fade included)."""
-        _, _, v, _ = self._trajectory(gait, 1.0, 3, direction, bend)
+        _, _, v, _ = self._trajectory(gait, 1.0, 3, direction, bend, roll)
         return self.max_speed / float(np.abs(v).max())
 
     def default_frequency(self, gait: str) -> float:
@@ -342,6 +433,7 @@ class SnakeController(Controller):
                     high=100000,
                 ),
                 Parameter("direction", "int", 1, _SENSE[gait], "", low=-1, high=1),
+                Parameter("roll", "float", 0.0, ROLL_DOC, "rad", low=-math.pi, high=math.pi),
             ]
             if gait == "circular-path":
                 params.append(
@@ -363,8 +455,11 @@ class SnakeController(Controller):
         if direction not in (1, -1):
             raise ValueError(f"direction must be +1 or -1, got {direction}")
         bend = float(params.get("bend", 0.0))
+        roll = float(params.get("roll", 0.0))
+        if not abs(roll) <= math.pi:
+            raise ValueError(f"roll must be within +-pi rad, got {roll!r}")
         freq, cycles = float(params["frequency"]), int(params["cycles"])
-        t, q, v, p = self._trajectory(name, freq, cycles, direction, bend)
+        t, q, v, p = self._trajectory(name, freq, cycles, direction, bend, roll)
         top = float(np.abs(v).max())
         if top > self.max_speed * (1 + 1e-9):
             raise ValueError(
@@ -372,14 +467,24 @@ class SnakeController(Controller):
                 f"{self.max_speed:.3g} rad/s of the modules ({SPEED_MARGIN:.0%} of their "
                 f"no-load speed); at most {freq * self.max_speed / top:.3g} Hz"
             )
-        if np.any(q < self.lower - 1e-9) or np.any(q > self.upper + 1e-9):
-            raise ValueError(f"{name}: the waves leave the joints' range")
+        low = q < self.lower - 1e-9
+        high = q > self.upper + 1e-9
+        if np.any(low) or np.any(high):
+            k = int(np.argmax(np.max(np.maximum(self.lower - q, q - self.upper), axis=0)))
+            reach = float(q[:, k].min() if np.any(low[:, k]) else q[:, k].max())
+            rolled = f" rolled by {roll:.3g} rad" if roll else ""
+            raise ValueError(
+                f"{name}: the waves{rolled} leave the joints' range: {self.joints[k]} would "
+                f"reach {reach:.3g} rad, its range is [{self.lower[k]:.3g}, "
+                f"{self.upper[k]:.3g}] rad"
+            )
         info: dict[str, object] = {
             "motion": "rotate" if name == "rotating" else "crawl",
             "locomotion": "snake",
             "body_length_m": self.body_length,
             "waves": p,
             "frequency_hz": freq,
+            "roll_rad": roll,
         }
         if name in ("rectilinear", "circular-path"):
             info["direction"] = (-float(direction), 0.0)
@@ -392,10 +497,11 @@ class SnakeController(Controller):
         return Trajectory(name, t, self.joints, q, v, info)
 
     def _trajectory(
-        self, gait: str, freq: float, cycles: int, direction: int, bend: float
+        self, gait: str, freq: float, cycles: int, direction: int, bend: float, roll: float = 0.0
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, WaveParams]:
         """(t (N,) s, q (N, M) rad, v (N, M) rad/s, waves) of ``cycles`` waves at ``freq``
-        Hz with minimum-jerk fades over the first and last ``FADE_CYCLES``."""
+        Hz with minimum-jerk fades over the first and last ``FADE_CYCLES``, for a body
+        rolled by ``roll`` rad."""
         if freq <= 0 or cycles < 2 * FADE_CYCLES:
             raise ValueError(f"need frequency > 0 and cycles >= {2 * FADE_CYCLES:g}")
         p = gait_params(gait, self.modules, direction, bend)
@@ -407,8 +513,8 @@ class SnakeController(Controller):
         s_out, ds_out = _ramp((seconds - t) / fade)
         env = s_in * s_out
         env_rate = (ds_in * s_out - s_in * ds_out) / fade
-        q = joint_waves(w * t, self.modules, p, env)
-        v = _joint_wave_rates(w * t, w, self.modules, p, env, env_rate)
+        q = joint_waves(w * t, self.modules, p, env, roll)
+        v = _joint_wave_rates(w * t, w, self.modules, p, env, env_rate, roll)
         return t, q, v, p
 
 

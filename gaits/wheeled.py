@@ -25,6 +25,18 @@ l^2)`` (driving on the outer side, braking on the inner) once its contact slides
 (:func:`creep_speed`: MuJoCo's soft contacts are viscous below it, so a gentle arc loads the
 wheels in proportion to w, not with the full Coulomb torque).
 
+Calibration. MuJoCo's skidding contacts do not follow the Coulomb balance: a skid-steer
+turns as if its effective track were 1.1-1.35 x ``l_eff`` (and its wheels carry ~0.95 x the
+load model's turning torque), so open-loop arcs and turns reached 0.83-1.3 of the command
+over a grid of designs, depending on the design and the yaw rate. As Mandow et al. do on a
+real robot, ``parmor design`` therefore measures it: the controller's probe runs
+(:meth:`WheeledController.calibration_probes`: ``driving`` in place and on an arc) are
+simulated, and the wheels' speeds (the joints' encoders), their servos' droop and the
+chassis' yaw rate give the effective track and the load scale
+(:meth:`WheeledController.calibrate`), which the design record keeps (``calibration``:
+``effective_track_m``, ``turn_load_scale``) and the controller then uses instead of the
+model's. A differential drive needs none.
+
 Load feed-forward. A wheel servo is a DC motor line (MJCF velocity servo): under a load
 torque tau it turns ``tau / kv`` slower than commanded (kv = stall torque / no-load speed).
 The commands are therefore the wheel speeds plus that droop, from a quasi-static load
@@ -43,8 +55,8 @@ equations describe, so ``info["planned_pose"]`` is the root's.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -97,10 +109,8 @@ TURN_SPEED_FRACTION = 0.25
 #: the Coulomb moment is mu N (width / 2).
 SCRUB_LEVER = 0.5
 #: The same for a skid-steer's wheels, whose contacts already slide across the wheel:
-#: measured, not derived. MuJoCo's skidding wheels resist a turn more than the Coulomb
-#: balance of the module docstring predicts (a turn in place needs wheel speeds of an
-#: effective track 1.4-1.5 x ``l_eff``, the contact forces ~14 deg off the slip); this
-#: extra moment brings the skid-steer turns of the parameter grid to 0.8-1.1 x the command.
+#: measured, not derived (the uncalibrated model's guess; a design's ``calibration`` scales
+#: it with the rest of the turning load, see the module docstring).
 SKID_SCRUB_LEVER = 0.25
 #: Contacts of a wheel's rim with the floor (the cylinder's two ends, see SCRUB_LEVER).
 CONTACTS_PER_WHEEL = 2
@@ -117,6 +127,13 @@ IMPRATIO = 1.0
 WHEEL_MOTOR_TIME_CONSTANT = 0.05
 #: Default minimum-jerk ramp of ``driving``, s (longer where the servos need it).
 RAMP = 0.5
+#: A skid-steer's calibration runs (:meth:`WheeledController.calibration_probes`): their
+#: rim speed of turning, as fractions of the top speed tried in turn (the first the wheels
+#: can drive with their load), how long each holds its speeds after the ramp, s, and how
+#: long after the ramp the measurement starts, s (the yaw rate settles within ~0.3 s).
+PROBE_RIM_FRACTIONS = (0.25, 0.15, 0.08)
+PROBE_SECONDS = 2.0
+PROBE_SETTLE = 0.5
 
 
 def wheel_speeds(v: float, w: float, radius: float, track: float) -> tuple[float, float]:
@@ -220,13 +237,16 @@ class DriveGeometry:
     -> +1 or -1, the sign of the joint speed that rolls the wheel forward (+x);
     ``radius`` m; ``track`` m between the side's wheel centres; ``wheel_base`` m between
     the front and rear wheels of a side (0 for one wheel a side); ``effective_track`` m,
-    ``track * skid_steer_chi(wheel_base, track)``; ``max_speed`` rad/s: the slowest wheel's
-    usable speed (``SPEED_MARGIN`` times its no-load speed). The load model
+    ``track * skid_steer_chi(wheel_base, track)`` (a calibrated design: the measured one);
+    ``max_speed`` rad/s: the slowest wheel's usable speed (``SPEED_MARGIN`` times its
+    no-load speed). The load model
     (:meth:`wheel_torques`) uses ``mass`` kg (0: unknown, no load feed-forward), ``kv``
     N m s (the wheel servo's motor line: stall torque / no-load speed), ``yaw_inertia``
     kg m^2 about the root's z, ``caster_x`` m (root frame; None without a caster),
     ``caster_share`` (of the weight on the caster), ``com_x`` m and ``creep`` m/s, the slip
-    speed up to which a tyre's friction grows linearly (:func:`creep_speed`).
+    speed up to which a tyre's friction grows linearly (:func:`creep_speed`), and
+    ``turn_load_scale``, the factor on the load of turning (scrub and skid; 1 but where a
+    measured run calibrated it, see :meth:`WheeledController.calibrate`).
     """
 
     left: tuple[str, ...]
@@ -244,6 +264,7 @@ class DriveGeometry:
     caster_share: float = 0.0
     com_x: float = 0.0
     creep: float = 0.0
+    turn_load_scale: float = 1.0
 
     @classmethod
     def from_template(
@@ -383,10 +404,13 @@ class DriveGeometry:
         # (each rim contact slides +-w width / 2 along the wheel, a skid-steer's faster across
         # it; MuJoCo's friction is viscous below the creep speed)
         slip = w * max(WHEEL_WIDTH / 2, self.skid_slip())
-        mz = mz + self.scrub_moment() * np.clip(slip / (self.creep or 1e-12), -1, 1)
+        turn = self.turn_load_scale
+        mz = mz + turn * self.scrub_moment() * np.clip(slip / (self.creep or 1e-12), -1, 1)
         left_f = fx / 2 - mz / self.track
         right_f = fx / 2 + mz / self.track
-        skid = self.skid_torque() * np.clip(w * self.skid_slip() / (self.creep or 1e-12), -1, 1)
+        skid = (
+            turn * self.skid_torque() * np.clip(w * self.skid_slip() / (self.creep or 1e-12), -1, 1)
+        )
         r = self.radius
         return (
             r * left_f / len(self.left) - skid,
@@ -524,6 +548,10 @@ class WheeledController(Controller):
     under the predicted load (:meth:`DriveGeometry.wheel_torques`). Commands that need a
     wheel faster than the usable speed raise ValueError with the largest feasible command:
     clipping would silently drive a different path than the one asked.
+
+    A design record's ``calibration`` (``effective_track_m``, ``turn_load_scale``; measured
+    by :meth:`calibrate` on the runs of :meth:`calibration_probes`) replaces the model's
+    effective track and scales its turning load, for a skid-steer.
     """
 
     def __init__(self, geometry: DesignGeometry) -> None:
@@ -546,7 +574,88 @@ class WheeledController(Controller):
             layout=layout,
             payload=float(geometry.params.get("payload", 0.0)),
         )
+        cal = geometry.calibration
+        if self.drive.skid and cal:
+            # measured on a run of this design (:meth:`calibrate`), it replaces the model's
+            self.drive = replace(
+                self.drive,
+                effective_track=float(cal.get("effective_track_m", self.drive.effective_track)),
+                turn_load_scale=float(cal.get("turn_load_scale", 1.0)),
+            )
         self.joints = (*self.drive.left, *self.drive.right)
+
+    def calibration_probes(self) -> list[tuple[str, dict[str, object]]]:
+        """A skid-steer's calibration runs: ``driving`` in place and on an arc at one yaw
+        rate (``PROBE_RIM_FRACTION`` of the top speed at the rims; the arc's forward speed
+        as much again), ``PROBE_SECONDS`` long; none for a differential drive, whose
+        kinematics hold (its wheels roll without skidding) or without the load model."""
+        if not self.drive.skid or self.drive.kv <= 0:
+            return []
+        out: list[tuple[str, dict[str, object]]] = []
+        for fraction in PROBE_RIM_FRACTIONS:  # the first that the wheels can drive
+            w = 2 * fraction * self.v_max / self.drive.effective_track
+            seconds = PROBE_SECONDS + self.default_ramp
+            runs = [
+                ("driving", {"v": v, "w": w, "seconds": seconds})
+                for v in (0.0, fraction * self.v_max)
+            ]
+            try:
+                for name, params in runs:
+                    self.run(name, **params)  # plans (or refuses) it
+            except ValueError:
+                continue
+            out = runs
+            break
+        return out
+
+    def calibrate(self, runs: Sequence[tuple[Trajectory, Mapping[str, np.ndarray]]]) -> dict:
+        """A skid-steer's ``effective_track_m`` and ``turn_load_scale`` from its measured
+        probe runs (:meth:`calibration_probes`), as Mandow et al. calibrate a real one.
+
+        Over each run's steady part (after the ramp and ``PROBE_SETTLE`` s) the measured
+        yaw rate ``w`` and the sides' wheel speeds (the joints' encoders) give the track
+        that eq. 5 needs, ``l_eff = r (q_r - q_l) / w`` (least squares over the runs), and
+        each side's servo droop (command less speed) the torque it carried, ``kv x
+        droop``; ``turn_load_scale`` fits the load model's turning part (scrub and skid)
+        to those torques (least squares), its other part (caster, centripetal) kept.
+        Empty when the runs do not turn (nothing to fit)."""
+        d = self.drive
+        if not d.skid or d.kv <= 0 or not runs:
+            return {}
+        num = den = t_num = t_den = 0.0
+        for traj, series in runs:
+            t = np.asarray(series["t"])
+            ramp = float(traj.info.get("ramp_s", self.default_ramp))  # type: ignore[arg-type]
+            steady = t >= ramp + PROBE_SETTLE
+            if steady.sum() < 3:
+                continue
+            sign = np.array([d.sign[n] for n in traj.joints])
+            speeds = np.polyfit(t[steady], np.asarray(series["q"])[steady], 1)[0] * sign
+            cmd = traj.velocities[-1] * sign
+            nl = len(d.left)
+            left, right = float(np.mean(speeds[:nl])), float(np.mean(speeds[nl:]))
+            root = np.asarray(series["root"])
+            yaw = np.unwrap([_yaw(quat) for quat in root[:, 3:7]])
+            w = float(np.polyfit(t[steady], yaw[steady], 1)[0])
+            num += d.radius * (right - left) * w
+            den += w * w
+            v, w_cmd = (float(x) for x in traj.info["command"])  # type: ignore[union-attr]
+            one = replace(d, turn_load_scale=1.0)
+            zero = replace(d, turn_load_scale=0.0)
+            t1 = one.wheel_torques(np.array([v]), np.array([w_cmd]), np.zeros(1), np.zeros(1))
+            t0 = zero.wheel_torques(np.array([v]), np.array([w_cmd]), np.zeros(1), np.zeros(1))
+            for k, got in enumerate((left, right)):
+                side = cmd[:nl] if k == 0 else cmd[nl:]
+                measured = d.kv * (float(np.mean(side)) - got)
+                turn = float(t1[k][0] - t0[k][0])
+                t_num += (measured - float(t0[k][0])) * turn
+                t_den += turn * turn
+        if den <= 0 or num <= 0 or t_den <= 0:
+            return {}
+        return {
+            "effective_track_m": round(num / den, 4),
+            "turn_load_scale": round(max(t_num / t_den, 0.0), 3),
+        }
 
     @property
     def v_max(self) -> float:
@@ -678,6 +787,7 @@ class WheeledController(Controller):
             pose = (v / w * math.sin(yaw), v / w * (1 - math.cos(yaw)), yaw)
         info: dict[str, object] = {
             "command": (v, w),
+            "ramp_s": ramp,
             "planned_pose": pose,
             "path_length_m": abs(v) * D,
         }
@@ -755,6 +865,12 @@ class WheeledController(Controller):
             "effective_track_m": self.drive.effective_track,
         }
         return Trajectory(name, t, self.joints, pos, vel, info)
+
+
+def _yaw(quat: np.ndarray) -> float:
+    """Yaw rad of a (w, x, y, z) quaternion."""
+    w, x, y, z = (float(c) for c in quat)
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
 def _grid(seconds: float) -> np.ndarray:

@@ -26,6 +26,8 @@ examples:
   parmor explain HexapodRobot
   parmor ontology check mine.kif
   parmor regress suite.toml --update
+  parmor simulate out/hexapod --behavior walking
+  parmor run walk.py out/hexapod
 
 exit codes: 0 done, 1 cannot be met, 2 bad input, 3 an answer is needed and input is off
 """
@@ -252,6 +254,59 @@ def build_parser() -> argparse.ArgumentParser:
     _json_option(p)
 
     p = sub.add_parser(
+        "blocks",
+        help="write a drag-and-drop block page for a design bundle (and serve it)",
+        description="Write DIR/blocks/index.html for the design in DIR (written by 'parmor "
+        "design --out DIR'): a Blockly page whose blocks are the design's behaviours with "
+        "their parameters (units and limits shown), repeat, wait and if/else on what the robot "
+        "reports, and the Python program the blocks stand for (run it with 'parmor run "
+        "PROGRAM.py DIR'). The page works offline from the bundle. With --serve, a local server "
+        "on 127.0.0.1 serves it and runs the programs its Run button sends (as JSON, never "
+        "code): validated against the design's behaviours and limits, simulated in MuJoCo, "
+        "answered with the path, the verdict figures and the robot moving. Needs the npm "
+        "packages ('make web').",
+        epilog="examples:\n  parmor blocks hexapod            then open hexapod/blocks/index.html"
+        "\n  parmor blocks hexapod --serve    then open http://127.0.0.1:8765/",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("dir", metavar="DIR", help="a bundle folder written by 'parmor design --out'")
+    p.add_argument("--serve", action="store_true", help="serve the page and run its programs")
+    p.add_argument(
+        "--port", type=int, default=None, metavar="P", help="port of --serve (default 8765)"
+    )
+    p.add_argument(
+        "--time-limit",
+        type=float,
+        default=None,
+        metavar="S",
+        help="wall-clock seconds a run may take before it is stopped (default 120)",
+    )
+
+    p = sub.add_parser(
+        "run",
+        help="run a program of behaviours on a design in simulation",
+        description="Run PROGRAM on the design in DIR (a folder written by 'parmor design "
+        "--out DIR') in MuJoCo: its behaviours one after another, each starting where the "
+        "last ended. PROGRAM is a Python file defining main(robot), calling "
+        "robot.do(BEHAVIOUR, PARAM=VALUE, ...), robot.wait(SECONDS) and "
+        "robot.report(NAME) (the text a block page shows), or a JSON program as a block "
+        'page sends it ({"program": [...]}, see the README). Prints each behaviour\'s '
+        "verdict and where the robot ended against where the program says it should. Exit "
+        "0 when every behaviour kept its promise and the robot ended where commanded, 1 "
+        "when not, 2 on bad input.",
+        epilog=RUN_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("program", metavar="PROGRAM.py|PROGRAM.json")
+    p.add_argument("dir", metavar="DIR")
+    p.add_argument(
+        "--animation",
+        action="store_true",
+        help="with --json: include the animation frames (every drawn part's pose, 20 per s)",
+    )
+    _json_option(p)
+
+    p = sub.add_parser(
         "regress",
         help="run a regression suite of design queries",
         description="Run the named queries of SUITE.toml and compare their "
@@ -329,6 +384,24 @@ examples:
   parmor sweep studies/parameter-range.toml --jobs 4        into studies/parameter-range.sweep/
   parmor sweep mine.toml --out runs/mine --json             the summary as JSON on stdout
   parmor sweep mine.toml --out runs/mine                    again: only what is not stored yet
+"""
+
+
+RUN_HELP = """\
+a program (PROGRAM.py; 'parmor blocks DIR' writes the same text from blocks):
+  def main(robot):
+      for _ in range(3):
+          robot.do("walking", steps=2)
+      robot.do("turning", angle=1.5708)
+      if robot.report("heading_deg") > 45:
+          robot.wait(1)
+
+reports: x_m, y_m, heading_deg (since the start), distance_m (last behaviour), ok and
+fell (1 or 0), time_s. Behaviours and their parameters: parmor simulate DIR --behavior help
+
+examples:
+  parmor run walk.py out/hexapod
+  parmor run walk.json out/hexapod --json
 """
 
 
@@ -691,24 +764,14 @@ MAX_SIM_SECONDS = 600.0
 
 
 def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    import json
     from pathlib import Path
 
     from export.record import to_json
 
     folder = Path(args.dir)
-    try:
-        record = json.loads((folder / "design.json").read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(
-            f"{folder}: no design.json (write one with 'parmor design ... --out DIR')"
-        ) from None
-    except (OSError, json.JSONDecodeError) as e:
-        raise InputError(f"{folder / 'design.json'}: {e}") from None
-    if not isinstance(record, dict):
-        raise InputError(f"{folder / 'design.json'}: not a design record (expected an object)")
-    from export.simulate import load_bundle_model
-    from export.verify import controller_for_model, figures, run_behavior
+    from export.verify import controller_for_model, figures, load_bundle, run_behavior
+
+    record, model = load_bundle(folder)
 
     params: dict[str, str] = {}
     for item in args.set:
@@ -724,10 +787,6 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         raise InputError(
             f"--seconds {args.seconds}: expected a number of seconds in (0, {MAX_SIM_SECONDS:g}]"
         )
-    try:
-        model = load_bundle_model(folder)
-    except (OSError, ValueError, KeyError) as e:
-        raise InputError(f"{folder}: cannot load the MuJoCo model: {e}") from None
     try:
         controller = controller_for_model(record, model)
         if args.behavior == "help":
@@ -779,12 +838,105 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     return 0
 
 
+def cmd_blocks(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from pathlib import Path
+
+    from program.blocks import write_page
+    from program.server import DEFAULT_PORT, DEFAULT_TIME_LIMIT, serve
+
+    if not args.serve and (args.port is not None or args.time_limit is not None):
+        raise InputError("--port and --time-limit need --serve")
+    port = DEFAULT_PORT if args.port is None else args.port
+    if not 0 <= port <= 65535:
+        raise InputError(f"--port {port}: expected a port number in [0, 65535] (0: any free)")
+    limit = DEFAULT_TIME_LIMIT if args.time_limit is None else args.time_limit
+    if not (math.isfinite(limit) and limit > 0):
+        raise InputError(f"--time-limit {limit}: expected a positive number of seconds")
+    page = write_page(Path(args.dir))
+    err.write(f"parmor: wrote {page}\n")
+    if args.serve:
+        serve(args.dir, port, limit, out=out, log=err)
+        err.write("parmor: stopped serving\n")
+    return 0
+
+
+def cmd_run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    import json
+    from pathlib import Path
+
+    from export.record import to_json
+    from program.session import run_program, run_python
+
+    path = Path(args.program)
+    progress = None
+    if err.isatty():
+
+        def progress(text: str) -> None:
+            err.write(f"running {text}\n")
+
+    if path.suffix == ".json":
+        try:
+            program = json.loads(path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise InputError(f"{path}: no such program file") from None
+        except json.JSONDecodeError as e:
+            raise InputError(f"{path}:{e.lineno}:{e.colno}: {e.msg}") from None
+        except (OSError, UnicodeDecodeError) as e:
+            raise InputError(f"{path}: {e}") from None
+        result = run_program(args.dir, program, progress)
+    else:
+        result = run_python(args.dir, path, progress)
+    if not args.animation:
+        result.pop("animation")
+    if args.json:
+        out.write(to_json(result))
+    else:
+        out.write(run_text(result))
+    if result["verdict"] != "ok":
+        err.write(f"parmor: the program failed its verdict: {'; '.join(result['verdict'])}\n")
+        return 1
+    return 0
+
+
+def run_text(result: dict) -> str:
+    """A program run for people: one line per behaviour, then where the robot ended."""
+    lines = []
+    for i, st in enumerate(result["steps"], 1):
+        f = st["figures"]
+        what = "ok" if st["verdict"] == "ok" else "FAILED " + ", ".join(st["verdict"])
+        moved = ""
+        if f.get("distance_m") is not None and result["final_pose"] is not None:
+            moved = (
+                f", moved {f['distance_m']:.3f} m, turned {math.degrees(f['heading_rad']):.1f} deg"
+            )
+        if f.get("placing_error_m") is not None:
+            moved += f", placed within {1000 * f['placing_error_m']:.1f} mm"
+        lines.append(f"{i:3d}. {st['behavior']:<24} at {st['start_s']:7.2f} s: {what}{moved}")
+    if result["final_pose"] is not None:
+        x, y, yaw = result["final_pose"]
+        lines.append(f"ended at   x {x:.3f} m, y {y:.3f} m, heading {math.degrees(yaw):.1f} deg")
+        if result["expected_pose"] is not None:
+            x, y, yaw = result["expected_pose"]
+            lines.append(
+                f"commanded  x {x:.3f} m, y {y:.3f} m, heading {math.degrees(yaw):.1f} deg "
+                f"(off by {result['end_pose_error_m']:.3f} m)"
+            )
+    verdict = result["verdict"]
+    lines.append(
+        f"simulated {result['seconds']:.2f} s; verdict: "
+        + ("ok" if verdict == "ok" else "; ".join(verdict))
+    )
+    return "\n".join(lines) + "\n"
+
+
 COMMANDS = {
     "abilities": cmd_abilities,
+    "blocks": cmd_blocks,
     "design": cmd_design,
     "enumerate": cmd_enumerate,
     "explain": cmd_explain,
     "regress": cmd_regress,
+    "run": cmd_run,
     "simulate": cmd_simulate,
     "sweep": cmd_sweep,
 }

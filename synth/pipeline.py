@@ -60,6 +60,7 @@ class Outcome:
     verify_skipped: bool = False  # sized but not simulated (--no-verify)
     bundle: dict[str, str | bytes] | None = None  # the files the verification simulated
     with_payload: bool = False  # the bundle's models carry the payload (--with-payload)
+    calibration: dict[str, float] | None = None  # measured on a run (synth.verify)
 
     @property
     def status(self) -> str:
@@ -100,6 +101,8 @@ class Outcome:
             from export.bundle import payload_record
 
             rec["payload"] = payload_record(self.structure, self.with_payload)
+        if self.calibration:
+            rec["calibration"] = dict(sorted(self.calibration.items()))
         v = self.verification
         if v is not None:
             rec["verified"] = v.record()

@@ -27,7 +27,7 @@ Starting from the conceptual design (a robot type with its parts and modules):
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -921,15 +921,13 @@ def design_structure(
     try:
         return designer.run()
     except InfeasibleError as e:
-        for name, (unit, scale, digits, floor, always) in EASIER_WHEN_SMALLER.items():
+        for name, (*_, floor, always) in EASIER_WHEN_SMALLER.items():
             if not (always or name in params):  # the others only where the user asked
                 continue
             best = largest_value(designer, name, floor)
             if best is not None:
-                step = 10.0**-digits
-                shown = math.floor(best * scale / step) * step  # round down: it must work
                 raise InfeasibleError(
-                    f"{e}; the largest {name} that works here is {shown:.{digits}f} {unit}"
+                    f"{e}; the largest {name} that works here is {shown_value(name, best)}"
                 ) from None
         raise
 
@@ -946,6 +944,45 @@ EASIER_WHEN_SMALLER = {
 #: Bisection steps of ``largest_value`` with the behaviours analysed (after those with the
 #: hand cases alone, which bound it from above).
 BEHAVIOUR_BISECTIONS = 6
+
+
+def bisect_largest(
+    ok: Callable[[float], bool],
+    lo: float,
+    hi: float,
+    steps: int,
+    snap: Callable[[float], float] | None = None,
+) -> float:
+    """The largest x found in [lo, hi] with ``ok(x)`` by ``steps`` bisections (``ok`` is
+    taken to hold at ``lo`` and to fail above its limit once it fails): ``lo`` when every
+    test failed. ``snap`` moves each midpoint onto a grid (e.g. :func:`rounded_down`), so
+    that the value returned is one that was tested (or ``lo``); the bisection stops when the
+    grid has no point left between the bounds. One bisection for every refusal hint: the
+    sizing's (:func:`largest_value`) and the simulation's (``synth.verify``)."""
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        if snap is not None:
+            mid = snap(mid)
+            if not lo < mid < hi:
+                break
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    return lo
+
+
+def rounded_down(name: str, value: float) -> float:
+    """``value`` (SI) of the ``EASIER_WHEN_SMALLER`` parameter ``name`` rounded down to the
+    decimals a refusal shows (SI again): a smaller value, easier to build."""
+    _, scale, digits, _, _ = EASIER_WHEN_SMALLER[name]
+    step = 10.0**-digits
+    return math.floor(value * scale / step) * step / scale
+
+
+def shown_value(name: str, value: float) -> str:
+    """``value`` (SI) of the ``EASIER_WHEN_SMALLER`` parameter ``name`` as a refusal names
+    it, rounded down to its decimals (it must still work): ``"1.400 kg"``."""
+    unit, scale, digits, _, _ = EASIER_WHEN_SMALLER[name]
+    step = 10.0**-digits
+    return f"{math.floor(value * scale / step) * step:.{digits}f} {unit}"
 
 
 def largest_value(
@@ -974,20 +1011,14 @@ def largest_value(
         except InfeasibleError:
             return False
 
-    def bisect(lo: float, hi: float, n: int, behaviours: bool) -> float:
-        for _ in range(n):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if ok(mid, behaviours) else (lo, mid)
-        return lo
-
     try:
         if not ok(low, False):
             return None
-        bound = bisect(low, asked, steps, False)
+        bound = bisect_largest(lambda x: ok(x, False), low, asked, steps)
         designer.plan_values = {**values, name: bound}
         if ok(bound, True):
             return bound
-        best = bisect(low, bound, BEHAVIOUR_BISECTIONS, True)
+        best = bisect_largest(lambda x: ok(x, True), low, bound, BEHAVIOUR_BISECTIONS)
         return best if best > low or ok(low, True) else None
     finally:
         designer.values = values

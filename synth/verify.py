@@ -13,8 +13,19 @@ again, up to ``MAX_ROUNDS`` sizings. What still fails then:
 - a behaviour of an ability the design only has as a bonus drops that ability from the
   design's ``abilities``, with a note.
 
+Before each round's verification, a controller whose open-loop model needs figures only a
+run can give (:meth:`gaits.base.Controller.calibration_probes`: a skid-steer's effective
+track and turning load) has its probe runs simulated and the design's ``calibration``
+measured (:func:`calibrate`); the behaviours are then planned with it and verified. The
+verdicts judge the outcome with it, unchanged.
+
 Feedback other than stronger actuators (a larger wheel, a slower or lower gait, more
-modules lifting) is each family's sizing rule, not this loop's.
+modules lifting) is each family's sizing rule, not this loop's: no failure class was found
+that such a remedy fixes (measured on 96 requests off the shipped study's grid and on its
+51 wheeled ones: none refused by simulation once a skid-steer is calibrated; the failures
+left, a snake's bonus ``rolling`` with 0.3-0.5 kg on its strongest servos, which no
+rolling frequency fixes either, and a skid-steer under 0.5 kg drifting while it turns in
+place, worse when slower, have no remedy in that list), so there is no remedy table.
 
 The record keeps each behaviour's figures (``verified``). This module runs the simulator,
 so it imports ``export`` and ``gaits`` (lazily): it is the one place where ``synth`` looks
@@ -23,7 +34,10 @@ downstream, because the pipeline's last step is to check what it built.
 
 from __future__ import annotations
 
+import json
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import TYPE_CHECKING
 
 from adron.errors import InfeasibleError
@@ -36,6 +50,10 @@ if TYPE_CHECKING:
 MAX_ROUNDS = 3
 #: A saturated joint's next actuator must give at least this much more usable torque.
 STRONGER = 1.0001
+#: A refusal's hint (:func:`best_value`): sizings with verification at most, and the
+#: bisection steps after the floor's test.
+HINT_ROUNDS = 7
+HINT_BISECTIONS = 4
 
 
 @dataclass(frozen=True)
@@ -75,12 +93,118 @@ def _floors(results: list[dict], record: dict) -> dict[str, float]:
     return out
 
 
+def calibrate(files: Mapping[str, str | bytes]) -> dict[str, float]:
+    """The design's ``calibration`` measured on its controller's probe runs in MuJoCo
+    (:meth:`gaits.base.Controller.calibration_probes`; a skid-steer's effective track and
+    turning load); empty when its controller needs none (no model is compiled then)."""
+    from export.simulate import load_files_model
+    from export.verify import controller_for_model, run_behavior
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    raw = files["design.json"]
+    record = json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
+    if not controller_for(DesignGeometry.from_record(record)).calibration_probes():
+        return {}
+    model = load_files_model(files)
+    controller = controller_for_model(record, model)
+    runs = []
+    for name, params in controller.calibration_probes():
+        traj, result = run_behavior(model, controller, name, params)
+        runs.append((traj, result.series))
+    return controller.calibrate(runs)
+
+
 def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Outcome) -> Outcome:
-    """``outcome`` (a sized design) simulated, repaired where it can be, and judged."""
+    """``outcome`` (a sized design) simulated, repaired where it can be, and judged; a
+    refusal also names the largest value of a parameter that designs and verifies
+    (:func:`best_value`)."""
+    params = designer.structural(req)
+    out = _verified(designer, params, opts, outcome)
+    if out.infeasible is None:
+        return out
+    hint = best_value(designer, params, opts, outcome)
+    return out if hint is None else replace(out, infeasible=f"{out.infeasible}; {hint}")
+
+
+def best_value(
+    designer: Designer, params: Mapping[str, float], opts: StructureOptions, outcome: Outcome
+) -> str | None:
+    """``"the largest payload that works here is 1.400 kg"``: the largest value of the
+    first parameter in ``synth.structure.EASIER_WHEN_SMALLER`` (payload always; speed and
+    slope where the request gives them) with which the design is sized and every
+    behaviour verified, all else equal (``synth.structure.bisect_largest``; each test a
+    full sizing and verification); None when none works even at its floor.
+
+    At most ``HINT_ROUNDS`` sizings with verification in all: each takes one to a few
+    seconds (every behaviour simulated, maybe resized); the floor's test and
+    ``HINT_BISECTIONS`` halvings bound the value within 1/16 of the asked one. Each
+    midpoint is rounded down to the decimals the hint shows, so the value named is one
+    that was tested: it designs and verifies (the predicate need not be monotone: near a
+    verdict's threshold it often is not). That is five tests for the parameter that is
+    the limit and one for each parameter before it whose floor failed; out of rounds, a
+    value counts as failing."""
+    from synth.structure import (
+        EASIER_WHEN_SMALLER,
+        StructureDesigner,
+        bisect_largest,
+        rounded_down,
+        shown_value,
+    )
+
+    budget = [HINT_ROUNDS]
+
+    def sizer(values: Mapping[str, float]) -> StructureDesigner:
+        return StructureDesigner(
+            designer.kb,
+            outcome.design.chosen,
+            outcome.catalog,
+            dict(values),
+            opts.symmetric,
+            opts.objective,
+        )
+
+    asked_values = sizer(params).values  # the parameters with the type's defaults
+
+    for name, (*_, floor, always) in EASIER_WHEN_SMALLER.items():
+        asked = asked_values.get(name)
+        if not (always or name in params) or not asked or asked <= 0:
+            continue
+
+        def ok(x: float, name: str = name) -> bool:
+            if budget[0] <= 0:
+                return False  # out of rounds: not shown to work
+            budget[0] -= 1
+            values = {**params, name: x}
+            try:
+                structure = sizer(values).run()
+            except InfeasibleError:
+                return False
+            trial = replace(outcome, structure=structure, calibration=None, bundle=None)
+            return _verified(designer, values, opts, trial).infeasible is None
+
+        low = floor * asked
+        if not ok(low):
+            continue
+        # midpoints on the grid of the decimals shown: the value named is one that was tested
+        snap = partial(rounded_down, name)
+        best = bisect_largest(ok, low, asked, HINT_BISECTIONS, snap)
+        if best == low:  # the floor: maybe off the grid, shown rounded down
+            return f"the largest {name} that works here is {shown_value(name, best)}"
+        unit, scale, digits, *_ = EASIER_WHEN_SMALLER[name]
+        return f"the largest {name} that works here is {best * scale:.{digits}f} {unit}"
+    return None
+
+
+def _verified(
+    designer: Designer, params: Mapping[str, float], opts: StructureOptions, outcome: Outcome
+) -> Outcome:
+    """The loop of the module docstring on ``outcome``, sized for ``params`` (SI)."""
     from export.verdict import explain
     from export.verify import verify_files
     from gaits import controller_for
     from gaits.base import DesignGeometry
+    from program.sensing import simulated_abilities, verify_sensing
     from synth.structure import StructureDesigner
 
     floors: dict[str, float] = {}
@@ -88,8 +212,13 @@ def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Ou
     while True:
         rounds += 1
         files = outcome.files(designer)
+        calibration = calibrate(files)
+        if calibration:
+            outcome = replace(outcome, calibration=calibration)
+            files = outcome.files(designer)
         record = outcome.record(designer)
-        results = verify_files(files)
+        # the behaviours' trajectories, then the sensing abilities' closed loops
+        results = verify_files(files) + verify_sensing(files)
         failing = [r for r in results if r["verdict"] != "ok"]
         more = _floors(results, record)
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
@@ -100,7 +229,7 @@ def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Ou
             designer.kb,
             outcome.design.chosen,
             outcome.catalog,
-            designer.structural(req),
+            dict(params),
             opts.symmetric,
             opts.objective,
         )
@@ -109,10 +238,13 @@ def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Ou
             structure = sizer.run()
         except InfeasibleError:
             break  # no stronger actuator: the failure below stands
-        outcome = replace(outcome, structure=structure)
+        outcome = replace(outcome, structure=structure, calibration=None)
     # which abilities no behaviour simulates: the controller alone tells (no model needed)
     controller = controller_for(DesignGeometry.from_record(record))
-    unsimulated = tuple(controller.unbehaved(record.get("abilities", ())))
+    sensed = set(simulated_abilities(record, controller.behaviors))
+    unsimulated = tuple(
+        a for a in controller.unbehaved(record.get("abilities", ())) if a not in sensed
+    )
     needed = set(record.get("needed") or record.get("abilities", ()))
     dropped: dict[str, str] = {}
     failure = None

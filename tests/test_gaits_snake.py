@@ -3,8 +3,10 @@
 
 from __future__ import annotations
 
+import copy
 import math
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -15,16 +17,21 @@ from export.simulate import load_bundle_model, simulate
 from gaits.base import DesignGeometry, Trajectory
 from gaits.snake import (
     ARCH_MODULES,
+    BEND_MAX,
     GAITS,
     RECTILINEAR_ARCH,
+    SPEED_MARGIN,
     SPEED_SHARE,
     SnakeController,
     WaveParams,
     gait_params,
     joint_waves,
+    rolled_waves,
     wave_amplitude,
     wave_phase_step,
 )
+from kinematics.dynamics import forward_kinematics
+from kinematics.spatial import rot_x
 from synth.conceptual import Design, Request
 from synth.structure import design_structure
 
@@ -194,6 +201,112 @@ def test_default_frequency_keeps_torque_for_the_load() -> None:
         assert traj.info["frequency_hz"] < fast.run(gait).info["frequency_hz"]
 
 
+# --- a rolled body: the waves turned by the roll --------------------------------------------
+
+ROLLS = (math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2, math.pi, 0.3)
+
+
+def test_every_gait_takes_the_roll() -> None:
+    c = SnakeController(_geometry(14))
+    for spec in c.behaviors.values():
+        roll = next(p for p in spec.params if p.name == "roll")
+        assert (roll.kind, roll.default, roll.unit) == ("float", 0.0, "rad")
+        assert (roll.low, roll.high) == (-math.pi, math.pi)
+        assert "long axis" in roll.doc and "+x" in roll.doc
+    with pytest.raises(ValueError, match="outside"):
+        c.run("rolling", roll=3.2)
+
+
+def test_no_roll_is_eq_7_exactly() -> None:
+    """roll = 0 leaves the trajectories as they were: eq. 7, bit for bit."""
+    p = WaveParams(0.4, 0.3, 0.7, -0.5, 1.1, 0.05, -0.2)
+    phase = np.linspace(0, 7, 23)
+    eq7 = np.empty((23, 7))
+    for j in range(7):
+        i = j // 2
+        if j % 2 == 0:
+            eq7[:, j] = 1.0 * (p.o_v + p.a_v * np.sin(phase + i * p.dphi_v))
+        else:
+            eq7[:, j] = 1.0 * (p.o_h + p.a_h * np.sin(phase + i * p.dphi_h + p.dphi_vh))
+    assert np.array_equal(joint_waves(phase, 7, p, roll=0.0), eq7)
+    # the rolled form at roll 0 is the same waves (the continuous form samples eq. 7)
+    assert np.allclose(joint_waves(phase, 7, p, roll=1e-300), eq7, rtol=0, atol=1e-12)
+    c = SnakeController(_geometry(8))
+    for gait in ALL:
+        a, b = c.run(gait), c.run(gait, roll=0.0)
+        assert a.positions.tobytes() == b.positions.tobytes()
+        assert a.velocities.tobytes() == b.velocities.tobytes()
+
+
+def _shape(model, bodies, q: np.ndarray, roll: float) -> np.ndarray:
+    """World positions (N, B, 3) m of ``bodies`` with the base rolled by ``roll`` rad."""
+    frames = forward_kinematics(model, q)[:, bodies]
+    return np.einsum("ab,nkb->nka", rot_x(roll), frames[..., :3, 3])
+
+
+def test_rolled_waves_bend_the_body_in_the_world_as_upright() -> None:
+    """Checked against the template's joint axes: a long snake rolled by ``roll`` with the
+    turned waves takes the upright snake's shape in the world (up to sampling the waves on
+    the other joints); with the roll's sign reversed, or not turned, it does not."""
+    m = 24
+    c = SnakeController(_geometry(m, ("rolling",)))
+    model = c.template.model
+    bodies = [model.body(f"module_{i}") for i in range(1, m + 1)]
+    p = WaveParams(0.25, 0.2, math.pi / 6, math.pi / 6, 0.7, 0.05, -0.04)
+    phase = np.array([0.3, 1.9, 4.0])
+    upright = joint_waves(phase, m, p)
+    want = _shape(model, bodies, upright, 0.0)
+    straight = np.zeros(3)
+    bent = np.abs(want - straight - np.outer(np.arange(m), [0.06, 0, 0])).max()
+    for roll in ROLLS:
+        good = _shape(model, bodies, joint_waves(phase, m, p, roll=roll), roll)
+        assert np.abs(good - want).max() < 0.25 * bent
+        if abs(math.sin(roll)) > 0.5:  # the mirrored turn (a case built to fail)
+            wrong = _shape(model, bodies, joint_waves(phase, m, p, roll=-roll), roll)
+            assert np.abs(wrong - want).max() > 0.5 * bent
+        unturned = _shape(model, bodies, upright, roll)
+        assert np.abs(unturned - want).max() > 0.25 * bent
+    # rolled_waves shares each joint's bend by its axis
+    v, h = np.full((1, 2), 0.3), np.full((1, 2), 0.1)
+    assert np.allclose(rolled_waves(v, h, math.pi / 2), [[0.1, -0.3]])
+
+
+def test_a_roll_keeps_ranges_and_speeds() -> None:
+    """Turned waves stay within the joints' range and speed, or are refused saying so; the
+    default frequency stays feasible at every roll."""
+    assert SPEED_SHARE * math.sqrt(2) <= SPEED_MARGIN
+    slow = SnakeController(_geometry(14, speed=2.0))
+    for gait in ALL:
+        for roll in ROLLS + (-math.pi,):
+            traj = slow.run(gait, roll=roll, cycles=2)
+            assert np.abs(traj.positions).max() <= math.pi / 2
+            assert np.abs(traj.velocities).max() <= slow.max_speed * (1 + 1e-9)
+            assert traj.info["roll_rad"] == roll
+    # a bend the horizontal joints hold upright leaves the range when shared with the
+    # vertical wave (a case built to fail)
+    slow.run("circular-path", bend=BEND_MAX, cycles=2)
+    with pytest.raises(ValueError, match=r"rolled by 0\.785 rad leave the joints' range: joint_"):
+        slow.run("circular-path", bend=BEND_MAX, cycles=2, roll=math.pi / 4)
+    # a roll shares both waves' rates: where rotating's waves are in phase a joint moves
+    # faster than upright, so the highest frequency is lower, and said
+    roll = -math.pi / 12
+    top, rolled = slow.max_frequency("rotating"), slow.max_frequency("rotating", roll=roll)
+    assert rolled < 0.99 * top
+    slow.run("rotating", frequency=top)
+    with pytest.raises(ValueError, match=f"at most {rolled:.3g} Hz"):
+        slow.run("rotating", frequency=top, roll=roll)
+
+
+def test_the_promise_is_in_the_heading_frame() -> None:
+    """A rolled snake promises what the upright one does: the waves are turned, not the
+    motion."""
+    c = SnakeController(_geometry(14))
+    for gait in ALL:
+        for roll in ROLLS:
+            a, b = c.run(gait, cycles=2).info, c.run(gait, cycles=2, roll=roll).info
+            assert (a.get("direction"), a.get("turn")) == (b.get("direction"), b.get("turn"))
+
+
 # --- MuJoCo: every gait of the paper's snakes moves as its info promises --------------------
 
 #: The paper's snakes (section 4.3.2): the gaits asked for; each lists every gait its M allows.
@@ -287,6 +400,89 @@ def test_judge_fails_a_gait_that_goes_the_wrong_way(snakes) -> None:
     finally:
         c._run = real
     assert done < 0
+
+
+# --- MuJoCo: a snake lying rolled moves as promised when told its roll ----------------------
+
+
+def roll_of(model, data) -> float:
+    """The ``roll`` parameter's angle rad, measured: the root body's (the head's) roll about
+    its long axis relative to the model's initial orientation, right-handed about its +x:
+    the z-y-x Euler roll ``atan2(R[2, 1], R[2, 2])`` of R = R0^T R_now (R0 the root's
+    orientation in ``qpos0``, identity in the generated MJCF; R_now from the freejoint's
+    quaternion ``qpos[3:7]``)."""
+    r0, now = np.empty(9), np.empty(9)
+    mujoco.mju_quat2Mat(r0, model.qpos0[3:7])
+    mujoco.mju_quat2Mat(now, data.qpos[3:7])
+    rel = r0.reshape(3, 3).T @ now.reshape(3, 3)
+    return math.atan2(rel[2, 1], rel[2, 2])
+
+
+def _rolled_start(model, c: SnakeController, roll: float):
+    """MjData of the snake straight, its freejoint's quaternion turned by ``roll`` rad
+    about the body's long axis, lifted clear of the floor and settled for 0.5 s."""
+    data = mujoco.MjData(model)
+    data.qpos[3:7] = (math.cos(roll / 2), math.sin(roll / 2), 0.0, 0.0)
+    mujoco.mj_forward(model, data)
+    deepest = min((float(con.dist) for con in data.contact[: data.ncon]), default=0.0)
+    data.qpos[2] += max(0.0, -deepest) + 0.002
+    act = [model.actuator(j).id for j in c.joints]
+    data.ctrl[act] = 0.0  # the gaits' first pose: straight
+    for _ in range(int(0.5 / model.opt.timestep)):
+        mujoco.mj_step(model, data)
+    return data
+
+
+def judge_from(c: SnakeController, model, data, gait: str, **params) -> tuple[float, float]:
+    """``judge`` for a run that continues from ``data`` (left as it ends)."""
+    traj = c.run(gait, **params)
+    r = simulate(model, traj, can_fall=False, data=data)
+    root = r.series["root"]
+    if traj.info["motion"] == "rotate":
+        yaw = _yaws(root)
+        done = float(yaw[-1] - yaw[0]) * traj.info["turn"]
+    else:
+        done = r.distance_m / traj.info["body_length_m"]
+    return done * 10.0 / traj.duration, r.saturated_fraction
+
+
+def test_roll_of_measures_the_roll_about_the_long_axis(snakes) -> None:
+    c, model = snakes[8]
+    data = mujoco.MjData(model)
+    for roll in (0.0, 0.4, -1.2, 3.0):
+        half = (math.cos(roll / 2), math.sin(roll / 2), 0.0, 0.0)
+        turn = (math.cos(0.35), 0.0, 0.0, math.sin(0.35))  # and a heading: not a roll
+        mujoco.mju_mulQuat(data.qpos[3:7], np.array(turn), np.array(half))
+        assert roll_of(model, data) == pytest.approx(roll)
+
+
+def test_a_snake_on_its_side_moves_when_told_its_roll(snakes) -> None:
+    """The M = 8 snake laid on its side: rectilinear and rotating told the measured roll do
+    what they promise; rectilinear not told (a case built to fail) does not move."""
+    c, model = snakes[8]
+    start = _rolled_start(model, c, math.pi / 2)
+    roll = roll_of(model, start)
+    assert roll == pytest.approx(math.pi / 2, abs=math.radians(5))
+    # (rectilinear's saturation is checked upright at its default cycles: at M = 8 it is
+    # near the limit, more so on short runs, whose fades weigh more)
+    done, _ = judge_from(c, model, copy.copy(start), "rectilinear", roll=roll, cycles=4)
+    assert done >= LEAST_CRAWL
+    done, _ = judge_from(c, model, copy.copy(start), "rectilinear", cycles=4)
+    assert done < LEAST_CRAWL
+    done, saturated = judge_from(c, model, start, "rotating", roll=roll, cycles=3)
+    assert done >= LEAST_TURN and saturated <= MOST_SATURATED
+
+
+def test_after_rolling_the_measured_roll_lets_the_next_gait_work(snakes) -> None:
+    """A program's chain: rolling leaves the snake on its side; the next gait, told the
+    roll measured there, keeps its promise."""
+    c, model = snakes[8]
+    data = mujoco.MjData(model)
+    judge_from(c, model, data, "rolling", direction=-1, cycles=2)
+    roll = roll_of(model, data)
+    assert abs(roll) > math.radians(45)
+    done, saturated = judge_from(c, model, data, "rotating", roll=roll, cycles=3)
+    assert done >= LEAST_TURN and saturated <= MOST_SATURATED
 
 
 # --- sizing: every listed gait, and the payload ----------------------------------------------

@@ -11,6 +11,7 @@ import json
 import pytest
 
 import export.verify
+import synth.verify
 from synth.conceptual import Request
 from synth.pipeline import StructureOptions, run
 
@@ -80,6 +81,7 @@ def test_a_saturated_joint_gets_a_stronger_actuator(designer, monkeypatch):
 
 
 def test_a_failing_demanded_ability_fails_the_request(designer, monkeypatch):
+    monkeypatch.setattr(synth.verify, "HINT_ROUNDS", 0)  # the loop's own simulations only
     bad = _result("pick-and-place", "pick-and-place", ["placing"], placing_error_m=0.012)
     fake, calls = _fake([[bad]])
     monkeypatch.setattr(export.verify, "verify_files", fake)
@@ -108,6 +110,7 @@ def test_a_failing_bonus_ability_is_dropped_with_a_note(designer, monkeypatch):
 
 
 def test_no_stronger_actuator_leaves_the_failure_standing(designer, monkeypatch):
+    monkeypatch.setattr(synth.verify, "HINT_ROUNDS", 0)  # the loop's own simulations only
     # the shoulder already has the catalog's strongest servo
     sat = _saturated("shoulder_pitch", 0.2)
     fake, calls = _fake([[sat]])
@@ -118,6 +121,8 @@ def test_no_stronger_actuator_leaves_the_failure_standing(designer, monkeypatch)
 
 @pytest.mark.parametrize("rounds", [3])
 def test_the_loop_stops_after_its_rounds(designer, monkeypatch, rounds):
+    monkeypatch.setattr(synth.verify, "HINT_ROUNDS", 0)  # the loop's own simulations only
+
     def sat(k):  # every round a different joint saturates: the loop must still stop
         joint = ["base_yaw", "elbow_pitch", "base_yaw", "elbow_pitch"][k]
         return [_saturated(joint, 0.5)]
@@ -127,3 +132,69 @@ def test_the_loop_stops_after_its_rounds(designer, monkeypatch, rounds):
     out = run(designer, ARM, StructureOptions())
     assert len(calls) == rounds and out.status == "infeasible"
     assert "saturated (saturated_fraction 0.5 > 0.05)" in out.infeasible
+
+
+def _fails_above(limit_kg):
+    """A stand-in simulator under which pick-and-place misses its target when the design
+    carries more than ``limit_kg`` of payload (the case built to fail), and passes below."""
+    calls = []
+
+    def verify_files(files, behaviors=None):
+        record = json.loads(files["design.json"])
+        payload = record["params"]["payload"]
+        calls.append(payload)
+        if payload > limit_kg:
+            return [_result("pick-and-place", "pick-and-place", ["placing"], placing_error_m=0.02)]
+        return [_result("pick-and-place", "pick-and-place")]
+
+    return verify_files, calls
+
+
+def test_a_refusal_by_simulation_names_the_largest_payload_that_verifies(designer, monkeypatch):
+    fake, calls = _fails_above(0.12)
+    monkeypatch.setattr(export.verify, "verify_files", fake)
+    req = Request(ARM.abilities, params=(*ARM.params, ("payload", "0.2kg")))
+    out = run(designer, req, StructureOptions())
+    assert out.status == "infeasible"
+    msg = out.infeasible
+    assert msg.startswith("pick-and-place failed in simulation: placing (placing error 20 mm")
+    # on the grid of the grams shown: 0.1 ok, 0.15 and 0.125 fail, 0.112 ok
+    assert msg.endswith("; the largest payload that works here is 0.112 kg")
+    assert calls[-1] == pytest.approx(0.112)  # the value named was tested
+    # bounded: the request, the floor (0 kg) and HINT_BISECTIONS halvings
+    assert len(calls) == 1 + 1 + synth.verify.HINT_BISECTIONS <= 1 + synth.verify.HINT_ROUNDS
+    # the named value designs and verifies
+    named = Request(ARM.abilities, params=(*ARM.params, ("payload", "0.112kg")))
+    assert run(designer, named, StructureOptions()).status == "designed"
+
+
+def test_a_refusal_without_a_working_value_names_none(designer, monkeypatch):
+    fake, calls = _fails_above(-1.0)  # fails whatever the payload
+    monkeypatch.setattr(export.verify, "verify_files", fake)
+    out = run(designer, ARM, StructureOptions())
+    assert out.status == "infeasible" and "largest" not in out.infeasible
+    assert len(calls) == 2  # the request and the floor: the payload is not the limit
+
+
+def test_a_skid_steer_is_calibrated_before_it_is_verified(designer):
+    """Its probe runs measure the effective track its skidding wheels turn it with; the
+    record keeps it, the bundle's trajectories and its controller use it."""
+    from export.bundle import trajectory_files
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    req = Request(("driving",), params=(("payload", "2kg"),))
+    out = run(designer, req, StructureOptions())
+    rec = json.loads(out.files(designer)["design.json"])
+    cal = rec["calibration"]
+    drive = controller_for(DesignGeometry.from_record(rec)).drive
+    bare = {k: v for k, v in rec.items() if k != "calibration"}
+    model = controller_for(DesignGeometry.from_record(bare)).drive
+    assert drive.effective_track == cal["effective_track_m"] > model.effective_track
+    assert 0 < cal["turn_load_scale"] == drive.turn_load_scale
+    assert all(b["verdict"] == "ok" for b in rec["verified"]["behaviors"])
+    turning = out.files(designer)["trajectories/turning.csv"]
+    assert turning == trajectory_files(rec)["trajectories/turning.csv"]
+    assert turning != trajectory_files(bare)["trajectories/turning.csv"]
+    # not simulated: nothing measured
+    assert "calibration" not in run(designer, req, StructureOptions(verify=False)).record(designer)

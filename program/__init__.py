@@ -1,0 +1,1 @@
+"""The programming layer: programs of behaviour calls, ROS services and block pages."""

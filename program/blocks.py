@@ -1,0 +1,242 @@
+"""The block page of a design bundle (``parmor blocks DIR``).
+
+The page (``DIR/blocks/index.html``) is built on Blockly: its toolbox has one block per
+behaviour the design lists (``Controller.listed`` of the record's abilities), with a field
+per parameter (its unit and limits shown; a choice is a dropdown), and the blocks repeat,
+wait and if/else on what the robot reports (``program.script.REPORTS``). A Blockly
+generator in the page writes the Python program the blocks stand for (the text of
+``program.script.to_python``); with ``parmor blocks DIR --serve`` the page's Run button
+sends the program as JSON to the local server (:mod:`program.server`) and shows the reply:
+the path travelled, the verdict figures and the robot moving (three.js).
+
+Everything here is generic: the toolbox is read from the controller's typed behaviours
+(:class:`gaits.base.BehaviorSpec`), never from the robot type.
+
+Where the JavaScript comes from: the page's own files are ``web/page/`` and Blockly and
+three.js are the npm packages pinned by ``web/package.json`` (``make web`` installs them
+into ``web/node_modules``). ``web/`` is found from the environment variable
+``PARMOR_WEB`` when set (a folder holding ``page/`` and ``node_modules/``), otherwise
+beside the source tree (``<repository>/web``). Every file the page needs is copied into
+``DIR/blocks/``, so the page works offline from the bundle (``file://``) and the bundle can
+be moved.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from adron.errors import ExportError, InputError
+
+if TYPE_CHECKING:
+    from gaits.base import Controller
+
+#: Environment variable naming the web folder (``page/`` and ``node_modules/``).
+WEB_ENV = "PARMOR_WEB"
+#: The make target that installs the npm packages.
+MAKE_TARGET = "make web"
+#: The folder of the page inside a bundle.
+PAGE_DIR = "blocks"
+#: The page's own files (in ``web/page/``), copied as they are.
+PAGE_FILES = ("index.html", "parmor.js", "style.css")
+#: npm files the page needs: path in ``node_modules`` -> path in ``DIR/blocks/vendor``.
+#: Blockly's UMD build loads from ``file://`` with a plain script tag; three.js is an ES
+#: module, imported only when a reply is shown (served pages, never ``file://``).
+VENDOR_FILES: dict[str, str] = {
+    "blockly/blockly_compressed.js": "blockly_compressed.js",
+    "blockly/msg/en.js": "blockly_msg_en.js",
+    "blockly/package.json": "blockly.package.json",
+    "three/build/three.module.min.js": "three.module.min.js",
+    "three/build/three.core.min.js": "three.core.min.js",
+    "three/LICENSE": "three.LICENSE",
+    "three/package.json": "three.package.json",
+}
+#: Folders of npm files the page needs (Blockly's cursors, icons and sounds).
+VENDOR_DIRS: dict[str, str] = {"blockly/media": "media"}
+
+
+def web_dir() -> Path:
+    """The web folder: ``$PARMOR_WEB`` or ``web/`` beside the source tree."""
+    env = os.environ.get(WEB_ENV)
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parents[1] / "web"
+
+
+def _require_web(web: Path) -> None:
+    """InputError (exit 2) naming what to run when the page's files are absent."""
+    page = web / "page"
+    missing = [page / f for f in PAGE_FILES if not (page / f).is_file()]
+    nm = web / "node_modules"
+    missing += [nm / f for f in VENDOR_FILES if not (nm / f).is_file()]
+    missing += [nm / d for d in VENDOR_DIRS if not (nm / d).is_dir()]
+    if missing:
+        raise InputError(
+            f"the block page's JavaScript is not installed ({missing[0]} is missing): run "
+            f"'{MAKE_TARGET}' in the parmor source tree (it installs Blockly and three.js with "
+            f"npm into web/node_modules), or set {WEB_ENV} to a folder holding page/ and "
+            "node_modules/"
+        )
+
+
+def read_record(folder: Path) -> dict:
+    """The design record of a bundle folder; InputError when it is not one."""
+    try:
+        record = json.loads((folder / "design.json").read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(
+            f"{folder}: no design.json (write one with 'parmor design ... --out DIR')"
+        ) from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise InputError(f"{folder / 'design.json'}: {e}") from None
+    if not isinstance(record, dict) or record.get("template") is None:
+        raise InputError(
+            f"{folder / 'design.json'}: not a sized design record (designed with --conceptual?)"
+        )
+    return record
+
+
+def bundle_controller(folder: Path, record: Mapping) -> Controller:
+    """The design's controller, set up for the bundle's MuJoCo model as a run sets it up."""
+    from export.simulate import load_bundle_model
+    from export.verify import controller_for_model
+
+    try:
+        model = load_bundle_model(folder)
+    except (OSError, ValueError, KeyError) as e:
+        raise InputError(f"{folder}: cannot load the MuJoCo model: {e}") from None
+    try:
+        return controller_for_model(record, model)
+    except ValueError as e:
+        raise InputError(f"{folder}: {e}") from None
+
+
+def _limit(x: float | None) -> float | None:
+    """A parameter limit as JSON (None: unbounded)."""
+    return None if x is None or not math.isfinite(float(x)) else float(x)
+
+
+def _value(x: object) -> object:
+    if isinstance(x, bool) or x is None or isinstance(x, str):
+        return x
+    if isinstance(x, int):
+        return x
+    return float(x)  # type: ignore[arg-type]
+
+
+def toolbox(controller: Controller, abilities: Sequence[str]) -> list[dict]:
+    """One entry per behaviour the design lists (name order): name, doc, and its
+    parameters (name, kind, default, unit, low, high, choices, doc). Depends only on the
+    controller's behaviour descriptions, so two designs whose controllers describe their
+    behaviours alike get identical toolboxes."""
+    out = []
+    for name in controller.listed(abilities):
+        spec = controller.behaviors[name]
+        out.append(
+            {
+                "name": name,
+                "doc": spec.doc,
+                "params": [
+                    {
+                        "name": p.name,
+                        "kind": p.kind,
+                        "default": _value(p.default),
+                        "unit": p.unit,
+                        "low": _limit(p.low),
+                        "high": _limit(p.high),
+                        "choices": list(p.choices),
+                        "doc": p.doc,
+                    }
+                    for p in spec.params
+                ],
+            }
+        )
+    return out
+
+
+def python_header() -> str:
+    """What the Python text of every program starts with (before ``def main(robot):``),
+    taken from :func:`program.script.to_python` so that the page writes the same text."""
+    from program.script import to_python
+
+    text = to_python({"program": []})
+    head, sep, _ = text.partition("def main(robot):")
+    if not sep:
+        raise ExportError("program.script.to_python wrote no 'def main(robot):'")
+    return head
+
+
+def page_config(folder: Path, record: Mapping, controller: Controller) -> dict:
+    """What the page is generated from: the robot, its toolbox, the reports the if block
+    can test, the program limits and the Python header."""
+    from program.script import LIMITS, REPORTS
+
+    return {
+        "robot_type": record["robot_type"],
+        "bundle": folder.resolve().name,
+        "toolbox": toolbox(controller, record.get("abilities", ())),
+        "reports": [
+            {"name": name, "unit": unit, "doc": doc} for name, (unit, doc) in REPORTS.items()
+        ],
+        "limits": dict(LIMITS),
+        "python_header": python_header(),
+    }
+
+
+def page_files(config: Mapping, web: Path | None = None) -> dict[str, bytes]:
+    """Every file of ``DIR/blocks/`` (relative path -> bytes); InputError when the npm
+    files are absent."""
+    web = web_dir() if web is None else web
+    _require_web(web)
+    files: dict[str, bytes] = {}
+    for f in PAGE_FILES:
+        files[f] = (web / "page" / f).read_bytes()
+    nm = web / "node_modules"
+    for src, dst in VENDOR_FILES.items():
+        files[f"vendor/{dst}"] = (nm / src).read_bytes()
+    for src, dst in VENDOR_DIRS.items():
+        for path in sorted((nm / src).rglob("*")):
+            if path.is_file():
+                files[f"vendor/{dst}/{path.relative_to(nm / src).as_posix()}"] = path.read_bytes()
+    body = json.dumps(config, indent=1, sort_keys=True, ensure_ascii=False)
+    files["config.js"] = (
+        "// Generated by 'parmor blocks': the design's behaviours, reports and limits.\n"
+        f"window.PARMOR_CONFIG = {body};\n"
+    ).encode()
+    return files
+
+
+def write_page(folder: str | Path) -> Path:
+    """Write the block page of the bundle ``folder`` into ``folder/blocks/`` (replaced
+    whole: written to a temporary folder beside it, then renamed). Returns the page."""
+    folder = Path(folder)
+    record = read_record(folder)
+    controller = bundle_controller(folder, record)
+    files = page_files(page_config(folder, record, controller))
+    target = folder / PAGE_DIR
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=".blocks-", dir=folder))
+        try:
+            for rel, data in sorted(files.items()):
+                path = tmp / rel
+                path.parent.mkdir(parents=True, exist_ok=True)
+                path.write_bytes(data)
+            old = None
+            if target.exists():
+                old = folder / f".blocks-old-{os.getpid()}"
+                target.rename(old)
+            tmp.rename(target)
+            if old is not None:
+                shutil.rmtree(old, ignore_errors=True)
+        finally:
+            if tmp.exists():
+                shutil.rmtree(tmp, ignore_errors=True)
+    except OSError as e:
+        raise ExportError(f"{target}: cannot write the block page: {e}") from None
+    return target / "index.html"

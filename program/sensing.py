@@ -1,0 +1,501 @@
+"""Sensing abilities simulated: following a line on the floor with two downward infrared
+sensors, and passing an obstacle with a forward ultrasonic ranger.
+
+A sensing ability is a closed loop over a locomotion behaviour the design already has:
+at :data:`CONTROL_HZ` the robot reads its sensors in the simulated world, picks a forward
+speed and a turn rate, and runs the steerable behaviour (:data:`STEERABLE`) for one control
+period, continuing from where it is (:class:`program.session.Session`). Behaviours that
+cannot be steered that way (a legged gait's walking takes a direction, not a turn rate)
+give no sensing behaviour, and the ability stays ``not_simulated``.
+
+The sensors, as the ontology's sensing abilities and the catalog's modules give them:
+
+- two TCRT5000 infrared modules side by side (:data:`IR_SPACING_M` apart) at the front
+  edge of the trunk, looking down; each reads 1 over the line (black tape
+  :data:`LINE_WIDTH_M` wide), else 0 (the module's comparator output);
+- an HC-SR04 ultrasonic ranger at the front edge, looking forward: the nearest obstacle
+  within its beam (three rays, the axis and +-:data:`RANGER_HALF_ANGLE`), between
+  :data:`RANGER_MIN_M` and :data:`RANGER_MAX_M` (its datasheet's range).
+
+The trunk's front edge is the furthest point of its geoms along the direction the
+steerable behaviour drives forward.
+
+What each promises, judged on the outcome (:func:`export.verdict.judge`):
+
+- ``line-tracking`` (motion ``follow-line``): the line never leaves the span of the two
+  sensors for longer than ``LINE_LOST_S``, and the robot covers ``LINE_PROGRESS`` of the
+  commanded length along the line in the time it has (1.5 x what the speed needs, + 2 s).
+- ``obstacle-avoidance`` (motion ``avoid``): the robot reaches the goal line ``distance``
+  ahead (an obstacle across its straight path halfway) without touching the obstacle,
+  within 3 x what the speed needs + 10 s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from gaits.base import BehaviorSpec, Parameter
+
+if TYPE_CHECKING:
+    from program.session import Session
+
+CONTROL_HZ = 20  # sensor reads and steering decisions per second (a microcontroller loop)
+LINE_WIDTH_M = 0.019  # black electrical tape
+IR_SPACING_M = 0.05  # two 50 mm infrared modules side by side (the modules' face)
+RANGER_MIN_M, RANGER_MAX_M = 0.02, 4.0  # HC-SR04 datasheet
+RANGER_HALF_ANGLE = math.radians(15)  # HC-SR04: an effective beam of about 30 degrees
+TURN_GAIN = 1.0  # x (the tightest curve's rate + the rate that swings the sensors back)
+OBSTACLE_DEPTH_M, OBSTACLE_HEIGHT_M = 0.10, 0.25  # the box set across the path
+CLEARANCE_M = 0.05  # what the avoiding robot keeps from the obstacle, beyond its corners
+HEADING_GAIN = 1.5  # 1/s: steering back to the start heading once past the obstacle
+OBSTACLE = "parmor_obstacle"  # the scene's obstacle body and geom
+
+#: Behaviours that can be steered at a forward speed and a turn rate: behaviour -> its
+#: speed, turn-rate and duration parameters, and the values fixed for short periods.
+STEERABLE: dict[str, dict] = {
+    "driving": {"speed": "v", "turn": "w", "seconds": "seconds", "fixed": {"ramp": 0.0}},
+}
+
+#: The sensing abilities this module simulates, with the motion each promises.
+SENSING = {"line-tracking": "follow-line", "obstacle-avoidance": "avoid"}
+
+
+@dataclass(frozen=True)
+class Steering:
+    """How a design is steered: its steerable behaviour and that behaviour's limits."""
+
+    behavior: str
+    speed: str
+    turn: str
+    seconds: str
+    fixed: Mapping[str, object]
+    v_max: float
+    w_max: float
+
+
+def steering(behaviors: Mapping[str, BehaviorSpec]) -> Steering | None:
+    """The design's steerable behaviour (:data:`STEERABLE`), or None."""
+    for name, how in STEERABLE.items():
+        spec = behaviors.get(name)
+        if spec is None:
+            continue
+        ps = {p.name: p for p in spec.params}
+        if not {how["speed"], how["turn"], how["seconds"]} <= set(ps):
+            continue
+        return Steering(
+            name,
+            how["speed"],
+            how["turn"],
+            how["seconds"],
+            dict(how["fixed"]),
+            float(ps[how["speed"]].high or 0.0),
+            float(ps[how["turn"]].high or 0.0),
+        )
+    return None
+
+
+def sensing_behaviors(
+    behaviors: Mapping[str, BehaviorSpec], abilities: tuple[str, ...] | list[str]
+) -> dict[str, BehaviorSpec]:
+    """The sensing behaviours of a design with these (locomotion) ``behaviors`` and
+    ``abilities``: name -> spec; none when nothing can be steered."""
+    steer = steering(behaviors)
+    if steer is None:
+        return {}
+    speed = round(steer.v_max / 2, 3)
+    speed_p = Parameter(
+        "speed", "float", speed, "forward speed", "m/s", low=0.01, high=round(steer.v_max, 3)
+    )
+    out: dict[str, BehaviorSpec] = {}
+    if "line-tracking" in abilities:
+        out["line-tracking"] = BehaviorSpec(
+            "line-tracking",
+            "Follow a line on the floor with the two infrared sensors.",
+            (
+                Parameter(
+                    "course",
+                    "choice",
+                    "circle",
+                    "the line: a circle turning left, or a wave",
+                    choices=("circle", "wave"),
+                ),
+                Parameter(
+                    "radius", "float", 0.5, "tightest curve of the line", "m", low=0.2, high=10
+                ),
+                Parameter("length", "float", 2.0, "how far to follow it", "m", low=0.2, high=20),
+                speed_p,
+            ),
+        )
+    if "obstacle-avoidance" in abilities:
+        out["obstacle-avoidance"] = BehaviorSpec(
+            "obstacle-avoidance",
+            "Reach a goal line ahead, passing an obstacle set across the way halfway.",
+            (
+                Parameter("distance", "float", 1.5, "to the goal line", "m", low=0.5, high=10),
+                Parameter("width", "float", 0.15, "the obstacle's width", "m", low=0.02, high=1.0),
+                speed_p,
+            ),
+        )
+    return out
+
+
+def scene_xml(xml: str) -> str:
+    """``robot.xml`` with the scene's obstacle: a mocap box parked out of the way (it
+    collides with nothing until a behaviour sets it up)."""
+    body = (
+        f'<body name="{OBSTACLE}" mocap="true" pos="0 0 -10">'
+        f'<geom name="{OBSTACLE}" type="box" size="0.05 0.05 0.05" group="3" '
+        'contype="0" conaffinity="0" rgba="0.8 0.2 0.2 1" /></body>'
+    )
+    at = xml.rfind("</worldbody>")
+    if at < 0:
+        raise ValueError("robot.xml has no worldbody")
+    return xml[:at] + body + "\n  " + xml[at:]
+
+
+# -- the sensors -------------------------------------------------------------------------
+
+
+class Rig:
+    """The sensors on a session's robot: where they sit on the trunk (body frame, m)."""
+
+    def __init__(self, session: Session, forward: np.ndarray) -> None:
+        m = session.model
+        self.session = session
+        fwd = np.array([forward[0], forward[1], 0.0])
+        self.forward = fwd / np.linalg.norm(fwd)
+        self.left = np.array([-self.forward[1], self.forward[0], 0.0])
+        reach, low, high = -math.inf, math.inf, -math.inf
+        for g in range(m.ngeom):
+            if m.geom_bodyid[g] != 1:
+                continue
+            c, h = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
+            rot = np.empty(9)
+            import mujoco
+
+            mujoco.mju_quat2Mat(rot, m.geom_quat[g])
+            rot = rot.reshape(3, 3)
+            for sx in (-1, 1):
+                for sy in (-1, 1):
+                    for sz in (-1, 1):
+                        p = m.geom_pos[g] + rot @ (c + h * np.array([sx, sy, sz]))
+                        reach = max(reach, float(p @ self.forward))
+                        low, high = min(low, float(p[2])), max(high, float(p[2]))
+        self.front = reach
+        #: body-frame points: the infrared pair (left, right) and the ranger
+        self.ir = [
+            self.forward * reach + side * self.left * IR_SPACING_M / 2 + np.array([0, 0, low])
+            for side in (1, -1)
+        ]
+        self.ranger = self.forward * reach + np.array([0, 0, (low + high) / 2])
+
+    def extent(self) -> tuple[float, float]:
+        """(reach m of the robot's parts from the trunk's origin in the ground plane, half
+        width m across the forward direction), from every part's bounding box now."""
+        m, d = self.session.model, self.session.data
+        rot0, pos0 = d.xmat[1].reshape(3, 3), d.xpos[1]
+        reach = half = 0.0
+        for g in range(m.ngeom):
+            b = m.geom_bodyid[g]
+            if b == 0 or m.body_mocapid[b] >= 0:
+                continue
+            c, h = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
+            rot = d.geom_xmat[g].reshape(3, 3)
+            for corner in _corners():
+                p = rot0.T @ (d.geom_xpos[g] + rot @ (c + h * corner) - pos0)
+                reach = max(reach, float(np.hypot(p[0], p[1])))
+                half = max(half, abs(float(p @ self.left)))
+        return reach, half
+
+    def world(self, p: np.ndarray) -> np.ndarray:
+        d = self.session.data
+        return d.xpos[1] + d.xmat[1].reshape(3, 3) @ p
+
+    def heading(self) -> float:
+        """The forward direction's yaw in the world (rad)."""
+        f = self.session.data.xmat[1].reshape(3, 3) @ self.forward
+        return math.atan2(f[1], f[0])
+
+    def range(self) -> float:
+        """The ranger's reading (m): the nearest obstacle in its beam, clipped to its range."""
+        import mujoco
+
+        m, d = self.session.model, self.session.data
+        rot = d.xmat[1].reshape(3, 3)
+        origin = self.world(self.ranger)
+        groups = np.zeros(6, dtype=np.uint8)
+        groups[3] = 1
+        best = RANGER_MAX_M
+        geom = np.zeros(1, dtype=np.int32)
+        for a in (-RANGER_HALF_ANGLE, 0.0, RANGER_HALF_ANGLE):
+            v = rot @ (math.cos(a) * self.forward + math.sin(a) * self.left)
+            v[2] = 0.0
+            v /= np.linalg.norm(v)
+            dist = mujoco.mj_ray(m, d, origin, v, groups, 1, -1, geom)
+            if dist >= 0:
+                best = min(best, dist)
+        return float(min(max(best, RANGER_MIN_M), RANGER_MAX_M))
+
+
+class Course:
+    """A line on the floor: a polyline (N, 2) m with arc length ``s`` along it."""
+
+    def __init__(self, points: np.ndarray) -> None:
+        self.points = points
+        seg = np.diff(points, axis=0)
+        self.s = np.concatenate([[0.0], np.cumsum(np.hypot(seg[:, 0], seg[:, 1]))])
+        self._seg = seg
+        self._len2 = np.maximum((seg**2).sum(axis=1), 1e-18)
+
+    @classmethod
+    def make(
+        cls, shape: str, radius: float, length: float, start: np.ndarray, heading: float
+    ) -> Course:
+        """The ``shape`` line ('circle' turning left, or 'wave' of tightest curve
+        ``radius``) from ``start`` (x, y) m along ``heading`` rad, ``length`` + 1 m long."""
+        total = length + 1.0
+        s = np.arange(0.0, total + 0.005, 0.005)
+        if shape == "circle":
+            a = s / radius
+            x, y = radius * np.sin(a), radius * (1 - np.cos(a))
+        else:  # a sine whose tightest curve has the given radius: A k^2 = 1 / radius
+            wavelength = max(4 * radius, 1.0)
+            k = 2 * math.pi / wavelength
+            amp = 1 / (radius * k * k)
+            x = s  # (arc length is recomputed from the points)
+            y = amp * np.sin(k * x)
+        c, sn = math.cos(heading), math.sin(heading)
+        pts = np.stack([start[0] + c * x - sn * y, start[1] + sn * x + c * y], axis=1)
+        return cls(pts)
+
+    def locate(self, p: np.ndarray, near_s: float, window: float = 0.3) -> tuple[float, float]:
+        """(arc length s m, signed distance m, + to the left of the line) of the point of
+        the line nearest ``p`` within ``window`` of ``near_s``."""
+        i0 = max(0, int(np.searchsorted(self.s, near_s - window)) - 1)
+        i1 = min(len(self._seg), int(np.searchsorted(self.s, near_s + window)) + 1)
+        a, seg, l2 = self.points[i0:i1], self._seg[i0:i1], self._len2[i0:i1]
+        t = np.clip(((p - a) * seg).sum(axis=1) / l2, 0.0, 1.0)
+        q = a + seg * t[:, None]
+        d2 = ((q - p) ** 2).sum(axis=1)
+        k = int(np.argmin(d2))
+        cross = seg[k, 0] * (p[1] - a[k, 1]) - seg[k, 1] * (p[0] - a[k, 0])
+        s = float(self.s[i0 + k] + t[k] * math.sqrt(l2[k]))
+        return s, math.copysign(math.sqrt(float(d2[k])), cross)
+
+
+# -- the behaviours --------------------------------------------------------------------
+
+
+def run(session: Session, name: str, params: Mapping[str, object]) -> tuple[dict, dict]:
+    """Run sensing behaviour ``name`` on ``session`` from where the robot is: (figures,
+    info) for :func:`export.verdict.judge`."""
+    steer = steering(session.controller.behaviors)
+    assert steer is not None
+    forward = _forward(session, steer)
+    rig = Rig(session, forward)
+    if name == "line-tracking":
+        return _line(session, steer, rig, params)
+    return _avoid(session, steer, rig, params)
+
+
+def _forward(session: Session, steer: Steering) -> np.ndarray:
+    """The body-frame direction the steerable behaviour drives at a positive speed."""
+    traj = session.controller.run(
+        steer.behavior,
+        **{steer.speed: steer.v_max / 2, steer.turn: 0.0, steer.seconds: 1.0, **steer.fixed},
+    )
+    dx, dy, _ = (float(c) for c in traj.info["planned_pose"])  # type: ignore[union-attr]
+    return np.array([dx, dy]) / math.hypot(dx, dy)
+
+
+class _Driver:
+    """Runs the steerable behaviour one control period at a time, at rates that fit."""
+
+    def __init__(self, session: Session, steer: Steering) -> None:
+        self.session, self.steer = session, steer
+        self.period = 1.0 / CONTROL_HZ
+
+    def fit(self, v: float, w: float) -> tuple[float, float]:
+        """(v, w) scaled down together until the behaviour accepts them."""
+        for _ in range(40):
+            try:
+                self._plan(v, w)
+                return v, w
+            except ValueError:
+                v, w = 0.9 * v, 0.9 * w
+        return 0.0, 0.0
+
+    def _plan(self, v: float, w: float):
+        s = self.steer
+        return self.session.controller.run(
+            s.behavior, **{s.speed: v, s.turn: w, s.seconds: self.period, **s.fixed}
+        )
+
+    def step(self, v: float, w: float) -> None:
+        """Run one control period at (v, w), both scaled down if the wheels cannot."""
+        try:
+            traj = self._plan(v, w)
+        except ValueError:
+            traj = self._plan(*self.fit(v, w))
+        self.session._play(traj.joints, traj.positions, traj.velocities, self.period)
+
+
+def _line(session: Session, steer: Steering, rig: Rig, params: Mapping) -> tuple[dict, dict]:
+    speed, radius, length = (float(params[k]) for k in ("speed", "radius", "length"))
+    driver = _Driver(session, steer)
+    # turn fast enough to follow the tightest curve and to swing the sensors, a lever
+    # ``front`` ahead of the turning axis, back over the line within a sensor's span
+    lever = max(rig.front, IR_SPACING_M)
+    v, w_turn = driver.fit(speed, TURN_GAIN * speed * (1 / radius + 1 / lever))
+    mid = (rig.ir[0] + rig.ir[1]) / 2
+    start = rig.world(mid)[:2]
+    course = Course.make(str(params["course"]), radius, length, start, rig.heading())
+    session.scene_line = course.points
+    budget = 1.5 * length / max(v, 1e-6) + 2.0
+    t0, s, last_turn = session.time, 0.0, 0.0
+    lost = longest = worst = 0.0
+    half_span = IR_SPACING_M / 2 + LINE_WIDTH_M / 2
+    while session.time - t0 < budget and s < length:
+        on = []
+        for p in rig.ir:
+            _, off = course.locate(rig.world(p)[:2], s)
+            on.append(abs(off) <= LINE_WIDTH_M / 2)
+        if on[0] and not on[1]:
+            last_turn = 1.0  # the line is under the left sensor: turn left
+        elif on[1] and not on[0]:
+            last_turn = -1.0
+        elif on[0] and on[1]:
+            last_turn = 0.0
+        # neither: keep turning the way the line went last (or straight on)
+        driver.step(v, last_turn * w_turn)
+        s, off = course.locate(rig.world(mid)[:2], s)
+        worst = max(worst, abs(off))
+        lost = lost + driver.period if abs(off) > half_span else 0.0
+        longest = max(longest, lost)
+    fig = {
+        "seconds": session.time - t0,
+        "line_progress_m": s,
+        "planned_distance_m": length,
+        "line_lost_s": longest,
+        "max_line_offset_m": worst,
+    }
+    return fig, {"motion": "follow-line", "course": str(params["course"])}
+
+
+def _avoid(session: Session, steer: Steering, rig: Rig, params: Mapping) -> tuple[dict, dict]:
+    import mujoco
+
+    speed, distance, width = (float(params[k]) for k in ("speed", "distance", "width"))
+    m, d = session.model, session.data
+    driver = _Driver(session, steer)
+    v, _ = driver.fit(speed, 0.0)
+    # the robot's reach from its turning axis (what sweeps when it turns in place) and its
+    # half width across the way it drives, from its parts' boxes
+    corner, half = rig.extent()
+    corner = max(corner, rig.front)
+    safe = corner - rig.front + CLEARANCE_M + v / CONTROL_HZ * 2
+    _, w_turn = driver.fit(0.0, 2 * v / max(corner, 0.05))
+    heading0 = rig.heading()
+    fwd = np.array([math.cos(heading0), math.sin(heading0)])
+    origin = rig.world(rig.ranger)[:2]
+    # the obstacle: across the straight path, halfway
+    bid = m.body(OBSTACLE).mocapid[0]
+    gid = m.geom(OBSTACLE).id
+    centre = origin + fwd * distance / 2
+    d.mocap_pos[bid] = [centre[0], centre[1], OBSTACLE_HEIGHT_M / 2]
+    quat = np.empty(4)
+    mujoco.mju_axisAngle2Quat(quat, np.array([0.0, 0.0, 1.0]), heading0)
+    d.mocap_quat[bid] = quat
+    m.geom_size[gid] = [OBSTACLE_DEPTH_M / 2, width / 2, OBSTACLE_HEIGHT_M / 2]
+    m.geom_rbound[gid] = float(np.linalg.norm(m.geom_size[gid]))
+    m.geom_aabb[gid, 3:] = m.geom_size[gid]
+    body = m.body(OBSTACLE).id  # (MuJoCo filters pairs by the bodies' types too)
+    m.geom_contype[gid], m.geom_conaffinity[gid] = 1, 3
+    m.body_contype[body], m.body_conaffinity[body] = 1, 3
+    mujoco.mj_forward(m, d)
+    budget = 3 * distance / max(v, 1e-6) + 10.0
+    t0 = session.time
+    state, min_range, seen = "go", RANGER_MAX_M, RANGER_MAX_M
+    passed_from = origin
+    cleared: tuple[float, float] | None = None
+    progress = 0.0
+    contacts0 = session._counts["contacts"]
+    session.watched_geom = gid
+    try:
+        while session.time - t0 < budget and progress < distance:
+            r = rig.range()
+            min_range = min(min_range, r)
+            here = rig.world(rig.ranger)[:2]
+            if state == "go" and r < safe:
+                state, seen = "turn", r
+            if state == "turn":
+                if r < 2 * safe:
+                    seen = r  # the obstacle's edge is still in the beam
+                elif cleared is None:
+                    # the beam has just passed the edge, seen ``seen`` ahead at about the
+                    # beam's half angle: turn on until the body's half width clears it
+                    need = math.asin(min(1.0, (half + CLEARANCE_M) / max(seen, 1e-3)))
+                    cleared = (rig.heading(), max(0.0, need - RANGER_HALF_ANGLE))
+                if cleared is not None and _turned(rig.heading(), cleared[0]) >= cleared[1]:
+                    state, passed_from, cleared = "pass", here.copy(), None
+                    driver.step(v, 0.0)
+                else:
+                    driver.step(0.0, w_turn)
+            elif state == "pass":
+                driver.step(v, 0.0)
+                # on past the obstacle's depth and the robot's own length
+                if float(np.hypot(*(here - passed_from))) > safe + 2 * corner + OBSTACLE_DEPTH_M:
+                    state = "go"
+            else:
+                err = (heading0 - rig.heading() + math.pi) % (2 * math.pi) - math.pi
+                driver.step(v, max(-w_turn, min(w_turn, HEADING_GAIN * err)))
+            progress = float((rig.world(rig.ranger)[:2] - origin) @ fwd)
+    finally:  # park the obstacle again
+        session.watched_geom = None
+        d.mocap_pos[bid] = [0.0, 0.0, -10.0]
+        m.geom_contype[gid], m.geom_conaffinity[gid] = 0, 0
+        m.body_contype[body], m.body_conaffinity[body] = 0, 0
+    contact_s = (session._counts["contacts"] - contacts0) * m.opt.timestep
+    fig = {
+        "seconds": session.time - t0,
+        "distance_m": progress,
+        "planned_distance_m": distance,
+        "obstacle_contact_s": contact_s,
+        "min_range_m": min_range,
+    }
+    return fig, {"motion": "avoid"}
+
+
+def _corners() -> list[np.ndarray]:
+    return [np.array([x, y, z], dtype=float) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+
+
+def _turned(now: float, then: float) -> float:
+    """Counter-clockwise turn (rad) from heading ``then`` to ``now``, in (-pi, pi]."""
+    return (now - then + math.pi) % (2 * math.pi) - math.pi
+
+
+def verify_sensing(files: Mapping[str, str | bytes]) -> list[dict]:
+    """Every sensing behaviour of the design in ``files`` (a bundle held in memory) run
+    with its default parameters on a fresh robot and judged: one dict each (``behavior``,
+    ``ability`` and the figures), in name order; none when the design has none."""
+    from program.session import Session
+
+    probe = Session(files=files)
+    out = []
+    for name in sorted(probe.sensing):
+        session = probe if not probe.started else Session(files=files)
+        fig = session.do(name)["figures"]
+        out.append({"behavior": name, "ability": name, **fig})
+    return out
+
+
+def simulated_abilities(record: Mapping, behaviors: Mapping[str, BehaviorSpec]) -> list[str]:
+    """The sensing abilities of ``record`` that this module simulates for a controller
+    with these ``behaviors``."""
+    return sorted(sensing_behaviors(behaviors, tuple(record.get("abilities", ()))))

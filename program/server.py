@@ -1,0 +1,363 @@
+"""The local server of ``parmor blocks DIR --serve``: the block page and its Run button.
+
+It listens on 127.0.0.1 only (a thread per request, so several pages can use it at once),
+serves the page (``DIR/blocks/``) and the meshes it animates (``DIR/meshes/``), and answers
+``POST /run``: the body is a program as JSON (``{"program": [...]}``, see
+:mod:`program.script`), never code. The program is validated against the design's
+behaviours and their limits (:func:`program.script.validate`), then run
+(:func:`program.session.run_program`) in a child process that is killed when it exceeds
+the time limit. The reply is JSON: ``{"result": {...}}`` (the run's path, verdict figures
+and animation) or ``{"error": "..."}`` with a 4xx/5xx status; the server keeps serving
+after every error.
+"""
+
+from __future__ import annotations
+
+import json
+import mimetypes
+import multiprocessing
+import os
+import sys
+import threading
+import time
+from collections.abc import Mapping
+from http import HTTPStatus
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+from typing import TextIO
+from urllib.parse import unquote, urlsplit
+
+from adron.errors import InputError
+
+#: The only address the server listens on.
+HOST = "127.0.0.1"
+#: The port when none is given.
+DEFAULT_PORT = 8765
+#: Largest request body accepted, bytes (a program of the largest size LIMITS allows is a
+#: few kilobytes).
+MAX_BODY = 64 * 1024
+#: Largest body read and dropped to answer 413 cleanly; beyond it the connection is closed.
+MAX_DRAIN = 4 * 1024 * 1024
+#: Wall-clock seconds a run may take (its child process is killed then), by default.
+DEFAULT_TIME_LIMIT = 120.0
+#: Runs at once (each in its own process); more wait for a free slot, within their limit.
+DEFAULT_MAX_RUNS = max(1, (os.cpu_count() or 1))
+#: Folders of the bundle the server serves files from (read-only).
+SERVED_DIRS = ("blocks", "meshes")
+
+
+def _no_constant(name: str) -> object:
+    """JSON's extensions NaN and Infinity are not numbers a program may hold."""
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
+class RunFailed(Exception):
+    """A run that ended without a result: ``status`` is the HTTP status of the reply."""
+
+    def __init__(self, status: HTTPStatus, message: str) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+def _child(conn, bundle: str, program: dict) -> None:
+    """Run ``program`` on the bundle in this (child) process; send back JSON bytes:
+    ``{"result": ...}`` or ``{"error": ..., "input": bool}``."""
+    try:
+        from program.session import run_program
+
+        result = run_program(bundle, program)
+        reply = {"result": result}
+    except InputError as e:
+        reply = {"error": str(e), "input": True}
+    except Exception as e:  # a bug or a failed simulation: the message, not the traceback
+        reply = {"error": f"the run failed: {type(e).__name__}: {e}", "input": False}
+    try:
+        data = json.dumps(reply, allow_nan=False).encode()
+    except ValueError as e:
+        data = json.dumps({"error": f"the result is not JSON: {e}", "input": False}).encode()
+    conn.send_bytes(data)
+    conn.close()
+
+
+class Runner:
+    """Runs programs in child processes, at most ``max_runs`` at once, each killed after
+    ``time_limit`` s of wall-clock time."""
+
+    def __init__(self, bundle: Path, time_limit: float, max_runs: int) -> None:
+        self.bundle = bundle
+        self.time_limit = time_limit
+        self.slots = threading.BoundedSemaphore(max_runs)
+        self.ctx = multiprocessing.get_context("spawn")  # the server has threads: no fork
+        self.children: set = set()
+        self.lock = threading.Lock()
+
+    def run(self, program: dict) -> dict:
+        """The run's result; RunFailed otherwise."""
+        t0 = time.monotonic()
+        if not self.slots.acquire(timeout=self.time_limit):
+            raise RunFailed(
+                HTTPStatus.SERVICE_UNAVAILABLE,
+                f"the server is busy with other runs; try again (waited {self.time_limit:g} s)",
+            )
+        try:
+            recv, send = self.ctx.Pipe(duplex=False)
+            proc = self.ctx.Process(
+                target=_child, args=(send, str(self.bundle), program), daemon=True
+            )
+            with self.lock:
+                self.children.add(proc)
+            try:
+                proc.start()
+            except (OSError, RuntimeError) as e:
+                with self.lock:
+                    self.children.discard(proc)
+                recv.close()
+                send.close()
+                raise RunFailed(
+                    HTTPStatus.INTERNAL_SERVER_ERROR, f"cannot start the run: {e}"
+                ) from None
+            send.close()
+            try:
+                left = max(0.0, self.time_limit - (time.monotonic() - t0))
+                if not recv.poll(left):
+                    raise RunFailed(
+                        HTTPStatus.GATEWAY_TIMEOUT,
+                        f"the program ran longer than the time limit of {self.time_limit:g} s "
+                        "and was stopped; make it shorter (fewer repeats, shorter behaviours)",
+                    )
+                try:
+                    data = recv.recv_bytes()
+                except EOFError:
+                    raise RunFailed(
+                        HTTPStatus.INTERNAL_SERVER_ERROR,
+                        f"the run stopped without a result (exit code {proc.exitcode})",
+                    ) from None
+            finally:
+                recv.close()
+                if proc.is_alive():
+                    proc.join(1.0)
+                if proc.is_alive():
+                    proc.kill()
+                proc.join()
+                with self.lock:
+                    self.children.discard(proc)
+        finally:
+            self.slots.release()
+        reply = json.loads(data)
+        if "error" in reply:
+            bad_input = reply.get("input")
+            status = (
+                HTTPStatus.UNPROCESSABLE_ENTITY if bad_input else HTTPStatus.INTERNAL_SERVER_ERROR
+            )
+            raise RunFailed(status, reply["error"])
+        return reply["result"]
+
+    def stop(self) -> None:
+        """Kill every run still going."""
+        with self.lock:
+            children = list(self.children)
+        for proc in children:
+            if proc.is_alive():
+                proc.kill()
+            proc.join()
+
+
+class BlocksServer(ThreadingHTTPServer):
+    """The page, the meshes and ``POST /run`` of one bundle."""
+
+    daemon_threads = True
+
+    def __init__(
+        self,
+        bundle: Path,
+        port: int,
+        time_limit: float = DEFAULT_TIME_LIMIT,
+        max_runs: int = DEFAULT_MAX_RUNS,
+        log: TextIO | None = None,
+    ) -> None:
+        from program.blocks import bundle_controller, read_record
+
+        self.bundle = bundle.resolve()
+        self.record = read_record(self.bundle)
+        self.controller = bundle_controller(self.bundle, self.record)
+        #: the behaviours a program may call (as program.session.Session offers them)
+        self.behaviors = {
+            n: self.controller.behaviors[n]
+            for n in self.controller.listed(self.record.get("abilities", ()))
+        }
+        self.runner = Runner(self.bundle, time_limit, max_runs)
+        self.log = log
+        super().__init__((HOST, port), Handler)
+
+    def validate(self, program: object) -> None:
+        """ProgramError (an InputError) when ``program`` is not one the design can run."""
+        from program.script import validate
+
+        validate(program, self.behaviors)
+
+    def server_close(self) -> None:
+        self.runner.stop()
+        super().server_close()
+
+
+class Handler(BaseHTTPRequestHandler):
+    server: BlocksServer
+    server_version = "parmor-blocks"
+    protocol_version = "HTTP/1.1"
+
+    def log_message(self, format: str, *args: object) -> None:  # noqa: A002 (the base's name)
+        log = self.server.log
+        if log is not None:
+            log.write(f"parmor blocks: {self.address_string()} {format % args}\n")
+            log.flush()
+
+    def _send(self, status: HTTPStatus, body: bytes, ctype: str) -> None:
+        self.send_response(status)
+        self.send_header("Content-Type", ctype)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-store")
+        self.send_header("X-Content-Type-Options", "nosniff")
+        self.end_headers()
+        if self.command != "HEAD":
+            self.wfile.write(body)
+
+    def _json(self, status: HTTPStatus, obj: Mapping) -> None:
+        self._send(status, json.dumps(obj).encode(), "application/json")
+
+    def _error(self, status: HTTPStatus, message: str) -> None:
+        self._json(status, {"error": message})
+
+    def _foreign(self) -> bool:
+        """Answer 403 and True for a request another site's page makes through the
+        browser (its Host or Origin is not this server's: DNS rebinding, cross-site posts)."""
+        port = self.server.server_address[1]
+        ours = {f"{HOST}:{port}", f"localhost:{port}"}
+        host = self.headers.get("Host", "")
+        origin = self.headers.get("Origin")
+        if host in ours and (origin is None or urlsplit(origin).netloc in ours):
+            return False
+        self._drain()
+        self._error(HTTPStatus.FORBIDDEN, "requests from other sites are refused")
+        return True
+
+    # -- files ---------------------------------------------------------------------------
+
+    def do_GET(self) -> None:
+        if self._foreign():
+            return
+        path = unquote(urlsplit(self.path).path)
+        if path in ("/", "/index.html"):
+            self.send_response(HTTPStatus.FOUND)
+            self.send_header("Location", "/blocks/index.html")
+            self.send_header("Content-Length", "0")
+            self.end_headers()
+            return
+        parts = [p for p in path.split("/") if p]
+        if len(parts) < 2 or parts[0] not in SERVED_DIRS or any(p in (".", "..") for p in parts):
+            self._error(HTTPStatus.NOT_FOUND, f"no such page: {path}")
+            return
+        root = (self.server.bundle / parts[0]).resolve()
+        file = root.joinpath(*parts[1:]).resolve()
+        if not file.is_relative_to(root) or not file.is_file():
+            self._error(HTTPStatus.NOT_FOUND, f"no such file: {path}")
+            return
+        ctype = mimetypes.guess_type(file.name)[0] or "application/octet-stream"
+        if file.suffix in (".js", ".mjs"):
+            ctype = "text/javascript"
+        self._send(HTTPStatus.OK, file.read_bytes(), ctype)
+
+    do_HEAD = do_GET
+
+    # -- runs ----------------------------------------------------------------------------
+
+    def do_POST(self) -> None:
+        if self._foreign():
+            return
+        if urlsplit(self.path).path != "/run":
+            self._drain()
+            self._error(HTTPStatus.NOT_FOUND, f"no such action: {self.path}")
+            return
+        try:
+            length = int(self.headers.get("Content-Length", ""))
+        except ValueError:
+            self.close_connection = True
+            self._error(HTTPStatus.LENGTH_REQUIRED, "the request has no Content-Length")
+            return
+        if length < 0 or length > MAX_BODY:
+            self._drain(length)
+            self._error(
+                HTTPStatus.REQUEST_ENTITY_TOO_LARGE,
+                f"the program is too large: {length} bytes (at most {MAX_BODY})",
+            )
+            return
+        raw = self.rfile.read(length)
+        try:
+            program = json.loads(raw.decode("utf-8"), parse_constant=_no_constant)
+        except (UnicodeDecodeError, ValueError) as e:
+            self._error(HTTPStatus.BAD_REQUEST, f"the program is not JSON: {e}")
+            return
+        try:
+            self.server.validate(program)
+        except InputError as e:
+            self._error(HTTPStatus.UNPROCESSABLE_ENTITY, str(e))
+            return
+        except Exception as e:  # a bug in the validation: say so, keep serving
+            self.log_message("validation failed: %s: %s", type(e).__name__, e)
+            self._error(
+                HTTPStatus.INTERNAL_SERVER_ERROR,
+                f"the program could not be checked: {type(e).__name__}: {e}",
+            )
+            return
+        try:
+            result = self.server.runner.run(program)
+        except RunFailed as e:
+            self._error(e.status, str(e))
+            return
+        except Exception as e:  # a bug: an error reply, and the server keeps serving
+            self.log_message("run failed: %s: %s", type(e).__name__, e)
+            self._error(HTTPStatus.INTERNAL_SERVER_ERROR, f"the run failed: {e}")
+            return
+        self._json(HTTPStatus.OK, {"result": result})
+
+    def _drain(self, length: int | None = None) -> None:
+        """Read and drop the request body (so the client gets the reply), or close the
+        connection when it is larger than MAX_DRAIN."""
+        if length is None:
+            try:
+                length = int(self.headers.get("Content-Length", "0"))
+            except ValueError:
+                length = -1
+        if length < 0 or length > MAX_DRAIN:
+            self.close_connection = True
+            return
+        while length > 0:
+            chunk = self.rfile.read(min(length, 65536))
+            if not chunk:
+                break
+            length -= len(chunk)
+
+
+def serve(
+    bundle: str | Path,
+    port: int = DEFAULT_PORT,
+    time_limit: float = DEFAULT_TIME_LIMIT,
+    max_runs: int = DEFAULT_MAX_RUNS,
+    out: TextIO | None = None,
+    log: TextIO | None = None,
+) -> None:
+    """Serve the bundle's block page on 127.0.0.1:``port`` (0: a free port) until Ctrl-C.
+    Prints the page's address on ``out`` once it listens."""
+    out = out or sys.stdout
+    try:
+        server = BlocksServer(Path(bundle), port, time_limit, max_runs, log)
+    except OSError as e:
+        raise InputError(f"cannot listen on {HOST}:{port}: {e.strerror or e}") from None
+    try:
+        host, real_port = server.server_address[:2]
+        out.write(f"serving the block page on http://{host}:{real_port}/ (Ctrl-C stops)\n")
+        out.flush()
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.server_close()

@@ -1,0 +1,558 @@
+"""Running a program on a design in MuJoCo: behaviours chained from where the last ended.
+
+A :class:`Session` holds one simulation of a bundle's ``robot.xml``. ``do(behaviour,
+**params)`` plans the behaviour with the design's controller, moves the joints from where
+they are to the behaviour's first pose (a minimum-jerk blend, :data:`BLEND_SPEED_SHARE`
+of each servo's no-load speed, at least :data:`BLEND_MIN_S`), then runs it and judges it
+like ``parmor simulate`` does, against its promise turned to the heading the robot
+started it with. ``wait(s)`` holds the pose. ``report(name)`` answers
+:data:`program.script.REPORTS`.
+
+The program's verdict (:meth:`Session.result`): every behaviour kept its promise, the
+robot never fell, and it ended within :data:`END_POSE_FRACTION` of the commanded path
+length of where the composed commanded poses put it (the loosest single-behaviour
+allowance, straight travel's 1.25 x). Behaviours that promise no end pose (a snake's
+crawl, a rotation, holding) are judged on their own criteria, and the commanded pose is
+re-anchored where the robot is after them.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from adron.errors import InputError, ParmorError
+from program.script import LIMITS, REPORTS, ProgramError, execute, validate
+
+BLEND_MIN_S = 0.3  # s: shortest move to a behaviour's first pose
+BLEND_SPEED_SHARE = 0.3  # of a servo's no-load speed, for that move's peak speed
+END_POSE_FRACTION = 0.25  # of the commanded path: how far from the commanded end it may end
+ANIMATION_FPS = 20  # frames per simulated second in ``animation``
+PATH_HZ = 20  # path samples per simulated second
+#: A behaviour parameter of this name is filled, when the program does not set it, with the
+#: root body's roll about its own x axis (rad, right-handed) since the start, as an IMU on
+#: it would read it: a snake that rolled on its side plans its next gait for that.
+SENSED_ROLL = "roll"
+
+
+def _yaw(quat: np.ndarray) -> float:
+    w, x, y, z = quat
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def _round(x: float) -> float:
+    return float(f"{x:.6g}")
+
+
+class Session:
+    """One chained simulation of a bundle (a folder written by ``parmor design --out``)."""
+
+    def __init__(
+        self,
+        folder: str | Path | None = None,
+        progress: Callable[[str], None] | None = None,
+        files: Mapping[str, str | bytes] | None = None,
+    ) -> None:
+        """The bundle in ``folder``, or held in memory as ``files`` (``Outcome.files``)."""
+        import mujoco
+
+        from export.simulate import load_files_model
+        from export.verify import bundle_record, controller_for_model
+        from program.sensing import scene_xml, sensing_behaviors
+
+        if files is None:
+            if folder is None:
+                raise ValueError("a Session needs a bundle folder or its files")
+            folder = Path(folder)
+            self.record = bundle_record(folder)
+            try:
+                files = {"robot.xml": (folder / "robot.xml").read_bytes()}
+                files.update(
+                    {f"meshes/{p.name}": p.read_bytes() for p in (folder / "meshes").glob("*.stl")}
+                )
+            except OSError as e:
+                raise InputError(f"{folder}: cannot read the model: {e}") from None
+        else:
+            raw = files["design.json"]
+            self.record = json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
+        xml = files["robot.xml"]
+        xml = xml.decode("utf-8") if isinstance(xml, bytes) else xml
+        try:
+            self.model = load_files_model({**files, "robot.xml": scene_xml(xml)})
+        except (ValueError, KeyError) as e:
+            raise InputError(f"{folder or 'bundle'}: cannot load the MuJoCo model: {e}") from None
+        self.folder = folder
+        self.controller = controller_for_model(self.record, self.model)
+        abilities = tuple(self.record.get("abilities", ()))
+        names = self.controller.listed(abilities)
+        #: the behaviours a program may call: name -> BehaviorSpec
+        self.behaviors = {n: self.controller.behaviors[n] for n in names}
+        #: the sensing behaviours among them (closed loops, :mod:`program.sensing`)
+        self.sensing = sensing_behaviors(self.controller.behaviors, abilities)
+        self.behaviors.update(self.sensing)
+        #: the line a line follower follows, (N, 2) m, once one ran
+        self.scene_line: np.ndarray | None = None
+        self._counts = {"steps": 0, "saturated": 0, "contacts": 0}
+        #: a geom whose contacts ``_play`` counts (an obstacle), or None
+        self.watched_geom: int | None = None
+        self.data = mujoco.MjData(self.model)
+        mujoco.mj_forward(self.model, self.data)
+        self.free = self.model.njnt > 0 and self.model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
+        tmpl = self.controller.template
+        #: a robot on feet or wheels can fall; a snake rolls over by design, an arm is fixed
+        self.can_fall = self.free and bool(tmpl.feet or tmpl.wheels)
+        self.progress = progress
+        self.started = False
+        self.time = 0.0
+        self.steps: list[dict] = []
+        self.fell = False
+        self._last_distance = 0.0
+        self._last_ok = True
+        self._yaws: list[float] = []  # unwrapped heading at each path sample
+        self._path: dict[str, list[float]] = {"t": [], "x": [], "y": [], "yaw": []}
+        self._frames: list[dict] = []
+        self._expected = np.zeros(3)  # commanded (x, y, yaw), composed
+        self._commanded_path = 0.0
+        self._anchored = False
+        self._geoms = self._animated_geoms()
+        self._origin = np.zeros(3)
+
+    # -- what a program calls --------------------------------------------------------
+
+    def do(self, behavior: str, **params: object) -> dict:
+        """Run one behaviour from where the robot is; its judged figures."""
+        from export.simulate import simulate
+        from export.verify import figures
+
+        spec = self.behaviors.get(behavior)
+        if spec is None:
+            raise ProgramError(
+                f"{behavior!r}: the design has no behaviour of that name "
+                f"(behaviours: {', '.join(sorted(self.behaviors))})"
+            )
+        if behavior in self.sensing:
+            return self._sense(behavior, spec, params)
+        params = dict(params)
+        if SENSED_ROLL in {p.name for p in spec.params} and SENSED_ROLL not in params:
+            params[SENSED_ROLL] = self._roll() if self.started else 0.0
+        try:
+            traj = self.controller.run(behavior, **params)
+        except ValueError as exc:
+            raise ProgramError(f"{behavior}: {exc}") from None
+        self._note(f"{behavior} {self._params_text(params)}")
+        if not self.started:
+            self._start(traj.positions[0], traj.joints)
+        else:
+            self._blend_to(traj.joints, traj.positions[0])
+        self._check_time(traj.duration)
+        start = self._pose()
+        tmpl = self.controller.template
+        body = traj.info.get("tool_body")
+        if body is None and tmpl.end_effectors:
+            body = tmpl.end_effectors[0]
+        t0 = self.time
+        result = simulate(
+            self.model,
+            traj,
+            can_fall=self.can_fall,
+            end_effector=str(body) if body is not None else None,
+            data=self.data,
+            observe=lambda t, d: self._observe(t0 + t, d),
+        )
+        self.time = t0 + result.seconds
+        end = self._pose()
+        self.fell = self.fell or result.fell
+        self._last_distance = float(np.hypot(*(end[:2] - start[:2])))
+        self._last_ok = result.ok
+        self._compose(traj.info, start, end)
+        fig = figures(traj, result)
+        step = {
+            "behavior": behavior,
+            "params": spec.resolve(params),
+            "start_s": _round(t0),
+            "verdict": fig["verdict"],
+            "figures": fig,
+        }
+        self.steps.append(step)
+        return step
+
+    def _sense(self, behavior: str, spec, params: Mapping[str, object]) -> dict:
+        """Run a sensing behaviour (a closed loop, :mod:`program.sensing`); its figures."""
+        from export.verdict import judge
+        from program import sensing
+
+        try:
+            resolved = spec.resolve(params)
+        except ValueError as exc:
+            raise ProgramError(f"{behavior}: {exc}") from None
+        self._note(f"{behavior} {self._params_text(params)}")
+        if not self.started:
+            steer = sensing.steering(self.controller.behaviors)
+            traj = self.controller.run(steer.behavior)  # type: ignore[union-attr]
+            self._start(traj.positions[0], traj.joints)
+        start, t0, fell0 = self._pose(), self.time, self.fell
+        before = dict(self._counts)
+        fig, info = sensing.run(self, behavior, resolved)
+        steps = max(self._counts["steps"] - before["steps"], 1)
+        fig["fell"] = self.fell and not fell0
+        fig["saturated_fraction"] = (self._counts["saturated"] - before["saturated"]) / steps
+        verdict = judge(fig, info, self.free)
+        fig = {k: (_round(v) if isinstance(v, float) else v) for k, v in fig.items()}
+        fig = {"behavior": behavior, "verdict": verdict or "ok", **fig}
+        end = self._pose()
+        self._last_distance = float(np.hypot(*(end[:2] - start[:2])))
+        self._last_ok = not verdict
+        self._compose({}, start, end)
+        step = {
+            "behavior": behavior,
+            "params": resolved,
+            "start_s": _round(t0),
+            "verdict": fig["verdict"],
+            "figures": fig,
+        }
+        self.steps.append(step)
+        return step
+
+    def wait(self, seconds: float) -> None:
+        """Hold the current pose for ``seconds``."""
+        seconds = float(seconds)
+        if not (math.isfinite(seconds) and 0 <= seconds <= LIMITS["wait_s"]):
+            raise ProgramError(
+                f"wait: expected seconds in [0, {LIMITS['wait_s']:g}], got {seconds}"
+            )
+        self._note(f"wait {seconds:g} s")
+        if not self.started:
+            first = next((n for n in self.behaviors if n not in self.sensing), None)
+            if first is None:
+                self._start(None, ())
+            else:
+                traj = self.controller.run(first)
+                self._start(traj.positions[0], traj.joints)
+        self._check_time(seconds)
+        joints, q = self._held()
+        self._play(joints, q[None, :], np.zeros((1, len(joints))), seconds)
+
+    def report(self, name: str) -> float:
+        """What the robot reports (:data:`program.script.REPORTS`)."""
+        if name not in REPORTS:
+            raise ProgramError(f"report: unknown {name!r} (reports: {', '.join(REPORTS)})")
+        x, y, _ = self._pose() - self._origin if self.started else np.zeros(3)
+        heading = self._yaws[-1] - self._yaws[0] if self._yaws else 0.0
+        return {
+            "x_m": float(x),
+            "y_m": float(y),
+            "heading_deg": math.degrees(heading),
+            "distance_m": self._last_distance,
+            "ok": 1.0 if self._last_ok else 0.0,
+            "fell": 1.0 if self.fell else 0.0,
+            "time_s": self.time,
+        }[name]
+
+    # -- the outcome -----------------------------------------------------------------
+
+    def result(self) -> dict:
+        """The whole run: steps, path, expected and final pose, verdict, animation."""
+        failed: list[str] = []
+        for i, st in enumerate(self.steps):
+            if st["verdict"] != "ok":
+                failed.append(f"step {i + 1} ({st['behavior']}): {', '.join(st['verdict'])}")
+        if self.fell and not any("fell" in f for f in failed):
+            failed.append("fell")
+        final = (self._pose() - self._origin) if self.started else np.zeros(3)
+        final[2] = (self._yaws[-1] - self._yaws[0]) if self._yaws else 0.0
+        expected = None
+        error = None
+        if self.free:
+            expected = [_round(c) for c in self._expected]
+            error = float(np.hypot(*(final[:2] - self._expected[:2])))
+            allowed = END_POSE_FRACTION * self._commanded_path
+            if self._commanded_path > 0 and error > allowed:
+                failed.append(
+                    f"end pose: {error:.3g} m from where the program says "
+                    f"(limit {allowed:.3g} m: {END_POSE_FRACTION:.0%} of the "
+                    f"{self._commanded_path:.3g} m commanded)"
+                )
+        return {
+            "robot_type": self.record.get("robot_type"),
+            "seconds": _round(self.time),
+            "verdict": failed if failed else "ok",
+            "steps": self.steps,
+            "expected_pose": expected,
+            "final_pose": [_round(c) for c in final] if self.free else None,
+            "end_pose_error_m": None if error is None else _round(error),
+            "path": {k: [_round(v) for v in vals] for k, vals in self._path.items()},
+            "animation": {"fps": ANIMATION_FPS, "geoms": self._geoms, "frames": self._frames},
+        }
+
+    # -- inside ----------------------------------------------------------------------
+
+    def _note(self, text: str) -> None:
+        if self.progress is not None:
+            self.progress(text)
+
+    @staticmethod
+    def _params_text(params: Mapping[str, object]) -> str:
+        return " ".join(f"{k}={v}" for k, v in params.items())
+
+    def _check_time(self, seconds: float) -> None:
+        if self.time + seconds > LIMITS["sim_s"] + 1e-9:
+            raise ProgramError(
+                f"program: would simulate more than {LIMITS['sim_s']:g} s "
+                f"({self.time:.1f} s so far, {seconds:.1f} s more asked)"
+            )
+
+    def _columns(self, joints) -> list[tuple[int, int, int, bool]]:
+        """(joint column, actuator, qpos address, velocity servo) per joint."""
+        m = self.model
+        act = {m.actuator(k).name: k for k in range(m.nu)}
+        out = []
+        for k, name in enumerate(joints):
+            a = act[name]
+            velocity = m.actuator_biasprm[a, 1] == 0 and m.actuator_biasprm[a, 2] != 0
+            out.append((k, a, int(m.jnt_qposadr[m.actuator_trnid[a, 0]]), bool(velocity)))
+        return out
+
+    def _start(self, q0, joints) -> None:
+        import mujoco
+
+        if q0 is not None:
+            for k, _, adr, _ in self._columns(joints):
+                self.data.qpos[adr] = q0[k]
+        mujoco.mj_forward(self.model, self.data)
+        self.started = True
+        self._origin = self._pose()
+        self._origin[2] = 0.0
+        self._expected = np.zeros(3)
+        self._observe(0.0, self.data)
+
+    def _pose(self) -> np.ndarray:
+        """(x, y, yaw) of the root body (zeros for a fixed base)."""
+        if not self.free:
+            return np.zeros(3)
+        q = self.data.qpos
+        return np.array([q[0], q[1], _yaw(q[3:7])])
+
+    def _roll(self) -> float:
+        """Roll (rad) of the root body about its own x axis since the model's start pose:
+        atan2 of the z components of its y and z axes, less the same at the start."""
+        if not self.free:
+            return 0.0
+        import mujoco
+
+        def roll(quat: np.ndarray) -> float:
+            r = np.empty(9)
+            mujoco.mju_quat2Mat(r, quat)
+            r = r.reshape(3, 3)
+            return math.atan2(r[2, 1], r[2, 2])
+
+        a = roll(self.data.qpos[3:7]) - roll(self.model.qpos0[3:7])
+        return (a + math.pi) % (2 * math.pi) - math.pi
+
+    def _held(self) -> tuple[tuple[str, ...], np.ndarray]:
+        """Every actuated joint and the position it is at now."""
+        m = self.model
+        names = tuple(m.actuator(k).name for k in range(m.nu))
+        cols = self._columns(names)
+        return names, np.array([self.data.qpos[adr] for _, _, adr, _ in cols])
+
+    def _blend_to(self, joints, q1: np.ndarray) -> None:
+        """Move ``joints`` from where they are to ``q1`` (minimum jerk)."""
+        from gaits.base import min_jerk
+
+        cols = self._columns(joints)
+        q0 = np.array([self.data.qpos[adr] for _, _, adr, _ in cols])
+        target = np.array(q1, dtype=float)
+        for k, _, _, velocity in cols:
+            if velocity:  # a wheel: no position to reach, it stops
+                target[k] = q0[k]
+        speed = np.array(
+            [max(self.controller.geometry.joint_speed.get(n, 0.0), 1e-3) for n in joints]
+        )
+        # a minimum-jerk move peaks at 1.875 x its mean speed
+        need = float(np.max(1.875 * np.abs(target - q0) / (BLEND_SPEED_SHARE * speed), initial=0))
+        seconds = max(BLEND_MIN_S, need)
+        self._check_time(seconds)
+        n = max(2, int(math.ceil(seconds * 100)) + 1)
+        tau = np.linspace(0.0, 1.0, n)
+        s, ds, _ = min_jerk(tau)
+        pos = q0 + np.outer(s, target - q0)
+        vel = np.outer(ds / seconds, target - q0)
+        self._play(joints, pos, vel, seconds)
+
+    def _play(self, joints, pos: np.ndarray, vel: np.ndarray, seconds: float) -> None:
+        """Step the physics for ``seconds`` following ``pos`` (rows spread evenly over the
+        time, the last held) with velocity servos following ``vel``."""
+        import mujoco
+
+        from export.verdict import SATURATION_LEVEL
+
+        m, d = self.model, self.data
+        cols = self._columns(joints)
+        steps = max(1, int(round(seconds / m.opt.timestep)))
+        self._check_time(steps * m.opt.timestep)
+        limit = np.maximum(np.abs(m.actuator_forcerange).max(axis=1), 1e-12)
+        watch = self.watched_geom
+        rows = len(pos)
+        t0 = self.time
+        for i in range(steps):
+            r = min(rows - 1, int(i * rows / steps)) if rows > 1 else 0
+            for k, a, _, velocity in cols:
+                d.ctrl[a] = vel[r, k] if velocity else pos[r, k]
+            mujoco.mj_step(m, d)
+            self._observe(t0 + (i + 1) * m.opt.timestep, d)
+            if self.can_fall and not self.fell:
+                self.fell = self._fallen()
+            self._counts["steps"] += 1
+            if np.any(np.abs(d.actuator_force) / limit >= SATURATION_LEVEL):
+                self._counts["saturated"] += 1
+            if watch is not None and d.ncon:
+                c = d.contact
+                if np.any((c.geom1 == watch) | (c.geom2 == watch)):
+                    self._counts["contacts"] += 1
+        self.time = t0 + steps * m.opt.timestep
+
+    def _fallen(self) -> bool:
+        from export.simulate import _tilt
+        from export.verdict import COLLAPSE_TILT
+
+        return _tilt(self.data.qpos[3:7]) > COLLAPSE_TILT
+
+    def _observe(self, t: float, d) -> None:
+        """Sample the path and the animation at their rates."""
+        if not self._path["t"] or t >= self._path["t"][-1] + 1 / PATH_HZ - 1e-9:
+            x, y, yaw = self._pose() - self._origin
+            yaw = _yaw(d.qpos[3:7]) if self.free else 0.0
+            if self._yaws:
+                prev = self._yaws[-1]
+                yaw = prev + (yaw - prev + math.pi) % (2 * math.pi) - math.pi
+            self._yaws.append(yaw)
+            for k, v in zip(("t", "x", "y", "yaw"), (t, x, y, yaw), strict=True):
+                self._path[k].append(v)
+        if not self._frames or t >= self._frames[-1]["t"] + 1 / ANIMATION_FPS - 1e-9:
+            self._frames.append(self._frame(t, d))
+
+    def _animated_geoms(self) -> list[dict]:
+        """The geoms a page draws: name, body, type, size, mesh file, scale, colour."""
+        import mujoco
+
+        m = self.model
+        kinds = {
+            int(mujoco.mjtGeom.mjGEOM_PLANE): "plane",
+            int(mujoco.mjtGeom.mjGEOM_SPHERE): "sphere",
+            int(mujoco.mjtGeom.mjGEOM_CAPSULE): "capsule",
+            int(mujoco.mjtGeom.mjGEOM_CYLINDER): "cylinder",
+            int(mujoco.mjtGeom.mjGEOM_BOX): "box",
+            int(mujoco.mjtGeom.mjGEOM_MESH): "mesh",
+            int(mujoco.mjtGeom.mjGEOM_ELLIPSOID): "ellipsoid",
+        }
+        out = []
+        self._geom_ids = []
+        for g in range(m.ngeom):
+            kind = kinds.get(int(m.geom_type[g]))
+            if kind is None or kind == "plane" or m.geom_bodyid[g] == 0:
+                continue
+            mesh = scale = None
+            if kind == "mesh":
+                k = m.geom_dataid[g]
+                mesh = f"meshes/{m.mesh(k).name}.stl"
+                scale = [_round(c) for c in m.mesh_scale[k]]
+            out.append(
+                {
+                    "name": m.geom(g).name,
+                    "body": m.body(m.geom_bodyid[g]).name,
+                    "type": kind,
+                    "size": [_round(c) for c in m.geom_size[g]],
+                    "mesh": mesh,
+                    "scale": scale,
+                    "rgba": [_round(c) for c in m.geom_rgba[g]],
+                }
+            )
+            self._geom_ids.append(g)
+        return out
+
+    def _frame(self, t: float, d) -> dict:
+        """Every drawn geom's world pose; a mesh's pose is its file's frame (MuJoCo moves
+        mesh vertices to their inertial frame: file = mesh_quat * compiled + mesh_pos)."""
+        import mujoco
+
+        m = self.model
+        pos, quat = [], []
+        q = np.empty(4)
+        for g in self._geom_ids:
+            rot = d.geom_xmat[g].reshape(3, 3)
+            p = d.geom_xpos[g]
+            if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
+                k = m.geom_dataid[g]
+                r = np.empty(9)
+                mujoco.mju_quat2Mat(r, m.mesh_quat[k])
+                rot = rot @ r.reshape(3, 3).T
+                p = p - rot @ m.mesh_pos[k]
+            mujoco.mju_mat2Quat(q, rot.reshape(9).copy())
+            pos.append([_round(c) for c in p])
+            quat.append([_round(c) for c in q])
+        return {"t": _round(t), "pos": pos, "quat": quat}
+
+    def _compose(self, info: Mapping, start: np.ndarray, end: np.ndarray) -> None:
+        """Advance the commanded pose by the behaviour's promise, or re-anchor it where the
+        robot is when the behaviour promises no end pose."""
+        if not self.free:
+            return
+        plan = info.get("planned_pose")
+        if plan is None:
+            self._expected = end - self._origin
+            self._expected[2] = self._yaws[-1] - self._yaws[0] if self._yaws else 0.0
+            self._commanded_path = 0.0
+            return
+        dx, dy, dyaw = (float(c) for c in plan)
+        c, s = math.cos(self._expected[2]), math.sin(self._expected[2])
+        self._expected = self._expected + np.array([c * dx - s * dy, s * dx + c * dy, dyaw])
+        self._commanded_path += float(info.get("path_length_m") or math.hypot(dx, dy))
+
+
+def run_program(
+    folder: str | Path,
+    program: Mapping,
+    progress: Callable[[str], None] | None = None,
+) -> dict:
+    """Validate ``program`` (JSON data, :mod:`program.script`) against the bundle's design
+    and run it; :meth:`Session.result`."""
+    session = Session(folder, progress=progress)
+    validate(program, session.behaviors)
+    execute(program, session)
+    return session.result()
+
+
+def run_python(
+    folder: str | Path,
+    path: str | Path,
+    progress: Callable[[str], None] | None = None,
+) -> dict:
+    """Run the ``main(robot)`` of a Python program file (``parmor run``) on the bundle."""
+    import runpy
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such program file")
+    try:
+        namespace = runpy.run_path(str(path), run_name="parmor_program")
+    except SyntaxError as exc:
+        raise InputError(f"{path}:{exc.lineno}:{exc.offset}: {exc.msg}") from None
+    main = namespace.get("main")
+    if not callable(main):
+        raise InputError(f"{path}: defines no main(robot) function")
+    session = Session(folder, progress=progress)
+    try:
+        main(session)
+    except (ParmorError, KeyboardInterrupt):
+        raise
+    except Exception as exc:  # the user's program failed: say where, without a traceback
+        import traceback
+
+        frames = [f for f in traceback.extract_tb(exc.__traceback__) if f.filename == str(path)]
+        where = f"{path}:{frames[-1].lineno}" if frames else str(path)
+        raise InputError(f"{where}: {type(exc).__name__}: {exc}") from None
+    return session.result()
