@@ -121,12 +121,19 @@ def assembly_of(structure: Structure, catalog: Catalog, record: dict):
     """The assembly of a sized design (``build_assembly``), its servos' travel placed over
     the joint spans its behaviours use (default parameters) and its trajectories
     (behaviour -> Trajectory); reused for the same structure and catalog objects and the
-    same abilities (the verification may drop one)."""
+    same record but for its verdicts (the verification may drop an ability or calibrate)."""
+    import json
+
     from export.assembly import build_assembly
 
-    abilities = tuple(record.get("abilities", ()))
+    # the trajectories follow the record (abilities, calibration...), not its verdicts
+    key = json.dumps(
+        {k: v for k, v in record.items() if k not in ("verified", "payload")},
+        sort_keys=True,
+        default=str,
+    )
     last = _LAST[0] if _LAST else None
-    if last and last[2] == abilities and last[3] is structure and last[4] is catalog:
+    if last and last[2] == key and last[3] is structure and last[4] is catalog:
         return last[5], last[6]
     trajectories = _trajectories(record)
     used: dict[str, tuple[float, float]] = {}
@@ -136,7 +143,7 @@ def assembly_of(structure: Structure, catalog: Catalog, record: dict):
             old = used.get(joint, (lo, hi))
             used[joint] = (min(lo, old[0]), max(hi, old[1]))
     asm = build_assembly(structure, catalog, used)
-    _LAST[:] = [(id(structure), id(catalog), abilities, structure, catalog, asm, trajectories)]
+    _LAST[:] = [(id(structure), id(catalog), key, structure, catalog, asm, trajectories)]
     return asm, trajectories
 
 
