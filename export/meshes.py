@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from kinematics import templates as _templates
 from kinematics.templates import WHEEL_BORE
 
 if TYPE_CHECKING:  # trimesh and manifold3d are imported where they are used
@@ -210,12 +211,12 @@ def link_mesh(
     return _to_trimesh(solid.scale((1 / MM, 1 / MM, 1 / MM)))
 
 
-#: Dovetail profile (mm): the pin's width where it stands on its face, its height, and the
-#: flank angle from the face's normal (45 degrees: both the pin and the rail's overhang print
-#: without support). The pin runs across the whole face along y, centred on x.
-DOVETAIL_ROOT = 6.0
-DOVETAIL_HEIGHT = 2.0
-DOVETAIL_FLANK = np.pi / 4
+#: Dovetail profile (mm; ``kinematics.templates``' figures): the pin's width where it stands
+#: on its face, its height, and the flank angle from the face's normal. The pin runs across
+#: the whole face along y, centred on x.
+DOVETAIL_ROOT = MM * _templates.DOVETAIL_ROOT
+DOVETAIL_HEIGHT = MM * _templates.DOVETAIL_HEIGHT
+DOVETAIL_FLANK = _templates.DOVETAIL_FLANK
 
 
 def dovetail_profile_mm(grow: float = 0.0) -> list[tuple[float, float]]:
@@ -248,26 +249,10 @@ def dovetail_solid_mm(face_side_mm: float, grow: float = 0.0):
 
 def dovetail_volume(face_side: float, r_inner: float, clearance: float, pin: bool) -> float:
     """m^3 the dovetail adds to a link of ``link_mesh`` (negative: removes): the pin on
-    its far face (``pin``) less the rail's slot cut in its near face, where the slot
-    crosses the bore (radius ``r_inner`` m) removing nothing. Exact but for the integral
-    over the slot's depth (Simpson's rule, 64 intervals)."""
-    a, ri, c = MM * face_side, MM * r_inner, MM * clearance
-    pts = np.array(dovetail_profile_mm(c))
-    lo, hi = pts[:, 1].min(), pts[:, 1].max()
-    w_lo = pts[np.isclose(pts[:, 1], lo), 0].max()
-    w_hi = pts[np.isclose(pts[:, 1], hi), 0].max()
-    z = np.linspace(0.0, hi, 65)
-    w = w_lo + (w_hi - w_lo) * (z - lo) / (hi - lo)  # the slot's half-width at depth z
-    inside = np.minimum(w, ri)
-    chord = 2 * (inside * np.sqrt(np.maximum(ri * ri - inside * inside, 0.0)))
-    bore = chord + 2 * ri * ri * np.arcsin(np.clip(inside / ri, -1, 1)) if ri > 0 else 0 * z
-    area = 2 * w * a - bore  # mm^2 of plate the slot removes at depth z
-    h = z[1] - z[0]
-    removed = h / 3 * (area[0] + area[-1] + 4 * area[1:-1:2].sum() + 2 * area[2:-1:2].sum())
-    w0, h_pin = DOVETAIL_ROOT / 2, DOVETAIL_HEIGHT
-    w1 = w0 + h_pin * np.tan(DOVETAIL_FLANK)
-    added = (w0 + w1) * h_pin * a if pin else 0.0
-    return float(added - removed) / MM**3
+    its far face (``pin``) less the rail's slot cut in its near face
+    (``kinematics.templates.dovetail_volumes``, which the structure's template weighs)."""
+    (pin_v, _, _), (slot_v, _, _) = _templates.dovetail_volumes(face_side, r_inner, clearance, pin)
+    return pin_v - slot_v
 
 
 def plate_mesh(lx: float, ly: float, thickness: float) -> trimesh.Trimesh:

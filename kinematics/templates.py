@@ -103,6 +103,7 @@ __all__ = [
     "TemplateParams",
     "build",
     "default_lengths",
+    "dovetail_volumes",
 ]
 
 #: Tube radii (r_outer, r_inner) m used when ``TemplateParams.tubes`` names none.
@@ -121,6 +122,12 @@ GRIPPER_OPENING = 0.03
 FOOT_WIDTH_RATIO = 0.6  # humanoid foot plate width / length
 FOOT_PLATE = 0.004  # humanoid foot plate thickness, m
 WHEEL_WIDTH = 0.01  # m
+#: Dovetail joining printed link modules (paper Fig. 10), m and rad: the pin's width where
+#: it stands on its face, its height, and the flank angle from the face's normal (45 deg:
+#: the pin and the rail's overhang print without support). The pin runs across the face.
+DOVETAIL_ROOT = 0.006
+DOVETAIL_HEIGHT = 0.002
+DOVETAIL_FLANK = pi / 4
 #: Hub bore radius of a printed wheel, m: the clearance hole of an M3 servo-horn screw.
 WHEEL_BORE = 0.0017
 CASTER_RADIUS = 0.01  # m, the ball's radius when the params name none
@@ -174,7 +181,9 @@ class TemplateParams:
     ``face_side``, ``face_thickness``, ``fillet`` (m): the printed link module's square
     dovetail face plates and the fillets between them and the tube (paper Fig. 10; geometry
     in ``kinematics.spatial.link_part_volume``). All 0 (the default): every link is a bare
-    tube. When set, every link's mass properties are those of the whole printed part.
+    tube. When set, every link's mass properties are those of the whole printed part, with
+    its dovetail (``dovetail_volumes``: a pin on the far face unless the link ends free,
+    the rail's slot in the near face) when ``dovetail_clearance`` (m) is set.
     """
 
     lengths: Mapping[str, float] = field(default_factory=dict)
@@ -196,6 +205,71 @@ class TemplateParams:
     face_side: float = 0.0
     face_thickness: float = 0.0
     fillet: float = 0.0
+    dovetail_clearance: float | None = None
+
+
+def dovetail_volumes(
+    face_side: float, r_inner: float, clearance: float, pin: bool
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """The dovetail of a printed link: ((pin m^3, its centroid's height m above the far
+    face, its mean width m), (slot m^3, its centroid's depth m into the near face, its
+    mean width m)). The pin (none unless ``pin``) stands on the far face; the rail's slot,
+    the pin's profile grown by ``clearance`` m on every side, is cut into the near face and
+    removes nothing where it crosses the bore (radius ``r_inner``). Exact but for the
+    integral over the slot's depth (Simpson's rule, 64 intervals)."""
+    a, ri, c = float(face_side), float(r_inner), float(clearance)
+    w0, h, th = DOVETAIL_ROOT / 2, DOVETAIL_HEIGHT, DOVETAIL_FLANK
+    w1 = w0 + h * np.tan(th)
+    pin_v = (w0 + w1) * h * a if pin else 0.0
+    pin_z = h * (w0 + 2 * w1) / (3 * (w0 + w1))
+    z = np.linspace(0.0, h + c, 65)
+    w = w0 + c / np.cos(th) + z * np.tan(th)  # the slot's half-width at depth z (mitred)
+    inside = np.minimum(w, ri)
+    bore = 2 * inside * np.sqrt(np.maximum(ri * ri - inside * inside, 0.0))
+    if ri > 0:
+        bore = bore + 2 * ri * ri * np.arcsin(np.clip(inside / ri, -1.0, 1.0))
+    area = 2 * w * a - bore
+    step = z[1] - z[0]
+
+    def simpson(f: np.ndarray) -> float:
+        return float(step / 3 * (f[0] + f[-1] + 4 * f[1:-1:2].sum() + 2 * f[2:-1:2].sum()))
+
+    slot_v = simpson(area)
+    slot_z = simpson(area * z) / slot_v if slot_v > 0 else 0.0
+    return (pin_v, pin_z, w0 + w1), (slot_v, slot_z, float(2 * w.mean()))
+
+
+def _with_dovetail(
+    part: tuple[float, np.ndarray, np.ndarray],
+    p: TemplateParams,
+    start: np.ndarray,
+    d: np.ndarray,
+    length: float,
+    r_inner: float,
+    pin: bool,
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """A link part's (mass, com, inertia) with its dovetail pin added and its slot removed
+    (each a box of its mean width, the face's side and its height)."""
+    (pv, pz, pw), (sv, sz, sw) = dovetail_volumes(
+        p.face_side, r_inner, p.dovetail_clearance or 0.0, pin
+    )
+    R = _tube_frame(d)
+    m0, c0, i0 = part
+    items = [(m0, c0, i0, 1.0)]
+    if pv > 0:
+        mp = p.density * pv
+        ip = R @ box_inertia(mp, (pw, p.face_side, DOVETAIL_HEIGHT)) @ R.T
+        items.append((mp, start + (length + pz) * d, ip, 1.0))
+    ms = p.density * sv
+    depth = DOVETAIL_HEIGHT + (p.dovetail_clearance or 0.0)
+    items.append((ms, start + sz * d, R @ box_inertia(ms, (sw, p.face_side, depth)) @ R.T, -1.0))
+    mass = sum(k * m for m, _, _, k in items)
+    com = sum(k * m * c for m, c, _, k in items) / mass
+    inertia = np.zeros((3, 3))
+    for m, c, i, k in items:
+        r = c - com
+        inertia += k * (i + m * (float(r @ r) * np.eye(3) - np.outer(r, r)))
+    return mass, com, inertia
 
 
 @dataclass(frozen=True, eq=False)
@@ -417,6 +491,10 @@ class _Builder:
         if any(faces):
             m, c, inertia = link_part_mass_properties(p.density, length, ro, ri, *faces, axis=d)
             com = s + c
+            if p.dovetail_clearance is not None and p.face_side > 0:
+                m, com, inertia = _with_dovetail(
+                    (m, com, inertia), p, s, d, length, float(ri), distal is not None
+                )
         else:  # the bare tube, computed as it always was
             m = tube_mass(p.density, length, ro, ri)
             com, inertia = s + 0.5 * length * d, tube_inertia(m, length, ro, ri, d)

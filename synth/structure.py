@@ -440,6 +440,7 @@ class StructureDesigner:
             face_side=p.dovetail_face_m,
             face_thickness=p.face_thickness_m,
             fillet=p.fillet_radius_m,
+            dovetail_clearance=p.print_clearance_m,
         )
 
     def _geometry(self, tmpl: Template, sizing: Sizing, speeds: Mapping[str, float]):

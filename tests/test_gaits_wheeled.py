@@ -214,11 +214,11 @@ def designs(kb, designer, tmp_path_factory):
         rec = design_record(
             Design("designed", Request(), (cand,), cand, "only candidate"), designer.short, s
         )
-        files = bundle_files(rec, s, catalog)
+        files = bundle_files(rec, s, catalog, with_payload=True, pictures=False)
         calibration = calibrate(files)  # a skid-steer's, measured as `parmor design` does
         if calibration:
             rec["calibration"] = calibration
-            files = bundle_files(rec, s, catalog)
+            files = bundle_files(rec, s, catalog, with_payload=True, pictures=False)
         folder = tmp_path_factory.mktemp("wheeled") / robot_type
         write_bundle(folder, files)
         out[robot_type] = (
@@ -356,7 +356,7 @@ def small_wheels(kb, designer, tmp_path_factory):
             Design("designed", Request(), (cand,), cand, "only candidate"), designer.short, s
         )
         folder = tmp_path_factory.mktemp("small") / robot_type
-        write_bundle(folder, bundle_files(rec, s, catalog))
+        write_bundle(folder, bundle_files(rec, s, catalog, with_payload=True, pictures=False))
         out[robot_type] = (
             WheeledController(DesignGeometry.from_record(rec)),
             load_bundle_model(folder),
