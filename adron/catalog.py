@@ -343,6 +343,21 @@ _CLASS_NAME = re.compile(r"[A-Z][A-Za-z0-9]*")
 _CURRENCY = re.compile(r"[A-Z]{3}")
 _TOML_AT = re.compile(r"(?s)(.*) \(at line (\d+), column (\d+)\)")
 
+#: Largest catalog quantity of each dimension parmor accepts, with its unit. Beyond them no
+#: module of a modular robot makes sense, and the ASP facts (integers: milligrams, cents,
+#: mN*m, mrad/s, mA; clingo's are 32-bit) of a few tens of modules would overflow.
+CATALOG_MAX: dict[str, str] = {
+    "mass": "50 kg",
+    "length": "10 m",
+    "torque": "1000 N*m",
+    "angular_speed": "1000 rad/s",
+    "current": "1000 A",
+    "voltage": "1000 V",
+    "charge": "1000 Ah",
+}
+#: Largest cost of one module, in the catalog's currency (cents must fit clingo's integers).
+MAX_COST = 100_000.0
+
 
 def _suggest(word: str, choices: Iterable[str]) -> str:
     close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
@@ -388,6 +403,14 @@ class _Table:
         value = self.data[key]
         if not isinstance(value, str) or not value.strip():
             raise self.fail(f"expected a non-empty string, got {_kind(value)}", key)
+        bad = next((c for c in value if not c.isprintable()), None)
+        if bad is not None:
+            # A newline or NUL in a name breaks the ASP facts, the BOM's CSV and the URDF.
+            raise self.fail(
+                f"{value!r} contains the control character U+{ord(bad):04X}; expected one line "
+                "of printable text",
+                key,
+            )
         return value
 
     def class_name(self, key: str = "class") -> str:
@@ -397,9 +420,21 @@ class _Table:
         return value
 
     def q(self, key: str, dimension: str, **flags: bool) -> float:
-        return quantity(self.data[key], dimension, self.where(key), **flags)
+        value = quantity(self.data[key], dimension, self.where(key), **flags)
+        if dimension in CATALOG_MAX:
+            top = CATALOG_MAX[dimension]
+            if value > quantity(top, dimension, "CATALOG_MAX"):
+                raise self.fail(f"'{self.data[key]}' is above {top}, the largest accepted", key)
+        return value
 
-    def number(self, key: str, *, minimum: float = 0.0, allow_equal: bool = True) -> float:
+    def number(
+        self,
+        key: str,
+        *,
+        minimum: float = 0.0,
+        allow_equal: bool = True,
+        maximum: float = math.inf,
+    ) -> float:
         value = self.data[key]
         if isinstance(value, str):
             value = quantity(value, "dimensionless", self.where(key), allow_negative=True)
@@ -411,6 +446,8 @@ class _Table:
         if value < minimum or (value == minimum and not allow_equal):
             bound = "at least" if allow_equal else "greater than"
             raise self.fail(f"must be {bound} {minimum:g}, got {value:g}", key)
+        if value > maximum:
+            raise self.fail(f"must be at most {maximum:g}, got {value:g}", key)
         return value
 
     def integer(self, key: str, low: int, high: int) -> int:
@@ -430,6 +467,8 @@ class _Table:
                 key,
             )
         x, y, z = (quantity(v, "length", f"{self.where(key)}[{i}]") for i, v in enumerate(value, 1))
+        if max(x, y, z) > quantity(CATALOG_MAX["length"], "length", "CATALOG_MAX"):
+            raise self.fail(f"a side is above {CATALOG_MAX['length']}, the largest accepted", key)
         return (x, y, z)
 
 
@@ -453,7 +492,8 @@ def _entries(doc: dict[str, Any], key: str, file: str, required: bool = True) ->
     tables = []
     for i, data in enumerate(value, 1):
         model = data.get("model")
-        label = f"{key}[{i}] ({model})" if isinstance(model, str) and model else f"{key}[{i}]"
+        named = isinstance(model, str) and model and model.isprintable()
+        label = f"{key}[{i}] ({model})" if named else f"{key}[{i}]"
         tables.append(_Table(data, label, file))
     return tables
 
@@ -476,7 +516,7 @@ def _actuator(t: _Table) -> Actuator:
         stall_torque_Nm=t.q("stall_torque", "torque"),
         no_load_speed_rad_s=t.q("no_load_speed", "angular_speed"),
         stall_current_A=t.q("stall_current", "current"),
-        cost=t.number("cost"),
+        cost=t.number("cost", maximum=MAX_COST),
         travel_rad=math.radians(_travel(t)),
     )
 
@@ -504,7 +544,7 @@ def _part(t: _Table, density: float) -> Part:
         source=source,
         mass_kg=mass,
         size_m=size,
-        cost=t.number("cost"),
+        cost=t.number("cost", maximum=MAX_COST),
     )
 
 
@@ -538,7 +578,7 @@ def _module(t: _Table) -> Module:
         ontology_class=t.class_name(),
         mass_kg=t.q("mass", "mass"),
         size_m=t.lengths("size"),
-        cost=t.number("cost"),
+        cost=t.number("cost", maximum=MAX_COST),
         current_A=t.q("current", "current", allow_zero=True),
         capacity_Ah=capacity,
         voltage_V=voltage,
@@ -750,7 +790,7 @@ def load_catalog(path: str | Path | None = None) -> Catalog:
     except OSError as error:
         raise InputError(f"{source}: cannot read: {error.strerror or error}") from None
     try:
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8-sig")  # a leading byte order mark is ignored
     except UnicodeDecodeError as error:
         raise InputError(f"{source}: not UTF-8 text (byte {error.start})") from None
     return parse_catalog(text, source)

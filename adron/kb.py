@@ -14,7 +14,7 @@ from importlib import resources
 from pathlib import Path
 
 from adron.errors import InputError, OntologyError
-from adron.kif import Form, parse
+from adron.kif import MAX_DEPTH, Form, parse
 from adron.translate import Translation, translate
 
 
@@ -95,13 +95,54 @@ def facts(tr: Translation, relation: str, arity: int) -> list[tuple[str, ...]]:
     return out
 
 
+def check_taxonomy(tr: Translation) -> None:
+    """OntologyError when the ground ``subclass`` facts form a cycle, such as
+    ``(subclass Robot HexapodRobot)`` beside the shipped ``HexapodRobot`` under ``Robot``:
+    the message names the cycle's last-loaded fact (a user's file comes after the shipped
+    ones). Iterative depth-first search, linear in the facts."""
+    edges = [(a[0], a[1], where, i) for i, (a, where) in enumerate(tr.located("subclass"))]
+    graph: dict[str, list[tuple[str, str, int]]] = {}
+    for a, b, where, i in edges:
+        if isinstance(a, str) and isinstance(b, str):
+            graph.setdefault(a, []).append((b, where, i))
+    state: dict[str, int] = {}  # 1 on the current path, 2 done
+    for root in graph:
+        if root in state:
+            continue
+        state[root] = 1
+        path: list[tuple[str, str, int]] = [(root, "", -1)]  # (class, where, index) of edge in
+        stack = [iter(graph.get(root, ()))]
+        while stack:
+            step = next(stack[-1], None)
+            if step is None:
+                state[path.pop()[0]] = 2
+                stack.pop()
+                continue
+            b, where, i = step
+            if state.get(b) == 1:  # back to a class on the path: a cycle
+                at = next(k for k, p in enumerate(path) if p[0] == b)
+                cycle = [*path[at + 1 :], (b, where, i)]
+                _, blame, _ = max(cycle, key=lambda p: p[2])
+                names = [b, *(p[0] for p in cycle)]
+                shown = " < ".join(names if len(names) <= 8 else [*names[:4], "...", *names[-3:]])
+                raise OntologyError(
+                    f"{blame}: this subclass fact closes a cycle in the class hierarchy "
+                    f"({shown}); a class cannot be its own subclass"
+                )
+            if b not in state:
+                state[b] = 1
+                path.append((b, where, i))
+                stack.append(iter(graph.get(b, ())))
+
+
 def load(extra: Sequence[str | Path] = (), builtin: bool = True) -> KnowledgeBase:
     """Parse and translate the shipped ontology (unless ``builtin`` is False) and ``extra``."""
     sources = (builtin_files() if builtin else []) + [read_user_file(p) for p in extra]
     forms: list[Form] = []
     for name, text in sources:
-        forms.extend(parse(text, name))
+        forms.extend(parse(text, name, MAX_DEPTH))
     tr = translate(forms)
+    check_taxonomy(tr)
     verbs = {kif: verb for kif, verb in facts(tr, "abilityVerb", 2)}
     abilities, seen = [], {}
     for kif, name in facts(tr, "abilityName", 2):

@@ -18,6 +18,7 @@ from typing import Any
 from adron.errors import KifSyntaxError
 
 __all__ = [
+    "MAX_DEPTH",
     "Atom",
     "Form",
     "RowVar",
@@ -151,6 +152,14 @@ _NEWLINE = re.compile("\n")
 _INT = re.compile(r"[-+]?[0-9]+")
 _FLOAT = re.compile(r"[-+]?(?:[0-9]+\.[0-9]*|\.[0-9]+|[0-9]+(?=[eE]))(?:[eE][-+]?[0-9]+)?")
 _ATOM_AT = r'(?<![^\s()";]){}(?![^\s()";])'
+# Control characters other than whitespace (tab, newlines, vertical tab, form feed): a NUL
+# or an escape in a name would reach clingo and fail there, far from the user's file.
+_CONTROL = re.compile(r"[\x00-\x08\x0e-\x1f\x7f]")
+_BOM = "\ufeff"
+
+#: Deepest nesting of lists that parmor translates (the translator walks forms recursively,
+#: and Python's stack ends near 500 levels); SUMO's deepest axioms nest about 15 levels.
+MAX_DEPTH = 100
 
 
 class _BadNumber(Exception):
@@ -203,22 +212,32 @@ class _AtomCache(dict):
         return atom
 
 
-def parse(text: str, file: str = "<string>") -> list[Form]:
+def parse(text: str, file: str = "<string>", max_depth: int | None = None) -> list[Form]:
     """Parse SUO-KIF text into its top-level forms, in order.
 
-    Raises :class:`KifSyntaxError` (with file, 1-based line and column) for an unclosed
-    ``(`` (located where it opened), an unexpected ``)``, an unterminated string (located
-    where it started) or anything other than a list at top level.
+    A leading UTF-8 byte order mark is ignored. Raises :class:`KifSyntaxError` (with file,
+    1-based line and column) for an unclosed ``(`` (located where it opened), an unexpected
+    ``)``, an unterminated string (located where it started), anything other than a list at
+    top level, a control character (NUL, ESC...), or a list nested more than ``max_depth``
+    levels deep (None: no limit; the reader itself needs none, but consumers that walk
+    forms recursively do).
     """
+    if text.startswith(_BOM):
+        text = " " + text[1:]  # whitespace of the same length: locations stay as they were
+    bad = _CONTROL.search(text)
+    if bad:
+        line, col = _Locator(text)(bad.start())
+        what = f"control character U+{ord(bad.group()):04X} is not allowed in KIF text"
+        raise KifSyntaxError(what, file, line, col)
     try:
-        return _parse(text, file)
+        return _parse(text, file, max_depth)
     except _BadNumber as exc:
         tok = exc.args[0]
         line, col = _Locator(text)(_atom_offset(text, tok))
         raise KifSyntaxError(f"integer too long: {_short(tok)}", file, line, col) from None
 
 
-def _parse(text: str, file: str) -> list[Form]:
+def _parse(text: str, file: str, max_depth: int | None = None) -> list[Form]:
     """The tokeniser loop of :func:`parse`."""
     locate = _Locator(text)
     newlines = locate.newlines
@@ -239,6 +258,16 @@ def _parse(text: str, file: str) -> list[Form]:
         tok = m.group()
         c = tok[0]
         if c == "(":
+            # Depth of this list: the open lists around it (stack + cur), plus one.
+            if max_depth is not None and cur is not None and len(stack) + 2 > max_depth:
+                line, col = locate(m.start())
+                raise KifSyntaxError(
+                    f"lists nest more than {max_depth} levels deep (the limit of the "
+                    "translation to ASP)",
+                    file,
+                    line,
+                    col,
+                )
             if tok[-1] == ")":  # a list of atoms only, complete in one token
                 p = m.start()
                 n = bisect_right(newlines, p - 1)  # inline _Locator.__call__ (hot path)

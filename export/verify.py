@@ -50,14 +50,23 @@ def bundle_record(folder: str | Path, structure: bool = True) -> dict:
 
 def load_bundle(folder: str | Path) -> tuple[dict, object]:
     """(record, MuJoCo model) of a bundle folder; InputError when either cannot be read."""
+    record = bundle_record(folder)
+    return record, load_model(folder)
+
+
+def load_model(folder: str | Path):
+    """The MuJoCo model of a bundle folder (robot.xml and its meshes), checked to hold a
+    robot; InputError naming the folder when it cannot be read or holds none."""
     from export.simulate import load_bundle_model
 
-    record = bundle_record(folder)
     try:
         model = load_bundle_model(folder)
-    except (OSError, ValueError, KeyError) as e:
-        raise InputError(f"{folder}: cannot load the MuJoCo model: {e}") from None
-    return record, model
+    except (OSError, ValueError, KeyError, SyntaxError) as e:  # xml.etree's ParseError too
+        why = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise InputError(f"{folder}: cannot load the MuJoCo model robot.xml: {why}") from None
+    if model.nbody < 2:
+        raise InputError(f"{folder}/robot.xml: no robot body (not a model parmor wrote)")
+    return model
 
 
 def _fixed_base(model) -> bool:
@@ -97,7 +106,12 @@ def controller_for_model(record: Mapping, model) -> Controller:
     from gaits import controller_for
     from gaits.base import DesignGeometry
 
-    geometry = DesignGeometry.from_record(record)
+    try:
+        geometry = DesignGeometry.from_record(record)
+    except KeyError as e:
+        raise InputError(f"design.json: missing key {e} (not a record parmor wrote)") from None
+    except (TypeError, ValueError, AttributeError) as e:
+        raise InputError(f"design.json: malformed design record: {e}") from None
     options: dict[str, object] = {"base_position": tuple(float(x) for x in model.body(1).pos)}
     acts = _joint_actuators(model)
     stiffness = {

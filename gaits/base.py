@@ -131,6 +131,8 @@ class Parameter:
             x = int(value) if self.kind == "int" else float(value)
         except (TypeError, ValueError):
             raise ValueError(f"{self.name}: expected a number, got {value!r}") from None
+        if x != x:  # NaN passes every comparison below
+            raise ValueError(f"{self.name}: expected a number, got {value!r}")
         if (self.low is not None and x < self.low) or (self.high is not None and x > self.high):
             lo = "-inf" if self.low is None else f"{self.low:g}"
             hi = "inf" if self.high is None else f"{self.high:g}"

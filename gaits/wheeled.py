@@ -668,6 +668,33 @@ class WheeledController(Controller):
         return 2 * self.v_max / self.drive.effective_track
 
     @cached_property
+    def reach(self) -> tuple[float, float]:
+        """(v m/s, w rad/s): the declared ranges of ``driving``: the largest straight speed
+        and turn rate in place (either sense) that ``driving`` plans with its default ramp,
+        the servos' droop under load and while accelerating included (bisection)."""
+
+        def fits(v: float, w: float) -> bool:
+            try:
+                self._driving(v, w, max(1.0, 1.5 * self.default_ramp), self.default_ramp)
+            except ValueError:
+                return False
+            return True
+
+        def top(v: float, w: float) -> float:
+            low, high = 0.0, 1.0
+            while fits(high * v, high * w):
+                low, high = high, 2 * high
+            for _ in range(30):
+                mid = (low + high) / 2
+                low, high = (mid, high) if fits(mid * v, mid * w) else (low, mid)
+            return low
+
+        return (
+            min(top(1.0, 0.0), top(-1.0, 0.0)),
+            min(top(0.0, 1.0), top(0.0, -1.0)),
+        )
+
+    @cached_property
     def default_ramp(self) -> float:
         """The default ramp s: RAMP, or longer (by 25 % steps) until the servos can
         accelerate the robot to the default speed (their droop under the chassis' inertia
@@ -691,7 +718,8 @@ class WheeledController(Controller):
 
     @property
     def behaviors(self) -> Mapping[str, BehaviorSpec]:
-        v_max, w_max = self.v_max, self.w_max
+        v_max = self.v_max
+        v_top, w_top = self.reach
         return {
             "driving": BehaviorSpec(
                 "driving",
@@ -703,8 +731,8 @@ class WheeledController(Controller):
                         round(v_max / 2, 3),
                         "forward speed",
                         "m/s",
-                        low=-v_max,
-                        high=v_max,
+                        low=-v_top,
+                        high=v_top,
                     ),
                     Parameter(
                         "w",
@@ -712,8 +740,8 @@ class WheeledController(Controller):
                         0.0,
                         "yaw rate, counter-clockwise positive",
                         "rad/s",
-                        low=-w_max,
-                        high=w_max,
+                        low=-w_top,
+                        high=w_top,
                     ),
                     Parameter("seconds", "float", 5.0, "duration", "s", low=0.05, high=3600),
                     Parameter(

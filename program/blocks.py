@@ -104,13 +104,9 @@ def read_record(folder: Path) -> dict:
 
 def bundle_controller(folder: Path, record: Mapping) -> Controller:
     """The design's controller, set up for the bundle's MuJoCo model as a run sets it up."""
-    from export.simulate import load_bundle_model
-    from export.verify import controller_for_model
+    from export.verify import controller_for_model, load_model
 
-    try:
-        model = load_bundle_model(folder)
-    except (OSError, ValueError, KeyError) as e:
-        raise InputError(f"{folder}: cannot load the MuJoCo model: {e}") from None
+    model = load_model(folder)
     try:
         return controller_for_model(record, model)
     except ValueError as e:

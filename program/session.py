@@ -30,6 +30,7 @@ from program.script import LIMITS, REPORTS, ProgramError, execute, validate
 
 BLEND_MIN_S = 0.3  # s: shortest move to a behaviour's first pose
 BLEND_SPEED_SHARE = 0.3  # of a servo's no-load speed, for that move's peak speed
+BLEND_SKIP_RAD = 1e-3  # no move when every joint is this close to the first pose
 END_POSE_FRACTION = 0.25  # of the commanded path: how far from the commanded end it may end
 ANIMATION_FPS = 20  # frames per simulated second in ``animation``
 PATH_HZ = 20  # path samples per simulated second
@@ -99,6 +100,9 @@ class Session:
         self._counts = {"steps": 0, "saturated": 0, "contacts": 0}
         #: a geom whose contacts ``_play`` counts (an obstacle), or None
         self.watched_geom: int | None = None
+        #: called after every physics step of ``_play`` with the time (s): a sensing loop
+        #: reading its sensors while the robot moves
+        self.on_step: Callable[[float], None] | None = None
         self.data = mujoco.MjData(self.model)
         mujoco.mj_forward(self.model, self.data)
         self.free = self.model.njnt > 0 and self.model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
@@ -359,6 +363,14 @@ class Session:
         cols = self._columns(names)
         return names, np.array([self.data.qpos[adr] for _, _, adr, _ in cols])
 
+    def follow(self, traj) -> None:
+        """Run a trajectory from where the robot is, unjudged (a sensing loop's step)."""
+        if not self.started:
+            self._start(traj.positions[0], traj.joints)
+        else:
+            self._blend_to(traj.joints, traj.positions[0])
+        self._play(traj.joints, traj.positions, traj.velocities, traj.duration, traj.times)
+
     def _blend_to(self, joints, q1: np.ndarray) -> None:
         """Move ``joints`` from where they are to ``q1`` (minimum jerk)."""
         from gaits.base import min_jerk
@@ -373,6 +385,8 @@ class Session:
             [max(self.controller.geometry.joint_speed.get(n, 0.0), 1e-3) for n in joints]
         )
         # a minimum-jerk move peaks at 1.875 x its mean speed
+        if float(np.max(np.abs(target - q0), initial=0.0)) < BLEND_SKIP_RAD:
+            return  # already there
         need = float(np.max(1.875 * np.abs(target - q0) / (BLEND_SPEED_SHARE * speed), initial=0))
         seconds = max(BLEND_MIN_S, need)
         self._check_time(seconds)
@@ -383,9 +397,17 @@ class Session:
         vel = np.outer(ds / seconds, target - q0)
         self._play(joints, pos, vel, seconds)
 
-    def _play(self, joints, pos: np.ndarray, vel: np.ndarray, seconds: float) -> None:
-        """Step the physics for ``seconds`` following ``pos`` (rows spread evenly over the
-        time, the last held) with velocity servos following ``vel``."""
+    def _play(
+        self,
+        joints,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        seconds: float,
+        times: np.ndarray | None = None,
+    ) -> None:
+        """Step the physics for ``seconds`` following ``pos`` with velocity servos
+        following ``vel``: rows at ``times`` s (interpolated at every step, as ``simulate``
+        does), or without ``times`` spread evenly over the time, the last held."""
         import mujoco
 
         from export.verdict import SATURATION_LEVEL
@@ -398,12 +420,22 @@ class Session:
         watch = self.watched_geom
         rows = len(pos)
         t0 = self.time
+        idx = np.array([a for _, a, _, _ in cols], dtype=int)
+        ctrl = np.empty((steps, len(cols)))
+        if times is not None:
+            grid = np.arange(steps) * m.opt.timestep
+            for n, (k, _, _, velocity) in enumerate(cols):
+                ctrl[:, n] = np.interp(grid, times, vel[:, k] if velocity else pos[:, k])
+        else:
+            r = np.minimum(rows - 1, (np.arange(steps) * rows) // steps) if rows > 1 else 0
+            for n, (k, _, _, velocity) in enumerate(cols):
+                ctrl[:, n] = (vel if velocity else pos)[r, k]
         for i in range(steps):
-            r = min(rows - 1, int(i * rows / steps)) if rows > 1 else 0
-            for k, a, _, velocity in cols:
-                d.ctrl[a] = vel[r, k] if velocity else pos[r, k]
+            d.ctrl[idx] = ctrl[i]
             mujoco.mj_step(m, d)
             self._observe(t0 + (i + 1) * m.opt.timestep, d)
+            if self.on_step is not None:
+                self.on_step(t0 + (i + 1) * m.opt.timestep)
             if self.can_fall and not self.fell:
                 self.fell = self._fallen()
             self._counts["steps"] += 1

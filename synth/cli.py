@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import math
+import os
 import sys
 from collections.abc import Sequence
 from typing import TextIO
 
-from adron.errors import AnswerNeeded, InputError, ParmorError
+from adron.errors import AnswerNeeded, ExportError, InputError, ParmorError
 
 EPILOG = """\
 examples:
@@ -364,6 +366,23 @@ def build_parser() -> argparse.ArgumentParser:
         help="accept the study's rule files that contain #script",
     )
     _json_option(p)
+
+    p = sub.add_parser(
+        "ros",
+        help="write a ROS 1 package that serves the design's behaviours",
+        description="Write DIR/ros/parmor_<robot>/ for the design in DIR (written by 'parmor "
+        "design --out DIR'): package.xml, CMakeLists.txt, one service per behaviour "
+        "(/<robot>/<behaviour>, its parameters as request fields), a rospy node that plans "
+        "them with a parmor worker and publishes the joint trajectory and joint states, a "
+        "launch file and the URDF. Exit 2 when DIR has no design with a structure.",
+        epilog="example:\n  parmor ros hexapod && source hexapod/ros/parmor_hexapod_robot/"
+        "setup.bash && roslaunch parmor_hexapod_robot parmor.launch",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("dir", metavar="DIR", help="a bundle folder written by 'parmor design --out'")
+    p.add_argument("--name", metavar="NAME", help="the robot's ROS name (default: from its type)")
+    p.add_argument("--force", action="store_true", help="replace the package if it exists")
+    _json_option(p)
     return parser
 
 
@@ -485,6 +504,8 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from export.record import design_text, to_json, verification_text
     from synth.pipeline import run
 
+    if args.out is not None and not args.out.strip():
+        raise InputError(f"--out {args.out!r}: expected the name of a folder")
     designer = _designer(args, err)
     req = _request(args)
     opts = _options(args)
@@ -761,6 +782,8 @@ def cmd_sweep(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 #: Longest simulated time of one ``simulate`` run, s (the samples are held in memory).
 MAX_SIM_SECONDS = 600.0
+#: Shortest one, s: a behaviour's verdict needs some motion to judge (50 MuJoCo steps).
+MIN_SIM_SECONDS = 0.1
 
 
 def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -771,8 +794,6 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     folder = Path(args.dir)
     from export.verify import controller_for_model, figures, load_bundle, run_behavior
 
-    record, model = load_bundle(folder)
-
     params: dict[str, str] = {}
     for item in args.set:
         name, sep, value = item.partition("=")
@@ -782,11 +803,13 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.gait:
         params["gait"] = args.gait
     if args.seconds is not None and not (
-        math.isfinite(args.seconds) and 0 < args.seconds <= MAX_SIM_SECONDS
+        math.isfinite(args.seconds) and MIN_SIM_SECONDS <= args.seconds <= MAX_SIM_SECONDS
     ):
         raise InputError(
-            f"--seconds {args.seconds}: expected a number of seconds in (0, {MAX_SIM_SECONDS:g}]"
+            f"--seconds {args.seconds:g}: expected a number of seconds in "
+            f"[{MIN_SIM_SECONDS:g}, {MAX_SIM_SECONDS:g}]"
         )
+    record, model = load_bundle(folder)
     try:
         controller = controller_for_model(record, model)
         if args.behavior == "help":
@@ -811,7 +834,7 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             model, controller, args.behavior, params, args.seconds, progress
         )
     except (ValueError, KeyError) as e:
-        raise InputError(str(e).strip("'\"")) from None
+        raise InputError(e.args[0] if isinstance(e, KeyError) and e.args else str(e)) from None
     if progress is not None:
         step(None, "")
     rec = figures(traj, result)
@@ -835,6 +858,19 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         when = f" (fell at {result.fell_at_s:.2f} s)" if result.fell_at_s is not None else ""
         err.write(f"parmor: {args.behavior} failed its verdict: {why}{when}\n")
         return 1
+    return 0
+
+
+def cmd_ros(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from export.record import to_json
+    from program.ros import ros_package
+
+    path, iface = ros_package(args.dir, args.name, args.force)
+    services = [f"/{iface['robot']}/{s['service']}" for s in iface["services"]]
+    if args.json:
+        out.write(to_json({"package": str(path), "services": services}))
+    else:
+        out.write(f"{path}\n" + "".join(f"  {s}\n" for s in services))
     return 0
 
 
@@ -936,6 +972,7 @@ COMMANDS = {
     "enumerate": cmd_enumerate,
     "explain": cmd_explain,
     "regress": cmd_regress,
+    "ros": cmd_ros,
     "run": cmd_run,
     "simulate": cmd_simulate,
     "sweep": cmd_sweep,
@@ -948,6 +985,11 @@ def main(
     """Run the command line; returns the exit code (never raises for user errors)."""
     out = out or sys.stdout
     err = err or sys.stderr
+    argv = sys.argv[1:] if argv is None else list(argv)
+    for arg in argv:  # a shell cannot pass one; a caller in Python can (open() would raise)
+        if "\x00" in arg:
+            err.write(f"parmor: error: argument {arg!r} contains a NUL character\n")
+            return InputError.exit_code
     parser = build_parser()
     try:
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
@@ -956,13 +998,49 @@ def main(
         return int(e.code or 0)
     handler = cmd_ontology_check if args.command == "ontology" else COMMANDS[args.command]
     try:
-        return handler(args, out, err)
+        code = handler(args, out, err)
+        out.flush()
+        return code
     except ParmorError as e:
-        err.write(f"parmor: error: {e}\n")
+        err.write(f"parmor: error: {_one_line(str(e))}\n")
         return e.exit_code
     except KeyboardInterrupt:
         err.write("parmor: interrupted\n")
         return 130
+    except OSError as e:
+        # the output went away (``| head -1``: a broken pipe) or is full (``> /dev/full``)
+        if e.errno not in (errno.EPIPE, errno.ENOSPC, errno.EDQUOT, errno.EIO):
+            raise
+        _discard_output(out)
+        why = "closed early (broken pipe)" if e.errno == errno.EPIPE else e.strerror
+        err.write(f"parmor: error: cannot write the output: {why}\n")
+        return ExportError.exit_code
+
+
+#: Longest error message printed, characters (a message quoting a huge input is cut).
+MAX_MESSAGE = 2000
+
+
+def _one_line(message: str) -> str:
+    """``message`` on one line (line breaks shown as ' | '), its middle cut past MAX_MESSAGE."""
+    message = " | ".join(part.strip() for part in message.strip().splitlines() if part.strip())
+    if len(message) > MAX_MESSAGE:
+        cut = len(message) - MAX_MESSAGE
+        message = (
+            f"{message[: MAX_MESSAGE // 2]} [... {cut} characters ...] "
+            + message[-MAX_MESSAGE // 2 :]
+        )
+    return message
+
+
+def _discard_output(out: TextIO) -> None:
+    """Point the standard output that failed at /dev/null, so that the interpreter's last
+    flush of what is still buffered does not fail again with a traceback."""
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        if out is sys.stdout or out is sys.__stdout__:
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, out.fileno())
+            os.close(null)
 
 
 if __name__ == "__main__":

@@ -67,7 +67,7 @@ def suggest(word: str, options: Sequence[str]) -> str:
 
 def parse_answer(text: str) -> tuple[str, bool]:
     """'grasping=yes' -> ('grasping', True); raises InputError on anything else."""
-    name, sep, value = text.partition("=")
+    name, sep, value = text.rpartition("=")  # the ability's name may hold an '='
     v = value.strip().lower()
     if not sep or not name.strip() or v not in ("yes", "no", "y", "n", "true", "false"):
         raise InputError(f"--answer {text!r}: expected ABILITY=yes or ABILITY=no")

@@ -5,16 +5,20 @@ the physical ones below size the structure. Values take units (``--param reach=3
 and are SI floats inside. A default of ``None`` means "from the catalog's [design]
 section" (``deflection``, ``slope``).
 
-| name | dimension | used by | default |
-|---|---|---|---|
-| payload | mass | all | kg: 3-DOF arm 0.2, 6-DOF 0.1, multipeds 0.1, humanoid 0.05, wheeled 0.5 |
-| reach | length | Manipulator3DOF, Manipulator6DOF | 0.25 m |
-| speed | speed | all but the snake | manipulators 0.2 m/s (tip), legged 0.05 m/s, wheeled 0.3 m/s |
-| obstacle_height | length | HexapodRobot, QuadrupedRobot | 0.03 m |
-| load_area | area | DifferentialDriveRobot, SkidSteerRobot | 0.03 m^2 (300 cm^2) |
-| height | length | HumanoidRobot | 0.40 m |
-| deflection | length | every type | catalog max_tip_deflection |
-| slope | angle | DifferentialDriveRobot, SkidSteerRobot | catalog max_slope |
+| name | dimension | used by | default | range |
+|---|---|---|---|---|
+| payload | mass | all | kg: arm 0.2/0.1 (3/6-DOF); legs 0.1 (humanoid 0.05); wheels 0.5 | 0-50 kg |
+| reach | length | Manipulator3DOF, Manipulator6DOF | 0.25 m | 5 cm-2 m |
+| speed | speed | all but snake | m/s: arms 0.2 (tip), legged 0.05, wheeled 0.3 | 1 mm/s-10 m/s |
+| obstacle_height | length | HexapodRobot, QuadrupedRobot | 0.03 m | 1 mm-1 m |
+| load_area | area | DifferentialDriveRobot, SkidSteerRobot | 0.03 m^2 (300 cm^2) | 25 cm^2-1 m^2 |
+| height | length | HumanoidRobot | 0.40 m | 5 cm-2 m |
+| deflection | length | every type | catalog max_tip_deflection | 0.01 mm-10 cm |
+| slope | angle | DifferentialDriveRobot, SkidSteerRobot | catalog max_slope | 0-45 deg |
+
+The range is where a design of ParMoR-like modules makes sense (see RANGES); a value
+outside it is refused (InputError, exit 2) before any work. Inside it, sizing may still
+find the request infeasible (exit 1, naming the limit and the best value that works).
 """
 
 from __future__ import annotations
@@ -39,12 +43,50 @@ class ParamSpec:
     doc: str
     defaults: Mapping[str, float | None]
 
+    @property
+    def range(self) -> tuple[str, str]:
+        """(low, high) with units, inclusive: where designs make sense (RANGES)."""
+        return RANGES[self.name][0], RANGES[self.name][1]
+
+    @property
+    def range_why(self) -> str:
+        """Why the range stops where it does (shown when a value is refused)."""
+        return RANGES[self.name][2]
+
     def applies_to(self, robot_type: str) -> bool:
         return robot_type in self.defaults
 
 
 def _for(types: tuple[str, ...], value: float | None) -> dict[str, float | None]:
     return dict.fromkeys(types, value)
+
+
+#: Ranges of the physical parameters: (low, high, why). The module system bounds them:
+#: modules have a 50 mm dovetail face and printed links of 40-200 mm (the shipped catalog's
+#: passive section) driven by hobby servos of at most ~2 N m and ~10 rad/s. The bounds are
+#: wide (user catalogs may have other modules; sizing refuses what a catalog cannot meet,
+#: with exit 1), but exclude values no module robot can mean: a 1e-300 m reach, a load
+#: platform smaller than one module face, a 1 mm humanoid, a 1e308 kg payload.
+RANGES: dict[str, tuple[str, str, str]] = {
+    # The strongest shipped servo holds ~5 kg at the shortest link; 10x that leaves room
+    # for stronger catalogs.
+    "payload": ("0 kg", "50 kg", "10x what the strongest hobby servo holds at a 4 cm link"),
+    # At least one module face; at most ten of the longest printable links.
+    "reach": ("5 cm", "2 m", "one 50 mm module face to ten 200 mm printed links"),
+    # Slower than a millimetre a second is standing still; the fastest servo (~10 rad/s)
+    # on the largest wheel (10 cm) gives ~1 m/s, 10x that leaves room.
+    "speed": ("1 mm/s", "10 m/s", "from standing still to 10x a fast servo on a large wheel"),
+    # A printer's layer is ~0.25 mm; the longest legs of printed links are 2 x 200 mm.
+    "obstacle_height": ("1 mm", "1 m", "a few printed layers to far above any printed leg"),
+    # One module face (50 mm x 50 mm) to a square metre.
+    "load_area": ("25 cm^2", "1 m^2", "one 50 mm module face to a square metre"),
+    # One module face tall to ten of the longest printable links.
+    "height": ("5 cm", "2 m", "one 50 mm module face to ten 200 mm printed links"),
+    # A printed part is not accurate below 0.01 mm; 10 cm bends a link out of shape.
+    "deflection": ("0.01 mm", "10 cm", "printing accuracy to a link bent out of shape"),
+    # A rubber tyre's friction coefficient is about 1: on a steeper slope the wheels slip.
+    "slope": ("0 deg", "45 deg", "a tyre's grip (friction ~1) ends at 45 deg"),
+}
 
 
 PARAMS: tuple[ParamSpec, ...] = (
@@ -94,6 +136,28 @@ PARAMS: tuple[ParamSpec, ...] = (
 BY_NAME = {p.name: p for p in PARAMS}
 
 
+def bounds(spec: ParamSpec) -> tuple[float, float]:
+    """The (low, high) range of ``spec`` in SI units."""
+    from adron.units import quantity
+
+    low, high = spec.range
+    where = f"synth/params.py: range of {spec.name}"
+    return (
+        quantity(low, spec.dimension, where, allow_zero=True),
+        quantity(high, spec.dimension, where),
+    )
+
+
+def check_range(spec: ParamSpec, value: float, text: str) -> None:
+    """InputError (exit 2) when ``value`` (SI, read from ``text``) is outside ``spec``'s range."""
+    low, high = bounds(spec)
+    if not low <= value <= high:
+        raise InputError(
+            f"--param {spec.name}={text}: outside {spec.range[0]} to {spec.range[1]}, the "
+            f"range where designs make sense ({spec.range_why})"
+        )
+
+
 def exceeded_limits(
     candidate, limits: Iterable[tuple[tuple, str]], given: Mapping[str, float]
 ) -> list[str]:
@@ -123,7 +187,8 @@ def exceeded_limits(
 
 
 def parse_structural(items: Mapping[str, str]) -> dict[str, float]:
-    """``{"reach": "30cm"}`` -> ``{"reach": 0.3}``; raises InputError for a wrong unit."""
+    """``{"reach": "30cm"}`` -> ``{"reach": 0.3}``; raises InputError for a wrong unit or a
+    value outside the parameter's range (RANGES)."""
     from adron.units import quantity
 
     out = {}
@@ -131,6 +196,7 @@ def parse_structural(items: Mapping[str, str]) -> dict[str, float]:
         spec = BY_NAME[name]
         zero_ok = name in ("payload", "slope")
         out[name] = quantity(text, spec.dimension, f"--param {name}", allow_zero=zero_ok)
+        check_range(spec, out[name], text)
     return out
 
 

@@ -7,14 +7,18 @@ A suite is a TOML file (format in ``parmor regress --help``). Each query runs as
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import json
+import os
+import re
+import tempfile
 import tomllib
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
-from adron.errors import InputError
+from adron.errors import ExportError, InputError
 from adron.kb import read_user_file
 
 if TYPE_CHECKING:
@@ -44,9 +48,10 @@ def read_toml(path: Path, keys: set[str]) -> dict:
     """The TOML table of a user's file whose top-level keys are among ``keys``."""
     _, text = read_user_file(path)
     try:
-        data = tomllib.loads(text)
+        data = tomllib.loads(text.removeprefix("\ufeff"))  # a byte order mark is ignored
     except tomllib.TOMLDecodeError as e:
-        raise InputError(f"{path}: {e}") from None
+        at = re.fullmatch(r"(?s)(.*) \(at line (\d+), column (\d+)\)", str(e))
+        raise InputError(f"{path}:{at[2]}:{at[3]}: {at[1]}" if at else f"{path}: {e}") from None
     unknown = sorted(set(data) - keys)
     if unknown:
         raise InputError(f"{path}: unknown key {unknown[0]!r}")
@@ -162,6 +167,27 @@ def _dump(obj: object) -> str:
     return json.dumps(obj, indent=2, ensure_ascii=False) + "\n"
 
 
+def write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` through a temporary file in the same folder and a
+    rename: the old file stays whole on any failure (full disk, no permission, a kill).
+    ExportError (exit 2) naming the file otherwise."""
+    tmp = None
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+        tmp = None
+    except OSError as e:
+        raise ExportError(f"{path}: cannot write: {e.strerror or e}") from None
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
 def run_suite(
     suite: str | Path, update: bool, out: TextIO, err: TextIO, allow_scripts: bool = False
 ) -> int:
@@ -172,7 +198,7 @@ def run_suite(
     results = run_queries(opts, queries)
     snap = snapshot_path(path)
     if update:
-        snap.write_text(_dump(results), encoding="utf-8")
+        write_atomic(snap, _dump(results))
         out.write(f"stored {len(results)} result(s) in {snap}\n")
         return 0
     try:
@@ -185,6 +211,11 @@ def run_suite(
         raise InputError(f"{snap}:{e.lineno}:{e.colno}: {e.msg}") from None
     except (OSError, UnicodeDecodeError) as e:
         raise InputError(f"{snap}: cannot read: {e}") from None
+    if not isinstance(stored, dict) or not all(isinstance(v, dict) for v in stored.values()):
+        raise InputError(
+            f"{snap}: not a snapshot (expected an object of query name -> record); "
+            f"rewrite it with 'parmor regress {suite} --update'"
+        )
     changed = matched = 0
     for name, rec in results.items():
         if name not in stored:

@@ -441,7 +441,7 @@ class Humanoid(Family):
         for k, v in lengths.items():
             tube = k in ("femur", "tibia", "upper_arm", "forearm")
             out[k] = _clamp_length(k, v, catalog, why) if tube else v
-        self._check_gait_range(H, out, catalog)
+        self._check_gait_range(H, lengths, catalog)  # as asked, not clamped to printable
         return Sizing(out)
 
     @staticmethod

@@ -95,6 +95,7 @@ def check_rules_file(path: str | Path, allow_scripts: bool) -> str:
     (Files it includes are not read: clingo would resolve them. A user who includes
     scripts indirectly has chosen to run them.)"""
     name, text = read_user_file(path)
+    check_lexable(name, text)
     if not allow_scripts:
         # anywhere in the text, comments and strings included: refusing too much is safe,
         # guessing where clingo's lexer sees a comment is not
@@ -106,6 +107,30 @@ def check_rules_file(path: str | Path, allow_scripts: bool) -> str:
                     "#script (clingo would run its code); pass --allow-scripts to trust it"
                 )
     return text
+
+
+#: Outside strings and comments clingo's lexer reads ASCII only, and its message about any
+#: other byte is cut mid-character, which aborts the process inside clingo's Python logger.
+# Only closed strings and comments are skipped: clingo echoes an unclosed one's text.
+_ASP_TOKEN = re.compile(r'"(?:[^"\\\n]|\\.)*"|%\*.*?\*%|%[^\n]*|[^"%]+|.', re.S)
+_UNLEXABLE = re.compile(r"[^\t\n\r\x20-\x7e]")
+
+
+def check_lexable(name: str, text: str) -> None:
+    """InputError (file:line:col) for a character clingo cannot read outside strings and
+    comments: non-ASCII (a byte order mark too) or a control character."""
+    for m in _ASP_TOKEN.finditer(text):
+        if m.group()[0] in '"%':
+            continue
+        bad = _UNLEXABLE.search(m.group())
+        if bad:
+            at = m.start() + bad.start()
+            line = text.count("\n", 0, at) + 1
+            col = at - (text.rfind("\n", 0, at) + 1) + 1
+            raise InputError(
+                f"{name}:{line}:{col}: character U+{ord(bad.group()):04X} outside a string or "
+                "comment (ASP reads ASCII there)"
+            )
 
 
 def _str(sym: clingo.Symbol) -> str:

@@ -587,3 +587,18 @@ def test_uncalibrated_skid_steer_under_turns_an_arc(designs) -> None:
     r = simulate(model, traj)
     assert "turn" in r.verdict
     assert r.heading_rad < 0.9 * traj.info["planned_pose"][2]
+
+
+def test_driving_plans_every_value_its_ranges_declare(designs) -> None:
+    """The declared v and w ranges are what driving plans alone (the other 0) with its
+    default ramp, the servos' droop under load included: the bounds plan, 1 % beyond them
+    does not."""
+    for robot in ("DifferentialDriveRobot", "SkidSteerRobot"):
+        c = designs[robot][0]
+        ps = {p.name: p for p in c.behaviors["driving"].params}
+        base = {p: q.default for p, q in ps.items()} | {"v": 0.0, "w": 0.0}
+        for name in ("v", "w"):
+            for bound in (ps[name].low, ps[name].high):
+                c._run("driving", base | {name: bound})
+                with pytest.raises(ValueError):
+                    c._run("driving", base | {name: 1.01 * bound})
