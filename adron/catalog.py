@@ -38,7 +38,10 @@ __all__ = [
     "DesignRules",
     "Material",
     "Module",
+    "Part",
     "Passive",
+    "Printer",
+    "Tyre",
     "catalog_facts",
     "load_catalog",
     "parse_catalog",
@@ -64,6 +67,54 @@ class Actuator:
     no_load_speed_rad_s: float
     stall_current_A: float
     cost: float
+    #: rad: how far the output shaft turns end to end (2 pi: continuous rotation)
+    travel_rad: float = 2 * math.pi
+
+    @property
+    def continuous(self) -> bool:
+        """True when the servo turns without an end stop."""
+        return self.travel_rad >= 2 * math.pi - 1e-9
+
+
+@dataclass(frozen=True)
+class Part:
+    """A passive part that is not a printed link: a gripper's jaw (printed), a caster
+    (bought). ``source``: "printed" (its mass is ``size_m``'s box times the material's
+    density) or "bought" (the catalog's mass). SI: kg, m; cost in the catalog currency."""
+
+    model: str
+    ontology_class: str
+    source: str
+    mass_kg: float
+    size_m: Size
+    cost: float
+
+
+@dataclass(frozen=True)
+class Printer:
+    """A printer larger than ``[passive] printer_bed`` (its build volume x, y, z in m)."""
+
+    model: str
+    bed_m: Size
+
+
+@dataclass(frozen=True)
+class Tyre:
+    """The rubber tyre of a printed wheel (m, kg/m^3, currency per metre of band)."""
+
+    name: str
+    thickness_m: float
+    density_kg_m3: float
+    cost_per_m: float
+
+    def mass_kg(self, radius: float, width: float) -> float:
+        """kg of the tyre ring of a wheel of outer ``radius`` m and ``width`` m."""
+        inner = radius - self.thickness_m
+        return math.pi * (radius**2 - inner**2) * width * self.density_kg_m3
+
+    def cost(self, radius: float) -> float:
+        """Cost of the band for a wheel of outer ``radius`` m (the rim's circumference)."""
+        return 2 * math.pi * (radius - self.thickness_m) * self.cost_per_m
 
 
 @dataclass(frozen=True)
@@ -105,7 +156,11 @@ class Passive:
     foot_max_side_m: float
     foot_thickness_m: float
     printer_bed_m: Size
-    print_speed_m3_s: float
+    #: m^3/s: an older catalog's average extrusion rate (optional, unused: the BOM's print
+    #: time is an estimate calibrated against PrusaSlicer, ``export.slicer``); 0 when absent
+    print_speed_m3_s: float = 0.0
+    #: m left on every side between a printed dovetail pin and its rail
+    print_clearance_m: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -155,6 +210,24 @@ class Catalog:
     material: Material
     design: DesignRules
     source: str
+    parts: tuple[Part, ...] = ()
+    tyre: Tyre | None = None
+    printers: tuple[Printer, ...] = ()
+
+    def part_of(self, ontology_class: str) -> Part:
+        """The first passive part of ``ontology_class``; InputError naming the file if none."""
+        for p in self.parts:
+            if p.ontology_class == ontology_class:
+                return p
+        raise InputError(f"{self.source}: no [[part]] of class '{ontology_class}'")
+
+    def wheel_mass_kg(self, radius: float, bore: float) -> float:
+        """kg of a wheel of outer ``radius`` m: the printed rim (the catalog's wheel width,
+        a hub bore of ``bore`` m, the tyre's thickness less than the radius) and its tyre."""
+        w = self.passive.wheel_width_m
+        t = self.tyre.thickness_m if self.tyre is not None else 0.0
+        rim = math.pi * ((radius - t) ** 2 - bore**2) * w * self.material.density_kg_m3
+        return rim + (self.tyre.mass_kg(radius, w) if self.tyre is not None else 0.0)
 
     def actuators_of(self, ontology_class: str) -> tuple[Actuator, ...]:
         """The actuators whose class is exactly ``ontology_class``, in file order.
@@ -197,6 +270,9 @@ class Catalog:
         entries += [
             (f"module[{i}] ({m.model})", m.ontology_class) for i, m in enumerate(self.modules, 1)
         ]
+        entries += [
+            (f"part[{i}] ({p.model})", p.ontology_class) for i, p in enumerate(self.parts, 1)
+        ]
         for path, cls in entries:
             if cls not in known:
                 raise InputError(
@@ -217,6 +293,7 @@ _ACTUATOR_KEYS = (
     "no_load_speed",
     "stall_current",
     "cost",
+    "travel_deg",
 )
 _MODULE_KEYS = ("model", "class", "mass", "size", "cost", "current")
 _BATTERY_KEYS = ("capacity", "voltage", "c_rating")
@@ -234,8 +311,9 @@ _PASSIVE_LENGTHS = (
     "foot_min_side",
     "foot_max_side",
     "foot_thickness",
+    "print_clearance",
 )
-_PASSIVE_KEYS = (*_PASSIVE_LENGTHS, "stress_concentration", "printer_bed", "print_speed")
+_PASSIVE_KEYS = (*_PASSIVE_LENGTHS, "stress_concentration", "printer_bed")
 _MATERIAL_KEYS = ("name", "youngs_modulus", "yield_strength", "density")
 _DESIGN_KEYS = (
     "torque_safety_factor",
@@ -247,7 +325,20 @@ _DESIGN_KEYS = (
     "max_slope",
     "rolling_resistance",
 )
-_TOP_KEYS = ("catalog", "actuator", "module", "passive", "material", "design")
+_PART_KEYS = ("model", "class", "source", "size", "cost")
+_PART_SOURCES = ("printed", "bought")
+_TYRE_KEYS = ("name", "thickness", "density", "cost_per_m")
+_TOP_KEYS = (
+    "catalog",
+    "actuator",
+    "module",
+    "part",
+    "tyre",
+    "printer",
+    "passive",
+    "material",
+    "design",
+)
 _CLASS_NAME = re.compile(r"[A-Z][A-Za-z0-9]*")
 _CURRENCY = re.compile(r"[A-Z]{3}")
 _TOML_AT = re.compile(r"(?s)(.*) \(at line (\d+), column (\d+)\)")
@@ -390,8 +481,10 @@ def _section(doc: dict[str, Any], key: str, file: str) -> _Table:
     return _Table(value, key, file)
 
 
-def _entries(doc: dict[str, Any], key: str, file: str) -> list[_Table]:
+def _entries(doc: dict[str, Any], key: str, file: str, required: bool = True) -> list[_Table]:
     value = doc.get(key)
+    if not required and value is None:
+        return []
     if value is None or value == []:
         raise InputError(f"{file}: no [[{key}]] entries; the catalog needs at least one")
     if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
@@ -424,6 +517,44 @@ def _actuator(t: _Table) -> Actuator:
         no_load_speed_rad_s=t.q("no_load_speed", "angular_speed"),
         stall_current_A=t.q("stall_current", "current"),
         cost=t.number("cost", maximum=MAX_COST),
+        travel_rad=math.radians(_travel(t)),
+    )
+
+
+def _travel(t: _Table) -> float:
+    """Degrees the servo turns end to end: more than 0, at most 360 (continuous)."""
+    deg = t.number("travel_deg", allow_equal=False)
+    if deg > 360:
+        raise t.fail(f"must be at most 360 (continuous rotation), got {deg:g}", "travel_deg")
+    return deg
+
+
+def _part(t: _Table, density: float) -> Part:
+    source = t.data.get("source")
+    if source not in _PART_SOURCES:
+        t.check_keys(_PART_KEYS, ("mass",))
+        raise t.fail(f"expected one of {', '.join(_PART_SOURCES)}, got {_kind(source)}", "source")
+    t.check_keys((*_PART_KEYS, "mass") if source == "bought" else _PART_KEYS)
+    size = t.lengths("size")
+    # printed solid: the box's volume times the material's density
+    mass = size[0] * size[1] * size[2] * density if source == "printed" else t.q("mass", "mass")
+    return Part(
+        model=t.text("model"),
+        ontology_class=t.class_name(),
+        source=source,
+        mass_kg=mass,
+        size_m=size,
+        cost=t.number("cost", maximum=MAX_COST),
+    )
+
+
+def _tyre(t: _Table) -> Tyre:
+    t.check_keys(_TYRE_KEYS)
+    return Tyre(
+        name=t.text("name"),
+        thickness_m=t.q("thickness", "length"),
+        density_kg_m3=t.q("density", "density"),
+        cost_per_m=t.number("cost_per_m"),
     )
 
 
@@ -456,7 +587,7 @@ def _module(t: _Table) -> Module:
 
 
 def _passive(t: _Table) -> Passive:
-    t.check_keys(_PASSIVE_KEYS)
+    t.check_keys(_PASSIVE_KEYS, ("print_speed",))
     v = {key: t.q(key, "length") for key in _PASSIVE_LENGTHS}
     bed = t.lengths("printer_bed")
     p = Passive(
@@ -475,7 +606,8 @@ def _passive(t: _Table) -> Passive:
         foot_max_side_m=v["foot_max_side"],
         foot_thickness_m=v["foot_thickness"],
         printer_bed_m=bed,
-        print_speed_m3_s=t.q("print_speed", "volume_flow"),
+        print_speed_m3_s=t.q("print_speed", "volume_flow") if "print_speed" in t.data else 0.0,
+        print_clearance_m=v["print_clearance"],
     )
 
     def mm(x: float) -> str:
@@ -601,16 +733,41 @@ def parse_catalog(text: str, source: str) -> Catalog:
                 f"{source}: {label} ({model}): duplicate model '{model}' (also {seen[model]})"
             )
         seen[model] = label
+    material = _material(_section(doc, "material", source))
+    passive = _passive(_section(doc, "passive", source))
+    parts = tuple(
+        _part(t, material.density_kg_m3) for t in _entries(doc, "part", source, required=False)
+    )
+    labelled += [(f"part[{i}]", p.model) for i, p in enumerate(parts, 1)]
+    for label, model in labelled[len(actuators) + len(modules) :]:
+        if model in seen:
+            raise InputError(
+                f"{source}: {label} ({model}): duplicate model '{model}' (also {seen[model]})"
+            )
+        seen[model] = label
+    tyre = _tyre(_section(doc, "tyre", source)) if "tyre" in doc else None
+    printers = []
+    for t in _entries(doc, "printer", source, required=False):
+        t.check_keys(("model", "bed"))
+        printers.append(Printer(t.text("model"), t.lengths("bed")))
+    if tyre is not None and tyre.thickness_m >= passive.wheel_min_radius_m:
+        raise InputError(
+            f"{source}: tyre.thickness: {tyre.thickness_m * 1e3:g} mm leaves no rim in the "
+            f"smallest wheel (radius {passive.wheel_min_radius_m * 1e3:g} mm)"
+        )
     catalog = Catalog(
         name=name,
         currency=currency,
         version=version,
         actuators=actuators,
         modules=modules,
-        passive=_passive(_section(doc, "passive", source)),
-        material=_material(_section(doc, "material", source)),
+        passive=passive,
+        material=material,
         design=_design(_section(doc, "design", source)),
         source=source,
+        parts=parts,
+        tyre=tyre,
+        printers=tuple(printers),
     )
     for cls, what in ((MAIN_CLASS, "the main module"), (BATTERY_CLASS, "a battery")):
         if not catalog.modules_of(cls):

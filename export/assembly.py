@@ -8,7 +8,11 @@ parts (``Template.parts``), with the real parts in place of the template's stand
   - links: the printed link module (tube + two dovetail face plates + fillets) with the
     sized tube and the catalog's ``dovetail_face_m``, ``face_thickness_m`` and
     ``fillet_radius_m``, whatever the template was built with (a note says so when the
-    template's links leave the faces out);
+    template's links leave the faces out), a dovetail pin on its far face (unless it is a
+    free end: a leg's tip) and a rail's slot in its near face sized with the catalog's
+    ``print_clearance_m`` (``meshes.link_mesh``; ``meshes.dovetail_volume`` adds them to
+    the analytic volume; the structure generator weighs the link without them: up to
+    5 % of a link's plates and tube, about 1 g);
   - feet: a square pad of the catalog's ``foot_min_side_m`` and ``foot_thickness_m`` (the
     figures the structure generator weighs) whose sole is the template's foot point, so
     the pad fills the last ``foot_thickness_m`` of the tibia's length; a humanoid's foot is
@@ -25,8 +29,15 @@ parts (``Template.parts``), with the real parts in place of the template's stand
   actuator centred on the joint with its shaft (the catalog size's z) along the joint axis;
   the trunk's modules in rows on the plate, on the side the template's root part frame
   points to (up; down under a manipulator's base; behind a humanoid's trunk);
-- the payload is a point mass where the template puts it; grippers keep the template's box
-  (jaws of the template's gripper mass); a ball caster is a sphere of the template's mass.
+- a gripper's jaws are the catalog's FingerModule (printed plates of its size, placed where
+  the template puts each jaw); a ball caster is the catalog's bought CasterModule (a sphere
+  of its mass); a wheel is a printed rim inside the catalog's tyre (bought);
+- the payload is not part of the robot: ``build_assembly`` keeps it aside
+  (``Assembly.payload``: where the template puts it) and :func:`with_payload` adds it to
+  its body for a model that carries it (the verification's, or ``--with-payload``).
+- revolute joints turn no further than their servo: the template's range is cut to a
+  window of the catalog's ``travel_deg`` (:func:`servo_range`), placed over the span the
+  design's behaviours use (``used``) or else about the range's middle.
 
 Body mass, COM and inertia are the combination of the body's parts (parallel axis
 theorem). Alike parts share one printed design (one STL, counted once per use).
@@ -35,6 +46,7 @@ theorem). Alike parts share one printed design (one STL, counted once per use).
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -51,6 +63,7 @@ from export.model3d import (
     PartUse,
     PrintedPart,
 )
+from export.slicer import SKIRT_MARGIN, estimate
 from kinematics.spatial import (
     box_inertia,
     combine_parts,
@@ -58,6 +71,7 @@ from kinematics.spatial import (
     rotate_inertia,
     transform,
     transform_from,
+    tube_inertia,
 )
 from kinematics.templates import LabelledPart, Template
 
@@ -66,11 +80,19 @@ if TYPE_CHECKING:
 
     from synth.structure import Structure
 
-__all__ = ["PRINTED_RGBA", "MODULE_RGBA", "build_assembly", "safe_name"]
+__all__ = [
+    "PRINTED_RGBA",
+    "MODULE_RGBA",
+    "build_assembly",
+    "safe_name",
+    "servo_range",
+    "with_payload",
+]
 
 PRINTED_RGBA = (0.95, 0.55, 0.15, 1.0)  # printed PLA
 MODULE_RGBA = (0.25, 0.25, 0.28, 1.0)  # catalog modules
 CASTER_RGBA = (0.7, 0.7, 0.72, 1.0)
+TYRE_RGBA = (0.1, 0.1, 0.1, 1.0)
 _MIN_PLATE_KG = 1e-9
 
 
@@ -94,9 +116,10 @@ class _Design:
 
     name: str
     kind: str
-    mesh: trimesh.Trimesh
+    mesh: trimesh.Trimesh  # as printed: on the bed in its best orientation
     analytic_volume: float
-    props: tuple[float, np.ndarray, np.ndarray]  # mass kg, com, inertia (print frame)
+    props: tuple[float, np.ndarray, np.ndarray]  # mass kg, com, inertia (part frame)
+    to_bed: np.ndarray  # (4, 4): part frame -> print frame (``meshes.print_orientation``)
     count: int = 0
 
 
@@ -106,6 +129,7 @@ class _Builder:
     catalog: Catalog
     designs: dict[tuple, _Design] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    payload: list[tuple[str, PartUse]] = field(default_factory=list)
 
     @property
     def rho(self) -> float:
@@ -121,26 +145,40 @@ class _Builder:
             while unique in taken:
                 unique, k = f"{stem}_{k}", k + 1
             mesh = build()
-            d = _Design(unique, kind, mesh, analytic, meshes.mesh_mass_properties(mesh, self.rho))
+            to_bed = meshes.print_orientation(mesh)
+            props = meshes.mesh_mass_properties(mesh, self.rho)
+            on_bed = mesh.copy().apply_transform(to_bed)
+            d = _Design(unique, kind, on_bed, analytic, props, to_bed)
             self.designs[key] = d
         d.count += 1
         return d
 
     def printed(self, d: _Design, placement: np.ndarray) -> PartUse:
-        """A use of design ``d`` with its print frame at ``placement`` (body frame)."""
+        """A use of design ``d`` with its part frame at ``placement`` (body frame); the
+        mesh, as printed, sits at ``placement`` times the inverse of ``d.to_bed``."""
         m, c, inertia = d.props
         R, p = placement[:3, :3], placement[:3, 3]
-        geom = Geometry("mesh", placement, mesh=f"{d.name}.stl", rgba=PRINTED_RGBA, name=d.name)
+        at = placement @ np.linalg.inv(d.to_bed)
+        geom = Geometry("mesh", at, mesh=f"{d.name}.stl", rgba=PRINTED_RGBA, name=d.name)
         return PartUse(d.name, "printed", m, R @ c + p, rotate_inertia(R, inertia), geom)
 
 
-def _box_use(
-    name: str, source: str, mass: float, size, placement: np.ndarray, rgba=MODULE_RGBA
-) -> PartUse:
+def _module_use(m, placement: np.ndarray) -> PartUse:
+    """A catalog module (actuator or active module ``m``): a box of its size and mass."""
     R = placement[:3, :3]
-    geom = Geometry("box", placement, tuple(float(s) for s in size), rgba=rgba, name=name)
-    inertia = rotate_inertia(R, box_inertia(mass, size))
-    return PartUse(name, source, float(mass), placement[:3, 3].copy(), inertia, geom)
+    size = tuple(float(s) for s in m.size_m)
+    geom = Geometry("box", placement, size, rgba=MODULE_RGBA, name=m.model)
+    inertia = rotate_inertia(R, box_inertia(m.mass_kg, m.size_m))
+    return PartUse(
+        m.model,
+        "module",
+        float(m.mass_kg),
+        placement[:3, 3].copy(),
+        inertia,
+        geom,
+        m.ontology_class,
+        float(m.cost),
+    )
 
 
 # --- the parts of each kind ----------------------------------------------------------------
@@ -160,7 +198,7 @@ def _actuator(
     if m.bodies[j.child].name != body:
         axis = j.origin[:3, :3] @ j.axis
     placement = transform_from(_frame_z(axis), lp.placement[:3, 3])
-    return _box_use(a.model, "module", a.mass_kg, a.size_m, placement)
+    return _module_use(a, placement)
 
 
 def _link(b: _Builder, lp: LabelledPart, tmpl: Template) -> PartUse:
@@ -170,12 +208,14 @@ def _link(b: _Builder, lp: LabelledPart, tmpl: Template) -> PartUse:
     faces = (p.dovetail_face_m, p.face_thickness_m, p.fillet_radius_m)
     dims = (length, ro, ri, *faces)
     design_name = seg.length_name or seg.name
+    pin = seg.distal_joint is not None  # a free end (a foot's, a tip) has no neighbour
     d = b.design(
-        ("link", design_name, *dims),
+        ("link", design_name, *dims, pin),
         f"link_{design_name}",
         "link",
-        lambda: meshes.link_mesh(*dims),
-        link_part_volume(*dims),
+        lambda: meshes.link_mesh(*dims, clearance=p.print_clearance_m, pin=pin),
+        link_part_volume(*dims)
+        + meshes.dovetail_volume(p.dovetail_face_m, ri, p.print_clearance_m, pin),
     )
     return b.printed(d, lp.placement)
 
@@ -220,23 +260,53 @@ def _point_foot(uses: list[PartUse], sole: np.ndarray) -> list[PartUse]:
 
 
 def _wheel(b: _Builder, lp: LabelledPart) -> list[PartUse]:
-    """The printed wheel (seen, not touching: its mesh is a polygon that would roll
-    bumpily) and its contact with the ground: a cylinder of the wheel's radius and width,
-    the printed rim flat across its width."""
+    """The printed rim (seen, not touching: its mesh is a polygon that would roll
+    bumpily), the catalog's tyre around it (bought: a ring of its mass, no shape of its
+    own) and the contact with the ground: a cylinder of the wheel's radius and width."""
     r, w = lp.dims[0], b.catalog.passive.wheel_width_m
-    bore = meshes.WHEEL_BORE
+    tyre = b.catalog.tyre
+    t = tyre.thickness_m if tyre is not None else 0.0
+    rim_r, bore = r - t, meshes.WHEEL_BORE
     d = b.design(
-        ("wheel", r, w),
+        ("wheel", rim_r, w),
+        "wheel_rim" if tyre is not None else "wheel",
         "wheel",
-        "wheel",
-        lambda: meshes.wheel_mesh(r, w),
-        np.pi * (r * r - bore * bore) * w,
+        lambda: meshes.wheel_mesh(rim_r, w),
+        np.pi * (rim_r * rim_r - bore * bore) * w,
     )
     use = b.printed(d, lp.placement @ transform((0.0, 0.0, -w / 2)))
     seen = replace(use, geometry=replace(use.geometry, contact=False))
-    rim = Geometry("cylinder", lp.placement, (r, w), rgba=PRINTED_RGBA, name="wheel_contact")
+    tread = Geometry("cylinder", lp.placement, (r, w), rgba=TYRE_RGBA, name="wheel_contact")
     centre = lp.placement[:3, 3].copy()
-    return [seen, PartUse("wheel_contact", "contact", 0.0, centre, np.zeros((3, 3)), rim)]
+    out = [seen, PartUse("wheel_contact", "contact", 0.0, centre, np.zeros((3, 3)), tread)]
+    if tyre is not None:
+        m = tyre.mass_kg(r, w)
+        inertia = rotate_inertia(lp.placement[:3, :3], tube_inertia(m, w, r, rim_r, (0, 0, 1)))
+        cost = tyre.cost(r)
+        out.append(PartUse(tyre.name, "bought", m, centre, inertia, None, "Tyre", cost))
+    return out
+
+
+def _jaw(b: _Builder, lp: LabelledPart) -> PartUse:
+    """One jaw of a gripper: the catalog's printed FingerModule (a plate of its size, the
+    template's jaw frame: x along the jaw, z across the gap), printed flat."""
+    lx, ly, t = lp.dims
+    jaws = [q for q in b.catalog.parts if q.ontology_class == "FingerModule"]
+    name = jaws[0].model if jaws else "jaw"
+    d = b.design(
+        ("jaw", lx, ly, t), name, "finger", lambda: meshes.plate_mesh(lx, ly, t), lx * ly * t
+    )
+    return b.printed(d, lp.placement @ transform((0.0, 0.0, -t / 2)))
+
+
+def _caster(b: _Builder, lp: LabelledPart) -> PartUse:
+    """The ball caster: the catalog's bought CasterModule (a sphere of the template's
+    radius and mass, which the structure took from the catalog)."""
+    balls = [q for q in b.catalog.parts if q.ontology_class == "CasterModule"]
+    name, cost = (balls[0].model, balls[0].cost) if balls else ("ball caster", 0.0)
+    geom = Geometry("sphere", lp.placement, lp.dims, rgba=CASTER_RGBA, name="ball_caster")
+    com, inertia = lp.com.copy(), lp.inertia.copy()
+    return PartUse(name, "bought", lp.mass, com, inertia, geom, "CasterModule", cost)
 
 
 def _trunk_modules(b: _Builder) -> list[Module]:
@@ -318,7 +388,7 @@ def _trunk(b: _Builder, lp: LabelledPart, body: str) -> list[PartUse]:
     centres = _rows([m.size_m for m in modules], lx, ly)
     for m, c in zip(modules, centres, strict=True):
         placement = lp.placement @ transform((c[0], c[1], c[2] + top))
-        out.append(_box_use(m.model, "module", m.mass_kg, m.size_m, placement))
+        out.append(_module_use(m, placement))
     return out
 
 
@@ -338,12 +408,12 @@ def _part_uses(
     if lp.mass <= 0.0:
         return []
     if lp.kind == "payload":
-        return [PartUse("payload", "payload", lp.mass, lp.com.copy(), lp.inertia.copy())]
+        b.payload.append((body, PartUse("payload", "payload", lp.mass, lp.com.copy(), lp.inertia)))
+        return []
     if lp.kind == "gripper":
-        return [_box_use("gripper", "module", lp.mass, lp.dims, lp.placement)]
+        return [_jaw(b, lp)]
     if lp.kind == "caster":
-        geom = Geometry("sphere", lp.placement, lp.dims, rgba=CASTER_RGBA, name="ball_caster")
-        return [PartUse("ball_caster", "module", lp.mass, lp.com.copy(), lp.inertia.copy(), geom)]
+        return [_caster(b, lp)]
     raise ExportError(f"body '{body}': no exporter for a part of kind '{lp.kind}'")
 
 
@@ -386,8 +456,14 @@ def _zero_pose_frames(tmpl: Template) -> list[np.ndarray]:
 # --- the entry point ------------------------------------------------------------------------
 
 
-def build_assembly(structure: Structure, catalog: Catalog) -> Assembly:
+def build_assembly(
+    structure: Structure,
+    catalog: Catalog,
+    used: Mapping[str, tuple[float, float]] | None = None,
+) -> Assembly:
     """The assembly of a sized ``structure`` with the parts of ``catalog`` (SI units).
+    ``used``: joint -> (lowest, highest) rad its behaviours command, where the servo's
+    travel is placed (see :func:`servo_range`).
 
     ExportError if the structure names an actuator or module the catalog lacks.
     """
@@ -429,6 +505,15 @@ def build_assembly(structure: Structure, catalog: Catalog) -> Assembly:
             continue
         a = models.get(j.name)
         limited = j.kind == "revolute"
+        lower, upper = (j.lower, j.upper) if limited else (0.0, 0.0)
+        if limited and a is not None and j.movable:
+            span = (used or {}).get(j.name)
+            lower, upper = servo_range(lower, upper, a.travel_rad, span)
+            if span is not None and (span[0] < lower - 1e-9 or span[1] > upper + 1e-9):
+                b.notes.append(
+                    f"joint {j.name}: the behaviours use {np.degrees(span[1] - span[0]):.0f} "
+                    f"deg, more than the {a.model}'s travel ({np.degrees(a.travel_rad):.0f} deg)"
+                )
         joints.append(
             JointSpec(
                 j.name,
@@ -437,8 +522,8 @@ def build_assembly(structure: Structure, catalog: Catalog) -> Assembly:
                 j.kind,
                 np.array(j.origin),
                 np.array(j.axis),
-                j.lower if limited else 0.0,
-                j.upper if limited else 0.0,
+                lower,
+                upper,
                 a.stall_torque_Nm if a is not None and j.movable else 0.0,
                 a.no_load_speed_rad_s if a is not None and j.movable else 0.0,
                 a.model if a is not None and j.movable else "",
@@ -446,11 +531,15 @@ def build_assembly(structure: Structure, catalog: Catalog) -> Assembly:
         )
 
     passive = catalog.passive
+    margin = SKIRT_MARGIN / 1000.0  # m around a part's footprint: its skirt
     printed = []
     mesh_points: dict[str, np.ndarray] = {}
     for d in sorted(b.designs.values(), key=lambda d: d.name):
         size = meshes.extents(d.mesh)
         volume = meshes.mesh_volume(d.mesh)
+        fits = meshes.fits_bed(size, passive.printer_bed_m, margin)
+        printer = "" if fits else _printer_for(size, catalog, margin)
+        time, filament = estimate(meshes.print_features(d.mesh))
         mesh_points[f"{d.name}.stl"] = np.asarray(d.mesh.vertices, dtype=float)
         printed.append(
             PrintedPart(
@@ -462,8 +551,11 @@ def build_assembly(structure: Structure, catalog: Catalog) -> Assembly:
                 float(d.analytic_volume),
                 d.props[0],
                 size,
-                meshes.fits_bed(size, passive.printer_bed_m),
-                meshes.print_time_s(volume, passive.print_speed_m3_s),
+                fits,
+                time,
+                meshes.orientation_figures(d.mesh, np.eye(3))[0],
+                printer,
+                filament,
             )
         )
 
@@ -480,7 +572,7 @@ def build_assembly(structure: Structure, catalog: Catalog) -> Assembly:
             lowest = min(lowest, float(world[:, 2].min()))
     spawn = -lowest if np.isfinite(lowest) else 0.0
 
-    total = sum(s.mass for s in bodies)
+    total = sum(s.mass for s in bodies) + sum(u.mass for _, u in b.payload)
     if structure.mass_kg > 0 and abs(total - structure.mass_kg) > 0.01 * structure.mass_kg:
         b.notes.append(
             f"the assembly weighs {total:.3f} kg, the structure {structure.mass_kg:.3f} kg"
@@ -498,4 +590,49 @@ def build_assembly(structure: Structure, catalog: Catalog) -> Assembly:
         spawn_height=float(spawn),
         fixed_base=fixed,
         notes=tuple(b.notes),
+        payload=tuple(b.payload),
     )
+
+
+def _printer_for(size: tuple[float, float, float], catalog: Catalog, margin: float) -> str:
+    """The first of the catalog's larger printers that fits a part of ``size`` m as it is
+    printed (with ``margin`` m of skirt), or "split" when none does."""
+    for p in catalog.printers:
+        if meshes.fits_bed(size, p.bed_m, margin):
+            return p.model
+    return "split"
+
+
+def servo_range(
+    lower: float, upper: float, travel: float, used: tuple[float, float] | None = None
+) -> tuple[float, float]:
+    """The part of the joint range [lower, upper] rad a servo of ``travel`` rad end to end
+    can turn (the servo is mounted with the middle of its travel at the window's middle):
+    the whole range when it fits; else a window of ``travel`` centred on the ``used`` span
+    (the behaviours' lowest and highest command, rad) or, without one, on the range's
+    middle, moved inside the range."""
+    if upper - lower <= travel:
+        return lower, upper
+    mid = 0.5 * (lower + upper) if used is None else 0.5 * (used[0] + used[1])
+    mid = min(max(mid, lower + travel / 2), upper - travel / 2)
+    return mid - travel / 2, mid + travel / 2
+
+
+def with_payload(asm: Assembly) -> Assembly:
+    """``asm`` with its payload (``Assembly.payload``) added to the bodies that hold it: the
+    model a simulation of the loaded robot needs. Unchanged when there is none."""
+    extra: dict[str, list[PartUse]] = {}
+    for body, use in asm.payload:
+        if use.mass > 0:
+            extra.setdefault(body, []).append(use)
+    if not extra:
+        return asm
+    bodies = []
+    for spec in asm.bodies:
+        if spec.name not in extra:
+            bodies.append(spec)
+            continue
+        parts = (*spec.parts, *extra[spec.name])
+        mass, com, inertia = combine_parts((u.mass, u.com, u.inertia) for u in parts)
+        bodies.append(BodySpec(spec.name, parts, mass, com, inertia))
+    return replace(asm, bodies=tuple(bodies), payload=())

@@ -1,14 +1,17 @@
-"""The bill of materials (``bom.csv``): every active module (catalog model, count, unit
-cost) and every printed part (file, count, volume, mass, print time, printer-bed fit),
-with totals. Pure: returns the CSV text."""
+"""The bill of materials (``bom.csv``): every physical part of the robot's model, from the
+assembly the URDF and MJCF are written from, so that the BOM's masses add up to the
+model's: the catalog's active modules (actuators, main module, battery, sensors), the
+printed parts (file, count, volume, mass, print time and filament estimated for the
+bundle's PrusaSlicer settings, ``export.slicer``; the printer that fits it) and the bought
+parts (ball caster, tyres), with totals. The payload is not a part of the robot and is not
+listed. Pure: returns the CSV text."""
 
 from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Sequence
 
-from export.model3d import PrintedPart
+from export.model3d import Assembly
 
 COLUMNS = (
     "type",
@@ -19,9 +22,14 @@ COLUMNS = (
     "unit_mass_kg",
     "unit_volume_m3",
     "unit_print_time_s",
+    "unit_filament_m3",
     "fits_bed",
+    "printer",
     "file",
 )
+
+#: BOM row types, in the order they are listed.
+TYPES = ("module", "printed", "bought")
 
 
 def _num(x: float) -> str:
@@ -29,62 +37,102 @@ def _num(x: float) -> str:
     return "0" if x == 0 else f"{x:.6g}"
 
 
-def bom_csv(
-    modules: Sequence[dict],
-    printed: Sequence[PrintedPart],
-    module_figures: dict[str, tuple[float, float]],
-) -> str:
-    """CSV text of the BOM.
+def bom_rows(asm: Assembly) -> list[dict]:
+    """One dict per BOM line (COLUMNS keys, numbers as floats): modules and bought parts
+    counted from the assembly's bodies, printed parts from its printed designs."""
+    grouped: dict[tuple[str, str], dict] = {}
+    for body in asm.bodies:
+        for u in body.parts:
+            if u.source not in ("module", "bought"):
+                continue
+            row = grouped.setdefault(
+                (u.source, u.name),
+                {"kind": u.kind, "count": 0, "masses": [], "costs": []},
+            )
+            row["count"] += 1
+            row["masses"].append(u.mass)
+            row["costs"].append(u.cost)
+    rows: list[dict] = []
+    for (source, name), g in sorted(grouped.items()):
+        n = g["count"]
+        rows.append(
+            {
+                "type": source,
+                "name": name,
+                "kind": g["kind"],
+                "count": n,
+                "unit_cost": sum(g["costs"]) / n,
+                "unit_mass_kg": sum(g["masses"]) / n,
+                "unit_volume_m3": None,
+                "unit_print_time_s": None,
+                "unit_filament_m3": None,
+                "fits_bed": None,
+                "printer": "",
+                "file": "",
+            }
+        )
+    printed = [
+        {
+            "type": "printed",
+            "name": p.name,
+            "kind": p.kind,
+            "count": p.count,
+            "unit_cost": None,
+            "unit_mass_kg": p.mass_kg,
+            "unit_volume_m3": p.volume_m3,
+            "unit_print_time_s": p.print_time_s,
+            "unit_filament_m3": p.filament_m3,
+            "fits_bed": p.fits_bed,
+            "printer": p.printer,
+            "file": f"meshes/{p.name}.stl",
+        }
+        for p in sorted(asm.printed, key=lambda p: p.name)
+    ]
+    modules = [r for r in rows if r["type"] == "module"]
+    bought = [r for r in rows if r["type"] == "bought"]
+    return [*modules, *printed, *bought]
 
-    ``modules``: the design record's sized modules ({"kind", "model", "count"});
-    ``module_figures``: model -> (unit cost, unit mass kg) from the catalog.
-    A printed part that does not fit the printer bed says so in ``fits_bed`` ("NO").
+
+def bom_csv(asm: Assembly) -> str:
+    """CSV text of the BOM of ``asm`` (see :func:`bom_rows`), a ``total`` line last.
+
+    A printed part that does not fit the catalog's ``printer_bed`` (its skirt included)
+    says so in ``fits_bed`` ("NO") and names in ``printer`` the catalog's larger printer
+    that fits it ("split" when none does); the default printer leaves ``printer`` empty.
+    Masses kg, volumes m^3, times s, costs in the catalog currency (printed parts: none).
     """
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
     w.writerow(COLUMNS)
-    cost = mass = volume = time = 0.0
+    cost = mass = volume = time = filament = 0.0
     n = 0
-    for m in sorted(modules, key=lambda m: (m["kind"], m["model"])):
-        unit_cost, unit_mass = module_figures[m["model"]]
-        w.writerow(
-            [
-                "module",
-                m["model"],
-                m["kind"],
-                m["count"],
-                _num(unit_cost),
-                _num(unit_mass),
-                "",
-                "",
-                "",
-                "",
-            ]
-        )
-        cost += unit_cost * m["count"]
-        mass += unit_mass * m["count"]
-        n += m["count"]
     all_fit = True
-    for p in sorted(printed, key=lambda p: p.name):
+    for r in bom_rows(asm):
+        k = r["count"]
         w.writerow(
             [
-                "printed",
-                p.name,
-                p.kind,
-                p.count,
-                "",
-                _num(p.mass_kg),
-                _num(p.volume_m3),
-                _num(round(p.print_time_s)),
-                "yes" if p.fits_bed else "NO",
-                f"meshes/{p.name}.stl",
+                r["type"],
+                r["name"],
+                r["kind"],
+                k,
+                "" if r["unit_cost"] is None else _num(r["unit_cost"]),
+                _num(r["unit_mass_kg"]),
+                "" if r["unit_volume_m3"] is None else _num(r["unit_volume_m3"]),
+                "" if r["unit_print_time_s"] is None else _num(round(r["unit_print_time_s"])),
+                "" if r["unit_filament_m3"] is None else _num(r["unit_filament_m3"]),
+                "" if r["fits_bed"] is None else ("yes" if r["fits_bed"] else "NO"),
+                r["printer"],
+                r["file"],
             ]
         )
-        mass += p.mass_kg * p.count
-        volume += p.volume_m3 * p.count
-        time += p.print_time_s * p.count
-        n += p.count
-        all_fit &= p.fits_bed
+        n += k
+        mass += r["unit_mass_kg"] * k
+        cost += (r["unit_cost"] or 0.0) * k
+        volume += (r["unit_volume_m3"] or 0.0) * k
+        time += (r["unit_print_time_s"] or 0.0) * k
+        filament += (r["unit_filament_m3"] or 0.0) * k
+        if r["fits_bed"] is False:
+            all_fit = False
     w.writerow(
         [
             "total",
@@ -95,7 +143,9 @@ def bom_csv(
             _num(mass),
             _num(volume),
             _num(round(time)),
+            _num(filament),
             "yes" if all_fit else "NO",
+            "",
             "",
         ]
     )

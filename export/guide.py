@@ -3,9 +3,7 @@ order and I2C addresses) and which file to open with what. Pure: returns the tex
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
-from export.model3d import PrintedPart
+from export.model3d import Assembly
 
 FILES = (
     (
@@ -23,7 +21,7 @@ FILES = (
         "the MuJoCo model: the same bodies on a floor, position actuators",
         "`python -m mujoco.viewer --mjcf robot.xml`, `parmor simulate`",
     ),
-    ("meshes/*.stl", "every printed part, in metres", "a slicer (scale mm: x1000)"),
+    ("meshes/*.stl", "every printed part, in millimetres, lying as it prints", "a slicer"),
     ("bom.csv", "bill of materials with totals", "a spreadsheet"),
 )
 
@@ -33,9 +31,68 @@ def _md(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
 
-def guide_markdown(record: dict, printed: Sequence[PrintedPart], documentation: str = "") -> str:
-    """The bundle's README for the design ``record`` (as in design.json)."""
+def assembly_steps(record: dict, asm: Assembly) -> list[str]:
+    """The numbered assembly sequence (Markdown lines): the root body's printed plate and
+    its modules, then every joint from the root outwards (the assembly's tree order): its
+    servo module (with its I2C address) onto the part before it, then the printed and
+    bought parts of the body it turns."""
+    addresses = {j["name"]: j["i2c_address"] for j in record.get("joints", ())}
+    by_body = {b.name: b for b in asm.bodies}
+
+    def parts_of(body: str, skip: str = "") -> str:
+        names: dict[str, int] = {}
+        for u in by_body[body].parts:
+            if u.source in ("printed", "bought") or (u.source == "module" and u.name != skip):
+                label = f"`meshes/{u.name}.stl`" if u.source == "printed" else _md(u.name)
+                names[label] = names.get(label, 0) + 1
+        return ", ".join(f"{n} x{k}" if k > 1 else n for n, k in names.items())
+
+    out = [
+        "Set each active module's I2C address before mounting it (the addresses below). "
+        "Then, from the root outwards, slide each module onto the dovetail face of the part "
+        "before it:",
+        "",
+        f"1. The root body `{_md(asm.root)}`: {parts_of(asm.root)}.",
+    ]
+    step = 2
+    for j in asm.joints:
+        parts = parts_of(j.child, j.actuator)
+        if j.kind == "fixed":
+            if parts:
+                out.append(f"{step}. On `{_md(j.parent)}`, fixed: {parts}.")
+                step += 1
+            continue
+        addr = addresses.get(j.name, "")
+        out.append(
+            f"{step}. Joint `{_md(j.name)}`: the {_md(j.actuator)} servo module"
+            + (f" (I2C {addr})" if addr else "")
+            + f" onto `{_md(j.parent)}`; on its output: {parts or 'the next joint'}."
+        )
+        step += 1
+    return out
+
+
+def guide_markdown(
+    record: dict, asm: Assembly, documentation: str = "", pictures: bool = False
+) -> str:
+    """The bundle's README for the design ``record`` (as in design.json) built as ``asm``;
+    ``pictures``: the bundle has ``pictures/robot.png`` and ``pictures/<part>.png``."""
     r = record
+    printed = asm.printed
+    payload = r.get("payload") or {}
+    load = float(payload.get("mass_kg", 0.0))
+    carried = (
+        f" It is sized and simulated for a payload of {load:.3f} kg, which is not part of "
+        "it (not in bom.csv; "
+        + (
+            "robot.urdf and robot.xml carry it"
+            if payload.get("in_models")
+            else "not in robot.urdf and robot.xml"
+        )
+        + "; design.json's `payload` says where it is held)."
+        if load > 0
+        else ""
+    )
     lines = [f"# {_md(r['robot_type'])}: a parmor design", ""]
     if documentation:
         lines += [_md(documentation), ""]
@@ -44,9 +101,10 @@ def guide_markdown(record: dict, printed: Sequence[PrintedPart], documentation: 
     lines += [
         f"Requested abilities: {_md(asked)}.",
         f"It can: {_md(', '.join(r['abilities']))}.",
-        f"Mass {r['mass_kg']:.3f} kg, modules cost {r['cost']:.2f}, {r['dof']} degrees of "
+        f"The robot weighs {asm.total_mass - (load if payload.get('in_models') else 0.0):.3f} kg "
+        f"(every part in bom.csv), modules cost {r['cost']:.2f}, {r['dof']} degrees of "
         f"freedom, {r['active_modules']} active modules on the I2C bus "
-        f"(limit {r['module_limit']}).",
+        f"(limit {r['module_limit']}).{carried}",
         "",
         "## Files",
         "",
@@ -54,42 +112,31 @@ def guide_markdown(record: dict, printed: Sequence[PrintedPart], documentation: 
         "|---|---|---|",
     ]
     lines += [f"| `{f}` | {what} | {how} |" for f, what, how in FILES]
+    lines += ["", "## Print", ""]
+    if pictures:
+        lines += ["![the assembled robot](pictures/robot.png)", ""]
     lines += [
+        "Slice the STL files as they are (millimetres, each already lying in its printing "
+        "orientation; `print/prusaslicer.ini` holds the settings the figures are for: "
+        "solid parts, 0.2 mm layers, supports where needed).",
         "",
-        "## Print",
-        "",
-        "| part | count | mass (g) | print time (min) | fits the bed |",
-        "|---|---|---|---|---|",
+        "| part | count | mass (g) | print time (min) | printer | picture |",
+        "|---|---|---|---|---|---|",
     ]
     for p in sorted(printed, key=lambda p: p.name):
+        if p.fits_bed:
+            printer = "the catalog's"
+        elif p.printer in ("", "split"):
+            printer = "**none of the catalog's: split it**"
+        else:
+            printer = f"**{_md(p.printer)}** (too big for the catalog's bed)"
+        pic = f"![{p.name}](pictures/{p.name}.png)" if pictures else ""
         lines.append(
             f"| `meshes/{p.name}.stl` | {p.count} | {p.mass_kg * 1000:.1f} | "
-            f"{p.print_time_s / 60:.0f} | {'yes' if p.fits_bed else '**no: split it**'} |"
+            f"{p.print_time_s / 60:.0f} | {printer} | {pic} |"
         )
-    lines += [
-        "",
-        "## Assemble",
-        "",
-        "Set each active module's I2C address before mounting it. Then, from the root "
-        "outwards, slide each module onto the dovetail face of the part before it:",
-        "",
-    ]
-    step = 1
-    joint_kinds = {j["module_class"] for j in r["joints"]}
-    for m in r["modules"]:
-        if m["kind"] not in joint_kinds:
-            where = "bus master" if not m["i2c_addresses"] else ", ".join(m["i2c_addresses"])
-            lines.append(
-                f"{step}. {m['kind']} {_md(m['model'])} x{m['count']} on the root body ({where})."
-            )
-            step += 1
-    for j in r["joints"]:
-        lines.append(
-            f"{step}. Joint `{_md(j['name'])}`: {_md(j['actuator'])} at "
-            f"{j['i2c_address']}, holding {j['required_torque_Nm']:.3f} N m of its "
-            f"{j['usable_torque_Nm']:.3f} usable."
-        )
-        step += 1
+    lines += ["", "## Assemble", ""]
+    lines += assembly_steps(r, asm)
     lines += [
         "",
         "Made by parmor from the ADROn ontology. Parameters: "

@@ -1,8 +1,9 @@
 """Meshes of parmor's printed parts (manifold3d CSG), their STL bytes and print figures.
 
 Every function is pure and deterministic: identical inputs give identical vertices and
-identical STL bytes. Lengths in metres (STL files hold metres too; a slicer reading mm
-must scale by 1000). Meshes are ``trimesh.Trimesh`` objects, watertight volumes.
+identical STL bytes. Lengths in metres; the STL files hold millimetres (what every slicer
+expects; the URDF and MJCF scale them by 0.001). Meshes are ``trimesh.Trimesh`` objects,
+watertight volumes.
 
 Each part is built in its *print frame*: standing on z = 0, centred on the z axis, z up as
 it is printed:
@@ -34,6 +35,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from kinematics import templates as _templates
+from kinematics.templates import WHEEL_BORE
+
 if TYPE_CHECKING:  # trimesh and manifold3d are imported where they are used
     import trimesh
 
@@ -44,22 +48,29 @@ __all__ = [
     "fits_bed",
     "foot_mesh",
     "link_mesh",
+    "dovetail_profile_mm",
+    "dovetail_solid_mm",
+    "dovetail_volume",
     "link_profile_mm",
     "mesh_mass_properties",
     "mesh_volume",
+    "orientation_figures",
     "plate_mesh",
-    "print_time_s",
+    "print_orientation",
+    "print_features",
     "stl_bytes",
+    "support_measure",
     "wheel_mesh",
 ]
 
 #: The fixed 80-byte header of every binary STL parmor writes.
-STL_HEADER = b"parmor binary STL, units: m".ljust(80, b"\0")
-#: Hub bore radius of a printed wheel, m: the clearance hole of an M3 servo horn screw.
-WHEEL_BORE = 0.0017
+STL_HEADER = b"parmor binary STL, units: mm".ljust(80, b"\0")
 #: Circular segments of round surfaces by default.
 SEGMENTS = 64
 MM = 1000.0  # mm per m
+#: Vertices closer than this share of the part's size are welded (an STL's float32 keeps
+#: about 1e-7 of it; a printer about 1e-4).
+STL_RESOLUTION = 1e-6
 
 
 def _to_trimesh(solid) -> trimesh.Trimesh:
@@ -73,7 +84,16 @@ def _to_trimesh(solid) -> trimesh.Trimesh:
     m = solid.to_mesh64()
     vertices = np.asarray(m.vert_properties, dtype=float)[:, :3]
     faces = np.asarray(m.tri_verts, dtype=np.int64)
-    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+    mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+    # booleans can leave vertices a few nanometres apart, which an STL's float32
+    # millimetres cannot keep apart: weld them (and drop the slivers between them)
+    scale = float(np.abs(vertices).max()) if len(vertices) else 1.0
+    mesh.merge_vertices(digits_vertex=int(np.ceil(-np.log10(STL_RESOLUTION * scale))))
+    mesh.update_faces(mesh.nondegenerate_faces(height=1e-12 * scale))
+    mesh.remove_unreferenced_vertices()
+    if not mesh.is_watertight:
+        raise ValueError("internal error: a printed part's mesh is not watertight once welded")
+    return mesh
 
 
 def _positive(name: str, x: float, allow_zero: bool = False) -> float:
@@ -145,8 +165,16 @@ def link_mesh(
     face_thickness: float = 0.0,
     fillet: float = 0.0,
     segments: int = SEGMENTS,
+    clearance: float | None = None,
+    pin: bool = True,
 ) -> trimesh.Trimesh:
     """The printed link module (m): tube along z over [0, length], plates at both ends.
+
+    ``clearance`` (m; None: flat faces): the faces join their neighbours with a dovetail
+    (paper Fig. 10): a pin (``dovetail_solid_mm``) stands on the far face (z = length)
+    and the near face (z = 0) has the rail's slot that takes a neighbour's pin with
+    ``clearance`` on every side. Neither changes the link's length (face to face).
+    ``pin`` False: the far face is a free end (a leg's tip, under its foot): no pin.
 
     Same dimensions and checks as ``kinematics.spatial.link_part_volume`` (face_side =
     face_thickness = fillet = 0: a bare tube). One revolution of ``link_profile_mm`` with
@@ -170,7 +198,61 @@ def link_mesh(
     if plates:
         a = MM * float(face_side)
         solid = solid.warp_batch(lambda v: _square_rim(v, a, a / 2))
+        if clearance is not None:
+            c = MM * _positive("clearance", clearance, allow_zero=True)
+            if DOVETAIL_HEIGHT + c >= MM * float(face_thickness):
+                raise ValueError(
+                    f"a {DOVETAIL_HEIGHT + c:g} mm deep dovetail slot does not fit a "
+                    f"{MM * float(face_thickness):g} mm face plate"
+                )
+            if pin:
+                solid = solid + dovetail_solid_mm(a).translate((0, 0, MM * float(length)))
+            solid = solid - dovetail_solid_mm(a, c)
     return _to_trimesh(solid.scale((1 / MM, 1 / MM, 1 / MM)))
+
+
+#: Dovetail profile (mm; ``kinematics.templates``' figures): the pin's width where it stands
+#: on its face, its height, and the flank angle from the face's normal. The pin runs across
+#: the whole face along y, centred on x.
+DOVETAIL_ROOT = MM * _templates.DOVETAIL_ROOT
+DOVETAIL_HEIGHT = MM * _templates.DOVETAIL_HEIGHT
+DOVETAIL_FLANK = _templates.DOVETAIL_FLANK
+
+
+def dovetail_profile_mm(grow: float = 0.0) -> list[tuple[float, float]]:
+    """The pin's cross-section (x across the pin, z out of the face), mm, counter-
+    clockwise: the trapezoid of ``DOVETAIL_ROOT`` at z = 0 widening by the flank angle to
+    z = ``DOVETAIL_HEIGHT``, grown by ``grow`` mm on every side (a mitred offset: the rail
+    that takes it with ``grow`` clearance; z from -grow)."""
+    import manifold3d as mf
+
+    w0, h = DOVETAIL_ROOT / 2, DOVETAIL_HEIGHT
+    w1 = w0 + h * np.tan(DOVETAIL_FLANK)
+    pts = [(-w0, 0.0), (w0, 0.0), (w1, h), (-w1, h)]
+    if grow == 0:
+        return pts
+    cs = mf.CrossSection([np.array(pts)]).offset(grow, mf.JoinType.Miter, 4.0)
+    return [tuple(map(float, p)) for p in cs.to_polygons()[0]]
+
+
+def dovetail_solid_mm(face_side_mm: float, grow: float = 0.0):
+    """The pin (``grow`` = 0) or the rail's slot (``grow`` = clearance) as a manifold, mm:
+    its profile (``dovetail_profile_mm``) in the x-z plane, standing on z = 0, running
+    along y over the face's side (the slot a little beyond, so that it opens both ends)."""
+    import manifold3d as mf
+
+    length = face_side_mm + (2.0 if grow > 0 else 0.0)
+    cs = mf.CrossSection([np.array(dovetail_profile_mm(grow))])
+    # the profile's (x, y) is the pin's (x, z): extrude along z, then turn z into -y
+    return mf.Manifold.extrude(cs, length).rotate((90.0, 0.0, 0.0)).translate((0, length / 2, 0))
+
+
+def dovetail_volume(face_side: float, r_inner: float, clearance: float, pin: bool) -> float:
+    """m^3 the dovetail adds to a link of ``link_mesh`` (negative: removes): the pin on
+    its far face (``pin``) less the rail's slot cut in its near face
+    (``kinematics.templates.dovetail_volumes``, which the structure's template weighs)."""
+    (pin_v, _, _), (slot_v, _, _) = _templates.dovetail_volumes(face_side, r_inner, clearance, pin)
+    return pin_v - slot_v
 
 
 def plate_mesh(lx: float, ly: float, thickness: float) -> trimesh.Trimesh:
@@ -206,12 +288,128 @@ def wheel_mesh(
     return _to_trimesh(disc)
 
 
+# --- printing orientation ------------------------------------------------------------------
+
+#: A downward face steeper than this from the vertical (rad) needs support when printed:
+#: the usual 45 degree rule of FDM printing (PrusaSlicer's default support threshold too).
+OVERHANG_ANGLE = np.pi / 4
+#: A face counts as that steep up to this much less (cos of the angle): a face at exactly
+#: 45 degrees gets support in the slicer too.
+OVERHANG_SLACK = 0.02
+#: Flat faces smaller than this share of the largest are not tried as the face down.
+MIN_FACE_SHARE = 0.10
+#: Faces within this height (m) of the lowest point lie on the bed.
+BED_TOLERANCE = 1e-6
+
+
+def _down(n: np.ndarray) -> np.ndarray:
+    """Rotation (3,3) that turns the unit vector ``n`` to -z (a half turn about x for +z)."""
+    n = n / np.linalg.norm(n)
+    target = np.array([0.0, 0.0, -1.0])
+    c = float(n @ target)
+    if c > 1 - 1e-12:
+        return np.eye(3)
+    if c < -1 + 1e-12:
+        return np.diag([1.0, -1.0, -1.0])
+    v = np.cross(n, target)
+    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + k + k @ k / (1 + c)
+
+
+def orientation_figures(mesh: trimesh.Trimesh, R: np.ndarray) -> tuple[float, float]:
+    """(overhang m^2, area on the bed m^2) of ``mesh`` turned by ``R`` (3,3): the area of
+    the downward faces steeper than ``OVERHANG_ANGLE`` from the vertical that do not lie
+    on the bed (they need support), and the area of the faces that do."""
+    v = np.asarray(mesh.vertices, dtype=float) @ R.T
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    tri = v[faces]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    nz = np.divide(cross[:, 2], 2 * area, out=np.zeros_like(area), where=area > 0)
+    on_bed = np.all(tri[:, :, 2] <= v[:, 2].min() + BED_TOLERANCE, axis=1)
+    steep = nz < -np.cos(OVERHANG_ANGLE) + OVERHANG_SLACK
+    return float(area[steep & ~on_bed].sum()), float(area[on_bed].sum())
+
+
+def print_orientation(mesh: trimesh.Trimesh) -> np.ndarray:
+    """The rigid transform (4,4) that puts ``mesh`` on the bed in its best printing
+    orientation: of the orientations that lay one of its flat faces (its planar facets of
+    at least ``MIN_FACE_SHARE`` of the largest one's area) or one of the six axis
+    directions down, the one
+    that needs the least support (``support_measure``, rounded to 1 mm^3: the overhangs'
+    area times their height), then the least overhang area (``orientation_figures``,
+    rounded to 1 mm^2), then the largest area on the bed; lowest point on z = 0, bounding
+    box centred on the z axis."""
+    normals = [np.array(x, dtype=float) for x in np.vstack([np.eye(3), -np.eye(3)])]
+    if len(mesh.facets):
+        areas = np.asarray(mesh.facets_area, dtype=float)
+        keep = np.flatnonzero(areas >= MIN_FACE_SHARE * areas.max())
+        for i in keep[np.argsort(-areas[keep], kind="stable")][:24]:
+            normals.append(np.asarray(mesh.facets_normal[i], dtype=float))
+    best = None
+    for k, n in enumerate(normals):
+        R = _down(n)
+        overhang, bed = orientation_figures(mesh, R)
+        support = _support(np.asarray(mesh.vertices, dtype=float) @ R.T, mesh.faces)
+        key = (round(support * 1e9), round(overhang * 1e6), -round(bed * 1e6), k)
+        if best is None or key < best[0]:
+            best = (key, R)
+    R = best[1]
+    v = np.asarray(mesh.vertices, dtype=float) @ R.T
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = (-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2])
+    return T
+
+
+def support_measure(mesh: trimesh.Trimesh) -> float:
+    """m^3: the volume of the columns under the part's overhangs as it stands
+    (``mesh`` on the bed): each downward face steeper than ``OVERHANG_ANGLE`` from the
+    vertical and not on the bed, its area projected on the bed times its height above it.
+    The support a slicer builds is a fraction of it (``SUPPORT_FILL``)."""
+    return _support(np.asarray(mesh.vertices, dtype=float), mesh.faces)
+
+
+def _support(v: np.ndarray, faces) -> float:
+    """``support_measure`` of the triangles ``faces`` of vertices ``v`` (n, 3) m."""
+    tri = v[np.asarray(faces, dtype=np.int64)]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    nz = np.divide(cross[:, 2], 2 * area, out=np.zeros_like(area), where=area > 0)
+    on_bed = np.all(tri[:, :, 2] <= v[:, 2].min() + BED_TOLERANCE, axis=1)
+    steep = (nz < -np.cos(OVERHANG_ANGLE) + OVERHANG_SLACK) & ~on_bed
+    height = tri[:, :, 2].mean(axis=1) - v[:, 2].min()
+    return float((area * -nz * height)[steep].sum())
+
+
+def print_features(mesh: trimesh.Trimesh) -> dict[str, float]:
+    """What a print's time and filament depend on, for ``mesh`` as printed (on the bed):
+    ``volume`` m^3, ``side_area`` m^2 (faces steeper than 60 degrees from the horizontal:
+    walls, printed as perimeters), ``flat_area`` m^2 (the others: top and bottom skins),
+    ``support`` m^3 (``support_measure``) and ``height`` m."""
+    v = np.asarray(mesh.vertices, dtype=float)
+    tri = v[np.asarray(mesh.faces, dtype=np.int64)]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    nz = np.abs(np.divide(cross[:, 2], 2 * area, out=np.zeros_like(area), where=area > 0))
+    side = nz < 0.5
+    return {
+        "volume": float(mesh.volume),
+        "side_area": float(area[side].sum()),
+        "flat_area": float(area[~side].sum()),
+        "support": support_measure(mesh),
+        "height": float(v[:, 2].max() - v[:, 2].min()),
+    }
+
+
 # --- figures -----------------------------------------------------------------------------
 
 
 def stl_bytes(mesh: trimesh.Trimesh) -> bytes:
-    """Binary STL of ``mesh`` (metres) with the fixed header ``STL_HEADER``; deterministic."""
-    v = np.asarray(mesh.vertices, dtype=float)
+    """Binary STL of ``mesh`` (vertices in metres) in millimetres, with the fixed header
+    ``STL_HEADER``; deterministic."""
+    v = np.asarray(mesh.vertices, dtype=float) * MM
     tri = v[np.asarray(mesh.faces, dtype=np.int64)]
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     norm = np.linalg.norm(normals, axis=1, keepdims=True)
@@ -249,16 +447,14 @@ def extents(mesh: trimesh.Trimesh) -> tuple[float, float, float]:
     return x, y, z
 
 
-def fits_bed(size: Sequence[float], bed: Sequence[float]) -> bool:
-    """True if a box of the three extents ``size`` (m) fits the printer's build volume
-    ``bed`` (m) in some axis-aligned orientation (some permutation of the extents is within
-    the bed's extents: equivalently, the sorted extents are within the sorted bed)."""
-    s, b = sorted(float(x) for x in size), sorted(float(x) for x in bed)
+def fits_bed(size: Sequence[float], bed: Sequence[float], margin: float = 0.0) -> bool:
+    """True if a part of extents ``size`` (m, x y z as it is printed: ``print_orientation``)
+    fits the printer's build volume ``bed`` (m) with ``margin`` m free around its footprint
+    (the skirt): its footprint in either of the two right-angle turns about z, its height
+    as it is."""
+    s, b = [float(x) for x in size], [float(x) for x in bed]
     if len(s) != 3 or len(b) != 3:
         raise ValueError(f"need three extents and three bed sizes, got {size!r}, {bed!r}")
-    return all(x <= y for x, y in zip(s, b, strict=True))
-
-
-def print_time_s(volume: float, print_speed: float) -> float:
-    """Print time s of ``volume`` m^3 at an average extrusion rate ``print_speed`` m^3/s."""
-    return _positive("volume", volume, allow_zero=True) / _positive("print_speed", print_speed)
+    x, y = s[0] + 2 * margin, s[1] + 2 * margin
+    flat = (x <= b[0] and y <= b[1]) or (y <= b[0] and x <= b[1])
+    return flat and s[2] <= b[2]

@@ -64,8 +64,10 @@ import numpy as np
 
 from export.model3d import Assembly, BodySpec, Geometry, JointSpec
 from export.urdf import (
+    MESH_SCALE,
     SNAP,
     check_assembly,
+    joint_damping,
     mesh_file,
     number,
     numbers,
@@ -312,7 +314,7 @@ def _servo(el: ET.Element, j: JointSpec, inertia: float) -> tuple[str, dict[str,
     has_speed = math.isfinite(j.velocity) and j.velocity > 0
     if j.kind == "revolute":
         joint.set("range", numbers((j.lower, j.upper)))
-        emf = j.effort / j.velocity if has_speed else 0.0
+        emf = joint_damping(j)
         if emf > 0:
             joint.set("damping", number(emf))
         kv = max(0.0, 2.0 * math.sqrt(gain * (inertia + armature)) - emf)
@@ -328,14 +330,19 @@ def _servo(el: ET.Element, j: JointSpec, inertia: float) -> tuple[str, dict[str,
     return tag, attrs
 
 
-def mjcf_string(assembly: Assembly, mesh_dir: str = "meshes") -> str:
+def mjcf_string(assembly: Assembly, mesh_dir: str = "meshes", with_payload: bool = False) -> str:
     """MJCF text of ``assembly`` for MuJoCo (choices in the module docstring).
 
     Mesh geoms name their files relative to ``mesh_dir`` (the compiler's ``meshdir``);
     load the text with :func:`load_mjcf` or with the files beside it. Identical input gives
     identical text. Raises ``ValueError`` on an invalid tree, name or mesh file name, or a
-    movable joint without effort.
+    movable joint without effort. ``with_payload``: the payload (``Assembly.payload``) is
+    added to the body that holds it (the verification simulates the loaded robot).
     """
+    if with_payload:
+        from export.assembly import with_payload as loaded
+
+        assembly = loaded(assembly)
     bodies = check_assembly(assembly)
     if "world" in bodies:
         raise ValueError("a body cannot be named 'world' in MJCF (MuJoCo's world body)")
@@ -363,7 +370,7 @@ def mjcf_string(assembly: Assembly, mesh_dir: str = "meshes") -> str:
         elements[j.child] = el
 
     for name, file in sorted(meshes.items()):
-        ET.SubElement(asset, "mesh", name=name, file=file)
+        ET.SubElement(asset, "mesh", name=name, file=file, scale=numbers([MESH_SCALE] * 3))
     act = ET.SubElement(root, "actuator")
     for tag, attrs in actuators:
         ET.SubElement(act, tag, attrs)

@@ -37,11 +37,15 @@ class PartUse:
     """One physical part on a body: a printed part or a catalog module."""
 
     name: str  # printed: the part design's name (its STL stem); module: the catalog model
-    source: str  # "printed" | "module" | "payload" | "contact" (massless contact shape)
+    # "printed" | "module" (catalog active module) | "bought" (catalog part, tyre) |
+    # "payload" | "contact" (massless contact shape)
+    source: str
     mass: float  # kg
     com: np.ndarray  # (3,) in the body frame
     inertia: np.ndarray  # (3, 3) about com, body axes
     geometry: Geometry | None = None
+    kind: str = ""  # modules and bought parts: the catalog class (or "Tyre")
+    cost: float = 0.0  # modules and bought parts: unit cost, catalog currency
 
 
 @dataclass(frozen=True)
@@ -85,7 +89,10 @@ class PrintedPart:
     mass_kg: float
     extents_m: tuple[float, float, float]  # bounding box of the part as printed
     fits_bed: bool
-    print_time_s: float
+    print_time_s: float  # estimated for the bundle's slicer settings (export.slicer)
+    overhang_m2: float = 0.0  # area printed over nothing (needs support) as oriented
+    printer: str = ""  # "": the catalog's printer_bed; else the larger printer that fits it
+    filament_m3: float = 0.0  # estimated filament, supports included (0: not estimated)
 
 
 @dataclass(frozen=True)
@@ -101,10 +108,18 @@ class Assembly:
     spawn_height: float = 0.0  # m: root height so the robot stands on z = 0
     fixed_base: bool = True  # manipulators are bolted down; mobile robots float
     notes: tuple[str, ...] = field(default=())
+    #: the payload, not in the bodies: (body name, its point mass) (``with_payload``)
+    payload: tuple[tuple[str, PartUse], ...] = field(default=())
 
     @property
     def total_mass(self) -> float:
+        """kg of the bodies (the payload included only once added to them)."""
         return float(sum(b.mass for b in self.bodies))
+
+    @property
+    def payload_mass(self) -> float:
+        """kg of the payload kept aside (0 once ``with_payload`` added it)."""
+        return float(sum(u.mass for _, u in self.payload))
 
     def body(self, name: str) -> BodySpec:
         return next(b for b in self.bodies if b.name == name)

@@ -38,6 +38,8 @@ DIGITS = 10
 #: Lengths (m) and angles (rad) smaller than this are written as 0 (float noise).
 SNAP = 1e-12
 JOINT_KINDS = ("revolute", "continuous", "fixed")
+#: m per STL unit: the STL files are in millimetres, as every slicer expects.
+MESH_SCALE = 0.001
 GEOMETRY_KINDS = ("mesh", "box", "cylinder", "sphere")
 
 
@@ -118,6 +120,16 @@ def rpy_from_matrix(R: np.ndarray) -> np.ndarray:
     return np.array(out)
 
 
+def joint_damping(j: JointSpec) -> float:
+    """N m s/rad: the passive damping of joint ``j`` in both models, the servo motor's
+    back-EMF ``effort / velocity`` of a position servo (a revolute joint with a speed); 0
+    for wheels (their velocity servo is the motor line) and fixed joints. Neither model has
+    dry friction (URDF ``friction`` 0, MJCF no ``frictionloss``)."""
+    if j.kind != "revolute" or not (math.isfinite(j.velocity) and j.velocity > 0):
+        return 0.0
+    return float(j.effort / j.velocity)
+
+
 def unit_axis(axis: np.ndarray, joint: str) -> np.ndarray:
     """The joint axis (3,) normalised; a zero or non-finite axis is a ``ValueError``."""
     a = np.asarray(axis, dtype=float)
@@ -192,7 +204,9 @@ def _geometry(g: Geometry, mesh_dir: str) -> yourdfpy.Geometry:
     size = tuple(float(s) for s in g.size)
     if g.kind == "mesh":
         return yourdfpy.Geometry(
-            mesh=yourdfpy.Mesh(filename=mesh_path(mesh_dir, mesh_file(g.mesh)))
+            mesh=yourdfpy.Mesh(
+                filename=mesh_path(mesh_dir, mesh_file(g.mesh)), scale=np.full(3, MESH_SCALE)
+            )
         )
     if g.kind == "box" and len(size) == 3:
         return yourdfpy.Geometry(box=yourdfpy.Box(size=np.array(size)))
@@ -220,13 +234,16 @@ def _link(body: BodySpec, mesh_dir: str) -> yourdfpy.Link:
             mass=float(body.mass),
             inertia=symmetric_inertia(body.inertia, f"body {body.name!r}"),
         )
+    k = 0
     for part in body.parts:
         g = part.geometry
         if g is None:
             continue
         if g.kind not in GEOMETRY_KINDS:
             raise ValueError(f"body {body.name!r}: geometry kind {g.kind!r} is not supported")
-        name = check_name(g.name or part.name, "geometry")
+        # unique in the robot (MuJoCo's URDF import names its geoms after them)
+        name = check_name(f"{body.name}/{k}/{g.name or part.name}", "geometry")
+        k += 1
         origin = _check_transform(g.origin, f"geometry {name!r}")
         rgba = np.array([float(c) for c in g.rgba])
         material = yourdfpy.Material(name=material_name(rgba), color=yourdfpy.Color(rgba=rgba))
@@ -236,7 +253,9 @@ def _link(body: BodySpec, mesh_dir: str) -> yourdfpy.Link:
             )
         )
         link.collisions.append(
-            yourdfpy.Collision(name=name, origin=origin, geometry=_geometry(g, mesh_dir))
+            yourdfpy.Collision(
+                name=f"{name}/collision", origin=origin, geometry=_geometry(g, mesh_dir)
+            )
         )
     return link
 
@@ -262,6 +281,9 @@ def _joint(j: JointSpec) -> yourdfpy.Joint:
         origin=np.asarray(j.origin, dtype=float),
         axis=None if j.kind == "fixed" else unit_axis(j.axis, j.name),
         limit=limit,
+        dynamics=None
+        if j.kind == "fixed"
+        else yourdfpy.Dynamics(damping=joint_damping(j), friction=0.0),
     )
 
 
@@ -295,7 +317,7 @@ def _origin(parent: ET.Element, T: np.ndarray | None) -> None:
 def _write_geometry(parent: ET.Element, g: yourdfpy.Geometry) -> None:
     el = ET.SubElement(parent, "geometry")
     if g.mesh is not None:
-        ET.SubElement(el, "mesh", filename=g.mesh.filename)
+        ET.SubElement(el, "mesh", filename=g.mesh.filename, scale=numbers(g.mesh.scale))
     elif g.box is not None:
         ET.SubElement(el, "box", size=numbers(g.box.size))
     elif g.cylinder is not None:
@@ -351,6 +373,9 @@ def _write_joint(parent: ET.Element, joint: yourdfpy.Joint) -> None:
         attrs["effort"] = number(lim.effort)
         attrs["velocity"] = number(lim.velocity)
         ET.SubElement(el, "limit", attrs)
+    if joint.dynamics is not None:
+        dyn = joint.dynamics
+        ET.SubElement(el, "dynamics", damping=number(dyn.damping), friction=number(dyn.friction))
 
 
 def robot_xml(robot: yourdfpy.Robot) -> str:
@@ -364,11 +389,16 @@ def robot_xml(robot: yourdfpy.Robot) -> str:
     return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(root, "unicode") + "\n"
 
 
-def urdf_string(assembly: Assembly, mesh_dir: str = "meshes") -> str:
+def urdf_string(assembly: Assembly, mesh_dir: str = "meshes", with_payload: bool = False) -> str:
     """URDF text of ``assembly``: the robot is named after ``assembly.robot_type``; mesh
     files are referenced as ``mesh_dir/NAME.stl``. Identical input gives identical text.
 
     Raises ``ValueError`` on an invalid tree or name, or a mesh name that is not a plain
-    file name.
+    file name. ``with_payload``: the payload (``Assembly.payload``) is added to the body
+    that holds it (by default the URDF is the robot alone).
     """
+    if with_payload:
+        from export.assembly import with_payload as loaded
+
+        assembly = loaded(assembly)
     return robot_xml(urdf_robot(assembly, mesh_dir))

@@ -103,6 +103,7 @@ __all__ = [
     "TemplateParams",
     "build",
     "default_lengths",
+    "dovetail_volumes",
 ]
 
 #: Tube radii (r_outer, r_inner) m used when ``TemplateParams.tubes`` names none.
@@ -114,11 +115,22 @@ BASE_SIZE = (0.10, 0.10, 0.02)  # manipulator base plate, m, under the base_yaw 
 TRUNK_THICKNESS = 0.03  # legged trunk and snake base box height, m
 HUMANOID_TRUNK_DEPTH = 0.06  # m (x)
 CHASSIS_THICKNESS = 0.005  # m
-GRIPPER_SIZE = (0.04, 0.05, 0.03)  # gripper jaws box, m
+#: Jaw plate (x along the jaw, y its width, z its thickness), m, when the params name none.
+FINGER_SIZE = (0.05, 0.02, 0.012)
+#: Gap between a gripper's open jaws, m (the jaws' inner faces are this far apart).
+GRIPPER_OPENING = 0.03
 FOOT_WIDTH_RATIO = 0.6  # humanoid foot plate width / length
 FOOT_PLATE = 0.004  # humanoid foot plate thickness, m
 WHEEL_WIDTH = 0.01  # m
-CASTER_RADIUS = 0.01  # m
+#: Dovetail joining printed link modules (paper Fig. 10), m and rad: the pin's width where
+#: it stands on its face, its height, and the flank angle from the face's normal (45 deg:
+#: the pin and the rail's overhang print without support). The pin runs across the face.
+DOVETAIL_ROOT = 0.006
+DOVETAIL_HEIGHT = 0.002
+DOVETAIL_FLANK = pi / 4
+#: Hub bore radius of a printed wheel, m: the clearance hole of an M3 servo-horn screw.
+WHEEL_BORE = 0.0017
+CASTER_RADIUS = 0.01  # m, the ball's radius when the params name none
 
 #: Trunk part frames (columns: the part's x, y, z in the body frame): modules go up, down
 #: (under a manipulator's base) or to the back (a humanoid's trunk, part x along y).
@@ -160,12 +172,18 @@ class TemplateParams:
     length name of a tube (default ``DEFAULT_TUBE``); ``actuator_mass``: kg per joint group
     (default ``DEFAULT_ACTUATOR_MASS``); ``payload``: kg, at the gripper of a manipulator,
     at the trunk otherwise; ``trunk_mass``: kg of the root body (plate, main module,
-    battery); ``modules``: the snake's M.
+    battery); ``modules``: the snake's M. ``gripper_mass``: kg of a gripper's ``fingers``
+    jaws together (each a plate of ``finger_size`` m); ``caster_mass`` kg and
+    ``caster_radius`` m: the ball caster. The structure generator passes the catalog's
+    figures (kinematics imports nothing of parmor's); the defaults serve a template built
+    alone.
 
     ``face_side``, ``face_thickness``, ``fillet`` (m): the printed link module's square
     dovetail face plates and the fillets between them and the tube (paper Fig. 10; geometry
     in ``kinematics.spatial.link_part_volume``). All 0 (the default): every link is a bare
-    tube. When set, every link's mass properties are those of the whole printed part.
+    tube. When set, every link's mass properties are those of the whole printed part, with
+    its dovetail (``dovetail_volumes``: a pin on the far face unless the link ends free,
+    the rail's slot in the near face) when ``dovetail_clearance`` (m) is set.
     """
 
     lengths: Mapping[str, float] = field(default_factory=dict)
@@ -179,11 +197,79 @@ class TemplateParams:
     wheel_radius: float = 0.03
     foot_mass: float = 0.01
     gripper_mass: float = 0.03
+    fingers: int = 2
+    finger_size: tuple[float, float, float] = FINGER_SIZE
     wheel_mass: float = 0.03
     caster_mass: float = 0.02
+    caster_radius: float = CASTER_RADIUS
     face_side: float = 0.0
     face_thickness: float = 0.0
     fillet: float = 0.0
+    dovetail_clearance: float | None = None
+
+
+def dovetail_volumes(
+    face_side: float, r_inner: float, clearance: float, pin: bool
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """The dovetail of a printed link: ((pin m^3, its centroid's height m above the far
+    face, its mean width m), (slot m^3, its centroid's depth m into the near face, its
+    mean width m)). The pin (none unless ``pin``) stands on the far face; the rail's slot,
+    the pin's profile grown by ``clearance`` m on every side, is cut into the near face and
+    removes nothing where it crosses the bore (radius ``r_inner``). Exact but for the
+    integral over the slot's depth (Simpson's rule, 64 intervals)."""
+    a, ri, c = float(face_side), float(r_inner), float(clearance)
+    w0, h, th = DOVETAIL_ROOT / 2, DOVETAIL_HEIGHT, DOVETAIL_FLANK
+    w1 = w0 + h * np.tan(th)
+    pin_v = (w0 + w1) * h * a if pin else 0.0
+    pin_z = h * (w0 + 2 * w1) / (3 * (w0 + w1))
+    z = np.linspace(0.0, h + c, 65)
+    w = w0 + c / np.cos(th) + z * np.tan(th)  # the slot's half-width at depth z (mitred)
+    inside = np.minimum(w, ri)
+    bore = 2 * inside * np.sqrt(np.maximum(ri * ri - inside * inside, 0.0))
+    if ri > 0:
+        bore = bore + 2 * ri * ri * np.arcsin(np.clip(inside / ri, -1.0, 1.0))
+    area = 2 * w * a - bore
+    step = z[1] - z[0]
+
+    def simpson(f: np.ndarray) -> float:
+        return float(step / 3 * (f[0] + f[-1] + 4 * f[1:-1:2].sum() + 2 * f[2:-1:2].sum()))
+
+    slot_v = simpson(area)
+    slot_z = simpson(area * z) / slot_v if slot_v > 0 else 0.0
+    return (pin_v, pin_z, w0 + w1), (slot_v, slot_z, float(2 * w.mean()))
+
+
+def _with_dovetail(
+    part: tuple[float, np.ndarray, np.ndarray],
+    p: TemplateParams,
+    start: np.ndarray,
+    d: np.ndarray,
+    length: float,
+    r_inner: float,
+    pin: bool,
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """A link part's (mass, com, inertia) with its dovetail pin added and its slot removed
+    (each a box of its mean width, the face's side and its height)."""
+    (pv, pz, pw), (sv, sz, sw) = dovetail_volumes(
+        p.face_side, r_inner, p.dovetail_clearance or 0.0, pin
+    )
+    R = _tube_frame(d)
+    m0, c0, i0 = part
+    items = [(m0, c0, i0, 1.0)]
+    if pv > 0:
+        mp = p.density * pv
+        ip = R @ box_inertia(mp, (pw, p.face_side, DOVETAIL_HEIGHT)) @ R.T
+        items.append((mp, start + (length + pz) * d, ip, 1.0))
+    ms = p.density * sv
+    depth = DOVETAIL_HEIGHT + (p.dovetail_clearance or 0.0)
+    items.append((ms, start + sz * d, R @ box_inertia(ms, (sw, p.face_side, depth)) @ R.T, -1.0))
+    mass = sum(k * m for m, _, _, k in items)
+    com = sum(k * m * c for m, c, _, k in items) / mass
+    inertia = np.zeros((3, 3))
+    for m, c, i, k in items:
+        r = c - com
+        inertia += k * (i + m * (float(r @ r) * np.eye(3) - np.outer(r, r)))
+    return mass, com, inertia
 
 
 @dataclass(frozen=True, eq=False)
@@ -240,7 +326,8 @@ class LabelledPart:
       back, others: up) and its x is the box's long side;
     - "foot": () a point foot, or (x, y, z) a foot plate whose sole is the frame's z = 0
       plane; the frame origin is the contact point, body axes;
-    - "gripper": (x, y, z) box centred on the frame origin, body axes;
+    - "gripper": one jaw of a gripper, an (x, y, z) plate centred on the frame origin: x
+      along the jaw (away from the joint), z across the gap between the jaws;
     - "payload": () a point mass at the frame origin;
     - "wheel": (radius, width) disc centred on the frame origin, its axis the frame's z;
     - "caster": (radius,) ball centred on the frame origin.
@@ -404,6 +491,10 @@ class _Builder:
         if any(faces):
             m, c, inertia = link_part_mass_properties(p.density, length, ro, ri, *faces, axis=d)
             com = s + c
+            if p.dovetail_clearance is not None and p.face_side > 0:
+                m, com, inertia = _with_dovetail(
+                    (m, com, inertia), p, s, d, length, float(ri), distal is not None
+                )
         else:  # the bare tube, computed as it always was
             m = tube_mass(p.density, length, ro, ri)
             com, inertia = s + 0.5 * length * d, tube_inertia(m, length, ro, ri, d)
@@ -463,11 +554,38 @@ def _trunk(label: str, mass: float, size, at, R: np.ndarray) -> LabelledPart:
     )
 
 
-def _gripper_parts(p: TemplateParams, payload: float, body: str) -> list[LabelledPart]:
-    return [
-        _box(body, "gripper", p.gripper_mass, GRIPPER_SIZE),
-        _point(body, "payload", payload),
-    ]
+def _gripper_parts(
+    p: TemplateParams, payload: float, body: str, forward=(1.0, 0.0, 0.0), side=(0.0, 1.0, 0.0)
+) -> list[LabelledPart]:
+    """The jaws of a gripper (``p.fingers`` plates of ``p.finger_size``, the gripper's mass
+    shared equally) reaching along ``forward`` from the body origin, spread around it from
+    ``side`` (two jaws: on either side, ``GRIPPER_OPENING`` apart), and the payload, held
+    at the body origin."""
+    n = int(p.fingers)
+    if n < 1:
+        raise ValueError(f"fingers must be at least 1, got {p.fingers!r}")
+    size = tuple(float(x) for x in p.finger_size)
+    x = np.asarray(forward, dtype=float)
+    out = []
+    for k in range(n):
+        turn = 2 * pi * k / n
+        # ``side`` turned about ``forward`` by ``turn`` (Rodrigues; side is perpendicular)
+        z = np.cos(turn) * np.asarray(side, dtype=float) + np.sin(turn) * np.cross(x, side)
+        R = np.column_stack([x, np.cross(z, x), z])
+        centre = x * size[0] / 2 + z * (GRIPPER_OPENING / 2 + size[2] / 2)
+        m = p.gripper_mass / n
+        out.append(
+            LabelledPart(
+                body,
+                "gripper",
+                m,
+                centre,
+                R @ box_inertia(m, size) @ R.T,
+                transform_from(R, centre),
+                size,
+            )
+        )
+    return [*out, _point(body, "payload", payload)]
 
 
 # --- templates -----------------------------------------------------------------------------------
@@ -741,7 +859,7 @@ def _humanoid(b: _Builder) -> dict:
             fore,
             "revolute",
             transform((0, 0, -L["forearm"])),
-            _gripper_parts(p, 0.0, f"{s}_gripper_link"),
+            _gripper_parts(p, 0.0, f"{s}_gripper_link", (0, 0, -1), (0, 1, 0)),
             axis=(1, 0, 0),
             limits=(0.0, pi / 2),
             group="gripper",
@@ -843,14 +961,15 @@ def _wheeled(b: _Builder, skid: bool) -> dict:
     _servos_on_chassis(b, chassis, wheels)
     casters: tuple[str, ...] = ()
     if not skid:
+        rc = p.caster_radius
         ball = LabelledPart(
             "caster_link",
             "caster",
             p.caster_mass,
-            np.array([0, 0, CASTER_RADIUS]),
-            sphere_inertia(p.caster_mass, CASTER_RADIUS),
-            transform((0, 0, CASTER_RADIUS)),
-            (CASTER_RADIUS,),
+            np.array([0, 0, rc]),
+            sphere_inertia(p.caster_mass, rc),
+            transform((0, 0, rc)),
+            (rc,),
         )
         rear = (centre[0] - L["L1"] / 2, 0, -r)
         casters = (b.add("caster", chassis, "fixed", transform(rear), [ball]),)
@@ -932,7 +1051,7 @@ def _check_params(robot_type: str, p: TemplateParams) -> dict[str, float]:
             raise ValueError(f"{name} must be positive")
     for name in ("payload", "trunk_mass", "foot_mass", "gripper_mass", "wheel_mass", "caster_mass"):
         _nonneg(name, getattr(p, name))
-    for name in ("face_side", "face_thickness", "fillet"):
+    for name in ("face_side", "face_thickness", "fillet", "caster_radius"):
         _nonneg(name, getattr(p, name))
     if (p.face_side > 0) != (p.face_thickness > 0) or (p.fillet > 0 and p.face_side == 0):
         raise ValueError(

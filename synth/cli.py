@@ -222,6 +222,12 @@ def build_parser() -> argparse.ArgumentParser:
         "(design.json alone with --conceptual)",
     )
     p.add_argument("--force", action="store_true", help="replace DIR if it is not empty")
+    p.add_argument(
+        "--with-payload",
+        action="store_true",
+        help="robot.urdf and robot.xml carry the payload (by default they are the robot "
+        "alone; design.json says where the payload is held)",
+    )
 
     p = sub.add_parser(
         "enumerate",
@@ -559,6 +565,7 @@ def _options(args: argparse.Namespace):
         not args.no_symmetry,
         parse_objective(args.objective),
         verify=not getattr(args, "no_verify", False),
+        with_payload=getattr(args, "with_payload", False),
     )
 
 

@@ -27,6 +27,7 @@ class StructureOptions:
     symmetric: bool = True
     objective: tuple[str, ...] = ("mass", "cost")
     verify: bool = True
+    with_payload: bool = False  # robot.urdf / robot.xml carry the payload (--with-payload)
 
 
 def parse_objective(text: str) -> tuple[str, ...]:
@@ -58,6 +59,7 @@ class Outcome:
     verification: Verification | None = None  # what the simulation found (None: not run)
     verify_skipped: bool = False  # sized but not simulated (--no-verify)
     bundle: dict[str, str | bytes] | None = None  # the files the verification simulated
+    with_payload: bool = False  # the bundle's models carry the payload (--with-payload)
     calibration: dict[str, float] | None = None  # measured on a run (synth.verify)
 
     @property
@@ -65,25 +67,40 @@ class Outcome:
         return "infeasible" if self.infeasible else self.design.status
 
     def files(self, designer: Designer) -> dict[str, str | bytes]:
-        """The output bundle: everything for a sized design, design.json alone otherwise."""
+        """The output bundle: everything for a sized design, design.json alone otherwise.
+
+        The robot is sized for its payload and simulated with it: before the verification
+        (a sized design, not verified yet and not ``verify_skipped``) the files are those
+        it simulates, their models carrying the payload; afterwards robot.urdf and
+        robot.xml carry it only ``with_payload`` (the user's choice)."""
         from export.record import to_json
 
         rec = self.record(designer)
         if self.structure is None or self.catalog is None:
             return {"design.json": to_json(rec)}
-        v = self.verification
-        if self.bundle is not None and v is not None and not v.dropped:
-            # the simulated bundle itself, its record now carrying the verification
-            return {**self.bundle, "design.json": to_json(rec)}
         from export.bundle import bundle_files
 
         doc = designer.kb.translation.documentation.get(self.structure.robot_type, "")
-        return bundle_files(rec, self.structure, self.catalog, doc)
+        # the verification's own call: the loaded robot, no pictures; afterwards the same
+        # design (its meshes and trajectories reused) as the user asked for it
+        simulating = self.verification is None and not self.verify_skipped
+        return bundle_files(
+            rec,
+            self.structure,
+            self.catalog,
+            doc,
+            with_payload=self.with_payload or simulating,
+            pictures=not simulating,
+        )
 
     def record(self, designer: Designer) -> dict:
         from export.record import design_record
 
         rec = design_record(self.design, designer.short, self.structure)
+        if self.structure is not None:
+            from export.bundle import payload_record
+
+            rec["payload"] = payload_record(self.structure, self.with_payload)
         if self.calibration:
             rec["calibration"] = dict(sorted(self.calibration.items()))
         v = self.verification
@@ -117,14 +134,15 @@ def run(designer: Designer, req: Request, opts: StructureOptions) -> Outcome:
     from synth.structure import design_structure
 
     catalog = load_checked_catalog(opts.catalog, designer)
+    loaded = opts.with_payload
     try:
         s = design_structure(
             designer.kb, d.chosen, catalog, designer.structural(req), opts.symmetric, opts.objective
         )
     except InfeasibleError as e:
-        return Outcome(d, infeasible=str(e), catalog=catalog)
+        return Outcome(d, infeasible=str(e), catalog=catalog, with_payload=loaded)
     if not opts.verify:
-        return Outcome(d, s, catalog=catalog, verify_skipped=True)
+        return Outcome(d, s, catalog=catalog, verify_skipped=True, with_payload=loaded)
     from synth.verify import verify
 
-    return verify(designer, req, opts, Outcome(d, s, catalog=catalog))
+    return verify(designer, req, opts, Outcome(d, s, catalog=catalog, with_payload=loaded))

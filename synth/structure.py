@@ -40,6 +40,7 @@ from kinematics.spatial import link_part_volume
 from kinematics.templates import (
     FOOT_WIDTH_RATIO,
     TEMPLATES,
+    WHEEL_BORE,
     Segment,
     Template,
     TemplateParams,
@@ -327,6 +328,10 @@ class StructureDesigner:
         self.modules = max(candidate.dof, 1)
         probe = build(self.type, TemplateParams(modules=self.modules))
         self.slots = _slots(probe)
+        # the conceptual design's FingerModules shared among the template's grippers
+        fingers = dict(candidate.passive).get("FingerModule", 0)
+        grippers = len(probe.end_effectors)
+        self.fingers = max(1, fingers // grippers) if grippers and fingers else 2
         self.other_active = candidate.active_total - len(self.slots)
         if self.other_active < 0:
             raise InputError(
@@ -408,7 +413,16 @@ class StructureDesigner:
             foot = side * FOOT_WIDTH_RATIO * side * p.foot_thickness_m * rho
         else:  # a printed pad under a leg's tip
             foot = p.foot_min_side_m**2 * p.foot_thickness_m * rho
-        wheel = math.pi * sizing.wheel_radius**2 * p.wheel_width_m * rho
+        wheel = cat.wheel_mass_kg(sizing.wheel_radius, WHEEL_BORE)
+        # the catalog's jaw and ball caster (a catalog without them: the template's own)
+        classes = {q.ontology_class for q in cat.parts}
+        extra: dict = {"fingers": self.fingers}
+        if "FingerModule" in classes:
+            jaw = cat.part_of("FingerModule")
+            extra |= {"gripper_mass": self.fingers * jaw.mass_kg, "finger_size": jaw.size_m}
+        if "CasterModule" in classes:
+            ball = cat.part_of("CasterModule")
+            extra |= {"caster_mass": ball.mass_kg, "caster_radius": ball.size_m[0] / 2}
         sizes = [a.size_m for a in cat.actuators]
         return TemplateParams(
             lengths=sizing.lengths,
@@ -422,9 +436,11 @@ class StructureDesigner:
             wheel_radius=sizing.wheel_radius,
             foot_mass=foot,
             wheel_mass=wheel,
+            **extra,
             face_side=p.dovetail_face_m,
             face_thickness=p.face_thickness_m,
             fillet=p.fillet_radius_m,
+            dovetail_clearance=p.print_clearance_m,
         )
 
     def _geometry(self, tmpl: Template, sizing: Sizing, speeds: Mapping[str, float]):

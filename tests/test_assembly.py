@@ -20,7 +20,8 @@ import pytest
 import trimesh
 
 from export import meshes
-from export.assembly import build_assembly
+from export.assembly import build_assembly, with_payload
+from export.slicer import estimate
 from kinematics.spatial import box_inertia, combine_parts, sphere_inertia
 from kinematics.templates import DEFAULTS, PART_KINDS, TEMPLATES, TemplateParams, build
 from synth.solver import Query
@@ -81,7 +82,8 @@ def test_bodies_are_their_labelled_parts(robot_type: str, faces: bool) -> None:
     assert bodies_of("wheel") == sorted(t.wheels)
     assert bodies_of("caster") == sorted(t.casters)
     assert len(bodies_of("trunk")) == 1 and bodies_of("trunk")[0] == m.bodies[0].name
-    assert bodies_of("gripper") == sorted(t.end_effectors)
+    # every gripper has its jaws (two by default), each a part of the gripper's body
+    assert bodies_of("gripper") == sorted(e for e in t.end_effectors for _ in range(2))
 
 
 @pytest.mark.parametrize("robot_type", TEMPLATES)
@@ -155,31 +157,33 @@ def _recomputed(part, printed: dict, catalog, template) -> tuple[float, np.ndarr
     rho = catalog.material.density_kg_m3
     if part.source == "printed":
         stem = g.mesh.removesuffix(".stl")
-        mesh = trimesh.load(io.BytesIO(printed[stem].stl), file_type="stl")
+        mesh = trimesh.load(io.BytesIO(printed[stem].stl), file_type="stl").apply_scale(1e-3)
         assert mesh.is_watertight
         props = mesh.mass_properties
         m, c, inertia = props["mass"] * rho, props["center_mass"], props["inertia"] * rho
     elif part.source == "module":
-        entry = {a.model: a for a in (*catalog.actuators, *catalog.modules)}.get(part.name)
-        if entry is not None:
-            m, size = entry.mass_kg, entry.size_m
-            assert g.kind == "box" and tuple(g.size) == tuple(size)
-            inertia = box_inertia(m, size)
-        elif part.name == "gripper":
-            m = template.params.gripper_mass
-            inertia = box_inertia(m, g.size)
-        else:
-            assert part.name == "ball_caster" and g.kind == "sphere"
-            m = template.params.caster_mass
-            inertia = sphere_inertia(m, g.size[0])
+        entry = {a.model: a for a in (*catalog.actuators, *catalog.modules)}[part.name]
+        m, size = entry.mass_kg, entry.size_m
+        assert g.kind == "box" and tuple(g.size) == tuple(size)
+        inertia = box_inertia(m, size)
         c = np.zeros(3)
+    elif part.source == "bought" and part.kind == "CasterModule":
+        ball = catalog.part_of("CasterModule")
+        assert part.name == ball.model and g.kind == "sphere"
+        assert g.size[0] == pytest.approx(ball.size_m[0] / 2)
+        m = ball.mass_kg
+        inertia, c = sphere_inertia(m, g.size[0]), np.zeros(3)
+    elif part.source == "bought":  # a tyre: a ring around the wheel's axle (its z)
+        assert part.kind == "Tyre" and g is None
+        r, w = template.params.wheel_radius, catalog.passive.wheel_width_m
+        m = catalog.tyre.mass_kg(r, w)
+        assert part.mass == pytest.approx(m, rel=1e-12)
+        return m, part.com, part.inertia
     elif part.source == "contact":  # a leg's massless rounded point, a wheel's rim cylinder
         assert part.mass == 0 and g.kind in ("sphere", "cylinder") and g.contact
         return 0.0, part.com, np.zeros((3, 3))
     else:
-        assert part.source == "payload" and g is None
-        assert part.mass == template.params.payload
-        return template.params.payload, part.com, np.zeros((3, 3))
+        raise AssertionError(f"a part of source {part.source!r} in the robot's model")
     R, p = g.origin[:3, :3], g.origin[:3, 3]
     return m, R @ c + p, R @ inertia @ R.T
 
@@ -212,8 +216,11 @@ def test_every_body_is_its_parts_recomputed_from_stl_and_catalog(
 
 
 def test_total_mass_is_the_structures(assemblies, faced) -> None:
+    """The structure is sized with its payload; the assembly keeps it aside."""
     for t, asm in assemblies.items():
-        assert asm.total_mass == pytest.approx(faced[t].mass_kg, rel=0.01), t
+        loaded = asm.total_mass + asm.payload_mass
+        assert loaded == pytest.approx(faced[t].mass_kg, rel=0.01), t
+        assert with_payload(asm).total_mass == pytest.approx(loaded, rel=1e-12), t
         assert not [n for n in asm.notes if "weighs" in n], (t, asm.notes)
 
 
@@ -230,7 +237,11 @@ def test_printed_parts_add_up_to_the_template(assemblies, faced) -> None:
         per_length: dict[str, int] = {}
         for s in tmpl.segments:
             per_length[s.length_name] = per_length.get(s.length_name, 0) + 1
-        links = {p.name: p.count for p in asm.printed if p.kind == "link"}
+        links: dict[str, int] = {}
+        for p in asm.printed:  # a design per length (and whether its far end has a pin)
+            if p.kind == "link":
+                stem = re.sub(r"_\d+$", "", p.name)
+                links[stem] = links.get(stem, 0) + p.count
         assert links == {f"link_{n.lower()}": k for n, k in per_length.items()}, t
         uses: dict[str, int] = {}
         for b in asm.bodies:
@@ -238,6 +249,11 @@ def test_printed_parts_add_up_to_the_template(assemblies, faced) -> None:
                 if u.source == "printed":
                     uses[u.name] = uses.get(u.name, 0) + 1
         assert uses == {p.name: p.count for p in asm.printed}, t
+
+
+def load_part(p) -> trimesh.Trimesh:
+    """A printed part's mesh from its STL (mm) in metres."""
+    return trimesh.load(io.BytesIO(p.stl), file_type="stl").apply_scale(1e-3)
 
 
 def test_printed_part_figures(assemblies, catalog) -> None:
@@ -251,10 +267,28 @@ def test_printed_part_figures(assemblies, catalog) -> None:
             assert p.stl[:80] == meshes.STL_HEADER
             assert p.volume_m3 == pytest.approx(p.analytic_volume_m3, rel=0.01), (t, p.name)
             assert p.mass_kg == pytest.approx(p.volume_m3 * rho, rel=1e-12)
-            assert p.fits_bed == meshes.fits_bed(p.extents_m, passive.printer_bed_m)
-            assert p.print_time_s == pytest.approx(p.volume_m3 / passive.print_speed_m3_s)
-            if p.kind == "link":
-                assert p.extents_m[:2] == pytest.approx([passive.dovetail_face_m] * 2)
+            assert p.fits_bed == meshes.fits_bed(p.extents_m, passive.printer_bed_m, 0.003)
+            t, f = estimate(meshes.print_features(load_part(p)))
+            assert p.print_time_s == pytest.approx(t) and p.filament_m3 == pytest.approx(f)
+            assert p.filament_m3 >= p.volume_m3
+            if p.kind == "link":  # two face sides and the length, however it lies
+                face = passive.dovetail_face_m
+                assert sum(abs(e - face) < 1e-6 for e in p.extents_m) >= 2, (t, p.name)
+            # printed as oriented: on the bed (z from 0), no axis turn needs less support
+            mesh = trimesh.load(io.BytesIO(p.stl), file_type="stl").apply_scale(1e-3)
+            assert mesh.bounds[0][2] == pytest.approx(0.0, abs=1e-9)
+            assert p.overhang_m2 == pytest.approx(
+                meshes.orientation_figures(mesh, np.eye(3))[0], abs=1e-9
+            )
+            need = meshes.support_measure(mesh)
+            for k in range(3):
+                for sign in (1, -1):
+                    n = np.zeros(3)
+                    n[k] = sign
+                    turned = mesh.copy().apply_transform(
+                        np.vstack([np.column_stack([meshes._down(n), np.zeros(3)]), [0, 0, 0, 1]])
+                    )
+                    assert need <= meshes.support_measure(turned) + 1e-9, (t, p.name, k, sign)
 
 
 def test_joints_carry_the_chosen_actuators(assemblies, faced, catalog) -> None:
@@ -320,3 +354,15 @@ def test_assembly_is_deterministic_and_notes_bare_links(structures, faced, catal
     if bare.template.params.face_side == 0:
         notes = build_assembly(bare, catalog).notes
         assert any("face plates" in n for n in notes)
+
+
+def test_servo_range_is_the_travel_over_the_span_used() -> None:
+    from export.assembly import servo_range
+
+    assert servo_range(-1.0, 1.0, pi) == (-1.0, 1.0)  # fits whole
+    assert servo_range(-pi, pi, pi) == pytest.approx((-pi / 2, pi / 2))  # about the middle
+    lo, hi = servo_range(-5 * pi / 6, 5 * pi / 6, pi, (1.5, 2.3))  # over what is used
+    assert hi - lo == pytest.approx(pi) and lo <= 1.5 and hi >= 2.3
+    assert hi <= 5 * pi / 6 + 1e-12
+    lo, hi = servo_range(-pi, pi, pi / 2, (-1.0, 1.0))  # more than the travel: centred on it
+    assert (lo, hi) == pytest.approx((-pi / 4, pi / 4))

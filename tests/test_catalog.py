@@ -107,7 +107,8 @@ def test_passive_templates_and_rules(cat: Catalog) -> None:
     assert p.min_wall_m < p.max_outer_radius_m
     assert p.min_link_length_m < p.max_link_length_m <= max(p.printer_bed_m)
     assert p.printer_bed_m == pytest.approx((0.22, 0.22, 0.25))
-    assert p.print_speed_m3_s == pytest.approx(8e-9, rel=1e-12)
+    assert p.print_speed_m3_s == 0.0  # optional, unused: the BOM's estimate is the slicer's
+    assert p.print_clearance_m == pytest.approx(0.0002, rel=1e-12)
     assert p.stress_concentration >= 1
     assert d.i2c_first_address == 8
     assert d.max_slope_rad == pytest.approx(math.radians(10), rel=1e-12)
@@ -382,6 +383,30 @@ CASES = {
         _edit('currency = "EUR"', 'currency = "euro"'),
         "catalog.currency: 'euro' is not a currency code such as 'EUR'",
     ),
+    "no servo travel": (
+        _edit("(about 90 deg each way).\ntravel_deg = 180\n", "(about 90 deg each way).\n"),
+        "actuator[1] (SG90): missing key 'travel_deg'",
+    ),
+    "servo travel past a turn": (
+        _edit("(about 90 deg each way).\ntravel_deg = 180", "(x).\ntravel_deg = 400"),
+        "actuator[1] (SG90).travel_deg: must be at most 360 (continuous rotation), got 400",
+    ),
+    "part source": (
+        _edit('source = "bought"', 'source = "borrowed"'),
+        "part[2] (BallCaster-20).source: expected one of printed, bought",
+    ),
+    "printed part with a mass": (
+        _edit('source = "printed"', 'source = "printed"\nmass = "15 g"'),
+        "part[1] (Jaw-50x20x12): unknown key 'mass'",
+    ),
+    "tyre thicker than the smallest wheel": (
+        _edit('thickness = "2 mm"', 'thickness = "25 mm"'),
+        "tyre.thickness: 25 mm leaves no rim in the smallest wheel (radius 20 mm)",
+    ),
+    "printer bed of two": (
+        _edit('bed = ["360 mm", "360 mm", "360 mm"]', 'bed = ["360 mm", "360 mm"]'),
+        "printer[1] (Prusa XL).bed: expected an array of 3 lengths",
+    ),
 }
 
 
@@ -459,3 +484,21 @@ c_rating = "25"
     assert second.capacity_Ah == pytest.approx(2.2, rel=1e-12)
     assert second.max_current_A == pytest.approx(55.0, rel=1e-12)
     assert second.cost == 0 and second.current_A == 0
+
+
+def test_shipped_catalog_has_servo_travel_parts_tyre_and_printers(cat: Catalog) -> None:
+    from math import pi
+
+    travel = {a.model: a.travel_rad for a in cat.actuators}
+    assert travel["SG90"] == pytest.approx(pi) and travel["FS90R"] == pytest.approx(2 * pi)
+    assert all(
+        a.continuous == (a.ontology_class == "ContinuousRotationServomotor") for a in cat.actuators
+    )
+    jaw = cat.part_of("FingerModule")
+    assert jaw.source == "printed"
+    assert jaw.mass_kg == pytest.approx(0.05 * 0.02 * 0.012 * cat.material.density_kg_m3)
+    assert cat.part_of("CasterModule").mass_kg == pytest.approx(0.020)
+    assert cat.tyre is not None and cat.tyre.mass_kg(0.03, 0.01) > 0
+    assert [p.model for p in cat.printers] == ["Prusa XL", "Creality CR-10 S5"]
+    with pytest.raises(InputError, match="no \\[\\[part\\]\\] of class 'Gear'"):
+        cat.part_of("Gear")

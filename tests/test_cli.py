@@ -329,6 +329,8 @@ def test_out_writes_design_json(cli, tmp_path: Path) -> None:
         "bom.csv",
         "design.json",
         "meshes",
+        "pictures",
+        "print",
         "robot.urdf",
         "robot.xml",
         "trajectories",

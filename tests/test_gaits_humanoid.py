@@ -535,7 +535,7 @@ def design(kb, designer, tmp_path_factory):
         Design("designed", Request(), (cand,), cand, "only candidate"), designer.short, s
     )
     folder = tmp_path_factory.mktemp("humanoid") / "bundle"
-    write_bundle(folder, bundle_files(rec, s, load_catalog()))
+    write_bundle(folder, bundle_files(rec, s, load_catalog(), with_payload=True, pictures=False))
     return DesignGeometry.from_record(rec), load_bundle_model(folder), rec
 
 

@@ -74,7 +74,7 @@ def designs(kb, designer, tmp_path_factory) -> dict[str, Designed]:
             Design("designed", Request(), (cand,), cand, "only candidate"), designer.short, s
         )
         folder = tmp_path_factory.mktemp(rt) / "bundle"
-        write_bundle(folder, bundle_files(rec, s, catalog))
+        write_bundle(folder, bundle_files(rec, s, catalog, with_payload=True, pictures=False))
         out[rt] = Designed(DesignGeometry.from_record(rec), s.template, folder)
     return out
 

@@ -56,7 +56,7 @@ def _bundle_model(rec, s, folder):
     from export.bundle import bundle_files, write_bundle
     from export.simulate import load_bundle_model
 
-    write_bundle(folder, bundle_files(rec, s, load_catalog()))
+    write_bundle(folder, bundle_files(rec, s, load_catalog(), with_payload=True, pictures=False))
     return load_bundle_model(folder)
 
 

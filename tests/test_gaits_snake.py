@@ -329,7 +329,7 @@ def snakes(kb, designer, tmp_path_factory):
             Design("designed", Request(), (cand,), cand, "only candidate"), designer.short, s
         )
         folder = tmp_path_factory.mktemp("snake") / f"m{rec['dof']}"
-        write_bundle(folder, bundle_files(rec, s, catalog))
+        write_bundle(folder, bundle_files(rec, s, catalog, with_payload=True, pictures=False))
         c = SnakeController(DesignGeometry.from_record(rec))
         assert c.modules == m
         out[m] = (c, load_bundle_model(folder))

@@ -221,7 +221,9 @@ def hexapod(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def cart(tmp_path_factory) -> Path:
-    return _design(tmp_path_factory.mktemp("prog") / "cart", "driving")
+    # the cart as it was sized and verified: carrying its payload (robot.xml is the robot
+    # alone unless asked)
+    return _design(tmp_path_factory.mktemp("prog") / "cart", "driving", "--with-payload")
 
 
 def test_behaviours_chain_from_where_the_last_ended(hexapod) -> None:

@@ -107,7 +107,7 @@ def _printed(parts: dict[str, object]) -> tuple[PrintedPart, ...]:
         mesh = mesh.copy()
         mesh.density = DENSITY
         vol, mass = float(mesh.volume), float(mesh.mass)
-        stl = mesh.export(file_type="stl")
+        stl = mesh.copy().apply_scale(1000.0).export(file_type="stl")  # mm, as parmor writes
         out.append(
             PrintedPart(name, "link", stl, 1, vol, vol, mass, tuple(mesh.extents), True, 1.0)
         )
