@@ -87,19 +87,70 @@ class SimResult:
 
 
 def load_bundle_model(folder: str | Path):
-    """The MuJoCo model of a bundle folder (robot.xml with its meshes)."""
+    """The MuJoCo model of a bundle folder (robot.xml with its meshes), carrying the
+    design's payload (:func:`carrying_payload`)."""
     folder = Path(folder)
-    meshes = {p.name: p.read_bytes() for p in sorted((folder / "meshes").glob("*.stl"))}
-    return load_files_model({"robot.xml": (folder / "robot.xml").read_bytes(), **meshes})
+    files = {p.name: p.read_bytes() for p in sorted((folder / "meshes").glob("*.stl"))}
+    files["robot.xml"] = (folder / "robot.xml").read_bytes()
+    if (folder / "design.json").is_file():
+        files["design.json"] = (folder / "design.json").read_bytes()
+    return load_files_model(files)
+
+
+def carrying_payload(xml: str, record: Mapping) -> str:
+    """``robot.xml`` text with the design's payload (``record["payload"]``) as a point mass
+    in each body that holds it, unless the models already carry it (``in_models``,
+    ``parmor design --with-payload``): the robot is simulated as it was sized and verified,
+    loaded."""
+    import xml.etree.ElementTree as ET
+
+    payload = record.get("payload") if isinstance(record, Mapping) else None
+    if not isinstance(payload, Mapping) or payload.get("in_models"):
+        return xml
+    held = [h for h in payload.get("held_by") or () if float(h.get("mass_kg") or 0) > 0]
+    if not held:
+        return xml
+    root = ET.fromstring(xml)
+    bodies = {b.get("name"): b for b in root.iter("body")}
+    for k, h in enumerate(held):
+        body = bodies.get(h["body"])
+        if body is None:
+            raise ValueError(f"design.json: the payload's body {h['body']!r} is not in robot.xml")
+        load = ET.Element(
+            "body",
+            name=f"payload_{k}",
+            pos=" ".join(f"{float(x):.9g}" for x in h["position_m"]),
+        )
+        ET.SubElement(
+            load,
+            "inertial",
+            pos="0 0 0",
+            mass=f"{float(h['mass_kg']):.9g}",
+            diaginertia=" ".join([f"{PAYLOAD_INERTIA * float(h['mass_kg']):.9g}"] * 3),
+        )
+        body.append(load)
+    return ET.tostring(root, encoding="unicode")
+
+
+#: m^2: a point payload's inertia per kg (a 3 cm radius of gyration: MuJoCo needs some)
+PAYLOAD_INERTIA = 0.03**2
 
 
 def load_files_model(files: Mapping[str, str | bytes]):
     """The MuJoCo model of a bundle held in memory: ``robot.xml`` and ``meshes/*.stl`` (keys
-    relative to the bundle folder; bare mesh names are accepted too)."""
+    relative to the bundle folder; bare mesh names are accepted too), carrying the payload
+    of ``design.json`` where it is given (:func:`carrying_payload`)."""
     from export.mjcf import load_mjcf
 
     xml = files["robot.xml"]
     text = xml.decode("utf-8") if isinstance(xml, bytes) else xml
+    raw = files.get("design.json")
+    if raw is not None:
+        import json
+
+        text = carrying_payload(
+            text, json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
+        )
     meshes = {
         Path(k).name: (v.encode() if isinstance(v, str) else v)
         for k, v in sorted(files.items())

@@ -71,7 +71,10 @@ class Session:
             folder = Path(folder)
             self.record = bundle_record(folder)
             try:
-                files = {"robot.xml": (folder / "robot.xml").read_bytes()}
+                files = {
+                    "robot.xml": (folder / "robot.xml").read_bytes(),
+                    "design.json": (folder / "design.json").read_bytes(),
+                }
                 files.update(
                     {f"meshes/{p.name}": p.read_bytes() for p in (folder / "meshes").glob("*.stl")}
                 )

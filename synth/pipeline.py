@@ -84,6 +84,11 @@ class Outcome:
         # the verification's own call: the loaded robot, no pictures; afterwards the same
         # design (its meshes and trajectories reused) as the user asked for it
         simulating = self.verification is None and not self.verify_skipped
+        if simulating and "payload" in rec:  # these models carry it: say so
+            rec = {
+                **rec,
+                "payload": {**rec["payload"], "in_models": bool(rec["payload"]["held_by"])},
+            }
         return bundle_files(
             rec,
             self.structure,
