@@ -61,7 +61,12 @@ class RunFailed(Exception):
 
 def _child(conn, bundle: str, program: dict) -> None:
     """Run ``program`` on the bundle in this (child) process; send back JSON bytes:
-    ``{"result": ...}`` or ``{"error": ..., "input": bool}``."""
+    ``{"result": ...}`` or ``{"error": ..., "input": bool}``. A Ctrl-C at the terminal
+    reaches the whole process group: the server stops its runs itself, so a run ignores
+    it (no KeyboardInterrupt traceback from a child)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         from program.session import run_program
 
@@ -75,8 +80,11 @@ def _child(conn, bundle: str, program: dict) -> None:
         data = json.dumps(reply, allow_nan=False).encode()
     except ValueError as e:
         data = json.dumps({"error": f"the result is not JSON: {e}", "input": False}).encode()
-    conn.send_bytes(data)
-    conn.close()
+    try:
+        conn.send_bytes(data)
+        conn.close()
+    except OSError:  # the server gave up on this run (its time limit) and closed its end
+        pass
 
 
 class Runner:
@@ -134,8 +142,8 @@ class Runner:
                     ) from None
             finally:
                 recv.close()
-                if proc.is_alive():
-                    proc.join(1.0)
+                if proc.is_alive():  # over its time limit, or its result is in: no grace
+                    proc.join(0.2)
                 if proc.is_alive():
                     proc.kill()
                 proc.join()

@@ -490,7 +490,7 @@ def test_a_program_over_the_time_limit_is_stopped(chromium, servers) -> None:
         page.close()
     assert server.stop() == 0  # Ctrl-C stops it cleanly
     assert any("stopped serving" in line for line in server.log)
-    assert not any("Traceback" in line for line in server.log)
+    assert not any("Traceback" in line for line in server.log), "\n".join(server.log)
 
 
 def test_the_server_listens_on_loopback_only_and_refuses_other_sites(servers) -> None:
