@@ -190,13 +190,21 @@ DIR_MODE = 0o755
 FILE_MODE = 0o644
 
 
-def write_bundle(out: str | Path, files: Mapping[str, str | bytes], force: bool = False) -> Path:
+def write_bundle(
+    out: str | Path,
+    files: Mapping[str, str | bytes],
+    force: bool = False,
+    modes: Mapping[str, int] | None = None,
+) -> Path:
     """Write ``files`` (relative name -> content) into the folder ``out``.
 
     The files are written to a temporary sibling folder that is then renamed into place,
     so an error leaves nothing half-written. An existing non-empty ``out`` is an error
-    unless ``force``, in which case it is replaced whole; an empty one is replaced.
+    unless ``force``, in which case it is replaced whole; an empty one is replaced. Files
+    get ``FILE_MODE``, or their mode in ``modes`` (an executable script), folders
+    ``DIR_MODE``.
     """
+    modes = modes or {}
     out = Path(out)
     for name in files:
         parts = Path(name).parts
@@ -223,7 +231,7 @@ def write_bundle(out: str | Path, files: Mapping[str, str | bytes], force: bool 
                 target.write_text(content, encoding="utf-8", newline="\n")
             else:
                 target.write_bytes(content)
-            target.chmod(FILE_MODE)
+            target.chmod(modes.get(name, FILE_MODE))
         if out.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old.", dir=parent))
             out.rename(old / "x")

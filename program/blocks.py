@@ -26,8 +26,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -86,20 +84,10 @@ def _require_web(web: Path) -> None:
 
 
 def read_record(folder: Path) -> dict:
-    """The design record of a bundle folder; InputError when it is not one."""
-    try:
-        record = json.loads((folder / "design.json").read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(
-            f"{folder}: no design.json (write one with 'parmor design ... --out DIR')"
-        ) from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise InputError(f"{folder / 'design.json'}: {e}") from None
-    if not isinstance(record, dict) or record.get("template") is None:
-        raise InputError(
-            f"{folder / 'design.json'}: not a sized design record (designed with --conceptual?)"
-        )
-    return record
+    """The design record of a bundle folder; InputError when it is not a sized one."""
+    from export.verify import bundle_record
+
+    return bundle_record(folder)
 
 
 def bundle_controller(folder: Path, record: Mapping) -> Controller:
@@ -215,24 +203,7 @@ def write_page(folder: str | Path) -> Path:
     record = read_record(folder)
     controller = bundle_controller(folder, record)
     files = page_files(page_config(folder, record, controller))
-    target = folder / PAGE_DIR
-    try:
-        tmp = Path(tempfile.mkdtemp(prefix=".blocks-", dir=folder))
-        try:
-            for rel, data in sorted(files.items()):
-                path = tmp / rel
-                path.parent.mkdir(parents=True, exist_ok=True)
-                path.write_bytes(data)
-            old = None
-            if target.exists():
-                old = folder / f".blocks-old-{os.getpid()}"
-                target.rename(old)
-            tmp.rename(target)
-            if old is not None:
-                shutil.rmtree(old, ignore_errors=True)
-        finally:
-            if tmp.exists():
-                shutil.rmtree(tmp, ignore_errors=True)
-    except OSError as e:
-        raise ExportError(f"{target}: cannot write the block page: {e}") from None
+    from export.bundle import write_bundle
+
+    target = write_bundle(folder / PAGE_DIR, files, force=True)
     return target / "index.html"

@@ -40,9 +40,7 @@ from __future__ import annotations
 import json
 import numbers
 import re
-import shutil
 import sys
-import tempfile
 from collections.abc import Mapping, Sequence
 from importlib import resources
 from pathlib import Path
@@ -489,63 +487,12 @@ def package_files(
     return files
 
 
-def write_package(
-    out: Path, files: Mapping[str, tuple[str | bytes, int]], force: bool = False
-) -> Path:
-    """Write ``files`` into the folder ``out`` atomically (a temporary sibling renamed
-    into place); an existing non-empty ``out`` needs ``force`` and is replaced whole."""
-    if out.exists() and not out.is_dir():
-        raise ExportError(f"{out}: exists and is not a folder")
-    if out.exists() and any(out.iterdir()) and not force:
-        raise ExportError(f"{out}: already exists and is not empty; pass --force to replace it")
-    parent = out.resolve().parent
-    try:
-        parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))
-    except OSError as e:
-        raise ExportError(f"{out}: cannot create: {e.strerror}") from None
-    try:
-        tmp.chmod(0o755)
-        for rel, (content, mode) in sorted(files.items()):
-            target = tmp / rel
-            target.parent.mkdir(parents=True, exist_ok=True)
-            if isinstance(content, str):
-                target.write_text(content, encoding="utf-8", newline="\n")
-            else:
-                target.write_bytes(content)
-            target.chmod(mode)
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old.", dir=parent))
-            out.rename(old / "x")
-            tmp.rename(out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            tmp.rename(out)
-    except OSError as e:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise ExportError(f"{out}: cannot write: {e.strerror}") from None
-    return out
-
-
 def read_bundle(folder: Path) -> tuple[dict, str, dict[str, bytes]]:
     """(design record, URDF text, the meshes it names) of a bundle folder; RosInputError
     naming what is wrong."""
-    path = folder / "design.json"
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise RosInputError(
-            f"{folder}: no design.json (write one with 'parmor design ... --out DIR')"
-        ) from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise RosInputError(f"{path}: {e}") from None
-    if not isinstance(record, dict):
-        raise RosInputError(f"{path}: not a design record (expected an object)")
-    if record.get("template") is None:
-        raise RosInputError(
-            f"{path}: the design has no structure (designed with --conceptual?), so it has "
-            "no controller to serve; design it without --conceptual"
-        )
+    from export.verify import bundle_record
+
+    record = bundle_record(folder)
     try:
         urdf = (folder / "robot.urdf").read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as e:
@@ -566,9 +513,16 @@ def ros_package(
 ) -> tuple[Path, dict]:
     """Write the ROS package of the bundle in ``folder`` into
     ``folder/ros/parmor_<robot>/``: (its path, its interface)."""
+    from export.bundle import write_bundle
+
     folder = Path(folder)
     record, urdf, meshes = read_bundle(folder)
     files = package_files(record, urdf, meshes, name, worker)
     iface = json.loads(str(files["interface.json"][0]))
-    out = write_package(folder / "ros" / iface["package"], files, force)
+    out = write_bundle(
+        folder / "ros" / iface["package"],
+        {rel: content for rel, (content, _) in files.items()},
+        force,
+        modes={rel: mode for rel, (_, mode) in files.items()},
+    )
     return out, iface
