@@ -115,13 +115,15 @@ def _value(x: object) -> object:
 
 
 def toolbox(controller: Controller, abilities: Sequence[str]) -> list[dict]:
-    """One entry per behaviour the design lists (name order): name, doc, and its
+    """One entry per behaviour a program may call (name order; the listed ones and the
+    sensing ones, :func:`program.session.program_behaviors`): name, doc, and its
     parameters (name, kind, default, unit, low, high, choices, doc). Depends only on the
     controller's behaviour descriptions, so two designs whose controllers describe their
     behaviours alike get identical toolboxes."""
+    from program.session import program_behaviors
+
     out = []
-    for name in controller.listed(abilities):
-        spec = controller.behaviors[name]
+    for name, spec in program_behaviors(controller, abilities).items():
         out.append(
             {
                 "name": name,

@@ -55,18 +55,12 @@ CLEARANCE_M = 0.05  # what the avoiding robot keeps from the obstacle, beyond it
 HEADING_GAIN = 1.5  # 1/s: steering back to the start heading once past the obstacle
 OBSTACLE = "parmor_obstacle"  # the scene's obstacle body and geom
 
-#: Behaviours a sensing loop can steer: behaviour -> how. ``rate``: at a forward speed and
-#: a turn rate for a short period (the parameters playing those roles, and values fixed for
-#: short periods). (A legged gait stepped one step at a time, turning in place between
-#: steps, was measured and left out: the hexapod covered 0.21 m of 1 m of line in 175 s.)
+#: Behaviours a sensing loop can steer at a forward speed and a turn rate for a short
+#: period: behaviour -> the parameters playing those roles, and the values fixed for short
+#: periods. (A legged gait stepped one step at a time, turning in place between steps, was
+#: measured and left out: the hexapod covered 0.21 m of 1 m of line in 175 s.)
 STEERABLE: dict[str, dict] = {
-    "driving": {
-        "kind": "rate",
-        "speed": "v",
-        "turn": "w",
-        "seconds": "seconds",
-        "fixed": {"ramp": 0.0},
-    },
+    "driving": {"speed": "v", "turn": "w", "seconds": "seconds", "fixed": {"ramp": 0.0}},
 }
 
 #: The sensing abilities this module simulates, with the motion each promises.
@@ -78,15 +72,13 @@ BUDGET = {"follow-line": (1.5, 2.0), "avoid": (3.0, 10.0)}
 
 @dataclass(frozen=True)
 class Steering:
-    """How a design is steered: its steerable behaviour, how (:data:`STEERABLE`), and
-    that behaviour's limits (a ``rate`` behaviour's top speed m/s and turn rate rad/s)."""
+    """How a design is steered: its steerable behaviour, the parameters playing the roles
+    (:data:`STEERABLE`), and its top speed m/s."""
 
     behavior: str
-    kind: str
-    roles: Mapping[str, str]  # role -> the behaviour's parameter, or the turning behaviour
+    roles: Mapping[str, str]  # role (speed, turn, seconds) -> the behaviour's parameter
     fixed: Mapping[str, object]
-    v_max: float = 0.0
-    w_max: float = 0.0
+    v_max: float
 
 
 def steering(behaviors: Mapping[str, BehaviorSpec]) -> Steering | None:
@@ -96,18 +88,9 @@ def steering(behaviors: Mapping[str, BehaviorSpec]) -> Steering | None:
         if spec is None:
             continue
         ps = {p.name: p for p in spec.params}
-        roles = {k: v for k, v in how.items() if k not in ("kind", "fixed")}
-        if how["kind"] == "rate":
-            if not {how["speed"], how["turn"], how["seconds"]} <= set(ps):
-                continue
-            return Steering(
-                name,
-                "rate",
-                roles,
-                dict(how["fixed"]),
-                float(ps[how["speed"]].high or 0.0),
-                float(ps[how["turn"]].high or 0.0),
-            )
+        roles = {k: v for k, v in how.items() if k != "fixed"}
+        if set(roles.values()) <= set(ps):
+            return Steering(name, roles, dict(how["fixed"]), float(ps[how["speed"]].high or 0))
     return None
 
 
@@ -309,46 +292,20 @@ def run(session: Session, name: str, params: Mapping[str, object]) -> tuple[dict
     info) for :func:`export.verdict.judge`."""
     steer = steering(session.controller.behaviors)
     assert steer is not None
-    mover = _RateMover(session, steer, float(params["speed"]))
+    mover = _Driver(session, steer, float(params["speed"]))
     rig = Rig(session, mover.forward_axis())
     if name == "line-tracking":
         return _line(session, mover, rig, params)
     return _avoid(session, mover, rig, params)
 
 
-class _Mover:
-    """Moves the robot one action at a time: forward while turning (``go``, curvature
-    rad/m) or turning in place (``spin``). ``speed`` m/s: its forward speed on average."""
-
-    kind = ""
-    speed = 0.0
-
-    def __init__(self, session: Session, steer: Steering) -> None:
-        self.session, self.steer = session, steer
-
-    def forward_axis(self) -> np.ndarray:
-        """The body-frame direction the robot goes forward in."""
-        traj = self._straight()
-        dx, dy, _ = (float(c) for c in traj.info["planned_pose"])  # type: ignore[union-attr]
-        return np.array([dx, dy]) / math.hypot(dx, dy)
-
-    def _straight(self):
-        raise NotImplementedError
-
-    def go(self, curvature: float) -> None:
-        raise NotImplementedError
-
-    def spin(self, sense: float) -> None:
-        raise NotImplementedError
-
-
-class _RateMover(_Mover):
-    """A ``rate`` behaviour run for one control period at a time."""
-
-    kind = "rate"
+class _Driver:
+    """Runs the steerable behaviour one control period at a time: forward while turning
+    (``go``, curvature rad/m) or turning in place (``spin``) at rates that fit the drive.
+    ``speed`` m/s: its forward speed."""
 
     def __init__(self, session: Session, steer: Steering, speed: float) -> None:
-        super().__init__(session, steer)
+        self.session, self.steer = session, steer
         self.period = 1.0 / CONTROL_HZ
         self.speed = self.fit(speed, 0.0)[0]
         self.w_spin = 0.0
@@ -360,8 +317,11 @@ class _RateMover(_Mover):
             **{r["speed"]: v, r["turn"]: w, r["seconds"]: self.period, **self.steer.fixed},
         )
 
-    def _straight(self):
-        return self._plan(self.steer.v_max / 2, 0.0)
+    def forward_axis(self) -> np.ndarray:
+        """The body-frame direction the robot goes forward in."""
+        traj = self._plan(self.steer.v_max / 2, 0.0)
+        dx, dy, _ = (float(c) for c in traj.info["planned_pose"])  # type: ignore[union-attr]
+        return np.array([dx, dy]) / math.hypot(dx, dy)
 
     def fit(self, v: float, w: float) -> tuple[float, float]:
         """(v, w) scaled down together until the behaviour accepts them."""
@@ -388,7 +348,7 @@ class _RateMover(_Mover):
         self.step(0.0, sense * self.w_spin)
 
 
-def _line(session: Session, mover: _Mover, rig: Rig, params: Mapping) -> tuple[dict, dict]:
+def _line(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[dict, dict]:
     radius, length = (float(params[k]) for k in ("radius", "length"))
     # turn hard enough to follow the tightest curve and to swing the sensors, a lever
     # ``front`` ahead of the turning axis, back over the line within a sensor's span
@@ -442,10 +402,10 @@ def _line(session: Session, mover: _Mover, rig: Rig, params: Mapping) -> tuple[d
         "line_lost_s": longest,
         "max_line_offset_m": worst,
     }
-    return fig, {"motion": "follow-line", "course": str(params["course"])}
+    return fig, {"motion": SENSING["line-tracking"], "course": str(params["course"])}
 
 
-def _avoid(session: Session, mover: _Mover, rig: Rig, params: Mapping) -> tuple[dict, dict]:
+def _avoid(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[dict, dict]:
     import mujoco
 
     distance, width = (float(params[k]) for k in ("distance", "width"))
@@ -527,7 +487,7 @@ def _avoid(session: Session, mover: _Mover, rig: Rig, params: Mapping) -> tuple[
         "obstacle_contact_s": contact_s,
         "min_range_m": min_range,
     }
-    return fig, {"motion": "avoid"}
+    return fig, {"motion": SENSING["obstacle-avoidance"]}
 
 
 def _corners() -> list[np.ndarray]:

@@ -184,15 +184,13 @@ class BlocksServer(ThreadingHTTPServer):
         log: TextIO | None = None,
     ) -> None:
         from program.blocks import bundle_controller, read_record
+        from program.session import program_behaviors
 
         self.bundle = bundle.resolve()
         self.record = read_record(self.bundle)
         self.controller = bundle_controller(self.bundle, self.record)
         #: the behaviours a program may call (as program.session.Session offers them)
-        self.behaviors = {
-            n: self.controller.behaviors[n]
-            for n in self.controller.listed(self.record.get("abilities", ()))
-        }
+        self.behaviors = program_behaviors(self.controller, self.record.get("abilities", ()))
         self.runner = Runner(self.bundle, time_limit, max_runs)
         self.log = log
         super().__init__((HOST, port), Handler)

@@ -49,6 +49,18 @@ def _round(x: float) -> float:
     return float(f"{x:.6g}")
 
 
+def program_behaviors(controller, abilities) -> dict:
+    """The behaviours a program may call on a design with this controller and these
+    abilities (name -> BehaviorSpec, name order): those the design lists, and its sensing
+    behaviours (:mod:`program.sensing`). The session, the block page's toolbox and its
+    server all offer exactly these."""
+    from program.sensing import sensing_behaviors
+
+    out = {n: controller.behaviors[n] for n in controller.listed(abilities)}
+    out.update(sensing_behaviors(controller.behaviors, tuple(abilities)))
+    return dict(sorted(out.items()))
+
+
 class Session:
     """One chained simulation of a bundle (a folder written by ``parmor design --out``)."""
 
@@ -92,12 +104,10 @@ class Session:
         self.folder = folder
         self.controller = controller_for_model(self.record, self.model)
         abilities = tuple(self.record.get("abilities", ()))
-        names = self.controller.listed(abilities)
         #: the behaviours a program may call: name -> BehaviorSpec
-        self.behaviors = {n: self.controller.behaviors[n] for n in names}
+        self.behaviors = program_behaviors(self.controller, abilities)
         #: the sensing behaviours among them (closed loops, :mod:`program.sensing`)
         self.sensing = sensing_behaviors(self.controller.behaviors, abilities)
-        self.behaviors.update(self.sensing)
         #: the line a line follower follows, (N, 2) m, once one ran
         self.scene_line: np.ndarray | None = None
         self._counts = {"steps": 0, "saturated": 0, "contacts": 0}

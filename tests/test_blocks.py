@@ -522,3 +522,15 @@ def test_a_run_waits_for_a_free_slot_within_its_time_limit(bundles) -> None:
     with pytest.raises(RunFailed) as e:
         runner.run({"program": [{"wait": 1}]})
     assert e.value.status == HTTPStatus.SERVICE_UNAVAILABLE and "busy" in str(e.value)
+
+
+def test_a_design_with_sensing_gets_its_sensing_blocks(bundles) -> None:
+    """The toolbox offers what a program may call (program_behaviors): the sensing
+    behaviours too, and nothing for a sensing ability the design does not have."""
+    from program.blocks import bundle_controller, read_record, toolbox
+
+    rec = read_record(bundles["cart"])
+    c = bundle_controller(bundles["cart"], rec)
+    plain = [b["name"] for b in toolbox(c, rec["abilities"])]
+    sensing = [b["name"] for b in toolbox(c, [*rec["abilities"], "line-tracking"])]
+    assert "line-tracking" not in plain and sensing == sorted([*plain, "line-tracking"])
