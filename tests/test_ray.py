@@ -19,34 +19,17 @@ from pathlib import Path
 import pytest
 
 import synth.sweep
-from tests.test_sweep import outputs, write
+from tests.test_sweep import TINY, outputs, write
 
 CI = os.environ.get("CI") == "true"
 REPO = Path(__file__).resolve().parents[1]
 WORKERS = 2  # CPUs of the test cluster: two tasks at once
 OBJECT_STORE = 100 * 1024**2  # bytes; the results are small dicts
 
-# cheap requests: two snakes, two carts, one too fast to size, one no robot can meet
-STUDY = """\
-[[request]]
-name = "snake"
-abilities = ["rolling"]
-params = { payload = ["0kg", "0.05kg"] }
-
-[[request]]
-name = "cart"
-abilities = ["driving"]
-params = { payload = "0.5kg", speed = ["0.1m/s", "0.2m/s"] }
-
-[[request]]
-name = "fast-cart"
-abilities = ["driving"]
-params = { payload = "0.5kg", speed = "0.6m/s" }
-
-[[request]]
-abilities = ["rolling", "grasping"]
-"""
-N_STUDY = 6
+# the sweep tests' cheap study: two snakes, two carts, one too fast to size, one no robot
+# can meet, one that needs an answer
+STUDY = TINY
+N_STUDY = 7
 
 
 def need_ray():
