@@ -54,6 +54,7 @@ OBSTACLE_DEPTH_M, OBSTACLE_HEIGHT_M = 0.10, 0.25  # the box set across the path
 CLEARANCE_M = 0.05  # what the avoiding robot keeps from the obstacle, beyond its corners
 HEADING_GAIN = 1.5  # 1/s: steering back to the start heading once past the obstacle
 OBSTACLE = "parmor_obstacle"  # the scene's obstacle body and geom
+_SIGNS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
 
 #: Behaviours a sensing loop can steer at a forward speed and a turn rate for a short
 #: period: behaviour -> the parameters playing those roles, and the values fixed for short
@@ -161,27 +162,13 @@ class Rig:
     """The sensors on a session's robot: where they sit on the trunk (body frame, m)."""
 
     def __init__(self, session: Session, forward: np.ndarray) -> None:
-        m = session.model
         self.session = session
         fwd = np.array([forward[0], forward[1], 0.0])
         self.forward = fwd / np.linalg.norm(fwd)
         self.left = np.array([-self.forward[1], self.forward[0], 0.0])
-        reach, low, high = -math.inf, math.inf, -math.inf
-        for g in range(m.ngeom):
-            if m.geom_bodyid[g] != 1:
-                continue
-            c, h = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
-            rot = np.empty(9)
-            import mujoco
-
-            mujoco.mju_quat2Mat(rot, m.geom_quat[g])
-            rot = rot.reshape(3, 3)
-            for sx in (-1, 1):
-                for sy in (-1, 1):
-                    for sz in (-1, 1):
-                        p = m.geom_pos[g] + rot @ (c + h * np.array([sx, sy, sz]))
-                        reach = max(reach, float(p @ self.forward))
-                        low, high = min(low, float(p[2])), max(high, float(p[2]))
+        trunk = self._corners(trunk_only=True)
+        reach = float(np.max(trunk @ self.forward))
+        low, high = float(trunk[:, 2].min()), float(trunk[:, 2].max())
         self.front = reach
         #: body-frame points: the infrared pair (left, right) and the ranger
         self.ir = [
@@ -190,23 +177,26 @@ class Rig:
         ]
         self.ranger = self.forward * reach + np.array([0, 0, (low + high) / 2])
 
+    def _corners(self, trunk_only: bool) -> np.ndarray:
+        """Corners (N, 3) m of the bounding boxes of the robot's parts (the trunk's only,
+        or all), now, in the trunk's frame."""
+        m, d = self.session.model, self.session.data
+        rot0, pos0 = d.xmat[1].reshape(3, 3), d.xpos[1]
+        out = []
+        for g in range(m.ngeom):
+            b = m.geom_bodyid[g]
+            if b == 0 or m.body_mocapid[b] >= 0 or (trunk_only and b != 1):
+                continue
+            box = m.geom_aabb[g, :3] + m.geom_aabb[g, 3:] * _SIGNS
+            world = d.geom_xpos[g] + box @ d.geom_xmat[g].reshape(3, 3).T
+            out.append((world - pos0) @ rot0)
+        return np.concatenate(out)
+
     def extent(self) -> tuple[float, float]:
         """(reach m of the robot's parts from the trunk's origin in the ground plane, half
         width m across the forward direction), from every part's bounding box now."""
-        m, d = self.session.model, self.session.data
-        rot0, pos0 = d.xmat[1].reshape(3, 3), d.xpos[1]
-        reach = half = 0.0
-        for g in range(m.ngeom):
-            b = m.geom_bodyid[g]
-            if b == 0 or m.body_mocapid[b] >= 0:
-                continue
-            c, h = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
-            rot = d.geom_xmat[g].reshape(3, 3)
-            for corner in _corners():
-                p = rot0.T @ (d.geom_xpos[g] + rot @ (c + h * corner) - pos0)
-                reach = max(reach, float(np.hypot(p[0], p[1])))
-                half = max(half, abs(float(p @ self.left)))
-        return reach, half
+        pts = self._corners(trunk_only=False)
+        return float(np.hypot(pts[:, 0], pts[:, 1]).max()), float(np.abs(pts @ self.left).max())
 
     def world(self, p: np.ndarray) -> np.ndarray:
         d = self.session.data
@@ -488,10 +478,6 @@ def _avoid(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple
         "min_range_m": min_range,
     }
     return fig, {"motion": SENSING["obstacle-avoidance"]}
-
-
-def _corners() -> list[np.ndarray]:
-    return [np.array([x, y, z], dtype=float) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
 
 
 def _turned(now: float, then: float) -> float:
