@@ -20,12 +20,18 @@ SHARED = REPO.parent / "shared"
 CI = os.environ.get("CI") == "true"
 
 
+def need(ok: bool, why: str) -> None:
+    """Skip with ``why`` unless ``ok``: a tool or folder the test needs is absent here. Under
+    CI=true fail instead: CI installs every tool and has ../shared (.ci/run)."""
+    if not ok:
+        if os.environ.get("CI") == "true":  # read now: a test may set it
+            pytest.fail(f"{why}, and CI=true forbids skipping")
+        pytest.skip(why)
+
+
 def require_dir(path: Path) -> Path:
     """``path`` if it is a folder; otherwise skip, or fail when CI=true (CI has ../shared)."""
-    if not path.is_dir():
-        if os.environ.get("CI") == "true":
-            pytest.fail(f"{path} is missing, and CI=true forbids skipping")
-        pytest.skip(f"{path} is absent (tests that need ../shared skip)")
+    need(path.is_dir(), f"{path} is absent (tests that need ../shared skip)")
     return path
 
 

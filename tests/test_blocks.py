@@ -27,7 +27,7 @@ import pytest
 
 from program.blocks import MAKE_TARGET, WEB_ENV, toolbox, web_dir
 from synth.cli import main
-from tests.conftest import CI, REPO
+from tests.conftest import REPO, need
 
 #: Chromium's switches: headless, no network but the page's server, a software WebGL.
 CHROMIUM_ARGS = [
@@ -57,24 +57,17 @@ DESIGNS = {
 }
 
 
-def _need(ok: bool, why: str) -> None:
-    if not ok:
-        if CI:
-            pytest.fail(f"{why}, and CI=true forbids skipping")
-        pytest.skip(why)
-
-
 @pytest.fixture(scope="module")
 def chromium():
     """A headless Chromium (Debian's, never a downloaded one), one for the module."""
     exe = shutil.which("chromium") or shutil.which("chromium-browser")
-    _need(exe is not None, "chromium is absent (apt-get install chromium)")
+    need(exe is not None, "chromium is absent (apt-get install chromium)")
     try:
         from playwright.sync_api import sync_playwright
     except ImportError:
-        _need(False, "the playwright Python package is absent (pip install -e '.[test]')")
+        need(False, "the playwright Python package is absent (pip install -e '.[test]')")
     web = web_dir()
-    _need(
+    need(
         (web / "node_modules" / "blockly").is_dir() and (web / "node_modules" / "three").is_dir(),
         f"the npm packages are absent ({MAKE_TARGET})",
     )

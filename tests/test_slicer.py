@@ -20,7 +20,7 @@ from export.slicer import prusa_slicer, slice_stl
 from synth.conceptual import Design, Request
 from synth.solver import Query
 from synth.structure import design_structure
-from tests.conftest import CI
+from tests.conftest import need
 from tests.test_bundle_designs import NON_DEFAULT
 
 #: The BOM's estimates against the slicer's (relative).
@@ -30,10 +30,7 @@ TOLERANCE = 0.15
 @pytest.fixture(scope="module")
 def sliced(kb, designer, catalog):
     exe = prusa_slicer()
-    if exe is None:
-        if CI:
-            pytest.fail("prusa-slicer is missing (apt-get install prusa-slicer)")
-        pytest.skip("prusa-slicer is not installed")
+    need(exe is not None, "prusa-slicer is not installed (apt-get install prusa-slicer)")
     cands = {c.robot_type: c for c in designer.reasoner.solve(Query()).candidates}
     requests = [(t, {}) for t in sorted(cands)] + list(NON_DEFAULT)
     parts: dict[bytes, tuple[str, dict, tuple[float, float, float]]] = {}
@@ -81,10 +78,7 @@ def test_a_part_off_the_bed_is_caught() -> None:
     """A part built to fail: a plate larger than the bed it is sliced for. PrusaSlicer
     either refuses it or extrudes off the bed; either way the check does not pass it."""
     exe = prusa_slicer()
-    if exe is None:
-        if CI:
-            pytest.fail("prusa-slicer is missing (apt-get install prusa-slicer)")
-        pytest.skip("prusa-slicer is not installed")
+    need(exe is not None, "prusa-slicer is not installed (apt-get install prusa-slicer)")
     from export import meshes
 
     stl = meshes.stl_bytes(meshes.plate_mesh(0.12, 0.05, 0.002))

@@ -22,6 +22,7 @@ import pytest
 
 from export.model3d import Assembly, BodySpec, Geometry, JointSpec, PartUse, PrintedPart
 from export.urdf import number, rpy_from_matrix, urdf_robot, urdf_string
+from tests.conftest import need
 
 trimesh = pytest.importorskip("trimesh")
 yourdfpy = pytest.importorskip("yourdfpy")
@@ -377,10 +378,7 @@ def check_loaded(assembly: Assembly, path: Path) -> None:
 
 def run_check_urdf(path: Path) -> None:
     tool = shutil.which("check_urdf")
-    if tool is None:
-        if os.environ.get("CI") == "true":
-            pytest.fail("check_urdf is missing (apt-get install liburdfdom-tools)")
-        pytest.skip("check_urdf is absent (apt-get install liburdfdom-tools)")
+    need(tool is not None, "check_urdf is absent (apt-get install liburdfdom-tools)")
     r = subprocess.run([tool, str(path)], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "Successfully Parsed XML" in r.stdout
