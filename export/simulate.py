@@ -134,6 +134,10 @@ def carrying_payload(xml: str, record: Mapping) -> str:
 
 #: m^2: a point payload's inertia per kg (a 3 cm radius of gyration: MuJoCo needs some)
 PAYLOAD_INERTIA = 0.03**2
+#: Physics steps per ``mujoco.rollout`` call when nobody observes the run: progress is
+#: reported this often (1 s simulated at 2 ms), and a call's own cost (tens of
+#: microseconds) is under 1 % of the stepping it does.
+CHUNK_STEPS = 500
 
 
 def load_files_model(files: Mapping[str, str | bytes]):
@@ -176,6 +180,147 @@ def _rotation_angle(a: np.ndarray, b: np.ndarray) -> float:
     return math.acos(max(-1.0, min(1.0, c)))
 
 
+class ServoLaw:
+    """MuJoCo's actuator law of ``model``, vectorised over recorded states: the effort its
+    actuators were asked for before the clamp to ``forcerange`` (:meth:`efforts`) and the
+    force they gave (:meth:`forces`), from positions, velocities and controls.
+
+    The same arithmetic, in the same order, as MuJoCo's ``mj_transmission`` and
+    ``mj_fwdActuation`` for joint actuators without activation dynamics (what
+    :mod:`export.mjcf` writes: ``<position>`` and ``<velocity>`` servos): ``ctrl`` clamped to
+    ``ctrlrange``, ``length = gear q``, ``velocity = gear qdot``, ``effort = gain ctrl +
+    (b0 + b1 length + b2 velocity)`` (an affine gain likewise), ``force = clip(effort,
+    forcerange)``; equal to ``MjData.actuator_force`` to the bit (a test checks it).
+    ValueError for other actuators."""
+
+    def __init__(self, model) -> None:
+        import mujoco
+
+        affine_gain = model.actuator_gaintype == mujoco.mjtGain.mjGAIN_AFFINE
+        no_bias = model.actuator_biastype == mujoco.mjtBias.mjBIAS_NONE
+        ok = (
+            (model.actuator_trntype == mujoco.mjtTrn.mjTRN_JOINT)
+            & (model.actuator_dyntype == mujoco.mjtDyn.mjDYN_NONE)
+            & (affine_gain | (model.actuator_gaintype == mujoco.mjtGain.mjGAIN_FIXED))
+            & (no_bias | (model.actuator_biastype == mujoco.mjtBias.mjBIAS_AFFINE))
+        )
+        if not ok.all():
+            bad = ", ".join(model.actuator(k).name for k in np.flatnonzero(~ok))
+            raise ValueError(
+                f"actuators {bad}: only joint actuators without activation dynamics and with "
+                "a fixed or affine gain and bias can be simulated"
+            )
+        joint = model.actuator_trnid[:, 0]
+        self.qadr = model.jnt_qposadr[joint]
+        self.vadr = model.jnt_dofadr[joint]
+        self.gear = model.actuator_gear[:, 0].copy()
+        self.gain = model.actuator_gainprm[:, :3].copy()
+        self.gain[~affine_gain, 1:] = 0.0
+        self.affine_gain = bool(affine_gain.any())
+        self.bias = model.actuator_biasprm[:, :3].copy()
+        self.bias[no_bias] = 0.0
+        clamp = not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL
+        limited = model.actuator_ctrllimited.astype(bool) & clamp
+        self.ctrl_lo = np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf)
+        self.ctrl_hi = np.where(limited, model.actuator_ctrlrange[:, 1], np.inf)
+        limited = model.actuator_forcelimited.astype(bool)
+        self.force_lo = np.where(limited, model.actuator_forcerange[:, 0], -np.inf)
+        self.force_hi = np.where(limited, model.actuator_forcerange[:, 1], np.inf)
+        #: N m: what an actuator's |force| is measured against (its larger force bound)
+        self.limit = np.maximum(np.abs(model.actuator_forcerange).max(axis=1), 1e-12)
+
+    def efforts(self, qpos: np.ndarray, qvel: np.ndarray, ctrl: np.ndarray) -> np.ndarray:
+        """(N, nu) N m asked of each actuator before its clamp, in states qpos (N, nq) and
+        qvel (N, nv) under controls ctrl (N, nu)."""
+        length = self.gear * qpos[:, self.qadr]
+        velocity = self.gear * qvel[:, self.vadr]
+        c = np.clip(ctrl, self.ctrl_lo, self.ctrl_hi)
+        b, g = self.bias, self.gain
+        bias = b[:, 0] + b[:, 1] * length + b[:, 2] * velocity
+        gain = g[:, 0] + g[:, 1] * length + g[:, 2] * velocity if self.affine_gain else g[:, 0]
+        return gain * c + bias
+
+    def forces(self, effort: np.ndarray) -> np.ndarray:
+        """(N, nu) N m the actuators gave: ``effort`` clamped to their force ranges."""
+        return np.clip(effort, self.force_lo, self.force_hi)
+
+
+def _user_inputs(model, data) -> int:
+    """The ``mjtState`` bits of the inputs a rollout must be given each step to keep what
+    ``data`` holds: the controls, and the applied forces and equality switches where they
+    are not MuJoCo's defaults (a rollout clears those it is not given; the mocap bodies'
+    poses travel in its state)."""
+    import mujoco
+
+    s = mujoco.mjtState
+    spec = int(s.mjSTATE_CTRL)
+    if data.qfrc_applied.any():
+        spec |= int(s.mjSTATE_QFRC_APPLIED)
+    if data.xfrc_applied.any():
+        spec |= int(s.mjSTATE_XFRC_APPLIED)
+    if model.neq and not np.array_equal(data.eq_active, model.eq_active0):
+        spec |= int(s.mjSTATE_EQ_ACTIVE)
+    return spec
+
+
+def step_through(
+    model,
+    data,
+    ctrl: np.ndarray,
+    every: int = CHUNK_STEPS,
+    after: Callable[[int], None] | None = None,
+) -> np.ndarray:
+    """Step ``data`` ``len(ctrl)`` times under the controls ``ctrl`` (steps, nu), inside
+    MuJoCo (``mujoco.rollout``) in runs of ``every`` steps, calling ``after(i)`` after each
+    run (``i`` steps done; ``data`` is then as after ``i`` calls of ``mj_step``). Returns the
+    state after each step, (steps, nstate) in ``mjSTATE_FULLPHYSICS`` layout.
+
+    The same physics as a loop of ``mj_step`` to the bit: each run starts from ``data``'s
+    full state and its warm start. A run that MuJoCo stops at a warning (a rollout does,
+    a plain loop goes on: a diverged state is reset) is finished with ``mj_step``."""
+    import mujoco
+    from mujoco import rollout
+
+    steps = len(ctrl)
+    full = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    nstate = mujoco.mj_stateSize(model, full)
+    states = np.empty((steps, nstate))
+    state0 = np.empty((1, nstate))
+    spec = _user_inputs(model, data)
+    extra = spec & ~int(mujoco.mjtState.mjSTATE_CTRL)
+    tail = np.empty(mujoco.mj_stateSize(model, extra)) if extra else None
+    runner = rollout.Rollout(nthread=0)
+    try:
+        for a in range(0, steps, every):
+            b = min(steps, a + every)
+            mujoco.mj_getState(model, data, state0[0], full)
+            controls = np.ascontiguousarray(ctrl[a:b], dtype=float)
+            if tail is not None:
+                mujoco.mj_getState(model, data, tail, extra)
+                controls = np.hstack([controls, np.broadcast_to(tail, (b - a, len(tail)))])
+            runner.rollout(
+                [model],
+                [data],
+                state0,
+                controls[None],
+                control_spec=spec,
+                skip_checks=True,
+                nstep=b - a,
+                initial_warmstart=data.qacc_warmstart[None].copy(),
+                state=states[None, a:b],
+            )
+            done = int(round((data.time - state0[0, 0]) / model.opt.timestep))
+            for i in range(a + done, b):  # stopped at a warning: on as mj_step goes on
+                data.ctrl[:] = ctrl[i]
+                mujoco.mj_step(model, data)
+                mujoco.mj_getState(model, data, states[i], full)
+            if after is not None:
+                after(b)
+    finally:
+        runner.close()
+    return states
+
+
 def simulate(
     model,
     traj: Trajectory,
@@ -185,6 +330,7 @@ def simulate(
     progress: Callable[[float], None] | None = None,
     data=None,
     observe: Callable[[float, object], None] | None = None,
+    observe_every: float | None = None,
 ) -> SimResult:
     """Run ``traj`` on ``model`` (a mujoco.MjModel) for ``seconds`` (default: the
     trajectory's duration; the trajectory holds its last value after its end), measure what
@@ -194,7 +340,9 @@ def simulate(
     ``data``: a ``mujoco.MjData`` to continue from (a program chaining behaviours): the
     robot is not reset to the trajectory's first pose, and the promise (planned pose,
     direction), given for a start at yaw 0, is turned by the yaw the robot starts with.
-    ``observe(t, data)`` is called after every physics step (``t`` s since this run began)."""
+    ``observe(t, data)`` is called every ``observe_every`` s (rounded to whole physics
+    steps; default: after every step) and after the last step, ``t`` s since this run
+    began. ``progress(fraction)`` is called every :data:`CHUNK_STEPS` steps."""
     import mujoco
 
     from export.verdict import COLLAPSE_HEIGHT, COLLAPSE_TILT, SATURATION_LEVEL, judge
@@ -206,6 +354,7 @@ def simulate(
     seconds = traj.duration if seconds is None else seconds
     if not (math.isfinite(seconds) and seconds > 0):
         raise ValueError(f"seconds must be a positive finite number, got {seconds}")
+    law = ServoLaw(model)
     free = model.njnt > 0 and model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
     act = {model.actuator(k).name: k for k in range(model.nu)}
     columns = []
@@ -224,76 +373,80 @@ def simulate(
     start = data.qpos[:3].copy() if free else np.zeros(3)
     com0 = data.subtree_com[1].copy() if free else np.zeros(3)
     yaw0 = _yaw(data.qpos[3:7]) if free else 0.0
-    steps = max(1, int(round(seconds / model.opt.timestep)))
-    fell_at = None
-    ratio = 0.0
-    limit = np.maximum(np.abs(model.actuator_forcerange).max(axis=1), 1e-12)
-    # the servo law before the actuator's clamp: gain * ctrl + b0 + b1 * length + b2 * velocity
-    gain = model.actuator_gainprm[:, 0].copy()
-    bias = model.actuator_biasprm[:, :3].copy()
-    demand = 0.0
-    saturated_steps = 0
-    saturated_each = np.zeros(model.nu, dtype=int)
-    min_height = math.inf
-    max_tilt = 0.0
-    times, roots, qs, refs, forces, demands = [], [], [], [], [], []
-    every = max(1, steps // 500)
-    placed_at = traj.info.get("placed_at_s")
-    placed_step = None if placed_at is None else int(round(float(placed_at) / model.opt.timestep))
-    placed_step = None if placed_step is None else min(placed_step, steps - 1)
-    placed_where = placed_rot = None
-    grid = np.arange(steps) * model.opt.timestep
-    # the references at every step, resampled once (held at the trajectory's ends)
-    ctrl = np.empty((steps, len(columns)))
-    ref = np.empty((steps, len(columns)))
-    for n, (k, _, velocity) in enumerate(columns):
-        ref[:, n] = np.interp(grid, traj.times, traj.positions[:, k])
-        ctrl[:, n] = np.interp(grid, traj.times, traj.velocities[:, k]) if velocity else ref[:, n]
+    dt = model.opt.timestep
+    steps = max(1, int(round(seconds / dt)))
+    grid = np.arange(steps) * dt
+    # the references at every step, resampled once (held at the trajectory's ends); the
+    # other actuators keep the controls they have
     idx = np.array([a for _, a, _ in columns], dtype=int)
+    ref = np.empty((steps, len(columns)))
+    ctrl = np.tile(data.ctrl, (steps, 1))
+    for n, (k, a, velocity) in enumerate(columns):
+        ref[:, n] = np.interp(grid, traj.times, traj.positions[:, k])
+        ctrl[:, a] = np.interp(grid, traj.times, traj.velocities[:, k]) if velocity else ref[:, n]
+    placed_at = traj.info.get("placed_at_s")
+    placed_step = None if placed_at is None else int(round(float(placed_at) / dt))
+    placed_step = None if placed_step is None else min(placed_step, steps - 1)
+
+    # the run, inside MuJoCo; the states before each step are the start and all but the
+    # last state after one
+    full = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    first = np.empty(mujoco.mj_stateSize(model, full))
+    mujoco.mj_getState(model, data, first, full)
+    every = CHUNK_STEPS
+    after = None
+    if observe is not None:
+        every = 1 if observe_every is None else max(1, int(round(observe_every / dt)))
+
+        def after(i: int) -> None:
+            observe(i * dt, data)
+            if progress is not None and (i // CHUNK_STEPS) > ((i - every) // CHUNK_STEPS):
+                progress(i * dt / seconds)
+
+    elif progress is not None:
+
+        def after(i: int) -> None:
+            progress(i * dt / seconds)
+
+    if progress is not None:
+        progress(0.0)
+    states = step_through(model, data, ctrl, every, after)
+    nq, nv = model.nq, model.nv
+    qpos_after = states[:, 1 : 1 + nq]
+    before = np.vstack([first[None], states[:-1]])
+    qpos_before = before[:, 1 : 1 + nq]
+    qvel_before = before[:, 1 + nq : 1 + nq + nv]
+
+    # what the actuators were asked and gave at each step, from the recorded states
+    effort = law.efforts(qpos_before, qvel_before, ctrl)
+    demand_each = np.abs(effort) / law.limit
+    force = law.forces(effort)
+    force_each = np.abs(force) / law.limit
+    at_limit = force_each >= SATURATION_LEVEL
+    saturated_each = at_limit.sum(axis=0)
     judge_fall = free and can_fall
-    for i in range(steps):
-        t = grid[i]
-        q = ref[i]
-        data.ctrl[idx] = ctrl[i]
-        mujoco.mj_step(model, data)
-        if observe is not None:
-            observe(t + model.opt.timestep, data)
-        if i == placed_step and end_effector is not None:
-            placed_where = data.xpos[model.body(end_effector).id].copy()
-            placed_rot = data.xmat[model.body(end_effector).id].reshape(3, 3).copy()
-        force = np.abs(data.actuator_force) / limit
-        ratio = max(ratio, float(force.max()))
-        at_limit = force >= SATURATION_LEVEL
-        if at_limit.any():
-            saturated_steps += 1
-            saturated_each += at_limit
-        effort = (
-            gain * data.ctrl
-            + bias[:, 0]
-            + bias[:, 1] * data.actuator_length
-            + bias[:, 2] * data.actuator_velocity
-        )
-        demand = max(demand, float(np.max(np.abs(effort) / limit)))
-        if judge_fall:
-            height = data.qpos[2] / start[2] if start[2] > 0 else 1.0
-            tilt = _tilt(data.qpos[3:7])
-            min_height = min(min_height, height)
-            max_tilt = max(max_tilt, tilt)
-            if fell_at is None and (height < COLLAPSE_HEIGHT or tilt > COLLAPSE_TILT):
-                fell_at = t
-        if i % every == 0 or i == steps - 1:
-            times.append(t)
-            roots.append(data.qpos[:7].copy() if free else np.zeros(7))
-            qs.append(
-                [data.qpos[model.jnt_qposadr[model.actuator_trnid[a, 0]]] for _, a, _ in columns]
-            )
-            refs.append(q)
-            forces.append(data.actuator_force.copy())
-            demands.append(np.abs(effort) / limit)
-        if progress and i % 500 == 0:
-            progress(t / seconds)
+    fell_at = None
+    min_height = max_tilt = None
+    if judge_fall:
+        height = qpos_after[:, 2] / start[2] if start[2] > 0 else np.ones(steps)
+        w, x, y, z = qpos_after[:, 3:7].T
+        tilt = np.arccos(np.clip(1 - 2 * (x * x + y * y), -1.0, 1.0))
+        down = np.flatnonzero((height < COLLAPSE_HEIGHT) | (tilt > COLLAPSE_TILT))
+        fell_at = float(grid[down[0]]) if len(down) else None
+        min_height, max_tilt = float(height.min()), float(tilt.max())
+    placed_where = placed_rot = None
+    if placed_step is not None and end_effector is not None:
+        # the gripper's pose in the state it let go from (MuJoCo's kinematics of it)
+        pose = mujoco.MjData(model)
+        mujoco.mj_setState(model, pose, before[placed_step], full)
+        mujoco.mj_kinematics(model, pose)
+        eid = model.body(end_effector).id
+        placed_where = pose.xpos[eid].copy()
+        placed_rot = pose.xmat[eid].reshape(3, 3).copy()
+    sample = np.unique(np.append(np.arange(0, steps, max(1, steps // 500)), steps - 1))
+    qadr = model.jnt_qposadr[model.actuator_trnid[idx, 0]]
+    root = qpos_after[sample, :7] if free else np.zeros((len(sample), 7))
     end = data.qpos[:3].copy() if free else np.zeros(3)
-    root = np.array(roots)
     heading = 0.0
     if free:  # unwrapped over the samples, so turns past 180 degrees count whole
         heading = float(np.unwrap([_yaw(r[3:7]) for r in root])[-1] - yaw0)
@@ -304,23 +457,23 @@ def simulate(
         heading,
         fell_at is not None,
         fell_at,
-        ratio,
-        demand_ratio_max=demand,
-        saturated_fraction=saturated_steps / steps,
+        float(force_each.max(initial=0.0)),
+        demand_ratio_max=float(demand_each.max(initial=0.0)),
+        saturated_fraction=int(at_limit.any(axis=1).sum()) / steps,
         saturated_joints={
             model.actuator(k).name: float(saturated_each[k] / steps)
             for k in range(model.nu)
             if saturated_each[k]
         },
-        min_height_ratio=min_height if judge_fall else None,
-        max_tilt_rad=max_tilt if judge_fall else None,
+        min_height_ratio=min_height,
+        max_tilt_rad=max_tilt,
         series={
-            "t": np.array(times),
+            "t": grid[sample],
             "root": root,
-            "q": np.array(qs),
-            "q_ref": np.array(refs),
-            "force": np.array(forces),
-            "demand": np.array(demands),
+            "q": qpos_after[np.ix_(sample, qadr)],
+            "q_ref": ref[sample],
+            "force": force[sample],
+            "demand": demand_each[sample],
         },
     )
     info = traj.info

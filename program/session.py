@@ -179,6 +179,7 @@ class Session:
             end_effector=str(body) if body is not None else None,
             data=self.data,
             observe=lambda t, d: self._observe(t0 + t, d),
+            observe_every=1 / max(PATH_HZ, ANIMATION_FPS),
         )
         self.time = t0 + result.seconds
         end = self._pose()

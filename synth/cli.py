@@ -896,6 +896,9 @@ MIN_SIM_SECONDS = 0.1
 def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from pathlib import Path
 
+    # nothing here renders: MuJoCo without its OpenGL back-end (glfw) imports 50-150 ms sooner
+    os.environ.setdefault("MUJOCO_GL", "disable")
+
     from export.record import to_json
 
     folder = Path(args.dir)
