@@ -246,14 +246,16 @@ class ServoLaw:
 
 
 def _user_inputs(model, data) -> int:
-    """The ``mjtState`` bits of the inputs a rollout must be given each step to keep what
-    ``data`` holds: the controls, and the applied forces and equality switches where they
-    are not MuJoCo's defaults (a rollout clears those it is not given; the mocap bodies'
-    poses travel in its state)."""
+    """The ``mjtState`` bits of the inputs a rollout must be given at each step to keep what
+    ``data`` holds (a rollout resets those it is not given): the controls, the mocap bodies'
+    poses (a program's obstacle), and the applied forces and equality switches where they
+    are not MuJoCo's defaults."""
     import mujoco
 
     s = mujoco.mjtState
     spec = int(s.mjSTATE_CTRL)
+    if model.nmocap:
+        spec |= int(s.mjSTATE_MOCAP_POS) | int(s.mjSTATE_MOCAP_QUAT)
     if data.qfrc_applied.any():
         spec |= int(s.mjSTATE_QFRC_APPLIED)
     if data.xfrc_applied.any():
@@ -269,11 +271,13 @@ def step_through(
     ctrl: np.ndarray,
     every: int = CHUNK_STEPS,
     after: Callable[[int], None] | None = None,
+    sensed: np.ndarray | None = None,
 ) -> np.ndarray:
     """Step ``data`` ``len(ctrl)`` times under the controls ``ctrl`` (steps, nu), inside
     MuJoCo (``mujoco.rollout``) in runs of ``every`` steps, calling ``after(i)`` after each
     run (``i`` steps done; ``data`` is then as after ``i`` calls of ``mj_step``). Returns the
-    state after each step, (steps, nstate) in ``mjSTATE_FULLPHYSICS`` layout.
+    state after each step, (steps, nstate) in ``mjSTATE_FULLPHYSICS`` layout; ``sensed``
+    (steps, nsensordata), when given, receives ``data.sensordata`` after each step.
 
     The same physics as a loop of ``mj_step`` to the bit: each run starts from ``data``'s
     full state and its warm start. A run that MuJoCo stops at a warning (a rollout does,
@@ -308,12 +312,15 @@ def step_through(
                 nstep=b - a,
                 initial_warmstart=data.qacc_warmstart[None].copy(),
                 state=states[None, a:b],
+                sensordata=None if sensed is None else sensed[None, a:b],
             )
             done = int(round((data.time - state0[0, 0]) / model.opt.timestep))
             for i in range(a + done, b):  # stopped at a warning: on as mj_step goes on
                 data.ctrl[:] = ctrl[i]
                 mujoco.mj_step(model, data)
                 mujoco.mj_getState(model, data, states[i], full)
+                if sensed is not None:
+                    sensed[i] = data.sensordata
             if after is not None:
                 after(b)
     finally:
