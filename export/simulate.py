@@ -173,6 +173,9 @@ PAYLOAD_INERTIA = 0.03**2
 #: reported this often (1 s simulated at 2 ms), and a call's own cost (tens of
 #: microseconds) is under 1 % of the stepping it does.
 CHUNK_STEPS = 500
+#: Physics steps measured at a time (20 s at 2 ms): the recorded states of a block (a few
+#: MB) are all a run holds, whatever its duration.
+BLOCK_STEPS = 10_000
 
 
 def load_files_model(files: Mapping[str, str | bytes]):
@@ -417,77 +420,94 @@ def simulate(
     yaw0 = _yaw(data.qpos[3:7]) if free else 0.0
     dt = model.opt.timestep
     steps = max(1, int(round(seconds / dt)))
-    grid = np.arange(steps) * dt
-    # the references at every step, resampled once (held at the trajectory's ends); the
-    # other actuators keep the controls they have
     idx = np.array([a for _, a, _ in columns], dtype=int)
-    ref = np.empty((steps, len(columns)))
-    ctrl = np.tile(data.ctrl, (steps, 1))
-    for n, (k, a, velocity) in enumerate(columns):
-        ref[:, n] = np.interp(grid, traj.times, traj.positions[:, k])
-        ctrl[:, a] = np.interp(grid, traj.times, traj.velocities[:, k]) if velocity else ref[:, n]
+    qadr = model.jnt_qposadr[model.actuator_trnid[idx, 0]]
+    held = data.ctrl.copy()  # the actuators the trajectory does not drive keep these
     placed_at = traj.info.get("placed_at_s")
     placed_step = None if placed_at is None else int(round(float(placed_at) / dt))
     placed_step = None if placed_step is None else min(placed_step, steps - 1)
-
-    # the run, inside MuJoCo; the states before each step are the start and all but the
-    # last state after one
-    full = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    first = np.empty(mujoco.mj_stateSize(model, full))
-    mujoco.mj_getState(model, data, first, full)
     every = CHUNK_STEPS
-    after = None
     if observe is not None:
         every = 1 if observe_every is None else max(1, int(round(observe_every / dt)))
-
-        def after(i: int) -> None:
-            observe(i * dt, data)
-            if progress is not None and (i // CHUNK_STEPS) > ((i - every) // CHUNK_STEPS):
-                progress(i * dt / seconds)
-
-    elif progress is not None:
-
-        def after(i: int) -> None:
-            progress(i * dt / seconds)
-
+    # the run goes in blocks of whole observation periods, each measured once it is done:
+    # memory stays that of a block whatever the duration
+    block = max(1, BLOCK_STEPS // every) * every
+    full = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    last = np.empty(mujoco.mj_stateSize(model, full))  # the state before the next step
+    mujoco.mj_getState(model, data, last, full)
+    nq, nv = model.nq, model.nv
+    sample = np.unique(np.append(np.arange(0, steps, max(1, steps // 500)), steps - 1))
+    judge_fall = free and can_fall
+    fell_at = min_height = max_tilt = None
+    ratio = demand = 0.0
+    saturated_steps = 0
+    saturated_each = np.zeros(model.nu, dtype=int)
+    placed_where = placed_rot = None
+    series: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "root", "q", "q_ref", "force")}
+    series["demand"] = []
     if progress is not None:
         progress(0.0)
-    states = step_through(model, data, ctrl, every, after)
-    nq, nv = model.nq, model.nv
-    qpos_after = states[:, 1 : 1 + nq]
-    before = np.vstack([first[None], states[:-1]])
-    qpos_before = before[:, 1 : 1 + nq]
-    qvel_before = before[:, 1 + nq : 1 + nq + nv]
+    for start_step in range(0, steps, block):
+        n = min(block, steps - start_step)
+        grid = (start_step + np.arange(n)) * dt
+        # the references at every step (held at the trajectory's ends)
+        ref = np.empty((n, len(columns)))
+        ctrl = np.tile(held, (n, 1))
+        for c, (k, a, velocity) in enumerate(columns):
+            ref[:, c] = np.interp(grid, traj.times, traj.positions[:, k])
+            if velocity:
+                ctrl[:, a] = np.interp(grid, traj.times, traj.velocities[:, k])
+            else:
+                ctrl[:, a] = ref[:, c]
 
-    # what the actuators were asked and gave at each step, from the recorded states
-    effort = law.efforts(qpos_before, qvel_before, ctrl)
-    demand_each = np.abs(effort) / law.limit
-    force = law.forces(effort)
-    force_each = np.abs(force) / law.limit
-    at_limit = force_each >= SATURATION_LEVEL
-    saturated_each = at_limit.sum(axis=0)
-    judge_fall = free and can_fall
-    fell_at = None
-    min_height = max_tilt = None
-    if judge_fall:
-        height = qpos_after[:, 2] / start[2] if start[2] > 0 else np.ones(steps)
-        w, x, y, z = qpos_after[:, 3:7].T
-        tilt = np.arccos(np.clip(1 - 2 * (x * x + y * y), -1.0, 1.0))
-        down = np.flatnonzero((height < COLLAPSE_HEIGHT) | (tilt > COLLAPSE_TILT))
-        fell_at = float(grid[down[0]]) if len(down) else None
-        min_height, max_tilt = float(height.min()), float(tilt.max())
-    placed_where = placed_rot = None
-    if placed_step is not None and end_effector is not None:
-        # the gripper's pose in the state it let go from (MuJoCo's kinematics of it)
-        pose = mujoco.MjData(model)
-        mujoco.mj_setState(model, pose, before[placed_step], full)
-        mujoco.mj_kinematics(model, pose)
-        eid = model.body(end_effector).id
-        placed_where = pose.xpos[eid].copy()
-        placed_rot = pose.xmat[eid].reshape(3, 3).copy()
-    sample = np.unique(np.append(np.arange(0, steps, max(1, steps // 500)), steps - 1))
-    qadr = model.jnt_qposadr[model.actuator_trnid[idx, 0]]
-    root = qpos_after[sample, :7] if free else np.zeros((len(sample), 7))
+        def after(i: int, offset: int = start_step) -> None:
+            done = offset + i
+            if observe is not None:
+                observe(done * dt, data)
+            if progress is not None and done // CHUNK_STEPS > (done - every) // CHUNK_STEPS:
+                progress(done * dt / seconds)
+
+        states = step_through(model, data, ctrl, every, after)
+        before = np.vstack([last[None], states[:-1]])
+        last = states[-1].copy()
+        qpos_after = states[:, 1 : 1 + nq]
+
+        # what the actuators were asked and gave at each step, from the recorded states
+        effort = law.efforts(before[:, 1 : 1 + nq], before[:, 1 + nq : 1 + nq + nv], ctrl)
+        demand_each = np.abs(effort) / law.limit
+        force = law.forces(effort)
+        force_each = np.abs(force) / law.limit
+        at_limit = force_each >= SATURATION_LEVEL
+        ratio = max(ratio, float(force_each.max(initial=0.0)))
+        demand = max(demand, float(demand_each.max(initial=0.0)))
+        saturated_steps += int(at_limit.any(axis=1).sum())
+        saturated_each += at_limit.sum(axis=0)
+        if judge_fall:
+            height = qpos_after[:, 2] / start[2] if start[2] > 0 else np.ones(n)
+            w, x, y, z = qpos_after[:, 3:7].T
+            tilt = np.arccos(np.clip(1 - 2 * (x * x + y * y), -1.0, 1.0))
+            down = np.flatnonzero((height < COLLAPSE_HEIGHT) | (tilt > COLLAPSE_TILT))
+            if fell_at is None and len(down):
+                fell_at = float(grid[down[0]])
+            min_height = min(float(height.min()), math.inf if min_height is None else min_height)
+            max_tilt = max(float(tilt.max()), 0.0 if max_tilt is None else max_tilt)
+        let_go = None if placed_step is None else placed_step - start_step
+        if end_effector is not None and let_go is not None and 0 <= let_go < n:
+            # the gripper's pose in the state it let go from (MuJoCo's kinematics of it)
+            pose = mujoco.MjData(model)
+            mujoco.mj_setState(model, pose, before[let_go], full)
+            mujoco.mj_kinematics(model, pose)
+            eid = model.body(end_effector).id
+            placed_where = pose.xpos[eid].copy()
+            placed_rot = pose.xmat[eid].reshape(3, 3).copy()
+        rows = sample[(sample >= start_step) & (sample < start_step + n)] - start_step
+        series["t"].append(grid[rows])
+        series["root"].append(qpos_after[rows, :7] if free else np.zeros((len(rows), 7)))
+        series["q"].append(qpos_after[np.ix_(rows, qadr)])
+        series["q_ref"].append(ref[rows])
+        series["force"].append(force[rows])
+        series["demand"].append(demand_each[rows])
+    root = np.concatenate(series["root"])
     end = data.qpos[:3].copy() if free else np.zeros(3)
     heading = 0.0
     if free:  # unwrapped over the samples, so turns past 180 degrees count whole
@@ -499,9 +519,9 @@ def simulate(
         heading,
         fell_at is not None,
         fell_at,
-        float(force_each.max(initial=0.0)),
-        demand_ratio_max=float(demand_each.max(initial=0.0)),
-        saturated_fraction=int(at_limit.any(axis=1).sum()) / steps,
+        ratio,
+        demand_ratio_max=demand,
+        saturated_fraction=saturated_steps / steps,
         saturated_joints={
             model.actuator(k).name: float(saturated_each[k] / steps)
             for k in range(model.nu)
@@ -509,14 +529,7 @@ def simulate(
         },
         min_height_ratio=min_height,
         max_tilt_rad=max_tilt,
-        series={
-            "t": grid[sample],
-            "root": root,
-            "q": qpos_after[np.ix_(sample, qadr)],
-            "q_ref": ref[sample],
-            "force": force[sample],
-            "demand": demand_each[sample],
-        },
+        series={k: np.concatenate(v) for k, v in series.items()},
     )
     info = traj.info
     motion = info.get("motion")

@@ -176,3 +176,17 @@ def test_an_observed_run_is_the_same_run_and_is_deterministic():
     assert seen == [round(0.05 * k, 9) for k in range(1, 21)]
     assert plain.saturated_fraction > 0  # the knee's 0.1 N m cannot follow this swing
     assert plain.demand_ratio_max > 1
+
+
+def test_a_run_measured_block_by_block_is_the_same_run(monkeypatch):
+    """Long runs are stepped and measured in blocks (memory): the blocks' seams do not show."""
+    import export.simulate as sim
+
+    model = _model()
+    traj = _trajectory(model)
+    whole = simulate(model, traj, can_fall=True)
+    monkeypatch.setattr(sim, "BLOCK_STEPS", 70)  # 500 steps in 8 blocks, one of 10
+    pieces = simulate(model, traj, can_fall=True)
+    assert pieces.to_dict() == whole.to_dict()
+    for key, series in whole.series.items():
+        assert np.array_equal(pieces.series[key], series)
