@@ -66,6 +66,7 @@ def bench_simspeed(seconds: float = SECONDS, runs: int = RUNS) -> list[str]:
     from export.record import design_record
     from export.simulate import load_bundle_model, simulate
     from export.verify import controller_for_model
+    from gaits.base import _PLANNED
     from synth.conceptual import Design, Designer, Request
     from synth.solver import Query, Reasoner
     from synth.structure import design_structure
@@ -122,7 +123,8 @@ def bench_simspeed(seconds: float = SECONDS, runs: int = RUNS) -> list[str]:
                 subprocess.run(cmd, cwd=REPO, env=env, capture_output=True, check=False)
                 walls.append(time.perf_counter() - t0)
             plans = []
-            for _ in range(max(2, runs // 2)):  # a new controller plans afresh
+            for _ in range(max(2, runs // 2)):  # the process's plans forgotten
+                _PLANNED.clear()
                 fresh = controller_for_model(rec, model)
                 t0 = time.perf_counter()
                 fresh.run(name)
