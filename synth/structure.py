@@ -153,9 +153,8 @@ class Structure:
     @property
     def payload_kg(self) -> float:
         """The payload (kg) the structure was sized to carry: a load, not a part."""
-        return sum(
-            lp.mass for parts in self.template.parts.values() for lp in parts if lp.kind == "payload"
-        )
+        parts = self.template.parts.values()
+        return sum(lp.mass for ps in parts for lp in ps if lp.kind == "payload")
 
     @property
     def robot_mass_kg(self) -> float:
