@@ -245,11 +245,14 @@ def test_cli_bundle_with_readme_and_bom(cli, tmp_path) -> None:
     assert float(rows[-1]["unit_cost"]) == pytest.approx(rec["cost"])
 
 
-def test_urdf_meshes_load_in_pinocchio_and_mujoco_without_warnings(bundles, tmp_path, capfd):
+def test_urdf_meshes_load_in_pinocchio_and_mujoco_without_warnings(
+    bundles, tmp_path, capfd, monkeypatch
+):
     """robot.urdf's relative mesh paths (meshes/NAME.stl, in mm, scale 0.001): MuJoCo loads
     the URDF file with its meshes and no warning (unique geom names), and pinocchio builds
-    its visual and collision geometry with the bundle folder as its package directory
-    (pinocchio resolves a relative path only against its package directories)."""
+    its visual and collision geometry with the bundle folder as its package directory,
+    given as an argument or, with no argument, on ``ROS_PACKAGE_PATH`` (pinocchio resolves
+    a relative path only against its package directories and that variable's)."""
     import mujoco
 
     pin = pytest.importorskip("pinocchio") if not CI else __import__("pinocchio")
@@ -265,6 +268,12 @@ def test_urdf_meshes_load_in_pinocchio_and_mujoco_without_warnings(bundles, tmp_
         for kind in (pin.GeometryType.VISUAL, pin.GeometryType.COLLISION):
             geom = pin.buildGeomFromUrdf(pm, urdf, kind, package_dirs=[str(folder)])
             assert geom.ngeoms > 0, t
+            monkeypatch.setenv("ROS_PACKAGE_PATH", str(folder))
+            bare = pin.buildGeomFromUrdf(pm, urdf, kind)
+            monkeypatch.delenv("ROS_PACKAGE_PATH")
+            assert [g.meshPath for g in bare.geometryObjects] == [
+                g.meshPath for g in geom.geometryObjects
+            ], t
         names = [g.name for g in geom.geometryObjects]
         assert len(names) == len(set(names)), t
 
