@@ -102,7 +102,8 @@ def test_an_actuator_with_dynamics_is_refused():
 
 
 @pytest.mark.parametrize("every", [1, 7, 250, 10_000])
-def test_stepping_inside_mujoco_is_a_plain_mj_step_loop(every):
+def test_stepping_inside_mujoco_is_a_plain_mj_step_loop(every, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo logs its warning to MUJOCO_LOG.TXT here
     model = _model()
     ctrl = _controls(model, 500)
     ctrl[123] = np.nan  # a warning: a rollout stops there, a plain loop goes on
