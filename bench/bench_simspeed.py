@@ -30,7 +30,7 @@ if str(REPO) not in sys.path:
 
 TARGET_RATIO = 1.2  # simulate / raw mj_step loop
 TARGET_STARTUP_S = 1.0  # parmor simulate as a process, the simulation excluded
-RUNS = 5
+RUNS = 7
 SECONDS = 5.0  # simulated per run
 
 
