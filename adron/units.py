@@ -27,6 +27,7 @@ means pint is asked again. pint is imported only on a miss.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import math
@@ -250,10 +251,8 @@ class _DiskCache:
         except OSError:  # read-only or full: work on without writing
             self.path = None
             if tmp is not None:
-                try:
+                with contextlib.suppress(OSError):
                     os.unlink(tmp)
-                except OSError:
-                    pass
 
 
 _DISK = _DiskCache()

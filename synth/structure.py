@@ -869,7 +869,7 @@ class StructureDesigner:
         self, assignment: Assignment, req: _Requirements
     ) -> tuple[tuple[ModuleUse, ...], float, float, float, dict[str, int]]:
         cat = self.catalog
-        address = cat.design.i2c_first_address
+        address = cat.bus.first_address
         out: list[ModuleUse] = []
         cost = peak = stall = 0.0
         for kind, model, n, _, c, current in sorted(
@@ -898,9 +898,11 @@ class StructureDesigner:
         out += [
             ModuleUse(k, m, len(addrs), tuple(addrs)) for (k, m), addrs in sorted(per_model.items())
         ]
-        if address - 1 > 0x77:
+        if address - 1 > cat.bus.last_address:
             raise InfeasibleError(
-                f"{self.candidate.robot_type}: more I2C devices than the 7-bit addresses"
+                f"{self.candidate.robot_type}: more {cat.bus.name} devices than the bus's "
+                f"{cat.bus.address_word}s ({cat.bus.address_text(cat.bus.first_address)}-"
+                f"{cat.bus.address_text(cat.bus.last_address)})"
             )
         return tuple(out), cost, peak, stall, by_joint
 
