@@ -32,7 +32,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from adron.catalog import Actuator, Catalog, catalog_facts
+from adron.catalog import I2C_DEFAULT, Actuator, Bus, Catalog, catalog_facts
 from adron.errors import InfeasibleError, InputError
 from adron.kb import KnowledgeBase
 from kinematics.dynamics import joint_wrenches, rnea
@@ -149,6 +149,7 @@ class Structure:
     iterations: int
     template: Template = field(repr=False, compare=False)
     notes: tuple[str, ...] = ()
+    bus: Bus = I2C_DEFAULT  # the catalog's bus the addresses are on
 
 
 def template_for(candidate: Candidate) -> str | None:
@@ -863,6 +864,7 @@ class StructureDesigner:
             iterations,
             tmpl,
             (*sizing.notes, *self.behaviour_notes),
+            self.catalog.bus,
         )
 
     def _modules(
