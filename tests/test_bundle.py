@@ -78,16 +78,17 @@ def record() -> dict:
         "active_modules": 6,
         "module_limit": 24,
         "params": {"reach": 0.25},
+        "bus": {"name": "I2C", "address_word": "address", "module_limit": 24},
         "modules": [
-            {"kind": "MainModule", "model": "IntelEdison", "count": 1, "i2c_addresses": []},
-            {"kind": "PositionServomotor", "model": "SG90", "count": 1, "i2c_addresses": ["0x09"]},
+            {"kind": "MainModule", "model": "IntelEdison", "count": 1, "bus_addresses": []},
+            {"kind": "PositionServomotor", "model": "SG90", "count": 1, "bus_addresses": ["0x09"]},
         ],
         "joints": [
             {
                 "name": "base_yaw",
                 "module_class": "PositionServomotor",
                 "actuator": "SG90",
-                "i2c_address": "0x09",
+                "bus_address": "0x09",
                 "required_torque_Nm": 0.05,
                 "usable_torque_Nm": 0.12,
             }
@@ -109,7 +110,7 @@ def test_guide_tells_files_printing_and_assembly_order() -> None:
     assert "`meshes/link_l2.stl` | 2 |" in text and "split it" in text
     assert "![link_l2](pictures/link_l2.png)" in text and "pictures/robot.png" in text
     root = text.index("1. The root body `base`: SG90 x3, IntelEdison, `meshes/link_l2.stl` x2.")
-    step = text.index("2. Joint `base_yaw`: the SG90 servo module (I2C 0x09) onto `base`")
+    step = text.index("2. Joint `base_yaw`: the SG90 servo module (I2C address 0x09) onto `base`")
     assert root < step and "on its output: `meshes/jaw.stl`." in text
 
 
