@@ -14,7 +14,8 @@ FILES = (
     (
         "robot.urdf",
         "the robot description for ROS: links, inertias, joints, limits",
-        "RViz, `check_urdf robot.urdf`, yourdfpy",
+        "`check_urdf robot.urdf`, yourdfpy, pinocchio (this folder on `ROS_PACKAGE_PATH` "
+        "or as `package_dirs`), RViz (`parmor ros` makes a ROS package of it)",
     ),
     (
         "robot.xml",
