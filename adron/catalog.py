@@ -47,6 +47,7 @@ __all__ = [
     "catalog_facts",
     "load_catalog",
     "parse_catalog",
+    "recorded_catalog",
     "shipped_catalogs",
 ]
 
@@ -1043,6 +1044,25 @@ def load_catalog(path: str | Path | None = None) -> Catalog:
             + _suggest(source, SHIPPED)
         )
     return parse_catalog(_read_text(p, source), source, p.parent)
+
+
+def recorded_catalog(entry: object, path: str | Path | None = None) -> Catalog:
+    """The catalog a design record's ``catalog`` entry names (``export.record.
+    catalog_record``): its shipped catalog by name, or the file ``path`` for a user's one;
+    InputError when that catalog's content is not the one the design used (its sha256
+    differs: the catalog changed since) or the entry is not a catalog entry."""
+    if not isinstance(entry, dict) or not isinstance(entry.get("sha256"), str):
+        raise InputError("the design record names no catalog (designs before records did)")
+    shipped = entry.get("shipped") or ""
+    if path is None and not shipped:
+        raise InputError(f"the design used the user's catalog '{entry.get('name')}': give its file")
+    cat = load_catalog(path if path is not None else shipped)
+    if cat.sha256 != entry["sha256"]:
+        raise InputError(
+            f"{cat.source}: not the catalog the design used (its content changed: sha256 "
+            f"{cat.sha256[:12]}, the design's {entry['sha256'][:12]})"
+        )
+    return cat
 
 
 # ---- ASP facts ---------------------------------------------------------------------------

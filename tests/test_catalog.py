@@ -673,3 +673,22 @@ def test_remove_and_replace_only_when_extending() -> None:
     text = SHIPPED.replace('version = "1"', 'version = "1"\nremove = ["SG90"]')
     with pytest.raises(InputError, match="catalog.remove: only for a catalog that extends"):
         parse_catalog(text, "x.toml")
+
+
+def test_a_recorded_catalog_is_reloaded_and_a_changed_one_refused(tmp_path: Path) -> None:
+    from adron.catalog import recorded_catalog
+    from export.record import catalog_record
+
+    dxl = load_catalog("dynamixel")
+    assert recorded_catalog(catalog_record(dxl)) == dxl
+    path = tmp_path / "mine.toml"
+    path.write_text(SHIPPED, encoding="utf-8")
+    entry = catalog_record(load_catalog(path))
+    assert entry["shipped"] == "" and recorded_catalog(entry, path).sha256 == entry["sha256"]
+    with pytest.raises(InputError, match="give its file"):
+        recorded_catalog(entry)
+    path.write_text(SHIPPED.replace("cost = 5.0", "cost = 5.5"), encoding="utf-8")
+    with pytest.raises(InputError, match="not the catalog the design used"):
+        recorded_catalog(entry, path)
+    with pytest.raises(InputError, match="names no catalog"):
+        recorded_catalog(None)
