@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from importlib.resources import files
 from pathlib import Path
@@ -692,3 +693,19 @@ def test_a_recorded_catalog_is_reloaded_and_a_changed_one_refused(tmp_path: Path
         recorded_catalog(entry, path)
     with pytest.raises(InputError, match="names no catalog"):
         recorded_catalog(None)
+
+
+def test_design_with_the_dynamixel_catalog_names_its_bus(cli) -> None:
+    r = cli("design", "driving", "--catalog", "dynamixel", "--no-verify", "--json")
+    assert r.code == 0, r.err
+    rec = json.loads(r.out)
+    assert rec["bus"]["name"] == "DYNAMIXEL TTL" and rec["bus"]["module_limit"] == 253
+    assert rec["catalog"]["shipped"] == "dynamixel"
+    assert rec["catalog"]["sha256"] == load_catalog("dynamixel").sha256
+    ids = [a for m in rec["modules"] for a in m["bus_addresses"]]
+    assert sorted(ids, key=int) == [str(i) for i in range(1, len(ids) + 1)]
+    assert {j["actuator"] for j in rec["joints"]} <= {
+        a.model for a in load_catalog("dynamixel").actuators
+    }
+    bad = cli("design", "driving", "--catalog", "dynamixl", "--no-verify")
+    assert bad.code == 2 and "did you mean 'dynamixel'" in bad.err
