@@ -709,3 +709,19 @@ def test_design_with_the_dynamixel_catalog_names_its_bus(cli) -> None:
     }
     bad = cli("design", "driving", "--catalog", "dynamixl", "--no-verify")
     assert bad.code == 2 and "did you mean 'dynamixel'" in bad.err
+
+
+def test_suites_and_studies_take_a_shipped_catalogs_name(tmp_path: Path) -> None:
+    from synth.backend import files_digest
+    from synth.regress import kb_options
+
+    suite = tmp_path / "s.toml"
+    assert kb_options({"catalog": "dynamixel"}, suite)["catalog"] == "dynamixel"
+    assert kb_options({"catalog": "mine.toml"}, suite)["catalog"] == str(tmp_path / "mine.toml")
+    # a study's digest follows the catalog's content, whatever names it
+    (tmp_path / "mine.toml").write_text(SHIPPED, encoding="utf-8")
+    same = files_digest(str(tmp_path / "mine.toml"), [], [])
+    assert same != files_digest("dynamixel", [], [])
+    assert files_digest(str(tmp_path / "mine.toml"), [], []) == same
+    (tmp_path / "mine.toml").write_text(SHIPPED.replace("cost = 5.0", "cost = 5.5"))
+    assert files_digest(str(tmp_path / "mine.toml"), [], []) != same
