@@ -1,5 +1,5 @@
 """The bundle's ``README.md``: what the robot is, how to print and assemble it (module
-order and I2C addresses) and which file to open with what. Pure: returns the text."""
+order and bus addresses) and which file to open with what. Pure: returns the text."""
 
 from __future__ import annotations
 
