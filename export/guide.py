@@ -41,6 +41,11 @@ def _bus(record: dict) -> dict:
     return record.get("bus") or _OLD_BUS
 
 
+def _plural(word: str) -> str:
+    """'address' -> 'addresses', 'ID' -> 'IDs'."""
+    return word + ("es" if word.endswith(("s", "x", "sh", "ch")) else "s")
+
+
 def _md(text: str) -> str:
     """Text from user input, safe inside Markdown table cells and lines."""
     return text.replace("|", "\\|").replace("\n", " ")
@@ -53,6 +58,9 @@ def assembly_steps(record: dict, asm: Assembly) -> list[str]:
     bought parts of the body it turns."""
     bus = _bus(record)
     addresses = {j["name"]: j.get("bus_address", "") for j in record.get("joints", ())}
+    word = bus["address_word"]
+    # "I2C 0x09", "DYNAMIXEL TTL ID 3": the plain word "address" goes without saying
+    label = bus["name"] if word == "address" else f"{bus['name']} {word}"
     by_body = {b.name: b for b in asm.bodies}
 
     def parts_of(body: str, skip: str = "") -> str:
@@ -64,8 +72,8 @@ def assembly_steps(record: dict, asm: Assembly) -> list[str]:
         return ", ".join(f"{n} x{k}" if k > 1 else n for n, k in names.items())
 
     out = [
-        f"Set each active module's {_md(bus['name'])} {_md(bus['address_word'])} before "
-        f"mounting it (the {_md(bus['address_word'])}s below). "
+        f"Set each active module's {_md(bus['name'])} {_md(word)} before "
+        f"mounting it (the {_md(_plural(word))} below). "
         "Then, from the root outwards, slide each module onto the dovetail face of the part "
         "before it:",
         "",
@@ -82,7 +90,7 @@ def assembly_steps(record: dict, asm: Assembly) -> list[str]:
         addr = addresses.get(j.name, "")
         out.append(
             f"{step}. Joint `{_md(j.name)}`: the {_md(j.actuator)} servo module"
-            + (f" ({_md(bus['name'])} {_md(bus['address_word'])} {_md(addr)})" if addr else "")
+            + (f" ({_md(label)} {_md(addr)})" if addr else "")
             + f" onto `{_md(j.parent)}`; on its output: {parts or 'the next joint'}."
         )
         step += 1

@@ -110,7 +110,7 @@ def test_guide_tells_files_printing_and_assembly_order() -> None:
     assert "`meshes/link_l2.stl` | 2 |" in text and "split it" in text
     assert "![link_l2](pictures/link_l2.png)" in text and "pictures/robot.png" in text
     root = text.index("1. The root body `base`: SG90 x3, IntelEdison, `meshes/link_l2.stl` x2.")
-    step = text.index("2. Joint `base_yaw`: the SG90 servo module (I2C address 0x09) onto `base`")
+    step = text.index("2. Joint `base_yaw`: the SG90 servo module (I2C 0x09) onto `base`")
     assert root < step and "on its output: `meshes/jaw.stl`." in text
 
 

@@ -725,3 +725,9 @@ def test_suites_and_studies_take_a_shipped_catalogs_name(tmp_path: Path) -> None
     assert files_digest(str(tmp_path / "mine.toml"), [], []) == same
     (tmp_path / "mine.toml").write_text(SHIPPED.replace("cost = 5.0", "cost = 5.5"))
     assert files_digest(str(tmp_path / "mine.toml"), [], []) != same
+
+
+def test_guide_words_follow_the_bus() -> None:
+    from export.guide import _plural
+
+    assert _plural("address") == "addresses" and _plural("ID") == "IDs"
