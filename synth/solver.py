@@ -30,6 +30,7 @@ import clingo
 
 from adron.errors import InputError, OntologyError, ParmorError
 from adron.kb import KnowledgeBase, read_user_file
+from adron.relevance import Relevance, relevance
 from adron.translate import asp_string, isa_facts, taxonomy_closure
 from synth import limits
 
@@ -347,10 +348,39 @@ def _encoding_texts() -> tuple[str, ...]:
     )
 
 
-def taxonomy_program(kb: KnowledgeBase, others: Sequence[str], rules: Sequence[str]) -> str:
+#: the encodings of the taxonomy layer: they read subclass/subrelation/instance for any
+#: pair to build the closure, which the other encodings then ask about given classes only
+_TAXONOMY_LAYER = ("taxonomy.lp", "closure.lp")
+
+
+@functools.cache
+def _relevance_texts() -> tuple[tuple[str, ...], tuple[str, ...]]:
+    files = sorted(encoding_dir().glob("*.lp"))
+    return (
+        tuple(p.read_text(encoding="utf-8") for p in files if p.name not in _TAXONOMY_LAYER),
+        tuple(p.read_text(encoding="utf-8") for p in files if p.name in _TAXONOMY_LAYER),
+    )
+
+
+def relevant(kb: KnowledgeBase, focus: str | None = None, rules: Sequence[str] = ()) -> Relevance:
+    """Which translated forms of ``kb`` can reach the encodings' vocabulary (adron/relevance.py);
+    nothing is filtered when user ``rules`` are given (a rule file may read anything)."""
+    tr = kb.translation
+    if rules:
+        n = len(tr.units)
+        return Relevance((True,) * n, ("",) * n, "rule files are given (they may read anything)")
+    body, taxo = _relevance_texts()
+    return relevance(tr, body, taxo, [focus] if focus is not None else [])
+
+
+def taxonomy_program(
+    kb: KnowledgeBase, others: Sequence[str], rules: Sequence[str], program: str | None = None
+) -> str:
     """The taxonomy closure the program needs (facts), or the recursive rules when only
-    they are exact (adron/translate.py: taxonomy_closure)."""
-    facts = taxonomy_closure(kb.translation.program, [*_encoding_texts(), *others], rules)
+    they are exact (adron/translate.py: taxonomy_closure). ``program``: the translation
+    as it goes to the grounder (by default all of it)."""
+    program = kb.translation.program if program is None else program
+    facts = taxonomy_closure(program, [*_encoding_texts(), *others], rules)
     if facts is None:
         return (encoding_dir() / "closure.lp").read_text(encoding="utf-8")
     return facts
@@ -367,9 +397,11 @@ class _Core:
             ["--models=0", "--opt-mode=enum"], logger=self._log, message_limit=20
         )
         extra = [f"focus({asp_string(focus)})."] if focus is not None else []
+        texts = [r.text for r in rules]
+        program = relevant(kb, focus, texts).program(kb.translation)
         try:
-            self._ctl.add("base", [], kb.translation.program)
-            self._ctl.add("base", [], taxonomy_program(kb, extra, [r.text for r in rules]))
+            self._ctl.add("base", [], program)
+            self._ctl.add("base", [], taxonomy_program(kb, extra, texts, program))
             self._ctl.load(str(encoding_dir() / "conceptual.lp"))
             for text in extra:
                 self._ctl.add("base", [], text)
