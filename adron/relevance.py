@@ -25,12 +25,16 @@ Graph reachability over the translated forms, in three steps:
    existential axioms over it, transitively. A keyed fact is kept when its first argument
    is needed, an axiom when its class is; the rest is filtered.
 
-Translated rules are kept when they derive a kept relation. That is exact only if such a
-rule passes the binding along: each body atom's first argument is a constant, the head's
-first argument (for a keyed head) or bound by another body atom from there; a head that
-makes its subject reach a class of the vocabulary must get that from its body. SUMO's
-rules are of that form; when a rule is not, nothing is filtered (``Relevance.off`` says
-which rule) -- as when the user gives rule files, which may read anything.
+Translated rules are kept when they derive a needed relation, and pass what is needed of
+their head on to their body (sideways, through shared variables): a body relation is then
+needed at the argument positions so bound (its facts are kept when that argument is a
+needed name), for the constants the rule names there, or wholesale when nothing binds it.
+A rule that could make a class reach the vocabulary where no fact says so (a head
+``(subclass ?X Robot)`` fed by another relation) cannot be followed: then nothing is
+filtered, and ``Relevance.off`` says which rule -- as when the user gives rule files,
+which may read anything. SUMO's Merge.kif has such rules (``(=> (and (subclass ?X ?Y)
+(instance ?Z ?X)) (instance ?Z ?Y))`` is followed; its web of temporal and graph rules
+makes ``instance`` wholesale), so it is loaded unfiltered for now.
 """
 
 from __future__ import annotations
@@ -61,6 +65,21 @@ def vocabulary(texts: Iterable[str]) -> set[str]:
         for m in _COMMENT.finditer(text):
             if m.group(1):
                 out.add(m.group(1)[1:-1].replace('\\"', '"').replace("\\\\", "\\"))
+    return out
+
+
+def downward(texts: Iterable[str]) -> set[str]:
+    """Relations ``texts`` read as ``holds("R", V, ..., "C" ...)``: a variable first argument
+    and a constant after it (the subjects of given classes: ``instance`` of
+    ``BaseConfiguration``). The taxonomy layer reads its relations so too (``isa(R,
+    "Robot")`` asks for every class below Robot)."""
+    out: set[str] = set()
+    for text in texts:
+        plain = _COMMENT.sub(lambda m: m.group(1) or "", text)
+        for m in _WHOLESALE.finditer(plain):
+            args = [a.strip() for a in m.group(2).split(",")]
+            if (args[0][:1].isupper() or args[0] == "_") and any('"' in a for a in args[1:]):
+                out.add(m.group(1))
     return out
 
 
@@ -103,21 +122,40 @@ def _vs(kind: str, name: str) -> list[str]:
     return name.split("|")[0].split() if kind == "f" else []
 
 
+def _hit(kind: str, name: str, anchored: set[str]) -> bool:
+    """True when a shape argument holds a variable of ``anchored``."""
+    return kind in "vf" and bool(set(_vs(kind, name)) & anchored)
+
+
 def _bindings(
-    unit: Unit, need: dict[str, set[int]], whole: set[str], active: set[str], later: set[str]
-) -> tuple[dict[str, set[int]], set[str]]:
+    unit: Unit,
+    need: dict[str, set[int]],
+    keyc: dict[str, dict[int, set[str]]],
+    whole: set[str],
+    active: set[str],
+    later: set[str],
+) -> tuple[dict[str, set[int]], dict[str, dict[int, set[str]]], set[str]]:
     """What rule ``unit`` needs of its body relations when its head relations are needed at
     the positions ``need`` (or wholesale): (relation -> positions whose facts are needed
-    when that argument is needed, relations needed wholesale). The binding is passed
+    when that argument is needed, relation -> position -> the constants it is needed for,
+    relations needed wholesale). The binding is passed
     sideways: from a needed head argument through every body atom sharing a variable. A
     constant at a needed head position binds nothing: the rule counts only once the
     constant is needed (in ``active``); until then it is added to ``later``."""
     pos: dict[str, set[int]] = {}
+    cons: dict[str, dict[int, set[str]]] = {}
     full: set[str] = set()
     for rel, hargs in unit.heads:
         starts: list[set[str]] = []
         if rel in whole:
             starts.append(set())
+        for p, ks in keyc.get(rel, {}).items():
+            if p < len(hargs):
+                kind, name = hargs[p]
+                if kind in "vf":
+                    starts.append(set(_vs(kind, name)))
+                elif name in ks:
+                    starts.append(set())
         for p in sorted(need.get(rel, ())):
             if p < len(hargs):
                 kind, name = hargs[p]
@@ -135,13 +173,14 @@ def _bindings(
                 for i, (positive, brel, bargs) in enumerate(unit.body):
                     if i in done or not positive:
                         continue
-                    bound = [
-                        q
-                        for q, (k, n) in enumerate(bargs)
-                        if k in "co" or (k in "vf" and set(_vs(k, n)) & anchored)
-                    ]
+                    bound = [q for q, (k, n) in enumerate(bargs) if _hit(k, n, anchored)]
+                    fixed = [q for q, (k, _n) in enumerate(bargs) if k in "co"]
                     if bound:
                         pos.setdefault(brel, set()).update(bound)
+                    else:
+                        for q in fixed:
+                            cons.setdefault(brel, {}).setdefault(q, set()).add(bargs[q][1])
+                    if bound or fixed:
                         done.add(i)
                         for k, n in bargs:
                             anchored.update(_vs(k, n) if k in "vf" else ())
@@ -158,25 +197,25 @@ def _bindings(
             for positive, brel, bargs in unit.body:
                 if positive:
                     continue
-                bound = [
-                    q
-                    for q, (k, n) in enumerate(bargs)
-                    if k in "co" or (k in "vf" and set(_vs(k, n)) & anchored)
-                ]
+                bound = [q for q, (k, n) in enumerate(bargs) if _hit(k, n, anchored)]
+                fixed = [q for q, (k, _n) in enumerate(bargs) if k in "co"]
                 if bound:
                     pos.setdefault(brel, set()).update(bound)
+                elif fixed:
+                    for q in fixed:
+                        cons.setdefault(brel, {}).setdefault(q, set()).add(bargs[q][1])
                 else:
                     full.add(brel)
-    return pos, full
+    return pos, cons, full
 
 
-def _reach_unsafe(unit: Unit, reach: set[str], whole: set[str]) -> str | None:
+def _reach_unsafe(unit: Unit, reach: set[str], whole: set[str], down: set[str]) -> str | None:
     """Why a rule could make its head's first argument reach the vocabulary where no fact
     says so, or None: every other head argument must be a constant outside the vocabulary
     or a variable bound from the first argument through the body's atoms. A wholesale
     head's first argument reaches it: it must be a constant (added to ``reach``)."""
     for rel, hargs in unit.heads:
-        if not hargs:
+        if not hargs or (rel not in whole and rel not in down):
             continue
         kind, name = hargs[0]
         if rel in whole:
@@ -214,14 +253,20 @@ def relevance(
     active: set[str] = set()
     while True:
         later: set[str] = set()
-        out = _relevance(tr, vocab, wholesale(texts), active, later)
+        down = downward(texts) | {r for r in vocabulary(taxonomy) if r in tr.ground}
+        out = _relevance(tr, vocab, wholesale(texts), down, active, later)
         if out.off is not None or not (later & out.needed) - active:
             return out
         active |= later & out.needed
 
 
 def _relevance(
-    tr: Translation, vocab: set[str], whole: set[str], active: set[str], later: set[str]
+    tr: Translation,
+    vocab: set[str],
+    whole: set[str],
+    down: set[str],
+    active: set[str],
+    later: set[str],
 ) -> Relevance:
     units = tr.units
     facts = [u for u in units if u.kind == "fact"]
@@ -233,24 +278,42 @@ def _relevance(
     for u in facts:
         if u.relation == "subrelation" and len(u.args) == 2:
             subs.setdefault(u.args[1], []).append(u.args[0])
+    keyc: dict[str, dict[int, set[str]]] = {}
+
+    def size() -> tuple[int, ...]:
+        n = sum(len(p) for p in need.values())
+        k = sum(len(ks) for d in keyc.values() for ks in d.values())
+        return n, k, len(need), len(keyc), len(whole)
+
     while True:
-        before = (sum(len(p) for p in need.values()), len(need), len(whole))
-        for s in list(need) + list(whole):  # holds(S, X, Y) :- holds(R, X, Y), subrelation
-            for r in subs.get(s, ()):
+        before = size()
+        for s in list(need) + list(keyc) + list(whole):  # holds(S, X, Y) :- holds(R, X, Y),
+            for r in subs.get(s, ()):  # holds("subrelation", R, S)
                 need.setdefault(r, set()).update(need.get(s, set()))
+                for p, ks in keyc.get(s, {}).items():
+                    keyc.setdefault(r, {}).setdefault(p, set()).update(ks)
                 if s in whole:
                     whole.add(r)
         for u in rules:
-            if any(h[0] in need or h[0] in whole for h in u.heads):
-                pos, full = _bindings(u, need, whole, active, later)
+            if any(h[0] in need or h[0] in keyc or h[0] in whole for h in u.heads):
+                pos, cons, full = _bindings(u, need, keyc, whole, active, later)
                 for r, ps in pos.items():
                     need.setdefault(r, set()).update(ps)
+                for r, d in cons.items():
+                    for p, ks in d.items():
+                        keyc.setdefault(r, {}).setdefault(p, set()).update(ks)
                 whole |= full
-        if (sum(len(p) for p in need.values()), len(need), len(whole)) == before:
+        if size() == before:
             break
-    rels = set(need) | whole
+    rels = set(need) | set(keyc) | whole
     whole |= {r for r in rels if r not in derived}  # the parameters: nothing to filter
-    # 2. reach, downwards through facts
+    # 2. reach, downwards through the facts of downward relations and their subrelations
+    todo = list(down)
+    while todo:
+        for r in subs.get(todo.pop(), ()):
+            if r not in down:
+                down.add(r)
+                todo.append(r)
     reach = set(vocab)
     below: dict[str, list[str]] = {}
     for u in facts:
@@ -258,7 +321,7 @@ def _relevance(
             continue
         if u.relation in whole:
             reach.add(u.args[0])
-        else:
+        elif u.relation in down:
             for a in u.names[1:] if u.names[:1] == u.args[:1] else u.names:
                 below.setdefault(a, []).append(u.args[0])
     todo = list(reach)
@@ -269,7 +332,7 @@ def _relevance(
                 todo.append(s)
     kept_rules = [u for u in rules if any(h[0] in rels for h in u.heads)]
     for u in kept_rules:
-        why = _reach_unsafe(u, reach, whole)
+        why = _reach_unsafe(u, reach, whole, down)
         if why is not None:
             return Relevance((True,) * len(units), ("",) * len(units), f"{u.where}: {why}")
     todo = list(reach)  # constants the wholesale heads added
@@ -287,7 +350,7 @@ def _relevance(
         elif u.kind == "fact" and u.relation in whole:
             needed.update(u.names)
         elif u.kind == "fact" and u.relation in need:
-            for p in need[u.relation]:
+            for p in need.get(u.relation, ()):
                 if p < len(u.args):
                     if u.args[p].startswith("("):  # a function term: by what is inside it
                         for a in u.names:
@@ -298,6 +361,11 @@ def _relevance(
         needed.update(a[1] for _r, args in u.heads for a in args if a[0] == "c")
         needed.update(a[1] for _p, _r, args in u.body for a in args if a[0] == "c")
     keep: set[int] = set()
+    for u in facts:
+        pairs = keyc.get(u.relation, {}).items() if u.relation not in whole else ()
+        if any(p < len(u.args) and u.args[p] in ks for p, ks in pairs):
+            keep.add(id(u))
+            needed.update(u.names)
     todo = list(needed)
     while todo:
         for u in index.get(todo.pop(), ()):
