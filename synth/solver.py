@@ -386,6 +386,22 @@ def taxonomy_program(
     return facts
 
 
+_STRING = clingo.SymbolType.String
+
+
+@functools.cache
+def _shown_signatures() -> tuple[tuple[str, int], ...]:
+    """(name, arity) of every ``#show name/arity`` of the shipped encodings."""
+    from clingo import ast
+
+    out: set[tuple[str, int]] = set()
+    for lp in sorted(encoding_dir().glob("*.lp")):
+        for stmt in _parse(_blank_includes(lp.read_text(encoding="utf-8"))):
+            if stmt.ast_type == ast.ASTType.ShowSignature:
+                out.add((stmt.name, stmt.arity))
+    return tuple(sorted(out))
+
+
 class _Core:
     """The Control of a :class:`Reasoner`, in its worker process."""
 
@@ -429,6 +445,7 @@ class _Core:
             raise limits.LimitExceeded(
                 limits.Limits(size_atoms=size).describe("size"), "size", self._largest(rules)
             )
+        self._index: tuple[list, dict[str, list], list] | None = None
         self.externals = {
             a.symbol
             for sig in (("request", 1), ("answer", 2), ("param", 2))
@@ -485,9 +502,48 @@ class _Core:
             for m in _worker_models(self._ctl)
         )
 
+    def _shown_index(self) -> tuple[list, dict[str, list], list]:
+        """(chosen/1 literals and robot names, shown atoms by robot, the other shown atoms),
+        over the signatures ``asp/show.lp`` shows, built once."""
+        if self._index is None:
+            atoms = self._ctl.symbolic_atoms
+            chosen = [
+                (a.literal, a.symbol.arguments[0].string) for a in atoms.by_signature("chosen", 1)
+            ]
+            robots = {r for _, r in chosen}
+            by: dict[str, list] = {}
+            common: list = []
+            for name, arity in _shown_signatures():
+                for a in atoms.by_signature(name, arity):
+                    first = a.symbol.arguments[0] if a.symbol.arguments else None
+                    key = first.string if first is not None and first.type == _STRING else None
+                    (by.setdefault(key, []) if key in robots else common).append(
+                        (a.literal, a.symbol)
+                    )
+            self._index = (chosen, by, common)
+        return self._index
+
     def solve(self, on: set[str]) -> list[tuple[tuple, tuple[int, ...]]]:
+        """Each answer set's shown atoms that concern its chosen robot (and the request's),
+        and its cost. Reading a model's shown atoms costs the size of the output table, all
+        candidates' designs: per model, only the chosen robot's atoms are looked up, or a
+        request with 1000 candidates would take time quadratic in them."""
         self._assign(on)
-        return [(_symbols(m.symbols(shown=True)), tuple(m.cost)) for m in _worker_models(self._ctl)]
+        chosen, by, common = self._shown_index()
+        pending = list(chosen)
+        out = []
+        for m in _worker_models(self._ctl):
+            robot = None
+            for i, (lit, _name) in enumerate(pending):
+                if m.is_true(lit):
+                    robot = pending.pop(i)[1]
+                    break
+            if robot is None:  # explain's focus mode: one model, nothing chosen
+                out.append((_symbols(m.symbols(shown=True)), tuple(m.cost)))
+                continue
+            syms = [s for lit, s in (*common, *by.get(robot, ())) if m.is_true(lit)]
+            out.append((_symbols(syms), tuple(m.cost)))
+        return out
 
 
 def _symbols(symbols: Iterable[clingo.Symbol]) -> tuple:
