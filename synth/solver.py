@@ -387,18 +387,22 @@ def taxonomy_program(
 
 
 _STRING = clingo.SymbolType.String
+#: from this many possible candidates on, a solve looks up each model's atoms for its
+#: chosen robot instead of reading all shown atoms (building that index costs ~20 ms)
+_INDEXED = 64
+
+
+_SHOW_SIGNATURE = re.compile(r"^[ \t]*#show[ \t]+(\w+)/(\d+)[ \t]*\.", re.MULTILINE)
 
 
 @functools.cache
 def _shown_signatures() -> tuple[tuple[str, int], ...]:
-    """(name, arity) of every ``#show name/arity`` of the shipped encodings."""
-    from clingo import ast
-
-    out: set[tuple[str, int]] = set()
-    for lp in sorted(encoding_dir().glob("*.lp")):
-        for stmt in _parse(_blank_includes(lp.read_text(encoding="utf-8"))):
-            if stmt.ast_type == ast.ASTType.ShowSignature:
-                out.add((stmt.name, stmt.arity))
+    """(name, arity) of every ``#show name/arity`` line of the shipped encodings."""
+    out = {
+        (m.group(1), int(m.group(2)))
+        for lp in sorted(encoding_dir().glob("*.lp"))
+        for m in _SHOW_SIGNATURE.finditer(lp.read_text(encoding="utf-8"))
+    }
     return tuple(sorted(out))
 
 
@@ -529,6 +533,17 @@ class _Core:
         candidates' designs: per model, only the chosen robot's atoms are looked up, or a
         request with 1000 candidates would take time quadratic in them."""
         self._assign(on)
+        if (
+            sum(
+                1
+                for _ in itertools.islice(
+                    self._ctl.symbolic_atoms.by_signature("chosen", 1), _INDEXED
+                )
+            )
+            < _INDEXED
+        ):
+            models = _worker_models(self._ctl)
+            return [(_symbols(m.symbols(shown=True)), tuple(m.cost)) for m in models]
         chosen, by, common = self._shown_index()
         pending = list(chosen)
         out = []

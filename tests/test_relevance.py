@@ -130,3 +130,22 @@ def test_ontology_check_reports_what_is_filtered(cli, tmp_path: Path) -> None:
     assert "6 of 9 translated forms" in r.out
     assert "1 a relation no rule reads" in r.out
     assert "1 an axiom over a class that does not reach the robot vocabulary" in r.out
+
+
+def test_many_candidates_read_by_robot_give_the_same_solution(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Past solver._INDEXED candidates each model is read through an index by robot; the
+    solution must equal the one read from all shown atoms."""
+    text = "".join(
+        f"(subclass Extra{i} LeggedRobot)\n(instance Extra{i} BaseConfiguration)\n"
+        f"(=> (instance ?R Extra{i}) (exists (?A ?B ?T) (and (instance ?A RobotLeg) "
+        f"(instance ?B RobotLeg) (instance ?T RobotTrunk) (robotPart ?A ?R) (robotPart ?B ?R) "
+        f"(robotPart ?T ?R) (not (equal ?A ?B)))))\n"
+        for i in range(solver._INDEXED + 6)
+    )
+    kb = load([_kif(tmp_path, text)])
+    indexed = Reasoner(kb).solve(WALK)
+    assert len(indexed.candidates) > solver._INDEXED
+    monkeypatch.setattr(solver, "_INDEXED", 10**9)
+    assert Reasoner(kb).solve(WALK) == indexed
