@@ -509,7 +509,14 @@ def _designer(args: argparse.Namespace, err: TextIO):
     with stage("parse"):
         kb = load(args.ontology)
     _warn_untranslated(kb, err)
-    return Designer(kb, Reasoner(kb, args.rules, args.allow_scripts))
+    # the catalog bus's module limit governs the conceptual step too; a conceptual design
+    # without --catalog keeps the ontology's (the shipped catalog's bus has the same 24)
+    limit = None
+    if hasattr(args, "catalog") and (args.catalog or not getattr(args, "conceptual", False)):
+        from synth.pipeline import bus_limit
+
+        limit = bus_limit(args.catalog)
+    return Designer(kb, Reasoner(kb, args.rules, args.allow_scripts, bus_limit=limit))
 
 
 def _warn_untranslated(kb, err: TextIO) -> None:
@@ -774,7 +781,12 @@ def _sizer_init(arg: tuple) -> _Sizer:
     from synth.regress import designer_for
 
     ontology, rules, allow_scripts, opts, physical, k, pareto = arg
-    kb = {"ontology": ontology, "rules": rules, "allow_scripts": allow_scripts}
+    kb = {
+        "ontology": ontology,
+        "rules": rules,
+        "allow_scripts": allow_scripts,
+        "catalog": opts.catalog,
+    }
     return _Sizer(designer_for(kb), opts, physical, k, pareto)
 
 

@@ -37,6 +37,14 @@ def parse_objective(text: str) -> tuple[str, ...]:
     return order
 
 
+def bus_limit(path: str | None) -> int:
+    """The active module limit of the catalog's bus (``Bus.module_limit``), for the
+    conceptual step (InputError for a catalog that cannot be loaded)."""
+    from adron.catalog import load_catalog
+
+    return load_catalog(path).bus.module_limit
+
+
 def load_checked_catalog(path: str | None, designer: Designer) -> Catalog:
     """The catalog, with every ontology class it names checked against the ontology."""
     from adron.catalog import load_catalog

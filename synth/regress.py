@@ -136,10 +136,16 @@ def designer_for(opts: dict) -> Designer:
     """The Designer of a suite's (or study's) ``ontology``, ``rules``, ``allow_scripts``."""
     from adron.kb import load
     from synth.conceptual import Designer
+    from synth.pipeline import bus_limit
     from synth.solver import Reasoner
 
     kb = load(opts["ontology"])
-    return Designer(kb, Reasoner(kb, opts["rules"], opts["allow_scripts"]))
+    conceptual_only = opts.get("conceptual") and not opts.get("catalog")
+    try:
+        limit = None if conceptual_only else bus_limit(opts.get("catalog"))
+    except InputError as e:  # named by the suite or study that gives the catalog
+        raise InputError(f"{opts['suite']}: catalog: {e}") from None
+    return Designer(kb, Reasoner(kb, opts["rules"], opts["allow_scripts"], bus_limit=limit))
 
 
 def request_for(q: dict) -> Request:

@@ -287,7 +287,8 @@ def protected_predicates() -> frozenset[tuple[str, int]]:
     A user's rule file may constrain them (``:- chosen("X").``) but not define them."""
     global _PROTECTED
     if _PROTECTED is None:
-        found = {("focus", 1)}  # explain's mode switch (a fact the solver adds)
+        # explain's mode switch and the catalog bus's limit: facts the solver adds
+        found = {("focus", 1), ("bus_limit", 1)}
         for lp in sorted(encoding_dir().glob("*.lp")):
             for stmt in _parse(_blank_includes(lp.read_text(encoding="utf-8"))):
                 found.update((n, a) for n, a, _ in _heads(stmt) if n and n not in OPEN_PREDICATES)
@@ -410,13 +411,20 @@ class _Core:
     """The Control of a :class:`Reasoner`, in its worker process."""
 
     def __init__(
-        self, kb: KnowledgeBase, rules: Sequence[RuleFile], focus: str | None, size: int | None
+        self,
+        kb: KnowledgeBase,
+        rules: Sequence[RuleFile],
+        focus: str | None,
+        size: int | None,
+        bus_limit: int | None = None,
     ) -> None:
         self._messages: list[str] = []
         self._ctl = clingo.Control(
             ["--models=0", "--opt-mode=enum"], logger=self._log, message_limit=20
         )
         extra = [f"focus({asp_string(focus)})."] if focus is not None else []
+        if bus_limit is not None:
+            extra.append(f"bus_limit({int(bus_limit)}).")
         texts = [r.text for r in rules]
         program = relevant(kb, focus, texts).program(kb.translation)
         try:
@@ -726,15 +734,19 @@ class Reasoner:
         rules: Sequence[str | Path] = (),
         allow_scripts: bool = False,
         focus: str | None = None,
+        bus_limit: int | None = None,
     ) -> None:
         """Ground ``kb`` with the encodings and ``rules``. With ``focus`` (a robot class),
-        the program describes that class instead of choosing among candidates."""
+        the program describes that class instead of choosing among candidates. With
+        ``bus_limit`` (the catalog bus's module limit, ``Bus.module_limit``), that is a
+        robot's active module limit instead of the ontology's ``activeModuleLimit``."""
         self.kb = kb
         self._rules, self._allow_scripts = tuple(rules), allow_scripts
+        self._bus_limit = bus_limit
         files = read_rule_files(self._rules, allow_scripts)
         size = limits.current().size_atoms
         what = " + ".join(["the knowledge base", *(f.name for f in files)])
-        self._worker = _Worker(lambda: _Core(kb, files, focus, size), what)
+        self._worker = _Worker(lambda: _Core(kb, files, focus, size, bus_limit), what)
         with limits.stage("ground"):
             externals = self._worker.result("ground")
         self._externals: set[str] = externals  # as text: symbols do not cross processes
@@ -753,7 +765,9 @@ class Reasoner:
 
     def focused(self, robot_type: str) -> Reasoner:
         """A reasoner over the same program that describes ``robot_type`` (explain)."""
-        return Reasoner(self.kb, self._rules, self._allow_scripts, focus=robot_type)
+        return Reasoner(
+            self.kb, self._rules, self._allow_scripts, focus=robot_type, bus_limit=self._bus_limit
+        )
 
     def _on(self, query: Query) -> set[str]:
         on: set[clingo.Symbol] = set()
