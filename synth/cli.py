@@ -574,8 +574,10 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from synth.limits import stage
     from synth.pipeline import run
 
-    if args.out is not None and not args.out.strip():
-        raise InputError(f"--out {args.out!r}: expected the name of a folder")
+    if args.out is not None:
+        from export.bundle import check_out
+
+        check_out(args.out, args.force)  # before any work (written after it)
     designer = _designer(args, err)
     req = _request(args)
     opts = _options(args)
