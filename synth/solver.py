@@ -633,7 +633,12 @@ class Reasoner:
         what = " + ".join(["the knowledge base", *(f.name for f in files)])
         self._worker = _Worker(lambda: _Core(kb, files, focus, size), what)
         with limits.stage("ground"):
-            externals = self._worker.result("ground")
+            try:
+                externals = self._worker.result("ground")
+            except limits.LimitExceeded as e:  # name the files and the rule that grew
+                from synth.ground_probe import explained
+
+                raise explained(e, kb, files, what, focus) from None
         self._externals: set[str] = externals  # as text: symbols do not cross processes
         self._robot_types: tuple[str, ...] | None = None
 
