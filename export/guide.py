@@ -14,7 +14,8 @@ FILES = (
     (
         "robot.urdf",
         "the robot description for ROS: links, inertias, joints, limits",
-        "RViz, `check_urdf robot.urdf`, yourdfpy",
+        "`check_urdf robot.urdf`, yourdfpy, pinocchio (this folder on `ROS_PACKAGE_PATH` "
+        "or as `package_dirs`), RViz (`parmor ros` makes a ROS package of it)",
     ),
     (
         "robot.xml",
@@ -22,6 +23,11 @@ FILES = (
         "`python -m mujoco.viewer --mjcf robot.xml`, `parmor simulate`",
     ),
     ("meshes/*.stl", "every printed part, in millimetres, lying as it prints", "a slicer"),
+    (
+        "print/*.3mf",
+        "each printed part as a print project: its copies on its printer's bed, its settings",
+        "PrusaSlicer",
+    ),
     ("bom.csv", "bill of materials with totals", "a spreadsheet"),
 )
 
@@ -116,9 +122,12 @@ def guide_markdown(
     if pictures:
         lines += ["![the assembled robot](pictures/robot.png)", ""]
     lines += [
-        "Slice the STL files as they are (millimetres, each already lying in its printing "
-        "orientation; `print/prusaslicer.ini` holds the settings the figures are for: "
-        "solid parts, 0.2 mm layers, supports where needed).",
+        "Open `print/<part>.3mf` in PrusaSlicer: the part's copies on the bed of its "
+        "printer, with its settings (solid, 0.2 mm layers, supports only where it "
+        "overhangs); a project named `x1 of 2` is printed twice. Or slice the STL files as "
+        "they are (millimetres, each already lying in its printing orientation; "
+        "`print/prusaslicer.ini` holds the settings the figures are for, on the catalog's "
+        "printer).",
         "",
         "| part | count | mass (g) | print time (min) | printer | picture |",
         "|---|---|---|---|---|---|",

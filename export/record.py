@@ -104,7 +104,8 @@ def structure_record(s: Structure) -> dict:
             }
             for m in s.modules
         ],
-        "mass_kg": _r(s.mass_kg),
+        "mass_kg": _r(s.robot_mass_kg),
+        "loaded_mass_kg": _r(s.mass_kg),
         "cost": _r(s.cost),
         "power": {
             "peak_current_A": _r(s.power.peak_current_A),
@@ -209,7 +210,11 @@ def candidate_text(c: Candidate, short: Short, indent: str = "  ") -> str:
 
 def structure_text(s: Structure, indent: str = "  ") -> str:
     """The sized structure as text: links, joints, modules, totals."""
-    out = [f"{indent}structure:  {s.mass_kg:.3f} kg, cost {s.cost:.2f}, {s.iterations} iterations"]
+    load = f" (+ {s.payload_kg:.3f} kg payload)" if s.payload_kg > 0 else ""
+    out = [
+        f"{indent}structure:  {s.robot_mass_kg:.3f} kg{load}, cost {s.cost:.2f}, "
+        f"{s.iterations} iterations"
+    ]
     for link in s.links:
         out.append(
             f"{indent}  link {link.name:<10} x{link.count}  L {link.length_m * 1000:6.1f} mm  "

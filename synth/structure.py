@@ -150,6 +150,18 @@ class Structure:
     template: Template = field(repr=False, compare=False)
     notes: tuple[str, ...] = ()
 
+    @property
+    def payload_kg(self) -> float:
+        """The payload (kg) the structure was sized to carry: a load, not a part."""
+        parts = self.template.parts.values()
+        return sum(lp.mass for ps in parts for lp in ps if lp.kind == "payload")
+
+    @property
+    def robot_mass_kg(self) -> float:
+        """The robot's own mass (kg): ``mass_kg`` (sized, loaded) without the payload; the
+        BOM's and the models' total."""
+        return self.mass_kg - self.payload_kg
+
 
 def template_for(candidate: Candidate) -> str | None:
     """The kinematic template of a robot type: its own, or that of the robot class above
