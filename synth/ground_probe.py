@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import re
 import resource
 import signal
 import time
@@ -34,13 +33,12 @@ PROBE_S = 3.0
 
 def pieces(kb, taxonomy: str, rules: Sequence) -> list[tuple[str, str]]:
     """(place, program text) of each piece, in grounding order (see the module)."""
-    from synth.solver import _parse, encoding_dir
+    from synth.solver import _parse, conceptual_text
 
     facts = [taxonomy] + [line for line in kb.translation.program.splitlines() if ":-" not in line]
     out: list[tuple[str, str]] = [("the knowledge base's facts and taxonomy", "\n".join(facts))]
     out += kif_rules(kb)
-    enc = (encoding_dir() / "conceptual.lp").read_text(encoding="utf-8")
-    out.append(("parmor's encodings", _inline_includes(enc, encoding_dir())))
+    out.append(("parmor's encodings", conceptual_text()))
     for r in rules:
         try:
             stmts = _parse(r.text)
@@ -75,16 +73,6 @@ def kif_rules(kb) -> list[tuple[str, str]]:
                 if ":-" in program:
                     out.append((f"the rule at {name}:{form.line}:{form.col}", program))
     return out
-
-
-def _inline_includes(text: str, folder) -> str:
-    """The encodings' entry file with its ``#include "x.lp".`` lines replaced by the files
-    (parts cannot load files)."""
-
-    def repl(m: re.Match) -> str:
-        return _inline_includes((folder / m.group(1)).read_text(encoding="utf-8"), folder)
-
-    return re.sub(r'^#include\s+"([^"]+)"\s*\.\s*$', repl, text, flags=re.M)
 
 
 def culprit(

@@ -347,6 +347,23 @@ def _encoding_texts() -> tuple[str, ...]:
     )
 
 
+@functools.cache
+def conceptual_text() -> str:
+    """asp/conceptual.lp with its ``#include`` lines replaced by the files they name. Not
+    ``Control.load``: clingo looks for an included file in the working folder first, so a
+    ``choice.lp`` of the user's there would replace parmor's."""
+
+    def inline(text: str) -> str:
+        return re.sub(
+            r'^#include\s+"([^"]+)"\s*\.[ \t]*$',
+            lambda m: inline((encoding_dir() / m.group(1)).read_text(encoding="utf-8")),
+            text,
+            flags=re.M,
+        )
+
+    return inline((encoding_dir() / "conceptual.lp").read_text(encoding="utf-8"))
+
+
 def taxonomy_program(kb: KnowledgeBase, others: Sequence[str], rules: Sequence[str]) -> str:
     """The taxonomy closure the program needs (facts), or the recursive rules when only
     they are exact (adron/translate.py: taxonomy_closure)."""
@@ -370,7 +387,7 @@ class _Core:
         try:
             self._ctl.add("base", [], kb.translation.program)
             self._ctl.add("base", [], taxonomy_program(kb, extra, [r.text for r in rules]))
-            self._ctl.load(str(encoding_dir() / "conceptual.lp"))
+            self._ctl.add("base", [], conceptual_text())
             for text in extra:
                 self._ctl.add("base", [], text)
             self._tmp: dict[str, str] = {}

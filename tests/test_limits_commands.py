@@ -178,3 +178,18 @@ def test_a_kif_rule_with_many_variables_is_named(tmp_path: Path) -> None:
     line = one_line(err)
     assert code == 1 and "time limit" in line and "stage ground" in line, err
     assert f"the rule at {kif}:2:1 grew" in line
+
+
+def test_enumerate_with_a_thousand_actuators_stops_at_its_time_limit(tmp_path: Path) -> None:
+    """Issue 11: ``enumerate walking`` with a 1000-actuator catalog ran past 300 s."""
+    import re
+
+    text = (Path(__file__).resolve().parents[1] / "adron" / "catalog.toml").read_text()
+    first, end = text.index("[[actuator]]"), text.index("[[module]]")
+    copies = [
+        re.sub(r'model = "([^"]+)"', rf'model = "\1-{i}"', text[first:end]) for i in range(167)
+    ]
+    catalog = tmp_path / "c.toml"
+    catalog.write_text(text[:first] + "".join(copies) + text[end:])
+    code, err = run("enumerate", "walking", "--catalog", str(catalog), "--time-limit", "2")
+    assert code == 1 and "time limit (2 s, --time-limit) reached" in one_line(err), err

@@ -261,3 +261,17 @@ def test_kill_at_any_moment(tmp_path) -> None:
         write_bundle(out, OLD, force=True)  # cleans the leftovers, back to the old files
         assert listing(tmp_path) == ["b"]
     assert seen <= {"old", "new"}
+
+
+@pytest.mark.parametrize("out", ["", ".", "/", ".."])
+def test_the_command_line_refuses_those_names_before_any_work(tmp_path, monkeypatch, out) -> None:
+    import io
+
+    from synth.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    err = io.StringIO()
+    argv = ["design", "pick-and-place", "--param", "object_shape=oval", "--conceptual"]
+    assert main([*argv, "--out", out, "--force"], out=io.StringIO(), err=err) == 2
+    assert "expected the name of a folder" in err.getvalue()
+    assert listing(tmp_path) == []
