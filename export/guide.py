@@ -1,5 +1,5 @@
 """The bundle's ``README.md``: what the robot is, how to print and assemble it (module
-order and I2C addresses) and which file to open with what. Pure: returns the text."""
+order and bus addresses) and which file to open with what. Pure: returns the text."""
 
 from __future__ import annotations
 
@@ -32,6 +32,20 @@ FILES = (
 )
 
 
+#: The bus of a record written before records named theirs: the paper's I2C bus.
+_OLD_BUS = {"name": "I2C", "address_word": "address"}
+
+
+def _bus(record: dict) -> dict:
+    """The record's ``bus`` (name, address word, module limit)."""
+    return record.get("bus") or _OLD_BUS
+
+
+def _plural(word: str) -> str:
+    """'address' -> 'addresses', 'ID' -> 'IDs'."""
+    return word + ("es" if word.endswith(("s", "x", "sh", "ch")) else "s")
+
+
 def _md(text: str) -> str:
     """Text from user input, safe inside Markdown table cells and lines."""
     return text.replace("|", "\\|").replace("\n", " ")
@@ -40,9 +54,13 @@ def _md(text: str) -> str:
 def assembly_steps(record: dict, asm: Assembly) -> list[str]:
     """The numbered assembly sequence (Markdown lines): the root body's printed plate and
     its modules, then every joint from the root outwards (the assembly's tree order): its
-    servo module (with its I2C address) onto the part before it, then the printed and
+    servo module (with its bus address) onto the part before it, then the printed and
     bought parts of the body it turns."""
-    addresses = {j["name"]: j["i2c_address"] for j in record.get("joints", ())}
+    bus = _bus(record)
+    addresses = {j["name"]: j.get("bus_address", "") for j in record.get("joints", ())}
+    word = bus["address_word"]
+    # "I2C 0x09", "DYNAMIXEL TTL ID 3": the plain word "address" goes without saying
+    label = bus["name"] if word == "address" else f"{bus['name']} {word}"
     by_body = {b.name: b for b in asm.bodies}
 
     def parts_of(body: str, skip: str = "") -> str:
@@ -54,7 +72,8 @@ def assembly_steps(record: dict, asm: Assembly) -> list[str]:
         return ", ".join(f"{n} x{k}" if k > 1 else n for n, k in names.items())
 
     out = [
-        "Set each active module's I2C address before mounting it (the addresses below). "
+        f"Set each active module's {_md(bus['name'])} {_md(word)} before "
+        f"mounting it (the {_md(_plural(word))} below). "
         "Then, from the root outwards, slide each module onto the dovetail face of the part "
         "before it:",
         "",
@@ -71,7 +90,7 @@ def assembly_steps(record: dict, asm: Assembly) -> list[str]:
         addr = addresses.get(j.name, "")
         out.append(
             f"{step}. Joint `{_md(j.name)}`: the {_md(j.actuator)} servo module"
-            + (f" (I2C {addr})" if addr else "")
+            + (f" ({_md(label)} {_md(addr)})" if addr else "")
             + f" onto `{_md(j.parent)}`; on its output: {parts or 'the next joint'}."
         )
         step += 1
@@ -99,6 +118,9 @@ def guide_markdown(
         if load > 0
         else ""
     )
+    bus = _bus(r)
+    limits = [x for x in (r.get("module_limit"), bus.get("module_limit")) if x is not None]
+    limit = min(limits) if limits else "none"
     lines = [f"# {_md(r['robot_type'])}: a parmor design", ""]
     if documentation:
         lines += [_md(documentation), ""]
@@ -109,8 +131,8 @@ def guide_markdown(
         f"It can: {_md(', '.join(r['abilities']))}.",
         f"The robot weighs {asm.total_mass - (load if payload.get('in_models') else 0.0):.3f} kg "
         f"(every part in bom.csv), modules cost {r['cost']:.2f}, {r['dof']} degrees of "
-        f"freedom, {r['active_modules']} active modules on the I2C bus "
-        f"(limit {r['module_limit']}).{carried}",
+        f"freedom, {r['active_modules']} active modules on the {_md(bus['name'])} bus "
+        f"(limit {limit}).{carried}",
         "",
         "## Files",
         "",

@@ -43,8 +43,9 @@ def _structure_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("structure (sizing links and choosing actuators)")
     g.add_argument(
         "--catalog",
-        metavar="FILE.toml",
-        help="module catalog to use instead of the shipped ParMoR one",
+        metavar="NAME|FILE.toml",
+        help="module catalog: a shipped one by name (default: the ParMoR modules; "
+        "dynamixel: ROBOTIS DYNAMIXEL X servos) or your own file",
     )
     g.add_argument(
         "--conceptual", action="store_true", help="stop after the conceptual design (no sizing)"

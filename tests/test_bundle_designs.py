@@ -235,7 +235,7 @@ def test_cli_bundle_with_readme_and_bom(cli, tmp_path) -> None:
     rec = json.loads((out / "design.json").read_text(encoding="utf-8"))
     for j in rec["joints"]:
         assert (
-            f"Joint `{j['name']}`: the {j['actuator']} servo module (I2C {j['i2c_address']})"
+            f"Joint `{j['name']}`: the {j['actuator']} servo module (I2C {j['bus_address']})"
             in readme
         )
     assert "![the assembled robot](pictures/robot.png)" in readme
