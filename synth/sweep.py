@@ -172,7 +172,7 @@ def _work(state: tuple, q: dict) -> dict:
     reaches one is an error of the sweep, tried again on its next run."""
     designer, sopts, simulate, lim = state
     try:
-        with _bounded(lim):
+        with _bounded(lim), limits.stage("structure/simulate"):  # as 'parmor design' says
             return design_one(q, designer, sopts, simulate)
     except limits.LimitExceeded as e:  # the alarm after design_one caught the rest
         res: dict = {"status": "error", "reason": f"LimitExceeded: {e}", "robot_type": None}
