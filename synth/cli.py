@@ -651,6 +651,7 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     from export.record import candidate_record, candidate_text
     from synth.backend import Backend, tasks
+    from synth.limits import stage
 
     jobs = 1 if args.jobs is None and args.backend == "local" else args.jobs  # 1: in-process
     engine = Backend(args.backend, jobs, args.address)
@@ -696,7 +697,10 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         items = list(enumerate(shown, 1))
         sized: dict[int, dict] = {}
         nxt = 1
-        with tasks(engine, _sizer_init, arg, _sizer_work, items, files, here=here) as done:
+        with (
+            stage("structure"),
+            tasks(engine, _sizer_init, arg, _sizer_work, items, files, here=here) as done,
+        ):
             for i, result in done:
                 sized[i] = result
                 while nxt in sized:

@@ -98,6 +98,14 @@ REPEAT_S = 0.25
 
 
 def _alarm(signum: int, frame: object) -> None:
+    # Python runs a handler at its next instruction: by then the limit may be off again
+    # (the run ended, a bounded item gave back the outer deadline): a stale ring, ignored
+    if _deadline is None:
+        return
+    left = _deadline - time.monotonic()
+    if left > 1e-3:  # early (a deadline given back or moved on): ring at the right time
+        signal.setitimer(signal.ITIMER_REAL, left)
+        return
     signal.setitimer(signal.ITIMER_REAL, REPEAT_S)
     raise LimitExceeded(_current.describe("time"), _stage)
 
