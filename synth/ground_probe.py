@@ -10,7 +10,9 @@ same memory limit) ends, is the one that grew.
 
 The order is the program's: the knowledge base's facts and the taxonomy (one part), each
 KIF rule form (file:line:col, translated again on its own), parmor's encodings (one part),
-then each statement of each rule file (file:line:col). Grounding a
+then each statement of each rule file (file:line:col). When the probe is stopped in
+parmor's encodings, they grew on what a rule of the user's gave them: the KIF rule or rule
+file statement that added the most atoms before them is named, with its count. Grounding a
 statement once, on what the statements before it derived, is an approximation of the
 whole grounding (a rule is not grounded again with atoms derived after it), good for the
 rules that blow up on their own (a huge interval, a cross product, many variables). When
@@ -29,16 +31,25 @@ from multiprocessing.connection import Pipe
 
 #: Seconds the probe may take after the limit was reached: it is added to the limit.
 PROBE_S = 3.0
+ENCODINGS = "parmor's encodings"
 
 
-def pieces(kb, taxonomy: str, rules: Sequence) -> list[tuple[str, str]]:
-    """(place, program text) of each piece, in grounding order (see the module)."""
+def pieces(kb, taxonomy: str, rules: Sequence, program: str | None = None) -> list[tuple[str, str]]:
+    """(place, program text) of each piece, in grounding order (see the module);
+    ``program``: the translation as it went to the grounder (default: all of it)."""
     from synth.solver import _parse, conceptual_text
 
-    facts = [taxonomy] + [line for line in kb.translation.program.splitlines() if ":-" not in line]
+    program = kb.translation.program if program is None else program
+    lines = program.splitlines()
+    facts = [taxonomy] + [line for line in lines if ":-" not in line]
     out: list[tuple[str, str]] = [("the knowledge base's facts and taxonomy", "\n".join(facts))]
-    out += kif_rules(kb)
-    out.append(("parmor's encodings", conceptual_text()))
+    grounded = set(lines)
+    out += [
+        (place, text)
+        for place, text in kif_rules(kb)
+        if all(x in grounded for x in text.splitlines() if ":-" in x)
+    ]
+    out.append((ENCODINGS, conceptual_text()))
     for r in rules:
         try:
             stmts = _parse(r.text)
@@ -76,11 +87,16 @@ def kif_rules(kb) -> list[tuple[str, str]]:
 
 
 def culprit(
-    kb, taxonomy: str, rules: Sequence, memory_mb: int | None, budget_s: float = PROBE_S
+    kb,
+    taxonomy: str,
+    rules: Sequence,
+    memory_mb: int | None,
+    budget_s: float = PROBE_S,
+    program: str | None = None,
 ) -> str:
     """The place of the statement that grew (see the module), or '' when none did
     within ``budget_s`` seconds and ``memory_mb`` (None: no memory cap)."""
-    parts = pieces(kb, taxonomy, rules)
+    parts = pieces(kb, taxonomy, rules, program)
     read, write = Pipe(duplex=False)
     pid = os.fork()
     if pid == 0:  # the probe
@@ -96,6 +112,7 @@ def culprit(
             os._exit(code)
     write.close()
     last, done = -1, False
+    added: dict[int, int] = {}  # part -> atoms it added
     deadline = time.monotonic() + budget_s
     try:
         while (left := deadline - time.monotonic()) > 0 and read.poll(left):
@@ -106,7 +123,10 @@ def culprit(
             if msg == "done":
                 done = True
                 break
-            last = msg
+            if isinstance(msg, tuple):
+                added[msg[0]] = msg[1]
+            else:
+                last = msg
     finally:
         read.close()
         with contextlib.suppress(OSError):
@@ -115,6 +135,11 @@ def culprit(
             os.waitpid(pid, 0)
     if done or last < 0:
         return ""
+    if parts[last][0] == ENCODINGS:
+        users = {i: n for i, n in added.items() if 0 < i < last}
+        if users:
+            i = max(users, key=lambda k: (users[k], -k))
+            return f"{parts[i][0]} (its {users[i]} atoms, on which parmor's encodings ground)"
     return parts[last][0]
 
 
@@ -131,6 +156,7 @@ def _ground(parts: list[tuple[str, str]], conn, memory_mb: int | None) -> None:
     for i, (_, text) in enumerate(parts):
         conn.send(i)
         name = f"parmor_probe_{i}"
+        before = len(ctl.symbolic_atoms)
         try:
             ctl.add(name, [], text)
             ctl.ground([(name, [])])
@@ -138,6 +164,7 @@ def _ground(parts: list[tuple[str, str]], conn, memory_mb: int | None) -> None:
             if "bad_alloc" in str(e):
                 return  # out of memory in part i: the parent names it
             continue  # a piece that does not ground alone (a syntax the whole one reports)
+        conn.send((i, len(ctl.symbolic_atoms) - before))
     conn.send("done")
 
 
@@ -145,7 +172,7 @@ def explained(e, kb, rules: Sequence, what: str, focus: str | None = None):
     """``e`` (a LimitExceeded of the grounding) with the files grounded and, for a time or
     memory limit, the rule that grew (``culprit``; the size limit names its own)."""
     from synth import limits
-    from synth.solver import asp_string, taxonomy_program
+    from synth.solver import asp_string, relevant, taxonomy_program
 
     if e.stage != "ground" or not e.limit.startswith(("time", "memory")):
         return e
@@ -155,8 +182,10 @@ def explained(e, kb, rules: Sequence, what: str, focus: str | None = None):
         detail.append(f"grounding {what}")
     extra = [f"focus({asp_string(focus)})."] if focus is not None else []
     try:
-        taxonomy = taxonomy_program(kb, extra, [r.text for r in rules])
-        found = culprit(kb, taxonomy, rules, limits.current().memory_mb)
+        texts = [r.text for r in rules]
+        program = relevant(kb, focus, texts).program(kb.translation)  # as _Core grounds it
+        taxonomy = taxonomy_program(kb, extra, texts, program)
+        found = culprit(kb, taxonomy, rules, limits.current().memory_mb, program=program)
     except (OSError, RuntimeError, MemoryError):
         found = ""
     if found:

@@ -173,7 +173,10 @@ def test_a_kif_rule_with_many_variables_is_named(tmp_path: Path) -> None:
         "(=> (and (subclass ?A ?B) (subclass ?C ?D) (subclass ?E ?F) (subclass ?G ?H))\n"
         "    (related ?A ?B ?C ?D ?E ?F ?G ?H))\n"
     )
+    # a rule file turns the relevance filter off (adron/relevance.py): the rule is grounded
+    (tmp_path / "r.lp").write_text("mine(R) :- chosen(R).\n")
     base = ["design", "walking", "--answer", "grasping=no", "--conceptual"]
+    base += ["--rules", str(tmp_path / "r.lp")]
     code, err = run(*base, "--ontology", str(kif), "--time-limit", "1")
     line = one_line(err)
     assert code == 1 and "time limit" in line and "stage ground" in line, err
