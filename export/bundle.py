@@ -3,9 +3,16 @@ atomically (``write_bundle``): all files appear together or none do."""
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import errno
+import hashlib
+import json
+import os
 import re
+import secrets
 import shutil
-import tempfile
+import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -209,6 +216,14 @@ _SAFE_BEHAVIOR = re.compile(r"[a-z0-9_-]+")
 #: web server), whatever the umask; ``tempfile.mkdtemp`` alone would leave 0700.
 DIR_MODE = 0o755
 FILE_MODE = 0o644
+#: The file ``write_bundle`` leaves in every folder it writes: ``force`` replaces only a
+#: folder holding it (or a bundle of ours from before it, see ``_ours``), so that a typo
+#: in ``--out DIR --force`` cannot delete a folder of the user's.
+MARKER = ".parmor"
+MARKER_TEXT = (
+    "This folder was written by parmor; 'parmor ... --force' may replace it whole.\n"
+    "Remove this file to keep parmor from replacing it.\n"
+)
 
 
 def write_bundle(
@@ -217,50 +232,275 @@ def write_bundle(
     force: bool = False,
     modes: Mapping[str, int] | None = None,
 ) -> Path:
-    """Write ``files`` (relative name -> content) into the folder ``out``.
+    """Write ``files`` (relative name -> content) into the folder ``out``; returns it.
 
-    The files are written to a temporary sibling folder that is then renamed into place,
-    so an error leaves nothing half-written. An existing non-empty ``out`` is an error
-    unless ``force``, in which case it is replaced whole; an empty one is replaced. Files
-    get ``FILE_MODE``, or their mode in ``modes`` (an executable script), folders
-    ``DIR_MODE``.
+    The files are written to a temporary sibling folder that then takes ``out``'s place in
+    one atomic step, so that ``out`` holds the old files or the new ones, never a mix or
+    nothing, whenever the process is killed:
+
+    - ``out`` absent or empty: ``rename`` (which fails, rather than replace it, when a
+      non-empty folder or a file appeared at ``out`` meanwhile);
+    - ``out`` a non-empty folder of ours (``force``): on Linux ``renameat2`` with
+      ``RENAME_EXCHANGE`` swaps the two folders, then the old one is deleted; where the
+      exchange is not available, ``out`` is renamed aside, the new folder into place and
+      the old one deleted (a kill between the two renames leaves ``out`` absent: the next
+      write to ``out`` puts the old one back first).
+
+    Temporary folders are named ``.<out>.<hash>.parmor-new|old-<pid>-<random>`` beside
+    ``out``; one left by a killed run (its process gone) is deleted by the next write to
+    the same ``out``. Refused (ExportError, nothing written): an ``out`` of '', '.', '..'
+    or '/', the working folder or one above it, a symbolic link (never followed: the link
+    is not a folder of ours), a file, a non-empty folder without ``force`` or, with it,
+    one parmor did not write (``MARKER`` absent, ``_ours``). Every folder written holds
+    ``MARKER``. Files get ``FILE_MODE``, or their mode in ``modes`` (an executable
+    script), folders ``DIR_MODE``.
     """
     modes = modes or {}
-    out = Path(out)
     for name in files:
         parts = Path(name).parts
-        if Path(name).is_absolute() or ".." in parts or not parts:
+        if Path(name).is_absolute() or ".." in parts or not parts or name == MARKER:
             raise ExportError(f"{name!r}: a bundle file must stay inside the folder")
-    if out.exists() and not out.is_dir():
-        raise ExportError(f"{out}: exists and is not a folder")
-    if out.exists() and any(out.iterdir()) and not force:
-        raise ExportError(f"{out}: already exists and is not empty; pass --force to replace it")
-    parent = out.resolve().parent
+    _clean_leftovers(_target(out))
+    target = check_out(out, force)
+    shown = str(out)
+    made = _make_parents(target.parent, shown)
+    tmp = None
     try:
-        parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))
+        tmp = _temp_dir(target, "new")
+        _write_files(tmp, files, modes)
+        _commit(tmp, target, shown, force)
+        tmp = None
     except OSError as e:
-        raise ExportError(f"{out}: cannot create: {e.strerror}") from None
+        raise ExportError(f"{shown}: cannot write: {e.strerror or e}") from None
+    finally:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+            for d in reversed(made):
+                with contextlib.suppress(OSError):
+                    d.rmdir()
+    return Path(out)
+
+
+def check_out(out: str | Path, force: bool = False) -> Path:
+    """Refuse ``out`` as ``write_bundle`` would, before any work (ExportError); returns
+    it as an absolute path (its folder resolved, its last name not)."""
+    target = _target(out)
+    shown = os.fspath(out)
+    state = _state(target, shown)
+    if state == "full" and not force:
+        raise ExportError(f"{shown}: already exists and is not empty; pass --force to replace it")
+    if state == "full" and not _ours(target):
+        raise ExportError(
+            f"{shown}: not a folder parmor wrote (no {MARKER} file, no design.json of ours); "
+            "--force replaces only those: remove it yourself or choose another folder"
+        )
+    return target
+
+
+def _target(out: str | Path) -> Path:
+    """``out`` as an absolute path whose folder is resolved and whose last name is not
+    (a link there stays a link); refuses names that are not a folder of its own."""
+    text = os.fspath(out)
+    name = Path(text).name
+    if not text.strip() or name in ("", ".", "..") or text.rstrip("/").endswith(("/.", "/..")):
+        raise ExportError(
+            f"--out {text!r}: expected the name of a folder to write (not '', '.', '..' or '/')"
+        )
     try:
-        tmp.chmod(DIR_MODE)
-        for name, content in sorted(files.items()):
-            target = tmp / name
-            for d in reversed(target.relative_to(tmp).parents[:-1]):
-                (tmp / d).mkdir(exist_ok=True)
-                (tmp / d).chmod(DIR_MODE)
-            if isinstance(content, str):
-                target.write_text(content, encoding="utf-8", newline="\n")
-            else:
-                target.write_bytes(content)
-            target.chmod(modes.get(name, FILE_MODE))
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old.", dir=parent))
-            out.rename(old / "x")
-            tmp.rename(out)
-            shutil.rmtree(old, ignore_errors=True)
+        target = Path(text).parent.resolve() / name
+        here = Path.cwd().resolve()
+    except (OSError, RuntimeError) as e:
+        raise ExportError(f"{text}: cannot resolve: {e}") from None
+    if target == here or target in here.parents:
+        raise ExportError(f"{text}: is the working folder or holds it; choose another folder")
+    return target
+
+
+def _state(target: Path, shown: str) -> str:
+    """'absent', 'empty' or 'full'; refuses a link or a file."""
+    try:
+        st = target.lstat()
+    except FileNotFoundError:
+        return "absent"
+    except OSError as e:
+        raise ExportError(f"{shown}: cannot use: {e.strerror}") from None
+    import stat
+
+    if stat.S_ISLNK(st.st_mode):
+        raise ExportError(
+            f"{shown}: is a symbolic link; parmor does not write through links: give the "
+            "folder it points to, or another name"
+        )
+    if not stat.S_ISDIR(st.st_mode):
+        raise ExportError(f"{shown}: exists and is not a folder")
+    try:
+        with os.scandir(target) as it:
+            return "full" if any(True for _ in it) else "empty"
+    except OSError as e:
+        raise ExportError(f"{shown}: cannot read: {e.strerror}") from None
+
+
+def _ours(folder: Path) -> bool:
+    """Whether parmor wrote ``folder``: it holds ``MARKER``, or (a bundle written before
+    the marker) a design.json that is a design record; or it lies one or two levels inside
+    such a folder (the ROS package in ``DIR/ros/``, the block page in ``DIR/blocks/``)."""
+    for d in (folder, folder.parent, folder.parent.parent):
+        if (d / MARKER).is_file() and not (d / MARKER).is_symlink():
+            return True
+        try:
+            rec = json.loads((d / "design.json").read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if isinstance(rec, dict) and "robot_type" in rec and "abilities" in rec:
+            return True
+    return False
+
+
+def _prefix(target: Path) -> str:
+    """The name every temporary folder of ``target`` starts with (short: a long name
+    plus the suffix would pass the file system's limit)."""
+    raw = os.fsencode(target.name)
+    digest = hashlib.sha1(raw).hexdigest()[:8]
+    short = os.fsdecode(raw[:60]) if len(raw) > 60 else target.name
+    return f".{short}.{digest}.parmor-"
+
+
+def _temp_dir(target: Path, kind: str) -> Path:
+    path = target.parent / f"{_prefix(target)}{kind}-{os.getpid()}-{secrets.token_hex(4)}"
+    path.mkdir(mode=0o700)
+    path.chmod(DIR_MODE)
+    return path
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True  # another user's: alive
+    return True
+
+
+def _clean_leftovers(target: Path) -> None:
+    """Delete the temporary folders of ``target`` whose process is gone (a run killed
+    before its end); put an old folder back where ``target`` is absent (killed between
+    the two renames of the fallback)."""
+    prefix = _prefix(target)
+    try:
+        with os.scandir(target.parent) as it:
+            names = sorted(e.name for e in it if e.name.startswith(prefix))
+    except OSError:
+        return
+    for name in names:
+        kind, _, rest = name[len(prefix) :].partition("-")
+        pid = rest.partition("-")[0]
+        if kind not in ("new", "old") or not pid.isdigit() or _alive(int(pid)):
+            continue
+        path = target.parent / name
+        if kind == "old" and not os.path.lexists(target):
+            with contextlib.suppress(OSError):
+                os.rename(path, target)
+                continue
+        shutil.rmtree(path, ignore_errors=True)
+
+
+def _make_parents(parent: Path, shown: str) -> list[Path]:
+    """Create ``parent`` and the folders above it that are missing; returns those made
+    (removed again when the write fails)."""
+    missing = []
+    d = parent
+    while not os.path.lexists(d) and d != d.parent:
+        missing.append(d)
+        d = d.parent
+    made = []
+    try:
+        for d in reversed(missing):
+            d.mkdir()
+            made.append(d)
+    except OSError as e:
+        for d in reversed(made):
+            with contextlib.suppress(OSError):
+                d.rmdir()
+        raise ExportError(f"{shown}: cannot create: {e.strerror}") from None
+    if not parent.is_dir():
+        raise ExportError(f"{shown}: {parent} is not a folder")
+    return made
+
+
+def _write_files(tmp: Path, files: Mapping[str, str | bytes], modes: Mapping[str, int]) -> None:
+    """Write ``files`` and ``MARKER`` into the fresh folder ``tmp``."""
+    for name, content in sorted({**files, MARKER: MARKER_TEXT}.items()):
+        path = tmp / name
+        for d in reversed(path.relative_to(tmp).parents[:-1]):
+            (tmp / d).mkdir(exist_ok=True)
+            (tmp / d).chmod(DIR_MODE)
+        if isinstance(content, str):
+            path.write_text(content, encoding="utf-8", newline="\n")
         else:
-            tmp.rename(out)
-    except OSError as e:
+            path.write_bytes(content)
+        path.chmod(modes.get(name, FILE_MODE))
+
+
+def _commit(tmp: Path, target: Path, shown: str, force: bool) -> None:
+    """Put the written folder ``tmp`` in ``target``'s place (see write_bundle)."""
+    appeared = ExportError(
+        f"{shown}: a folder or file appeared there while the bundle was written; it was "
+        "left alone and nothing was written (run again to replace it)"
+    )
+    state = _state(target, shown)
+    if state != "full":
+        try:
+            os.rename(tmp, target)
+        except OSError as e:
+            if e.errno in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
+                raise appeared from None
+            raise
+        return
+    if not force or not _ours(target):
+        raise appeared
+    if _exchange(tmp, target):
+        if not _ours(tmp):  # swapped in between for a folder that is not ours: swap back
+            _exchange(tmp, target)
+            raise appeared
         shutil.rmtree(tmp, ignore_errors=True)
-        raise ExportError(f"{out}: cannot write: {e.strerror}") from None
-    return out
+        return
+    old = target.parent / f"{_prefix(target)}old-{os.getpid()}-{secrets.token_hex(4)}"
+    os.rename(target, old)
+    try:
+        os.rename(tmp, target)
+    except OSError:
+        with contextlib.suppress(OSError):
+            os.rename(old, target)
+        raise
+    shutil.rmtree(old, ignore_errors=True)
+
+
+#: renameat2's flag that swaps two paths atomically (Linux 3.15; glibc 2.28 has the call)
+_RENAME_EXCHANGE = 2
+_AT_FDCWD = -100
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap the folders ``a`` and ``b`` in one step (renameat2 RENAME_EXCHANGE); False
+    where that is not available (not Linux, an old C library, a file system without it)."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        renameat2 = ctypes.CDLL(None, use_errno=True).renameat2
+    except (OSError, AttributeError):
+        return False
+    renameat2.argtypes = [
+        ctypes.c_int,
+        ctypes.c_char_p,
+        ctypes.c_int,
+        ctypes.c_char_p,
+        ctypes.c_uint,
+    ]
+    renameat2.restype = ctypes.c_int
+    if renameat2(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.EINVAL, errno.ENOSYS, errno.EOPNOTSUPP):
+        return False
+    raise OSError(err, os.strerror(err), str(b))

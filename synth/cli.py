@@ -109,31 +109,45 @@ def _kb_options(p: argparse.ArgumentParser) -> None:
     _limit_options(p)
 
 
-def _limit_options(p: argparse.ArgumentParser) -> None:
-    from synth.limits import DEFAULT_MEMORY_MB, DEFAULT_SIZE_ATOMS, DEFAULT_TIME_S
+def _limit_options(
+    p: argparse.ArgumentParser, size: bool = True, each: str = "", memory: str = ""
+) -> None:
+    """--time-limit, --memory-limit and (where clingo grounds) --size-limit. ``each``: the
+    time limit is per item of the command (a sweep's request, a suite's query), not for
+    the whole of it."""
+    from synth.limits import (
+        DEFAULT_MEMORY_MB,
+        DEFAULT_SIZE_ATOMS,
+        DEFAULT_TIME_S,
+        MIN_PROCESS_MB,
+    )
 
     g = p.add_argument_group("limits (0 turns one off; reaching one: exit 1)")
+    what = f"wall time of {each}" if each else "wall time of the command, questions excepted"
     g.add_argument(
         "--time-limit",
         type=_limit_value(float),
         default=DEFAULT_TIME_S,
         metavar="SECONDS",
-        help=f"wall time of the command, questions excepted (default {DEFAULT_TIME_S:g})",
+        help=f"{what} (default {DEFAULT_TIME_S:g})",
     )
     g.add_argument(
         "--memory-limit",
         type=_limit_value(int),
         default=DEFAULT_MEMORY_MB,
         metavar="MB",
-        help=f"memory of the clingo worker (default {DEFAULT_MEMORY_MB})",
+        help=f"memory {memory or 'of the clingo worker and of this process'} beyond what it "
+        f"holds at the start (this process: at least {MIN_PROCESS_MB}; default "
+        f"{DEFAULT_MEMORY_MB})",
     )
-    g.add_argument(
-        "--size-limit",
-        type=_limit_value(int),
-        default=DEFAULT_SIZE_ATOMS,
-        metavar="ATOMS",
-        help=f"ground program size (default {DEFAULT_SIZE_ATOMS})",
-    )
+    if size:
+        g.add_argument(
+            "--size-limit",
+            type=_limit_value(int),
+            default=DEFAULT_SIZE_ATOMS,
+            metavar="ATOMS",
+            help=f"ground program size (default {DEFAULT_SIZE_ATOMS})",
+        )
 
 
 def _limit_value(kind: type):
@@ -281,6 +295,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("files", nargs="+", metavar="FILE.kif")
     _json_option(c)
     c.add_argument("--all", action="store_true", help="list every untranslated form")
+    _limit_options(c, size=False, memory="of this process")
 
     p = sub.add_parser(
         "simulate",
@@ -319,6 +334,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--gait", metavar="NAME", help="shortcut for --set gait=NAME")
     p.add_argument("--plot", action="store_true", help="write PNG plots of the run into DIR/plots/")
     _json_option(p)
+    _limit_options(p, size=False, memory="of this process")
 
     p = sub.add_parser(
         "blocks",
@@ -372,6 +388,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --json: include the animation frames (every drawn part's pose, 20 per s)",
     )
     _json_option(p)
+    _limit_options(p, size=False, memory="of this process")
 
     p = sub.add_parser(
         "regress",
@@ -389,6 +406,7 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="accept the suite's rule files that contain #script",
     )
+    _limit_options(p, each="the grounding and of each query")
 
     p = sub.add_parser(
         "sweep",
@@ -426,6 +444,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="accept the study's rule files that contain #script",
     )
     _json_option(p)
+    _limit_options(p, each="the grounding and of each request (in its worker)")
 
     p = sub.add_parser(
         "ros",
@@ -443,6 +462,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--name", metavar="NAME", help="the robot's ROS name (default: from its type)")
     p.add_argument("--force", action="store_true", help="replace the package if it exists")
     _json_option(p)
+    _limit_options(p, size=False, memory="of this process")
     return parser
 
 
@@ -582,8 +602,10 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from synth.limits import stage
     from synth.pipeline import run
 
-    if args.out is not None and not args.out.strip():
-        raise InputError(f"--out {args.out!r}: expected the name of a folder")
+    if args.out is not None:
+        from export.bundle import check_out
+
+        check_out(args.out, args.force)  # before any work (written after it)
     designer = _designer(args, err)
     req = _request(args)
     opts = _options(args)
@@ -636,6 +658,7 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     from export.record import candidate_record, candidate_text
     from synth.backend import Backend, tasks
+    from synth.limits import stage
 
     jobs = 1 if args.jobs is None and args.backend == "local" else args.jobs  # 1: in-process
     engine = Backend(args.backend, jobs, args.address)
@@ -681,7 +704,10 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         items = list(enumerate(shown, 1))
         sized: dict[int, dict] = {}
         nxt = 1
-        with tasks(engine, _sizer_init, arg, _sizer_work, items, files, here=here) as done:
+        with (
+            stage("structure"),
+            tasks(engine, _sizer_init, arg, _sizer_work, items, files, here=here) as done,
+        ):
             for i, result in done:
                 sized[i] = result
                 while nxt in sized:
@@ -917,7 +943,12 @@ def cmd_regress(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from synth.regress import run_suite
 
     return run_suite(
-        args.suite, update=args.update, out=out, err=err, allow_scripts=args.allow_scripts
+        args.suite,
+        update=args.update,
+        out=out,
+        err=err,
+        allow_scripts=args.allow_scripts,
+        lim=getattr(args, "limits", None),
     )
 
 
@@ -959,6 +990,10 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             f"--seconds {args.seconds:g}: expected a number of seconds in "
             f"[{MIN_SIM_SECONDS:g}, {MAX_SIM_SECONDS:g}]"
         )
+    from synth.limits import stage
+
+    if args.plot:
+        _check_writable(folder / "plots", "--plot")
     record, model = load_bundle(folder)
     try:
         controller = controller_for_model(record, model)
@@ -980,9 +1015,10 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             def progress(fraction: float) -> None:
                 step(int(fraction * 100) + 1, f"simulating {args.behavior}")
 
-        traj, result = run_behavior(
-            model, controller, args.behavior, params, args.seconds, progress
-        )
+        with stage("simulate"):
+            traj, result = run_behavior(
+                model, controller, args.behavior, params, args.seconds, progress
+            )
     except (ValueError, KeyError) as e:
         raise InputError(e.args[0] if isinstance(e, KeyError) and e.args else str(e)) from None
     if progress is not None:
@@ -1009,6 +1045,16 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         err.write(f"parmor: {args.behavior} failed its verdict: {why}{when}\n")
         return 1
     return 0
+
+
+def _check_writable(target, option: str) -> None:
+    """Refuse, before any work, a ``target`` folder that cannot be written: a file in its
+    place, or a parent folder without write permission."""
+    if target.exists() and not target.is_dir():
+        raise InputError(f"{option}: {target} exists and is not a folder")
+    where = target if target.is_dir() else target.parent
+    if not os.access(where, os.W_OK | os.X_OK):
+        raise InputError(f"{option}: {where} is not writable")
 
 
 def cmd_ros(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -1115,6 +1161,9 @@ def run_text(result: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: Commands whose --time-limit is for each item (a suite's query, a sweep's request).
+PER_ITEM = ("regress", "sweep")
+
 COMMANDS = {
     "abilities": cmd_abilities,
     "blocks": cmd_blocks,
@@ -1147,22 +1196,38 @@ def main(
     except SystemExit as e:  # argparse: --help (0) or a usage error (2)
         return int(e.code or 0)
     handler = cmd_ontology_check if args.command == "ontology" else COMMANDS[args.command]
-    limited = hasattr(args, "size_limit")  # the reasoning commands (blocks has its own)
+    limited = hasattr(args, "memory_limit")  # every command but blocks (its own --time-limit)
+    uncap = None
     try:
         if limited:
             from synth import limits
 
-            limits.configure(
-                limits.Limits(
-                    args.time_limit or None, args.memory_limit or None, args.size_limit or None
-                )
+            lim = limits.Limits(
+                args.time_limit or None,
+                args.memory_limit or None,
+                getattr(args, "size_limit", 0) or None,
             )
-        code = handler(args, out, err)
+            if args.command in PER_ITEM:  # their time limit is per item (limits.bounded)
+                args.limits = lim
+                lim = limits.Limits(None, lim.memory_mb, lim.size_atoms)
+            limits.configure(lim)
+            if getattr(args, "backend", "local") != "ray":  # Ray's own processes inherit it
+                uncap = limits.cap_memory(lim.memory_mb)
+        with contextlib.ExitStack() as stack:
+            if limited:  # reading the input (and the imports) until a stage says otherwise
+                stack.enter_context(limits.stage("parse"))
+            code = handler(args, out, err)
         out.flush()
         return code
     except ParmorError as e:
         err.write(f"parmor: error: {_one_line(str(e))}\n")
         return e.exit_code
+    except MemoryError:
+        if uncap is None:
+            raise
+        uncap()
+        err.write(f"parmor: error: {_one_line(str(limits.memory_exceeded()))}\n")
+        return 1
     except KeyboardInterrupt:
         err.write("parmor: interrupted\n")
         return 130
@@ -1175,6 +1240,8 @@ def main(
         err.write(f"parmor: error: cannot write the output: {why}\n")
         return ExportError.exit_code
     finally:
+        if uncap is not None:
+            uncap()
         if limited:
             limits.configure(limits.Limits())
 

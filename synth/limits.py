@@ -10,10 +10,12 @@ clingo here.
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
+import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from adron.errors import ParmorError
@@ -35,7 +37,7 @@ class LimitExceeded(ParmorError):
     exit_code = 1
 
     def __init__(self, limit: str, stage: str, detail: str = "") -> None:
-        self.limit, self.stage = limit, stage
+        self.limit, self.stage, self.detail = limit, stage, detail
         super().__init__(
             f"{limit} reached while in stage {stage}" + (f": {detail}" if detail else "")
         )
@@ -62,6 +64,7 @@ class Limits:
 _current = Limits()
 _deadline: float | None = None
 _stage = "run"
+_capped: int | None = None  # the process whose memory cap_memory capped
 
 
 def current() -> Limits:
@@ -81,11 +84,29 @@ def stage(name: str) -> Iterator[None]:
     before, _stage = _stage, name
     try:
         yield
+    except MemoryError:
+        if _capped != os.getpid():
+            raise
+        raise memory_exceeded() from None
     finally:
         _stage = before
 
 
+#: After the time limit, the alarm rings again this often, s, until the run ends: code that
+#: swallowed the first LimitExceeded (a broad ``except Exception``) does not run on unbounded.
+REPEAT_S = 0.25
+
+
 def _alarm(signum: int, frame: object) -> None:
+    # Python runs a handler at its next instruction: by then the limit may be off again
+    # (the run ended, a bounded item gave back the outer deadline): a stale ring, ignored
+    if _deadline is None:
+        return
+    left = _deadline - time.monotonic()
+    if left > 1e-3:  # early (a deadline given back or moved on): ring at the right time
+        signal.setitimer(signal.ITIMER_REAL, left)
+        return
+    signal.setitimer(signal.ITIMER_REAL, REPEAT_S)
     raise LimitExceeded(_current.describe("time"), _stage)
 
 
@@ -136,3 +157,85 @@ def paused() -> Iterator[None]:
         _deadline += time.monotonic() - t0
         if threading.current_thread() is threading.main_thread():
             signal.setitimer(signal.ITIMER_REAL, max(_deadline - time.monotonic(), 1e-3))
+
+
+@contextlib.contextmanager
+def bounded(limits: Limits, what: str = "") -> Iterator[None]:
+    """Put ``limits`` in force inside, with a deadline of its own from now (one request of
+    a sweep, one query of a suite); the outer limits and deadline again after. A limit
+    reached inside names ``what`` (e.g. "request 'hexapod'")."""
+    global _current, _deadline
+    outer, outer_deadline = _current, _deadline
+    configure(limits)
+    try:
+        yield
+    except LimitExceeded as e:
+        if not what:
+            raise
+        detail = "; ".join(x for x in (e.detail, what) if x)
+        raise LimitExceeded(e.limit, e.stage, detail) from None
+    finally:
+        _current, _deadline = outer, outer_deadline
+        if threading.current_thread() is threading.main_thread():
+            if _deadline is None:
+                signal.setitimer(signal.ITIMER_REAL, 0)
+            else:
+                signal.setitimer(signal.ITIMER_REAL, max(_deadline - time.monotonic(), 1e-3))
+
+
+def memory_exceeded() -> LimitExceeded:
+    """The error for a MemoryError of this process under ``cap_memory``."""
+    return LimitExceeded(_current.describe("memory"), _stage, "this process ran out of memory")
+
+
+#: Least memory this process may take beyond its start under ``cap_memory``, MB: the
+#: libraries it imports later (numpy, OpenBLAS's buffers, MuJoCo, trimesh) need about this
+#: much before any work; below it an import, not the work, would fail.
+MIN_PROCESS_MB = 512
+
+
+def data_bytes() -> int:
+    """This process's data size (Linux: VmData of /proc/self/status, the private writable
+    memory ``RLIMIT_DATA`` counts), bytes; 0 where unknown."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmData:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0
+
+
+def cap_memory(memory_mb: int | None) -> Callable[[], None]:
+    """Cap this process's data (``RLIMIT_DATA``, Linux: private writable memory, not the
+    libraries' code) at its present size plus ``memory_mb``, at least ``MIN_PROCESS_MB``:
+    an allocation beyond raises MemoryError (the command line turns it into
+    LimitExceeded). Returns the function that puts the old cap back. A stricter cap
+    already in force stays. (The clingo worker has its own cap, ``memory_mb`` exactly.)"""
+    here = data_bytes()
+    if memory_mb is None or not here or not sys.platform.startswith("linux"):
+        return lambda: None
+    import resource
+
+    soft, hard = resource.getrlimit(resource.RLIMIT_DATA)
+    cap = here + max(memory_mb, MIN_PROCESS_MB) * 1024 * 1024
+    if hard != resource.RLIM_INFINITY:
+        cap = min(cap, hard)
+    if soft != resource.RLIM_INFINITY and soft <= cap:
+        return lambda: None
+    try:
+        resource.setrlimit(resource.RLIMIT_DATA, (cap, hard))
+    except (ValueError, OSError):
+        return lambda: None
+    global _capped
+    pid = _capped = os.getpid()
+
+    def restore() -> None:
+        global _capped
+        if os.getpid() == pid:
+            _capped = None
+            with contextlib.suppress(ValueError, OSError):
+                resource.setrlimit(resource.RLIMIT_DATA, (soft, hard))
+
+    return restore

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, TextIO
 
 from adron.errors import ExportError, InputError
 from adron.kb import read_user_file
+from synth import limits
 
 if TYPE_CHECKING:
     from synth.conceptual import Designer, Request
@@ -159,16 +160,24 @@ def request_for(q: dict) -> Request:
     )
 
 
-def run_queries(opts: dict, queries: list[dict]) -> dict[str, dict]:
-    """name -> design record, for every query of a suite (one grounding for all)."""
+def run_queries(
+    opts: dict, queries: list[dict], lim: limits.Limits | None = None
+) -> dict[str, dict]:
+    """name -> design record, for every query of a suite (one grounding for all). With
+    ``lim``, the grounding and each query get its limits, with a deadline each."""
     from synth.pipeline import StructureOptions, run
 
-    designer = designer_for(opts)
+    def bounded(what: str):
+        return limits.bounded(lim, what) if lim is not None else contextlib.nullcontext()
+
+    with bounded(f"grounding the knowledge base of {opts['suite']}"):
+        designer = designer_for(opts)
     sopts = StructureOptions(opts["catalog"], opts["conceptual"], verify=opts["verify"])
     results = {}
     for i, q in enumerate(queries, 1):
         try:
-            results[q["name"]] = run(designer, request_for(q), sopts).record(designer)
+            with bounded(f"{opts['suite']}: query {i} ({q['name']})"):
+                results[q["name"]] = run(designer, request_for(q), sopts).record(designer)
         except InputError as e:
             raise InputError(f"{opts['suite']}: query {i} ({q['name']}): {e}") from None
     return results
@@ -200,13 +209,18 @@ def write_atomic(path: Path, text: str) -> None:
 
 
 def run_suite(
-    suite: str | Path, update: bool, out: TextIO, err: TextIO, allow_scripts: bool = False
+    suite: str | Path,
+    update: bool,
+    out: TextIO,
+    err: TextIO,
+    allow_scripts: bool = False,
+    lim: limits.Limits | None = None,
 ) -> int:
     """Run a suite; 0 when all match (or updated), 1 with a diff when any changed."""
     path = Path(suite)
     opts, queries = load_suite(path)
     opts["allow_scripts"] = allow_scripts
-    results = run_queries(opts, queries)
+    results = run_queries(opts, queries, lim)
     snap = snapshot_path(path)
     if update:
         write_atomic(snap, _dump(results))

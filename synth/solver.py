@@ -349,6 +349,23 @@ def _encoding_texts() -> tuple[str, ...]:
     )
 
 
+@functools.cache
+def conceptual_text() -> str:
+    """asp/conceptual.lp with its ``#include`` lines replaced by the files they name. Not
+    ``Control.load``: clingo looks for an included file in the working folder first, so a
+    ``choice.lp`` of the user's there would replace parmor's."""
+
+    def inline(text: str) -> str:
+        return re.sub(
+            r'^#include\s+"([^"]+)"\s*\.[ \t]*$',
+            lambda m: inline((encoding_dir() / m.group(1)).read_text(encoding="utf-8")),
+            text,
+            flags=re.M,
+        )
+
+    return inline((encoding_dir() / "conceptual.lp").read_text(encoding="utf-8"))
+
+
 #: the encodings of the taxonomy layer: they read subclass/subrelation/instance for any
 #: pair to build the closure, which the other encodings then ask about given classes only
 _TAXONOMY_LAYER = ("taxonomy.lp", "closure.lp")
@@ -430,7 +447,7 @@ class _Core:
         try:
             self._ctl.add("base", [], program)
             self._ctl.add("base", [], taxonomy_program(kb, extra, texts, program))
-            self._ctl.load(str(encoding_dir() / "conceptual.lp"))
+            self._ctl.add("base", [], conceptual_text())
             for text in extra:
                 self._ctl.add("base", [], text)
             self._tmp: dict[str, str] = {}
@@ -748,7 +765,12 @@ class Reasoner:
         what = " + ".join(["the knowledge base", *(f.name for f in files)])
         self._worker = _Worker(lambda: _Core(kb, files, focus, size, bus_limit), what)
         with limits.stage("ground"):
-            externals = self._worker.result("ground")
+            try:
+                externals = self._worker.result("ground")
+            except limits.LimitExceeded as e:  # name the files and the rule that grew
+                from synth.ground_probe import explained
+
+                raise explained(e, kb, files, what, focus) from None
         self._externals: set[str] = externals  # as text: symbols do not cross processes
         self._robot_types: tuple[str, ...] | None = None
 

@@ -233,6 +233,8 @@ def operating_points(torque: np.ndarray, speed: np.ndarray) -> list[tuple[float,
 
 def hull_indices(torque: np.ndarray, speed: np.ndarray) -> list[int]:
     """Indices of the samples (torque, speed >= 0) on their upper hull (``upper_hull``)."""
+    if len(torque) == 0:  # no behaviour samples (a snake is sized by its hand cases only)
+        return []
     order = np.lexsort((-speed, -torque))  # by torque, then speed, both descending
     best = np.maximum.accumulate(speed[order])
     keep = np.concatenate([[True], speed[order][1:] > best[:-1]])

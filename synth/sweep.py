@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import TextIO
 
 from adron.errors import ExportError, InputError
+from synth import limits
 from synth.backend import Backend, files_digest, tasks
 from synth.backend import code_files as code_files  # re-exported: the files keys depend on
 from synth.regress import (
@@ -151,17 +152,32 @@ def validate(opts: dict, requests: Sequence[dict]) -> None:
 # --- designing and simulating one request (in a worker process) ---------------------------
 
 
-def _init_worker(arg: tuple[dict, bool]) -> tuple:
-    """The state of a worker: the study's knowledge base grounded, the structure options."""
+def _init_worker(arg: tuple[dict, bool, limits.Limits | None]) -> tuple:
+    """The state of a worker: the study's knowledge base grounded (within the limits, with
+    a deadline of its own), the structure options."""
     from synth.pipeline import StructureOptions
 
-    opts, simulate = arg
-    return designer_for(opts), StructureOptions(opts["catalog"], verify=simulate), simulate
+    opts, simulate, lim = arg
+    with _bounded(lim, "grounding the study's knowledge base"):
+        designer = designer_for(opts)
+    return designer, StructureOptions(opts["catalog"], verify=simulate), simulate, lim
+
+
+def _bounded(lim: limits.Limits | None, what: str = ""):
+    return limits.bounded(lim, what) if lim is not None else contextlib.nullcontext()
 
 
 def _work(state: tuple, q: dict) -> dict:
-    designer, sopts, simulate = state
-    return design_one(q, designer, sopts, simulate)
+    """One request within the limits (``--time-limit`` is each request's): one that
+    reaches one is an error of the sweep, tried again on its next run."""
+    designer, sopts, simulate, lim = state
+    try:
+        with _bounded(lim), limits.stage("structure/simulate"):  # as 'parmor design' says
+            return design_one(q, designer, sopts, simulate)
+    except limits.LimitExceeded as e:  # the alarm after design_one caught the rest
+        res: dict = {"status": "error", "reason": f"LimitExceeded: {e}", "robot_type": None}
+        res.update(abilities=[], mass_kg=None, behaviors=None, dropped={}, sizings=None)
+        return res
 
 
 def design_one(q: dict, designer, sopts, simulate: bool) -> dict:
@@ -303,6 +319,7 @@ def run_study(
     allow_scripts: bool = False,
     backend: str = "local",
     address: str | None = None,
+    lim: limits.Limits | None = None,
 ) -> dict:
     """Run a study: design (and simulate) the requests without a stored result on the
     ``backend`` (local processes, or Ray: ``synth.backend``), then write the outputs from
@@ -313,7 +330,8 @@ def run_study(
     opts["allow_scripts"] = allow_scripts
     out = Path(out_dir) if out_dir is not None else default_out(path)
     _check_out(out)
-    validate(opts, requests)
+    with _bounded(lim, f"checking the study {path}"):
+        validate(opts, requests)
     files = (opts["catalog"], opts["ontology"], opts["rules"])
     keys = [request_key(q, simulate, files_digest(*files)) for q in requests]
     seen: dict[str, int] = {}
@@ -333,7 +351,7 @@ def run_study(
             results[i] = r
     reused = len(results)
     pending = [(i, requests[i]) for i in range(len(requests)) if i not in results]
-    _compute(pending, results, keys, store, (opts, simulate), engine, err, len(requests))
+    _compute(pending, results, keys, store, (opts, simulate, lim), engine, err, len(requests))
     computed = len(results) - reused
     rows = [_merged(q, results[i], keys[i]) for i, q in enumerate(requests)]
     written = write_outputs(out, path, rows, simulate)
@@ -348,7 +366,7 @@ def _compute(
     results: dict[int, dict],
     keys: list[str],
     store: Path,
-    arg: tuple[dict, bool],
+    arg: tuple[dict, bool, limits.Limits | None],
     engine: Backend,
     err: TextIO | None,
     total: int,
@@ -752,6 +770,7 @@ def cmd_sweep(args, out: TextIO, err: TextIO) -> int:
         allow_scripts=args.allow_scripts,
         backend=args.backend,
         address=args.address,
+        lim=getattr(args, "limits", None),
     )
     if args.json:
         out.write(json.dumps(s, indent=2, ensure_ascii=False) + "\n")

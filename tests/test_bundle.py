@@ -122,7 +122,7 @@ def test_write_bundle_is_atomic_and_refuses_non_empty_folders(tmp_path) -> None:
         write_bundle(out, {"a.txt": "new"})
     assert (out / "a.txt").read_text() == "1"
     write_bundle(out, {"c.txt": "3"}, force=True)
-    assert sorted(p.name for p in out.iterdir()) == ["c.txt"]
+    assert sorted(p.name for p in out.iterdir()) == [".parmor", "c.txt"]  # MARKER: ours
     empty = tmp_path / "empty"
     empty.mkdir()
     write_bundle(empty, {"a.txt": "1"})  # an empty folder is fine

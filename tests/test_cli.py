@@ -325,6 +325,7 @@ def test_out_writes_design_json(cli, tmp_path: Path) -> None:
     assert (out / "design.json").read_text(encoding="utf-8") == r.out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bundle"]  # no temp folders left
     assert sorted(p.name for p in out.iterdir()) == [
+        ".parmor",
         "README.md",
         "bom.csv",
         "design.json",
@@ -349,7 +350,7 @@ def test_out_writes_design_json(cli, tmp_path: Path) -> None:
         str(tmp_path / "conceptual"),
     )
     assert r.code == 0, r.err
-    assert [p.name for p in (tmp_path / "conceptual").iterdir()] == ["design.json"]
+    assert sorted(p.name for p in (tmp_path / "conceptual").iterdir()) == [".parmor", "design.json"]
 
 
 def test_out_text_mode_writes_the_json_record(cli, tmp_path: Path) -> None:
@@ -371,22 +372,20 @@ def test_out_existing_needs_force(cli, tmp_path: Path) -> None:
     assert sorted(p.name for p in out.iterdir()) == ["mine.txt"]
     assert (out / "mine.txt").read_text(encoding="utf-8") == "keep me"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bundle"]
+    # --force replaces only a folder parmor wrote: not this one
+    argv = ["design", "--no-verify", "walking", "--answer", "grasping=yes", "--json"]
+    r = cli(*argv, "--out", str(out), "--force")
+    assert r.code == 2 and "not a folder parmor wrote" in r.err, r.err
+    assert sorted(p.name for p in out.iterdir()) == ["mine.txt"]
 
-    r = cli(
-        "design",
-        "--no-verify",
-        "walking",
-        "--answer",
-        "grasping=yes",
-        "--json",
-        "--out",
-        str(out),
-        "--force",
-    )
+    ours = tmp_path / "ours"
+    assert cli(*argv, "--conceptual", "--out", str(ours)).code == 0
+    (ours / "mine.txt").write_text("added", encoding="utf-8")
+    r = cli(*argv, "--out", str(ours), "--force")
     assert r.code == 0, r.err
-    assert "mine.txt" not in [p.name for p in out.iterdir()]
-    assert (out / "design.json").read_text(encoding="utf-8") == r.out
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["bundle"]
+    assert "mine.txt" not in [p.name for p in ours.iterdir()]
+    assert (ours / "design.json").read_text(encoding="utf-8") == r.out
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bundle", "ours"]
 
 
 @pytest.mark.parametrize(

@@ -506,3 +506,11 @@ def test_the_snake_is_sized_for_every_gait_it_lists(designer, kb) -> None:
 def test_the_payload_loads_the_snake(designer, kb) -> None:
     light = _torque(designer, kb, ("rolling",), 0.01)
     assert _torque(designer, kb, ("rolling",), 0.3) > light + 0.3 * 9.81 * 0.06 * 0.9
+
+
+def test_enumerate_lists_the_snakes_actuator_assignments(cli) -> None:
+    """The snake has no behaviour samples (its hand cases size it): its assignments are
+    still counted (an empty sample set once crashed the Pareto hull)."""
+    r = cli("enumerate", "rotating", "--param", "payload=0.2kg")
+    assert r.code == 0, r.err
+    assert "feasible" in r.out and "SnakeRobot" in r.out

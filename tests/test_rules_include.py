@@ -121,3 +121,16 @@ def test_the_protected_predicates_are_the_derived_ones() -> None:
     for sig in [("chosen", 1), ("candidate", 1), ("need", 1), ("isa", 2), ("focus", 1)]:
         assert sig in p
     assert not any(name == "holds" for name, _ in p)
+
+
+def test_files_in_the_working_folder_do_not_replace_the_encodings(
+    cli, tmp_path: Path, monkeypatch
+) -> None:
+    """clingo looks for an ``#include``d file in the working folder first: parmor inlines
+    its own encodings' includes, so a user's ``choice.lp`` there changes nothing."""
+    monkeypatch.chdir(tmp_path)
+    for name in ("choice.lp", "taxonomy.lp", "show.lp"):
+        write(tmp_path / name, "{ a(1..40) }.\n:- not a(1).\n")
+    r = cli("design", "driving", "--no-input", "--conceptual", "--json", "--time-limit", "20")
+    assert r.code == 0, r.err
+    assert '"robot_type": "DifferentialDriveRobot"' in r.out

@@ -1,0 +1,193 @@
+"""Which rule grew: run after a time or memory limit stopped the grounding (issue 11).
+
+clingo grounds a program in one call that says nothing until it is done, so when the time
+or memory limit kills the grounding worker, nothing tells which rule was being grounded.
+:func:`culprit` finds out with a bounded second grounding in a forked process: the same
+program, one statement at a time, each in its own program part grounded on what the parts
+before it derived (clingo's multi-shot grounding), the process reporting each statement
+before grounding it. The statement it is in when its budget (``PROBE_S`` seconds, the
+same memory limit) ends, is the one that grew.
+
+The order is the program's: the knowledge base's facts and the taxonomy (one part), each
+KIF rule form (file:line:col, translated again on its own), parmor's encodings (one part),
+then each statement of each rule file (file:line:col). When the probe is stopped in
+parmor's encodings, they grew on what a rule of the user's gave them: the KIF rule or rule
+file statement that added the most atoms before them is named, with its count. Grounding a
+statement once, on what the statements before it derived, is an approximation of the
+whole grounding (a rule is not grounded again with atoms derived after it), good for the
+rules that blow up on their own (a huge interval, a cross product, many variables). When
+the probe ends within its budget without blowing up, no rule is named.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import resource
+import signal
+import time
+from collections.abc import Sequence
+from multiprocessing.connection import Pipe
+
+#: Seconds the probe may take after the limit was reached: it is added to the limit.
+PROBE_S = 3.0
+ENCODINGS = "parmor's encodings"
+
+
+def pieces(kb, taxonomy: str, rules: Sequence, program: str | None = None) -> list[tuple[str, str]]:
+    """(place, program text) of each piece, in grounding order (see the module);
+    ``program``: the translation as it went to the grounder (default: all of it)."""
+    from synth.solver import _parse, conceptual_text
+
+    program = kb.translation.program if program is None else program
+    lines = program.splitlines()
+    facts = [taxonomy] + [line for line in lines if ":-" not in line]
+    out: list[tuple[str, str]] = [("the knowledge base's facts and taxonomy", "\n".join(facts))]
+    grounded = set(lines)
+    out += [
+        (place, text)
+        for place, text in kif_rules(kb)
+        if all(x in grounded for x in text.splitlines() if ":-" in x)
+    ]
+    out.append((ENCODINGS, conceptual_text()))
+    for r in rules:
+        try:
+            stmts = _parse(r.text)
+        except RuntimeError:
+            continue
+        for stmt in stmts:
+            loc = stmt.location.begin
+            if str(stmt).startswith("#program"):
+                continue
+            out.append((f"the rule at {r.name}:{loc.line}:{loc.column}", str(stmt)))
+    return out
+
+
+def kif_rules(kb) -> list[tuple[str, str]]:
+    """(place, ASP rules) of each KIF rule form (``=>``, ``<=>``) of ``kb``'s files, read
+    and translated again one form at a time (the translation does not locate rules)."""
+    from adron.kb import builtin_files, read_user_file
+    from adron.kif import MAX_DEPTH, parse
+    from adron.translate import translate
+
+    shipped = builtin_files()
+    n = len(shipped) if tuple(kb.files[: len(shipped)]) == tuple(x for x, _ in shipped) else 0
+    out = []
+    for i, name in enumerate(kb.files):
+        text = shipped[i][1] if i < n else read_user_file(name)[1]
+        for form in parse(text, name, MAX_DEPTH):
+            items = getattr(form, "items", ())
+            if not items or items[0] not in ("=>", "<=>"):
+                continue
+            with contextlib.suppress(Exception):
+                program = translate([form]).program
+                if ":-" in program:
+                    out.append((f"the rule at {name}:{form.line}:{form.col}", program))
+    return out
+
+
+def culprit(
+    kb,
+    taxonomy: str,
+    rules: Sequence,
+    memory_mb: int | None,
+    budget_s: float = PROBE_S,
+    program: str | None = None,
+) -> str:
+    """The place of the statement that grew (see the module), or '' when none did
+    within ``budget_s`` seconds and ``memory_mb`` (None: no memory cap)."""
+    parts = pieces(kb, taxonomy, rules, program)
+    read, write = Pipe(duplex=False)
+    pid = os.fork()
+    if pid == 0:  # the probe
+        code = 0
+        try:
+            read.close()
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            _ground(parts, write, memory_mb)
+        except BaseException:  # noqa: BLE001 - a forked probe never returns into the caller
+            code = 1
+        finally:
+            os._exit(code)
+    write.close()
+    last, done = -1, False
+    added: dict[int, int] = {}  # part -> atoms it added
+    deadline = time.monotonic() + budget_s
+    try:
+        while (left := deadline - time.monotonic()) > 0 and read.poll(left):
+            try:
+                msg = read.recv()
+            except EOFError:  # the probe died (out of memory) in the last part it named
+                break
+            if msg == "done":
+                done = True
+                break
+            if isinstance(msg, tuple):
+                added[msg[0]] = msg[1]
+            else:
+                last = msg
+    finally:
+        read.close()
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGKILL)
+        with contextlib.suppress(ChildProcessError):
+            os.waitpid(pid, 0)
+    if done or last < 0:
+        return ""
+    if parts[last][0] == ENCODINGS:
+        users = {i: n for i, n in added.items() if 0 < i < last}
+        if users:
+            i = max(users, key=lambda k: (users[k], -k))
+            return f"{parts[i][0]} (its {users[i]} atoms, on which parmor's encodings ground)"
+    return parts[last][0]
+
+
+def _ground(parts: list[tuple[str, str]], conn, memory_mb: int | None) -> None:
+    import clingo
+
+    if memory_mb is not None:
+        from synth.solver import _address_space_kb
+
+        cap = (_address_space_kb() + memory_mb * 1024) * 1024
+        with contextlib.suppress(ValueError, OSError):
+            resource.setrlimit(resource.RLIMIT_AS, (cap, resource.getrlimit(resource.RLIMIT_AS)[1]))
+    ctl = clingo.Control(["--warn=none"], logger=lambda c, m: None)
+    for i, (_, text) in enumerate(parts):
+        conn.send(i)
+        name = f"parmor_probe_{i}"
+        before = len(ctl.symbolic_atoms)
+        try:
+            ctl.add(name, [], text)
+            ctl.ground([(name, [])])
+        except RuntimeError as e:
+            if "bad_alloc" in str(e):
+                return  # out of memory in part i: the parent names it
+            continue  # a piece that does not ground alone (a syntax the whole one reports)
+        conn.send((i, len(ctl.symbolic_atoms) - before))
+    conn.send("done")
+
+
+def explained(e, kb, rules: Sequence, what: str, focus: str | None = None):
+    """``e`` (a LimitExceeded of the grounding) with the files grounded and, for a time or
+    memory limit, the rule that grew (``culprit``; the size limit names its own)."""
+    from synth import limits
+    from synth.solver import asp_string, relevant, taxonomy_program
+
+    if e.stage != "ground" or not e.limit.startswith(("time", "memory")):
+        return e
+    limits.disarm()  # the time limit's alarm rings again until the run ends: not here
+    detail = [x for x in (e.detail,) if x]
+    if what not in e.detail:
+        detail.append(f"grounding {what}")
+    extra = [f"focus({asp_string(focus)})."] if focus is not None else []
+    try:
+        texts = [r.text for r in rules]
+        program = relevant(kb, focus, texts).program(kb.translation)  # as _Core grounds it
+        taxonomy = taxonomy_program(kb, extra, texts, program)
+        found = culprit(kb, taxonomy, rules, limits.current().memory_mb, program=program)
+    except (OSError, RuntimeError, MemoryError):
+        found = ""
+    if found:
+        detail.append(f"{found} grew (the grounding probed one statement at a time)")
+    return limits.LimitExceeded(e.limit, e.stage, "; ".join(detail))
