@@ -354,6 +354,25 @@ class Coupled:
     points: tuple[Points, ...]
 
 
+def distinct_points(pts: Points) -> Points:
+    """``pts`` without repeats: a linear point and its negative (a mirrored joint's) give
+    the same torque exactly (IEEE negation is exact), so each is kept once."""
+    flip = (pts.C < 0) | ((pts.C == 0) & (pts.S.sum(axis=1) < 0))
+    sign = np.where(flip, -1.0, 1.0)
+    rows = np.column_stack([pts.C * sign, pts.S * sign[:, None], pts.F, pts.W])
+    lin = np.unique(rows, axis=0) if len(rows) else rows.reshape(0, pts.S.shape[1] + 3)
+    fixed = np.unique(np.column_stack([pts.T, pts.V]), axis=0) if len(pts.T) else None
+    g = pts.S.shape[1]
+    return Points(
+        lin[:, 0],
+        lin[:, 1 : 1 + g],
+        lin[:, 1 + g],
+        lin[:, 2 + g],
+        pts.T if fixed is None else fixed[:, 0],
+        pts.V if fixed is None else fixed[:, 1],
+    )
+
+
 def _meets(p: Coupled, a: np.ndarray, tt: np.ndarray, w: np.ndarray | float) -> np.ndarray:
     """``synth.structure.meets`` elementwise: models ``a`` at torques ``tt`` and speeds
     ``w`` (the same float operations)."""
@@ -370,14 +389,14 @@ def feasible_mask(p: Coupled, choice: np.ndarray) -> np.ndarray:
     d = masses - p.base
     ok = np.ones(n, bool)
     for u, pts in enumerate(p.points):
-        a = choice[:, u]
-        for k in range(len(pts.C)):
-            lin = np.full(n, pts.C[k])
-            for g in range(len(p.base)):
-                lin = lin + d[:, g] * pts.S[k, g]
-            ok &= _meets(p, a, np.abs(lin) * pts.F[k], pts.W[k])
-        for k in range(len(pts.T)):
-            ok &= _meets(p, a, np.full(n, pts.T[k]), pts.V[k])
+        a = choice[:, u][:, None]
+        if len(pts.C):
+            lin = np.broadcast_to(pts.C, (n, len(pts.C)))
+            for g in range(len(p.base)):  # in group order: ``_TorqueModel._tau``'s sums
+                lin = lin + d[:, g : g + 1] * pts.S[:, g]
+            ok &= _meets(p, a, np.abs(lin) * pts.F, pts.W).all(axis=1)
+        if len(pts.T):
+            ok &= _meets(p, a, np.broadcast_to(pts.T, (n, len(pts.T))), pts.V).all(axis=1)
     return ok
 
 
@@ -404,8 +423,10 @@ def count_by_enumeration(p: Coupled, chunk: int = 50_000) -> int:
 
 #: Branch and bound: a box whose assignments are at most this many is checked one by one.
 LEAF = 4096
-#: Branch and bound: boxes examined before giving up (the count is then not exact).
-MAX_BOXES = 20_000
+#: Branch and bound: boxes examined, and assignments checked one by one in them, before it
+#: gives up (deterministic bounds on its time: a few seconds at most on one core).
+MAX_BOXES = 200
+MAX_CHECKED = 200_000
 #: Relative margin of the interval bounds on a torque (far above the float error of the
 #: sums, so that a model classed as always or never capable in a box is so exactly).
 BOUND_MARGIN = 1e-9
@@ -413,7 +434,9 @@ BOUND_MARGIN = 1e-9
 
 def _classify(p: Coupled, alive: Sequence[np.ndarray]) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """Per unit, whether each alive option is capable for every mass in the box the alive
-    options span (``always``) and whether it is capable for none (``never``)."""
+    options span (``always``) and whether it is capable for none (``never``). (For a
+    unit's own options its own group's mass is the option's, not the box's range: one unit
+    per group.)"""
     lo = np.empty(len(p.base))
     hi = np.empty(len(p.base))
     for u, g in enumerate(p.group):
@@ -425,10 +448,19 @@ def _classify(p: Coupled, alive: Sequence[np.ndarray]) -> tuple[list[np.ndarray]
         ok_all = np.ones(len(a), bool)
         bad = np.zeros(len(a), bool)
         if len(pts.C):
-            low = pts.C + np.minimum(pts.S * lo, pts.S * hi).sum(axis=1)
-            high = pts.C + np.maximum(pts.S * lo, pts.S * hi).sum(axis=1)
-            pad = BOUND_MARGIN * (np.abs(pts.C) + (np.abs(pts.S) * np.maximum(-lo, hi)).sum(axis=1))
-            low, high = low - pad - 1e-300, high + pad + 1e-300
+            g = p.group[u]
+            others = np.ones(len(p.base), bool)
+            others[g] = False
+            S, Sg = pts.S[:, others], pts.S[:, g]
+            lo_o, hi_o = lo[others], hi[others]
+            own = (p.mass[a] - p.base[g])[:, None] * Sg[None, :]  # (options, points)
+            low = (pts.C + np.minimum(S * lo_o, S * hi_o).sum(axis=1))[None, :] + own
+            high = (pts.C + np.maximum(S * lo_o, S * hi_o).sum(axis=1))[None, :] + own
+            pad = (
+                BOUND_MARGIN * (np.abs(pts.C) + (np.abs(pts.S) * np.maximum(-lo, hi)).sum(axis=1))
+                + 1e-300
+            )
+            low, high = low - pad, high + pad
             amax = np.maximum(np.abs(low), np.abs(high)) * pts.F * (1 + BOUND_MARGIN)
             amin = (
                 np.where((low <= 0) & (high >= 0), 0.0, np.minimum(np.abs(low), np.abs(high)))
@@ -436,8 +468,8 @@ def _classify(p: Coupled, alive: Sequence[np.ndarray]) -> tuple[list[np.ndarray]
                 * (1 - BOUND_MARGIN)
             )
             A = a[:, None]
-            ok_all &= _meets(p, A, amax[None, :], pts.W[None, :]).all(axis=1)
-            bad |= ~_meets(p, A, amin[None, :], pts.W[None, :]).all(axis=1)
+            ok_all &= _meets(p, A, amax, pts.W[None, :]).all(axis=1)
+            bad |= ~_meets(p, A, amin, pts.W[None, :]).all(axis=1)
         for k in range(len(pts.T)):
             fixed = _meets(p, a, np.full(len(a), pts.T[k]), pts.V[k])
             ok_all &= fixed
@@ -447,9 +479,11 @@ def _classify(p: Coupled, alive: Sequence[np.ndarray]) -> tuple[list[np.ndarray]
     return always, never
 
 
-def count_feasible(p: Coupled, leaf: int = LEAF, max_boxes: int = MAX_BOXES) -> int | None:
+def count_feasible(
+    p: Coupled, leaf: int = LEAF, max_boxes: int = MAX_BOXES, max_checked: int = MAX_CHECKED
+) -> int | None:
     """The exact number of feasible assignments of ``p``, or None when it could not be
-    found within ``max_boxes`` boxes.
+    found within ``max_boxes`` boxes and ``max_checked`` assignments checked one by one.
 
     Where every mass group has one unit (alike joints alike), a branch and bound over the
     units' mass ranges: in a box (each unit's options between two masses) a model whose
@@ -457,8 +491,9 @@ def count_feasible(p: Coupled, leaf: int = LEAF, max_boxes: int = MAX_BOXES) -> 
     bounds' lower end nowhere; a box with no model in between counts as the product of the
     capable ones; otherwise the box is split at the middle option of the unit whose mass
     range moves the torques most, down to boxes of at most ``leaf`` assignments, which are
-    checked one by one (``feasible_mask``). Otherwise every assignment is checked, up to
-    ``max_boxes * leaf`` of them."""
+    checked one by one (``feasible_mask``); units that are capable throughout a box and
+    move no unsure unit's torques are a plain factor there. Otherwise every assignment is
+    checked, up to ``max_checked`` of them."""
     if any(len(o) == 0 for o in p.options):
         return 0
     single = len(set(p.group)) == len(p.group)
@@ -466,14 +501,15 @@ def count_feasible(p: Coupled, leaf: int = LEAF, max_boxes: int = MAX_BOXES) -> 
         total = 1
         for o in p.options:
             total *= len(o)
-        return count_by_enumeration(p) if total <= max_boxes * leaf else None
+        return count_by_enumeration(p) if total <= max_checked else None
     start = [np.array(sorted(o.tolist(), key=lambda i: (p.mass[i], i))) for o in p.options]
     stack = [start]
-    boxes = 0
+    boxes = checked = 0
     count = 0
-    weight = [
-        np.abs(np.concatenate([pts.S[:, g] for pts in p.points])).sum() for g in range(len(p.base))
-    ]
+    # |sensitivity| of each unit's points to each group's mass
+    reach = np.array([np.abs(pts.S).sum(axis=0) for pts in p.points]).reshape(
+        len(p.points), len(p.base)
+    )
     while stack:
         boxes += 1
         if boxes > max_boxes:
@@ -483,26 +519,45 @@ def count_feasible(p: Coupled, leaf: int = LEAF, max_boxes: int = MAX_BOXES) -> 
         alive = [a[~nv] for a, nv in zip(alive, never, strict=True)]
         if any(len(a) == 0 for a in alive):
             continue
-        if all(al[~nv].all() for al, nv in zip(always, never, strict=True)):
+        unsure = [not al[~nv].all() for al, nv in zip(always, never, strict=True)]
+        if not any(unsure):
             prod = 1
             for a in alive:
                 prod *= len(a)
             count += prod
             continue
+        # units neither unsure nor moving an unsure unit's torques are a plain factor
+        moves = reach[np.array(unsure)].sum(axis=0)
+        keep = [u for u in range(len(alive)) if unsure[u] or moves[p.group[u]] > 0]
+        factor = 1
+        for u in range(len(alive)):
+            if u not in keep:
+                factor *= len(alive[u])
         size = 1
-        for a in alive:
-            size *= len(a)
+        for u in keep:
+            size *= len(alive[u])
         if size <= leaf:
-            count += int(feasible_mask(p, product_rows(alive)).sum())
+            checked += size
+            if checked > max_checked:
+                return None
+            rows = product_rows([alive[u] for u in keep])
+            choice = np.zeros((len(rows), len(alive)), int)
+            for u in range(len(alive)):
+                choice[:, u] = alive[u][0]
+            for j, u in enumerate(keep):
+                choice[:, u] = rows[:, j]
+            count += factor * int(feasible_mask(p, choice).sum())
             continue
         spread = [
             (
-                (p.mass[a[-1]] - p.mass[a[0]]) * weight[p.group[u]] if len(a) > 1 else -1.0,
-                len(a),
+                (p.mass[alive[u][-1]] - p.mass[alive[u][0]]) * moves[p.group[u]]
+                if len(alive[u]) > 1
+                else -1.0,
+                len(alive[u]),
             )
-            for u, a in enumerate(alive)
+            for u in keep
         ]
-        u = max(range(len(alive)), key=lambda i: spread[i])
+        u = keep[max(range(len(keep)), key=lambda i: spread[i])]
         half = len(alive[u]) // 2
         for part in (alive[u][:half], alive[u][half:]):
             stack.append([*alive[:u], part, *alive[u + 1 :]])

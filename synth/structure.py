@@ -55,7 +55,9 @@ from synth.assign import (
     JointSlot,
     Points,
     best_first,
+    count_by_enumeration,
     count_feasible,
+    distinct_points,
     dominated,
     feasible_mask,
     product_rows,
@@ -1257,13 +1259,15 @@ class _TorqueModel:
                 if d.slots[i].name in d.requirements.holds
             ]
             points.append(
-                Points(
-                    np.array([r[0] for r in rows]),
-                    np.array([r[1] for r in rows]).reshape(len(rows), len(groups)),
-                    np.array([r[2] for r in rows]),
-                    np.array([r[3] for r in rows]),
-                    np.array([h[0] for h in held], float),
-                    np.array([h[1] for h in held], float),
+                distinct_points(
+                    Points(
+                        np.array([r[0] for r in rows]),
+                        np.array([r[1] for r in rows]).reshape(len(rows), len(groups)),
+                        np.array([r[2] for r in rows]),
+                        np.array([r[3] for r in rows]),
+                        np.array([h[0] for h in held], float),
+                        np.array([h[1] for h in held], float),
+                    )
                 )
             )
         return Coupled(
@@ -1285,8 +1289,9 @@ def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> A
     Candidates are the assignments capable at the converged design's torques (the
     lightest actuators: any other assignment only adds mass); an assignment is feasible
     when it stays capable with its own actuator masses (``_TorqueModel``). The count is
-    exact (``synth.assign.count_feasible``) unless its branch and bound gives up (then
-    the number of candidates, an upper bound); the best come lazily, candidates in
+    exact (``synth.assign.count_feasible``, or every candidate checked when there are at
+    most ENUMERATE_LIMIT) unless its branch and bound gives up on more (then the number of
+    candidates, an upper bound, and ``exact`` False); the best come lazily, candidates in
     objective order each checked until ``k`` (or all) feasible ones are found."""
     req = designer.requirements
     capable = designer.capable(req)
@@ -1317,6 +1322,8 @@ def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> A
     ]
     problem = model.coupled([(u, ms) for (u, _), ms in zip(units, lists, strict=True)])
     found_count = count_feasible(problem) if units else 0
+    if found_count is None and upper <= ENUMERATE_LIMIT:  # small enough to check each
+        found_count = count_by_enumeration(problem)
     exact = found_count is not None
     count = found_count if found_count is not None else upper
 
