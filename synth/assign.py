@@ -132,13 +132,15 @@ class ActuatorAssigner:
         for a in atoms.by_signature("actuator", 7):
             m, _, mg, cents = a.symbol.arguments[:4]
             self.weights[m.string] = (mg.number, cents.number)
-        serving: dict[str, list[str]] = {}
-        for a in atoms.by_signature("serves", 2):
-            m, j = (x.string for x in a.symbol.arguments)
-            serving.setdefault(j, []).append(m)
+        by_class: dict[str, list[str]] = {}
+        for a in atoms.by_signature("serves_class", 2):
+            m, c = (x.string for x in a.symbol.arguments)
+            by_class.setdefault(c, []).append(m)
         #: joint -> the models that serve its ontology class (before any requirement)
         self.serving: dict[str, tuple[str, ...]] = {
-            j: tuple(sorted(ms)) for j, ms in serving.items()
+            j.name: tuple(sorted(by_class[j.module_class]))
+            for j in self.joints
+            if j.module_class in by_class
         }
         #: False: the design has more active modules than its robot class allows
         self.within_limit = not any(True for _ in atoms.by_signature("over_limit", 0))
