@@ -19,7 +19,7 @@ import math
 import re
 import tomllib
 from collections.abc import Collection, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from decimal import ROUND_HALF_UP, Decimal
 from importlib.resources import files
 from pathlib import Path
@@ -33,7 +33,9 @@ __all__ = [
     "BATTERY_CLASS",
     "MAIN_CLASS",
     "TORQUE_CLASSES",
+    "SHIPPED",
     "Actuator",
+    "Bus",
     "Catalog",
     "DesignRules",
     "Material",
@@ -45,6 +47,8 @@ __all__ = [
     "catalog_facts",
     "load_catalog",
     "parse_catalog",
+    "recorded_catalog",
+    "shipped_catalogs",
 ]
 
 TORQUE_CLASSES = ("low", "medium", "high")
@@ -174,6 +178,42 @@ class Material:
 
 
 @dataclass(frozen=True)
+class Bus:
+    """The bus the active modules share: its name ("I2C"), protocol, the addresses (IDs)
+    it hands out, from ``first_address`` to ``last_address``, and how many active modules
+    it carries at most, the bus master (the main module, which needs no address) included.
+
+    ``module_limit`` is the smaller of ``device_limit`` (an electrical limit, e.g. the
+    paper's I2C capacitance limit of 24) and what the addresses allow (one each, plus the
+    master). ``address_format`` "hex" writes addresses as 0x09, "decimal" as 9.
+    """
+
+    name: str
+    protocol: str
+    first_address: int
+    last_address: int
+    device_limit: int | None = None
+    address_word: str = "address"  # what the bus calls an address ("address", "ID")
+    address_format: str = "hex"
+
+    @property
+    def module_limit(self) -> int:
+        """Active modules the bus carries at most, the master included."""
+        by_address = self.last_address - self.first_address + 2
+        return by_address if self.device_limit is None else min(self.device_limit, by_address)
+
+    def address_text(self, address: int) -> str:
+        """``address`` as the bus's documents write it: 0x09 (hex) or 9 (decimal)."""
+        return f"0x{address:02x}" if self.address_format == "hex" else str(address)
+
+
+#: The bus of a catalog without a [bus] table: the paper's I2C bus (7-bit addresses,
+#: 0x00-0x07 and 0x78-0x7F reserved), at most 24 active modules: the paper's measured limit
+#: of the bus capacitance (400 pF), as ADROn's activeModuleLimit states it.
+I2C_DEFAULT = Bus("I2C", "I2C, 7-bit addresses", 0x08, 0x77, 24)
+
+
+@dataclass(frozen=True)
 class DesignRules:
     """Defaults of the structure generator (dimensionless, m, rad/s^2, m/s^2, rad)."""
 
@@ -181,7 +221,6 @@ class DesignRules:
     stress_safety_factor: float
     max_tip_deflection_m: float
     max_joint_acceleration_rad_s2: float
-    i2c_first_address: int
     gravity_m_s2: float
     max_slope_rad: float
     rolling_resistance: float
@@ -213,6 +252,12 @@ class Catalog:
     parts: tuple[Part, ...] = ()
     tyre: Tyre | None = None
     printers: tuple[Printer, ...] = ()
+    bus: Bus = I2C_DEFAULT
+    #: sha256 of the catalog's text and of the texts it extends (hex): which catalog a
+    #: design used, whatever the file is called
+    sha256: str = ""
+    #: the shipped catalog's name ("default", "dynamixel"), or "" for a user's file
+    shipped: str = ""
 
     def part_of(self, ontology_class: str) -> Part:
         """The first passive part of ``ontology_class``; InputError naming the file if none."""
@@ -320,7 +365,6 @@ _DESIGN_KEYS = (
     "stress_safety_factor",
     "max_tip_deflection",
     "max_joint_acceleration",
-    "i2c_first_address",
     "gravity",
     "max_slope",
     "rolling_resistance",
@@ -338,7 +382,19 @@ _TOP_KEYS = (
     "passive",
     "material",
     "design",
+    "bus",
 )
+_BUS_KEYS = ("name", "protocol", "first_address", "last_address")
+_BUS_OPTIONAL = ("device_limit", "address_word", "address_format")
+_ADDRESS_FORMATS = ("hex", "decimal")
+#: Largest address (ID) a bus may name; any real bus is far below.
+MAX_ADDRESS = 65535
+#: Tables merged key by key and arrays of tables merged by model when a catalog extends
+#: another (see :func:`parse_catalog`).
+_MERGED_TABLES = ("passive", "material", "design", "tyre")  # [bus] is replaced whole
+_MERGED_ARRAYS = ("actuator", "module", "part", "printer")
+#: Longest chain of catalogs extending one another.
+MAX_EXTENDS = 8
 _CLASS_NAME = re.compile(r"[A-Z][A-Za-z0-9]*")
 _CURRENCY = re.compile(r"[A-Z]{3}")
 _TOML_AT = re.compile(r"(?s)(.*) \(at line (\d+), column (\d+)\)")
@@ -660,8 +716,37 @@ def _material(t: _Table) -> Material:
     )
 
 
+def _bus(t: _Table) -> Bus:
+    t.check_keys(_BUS_KEYS, _BUS_OPTIONAL)
+    first = t.integer("first_address", 0, MAX_ADDRESS)
+    last = t.integer("last_address", first, MAX_ADDRESS)
+    limit = t.integer("device_limit", 2, MAX_ADDRESS + 2) if "device_limit" in t.data else None
+    fmt = t.text("address_format") if "address_format" in t.data else "hex"
+    if fmt not in _ADDRESS_FORMATS:
+        raise t.fail(f"'{fmt}' is not one of {', '.join(_ADDRESS_FORMATS)}", "address_format")
+    return Bus(
+        name=t.text("name"),
+        protocol=t.text("protocol"),
+        first_address=first,
+        last_address=last,
+        device_limit=limit,
+        address_word=t.text("address_word") if "address_word" in t.data else "address",
+        address_format=fmt,
+    )
+
+
+def _legacy_bus(t: _Table) -> Bus:
+    """The bus of a catalog without [bus]: I2C, from [design] i2c_first_address if given
+    (catalogs before [bus] existed)."""
+    if "i2c_first_address" not in t.data:
+        return I2C_DEFAULT
+    # 7-bit I2C: 0x00-0x07 and 0x78-0x7F are reserved.
+    first = t.integer("i2c_first_address", 0x08, 0x77)
+    return replace(I2C_DEFAULT, first_address=first)
+
+
 def _design(t: _Table) -> DesignRules:
-    t.check_keys(_DESIGN_KEYS, ("behaviour_torque_factor",))
+    t.check_keys(_DESIGN_KEYS, ("behaviour_torque_factor", "i2c_first_address"))
     slope = t.q("max_slope", "angle", allow_zero=True)
     if slope >= math.pi / 2:
         raise t.fail(f"'{t.data['max_slope']}' is not less than 90 deg", "max_slope")
@@ -673,8 +758,6 @@ def _design(t: _Table) -> DesignRules:
         stress_safety_factor=t.number("stress_safety_factor", minimum=1.0),
         max_tip_deflection_m=t.q("max_tip_deflection", "length"),
         max_joint_acceleration_rad_s2=t.q("max_joint_acceleration", "angular_acceleration"),
-        # 7-bit I2C: 0x00-0x07 and 0x78-0x7F are reserved.
-        i2c_first_address=t.integer("i2c_first_address", 0x08, 0x77),
         gravity_m_s2=t.q("gravity", "acceleration"),
         max_slope_rad=slope,
         rolling_resistance=rolling,
@@ -687,7 +770,7 @@ def _design(t: _Table) -> DesignRules:
 
 
 def _header(t: _Table) -> tuple[str, str, str]:
-    t.check_keys(("name", "currency", "version"))
+    t.check_keys(("name", "currency", "version"), ("extends", "replace", "remove"))
     currency = t.text("currency")
     if not _CURRENCY.fullmatch(currency):
         raise t.fail(f"'{currency}' is not a currency code such as 'EUR'", "currency")
@@ -712,8 +795,41 @@ def _toml_error(error: tomllib.TOMLDecodeError, text: str, source: str) -> Input
     return InputError(f"{source}: {message}")
 
 
-def parse_catalog(text: str, source: str) -> Catalog:
-    """Validate catalog TOML ``text``; ``source`` names it in messages."""
+#: The catalogs shipped with parmor, by the name ``--catalog NAME`` takes: file names
+#: inside the ``adron`` package.
+SHIPPED: dict[str, str] = {
+    "default": "catalog.toml",
+    "dynamixel": "catalogs/dynamixel.toml",
+}
+
+
+def shipped_catalogs() -> tuple[str, ...]:
+    """The names of the shipped catalogs (``--catalog NAME``)."""
+    return tuple(SHIPPED)
+
+
+def _shipped_text(name: str) -> tuple[str, str]:
+    """(text, source) of the shipped catalog ``name``."""
+    resource = files("adron").joinpath(*SHIPPED[name].split("/"))
+    return resource.read_text(encoding="utf-8"), str(resource)
+
+
+def _read_text(path: Path, source: str) -> str:
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"{source}: no such file") from None
+    except IsADirectoryError:
+        raise InputError(f"{source}: is a folder, not a catalog file") from None
+    except OSError as error:
+        raise InputError(f"{source}: cannot read: {error.strerror or error}") from None
+    try:
+        return raw.decode("utf-8-sig")  # a leading byte order mark is ignored
+    except UnicodeDecodeError as error:
+        raise InputError(f"{source}: not UTF-8 text (byte {error.start})") from None
+
+
+def _toml(text: str, source: str) -> dict[str, Any]:
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
@@ -721,6 +837,128 @@ def parse_catalog(text: str, source: str) -> Catalog:
     for key in doc:
         if key not in _TOP_KEYS:
             raise InputError(f"{source}: unknown key '{key}'{_suggest(key, _TOP_KEYS)}")
+    return doc
+
+
+def _merge(parent: dict[str, Any], child: dict[str, Any], source: str) -> dict[str, Any]:
+    """``child`` over ``parent`` (see :func:`parse_catalog` for the rules)."""
+    header = child.get("catalog", {})
+    replaced = header.get("replace", [])
+    if not isinstance(replaced, list) or not all(r in _MERGED_ARRAYS for r in replaced):
+        raise InputError(
+            f"{source}: catalog.replace: expected an array of {', '.join(_MERGED_ARRAYS)}"
+        )
+    removed = header.get("remove", [])
+    if not isinstance(removed, list) or not all(isinstance(r, str) for r in removed):
+        raise InputError(f"{source}: catalog.remove: expected an array of model names")
+    out = {k: v for k, v in parent.items() if k != "catalog"}
+    for model in removed:
+        found = False
+        for key in _MERGED_ARRAYS:
+            kept = [
+                e for e in out.get(key, []) if not (isinstance(e, dict) and e.get("model") == model)
+            ]
+            found = found or len(kept) != len(out.get(key, []))
+            if key in out:
+                out[key] = kept
+        if not found:
+            raise InputError(
+                f"{source}: catalog.remove: the catalog it extends has no model '{model}'"
+            )
+    for key, value in child.items():
+        if key in _MERGED_TABLES and isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = {**out[key], **value}
+        elif key in _MERGED_ARRAYS and isinstance(value, list) and key not in replaced:
+            entries = list(out.get(key, []))
+            index = {e.get("model"): i for i, e in enumerate(entries) if isinstance(e, dict)}
+            for e in value:
+                model = e.get("model") if isinstance(e, dict) else None
+                if model is not None and model in index:
+                    entries[index[model]] = e  # same model: the child's entry in its place
+                else:
+                    entries.append(e)
+            out[key] = entries
+        else:
+            out[key] = value
+    for key in replaced:
+        if key not in child:
+            out.pop(key, None)
+    if "catalog" in child:  # the child's own header, without the merge instructions
+        out["catalog"] = {
+            k: v for k, v in header.items() if k not in ("extends", "replace", "remove")
+        }
+    if "bus" in out and "design" in out and "i2c_first_address" in out["design"]:
+        del out["design"]["i2c_first_address"]  # the parent's legacy key: [bus] rules
+    return out
+
+
+def _resolve(
+    text: str, source: str, folder: Path | None, chain: tuple[str, ...]
+) -> tuple[dict[str, Any], str]:
+    """The merged TOML document of ``text`` and every catalog it extends, and the sha256
+    of those texts; each parent is validated on its own first (its errors name it)."""
+    import hashlib
+
+    doc = _toml(text, source)
+    digest = hashlib.sha256(text.encode("utf-8"))
+    header = doc.get("catalog")
+    parent_name = header.get("extends") if isinstance(header, dict) else None
+    if parent_name is None:
+        for key in ("replace", "remove"):
+            if isinstance(header, dict) and key in header:
+                raise InputError(
+                    f"{source}: catalog.{key}: only for a catalog that extends another"
+                )
+        return doc, digest.hexdigest()
+    if not isinstance(parent_name, str) or not parent_name.strip():
+        raise InputError(f"{source}: catalog.extends: expected a catalog name or a file path")
+    if parent_name in SHIPPED:
+        ptext, psource = _shipped_text(parent_name)
+        pfolder: Path | None = None
+    else:
+        path = Path(parent_name)
+        if not path.is_absolute() and folder is not None:
+            path = folder / path
+        psource = str(path)
+        ptext, pfolder = _read_text(path, f"{source}: catalog.extends: {psource}"), path.parent
+    key = psource
+    if key in chain or len(chain) >= MAX_EXTENDS:
+        raise InputError(
+            f"{source}: catalog.extends: '{parent_name}' "
+            + ("extends itself" if key in chain else f"is more than {MAX_EXTENDS} levels deep")
+        )
+    parent_doc, parent_digest = _resolve(ptext, psource, pfolder, (*chain, key))
+    parent = _build(parent_doc, psource)  # the parent must be a valid catalog on its own
+    currency = header.get("currency")
+    if isinstance(currency, str) and currency != parent.currency:
+        raise InputError(
+            f"{source}: catalog.currency: '{currency}' differs from '{parent.currency}' of the "
+            f"catalog it extends ({parent_name}); costs of both are added up"
+        )
+    digest.update(parent_digest.encode())
+    return _merge(parent_doc, doc, source), digest.hexdigest()
+
+
+def parse_catalog(text: str, source: str, folder: Path | None = None, shipped: str = "") -> Catalog:
+    """Validate catalog TOML ``text``; ``source`` names it in messages.
+
+    ``[catalog] extends = "NAME"`` (a shipped catalog, ``default`` or ``dynamixel``) or
+    ``= "FILE"`` (relative to ``folder``, the extending file's folder) starts from that
+    catalog: the tables [passive], [material], [design] and [tyre] are merged key by key
+    (this file's keys win), a [bus] table replaces the parent's whole (another bus shares
+    none of its figures); in the arrays [[actuator]], [[module]], [[part]] and
+    [[printer]] an entry of a model the parent has replaces the parent's entry in its place,
+    and other entries are added after the parent's. ``[catalog] replace = ["actuator"]``
+    drops the parent's entries of the arrays named, ``remove = ["MODEL", ...]`` the parent's
+    entries of those models (each must exist). [catalog] itself (name, currency,
+    version) is this file's; its currency must be the parent's, costs being summed.
+    """
+    doc, digest = _resolve(text, source, folder, ())
+    return replace(_build(doc, source), sha256=digest, shipped=shipped)
+
+
+def _build(doc: dict[str, Any], source: str) -> Catalog:
+    """The validated catalog of a (merged) TOML document."""
     name, currency, version = _header(_section(doc, "catalog", source))
     actuators = tuple(_actuator(t) for t in _entries(doc, "actuator", source))
     modules = tuple(_module(t) for t in _entries(doc, "module", source))
@@ -755,6 +993,16 @@ def parse_catalog(text: str, source: str) -> Catalog:
             f"{source}: tyre.thickness: {tyre.thickness_m * 1e3:g} mm leaves no rim in the "
             f"smallest wheel (radius {passive.wheel_min_radius_m * 1e3:g} mm)"
         )
+    if "bus" in doc:
+        design_data = doc.get("design")
+        if isinstance(design_data, dict) and "i2c_first_address" in design_data:
+            raise InputError(
+                f"{source}: design.i2c_first_address: the catalog has a [bus] table; give "
+                "bus.first_address instead"
+            )
+        bus = _bus(_section(doc, "bus", source))
+    else:
+        bus = _legacy_bus(_section(doc, "design", source))
     catalog = Catalog(
         name=name,
         currency=currency,
@@ -768,6 +1016,7 @@ def parse_catalog(text: str, source: str) -> Catalog:
         parts=parts,
         tyre=tyre,
         printers=tuple(printers),
+        bus=bus,
     )
     for cls, what in ((MAIN_CLASS, "the main module"), (BATTERY_CLASS, "a battery")):
         if not catalog.modules_of(cls):
@@ -776,24 +1025,44 @@ def parse_catalog(text: str, source: str) -> Catalog:
 
 
 def load_catalog(path: str | Path | None = None) -> Catalog:
-    """The catalog at ``path``, or the shipped one (adron/catalog.toml) when None."""
+    """The catalog ``path`` names: None or "default" the shipped ParMoR one, another name
+    of :data:`SHIPPED` ("dynamixel") that shipped catalog, anything else a file.
+
+    A name wins over a file of the same name in the working folder; write ``./dynamixel``
+    for the file. A value without a folder or a ``.toml`` suffix that is neither is
+    refused with the list of shipped names."""
     if path is None:
-        resource = files("adron") / "catalog.toml"
-        return parse_catalog(resource.read_text(encoding="utf-8"), str(resource))
+        path = "default"
     source = str(path)
-    try:
-        raw = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise InputError(f"{source}: no such file") from None
-    except IsADirectoryError:
-        raise InputError(f"{source}: is a folder, not a catalog file") from None
-    except OSError as error:
-        raise InputError(f"{source}: cannot read: {error.strerror or error}") from None
-    try:
-        text = raw.decode("utf-8-sig")  # a leading byte order mark is ignored
-    except UnicodeDecodeError as error:
-        raise InputError(f"{source}: not UTF-8 text (byte {error.start})") from None
-    return parse_catalog(text, source)
+    if isinstance(path, str) and path in SHIPPED:
+        text, source = _shipped_text(path)
+        return parse_catalog(text, source, None, shipped=path)
+    p = Path(path)
+    if isinstance(path, str) and not p.suffix and p.parent == Path(".") and not p.exists():
+        raise InputError(
+            f"--catalog {source}: neither a shipped catalog ({', '.join(SHIPPED)}) nor a file"
+            + _suggest(source, SHIPPED)
+        )
+    return parse_catalog(_read_text(p, source), source, p.parent)
+
+
+def recorded_catalog(entry: object, path: str | Path | None = None) -> Catalog:
+    """The catalog a design record's ``catalog`` entry names (``export.record.
+    catalog_record``): its shipped catalog by name, or the file ``path`` for a user's one;
+    InputError when that catalog's content is not the one the design used (its sha256
+    differs: the catalog changed since) or the entry is not a catalog entry."""
+    if not isinstance(entry, dict) or not isinstance(entry.get("sha256"), str):
+        raise InputError("the design record names no catalog (designs before records did)")
+    shipped = entry.get("shipped") or ""
+    if path is None and not shipped:
+        raise InputError(f"the design used the user's catalog '{entry.get('name')}': give its file")
+    cat = load_catalog(path if path is not None else shipped)
+    if cat.sha256 != entry["sha256"]:
+        raise InputError(
+            f"{cat.source}: not the catalog the design used (its content changed: sha256 "
+            f"{cat.sha256[:12]}, the design's {entry['sha256'][:12]})"
+        )
+    return cat
 
 
 # ---- ASP facts ---------------------------------------------------------------------------
@@ -808,7 +1077,8 @@ def catalog_facts(cat: Catalog) -> str:
     """The actuators and modules as ASP facts in integers (clingo has no floats).
 
     ``actuator(Model, Class, MassMg, CostCents, StallTorqueMilliNm, NoLoadSpeedMilliRadPerS,
-    StallCurrentMilliA).`` and ``module(Model, Class, MassMg, CostCents, CurrentMilliA).``
+    StallCurrentMilliA).``, ``module(Model, Class, MassMg, CostCents, CurrentMilliA).`` and
+    ``bus_limit(N).`` (the bus's :attr:`Bus.module_limit`)
     with Model and Class as strings; mass in milligrams, cost in hundredths of the catalog
     currency, torque in mN*m, speed in mrad/s, current in mA, each rounded half up.
     Sorted by model: the same catalog gives the same text.
@@ -818,6 +1088,8 @@ def catalog_facts(cat: Catalog) -> str:
         "% actuator(Model, Class, MassMg, CostCents, StallTorqueMilliNm, "
         "NoLoadSpeedMilliRadPerS, StallCurrentMilliA).",
         "% module(Model, Class, MassMg, CostCents, CurrentMilliA).",
+        f"% bus_limit(N): at most N active modules on the {cat.bus.name} bus, master included.",
+        f"bus_limit({cat.bus.module_limit}).",
     ]
     for a in sorted(cat.actuators, key=lambda a: a.model):
         fields = [

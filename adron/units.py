@@ -11,13 +11,29 @@ shorthand for 2 and 3); pint only looks up single unit names and converts. That 
 pint's lenient expression parser (which reads "m@" as metres) away from user text.
 
 pint is imported lazily, on first use, so that importing this module costs nothing.
+
+Unit cache. pint's start-up (its import and its registry, ~0.2-0.4 s) would be paid by
+every command, since the catalog and the ontology's limits are written with units. The
+answer for one unit text (its SI factor, or why it is refused) depends only on that text,
+on this module's code and on pint's definition files, so it is kept on disk:
+``$PARMOR_CACHE/units-KEY.json`` (default ``$XDG_CACHE_HOME/parmor``, else
+``~/.cache/parmor``; ``PARMOR_CACHE=""`` turns the cache off). KEY is a hash of this
+file and of pint's definition files and installed version: a change of either starts a new
+file, so an entry is never stale. The file is written whole to a temporary file and renamed
+over the old one (concurrent writers lose at most an entry, never corrupt the file); a
+folder that cannot be written, or a file that cannot be read or does not validate, only
+means pint is asked again. pint is imported only on a miss.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import json
 import math
+import os
 import re
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from adron.errors import InputError
@@ -25,7 +41,10 @@ from adron.errors import InputError
 if TYPE_CHECKING:
     import pint
 
-__all__ = ["DIMENSIONS", "Dimension", "quantity", "registry"]
+__all__ = ["CACHE_ENV", "DIMENSIONS", "Dimension", "cache_folder", "quantity", "registry"]
+
+#: Environment variable naming the folder of parmor's caches ("" turns them off).
+CACHE_ENV = "PARMOR_CACHE"
 
 
 class Dimension(NamedTuple):
@@ -133,9 +152,127 @@ class _Scale(NamedTuple):
     unknown: str | None  # a name pint does not know
 
 
+def cache_folder() -> Path | None:
+    """The folder of parmor's caches: ``$PARMOR_CACHE``, else ``$XDG_CACHE_HOME/parmor``,
+    else ``~/.cache/parmor``; None when ``PARMOR_CACHE`` is set empty (no cache)."""
+    env = os.environ.get(CACHE_ENV)
+    if env is not None:
+        return Path(env) if env.strip() else None
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "parmor"
+
+
+def _cache_key() -> str | None:
+    """Hash of this module's code and pint's definitions and version; None without pint."""
+    import hashlib
+    from importlib.util import find_spec
+
+    spec = find_spec("pint")
+    if spec is None or spec.origin is None:
+        return None
+    pint_dir = Path(spec.origin).parent
+    h = hashlib.sha256(Path(__file__).read_bytes())
+    for name in ("default_en.txt", "constants_en.txt"):
+        try:
+            h.update((pint_dir / name).read_bytes())
+        except OSError:
+            h.update(b"-")
+    stat = Path(spec.origin).stat()  # pint's own code: a new install has a new stat
+    h.update(f"{spec.origin}|{stat.st_size}|{stat.st_mtime_ns}".encode())
+    return h.hexdigest()[:20]
+
+
+class _DiskCache:
+    """Unit text -> _Scale, read from and written to one JSON file (see the module doc)."""
+
+    def __init__(self) -> None:
+        self.path: Path | None = None
+        self.entries: dict[str, _Scale] | None = None  # None: not read yet
+
+    def _file(self) -> Path | None:
+        folder = cache_folder()
+        if folder is None:
+            return None
+        key = _cache_key()
+        return None if key is None else folder / f"units-{key}.json"
+
+    @staticmethod
+    def _read(path: Path) -> dict[str, _Scale]:
+        """The valid entries of ``path``; {} when it is absent, unreadable or invalid."""
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return {}
+        out: dict[str, _Scale] = {}
+        if not isinstance(data, dict):
+            return {}
+        for k, v in data.items():
+            ok = isinstance(v, list) and len(v) == 2
+            factor, unknown = v if ok else (None, None)
+            ok = ok and (
+                factor is None
+                or (
+                    isinstance(factor, (int, float))
+                    and not isinstance(factor, bool)
+                    and math.isfinite(factor)
+                    and factor > 0
+                )
+            )
+            ok = ok and (unknown is None or isinstance(unknown, str))
+            if not ok:
+                return {}  # not a file this code wrote: ignore all of it
+            out[k] = _Scale(None if factor is None else float(factor), unknown)
+        return out
+
+    def get(self, key: str) -> _Scale | None:
+        if self.entries is None:
+            self.path = self._file()
+            self.entries = self._read(self.path) if self.path is not None else {}
+        return self.entries.get(key)
+
+    def put(self, key: str, value: _Scale) -> None:
+        if self.entries is None:
+            self.get(key)
+        assert self.entries is not None
+        self.entries[key] = value
+        if self.path is None:
+            return
+        merged = {**self._read(self.path), **self.entries}  # keep what others wrote
+        text = json.dumps({k: list(v) for k, v in sorted(merged.items())}, indent=0)
+        import tempfile
+
+        tmp = None
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=self.path.parent, prefix=".units-", suffix=".tmp")
+            with os.fdopen(fd, "w", encoding="utf-8") as f:
+                f.write(text)
+            os.replace(tmp, self.path)
+        except OSError:  # read-only or full: work on without writing
+            self.path = None
+            if tmp is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
+
+
+_DISK = _DiskCache()
+
+
 @functools.cache
 def _scale(factors: tuple[tuple[str, int], ...], dimension: str) -> _Scale:
-    """The SI value of one ``factors`` unit as ``dimension``, cached per unit text."""
+    """The SI value of one ``factors`` unit as ``dimension``: from the disk cache, else
+    from pint (and then stored)."""
+    key = dimension + "|" + " ".join(f"{name}^{power}" for name, power in factors)
+    found = _DISK.get(key)
+    if found is not None:
+        return found
+    found = _pint_scale(factors, dimension)
+    _DISK.put(key, found)
+    return found
+
+
+def _pint_scale(factors: tuple[tuple[str, int], ...], dimension: str) -> _Scale:
+    """The SI value of one ``factors`` unit as ``dimension``, asked of pint."""
     import pint
 
     ureg = registry()

@@ -107,9 +107,30 @@ def bundle_files(
         files |= picture_files(asm, record["robot_type"])
     for p in asm.printed:
         files[f"meshes/{p.name}.stl"] = p.stl
+    files |= print_projects(asm, catalog)
     for name, t in trajectories.items():
         files[f"trajectories/{name}.csv"] = t.csv()
     return files
+
+
+def print_projects(asm: Assembly, catalog: Catalog) -> dict[str, bytes]:
+    """``print/<part>.3mf``: a PrusaSlicer project of each printed part on the bed of the
+    printer the BOM names for it (none for a part no catalog printer holds), supports on
+    only for a part with overhangs as it lies (``export.threemf``)."""
+    from export.threemf import part_3mf
+
+    beds = {"": catalog.passive.printer_bed_m} | {p.model: p.bed_m for p in catalog.printers}
+    density = catalog.material.density_kg_m3 / 1000
+    out: dict[str, bytes] = {}
+    for p in asm.printed:
+        printer = "" if p.fits_bed else p.printer
+        if printer not in beds:
+            continue
+        bed = [b * 1000 for b in beds[printer]]
+        out[f"print/{p.name}.3mf"] = part_3mf(
+            p.name, p.stl, p.count, bed, density, p.overhang_m2 > 0
+        )
+    return out
 
 
 #: The last assembly built (structure, catalog, assembly): a bundle and its models without

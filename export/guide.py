@@ -1,5 +1,5 @@
 """The bundle's ``README.md``: what the robot is, how to print and assemble it (module
-order and I2C addresses) and which file to open with what. Pure: returns the text."""
+order and bus addresses) and which file to open with what. Pure: returns the text."""
 
 from __future__ import annotations
 
@@ -14,7 +14,8 @@ FILES = (
     (
         "robot.urdf",
         "the robot description for ROS: links, inertias, joints, limits",
-        "RViz, `check_urdf robot.urdf`, yourdfpy",
+        "`check_urdf robot.urdf`, yourdfpy, pinocchio (this folder on `ROS_PACKAGE_PATH` "
+        "or as `package_dirs`), RViz (`parmor ros` makes a ROS package of it)",
     ),
     (
         "robot.xml",
@@ -22,8 +23,27 @@ FILES = (
         "`python -m mujoco.viewer --mjcf robot.xml`, `parmor simulate`",
     ),
     ("meshes/*.stl", "every printed part, in millimetres, lying as it prints", "a slicer"),
+    (
+        "print/*.3mf",
+        "each printed part as a print project: its copies on its printer's bed, its settings",
+        "PrusaSlicer",
+    ),
     ("bom.csv", "bill of materials with totals", "a spreadsheet"),
 )
+
+
+#: The bus of a record written before records named theirs: the paper's I2C bus.
+_OLD_BUS = {"name": "I2C", "address_word": "address"}
+
+
+def _bus(record: dict) -> dict:
+    """The record's ``bus`` (name, address word, module limit)."""
+    return record.get("bus") or _OLD_BUS
+
+
+def _plural(word: str) -> str:
+    """'address' -> 'addresses', 'ID' -> 'IDs'."""
+    return word + ("es" if word.endswith(("s", "x", "sh", "ch")) else "s")
 
 
 def _md(text: str) -> str:
@@ -34,9 +54,13 @@ def _md(text: str) -> str:
 def assembly_steps(record: dict, asm: Assembly) -> list[str]:
     """The numbered assembly sequence (Markdown lines): the root body's printed plate and
     its modules, then every joint from the root outwards (the assembly's tree order): its
-    servo module (with its I2C address) onto the part before it, then the printed and
+    servo module (with its bus address) onto the part before it, then the printed and
     bought parts of the body it turns."""
-    addresses = {j["name"]: j["i2c_address"] for j in record.get("joints", ())}
+    bus = _bus(record)
+    addresses = {j["name"]: j.get("bus_address", "") for j in record.get("joints", ())}
+    word = bus["address_word"]
+    # "I2C 0x09", "DYNAMIXEL TTL ID 3": the plain word "address" goes without saying
+    label = bus["name"] if word == "address" else f"{bus['name']} {word}"
     by_body = {b.name: b for b in asm.bodies}
 
     def parts_of(body: str, skip: str = "") -> str:
@@ -48,7 +72,8 @@ def assembly_steps(record: dict, asm: Assembly) -> list[str]:
         return ", ".join(f"{n} x{k}" if k > 1 else n for n, k in names.items())
 
     out = [
-        "Set each active module's I2C address before mounting it (the addresses below). "
+        f"Set each active module's {_md(bus['name'])} {_md(word)} before "
+        f"mounting it (the {_md(_plural(word))} below). "
         "Then, from the root outwards, slide each module onto the dovetail face of the part "
         "before it:",
         "",
@@ -65,7 +90,7 @@ def assembly_steps(record: dict, asm: Assembly) -> list[str]:
         addr = addresses.get(j.name, "")
         out.append(
             f"{step}. Joint `{_md(j.name)}`: the {_md(j.actuator)} servo module"
-            + (f" (I2C {addr})" if addr else "")
+            + (f" ({_md(label)} {_md(addr)})" if addr else "")
             + f" onto `{_md(j.parent)}`; on its output: {parts or 'the next joint'}."
         )
         step += 1
@@ -93,6 +118,9 @@ def guide_markdown(
         if load > 0
         else ""
     )
+    bus = _bus(r)
+    limits = [x for x in (r.get("module_limit"), bus.get("module_limit")) if x is not None]
+    limit = min(limits) if limits else "none"
     lines = [f"# {_md(r['robot_type'])}: a parmor design", ""]
     if documentation:
         lines += [_md(documentation), ""]
@@ -103,8 +131,8 @@ def guide_markdown(
         f"It can: {_md(', '.join(r['abilities']))}.",
         f"The robot weighs {asm.total_mass - (load if payload.get('in_models') else 0.0):.3f} kg "
         f"(every part in bom.csv), modules cost {r['cost']:.2f}, {r['dof']} degrees of "
-        f"freedom, {r['active_modules']} active modules on the I2C bus "
-        f"(limit {r['module_limit']}).{carried}",
+        f"freedom, {r['active_modules']} active modules on the {_md(bus['name'])} bus "
+        f"(limit {limit}).{carried}",
         "",
         "## Files",
         "",
@@ -116,9 +144,12 @@ def guide_markdown(
     if pictures:
         lines += ["![the assembled robot](pictures/robot.png)", ""]
     lines += [
-        "Slice the STL files as they are (millimetres, each already lying in its printing "
-        "orientation; `print/prusaslicer.ini` holds the settings the figures are for: "
-        "solid parts, 0.2 mm layers, supports where needed).",
+        "Open `print/<part>.3mf` in PrusaSlicer: the part's copies on the bed of its "
+        "printer, with its settings (solid, 0.2 mm layers, supports only where it "
+        "overhangs); a project named `x1 of 2` is printed twice. Or slice the STL files as "
+        "they are (millimetres, each already lying in its printing orientation; "
+        "`print/prusaslicer.ini` holds the settings the figures are for, on the catalog's "
+        "printer).",
         "",
         "| part | count | mass (g) | print time (min) | printer | picture |",
         "|---|---|---|---|---|---|",

@@ -11,10 +11,11 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from synth.conceptual import Design
-from synth.solver import Candidate
-
-if TYPE_CHECKING:  # the structure stage pulls numpy in: keep it off the conceptual path
+if TYPE_CHECKING:  # the structure stage pulls numpy in: keep it off the conceptual path;
+    # the solver pulls clingo in: keep it off the path of a command that only prints JSON
+    from adron.catalog import Bus, Catalog
+    from synth.conceptual import Design
+    from synth.solver import Candidate
     from synth.structure import Alternatives, Structure
 
 Short = Callable[[str], str]
@@ -44,8 +45,27 @@ def _r(x: float) -> float:
     return float(f"{x:.9g}")
 
 
+def bus_record(bus: Bus) -> dict:
+    """The bus the active modules are on, as the catalog names it."""
+    return {
+        "name": bus.name,
+        "protocol": bus.protocol,
+        "address_word": bus.address_word,
+        "first_address": bus.address_text(bus.first_address),
+        "last_address": bus.address_text(bus.last_address),
+        "module_limit": bus.module_limit,
+    }
+
+
+def catalog_record(cat: Catalog) -> dict:
+    """Which catalog a design used: its name, the shipped catalog's name ("" for a user's
+    file) and the sha256 of its text (and of the texts it extends)."""
+    return {"name": cat.name, "version": cat.version, "shipped": cat.shipped, "sha256": cat.sha256}
+
+
 def structure_record(s: Structure) -> dict:
-    """The sized structure: links, joints, modules with models and I2C addresses, totals."""
+    """The sized structure: links, joints, modules with models and bus addresses, totals."""
+    at = s.bus.address_text
     return {
         "template": s.template.robot_type,
         "params": {k: _r(v) for k, v in s.params.items()},
@@ -91,7 +111,7 @@ def structure_record(s: Structure) -> dict:
                 "required_speed_rad_s": _r(j.required_speed_rad_s),
                 "operating_points": [[_r(t), _r(w)] for t, w in j.operating_points],
                 "load_case": j.load_case,
-                "i2c_address": f"0x{j.i2c_address:02x}",
+                "bus_address": at(j.i2c_address),
             }
             for j in s.joints
         ],
@@ -100,11 +120,13 @@ def structure_record(s: Structure) -> dict:
                 "kind": m.kind,
                 "model": m.model,
                 "count": m.count,
-                "i2c_addresses": [f"0x{a:02x}" for a in m.i2c_addresses],
+                "bus_addresses": [at(a) for a in m.i2c_addresses],
             }
             for m in s.modules
         ],
-        "mass_kg": _r(s.mass_kg),
+        "bus": bus_record(s.bus),
+        "mass_kg": _r(s.robot_mass_kg),
+        "loaded_mass_kg": _r(s.mass_kg),
         "cost": _r(s.cost),
         "power": {
             "peak_current_A": _r(s.power.peak_current_A),
@@ -147,7 +169,7 @@ def alternatives_record(a: Alternatives) -> dict:
 
 def design_record(d: Design, short: Short, structure: Structure | None = None) -> dict:
     """The whole outcome of ``parmor design`` as a dict (stable key order). With a sized
-    ``structure``, ``modules`` names catalog models and I2C addresses and the structural
+    ``structure``, ``modules`` names catalog models and bus addresses and the structural
     fields follow (``links``, ``joints``, ``mass_kg``, ``cost``, ``power``, ``metrics``...)."""
     c = d.chosen
     rec: dict = {
@@ -209,7 +231,11 @@ def candidate_text(c: Candidate, short: Short, indent: str = "  ") -> str:
 
 def structure_text(s: Structure, indent: str = "  ") -> str:
     """The sized structure as text: links, joints, modules, totals."""
-    out = [f"{indent}structure:  {s.mass_kg:.3f} kg, cost {s.cost:.2f}, {s.iterations} iterations"]
+    load = f" (+ {s.payload_kg:.3f} kg payload)" if s.payload_kg > 0 else ""
+    out = [
+        f"{indent}structure:  {s.robot_mass_kg:.3f} kg{load}, cost {s.cost:.2f}, "
+        f"{s.iterations} iterations"
+    ]
     for link in s.links:
         out.append(
             f"{indent}  link {link.name:<10} x{link.count}  L {link.length_m * 1000:6.1f} mm  "
@@ -224,7 +250,7 @@ def structure_text(s: Structure, indent: str = "  ") -> str:
             + (f"; {j.hold_torque_Nm:.3f} N m {j.hold}" if j.hold else "")
         )
     for m in s.modules:
-        addrs = ", ".join(f"0x{a:02x}" for a in m.i2c_addresses) or "bus master"
+        addrs = ", ".join(s.bus.address_text(a) for a in m.i2c_addresses) or "bus master"
         out.append(f"{indent}  module {m.kind} {m.model} x{m.count}  [{addrs}]")
     p = s.power
     out.append(

@@ -27,6 +27,7 @@ __all__ = [
     "estimate",
     "prusa_config",
     "prusa_slicer",
+    "slice_3mf",
     "slice_stl",
 ]
 
@@ -179,33 +180,44 @@ def slice_stl(
     """Slice one part (binary STL, mm, as parmor writes it: on the bed in its print
     orientation) with :func:`prusa_config`, centred on the bed, no scaling. RuntimeError
     with the slicer's message when it fails or finds no layers."""
+    bed = tuple(float(b) for b in bed_mm)
+    config = prusa_config(bed, density_g_cm3)
+    centre = f"{bed[0] / 2:g},{bed[1] / 2:g}"
+    return _slice("part.stl", stl, ["--load", "print.ini", "--center", centre], config, exe)
+
+
+def slice_3mf(project: bytes, exe: str | None = None) -> SliceResult:
+    """Slice a 3MF project (``print/<part>.3mf``) as it is: its own settings and bed, its
+    copies where they are placed (no arranging). The bed is the one the G-code says."""
+    return _slice("part.3mf", project, ["--dont-arrange"], None, exe)
+
+
+_BED = re.compile(r"; bed_shape = (.+)")
+
+
+def _slice(
+    name: str, data: bytes, args: list[str], config: str | None, exe: str | None
+) -> SliceResult:
     exe = exe or prusa_slicer()
     if exe is None:
         raise RuntimeError("prusa-slicer is not installed")
-    bed = tuple(float(b) for b in bed_mm)
     with tempfile.TemporaryDirectory(prefix="parmor-slice-") as tmp:
         d = Path(tmp)
-        (d / "part.stl").write_bytes(stl)
-        (d / "print.ini").write_text(prusa_config(bed, density_g_cm3), encoding="utf-8")
-        cmd = [
-            exe,
-            "--export-gcode",
-            "--load",
-            str(d / "print.ini"),
-            "--center",
-            f"{bed[0] / 2:g},{bed[1] / 2:g}",
-            "--output",
-            str(d / "part.gcode"),
-            str(d / "part.stl"),
-        ]
-        r = subprocess.run(cmd, capture_output=True, text=True, check=False, timeout=600)
+        (d / name).write_bytes(data)
+        if config is not None:
+            (d / "print.ini").write_text(config, encoding="utf-8")
+        cmd = [exe, "--export-gcode", *args, "--output", "part.gcode", name]
+        r = subprocess.run(cmd, capture_output=True, text=True, check=False, timeout=600, cwd=d)
         out = d / "part.gcode"
         if r.returncode != 0 or not out.exists():
             raise RuntimeError(f"prusa-slicer failed ({r.returncode}): {r.stderr or r.stdout}")
         text = out.read_text(encoding="utf-8", errors="replace")
     m_time, m_cm3, m_g = _TIME.search(text), _CM3.search(text), _G.search(text)
-    if not (m_time and m_cm3 and m_g):
-        raise RuntimeError("prusa-slicer wrote no time or filament figures")
+    m_bed = _BED.search(text)
+    if not (m_time and m_cm3 and m_g and m_bed):
+        raise RuntimeError("prusa-slicer wrote no time, filament or bed figures")
+    corners = [tuple(float(v) for v in c.split("x")) for c in m_bed.group(1).split(",")]
+    bed = (max(c[0] for c in corners), max(c[1] for c in corners))
     xs, ys = [], []
     x = y = 0.0
     for line in text.splitlines():
@@ -223,5 +235,5 @@ def slice_stl(
         1000.0 * float(m_cm3.group(1)),
         float(m_g.group(1)),
         box,
-        (bed[0], bed[1]),
+        bed,
     )

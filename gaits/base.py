@@ -185,7 +185,7 @@ class DesignGeometry:
     params: Mapping[str, float]  # the structural parameters used (SI)
     abilities: tuple[str, ...]
     joint_speed: Mapping[str, float]  # rad/s the chosen actuator reaches (no load)
-    mass_kg: float = 0.0  # the whole robot's mass (0: unknown)
+    mass_kg: float = 0.0  # the whole robot's mass with its payload, kg (0: unknown)
     joint_torque: Mapping[str, float] = field(default_factory=dict)  # stall torque, N m
     #: figures of the design measured on a run, not derivable from its geometry (the
     #: record's ``calibration``, e.g. a skid-steer's ``effective_track_m``): see
@@ -209,7 +209,8 @@ class DesignGeometry:
                 j["name"]: float(j.get("no_load_speed_rad_s", 0.0))
                 for j in record.get("joints", [])
             },
-            mass_kg=float(record.get("mass_kg") or 0.0),
+            # the loaded mass: what the motors move (older records kept it in mass_kg)
+            mass_kg=float(record.get("loaded_mass_kg") or record.get("mass_kg") or 0.0),
             joint_torque={
                 j["name"]: float(j.get("actuator_torque_Nm") or 0.0)
                 for j in record.get("joints", [])

@@ -143,7 +143,7 @@ class ActuatorAssigner:
             if j.module_class in by_class
         }
         #: False: the design has more active modules than its robot class allows
-        self.within_limit = not any(True for _ in atoms.by_signature("over_limit", 0))
+        self.within_limit = not any(a.is_fact for a in atoms.by_signature("over_limit", 0))
 
     # -- the units --------------------------------------------------------------------
     def units(self, symmetric: bool) -> list[list[int]]:

@@ -97,8 +97,14 @@ def digest(paths: Iterable[str | Path | None]) -> str:
 
 
 def files_digest(catalog: str | None, ontology: Sequence[str], rules: Sequence[str]) -> str:
-    """The digest of a study's files (catalog, ontology, rules) and of parmor's own."""
-    return digest([catalog, *ontology, *rules, *code_files()])
+    """The digest of a study's files (catalog, ontology, rules) and of parmor's own. The
+    catalog counts by its content hash (adron.catalog: its text and those it extends; a
+    shipped catalog's name works as well as a path)."""
+    from adron.catalog import load_catalog
+
+    head = "-" if catalog is None else load_catalog(catalog).sha256
+    rest = digest([*ontology, *rules, *code_files()])
+    return hashlib.sha256(f"{head}|{rest}".encode()).hexdigest()
 
 
 # --- running tasks -------------------------------------------------------------------------

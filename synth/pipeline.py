@@ -102,6 +102,10 @@ class Outcome:
         from export.record import design_record
 
         rec = design_record(self.design, designer.short, self.structure)
+        if self.catalog is not None:  # which catalog: to reload it, or to tell it changed
+            from export.record import catalog_record
+
+            rec["catalog"] = catalog_record(self.catalog)
         if self.structure is not None:
             from export.bundle import payload_record
 

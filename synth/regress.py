@@ -91,8 +91,13 @@ def kb_options(data: dict, path: Path) -> dict:
     }
     catalog = data.get("catalog")
     if catalog is not None and not isinstance(catalog, str):
-        raise InputError(f"{path}: catalog: expected a path")
-    opts["catalog"] = str(base / catalog) if catalog else None
+        raise InputError(f"{path}: catalog: expected a shipped catalog's name or a path")
+    from adron.catalog import SHIPPED
+
+    if catalog in SHIPPED:  # a shipped catalog's name ("dynamixel"), not a path
+        opts["catalog"] = catalog
+    else:
+        opts["catalog"] = str(base / catalog) if catalog else None
     return opts
 
 

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from adron.catalog import Actuator, Catalog, catalog_facts
+from adron.catalog import I2C_DEFAULT, Actuator, Bus, Catalog, catalog_facts
 from adron.errors import InfeasibleError, InputError
 from adron.kb import KnowledgeBase
 from kinematics.dynamics import joint_wrenches, rnea
@@ -165,6 +165,19 @@ class Structure:
     iterations: int
     template: Template = field(repr=False, compare=False)
     notes: tuple[str, ...] = ()
+    bus: Bus = I2C_DEFAULT  # the catalog's bus the addresses are on
+
+    @property
+    def payload_kg(self) -> float:
+        """The payload (kg) the structure was sized to carry: a load, not a part."""
+        parts = self.template.parts.values()
+        return sum(lp.mass for ps in parts for lp in ps if lp.kind == "payload")
+
+    @property
+    def robot_mass_kg(self) -> float:
+        """The robot's own mass (kg): ``mass_kg`` (sized, loaded) without the payload; the
+        BOM's and the models' total."""
+        return self.mass_kg - self.payload_kg
 
 
 def template_for(candidate: Candidate) -> str | None:
@@ -909,13 +922,14 @@ class StructureDesigner:
             iterations,
             tmpl,
             (*sizing.notes, *self.behaviour_notes),
+            self.catalog.bus,
         )
 
     def _modules(
         self, assignment: Assignment, req: _Requirements
     ) -> tuple[tuple[ModuleUse, ...], float, float, float, dict[str, int]]:
         cat = self.catalog
-        address = cat.design.i2c_first_address
+        address = cat.bus.first_address
         out: list[ModuleUse] = []
         cost = peak = stall = 0.0
         for kind, model, n, _, c, current in sorted(
@@ -944,9 +958,11 @@ class StructureDesigner:
         out += [
             ModuleUse(k, m, len(addrs), tuple(addrs)) for (k, m), addrs in sorted(per_model.items())
         ]
-        if address - 1 > 0x77:
+        if address - 1 > cat.bus.last_address:
             raise InfeasibleError(
-                f"{self.candidate.robot_type}: more I2C devices than the 7-bit addresses"
+                f"{self.candidate.robot_type}: more {cat.bus.name} devices than the bus's "
+                f"{cat.bus.address_word}s ({cat.bus.address_text(cat.bus.first_address)}-"
+                f"{cat.bus.address_text(cat.bus.last_address)})"
             )
         return tuple(out), cost, peak, stall, by_joint
 

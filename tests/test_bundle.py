@@ -78,16 +78,17 @@ def record() -> dict:
         "active_modules": 6,
         "module_limit": 24,
         "params": {"reach": 0.25},
+        "bus": {"name": "I2C", "address_word": "address", "module_limit": 24},
         "modules": [
-            {"kind": "MainModule", "model": "IntelEdison", "count": 1, "i2c_addresses": []},
-            {"kind": "PositionServomotor", "model": "SG90", "count": 1, "i2c_addresses": ["0x09"]},
+            {"kind": "MainModule", "model": "IntelEdison", "count": 1, "bus_addresses": []},
+            {"kind": "PositionServomotor", "model": "SG90", "count": 1, "bus_addresses": ["0x09"]},
         ],
         "joints": [
             {
                 "name": "base_yaw",
                 "module_class": "PositionServomotor",
                 "actuator": "SG90",
-                "i2c_address": "0x09",
+                "bus_address": "0x09",
                 "required_torque_Nm": 0.05,
                 "usable_torque_Nm": 0.12,
             }

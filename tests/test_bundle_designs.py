@@ -53,8 +53,7 @@ def test_urdf_loads_and_passes_check_urdf(bundles, tmp_path) -> None:
         write_bundle(folder, files)
         robot = yourdfpy.URDF.load(str(folder / "robot.urdf"), mesh_dir=str(folder))
         masses = sum(link.inertial.mass for link in robot.robot.links if link.inertial)
-        robot_alone = rec["mass_kg"] - json.loads(files["design.json"])["payload"]["mass_kg"]
-        assert masses == pytest.approx(robot_alone, rel=0.01), t
+        assert masses == pytest.approx(rec["mass_kg"], rel=0.01), t
         movable = [j for j in robot.robot.joints if j.type != "fixed"]
         assert len(movable) == len(rec["joints"])
         if tool:
@@ -68,8 +67,7 @@ def test_mjcf_loads_in_mujoco_with_the_design_mass(bundles) -> None:
     for t, (rec, files) in bundles.items():
         meshes = {n.split("/", 1)[1]: b for n, b in files.items() if n.startswith("meshes/")}
         model = load_mjcf(files["robot.xml"], meshes)
-        robot_alone = rec["mass_kg"] - json.loads(files["design.json"])["payload"]["mass_kg"]
-        assert model.body_mass.sum() == pytest.approx(robot_alone, rel=0.01), t
+        assert model.body_mass.sum() == pytest.approx(rec["mass_kg"], rel=0.01), t
         assert model.nu == len(rec["joints"])
         stall = {j["name"]: j["actuator_torque_Nm"] for j in rec["joints"]}
         for k in range(model.nu):
@@ -143,7 +141,9 @@ def test_bom_lists_every_part_of_the_model_with_its_mass(bundles, other_bundles)
         assert model.body_mass.sum() == pytest.approx(total, rel=1e-3), t
         payload = json.loads(files["design.json"])["payload"]
         assert payload["in_models"] is False
-        assert total + payload["mass_kg"] == pytest.approx(rec["mass_kg"], rel=0.01), t
+        # design.json's mass is the robot's own; the loaded mass adds the payload
+        assert total == pytest.approx(rec["mass_kg"], rel=1e-3), t
+        assert total + payload["mass_kg"] == pytest.approx(rec["loaded_mass_kg"], rel=1e-3), t
     kinds = {
         r["kind"]
         for _, files in {**bundles, **other_bundles}.values()
@@ -235,7 +235,7 @@ def test_cli_bundle_with_readme_and_bom(cli, tmp_path) -> None:
     rec = json.loads((out / "design.json").read_text(encoding="utf-8"))
     for j in rec["joints"]:
         assert (
-            f"Joint `{j['name']}`: the {j['actuator']} servo module (I2C {j['i2c_address']})"
+            f"Joint `{j['name']}`: the {j['actuator']} servo module (I2C {j['bus_address']})"
             in readme
         )
     assert "![the assembled robot](pictures/robot.png)" in readme
@@ -245,11 +245,14 @@ def test_cli_bundle_with_readme_and_bom(cli, tmp_path) -> None:
     assert float(rows[-1]["unit_cost"]) == pytest.approx(rec["cost"])
 
 
-def test_urdf_meshes_load_in_pinocchio_and_mujoco_without_warnings(bundles, tmp_path, capfd):
+def test_urdf_meshes_load_in_pinocchio_and_mujoco_without_warnings(
+    bundles, tmp_path, capfd, monkeypatch
+):
     """robot.urdf's relative mesh paths (meshes/NAME.stl, in mm, scale 0.001): MuJoCo loads
     the URDF file with its meshes and no warning (unique geom names), and pinocchio builds
-    its visual and collision geometry with the bundle folder as its package directory
-    (pinocchio resolves a relative path only against its package directories)."""
+    its visual and collision geometry with the bundle folder as its package directory,
+    given as an argument or, with no argument, on ``ROS_PACKAGE_PATH`` (pinocchio resolves
+    a relative path only against its package directories and that variable's)."""
     import mujoco
 
     pin = pytest.importorskip("pinocchio") if not CI else __import__("pinocchio")
@@ -265,6 +268,12 @@ def test_urdf_meshes_load_in_pinocchio_and_mujoco_without_warnings(bundles, tmp_
         for kind in (pin.GeometryType.VISUAL, pin.GeometryType.COLLISION):
             geom = pin.buildGeomFromUrdf(pm, urdf, kind, package_dirs=[str(folder)])
             assert geom.ngeoms > 0, t
+            monkeypatch.setenv("ROS_PACKAGE_PATH", str(folder))
+            bare = pin.buildGeomFromUrdf(pm, urdf, kind)
+            monkeypatch.delenv("ROS_PACKAGE_PATH")
+            assert [g.meshPath for g in bare.geometryObjects] == [
+                g.meshPath for g in geom.geometryObjects
+            ], t
         names = [g.name for g in geom.geometryObjects]
         assert len(names) == len(set(names)), t
 

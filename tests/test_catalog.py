@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from importlib.resources import files
 from pathlib import Path
@@ -14,6 +15,7 @@ from adron.catalog import (
     BATTERY_CLASS,
     MAIN_CLASS,
     TORQUE_CLASSES,
+    Bus,
     Catalog,
     catalog_facts,
     load_catalog,
@@ -110,7 +112,8 @@ def test_passive_templates_and_rules(cat: Catalog) -> None:
     assert p.print_speed_m3_s == 0.0  # optional, unused: the BOM's estimate is the slicer's
     assert p.print_clearance_m == pytest.approx(0.0002, rel=1e-12)
     assert p.stress_concentration >= 1
-    assert d.i2c_first_address == 8
+    assert cat.bus == Bus("I2C", "I2C, 7-bit addresses", 0x08, 0x77, 24, "address", "hex")
+    assert cat.bus.module_limit == 24 and cat.bus.address_text(9) == "0x09"
     assert d.max_slope_rad == pytest.approx(math.radians(10), rel=1e-12)
     assert d.gravity_m_s2 == pytest.approx(9.81)
 
@@ -157,7 +160,7 @@ def test_loading_is_deterministic(cat: Catalog, tmp_path: Path) -> None:
     path = tmp_path / "copy.toml"
     path.write_text(SHIPPED, encoding="utf-8")
     copy = load_catalog(path)
-    assert dataclasses.replace(copy, source=cat.source) == cat
+    assert dataclasses.replace(copy, source=cat.source, shipped=cat.shipped) == cat
     # Facts do not depend on the file's location or the order of its entries.
     assert catalog_facts(copy) == catalog_facts(cat)
     shuffled = dataclasses.replace(cat, actuators=cat.actuators[::-1], modules=cat.modules[::-1])
@@ -238,6 +241,13 @@ def _drop(model: str, text: str = SHIPPED) -> str:
     start = text.rindex("\n[[", 0, at)
     end = text.index("\n[", at)
     return text[:start] + text[end:]
+
+
+def _drop_bus(text: str = SHIPPED) -> str:
+    """The text without its [bus] table (the last table of the shipped catalog)."""
+    at = text.index("\n[bus]")
+    assert "\n[" not in text[at + 1 :], "[bus] must be the last table"
+    return text[:at] + "\n"
 
 
 def _drop_all(kind: str, text: str = SHIPPED) -> str:
@@ -367,13 +377,29 @@ CASES = {
         _edit('youngs_modulus = "2.3 GPa"', 'youngs_modulus = "2.3 m"'),
         "material.youngs_modulus: expected a pressure such as '3.5 GPa', got '2.3 m'",
     ),
-    "i2c address out of range": (
-        _edit("i2c_first_address = 0x08", "i2c_first_address = 0x80"),
-        "design.i2c_first_address: must be between 8 and 119, got 128",
+    "bus address as text": (
+        _edit("first_address = 0x08", 'first_address = "8"'),
+        "bus.first_address: expected an integer, got the string '8'",
     ),
-    "i2c address as text": (
-        _edit("i2c_first_address = 0x08", 'i2c_first_address = "8"'),
-        "design.i2c_first_address: expected an integer, got the string '8'",
+    "bus last address below the first": (
+        _edit("last_address = 0x77", "last_address = 0x07"),
+        "bus.last_address: must be between 8 and 65535, got 7",
+    ),
+    "bus address format": (
+        _edit('address_format = "hex"', 'address_format = "octal"'),
+        "bus.address_format: 'octal' is not one of hex, decimal",
+    ),
+    "bus and legacy address": (
+        _edit("rolling_resistance = 0.02", "rolling_resistance = 0.02\ni2c_first_address = 8"),
+        "design.i2c_first_address: the catalog has a [bus] table; give bus.first_address",
+    ),
+    "legacy i2c address out of range": (
+        _edit(
+            "rolling_resistance = 0.02",
+            "rolling_resistance = 0.02\ni2c_first_address = 0x80",
+            _drop_bus(),
+        ),
+        "design.i2c_first_address: must be between 8 and 119, got 128",
     ),
     "slope too steep": (
         _edit('max_slope = "10 deg"', 'max_slope = "90 deg"'),
@@ -502,3 +528,206 @@ def test_shipped_catalog_has_servo_travel_parts_tyre_and_printers(cat: Catalog) 
     assert [p.model for p in cat.printers] == ["Prusa XL", "Creality CR-10 S5"]
     with pytest.raises(InputError, match="no \\[\\[part\\]\\] of class 'Gear'"):
         cat.part_of("Gear")
+
+
+# ---- The bus, catalogs that extend another, shipped catalogs by name ------------------------
+
+
+def test_a_catalog_without_bus_is_the_papers_i2c_bus() -> None:
+    cat = parse_catalog(_drop_bus(), "old.toml")
+    assert cat.bus == parse_catalog(SHIPPED, "new.toml").bus
+    legacy = _drop_bus().replace(
+        "rolling_resistance = 0.02", "rolling_resistance = 0.02\ni2c_first_address = 0x10"
+    )
+    assert parse_catalog(legacy, "old.toml").bus.first_address == 0x10
+
+
+def test_bus_limit_is_the_smaller_of_device_limit_and_addresses() -> None:
+    assert Bus("b", "p", 1, 252).module_limit == 253  # 252 IDs and the master
+    assert Bus("b", "p", 8, 0x77, 24).module_limit == 24
+    assert Bus("b", "p", 1, 3, 24).module_limit == 4
+    assert Bus("b", "p", 1, 3, address_format="decimal").address_text(3) == "3"
+
+
+def test_facts_carry_the_bus_limit(cat: Catalog) -> None:
+    atoms = _ground(catalog_facts(cat))
+    assert [s.arguments[0].number for s in atoms if s.name == "bus_limit"] == [24]
+    dxl = load_catalog("dynamixel")
+    atoms = _ground(catalog_facts(dxl))
+    assert [s.arguments[0].number for s in atoms if s.name == "bus_limit"] == [253]
+
+
+def test_actuator_assignment_uses_the_catalogs_bus_limit(cat: Catalog) -> None:
+    """actuators.lp: the catalog's bus_limit bounds the active modules (a bus of 3 refuses
+    a robot of 2 joints and 2 other modules; one of 4 takes it)."""
+    from importlib.resources import files as res
+
+    rules = (res("asp") / "actuators.lp").read_text(encoding="utf-8")
+    base = (
+        'actuator("S","C",1,1,1,1,1). joint("a","","C"). joint("b","","C"). isa("C","C").'
+        'robot("R"). other_active(2). #external capable("a","S"). #external capable("b","S").'
+    )
+
+    def solve(limit: int) -> bool:
+        ctl = clingo.Control(["--warn=none"])
+        ctl.add("base", [], base + f"bus_limit({limit})." + rules)
+        ctl.ground([("base", [])])
+        for j in ("a", "b"):
+            ctl.assign_external(
+                clingo.Function("capable", [clingo.String(j), clingo.String("S")]), True
+            )
+        return ctl.solve().satisfiable
+
+    assert solve(4) and not solve(3)
+
+
+def test_shipped_catalogs_by_name() -> None:
+    from adron.catalog import shipped_catalogs
+
+    assert shipped_catalogs() == ("default", "dynamixel")
+    default = load_catalog("default")
+    assert default.shipped == "default" and dataclasses.replace(default, source="x") == (
+        dataclasses.replace(load_catalog(), source="x")
+    )
+    with pytest.raises(InputError, match="neither a shipped catalog .* nor a file.*'dynamixel'"):
+        load_catalog("dynamixl")
+
+
+def test_dynamixel_catalog_extends_the_default(cat: Catalog, kb: KnowledgeBase) -> None:
+    dxl = load_catalog("dynamixel")
+    assert dxl.currency == cat.currency and dxl.shipped == "dynamixel"
+    assert {a.model for a in dxl.actuators}.isdisjoint(a.model for a in cat.actuators)
+    assert dxl.main_module.model == "Edison-U2D2"
+    assert dxl.battery == cat.battery and dxl.passive == cat.passive and dxl.tyre == cat.tyre
+    assert dxl.modules_of("InfraredSensorModule") == cat.modules_of("InfraredSensorModule")
+    assert dxl.bus.name == "DYNAMIXEL TTL" and dxl.bus.module_limit == 253
+    assert dxl.bus.address_text(12) == "12" and dxl.bus.address_word == "ID"
+    for cls in SERVO_CLASSES:
+        assert {a.torque_class for a in dxl.actuators_of(cls)} == set(TORQUE_CLASSES), cls
+    xm540 = next(a for a in dxl.actuators if a.model == "XM540-W270")
+    assert xm540.stall_torque_Nm == pytest.approx(10.0)
+    assert xm540.no_load_speed_rad_s == pytest.approx(28 * 2 * math.pi / 60)
+    known = {n for pair in kb.translation.relation("subclass") for n in pair[:2]}
+    dxl.check_classes(known)
+    assert len(dxl.sha256) == 64 and dxl.sha256 != cat.sha256
+
+
+def _child(tmp_path: Path, body: str, parent: str = "default") -> Path:
+    path = tmp_path / "child.toml"
+    head = f'[catalog]\nname = "c"\ncurrency = "EUR"\nversion = "1"\nextends = "{parent}"\n'
+    path.write_text(head + body, encoding="utf-8")
+    return path
+
+
+def test_extends_merges_tables_by_key_and_entries_by_model(cat: Catalog, tmp_path: Path) -> None:
+    body = (
+        "[design]\ntorque_safety_factor = 2.0\n"
+        '[[actuator]]\nmodel = "SG90"\nclass = "PositionServomotor"\ntorque_class = "low"\n'
+        'mass = "40 g"\nsize = ["50 mm", "50 mm", "40 mm"]\nstall_torque = "2 kgf*cm"\n'
+        'no_load_speed = "100 rpm"\nstall_current = "0.7 A"\ncost = 6.0\ntravel_deg = 180\n'
+    )
+    child = load_catalog(_child(tmp_path, body))
+    assert child.design.torque_safety_factor == 2.0
+    assert child.design.stress_safety_factor == cat.design.stress_safety_factor
+    assert [a.model for a in child.actuators] == [a.model for a in cat.actuators]
+    assert child.actuators[0].mass_kg == pytest.approx(0.040)
+    assert child.actuators[1:] == cat.actuators[1:] and child.bus == cat.bus
+    assert child.shipped == "" and child.sha256 != cat.sha256
+    # a file parent, relative to the child's folder
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "base.toml").write_text(SHIPPED, encoding="utf-8")
+    grand = tmp_path / "sub" / "g.toml"
+    grand.write_text(_child(tmp_path, "").read_text().replace('"default"', '"base.toml"'))
+    assert load_catalog(grand).actuators == cat.actuators
+
+
+EXTEND_CASES = {
+    "unknown parent": ("", "nope.toml", "catalog.extends: .*nope.toml: no such file"),
+    "currency differs": ("", "default", "catalog.currency: 'USD' differs from 'EUR'"),
+    "remove unknown model": (
+        "",
+        "default",
+        "catalog.remove: the catalog it extends has no model 'XX'",
+    ),
+    "replace bad array": ("", "default", "catalog.replace: expected an array of"),
+    "self": ("", "child.toml", "catalog.extends: 'child.toml' extends itself"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(EXTEND_CASES))
+def test_extends_errors_name_the_file(case: str, tmp_path: Path) -> None:
+    body, parent, message = EXTEND_CASES[case]
+    path = _child(tmp_path, body, parent)
+    text = path.read_text()
+    if case == "currency differs":
+        text = text.replace('currency = "EUR"', 'currency = "USD"')
+    if case == "remove unknown model":
+        text = text.replace('extends = "default"', 'extends = "default"\nremove = ["XX"]')
+    if case == "replace bad array":
+        text = text.replace('extends = "default"', 'extends = "default"\nreplace = ["tyre"]')
+    path.write_text(text)
+    with pytest.raises(InputError, match=message):
+        load_catalog(path)
+
+
+def test_remove_and_replace_only_when_extending() -> None:
+    text = SHIPPED.replace('version = "1"', 'version = "1"\nremove = ["SG90"]')
+    with pytest.raises(InputError, match="catalog.remove: only for a catalog that extends"):
+        parse_catalog(text, "x.toml")
+
+
+def test_a_recorded_catalog_is_reloaded_and_a_changed_one_refused(tmp_path: Path) -> None:
+    from adron.catalog import recorded_catalog
+    from export.record import catalog_record
+
+    dxl = load_catalog("dynamixel")
+    assert recorded_catalog(catalog_record(dxl)) == dxl
+    path = tmp_path / "mine.toml"
+    path.write_text(SHIPPED, encoding="utf-8")
+    entry = catalog_record(load_catalog(path))
+    assert entry["shipped"] == "" and recorded_catalog(entry, path).sha256 == entry["sha256"]
+    with pytest.raises(InputError, match="give its file"):
+        recorded_catalog(entry)
+    path.write_text(SHIPPED.replace("cost = 5.0", "cost = 5.5"), encoding="utf-8")
+    with pytest.raises(InputError, match="not the catalog the design used"):
+        recorded_catalog(entry, path)
+    with pytest.raises(InputError, match="names no catalog"):
+        recorded_catalog(None)
+
+
+def test_design_with_the_dynamixel_catalog_names_its_bus(cli) -> None:
+    r = cli("design", "driving", "--catalog", "dynamixel", "--no-verify", "--json")
+    assert r.code == 0, r.err
+    rec = json.loads(r.out)
+    assert rec["bus"]["name"] == "DYNAMIXEL TTL" and rec["bus"]["module_limit"] == 253
+    assert rec["catalog"]["shipped"] == "dynamixel"
+    assert rec["catalog"]["sha256"] == load_catalog("dynamixel").sha256
+    ids = [a for m in rec["modules"] for a in m["bus_addresses"]]
+    assert sorted(ids, key=int) == [str(i) for i in range(1, len(ids) + 1)]
+    assert {j["actuator"] for j in rec["joints"]} <= {
+        a.model for a in load_catalog("dynamixel").actuators
+    }
+    bad = cli("design", "driving", "--catalog", "dynamixl", "--no-verify")
+    assert bad.code == 2 and "did you mean 'dynamixel'" in bad.err
+
+
+def test_suites_and_studies_take_a_shipped_catalogs_name(tmp_path: Path) -> None:
+    from synth.backend import files_digest
+    from synth.regress import kb_options
+
+    suite = tmp_path / "s.toml"
+    assert kb_options({"catalog": "dynamixel"}, suite)["catalog"] == "dynamixel"
+    assert kb_options({"catalog": "mine.toml"}, suite)["catalog"] == str(tmp_path / "mine.toml")
+    # a study's digest follows the catalog's content, whatever names it
+    (tmp_path / "mine.toml").write_text(SHIPPED, encoding="utf-8")
+    same = files_digest(str(tmp_path / "mine.toml"), [], [])
+    assert same != files_digest("dynamixel", [], [])
+    assert files_digest(str(tmp_path / "mine.toml"), [], []) == same
+    (tmp_path / "mine.toml").write_text(SHIPPED.replace("cost = 5.0", "cost = 5.5"))
+    assert files_digest(str(tmp_path / "mine.toml"), [], []) != same
+
+
+def test_guide_words_follow_the_bus() -> None:
+    from export.guide import _plural
+
+    assert _plural("address") == "addresses" and _plural("ID") == "IDs"

@@ -63,7 +63,7 @@ def test_i2c_addresses_are_unique_and_the_main_module_is_the_master(defaults, ca
     for t, s in defaults.items():
         addrs = [a for m in s.modules for a in m.i2c_addresses]
         assert len(addrs) == len(set(addrs)) == sum(m.count for m in s.modules) - 1, t
-        assert min(addrs) == catalog.design.i2c_first_address
+        assert min(addrs) == catalog.bus.first_address
         main = [m for m in s.modules if m.kind == "MainModule"]
         assert len(main) == 1 and main[0].i2c_addresses == ()
 
@@ -219,7 +219,7 @@ def test_design_json_has_the_structural_fields(cli, tmp_path) -> None:
         "actuator_torque_Nm",
         "required_speed_rad_s",
     }
-    assert all({"model", "count", "i2c_addresses"} <= set(m) for m in d["modules"])
+    assert all({"model", "count", "bus_addresses"} <= set(m) for m in d["modules"])
     assert d["params"]["reach"] == 0.25 and d["params"]["payload"] == 0.15
 
 

@@ -178,3 +178,70 @@ def test_import_does_not_load_pint(module: str) -> None:
         [sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True
     )
     assert out.stdout.strip() == "False"
+
+
+# ---- The unit cache on disk -------------------------------------------------------------
+
+
+def _fresh(monkeypatch, folder) -> None:
+    """A new process's state: no unit answered yet, the cache in ``folder``."""
+    import adron.units as u
+
+    monkeypatch.setenv(u.CACHE_ENV, str(folder))
+    u._scale.cache_clear()
+    monkeypatch.setattr(u, "_DISK", u._DiskCache())
+
+
+def test_units_are_cached_on_disk_and_read_back(monkeypatch, tmp_path: Path) -> None:
+    import adron.units as u
+
+    _fresh(monkeypatch, tmp_path)
+    assert quantity("2 kgf*cm", "torque", "x") == pytest.approx(2 * KGF_CM)
+    with pytest.raises(InputError):
+        quantity("2 kgf", "torque", "x")
+    (file,) = tmp_path.glob("units-*.json")
+    assert '"torque|kgf^1 cm^1"' in file.read_text(encoding="utf-8")
+    # A new process reads the factor from the file: pint is not asked.
+    _fresh(monkeypatch, tmp_path)
+    monkeypatch.setattr(u, "_pint_scale", lambda *a: pytest.fail("pint asked"))
+    assert quantity("3 kgf*cm", "torque", "x") == pytest.approx(3 * KGF_CM)
+    # A refusal is cached as well: the same message without pint.
+    with pytest.raises(InputError, match="expected a torque such as .*, got '3 kgf'"):
+        quantity("3 kgf", "torque", "x")
+
+
+def test_a_corrupt_or_foreign_cache_file_is_ignored(monkeypatch, tmp_path: Path) -> None:
+    import adron.units as u
+
+    _fresh(monkeypatch, tmp_path)
+    quantity("1 cm", "length", "x")
+    (file,) = tmp_path.glob("units-*.json")
+    for junk in ("not json", '{"length|cm^1": [-5, null]}', '{"length|cm^1": "x"}', "[1]"):
+        file.write_text(junk, encoding="utf-8")
+        _fresh(monkeypatch, tmp_path)
+        assert quantity("30 cm", "length", "x") == pytest.approx(0.3), junk
+    assert u._DiskCache._read(file)  # rewritten valid by the last run
+
+
+def test_a_cache_folder_that_cannot_be_written_only_means_no_cache(
+    monkeypatch, tmp_path: Path
+) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("a file where the folder would be")  # no folder, even for root
+    _fresh(monkeypatch, blocker / "cache")
+    assert quantity("1.5 A", "current", "x") == 1.5
+    assert quantity("2.5 A", "current", "x") == 2.5
+    assert blocker.read_text() == "a file where the folder would be"
+    _fresh(monkeypatch, "")  # PARMOR_CACHE="" turns the cache off
+    assert quantity("9 g", "mass", "x") == pytest.approx(0.009)
+    assert not list(tmp_path.glob("**/units-*.json"))
+
+
+def test_the_cache_file_is_keyed_by_code_and_pint(monkeypatch, tmp_path: Path) -> None:
+    import adron.units as u
+
+    key = u._cache_key()
+    assert key is not None and len(key) == 20
+    monkeypatch.setattr(u, "__file__", str(tmp_path / "other.py"))
+    (tmp_path / "other.py").write_text("# another version of units.py\n")
+    assert u._cache_key() != key
