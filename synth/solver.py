@@ -20,7 +20,7 @@ import sys
 import tempfile
 import threading
 import weakref
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from importlib import resources
 from multiprocessing.connection import Connection, Pipe
@@ -31,7 +31,7 @@ import clingo
 from adron.errors import InputError, OntologyError, ParmorError
 from adron.kb import KnowledgeBase, read_user_file
 from adron.relevance import Relevance, relevance
-from adron.translate import asp_string, isa_facts, taxonomy_closure
+from adron.translate import asp_string, taxonomy_closure
 from synth import limits
 
 _SCRIPT = re.compile(r"#\s*script", re.IGNORECASE)
@@ -883,143 +883,3 @@ class Reasoner:
             ancestors=tuple(sorted(c for rr, c in by.get("ancestor", []) if rr == r)),
         )
         return cand, need, excl
-
-
-@dataclass(frozen=True, slots=True)
-class JointSlot:
-    """A movable joint to be given an actuator: name, symmetry group, ontology class."""
-
-    name: str
-    group: str
-    module_class: str
-
-
-@dataclass(frozen=True)
-class Assignment:
-    """One actuator model per joint, and its objective figures (catalog units)."""
-
-    models: tuple[tuple[str, str], ...]  # (joint, model) in joint order
-    cost: tuple[int, ...]  # clingo's cost vector, highest priority first
-
-    def model_of(self, joint: str) -> str:
-        return dict(self.models)[joint]
-
-
-class ActuatorAssigner:
-    """Actuator assignment by clingo over ``asp/actuators.lp``, grounded once per design.
-
-    Each iteration of the co-design loop only changes which models are capable for each
-    joint: those are externals, so re-solving needs no regrounding (multi-shot). The
-    k-best list blocks each answer found with a small added program part.
-    """
-
-    def __init__(
-        self,
-        kb: KnowledgeBase,
-        catalog_facts: str,
-        robot_type: str,
-        joints: Sequence[JointSlot],
-        other_active: int,
-        objective: Sequence[str] = ("mass", "cost"),
-    ) -> None:
-        if sorted(objective) != ["cost", "mass"]:
-            raise InputError(f"objective {list(objective)}: expected an order of mass and cost")
-        prio = {name: len(objective) - i for i, name in enumerate(objective)}
-        self._messages: list[str] = []
-        self.joints = tuple(joints)
-        self._ctl = clingo.Control(
-            [
-                "--opt-mode=optN",
-                f"-c mass_priority={prio['mass']}",
-                f"-c cost_priority={prio['cost']}",
-            ],
-            logger=lambda code, msg: self._messages.append(msg.strip()),
-            message_limit=20,
-        )
-        facts = [f"robot({asp_string(robot_type)}).", f"other_active({other_active})."]
-        facts += [
-            f"joint({asp_string(j.name)},{asp_string(j.group)},{asp_string(j.module_class)})."
-            for j in self.joints
-        ]
-        self._ctl.add("base", [], catalog_facts)
-        self._ctl.add("base", [], "\n".join(facts))
-        classes = [asp_string(robot_type), *(asp_string(j.module_class) for j in self.joints)]
-        known = isa_facts(kb.translation.program, classes, ["activeModuleLimit"])
-        if known is not None:  # what actuators.lp asks of the KB, without grounding it
-            self._ctl.add("base", [], known)
-        else:
-            self._ctl.add("base", [], kb.translation.program)
-            self._ctl.add("base", [], taxonomy_program(kb, [catalog_facts, *facts], ()))
-            self._ctl.load(str(encoding_dir() / "taxonomy.lp"))
-        self._ctl.load(str(encoding_dir() / "actuators.lp"))
-        self._ctl.ground([("base", [])])
-        self._blocks = 0
-        atoms = self._ctl.symbolic_atoms
-        #: joint -> the models that serve its ontology class (before any requirement)
-        self.serving: dict[str, tuple[str, ...]] = {}
-        for a in atoms.by_signature("serves", 2):
-            m, j = (x.string for x in a.symbol.arguments)
-            self.serving.setdefault(j, ())
-            self.serving[j] = tuple(sorted((*self.serving[j], m)))
-
-    def _assign(self, capable: Mapping[str, Iterable[str]], symmetric: bool) -> None:
-        S, F = clingo.String, clingo.Function
-        self._ctl.assign_external(F("symmetric", []), symmetric)
-        for j, models in self.serving.items():
-            ok = set(capable.get(j, ()))
-            for m in models:
-                self._ctl.assign_external(F("capable", [S(j), S(m)]), m in ok)
-
-    def _read(self, model: clingo.Model) -> Assignment:
-        got = {s.arguments[0].string: s.arguments[1].string for s in model.symbols(shown=True)}
-        return Assignment(tuple((j.name, got[j.name]) for j in self.joints), tuple(model.cost))
-
-    def best(
-        self, capable: Mapping[str, Iterable[str]], symmetric: bool = True
-    ) -> Assignment | None:
-        """The optimal assignment (ties: the first in joint and model name order)."""
-        found = self.ranked(capable, symmetric, 1)
-        return found[0] if found else None
-
-    def ranked(
-        self, capable: Mapping[str, Iterable[str]], symmetric: bool, k: int
-    ) -> list[Assignment]:
-        """The ``k`` best assignments, best first (each found by re-optimising with the
-        previous ones blocked)."""
-        self._assign(capable, symmetric)
-        out: list[Assignment] = []
-        blocked: list[str] = []
-        while len(out) < k:
-            optimal: list[Assignment] = []
-            for m in _models(self._ctl):
-                if m.optimality_proven:
-                    optimal.append(self._read(m))
-            if not optimal:
-                break
-            optimal.sort(key=lambda a: (a.cost, a.models))
-            for a in optimal:
-                if len(out) < k:
-                    out.append(a)
-                name = f"block_{self._blocks}"
-                self._blocks += 1
-                body = ", ".join(f"assign({asp_string(j)},{asp_string(m)})" for j, m in a.models)
-                self._ctl.add(name, [], f"#external {name}.\n:- {name}, {body}.")
-                self._ctl.ground([(name, [])])
-                self._ctl.assign_external(clingo.Function(name, []), True)
-                blocked.append(name)
-        for name in blocked:  # unblock for the next query
-            self._ctl.release_external(clingo.Function(name, []))
-        return out
-
-    def all(self, capable: Mapping[str, Iterable[str]], symmetric: bool) -> list[Assignment]:
-        """Every feasible assignment, in objective order (for small spaces: --pareto)."""
-        self._assign(capable, symmetric)
-        found: list[Assignment] = []
-        self._ctl.configuration.solve.opt_mode = "ignore"
-        self._ctl.configuration.solve.models = "0"
-        try:
-            for m in _models(self._ctl):
-                found.append(self._read(m))
-        finally:
-            self._ctl.configuration.solve.opt_mode = "optN"
-        return found

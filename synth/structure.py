@@ -10,7 +10,9 @@ Starting from the conceptual design (a robot type with its parts and modules):
    speeds too come from both, and a joint's actuator must meet each (torque, speed)
    operating point (its speed falls with torque; a behaviour's torque and speed peaks
    need not coincide);
-3. actuator assignment by clingo (``ActuatorAssigner``): a model is capable for a joint
+3. actuator assignment (``synth.assign.ActuatorAssigner``; the models that can never be
+   a joint's best choice discarded first: ``synth.assign.dominated``): a model is capable
+   for a joint
    when its stall torque divided by the catalog's torque safety factor covers the required
    torque and its speed under that torque (a servo's speed falls linearly from no-load
    speed at no torque to zero at stall) covers the required speed;
@@ -46,6 +48,20 @@ from kinematics.templates import (
     TemplateParams,
     build,
 )
+from synth.assign import (
+    ActuatorAssigner,
+    Assignment,
+    Coupled,
+    JointSlot,
+    Points,
+    best_first,
+    count_by_enumeration,
+    count_feasible,
+    distinct_points,
+    dominated,
+    feasible_mask,
+    product_rows,
+)
 from synth.behaviour_loads import BehaviourCase, analyse
 from synth.links import (
     Tube,
@@ -57,7 +73,7 @@ from synth.links import (
 )
 from synth.params import resolve
 from synth.sizing import FAMILIES, Family, LoadCase, Sizing
-from synth.solver import ActuatorAssigner, Assignment, Candidate, JointSlot
+from synth.solver import Candidate
 
 CONVERGENCE = 1e-6
 MAX_ITERATIONS = 50
@@ -378,6 +394,9 @@ class StructureDesigner:
                     f"(or a class above it) for joint '{s.name}'"
                 )
         self.by_model = {a.model: a for a in catalog.actuators}
+        #: joint -> its serving models that can be its best choice (``dominated``): the
+        #: design loop checks capability on these alone
+        self.undominated = self._undominated()
         self.abilities = tuple(
             sorted((a.name if (a := kb.ability_of_kif(k)) else k) for k in candidate.abilities)
         )
@@ -390,6 +409,24 @@ class StructureDesigner:
         #: joint -> torque N m it must be sized for at least (the verification loop's
         #: feedback: a joint that saturated in simulation needs more than its actuator gave)
         self.torque_floor: dict[str, float] = {}
+
+    def _undominated(self) -> dict[str, tuple[str, ...]]:
+        """Per joint, its serving models less those dominated among the models that serve
+        every joint of its symmetry group (``synth.assign.dominated``)."""
+        torque = {a.model: a.stall_torque_Nm for a in self.catalog.actuators}
+        speed = {a.model: a.no_load_speed_rad_s for a in self.catalog.actuators}
+        serving = self.assigner.serving
+        done: dict[tuple, tuple[str, ...]] = {}
+        out = {}
+        for s in self.slots:
+            mates = [t.name for t in self.slots if s.group and t.group == s.group] or [s.name]
+            common = set.intersection(*(set(serving.get(m, ())) for m in mates))
+            key = (serving.get(s.name, ()), tuple(sorted(common)))
+            if key not in done:
+                drop = dominated(key[0], torque, speed, self.assigner.weights, among=common)
+                done[key] = tuple(m for m in key[0] if m not in drop)
+            out[s.name] = done[key]
+        return out
 
     # -- fixed modules ------------------------------------------------------------------
     def _fixed_modules(self) -> list[tuple[str, str, int, float, float, float]]:
@@ -580,20 +617,29 @@ class StructureDesigner:
         }
         return _Requirements(torque, case_of, speeds, loads, holds, points), analysis
 
-    def capable(self, req: _Requirements) -> dict[str, list[str]]:
+    def capable(self, req: _Requirements, pruned: bool = False) -> dict[str, list[str]]:
         """Per joint, the serving models that meet its operating points: the hand cases'
         (their largest torque at the family's speed), the behaviours' (``req.points``) and
-        its hold (torque at its speed)."""
+        its hold (torque at its speed). ``pruned``: among the models that are not
+        dominated for it (``self.undominated``), enough to find the best assignment."""
         out = {}
+        sf = self.catalog.design.torque_safety_factor
         for s in self.slots:
             points = list(req.points.get(s.name) or [(req.torque[s.name], req.speed[s.name])])
             if s.name in req.holds:
                 points.append(req.holds[s.name][:2])
-            out[s.name] = [
-                name
-                for name in self.assigner.serving.get(s.name, ())
-                if all(meets(self.by_model[name], t, w, self.catalog) for t, w in points)
-            ]
+            names = (self.undominated if pruned else self.assigner.serving).get(s.name, ())
+            if not names:
+                out[s.name] = []
+                continue
+            acts = [self.by_model[n] for n in names]
+            stall = np.array([a.stall_torque_Nm for a in acts])
+            w0 = np.array([a.no_load_speed_rad_s for a in acts])
+            usable = stall / sf
+            ok = np.ones(len(acts), bool)
+            for t, w in points:  # ``meets``, elementwise (the same float operations)
+                ok &= (usable >= t) & (np.maximum(0.0, w0 * (1.0 - t / stall)) >= w)
+            out[s.name] = [n for n, k in zip(names, ok, strict=True) if k]
         return out
 
     def _size_link(self, name: str, length: float, loads: list[np.ndarray]) -> tuple[Tube, dict]:
@@ -703,7 +749,7 @@ class StructureDesigner:
             )
             tp = self._params(sizing, tubes, act_mass, self.modules)
             req, analysis = self._requirements(tp, sizing, actuator_sets)
-            assignment = self.assigner.best(self.capable(req), self.symmetric)
+            assignment = self.assigner.best(self.capable(req, pruned=True), self.symmetric)
             if assignment is None:
                 raise self._no_actuator(req)
             new_mass: dict[str, float] = {}
@@ -1187,61 +1233,154 @@ class _TorqueModel:
                 return False
         return True
 
+    def coupled(self, units: Sequence[tuple[Sequence[int], Sequence[str]]]) -> Coupled:
+        """The feasibility test of ``feasible`` over every assignment of ``units`` (per
+        unit: its slots' indices and its candidate models), as arrays (``Coupled``)."""
+        d = self.d
+        groups = list(dict.fromkeys(s.group for s in d.slots))  # ``_tau``'s order
+        gi = {g: i for i, g in enumerate(groups)}
+        hand_speed = d.family.speeds(d.analysis, d.values, d.converged[0])
+        scale = 1 - 1e-12
+        lin: dict[str, list[tuple[float, list[float], float, float]]] = {}
+        fixed: dict[str, list[tuple[float, float]]] = {}
+        for k, n in enumerate(self.names):
+            hs = hand_speed.get(n, d.requirements.speed[n])
+            rows = [
+                (float(self.t0[c, k]), [float(self.sens[g][c, k]) for g in groups], scale, hs)
+                for c in range(len(self.t0))
+            ]
+            fixed[n] = [] if len(self.t0) else [(0.0, hs)]
+            rows += [
+                (
+                    float(self.b0[i, k]),
+                    [float(self.bsens[g][i, k]) for g in groups],
+                    scale,
+                    float(self.w[i, k]),
+                )
+                for i in self.rows[k]
+            ]
+            lin[n] = rows
+        lin_of = self._by_joint(lin)  # type: ignore[arg-type]
+        fixed_of = self._by_joint(fixed)
+        models = sorted({m for _, ms in units for m in ms})
+        index = {m: i for i, m in enumerate(models)}
+        acts = [d.by_model[m] for m in models]
+        sf = d.catalog.design.torque_safety_factor
+        stall = np.array([a.stall_torque_Nm for a in acts])
+        points = []
+        for slots, _ in units:
+            rows = [r for i in slots for r in lin_of[d.slots[i].name]]
+            held = [p for i in slots for p in fixed_of[d.slots[i].name]]
+            held += [
+                d.requirements.holds[d.slots[i].name][:2]
+                for i in slots
+                if d.slots[i].name in d.requirements.holds
+            ]
+            points.append(
+                distinct_points(
+                    Points(
+                        np.array([r[0] for r in rows]),
+                        np.array([r[1] for r in rows]).reshape(len(rows), len(groups)),
+                        np.array([r[2] for r in rows]),
+                        np.array([r[3] for r in rows]),
+                        np.array([h[0] for h in held], float),
+                        np.array([h[1] for h in held], float),
+                    )
+                )
+            )
+        return Coupled(
+            group=tuple(gi[d.slots[slots[0]].group] for slots, _ in units),
+            base=np.array([self.base[g] for g in groups]),
+            options=tuple(np.array([index[m] for m in ms], int) for _, ms in units),
+            mass=np.array([a.mass_kg for a in acts]),
+            stall=stall,
+            usable=stall / sf,
+            w0=np.array([a.no_load_speed_rad_s for a in acts]),
+            points=tuple(points),
+        )
+
 
 def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> Alternatives:
     """The ``k`` best feasible assignments (and the mass/cost Pareto front) of a design that
     ``designer.run()`` has converged.
 
     Candidates are the assignments capable at the converged design's torques (the
-    lightest actuators: any other assignment only adds mass); each is then checked with
-    its own actuator masses (``_TorqueModel``). The count is exact when the candidates can
-    be enumerated (at most ENUMERATE_LIMIT); above that it is an upper bound."""
+    lightest actuators: any other assignment only adds mass); an assignment is feasible
+    when it stays capable with its own actuator masses (``_TorqueModel``). The count is
+    exact (``synth.assign.count_feasible``, or every candidate checked when there are at
+    most ENUMERATE_LIMIT) unless its branch and bound gives up on more (then the number of
+    candidates, an upper bound, and ``exact`` False); the best come lazily, candidates in
+    objective order each checked until ``k`` (or all) feasible ones are found."""
     req = designer.requirements
     capable = designer.capable(req)
     fixed_mass = sum(n * m for _, _, n, m, _, _ in designer._fixed_modules())
     fixed_cost = sum(n * c for _, _, n, _, c, _ in designer._fixed_modules())
     model = _TorqueModel(designer)
+    by_model = designer.by_model
 
     def alt(a: Assignment) -> Alternative:
-        acts = [designer.by_model[m] for _, m in a.models]
+        acts = [by_model[m] for _, m in a.models]
         return Alternative(
             a.models,
             round(fixed_mass + sum(x.mass_kg for x in acts), 9),
             round(fixed_cost + sum(x.cost for x in acts), 6),
         )
 
-    upper = count_assignments(designer.slots, capable, designer.symmetric)
     key = {"mass": lambda x: x.mass_kg, "cost": lambda x: x.cost}
     order = [key[name] for name in designer.objective]
 
     def rank(x: Alternative) -> tuple:
         return (*(f(x) for f in order), x.models)
 
-    if upper <= ENUMERATE_LIMIT:
-        every = sorted(
-            (
-                alt(a)
-                for a in designer.assigner.all(capable, designer.symmetric)
-                if model.feasible(dict(a.models))
-            ),
-            key=rank,
-        )
-        count, exact, ranked = len(every), True, tuple(every[:k])
-    else:
-        if pareto:
+    units = designer.assigner.options(capable, designer.symmetric)
+    upper = count_assignments(designer.slots, capable, designer.symmetric) if units else 0
+    field = {"mass": lambda m: by_model[m].mass_kg, "cost": lambda m: by_model[m].cost}
+    lists = [
+        sorted(ms, key=lambda m: (*(field[n](m) for n in designer.objective), m)) for _, ms in units
+    ]
+    problem = model.coupled([(u, ms) for (u, _), ms in zip(units, lists, strict=True)])
+    found_count = count_feasible(problem) if units else 0
+    if found_count is None and upper <= ENUMERATE_LIMIT:  # small enough to check each
+        found_count = count_by_enumeration(problem)
+    exact = found_count is not None
+    count = found_count if found_count is not None else upper
+
+    def make(idx: tuple[int, ...]) -> Assignment:
+        chosen = [ms[i] for ms, i in zip(lists, idx, strict=True)]
+        return designer.assigner._assignment([u for u, _ in units], chosen)
+
+    ranked: list[Alternative] = []
+    found = best_first([len(ms) for ms in lists], lambda i: rank(alt(make(i))))
+    for tried, idx in enumerate(found):
+        if len(ranked) >= k or len(ranked) >= count or tried >= ENUMERATE_LIMIT:
+            break
+        a = make(idx)
+        if model.feasible(dict(a.models)):
+            ranked.append(alt(a))
+    front = None
+    if pareto:
+        if upper > ENUMERATE_LIMIT:
             raise InputError(
                 f"{designer.candidate.robot_type}: {upper} assignments are too many for "
                 f"--pareto (at most {ENUMERATE_LIMIT}); keep alike joints alike "
                 "(drop --no-symmetry)"
             )
-        found = [
-            alt(a)
-            for a in designer.assigner.ranked(capable, designer.symmetric, 4 * k)
-            if model.feasible(dict(a.models))
-        ]
-        count, exact, ranked, every = upper, False, tuple(found[:k]), []
-    front = None
-    if pareto:
+        every = []
+        if units:
+            choice = product_rows(problem.options)
+            names = sorted({m for ms in lists for m in ms})
+            ok = feasible_mask(problem, choice)
+            every = sorted(
+                (
+                    alt(
+                        designer.assigner._assignment(
+                            [u for u, _ in units], [names[i] for i in row]
+                        )
+                    )
+                    for row in choice[ok].tolist()
+                ),
+                key=rank,
+            )
         front_list: list[Alternative] = []
         best_cost = float("inf")
         for x in sorted(every, key=lambda x: (x.mass_kg, x.cost, x.models)):
@@ -1249,4 +1388,4 @@ def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> A
                 front_list.append(x)
                 best_cost = x.cost
         front = tuple(front_list)
-    return Alternatives(count, designer.symmetric, ranked, front, exact)
+    return Alternatives(count, designer.symmetric, tuple(ranked), front, exact)

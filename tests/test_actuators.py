@@ -6,7 +6,7 @@ import pytest
 
 from adron.catalog import catalog_facts
 from adron.errors import InputError
-from synth.solver import ActuatorAssigner, JointSlot
+from synth.assign import ActuatorAssigner, JointSlot
 
 POS = ("SG90", "MG996R", "DS3218")
 
