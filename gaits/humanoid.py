@@ -697,6 +697,11 @@ def _hull_edges(pts: list[tuple[float, float]]) -> list[tuple[tuple[float, float
             out.append(p)
         return out
 
+    if len(pts) == 4:  # one sole: an axis-aligned rectangle, what the chain gives for it
+        (x0, y0), (x0b, y1), (x1, y0b), (x1b, y1b) = pts
+        if x0 == x0b < x1 == x1b and y0 == y0b < y1 == y1b:
+            hull = [pts[0], pts[2], pts[3], pts[1]]
+            return list(zip(hull, hull[1:] + hull[:1], strict=True))
     hull = half(pts)[:-1] + half(pts[::-1])[:-1]
     return list(zip(hull, hull[1:] + hull[:1], strict=True))
 
