@@ -56,6 +56,10 @@ def _best(cmd: list[str], runs: int, repo: Path, env: dict[str, str]) -> float:
 
 
 def _type_requests() -> dict[str, list[str]]:
+    """``bench.TYPE_REQUESTS`` (from ``bench.py`` when it is the running script)."""
+    main = sys.modules.get("__main__")
+    if main is not None and hasattr(main, "TYPE_REQUESTS"):
+        return dict(main.TYPE_REQUESTS)
     if str(REPO / "bench") not in sys.path:
         sys.path.insert(0, str(REPO / "bench"))
     from bench import TYPE_REQUESTS
@@ -63,7 +67,7 @@ def _type_requests() -> dict[str, list[str]]:
     return dict(TYPE_REQUESTS)
 
 
-def bench_startup(runs: int = 3, repo: Path = REPO, simulated: bool = False) -> list[str]:
+def bench_startup(runs: int = 2, repo: Path = REPO, simulated: bool = False) -> list[str]:
     """The start-up figures as lines (``repo``: the checkout to time, e.g. an older one
     for a before/after comparison)."""
     py = sys.executable
@@ -106,7 +110,7 @@ if __name__ == "__main__":
     import argparse
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--runs", type=int, default=2)
     ap.add_argument("--repo", type=Path, default=REPO, help="checkout to time")
     ap.add_argument("--simulated", action="store_true", help="also the simulated humanoid")
     a = ap.parse_args()
