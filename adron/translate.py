@@ -70,6 +70,32 @@ class AxiomSource:
         return f"{self.file}:{self.line}:{self.col}"
 
 
+#: an argument of an atom as relevance sees it: ("v", name) a variable, ("c", name) a
+#: constant (relation or class name, string), ("f", "?A ?B") a function term and the
+#: variables inside it, ("o", text) a number
+Arg = tuple[str, str]
+
+
+@dataclass(frozen=True, slots=True)
+class Unit:
+    """One translated form as the relevance filter (adron/relevance.py) sees it: its ASP
+    ``lines``, its kind ("fact", "rule", "axiom"), where it is, and its shape.
+
+    A fact: ``relation`` and ``args`` (constants, numbers as text). An axiom: ``relation``
+    is the class it quantifies over, ``args`` its witness classes, link relations and
+    constants. A rule: ``heads`` and ``body`` atoms as (relation, args); body atoms carry
+    a leading "+" or "-" (default negation) in their relation slot's ``polarity``."""
+
+    kind: str
+    lines: tuple[str, ...]
+    where: str
+    relation: str = ""
+    args: tuple[str, ...] = ()
+    names: tuple[str, ...] = ()  # a fact's constants, inside function terms too
+    heads: tuple[tuple[str, tuple[Arg, ...]], ...] = ()
+    body: tuple[tuple[bool, str, tuple[Arg, ...]], ...] = ()
+
+
 @dataclass(frozen=True)
 class Translation:
     """The ASP program of a set of KIF forms and an account of what was translated.
@@ -89,6 +115,7 @@ class Translation:
     documentation: dict[str, str] = field(default_factory=dict)
     ground: dict[str, tuple[tuple, ...]] = field(default_factory=dict)
     ground_at: dict[str, tuple[str, ...]] = field(default_factory=dict)  # file:line:col
+    units: tuple[Unit, ...] = ()  # every translated form but metadata, in program order
 
     @property
     def translated(self) -> int:
@@ -216,6 +243,45 @@ def _body(f: object) -> tuple[list[str], set[str], set[str]]:
     return lits, bound, needs
 
 
+def _shape_arg(t: object) -> Arg:
+    if isinstance(t, Var):
+        return ("v", str(t))
+    if isinstance(t, (Symbol, String)):
+        return ("c", str(t))
+    if isinstance(t, Form):  # a function term: the variables inside it | its constants
+        return ("f", " ".join(sorted(_vars(t))) + "|" + " ".join(_constants(t)))
+    return ("o", str(t))
+
+
+def _shape(f: object) -> tuple[str, tuple[Arg, ...]]:
+    return str(f.items[0]), tuple(_shape_arg(a) for a in f.items[1:])
+
+
+def _rule_shape(body: object, head: object) -> tuple[tuple, tuple]:
+    """(heads, body) of a Horn-like ``(=> body head)`` for the relevance filter; equality
+    literals are left out (they bind nothing the filter follows)."""
+    heads = tuple(_shape(h) for h in _conjuncts(head))
+    lits = []
+    for c in _conjuncts(body):
+        op = _op(c)
+        if op == "not":
+            inner = c.items[1]
+            if _op(inner) != "equal":
+                lits.append((False, *_shape(inner)))
+        elif op != "equal":
+            lits.append((True, *_shape(c)))
+    return heads, tuple(lits)
+
+
+def _constants(f: object) -> tuple[str, ...]:
+    """Every constant (Symbol or String) inside ``f``, in order."""
+    if isinstance(f, (Symbol, String)):
+        return (str(f),)
+    if isinstance(f, Form):
+        return tuple(c for i in f.items for c in _constants(i))
+    return ()
+
+
 def _horn(body: object, head: object) -> list[str]:
     """ASP rules for ``(=> body head)``; raises _Skip when it is not Horn-like."""
     lits, bound, needs = _body(body)
@@ -312,11 +378,13 @@ def translate(forms: Iterable[Form]) -> Translation:
     docs: dict[str, str] = {}
     ground: dict[str, list[tuple]] = {}
     ground_at: dict[str, list[str]] = {}
+    units: list[Unit] = []
     n_forms = n_facts = n_rules = n_axioms = n_meta = 0
 
     for f in forms:
         n_forms += 1
         op = _op(f)
+        where = f"{f.file}:{f.line}:{f.col}"
         try:
             if op in METADATA:
                 n_meta += 1
@@ -330,17 +398,35 @@ def translate(forms: Iterable[Form]) -> Translation:
                     facts = _existential(n_axioms + 1, f)
                     if facts is not None:
                         n_axioms += 1
-                        sources.append(
-                            AxiomSource(n_axioms, str(f.items[1].items[2]), f.file, f.line, f.col)
-                        )
-                        lines.append(f"% {_comment(f.file)}:{f.line}")
-                        lines.extend(facts)
+                        cls = str(f.items[1].items[2])
+                        sources.append(AxiomSource(n_axioms, cls, f.file, f.line, f.col))
+                        chunk = [f"% {_comment(f.file)}:{f.line}", *facts]
+                        lines.extend(chunk)
+                        names = _constants(f.items[2].items[2])
+                        units.append(Unit("axiom", tuple(chunk), where, cls, names))
                         continue
                     rules = _horn(f.items[1], f.items[2])
+                    shapes = [_rule_shape(f.items[1], f.items[2])]
                 else:
                     rules = _horn(f.items[1], f.items[2]) + _horn(f.items[2], f.items[1])
+                    shapes = [
+                        _rule_shape(f.items[1], f.items[2]),
+                        _rule_shape(f.items[2], f.items[1]),
+                    ]
                 lines.extend(rules)
                 n_rules += 1
+                start = 0
+                for heads, body in shapes:
+                    units.append(
+                        Unit(
+                            "rule",
+                            tuple(rules[start : start + len(heads)]),
+                            where,
+                            heads=heads,
+                            body=body,
+                        )
+                    )
+                    start += len(heads)
                 continue
             if op in LOGICAL:
                 raise _Skip(f"top-level '{op}'")
@@ -348,20 +434,24 @@ def translate(forms: Iterable[Form]) -> Translation:
             if len(items) >= 2 and items[0] != "equal" and all(type(a) is Symbol for a in items):
                 # the common case (subclass, instance ...): names only, quoted directly
                 args = tuple(str(a) for a in items[1:])
-                lines.append(
-                    "holds(" + ",".join([asp_string(items[0]), *map(asp_string, args)]) + ")."
-                )
+                line = "holds(" + ",".join([asp_string(items[0]), *map(asp_string, args)]) + ")."
+                lines.append(line)
+                units.append(Unit("fact", (line,), where, str(items[0]), args, args))
                 ground.setdefault(str(items[0]), []).append(args)
-                ground_at.setdefault(str(items[0]), []).append(f"{f.file}:{f.line}:{f.col}")
+                ground_at.setdefault(str(items[0]), []).append(where)
                 n_facts += 1
                 continue
             if _has_vars(f):
                 raise _Skip("free variables in a top-level fact")
-            lines.append(_atom(f) + ".")
+            line = _atom(f) + "."
+            lines.append(line)
+            shown = tuple(a.to_text() if isinstance(a, Form) else str(a) for a in f.items[1:])
+            names = _constants(Form(tuple(f.items[1:]), f.file, f.line, f.col))
+            units.append(Unit("fact", (line,), where, str(f.items[0]), shown, names))
             ground.setdefault(str(f.items[0]), []).append(
                 tuple(a if isinstance(a, (int, float)) else str(a) for a in f.items[1:])
             )
-            ground_at.setdefault(str(f.items[0]), []).append(f"{f.file}:{f.line}:{f.col}")
+            ground_at.setdefault(str(f.items[0]), []).append(where)
             n_facts += 1
         except _Skip as why:
             untranslated.append(Untranslated(f.file, f.line, f.col, str(why), _short(f)))
@@ -378,6 +468,7 @@ def translate(forms: Iterable[Form]) -> Translation:
         documentation=docs,
         ground={k: tuple(v) for k, v in ground.items()},
         ground_at={k: tuple(v) for k, v in ground_at.items()},
+        units=tuple(units),
     )
 
 

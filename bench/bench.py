@@ -21,6 +21,8 @@ from bench_links import bench_links  # noqa: E402
 from bench_parse import bench_parse  # noqa: E402
 from bench_rnea import bench_rnea  # noqa: E402
 from bench_sim import bench_sim  # noqa: E402
+from bench_simspeed import bench_simspeed  # noqa: E402
+from bench_startup import bench_startup  # noqa: E402
 from bench_stl import bench_stl  # noqa: E402
 
 from adron.kb import load  # noqa: E402
@@ -178,7 +180,9 @@ def main() -> int:
         bench_structures(),
         bench_stl(),
         bench_sim(),
+        bench_simspeed(),
         bench_process(),
+        bench_startup(),
         bench_verified(),
     ]
     for lines in sections:

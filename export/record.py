@@ -11,11 +11,11 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from synth.conceptual import Design
-from synth.solver import Candidate
-
-if TYPE_CHECKING:  # the structure stage pulls numpy in: keep it off the conceptual path
+if TYPE_CHECKING:  # the structure stage pulls numpy in: keep it off the conceptual path;
+    # the solver pulls clingo in: keep it off the path of a command that only prints JSON
     from adron.catalog import Bus, Catalog
+    from synth.conceptual import Design
+    from synth.solver import Candidate
     from synth.structure import Alternatives, Structure
 
 Short = Callable[[str], str]

@@ -6,12 +6,47 @@ positions, wheel servos its velocities (linear interpolation at every physics st
 
 Measured (keys of ``SimResult.to_dict``): ``distance_m`` (planar displacement of the root
 body), ``heading_rad`` (change of its yaw), ``fell`` / ``fell_at_s`` (the root dropped
-below half of its start height or tilted more than 60 degrees; never for the snake, whose
-rolling turns its body over, nor for a fixed base), ``max_torque_ratio`` (largest
+below ``COLLAPSE_HEIGHT`` of its start height or tilted past ``COLLAPSE_TILT``, see
+:mod:`export.verdict`; never for the snake, whose rolling turns its body over, nor for a
+fixed base), ``max_torque_ratio`` (largest
 |actuator force| / stall torque), ``tracking_error`` (driving: relative error of the mean
 (v, w) over the second half against the commanded ones), ``placing_error_m``
 (manipulators: distance of the gripper from the trajectory's ``target`` when it let go,
 ``info["placed_at_s"]``, else at the end).
+
+How a run is made (no Python per physics step):
+
+- **The servo law is MuJoCo's own actuators**, as :mod:`export.mjcf` writes them: a
+  ``<position>`` servo (``kp``, ``kv``, ``forcerange`` = the stall torque) per revolute
+  joint, a ``<velocity>`` servo (``kv``, ``ctrlrange`` = the no-load speed) per wheel.
+  The servo's torque-speed droop is the joint's passive ``damping`` (effort / no-load
+  speed, the motor's back-EMF), outside the actuator, so MuJoCo's built-in types express
+  the whole law exactly and no control callback is needed: the only inputs are the
+  references.
+- **The references are precomputed**: the trajectory is resampled once at every physics
+  step into a control array (steps, nu) (the actuators the trajectory does not drive keep
+  their controls), and :func:`step_through` feeds it to ``mujoco.rollout``, which calls
+  ``mj_step`` in C and records the state after every step. It is the same physics as a
+  Python loop of ``mj_step`` to the bit (same start state, warm start and controls; a run
+  that the rollout stops at a MuJoCo warning is finished with ``mj_step``, as the loop
+  would go on); a test checks it.
+- **The verdict's figures come from the outcome, after the run**, vectorised in numpy
+  over the recorded states: the actuators' effort before the clamp (``demand_ratio_max``)
+  and the force they gave (``max_torque_ratio``, ``saturated_fraction``,
+  ``saturated_joints``) by :class:`ServoLaw`, MuJoCo's actuator arithmetic applied to
+  the recorded positions, velocities and controls of each step (equal to
+  ``MjData.actuator_force`` to the bit, tested; an actuator it cannot reproduce is
+  refused); the fall from the root's recorded height and tilt; the gripper's pose at
+  ``placed_at_s`` by MuJoCo's kinematics of the recorded state. Against the former
+  per-step loop the 22 behaviours of the base configurations' default designs give the
+  same figures; only the demand series differ, by at most 4e-15 (summation order).
+- **Chained and observed runs** (a program's session at 20 Hz, :mod:`program.session`):
+  the rollout runs in chunks of ``observe_every`` s, and ``observe(t, data)`` is called
+  after each with ``data`` exactly as after that many ``mj_step`` calls. Unobserved runs
+  go in chunks of :data:`CHUNK_STEPS` (progress reports).
+
+Cost (``bench/bench_simspeed.py``): ``simulate`` takes 0.9-1.2 x a bare ``mj_step`` loop
+running the same controls on the same model (was 1.3-3.9 x).
 """
 
 from __future__ import annotations
@@ -134,6 +169,13 @@ def carrying_payload(xml: str, record: Mapping) -> str:
 
 #: m^2: a point payload's inertia per kg (a 3 cm radius of gyration: MuJoCo needs some)
 PAYLOAD_INERTIA = 0.03**2
+#: Physics steps per ``mujoco.rollout`` call when nobody observes the run: progress is
+#: reported this often (1 s simulated at 2 ms), and a call's own cost (tens of
+#: microseconds) is under 1 % of the stepping it does.
+CHUNK_STEPS = 500
+#: Physics steps measured at a time (20 s at 2 ms): the recorded states of a block (a few
+#: MB) are all a run holds, whatever its duration.
+BLOCK_STEPS = 10_000
 
 
 def load_files_model(files: Mapping[str, str | bytes]):
@@ -176,6 +218,154 @@ def _rotation_angle(a: np.ndarray, b: np.ndarray) -> float:
     return math.acos(max(-1.0, min(1.0, c)))
 
 
+class ServoLaw:
+    """MuJoCo's actuator law of ``model``, vectorised over recorded states: the effort its
+    actuators were asked for before the clamp to ``forcerange`` (:meth:`efforts`) and the
+    force they gave (:meth:`forces`), from positions, velocities and controls.
+
+    The same arithmetic, in the same order, as MuJoCo's ``mj_transmission`` and
+    ``mj_fwdActuation`` for joint actuators without activation dynamics (what
+    :mod:`export.mjcf` writes: ``<position>`` and ``<velocity>`` servos): ``ctrl`` clamped to
+    ``ctrlrange``, ``length = gear q``, ``velocity = gear qdot``, ``effort = gain ctrl +
+    (b0 + b1 length + b2 velocity)`` (an affine gain likewise), ``force = clip(effort,
+    forcerange)``; equal to ``MjData.actuator_force`` to the bit (a test checks it).
+    ValueError for other actuators."""
+
+    def __init__(self, model) -> None:
+        import mujoco
+
+        affine_gain = model.actuator_gaintype == mujoco.mjtGain.mjGAIN_AFFINE
+        no_bias = model.actuator_biastype == mujoco.mjtBias.mjBIAS_NONE
+        ok = (
+            (model.actuator_trntype == mujoco.mjtTrn.mjTRN_JOINT)
+            & (model.actuator_dyntype == mujoco.mjtDyn.mjDYN_NONE)
+            & (affine_gain | (model.actuator_gaintype == mujoco.mjtGain.mjGAIN_FIXED))
+            & (no_bias | (model.actuator_biastype == mujoco.mjtBias.mjBIAS_AFFINE))
+        )
+        if not ok.all():
+            bad = ", ".join(model.actuator(k).name for k in np.flatnonzero(~ok))
+            raise ValueError(
+                f"actuators {bad}: only joint actuators without activation dynamics and with "
+                "a fixed or affine gain and bias can be simulated"
+            )
+        joint = model.actuator_trnid[:, 0]
+        self.qadr = model.jnt_qposadr[joint]
+        self.vadr = model.jnt_dofadr[joint]
+        self.gear = model.actuator_gear[:, 0].copy()
+        self.gain = model.actuator_gainprm[:, :3].copy()
+        self.gain[~affine_gain, 1:] = 0.0
+        self.affine_gain = bool(affine_gain.any())
+        self.bias = model.actuator_biasprm[:, :3].copy()
+        self.bias[no_bias] = 0.0
+        clamp = not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL
+        limited = model.actuator_ctrllimited.astype(bool) & clamp
+        self.ctrl_lo = np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf)
+        self.ctrl_hi = np.where(limited, model.actuator_ctrlrange[:, 1], np.inf)
+        limited = model.actuator_forcelimited.astype(bool)
+        self.force_lo = np.where(limited, model.actuator_forcerange[:, 0], -np.inf)
+        self.force_hi = np.where(limited, model.actuator_forcerange[:, 1], np.inf)
+        #: N m: what an actuator's |force| is measured against (its larger force bound)
+        self.limit = np.maximum(np.abs(model.actuator_forcerange).max(axis=1), 1e-12)
+
+    def efforts(self, qpos: np.ndarray, qvel: np.ndarray, ctrl: np.ndarray) -> np.ndarray:
+        """(N, nu) N m asked of each actuator before its clamp, in states qpos (N, nq) and
+        qvel (N, nv) under controls ctrl (N, nu)."""
+        length = self.gear * qpos[:, self.qadr]
+        velocity = self.gear * qvel[:, self.vadr]
+        c = np.clip(ctrl, self.ctrl_lo, self.ctrl_hi)
+        b, g = self.bias, self.gain
+        bias = b[:, 0] + b[:, 1] * length + b[:, 2] * velocity
+        gain = g[:, 0] + g[:, 1] * length + g[:, 2] * velocity if self.affine_gain else g[:, 0]
+        return gain * c + bias
+
+    def forces(self, effort: np.ndarray) -> np.ndarray:
+        """(N, nu) N m the actuators gave: ``effort`` clamped to their force ranges."""
+        return np.clip(effort, self.force_lo, self.force_hi)
+
+
+def _user_inputs(model, data) -> int:
+    """The ``mjtState`` bits of the inputs a rollout must be given at each step to keep what
+    ``data`` holds (a rollout resets those it is not given): the controls, the mocap bodies'
+    poses (a program's obstacle), and the applied forces and equality switches where they
+    are not MuJoCo's defaults."""
+    import mujoco
+
+    s = mujoco.mjtState
+    spec = int(s.mjSTATE_CTRL)
+    if model.nmocap:
+        spec |= int(s.mjSTATE_MOCAP_POS) | int(s.mjSTATE_MOCAP_QUAT)
+    if data.qfrc_applied.any():
+        spec |= int(s.mjSTATE_QFRC_APPLIED)
+    if data.xfrc_applied.any():
+        spec |= int(s.mjSTATE_XFRC_APPLIED)
+    if model.neq and not np.array_equal(data.eq_active, model.eq_active0):
+        spec |= int(s.mjSTATE_EQ_ACTIVE)
+    return spec
+
+
+def step_through(
+    model,
+    data,
+    ctrl: np.ndarray,
+    every: int = CHUNK_STEPS,
+    after: Callable[[int], None] | None = None,
+    sensed: np.ndarray | None = None,
+) -> np.ndarray:
+    """Step ``data`` ``len(ctrl)`` times under the controls ``ctrl`` (steps, nu), inside
+    MuJoCo (``mujoco.rollout``) in runs of ``every`` steps, calling ``after(i)`` after each
+    run (``i`` steps done; ``data`` is then as after ``i`` calls of ``mj_step``). Returns the
+    state after each step, (steps, nstate) in ``mjSTATE_FULLPHYSICS`` layout; ``sensed``
+    (steps, nsensordata), when given, receives ``data.sensordata`` after each step.
+
+    The same physics as a loop of ``mj_step`` to the bit: each run starts from ``data``'s
+    full state and its warm start. A run that MuJoCo stops at a warning (a rollout does,
+    a plain loop goes on: a diverged state is reset) is finished with ``mj_step``."""
+    import mujoco
+    from mujoco import rollout
+
+    steps = len(ctrl)
+    full = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    nstate = mujoco.mj_stateSize(model, full)
+    states = np.empty((steps, nstate))
+    state0 = np.empty((1, nstate))
+    spec = _user_inputs(model, data)
+    extra = spec & ~int(mujoco.mjtState.mjSTATE_CTRL)
+    tail = np.empty(mujoco.mj_stateSize(model, extra)) if extra else None
+    runner = rollout.Rollout(nthread=0)
+    try:
+        for a in range(0, steps, every):
+            b = min(steps, a + every)
+            mujoco.mj_getState(model, data, state0[0], full)
+            controls = np.ascontiguousarray(ctrl[a:b], dtype=float)
+            if tail is not None:
+                mujoco.mj_getState(model, data, tail, extra)
+                controls = np.hstack([controls, np.broadcast_to(tail, (b - a, len(tail)))])
+            runner.rollout(
+                [model],
+                [data],
+                state0,
+                controls[None],
+                control_spec=spec,
+                skip_checks=True,
+                nstep=b - a,
+                initial_warmstart=data.qacc_warmstart[None].copy(),
+                state=states[None, a:b],
+                sensordata=None if sensed is None else sensed[None, a:b],
+            )
+            done = int(round((data.time - state0[0, 0]) / model.opt.timestep))
+            for i in range(a + done, b):  # stopped at a warning: on as mj_step goes on
+                data.ctrl[:] = ctrl[i]
+                mujoco.mj_step(model, data)
+                mujoco.mj_getState(model, data, states[i], full)
+                if sensed is not None:
+                    sensed[i] = data.sensordata
+            if after is not None:
+                after(b)
+    finally:
+        runner.close()
+    return states
+
+
 def simulate(
     model,
     traj: Trajectory,
@@ -185,6 +375,7 @@ def simulate(
     progress: Callable[[float], None] | None = None,
     data=None,
     observe: Callable[[float, object], None] | None = None,
+    observe_every: float | None = None,
 ) -> SimResult:
     """Run ``traj`` on ``model`` (a mujoco.MjModel) for ``seconds`` (default: the
     trajectory's duration; the trajectory holds its last value after its end), measure what
@@ -194,7 +385,9 @@ def simulate(
     ``data``: a ``mujoco.MjData`` to continue from (a program chaining behaviours): the
     robot is not reset to the trajectory's first pose, and the promise (planned pose,
     direction), given for a start at yaw 0, is turned by the yaw the robot starts with.
-    ``observe(t, data)`` is called after every physics step (``t`` s since this run began)."""
+    ``observe(t, data)`` is called every ``observe_every`` s (rounded to whole physics
+    steps; default: after every step) and after the last step, ``t`` s since this run
+    began. ``progress(fraction)`` is called every :data:`CHUNK_STEPS` steps."""
     import mujoco
 
     from export.verdict import COLLAPSE_HEIGHT, COLLAPSE_TILT, SATURATION_LEVEL, judge
@@ -206,6 +399,7 @@ def simulate(
     seconds = traj.duration if seconds is None else seconds
     if not (math.isfinite(seconds) and seconds > 0):
         raise ValueError(f"seconds must be a positive finite number, got {seconds}")
+    law = ServoLaw(model)
     free = model.njnt > 0 and model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
     act = {model.actuator(k).name: k for k in range(model.nu)}
     columns = []
@@ -224,76 +418,99 @@ def simulate(
     start = data.qpos[:3].copy() if free else np.zeros(3)
     com0 = data.subtree_com[1].copy() if free else np.zeros(3)
     yaw0 = _yaw(data.qpos[3:7]) if free else 0.0
-    steps = max(1, int(round(seconds / model.opt.timestep)))
-    fell_at = None
-    ratio = 0.0
-    limit = np.maximum(np.abs(model.actuator_forcerange).max(axis=1), 1e-12)
-    # the servo law before the actuator's clamp: gain * ctrl + b0 + b1 * length + b2 * velocity
-    gain = model.actuator_gainprm[:, 0].copy()
-    bias = model.actuator_biasprm[:, :3].copy()
-    demand = 0.0
+    dt = model.opt.timestep
+    steps = max(1, int(round(seconds / dt)))
+    idx = np.array([a for _, a, _ in columns], dtype=int)
+    qadr = model.jnt_qposadr[model.actuator_trnid[idx, 0]]
+    held = data.ctrl.copy()  # the actuators the trajectory does not drive keep these
+    placed_at = traj.info.get("placed_at_s")
+    placed_step = None if placed_at is None else int(round(float(placed_at) / dt))
+    placed_step = None if placed_step is None else min(placed_step, steps - 1)
+    every = CHUNK_STEPS
+    if observe is not None:
+        every = 1 if observe_every is None else max(1, int(round(observe_every / dt)))
+    # the run goes in blocks of whole observation periods, each measured once it is done:
+    # memory stays that of a block whatever the duration
+    block = max(1, BLOCK_STEPS // every) * every
+    full = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    last = np.empty(mujoco.mj_stateSize(model, full))  # the state before the next step
+    mujoco.mj_getState(model, data, last, full)
+    nq, nv = model.nq, model.nv
+    sample = np.arange(0, steps, max(1, steps // 500))  # and the last step
+    if sample[-1] != steps - 1:  # (np.unique would import numpy.ma: 20-50 ms of start-up)
+        sample = np.append(sample, steps - 1)
+    judge_fall = free and can_fall
+    fell_at = min_height = max_tilt = None
+    ratio = demand = 0.0
     saturated_steps = 0
     saturated_each = np.zeros(model.nu, dtype=int)
-    min_height = math.inf
-    max_tilt = 0.0
-    times, roots, qs, refs, forces, demands = [], [], [], [], [], []
-    every = max(1, steps // 500)
-    placed_at = traj.info.get("placed_at_s")
-    placed_step = None if placed_at is None else int(round(float(placed_at) / model.opt.timestep))
-    placed_step = None if placed_step is None else min(placed_step, steps - 1)
     placed_where = placed_rot = None
-    grid = np.arange(steps) * model.opt.timestep
-    # the references at every step, resampled once (held at the trajectory's ends)
-    ctrl = np.empty((steps, len(columns)))
-    ref = np.empty((steps, len(columns)))
-    for n, (k, _, velocity) in enumerate(columns):
-        ref[:, n] = np.interp(grid, traj.times, traj.positions[:, k])
-        ctrl[:, n] = np.interp(grid, traj.times, traj.velocities[:, k]) if velocity else ref[:, n]
-    idx = np.array([a for _, a, _ in columns], dtype=int)
-    judge_fall = free and can_fall
-    for i in range(steps):
-        t = grid[i]
-        q = ref[i]
-        data.ctrl[idx] = ctrl[i]
-        mujoco.mj_step(model, data)
-        if observe is not None:
-            observe(t + model.opt.timestep, data)
-        if i == placed_step and end_effector is not None:
-            placed_where = data.xpos[model.body(end_effector).id].copy()
-            placed_rot = data.xmat[model.body(end_effector).id].reshape(3, 3).copy()
-        force = np.abs(data.actuator_force) / limit
-        ratio = max(ratio, float(force.max()))
-        at_limit = force >= SATURATION_LEVEL
-        if at_limit.any():
-            saturated_steps += 1
-            saturated_each += at_limit
-        effort = (
-            gain * data.ctrl
-            + bias[:, 0]
-            + bias[:, 1] * data.actuator_length
-            + bias[:, 2] * data.actuator_velocity
-        )
-        demand = max(demand, float(np.max(np.abs(effort) / limit)))
+    series: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "root", "q", "q_ref", "force")}
+    series["demand"] = []
+    if progress is not None:
+        progress(0.0)
+    for start_step in range(0, steps, block):
+        n = min(block, steps - start_step)
+        grid = (start_step + np.arange(n)) * dt
+        # the references at every step (held at the trajectory's ends)
+        ref = np.empty((n, len(columns)))
+        ctrl = np.tile(held, (n, 1))
+        for c, (k, a, velocity) in enumerate(columns):
+            ref[:, c] = np.interp(grid, traj.times, traj.positions[:, k])
+            if velocity:
+                ctrl[:, a] = np.interp(grid, traj.times, traj.velocities[:, k])
+            else:
+                ctrl[:, a] = ref[:, c]
+
+        def after(i: int, offset: int = start_step) -> None:
+            done = offset + i
+            if observe is not None:
+                observe(done * dt, data)
+            if progress is not None and done // CHUNK_STEPS > (done - every) // CHUNK_STEPS:
+                progress(done * dt / seconds)
+
+        states = step_through(model, data, ctrl, every, after)
+        before = np.vstack([last[None], states[:-1]])
+        last = states[-1].copy()
+        qpos_after = states[:, 1 : 1 + nq]
+
+        # what the actuators were asked and gave at each step, from the recorded states
+        effort = law.efforts(before[:, 1 : 1 + nq], before[:, 1 + nq : 1 + nq + nv], ctrl)
+        demand_each = np.abs(effort) / law.limit
+        force = law.forces(effort)
+        force_each = np.abs(force) / law.limit
+        at_limit = force_each >= SATURATION_LEVEL
+        ratio = max(ratio, float(force_each.max(initial=0.0)))
+        demand = max(demand, float(demand_each.max(initial=0.0)))
+        saturated_steps += int(at_limit.any(axis=1).sum())
+        saturated_each += at_limit.sum(axis=0)
         if judge_fall:
-            height = data.qpos[2] / start[2] if start[2] > 0 else 1.0
-            tilt = _tilt(data.qpos[3:7])
-            min_height = min(min_height, height)
-            max_tilt = max(max_tilt, tilt)
-            if fell_at is None and (height < COLLAPSE_HEIGHT or tilt > COLLAPSE_TILT):
-                fell_at = t
-        if i % every == 0 or i == steps - 1:
-            times.append(t)
-            roots.append(data.qpos[:7].copy() if free else np.zeros(7))
-            qs.append(
-                [data.qpos[model.jnt_qposadr[model.actuator_trnid[a, 0]]] for _, a, _ in columns]
-            )
-            refs.append(q)
-            forces.append(data.actuator_force.copy())
-            demands.append(np.abs(effort) / limit)
-        if progress and i % 500 == 0:
-            progress(t / seconds)
+            height = qpos_after[:, 2] / start[2] if start[2] > 0 else np.ones(n)
+            w, x, y, z = qpos_after[:, 3:7].T
+            tilt = np.arccos(np.clip(1 - 2 * (x * x + y * y), -1.0, 1.0))
+            down = np.flatnonzero((height < COLLAPSE_HEIGHT) | (tilt > COLLAPSE_TILT))
+            if fell_at is None and len(down):
+                fell_at = float(grid[down[0]])
+            min_height = min(float(height.min()), math.inf if min_height is None else min_height)
+            max_tilt = max(float(tilt.max()), 0.0 if max_tilt is None else max_tilt)
+        let_go = None if placed_step is None else placed_step - start_step
+        if end_effector is not None and let_go is not None and 0 <= let_go < n:
+            # the gripper's pose in the state it let go from (MuJoCo's kinematics of it)
+            pose = mujoco.MjData(model)
+            mujoco.mj_setState(model, pose, before[let_go], full)
+            mujoco.mj_kinematics(model, pose)
+            eid = model.body(end_effector).id
+            placed_where = pose.xpos[eid].copy()
+            placed_rot = pose.xmat[eid].reshape(3, 3).copy()
+        rows = sample[(sample >= start_step) & (sample < start_step + n)] - start_step
+        series["t"].append(grid[rows])
+        series["root"].append(qpos_after[rows, :7] if free else np.zeros((len(rows), 7)))
+        series["q"].append(qpos_after[np.ix_(rows, qadr)])
+        series["q_ref"].append(ref[rows])
+        series["force"].append(force[rows])
+        series["demand"].append(demand_each[rows])
+    root = np.concatenate(series["root"])
     end = data.qpos[:3].copy() if free else np.zeros(3)
-    root = np.array(roots)
     heading = 0.0
     if free:  # unwrapped over the samples, so turns past 180 degrees count whole
         heading = float(np.unwrap([_yaw(r[3:7]) for r in root])[-1] - yaw0)
@@ -312,16 +529,9 @@ def simulate(
             for k in range(model.nu)
             if saturated_each[k]
         },
-        min_height_ratio=min_height if judge_fall else None,
-        max_tilt_rad=max_tilt if judge_fall else None,
-        series={
-            "t": np.array(times),
-            "root": root,
-            "q": np.array(qs),
-            "q_ref": np.array(refs),
-            "force": np.array(forces),
-            "demand": np.array(demands),
-        },
+        min_height_ratio=min_height,
+        max_tilt_rad=max_tilt,
+        series={k: np.concatenate(v) for k, v in series.items()},
     )
     info = traj.info
     motion = info.get("motion")

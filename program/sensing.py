@@ -143,16 +143,23 @@ def sensing_behaviors(
 
 def scene_xml(xml: str) -> str:
     """``robot.xml`` with the scene's obstacle: a mocap box parked out of the way (it
-    collides with nothing until a behaviour sets it up)."""
+    collides with nothing until a behaviour sets it up), and a ``contact`` sensor that
+    tells at every step whether anything touches it (the session counts those steps from
+    what MuJoCo recorded, without a Python call per step)."""
     body = (
         f'<body name="{OBSTACLE}" mocap="true" pos="0 0 -10">'
         f'<geom name="{OBSTACLE}" type="box" size="0.05 0.05 0.05" group="3" '
         'contype="0" conaffinity="0" rgba="0.8 0.2 0.2 1" /></body>'
     )
+    sensor = (
+        f'<sensor><contact name="{OBSTACLE}_contact" geom1="{OBSTACLE}" num="1" '
+        'data="found" /></sensor>'
+    )
     at = xml.rfind("</worldbody>")
-    if at < 0:
+    end = xml.rfind("</mujoco>")
+    if at < 0 or end < at:
         raise ValueError("robot.xml has no worldbody")
-    return xml[:at] + body + "\n  " + xml[at:]
+    return xml[:at] + body + "\n  " + xml[at:end] + sensor + "\n" + xml[end:]
 
 
 # -- the sensors -------------------------------------------------------------------------

@@ -179,6 +179,7 @@ class Session:
             end_effector=str(body) if body is not None else None,
             data=self.data,
             observe=lambda t, d: self._observe(t0 + t, d),
+            observe_every=1 / max(PATH_HZ, ANIMATION_FPS),
         )
         self.time = t0 + result.seconds
         end = self._pose()
@@ -420,51 +421,88 @@ class Session:
     ) -> None:
         """Step the physics for ``seconds`` following ``pos`` with velocity servos
         following ``vel``: rows at ``times`` s (interpolated at every step, as ``simulate``
-        does), or without ``times`` spread evenly over the time, the last held."""
+        does), or without ``times`` spread evenly over the time, the last held.
+
+        The steps run inside MuJoCo (:func:`export.simulate.step_through`) in chunks of
+        1 / :data:`PATH_HZ` s, the path, the animation and ``on_step`` (a sensing loop) being
+        served after each; the fall, the saturated steps and the watched geom's contacts (a
+        ``contact`` sensor on it, :func:`program.sensing.scene_xml`) are counted over every
+        step from what was recorded."""
         import mujoco
 
-        from export.verdict import SATURATION_LEVEL
+        from export.simulate import ServoLaw, step_through
+        from export.verdict import COLLAPSE_TILT, SATURATION_LEVEL
 
         m, d = self.model, self.data
         cols = self._columns(joints)
         steps = max(1, int(round(seconds / m.opt.timestep)))
         self._check_time(steps * m.opt.timestep)
-        limit = np.maximum(np.abs(m.actuator_forcerange).max(axis=1), 1e-12)
-        watch = self.watched_geom
         rows = len(pos)
         t0 = self.time
-        idx = np.array([a for _, a, _, _ in cols], dtype=int)
-        ctrl = np.empty((steps, len(cols)))
+        ctrl = np.tile(d.ctrl, (steps, 1))
         if times is not None:
             grid = np.arange(steps) * m.opt.timestep
-            for n, (k, _, _, velocity) in enumerate(cols):
-                ctrl[:, n] = np.interp(grid, times, vel[:, k] if velocity else pos[:, k])
+            for k, a, _, velocity in cols:
+                ctrl[:, a] = np.interp(grid, times, vel[:, k] if velocity else pos[:, k])
         else:
             r = np.minimum(rows - 1, (np.arange(steps) * rows) // steps) if rows > 1 else 0
-            for n, (k, _, _, velocity) in enumerate(cols):
-                ctrl[:, n] = (vel if velocity else pos)[r, k]
-        for i in range(steps):
-            d.ctrl[idx] = ctrl[i]
-            mujoco.mj_step(m, d)
-            self._observe(t0 + (i + 1) * m.opt.timestep, d)
+            for k, a, _, velocity in cols:
+                ctrl[:, a] = (vel if velocity else pos)[r, k]
+        watch = self.watched_geom
+        sensor = None if watch is None else self._contact_sensor(watch)
+        every = max(1, int(round(1 / max(PATH_HZ, ANIMATION_FPS) / m.opt.timestep)))
+        contacts = 0
+
+        def after(i: int) -> None:
+            nonlocal contacts
+            t = t0 + i * m.opt.timestep
+            self._observe(t, d)
             if self.on_step is not None:
-                self.on_step(t0 + (i + 1) * m.opt.timestep)
-            if self.can_fall and not self.fell:
-                self.fell = self._fallen()
-            self._counts["steps"] += 1
-            if np.any(np.abs(d.actuator_force) / limit >= SATURATION_LEVEL):
-                self._counts["saturated"] += 1
-            if watch is not None and d.ncon:
+                self.on_step(t)
+            if watch is not None and sensor is None and d.ncon:  # stepped one at a time
                 c = d.contact
-                if np.any((c.geom1 == watch) | (c.geom2 == watch)):
-                    self._counts["contacts"] += 1
+                contacts += int(np.any((c.geom1 == watch) | (c.geom2 == watch)))
+
+        sensed = np.empty((steps, m.nsensordata)) if sensor is not None else None
+        if watch is not None and sensor is None:
+            every = 1
+        full = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        first = np.empty(mujoco.mj_stateSize(m, full))
+        mujoco.mj_getState(m, d, first, full)
+        states = step_through(m, d, ctrl, every, after, sensed)
+        nq, nv = m.nq, m.nv
+        if self.can_fall and not self.fell:
+            w, x, y, z = states[:, 4:8].T  # the free joint's quaternion after each step
+            up = np.clip(1 - 2 * (x * x + y * y), -1.0, 1.0)
+            self.fell = bool(np.any(np.arccos(up) > COLLAPSE_TILT))
+        before = np.vstack([first[None], states[:-1]])
+        law = ServoLaw(m)
+        effort = law.efforts(before[:, 1 : 1 + nq], before[:, 1 + nq : 1 + nq + nv], ctrl)
+        at_limit = np.abs(law.forces(effort)) / law.limit >= SATURATION_LEVEL
+        self._counts["steps"] += steps
+        self._counts["saturated"] += int(at_limit.any(axis=1).sum())
+        if sensed is not None:
+            contacts = int(np.count_nonzero(sensed[:, sensor] > 0))
+        self._counts["contacts"] += contacts
         self.time = t0 + steps * m.opt.timestep
 
-    def _fallen(self) -> bool:
-        from export.simulate import _tilt
-        from export.verdict import COLLAPSE_TILT
+    def _contact_sensor(self, geom: int) -> int | None:
+        """The sensordata address of a ``contact`` sensor counting ``geom``'s contacts
+        (``geom1`` only, ``data="found"``), or None."""
+        import mujoco
 
-        return _tilt(self.data.qpos[3:7]) > COLLAPSE_TILT
+        m = self.model
+        for s in range(m.nsensor):
+            if (
+                m.sensor_type[s] == mujoco.mjtSensor.mjSENS_CONTACT
+                and m.sensor_objtype[s] == mujoco.mjtObj.mjOBJ_GEOM
+                and m.sensor_objid[s] == geom
+                and m.sensor_reftype[s] == mujoco.mjtObj.mjOBJ_UNKNOWN
+                and m.sensor_intprm[s, 0] == 1 << int(mujoco.mjtConDataField.mjCONDATA_FOUND)
+                and m.sensor_dim[s] == 1
+            ):
+                return int(m.sensor_adr[s])
+        return None
 
     def _observe(self, t: float, d) -> None:
         """Sample the path and the animation at their rates."""

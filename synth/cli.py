@@ -840,11 +840,29 @@ def cmd_abilities(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from adron.kb import load
+    from adron.relevance import REASONS
     from export.record import to_json
+    from synth.solver import relevant
 
     kb = load(args.files, builtin=False)
     t = kb.translation
     un = t.untranslated
+    # relevance is judged with the shipped ontology loaded too (it holds the vocabulary)
+    full = load(args.files)
+    rel = relevant(full)
+    mine = {f for f in kb.files}
+    own = [
+        (k, why)
+        for u, k, why in zip(full.translation.units, rel.kept, rel.reasons, strict=True)
+        if u.where.rsplit(":", 2)[0] in mine
+    ]
+    filtered = {r: sum(1 for _, w in own if w == r) for r in REASONS}
+    relevance_rec = {
+        "forms": len(own),
+        "relevant": sum(1 for k, _ in own if k),
+        "filtered": {r: n for r, n in filtered.items() if n},
+        "unfiltered_because": rel.off,
+    }
     rec = {
         "files": list(kb.files),
         "forms": t.forms,
@@ -854,6 +872,7 @@ def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> in
         "existential_axioms": t.axioms,
         "metadata": t.metadata,
         "untranslated": len(un),
+        "relevance": relevance_rec,
         "untranslated_forms": [
             {"file": u.file, "line": u.line, "col": u.col, "reason": u.reason, "text": u.text}
             for u in (un if args.all or args.json else un[:10])
@@ -867,6 +886,14 @@ def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> in
         f"({t.facts} facts, {t.rules} rules, {t.axioms} existential axioms, "
         f"{t.metadata} metadata), {len(un)} untranslated\n"
     )
+    r = relevance_rec
+    shown = ", ".join(f"{n} {REASONS[k]}" for k, n in r["filtered"].items()) or "nothing"
+    out.write(
+        f"{r['relevant']} of {r['forms']} translated forms (metadata aside) reach the robot "
+        f"vocabulary and go to the grounder; filtered: {shown}\n"
+    )
+    if r["unfiltered_because"]:
+        out.write(f"  nothing is filtered: {r['unfiltered_because']}\n")
     for u in rec["untranslated_forms"]:
         out.write(f"  {u['file']}:{u['line']}:{u['col']}: {u['reason']}: {u['text']}\n")
     if len(un) > len(rec["untranslated_forms"]):
@@ -896,6 +923,9 @@ MIN_SIM_SECONDS = 0.1
 
 def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from pathlib import Path
+
+    # nothing here renders: MuJoCo without its OpenGL back-end (glfw) imports 50-150 ms sooner
+    os.environ.setdefault("MUJOCO_GL", "disable")
 
     from export.record import to_json
 

@@ -30,6 +30,7 @@ import clingo
 
 from adron.errors import InputError, OntologyError, ParmorError
 from adron.kb import KnowledgeBase, read_user_file
+from adron.relevance import Relevance, relevance
 from adron.translate import asp_string, isa_facts, taxonomy_closure
 from synth import limits
 
@@ -347,13 +348,62 @@ def _encoding_texts() -> tuple[str, ...]:
     )
 
 
-def taxonomy_program(kb: KnowledgeBase, others: Sequence[str], rules: Sequence[str]) -> str:
+#: the encodings of the taxonomy layer: they read subclass/subrelation/instance for any
+#: pair to build the closure, which the other encodings then ask about given classes only
+_TAXONOMY_LAYER = ("taxonomy.lp", "closure.lp")
+
+
+@functools.cache
+def _relevance_texts() -> tuple[tuple[str, ...], tuple[str, ...]]:
+    files = sorted(encoding_dir().glob("*.lp"))
+    return (
+        tuple(p.read_text(encoding="utf-8") for p in files if p.name not in _TAXONOMY_LAYER),
+        tuple(p.read_text(encoding="utf-8") for p in files if p.name in _TAXONOMY_LAYER),
+    )
+
+
+def relevant(kb: KnowledgeBase, focus: str | None = None, rules: Sequence[str] = ()) -> Relevance:
+    """Which translated forms of ``kb`` can reach the encodings' vocabulary (adron/relevance.py);
+    nothing is filtered when user ``rules`` are given (a rule file may read anything)."""
+    tr = kb.translation
+    if rules:
+        n = len(tr.units)
+        return Relevance((True,) * n, ("",) * n, "rule files are given (they may read anything)")
+    body, taxo = _relevance_texts()
+    return relevance(tr, body, taxo, [focus] if focus is not None else [])
+
+
+def taxonomy_program(
+    kb: KnowledgeBase, others: Sequence[str], rules: Sequence[str], program: str | None = None
+) -> str:
     """The taxonomy closure the program needs (facts), or the recursive rules when only
-    they are exact (adron/translate.py: taxonomy_closure)."""
-    facts = taxonomy_closure(kb.translation.program, [*_encoding_texts(), *others], rules)
+    they are exact (adron/translate.py: taxonomy_closure). ``program``: the translation
+    as it goes to the grounder (by default all of it)."""
+    program = kb.translation.program if program is None else program
+    facts = taxonomy_closure(program, [*_encoding_texts(), *others], rules)
     if facts is None:
         return (encoding_dir() / "closure.lp").read_text(encoding="utf-8")
     return facts
+
+
+_STRING = clingo.SymbolType.String
+#: from this many possible candidates on, a solve looks up each model's atoms for its
+#: chosen robot instead of reading all shown atoms (building that index costs ~20 ms)
+_INDEXED = 64
+
+
+_SHOW_SIGNATURE = re.compile(r"^[ \t]*#show[ \t]+(\w+)/(\d+)[ \t]*\.", re.MULTILINE)
+
+
+@functools.cache
+def _shown_signatures() -> tuple[tuple[str, int], ...]:
+    """(name, arity) of every ``#show name/arity`` line of the shipped encodings."""
+    out = {
+        (m.group(1), int(m.group(2)))
+        for lp in sorted(encoding_dir().glob("*.lp"))
+        for m in _SHOW_SIGNATURE.finditer(lp.read_text(encoding="utf-8"))
+    }
+    return tuple(sorted(out))
 
 
 class _Core:
@@ -367,9 +417,11 @@ class _Core:
             ["--models=0", "--opt-mode=enum"], logger=self._log, message_limit=20
         )
         extra = [f"focus({asp_string(focus)})."] if focus is not None else []
+        texts = [r.text for r in rules]
+        program = relevant(kb, focus, texts).program(kb.translation)
         try:
-            self._ctl.add("base", [], kb.translation.program)
-            self._ctl.add("base", [], taxonomy_program(kb, extra, [r.text for r in rules]))
+            self._ctl.add("base", [], program)
+            self._ctl.add("base", [], taxonomy_program(kb, extra, texts, program))
             self._ctl.load(str(encoding_dir() / "conceptual.lp"))
             for text in extra:
                 self._ctl.add("base", [], text)
@@ -397,6 +449,7 @@ class _Core:
             raise limits.LimitExceeded(
                 limits.Limits(size_atoms=size).describe("size"), "size", self._largest(rules)
             )
+        self._index: tuple[list, dict[str, list], list] | None = None
         self.externals = {
             a.symbol
             for sig in (("request", 1), ("answer", 2), ("param", 2))
@@ -453,9 +506,59 @@ class _Core:
             for m in _worker_models(self._ctl)
         )
 
+    def _shown_index(self) -> tuple[list, dict[str, list], list]:
+        """(chosen/1 literals and robot names, shown atoms by robot, the other shown atoms),
+        over the signatures ``asp/show.lp`` shows, built once."""
+        if self._index is None:
+            atoms = self._ctl.symbolic_atoms
+            chosen = [
+                (a.literal, a.symbol.arguments[0].string) for a in atoms.by_signature("chosen", 1)
+            ]
+            robots = {r for _, r in chosen}
+            by: dict[str, list] = {}
+            common: list = []
+            for name, arity in _shown_signatures():
+                for a in atoms.by_signature(name, arity):
+                    first = a.symbol.arguments[0] if a.symbol.arguments else None
+                    key = first.string if first is not None and first.type == _STRING else None
+                    (by.setdefault(key, []) if key in robots else common).append(
+                        (a.literal, a.symbol)
+                    )
+            self._index = (chosen, by, common)
+        return self._index
+
     def solve(self, on: set[str]) -> list[tuple[tuple, tuple[int, ...]]]:
+        """Each answer set's shown atoms that concern its chosen robot (and the request's),
+        and its cost. Reading a model's shown atoms costs the size of the output table, all
+        candidates' designs: per model, only the chosen robot's atoms are looked up, or a
+        request with 1000 candidates would take time quadratic in them."""
         self._assign(on)
-        return [(_symbols(m.symbols(shown=True)), tuple(m.cost)) for m in _worker_models(self._ctl)]
+        if (
+            sum(
+                1
+                for _ in itertools.islice(
+                    self._ctl.symbolic_atoms.by_signature("chosen", 1), _INDEXED
+                )
+            )
+            < _INDEXED
+        ):
+            models = _worker_models(self._ctl)
+            return [(_symbols(m.symbols(shown=True)), tuple(m.cost)) for m in models]
+        chosen, by, common = self._shown_index()
+        pending = list(chosen)
+        out = []
+        for m in _worker_models(self._ctl):
+            robot = None
+            for i, (lit, _name) in enumerate(pending):
+                if m.is_true(lit):
+                    robot = pending.pop(i)[1]
+                    break
+            if robot is None:  # explain's focus mode: one model, nothing chosen
+                out.append((_symbols(m.symbols(shown=True)), tuple(m.cost)))
+                continue
+            syms = [s for lit, s in (*common, *by.get(robot, ())) if m.is_true(lit)]
+            out.append((_symbols(syms), tuple(m.cost)))
+        return out
 
 
 def _symbols(symbols: Iterable[clingo.Symbol]) -> tuple:
