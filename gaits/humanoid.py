@@ -597,7 +597,9 @@ def _read_maps(path: Path, shape: GaitShape) -> ConversionMaps | None:
         with np.load(path, allow_pickle=False) as z:
             d = {k: z[k] for k in z.files}
         harmonics, amplitudes, phases = d["harmonics"], d["amplitudes"], d["phases"]
-        coef, joints = d["coef"], tuple(str(j) for j in d["joints"])
+        # the fit's layout (a view of lstsq's (6, J K 2) solution): products with the maps
+        # then sum in the same order, to the bit
+        coef, joints = d["coef_basis_first"].transpose(1, 2, 3, 0), tuple(map(str, d["joints"]))
         J, K = harmonics.shape
         ok = (
             harmonics.dtype.kind == "i"
@@ -634,7 +636,7 @@ def _write_maps(path: Path, maps: ConversionMaps) -> None:
                 harmonics=ref.harmonics,
                 amplitudes=ref.amplitudes,
                 phases=ref.phases,
-                coef=maps.coef,
+                coef_basis_first=np.ascontiguousarray(maps.coef.transpose(3, 0, 1, 2)),
                 sizes=np.array(maps.sizes, dtype=float),
                 ratios=np.array(maps.ratios, dtype=float),
                 residual=np.float64(maps.residual),
