@@ -2,8 +2,9 @@
 configuration (``bench.TYPE_REQUESTS``) designed with and without `--out`, next to the
 interpreter alone and `import numpy, clingo`, measured in the same run (best of N after a
 warm-up run; the machine is shared, so the load average is printed). Each figure is given
-as wall time and as the process's CPU time (user + sys): parmor runs on one thread, so on
-an idle machine the two agree, and on a shared one the CPU time is the steadier figure.
+as wall time and as the CPU time (user + sys) of the process and the children it waited
+for: parmor's work is sequential, so on an idle machine the two nearly agree, and on a
+shared one the CPU time is the steadier figure.
 
 Targets (issue 12): the full design without `--out` under 0.4 s, with `--out` under 1.2 s;
 `--help` import-light. The "full design" is read as the issue measured it: sizing with the
