@@ -514,6 +514,16 @@ def _segment_distance(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.nda
     return float(np.min(np.linalg.norm(pa[:, None, :] - pb[None, :, :], axis=2)))
 
 
+def _segment_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """:func:`_segment_distance` of many pairs at once, to the bit: segments ``a`` and
+    ``b`` (P, 2 ends, 2) -> (P,) m."""
+    s = np.linspace(0.0, 1.0, 41)[:, None]
+    pa = a[:, :1] + s * (a[:, 1:] - a[:, :1])  # (P, 41, 2)
+    pb = b[:, :1] + s * (b[:, 1:] - b[:, :1])
+    d = np.linalg.norm(pa[:, :, None, :] - pb[:, None, :, :], axis=3)
+    return d.min(axis=(1, 2))
+
+
 def stance_inset(leg: Leg, sweep: np.ndarray) -> float:
     """How far m to pull a stance segment (the foot's sweep (2,) m relative to the trunk,
     centred on the leg's neutral point) towards the mount so that the foot's distance from
@@ -548,11 +558,11 @@ def max_stride(
                 return False
             segs[leg.name] = (n - half, n + half)
         names = list(segs)
-        for i, a in enumerate(names):
-            for b in names[i + 1 :]:
-                if _segment_distance(*segs[a], *segs[b]) < LEG_CLEARANCE:
-                    return False
-        return True
+        first, second = np.triu_indices(len(names), 1)
+        if not len(first):
+            return True
+        ends = np.array([segs[n] for n in names])  # (legs, 2, 2)
+        return bool(np.all(_segment_distances(ends[first], ends[second]) >= LEG_CLEARANCE))
 
     if not ok(0.0):
         return 0.0

@@ -56,10 +56,14 @@ template's); a reference gait's world frame has the ground at z = 0.
 
 from __future__ import annotations
 
+import contextlib
+import os
+import zipfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import cache, partial
 from math import pi
+from pathlib import Path
 
 import numpy as np
 
@@ -253,10 +257,12 @@ def stance_height(shape: GaitShape, leg: float, half_hip: float) -> float:
     return float(np.sqrt(reach * reach - lateral * lateral))
 
 
+@cache
 def reference_template(size: float) -> Template:
     """The reference humanoid of leg module length ``size`` m: the template's default
     humanoid scaled geometrically (every length times ``size / REFERENCE_SIZE``, as parmor
-    sizes humanoids in proportion to their height), femur = tibia = ``size``."""
+    sizes humanoids in proportion to their height), femur = tibia = ``size``. Built once
+    per size (a template is immutable; the conversion maps ask for each size per ratio)."""
     k = size / REFERENCE_SIZE
     lengths = {name: k * v for name, v in DEFAULTS["HumanoidRobot"].items()}
     lengths.update(femur=size, tibia=size)
@@ -527,11 +533,122 @@ def fit_maps(
 @cache
 def conversion_maps(gait: str = "walking") -> ConversionMaps:
     """The conversion maps of ``gait`` ("walking" or "running"), fitted on first use (the
-    same numbers every time: the fit is deterministic)."""
+    same numbers every time: the fit is deterministic), kept on disk between processes
+    (:func:`_maps_file`)."""
     shapes = {WALK.name: WALK, RUN.name: RUN}
     if gait not in shapes:
         raise ValueError(f"no gait {gait!r}; gaits: {', '.join(shapes)}")
-    return fit_maps(shapes[gait])
+    shape = shapes[gait]
+    path = _maps_file(shape)
+    maps = _read_maps(path, shape) if path is not None else None
+    if maps is None:
+        maps = fit_maps(shape)
+        if path is not None:
+            _write_maps(path, maps)
+    return maps
+
+
+#: Environment variable naming the folder of parmor's caches ("" turns them off); the
+#: same variable as ``adron.units.CACHE_ENV`` (gaits import nothing of adron).
+CACHE_ENV = "PARMOR_CACHE"
+#: What the fitted maps depend on besides the constants of this file: the templates and
+#: the multibody code they are planned with (paths relative to the package root).
+_MAPS_SOURCES = (
+    "gaits/humanoid.py",
+    "kinematics/model.py",
+    "kinematics/spatial.py",
+    "kinematics/dynamics.py",
+    "kinematics/templates.py",
+)
+
+
+def _maps_file(shape: GaitShape) -> Path | None:
+    """Where the conversion maps of ``shape`` are cached:
+    ``$PARMOR_CACHE/gait-maps-NAME-KEY.npz`` (default ``$XDG_CACHE_HOME/parmor``, else
+    ``~/.cache/parmor``; ``PARMOR_CACHE=""``: no cache). Fitting them takes about half a
+    second a gait; they are a pure function of the code, so KEY hashes the files of
+    ``_MAPS_SOURCES`` and numpy's version and build: a change of either starts a new file
+    and an entry is never stale. None when there is no cache folder."""
+    import hashlib
+
+    env = os.environ.get(CACHE_ENV)
+    if env is not None:
+        if not env.strip():
+            return None
+        folder = Path(env)
+    else:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        folder = Path(base) / "parmor"
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256(repr(shape).encode())
+    try:
+        for name in _MAPS_SOURCES:
+            h.update((root / name).read_bytes())
+        core = Path(np._core._multiarray_umath.__file__).stat()
+    except (OSError, AttributeError):
+        return None
+    h.update(f"{np.__version__}|{np.__file__}|{core.st_size}|{core.st_mtime_ns}".encode())
+    return folder / f"gait-maps-{shape.name}-{h.hexdigest()[:20]}.npz"
+
+
+def _read_maps(path: Path, shape: GaitShape) -> ConversionMaps | None:
+    """The maps cached in ``path``; None when absent, unreadable or not as written."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            d = {k: z[k] for k in z.files}
+        harmonics, amplitudes, phases = d["harmonics"], d["amplitudes"], d["phases"]
+        # the fit's layout (a view of lstsq's (6, J K 2) solution): products with the maps
+        # then sum in the same order, to the bit
+        coef, joints = d["coef_basis_first"].transpose(1, 2, 3, 0), tuple(map(str, d["joints"]))
+        J, K = harmonics.shape
+        ok = (
+            harmonics.dtype.kind == "i"
+            and amplitudes.shape == phases.shape == (J, K)
+            and coef.shape[:3] == (J, K, 2)
+            and len(joints) == J
+        )
+        if not ok:
+            return None
+        reference = Synthetic(float(d["period"]), joints, harmonics, amplitudes, phases)
+        sizes = tuple(float(x) for x in d["sizes"])
+        ratios = tuple(float(x) for x in d["ratios"])
+        return ConversionMaps(shape, reference, coef, sizes, ratios, float(d["residual"]))
+    except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile):
+        return None
+
+
+def _write_maps(path: Path, maps: ConversionMaps) -> None:
+    """Cache ``maps`` in ``path`` (a temporary file renamed over it: concurrent writers
+    write the same bytes, none sees half a file); a folder that cannot be written only
+    means the maps are fitted again next time."""
+    import tempfile
+
+    ref = maps.reference
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".gait-maps-", suffix=".tmp")
+        with os.fdopen(fd, "wb") as f:
+            np.savez(
+                f,
+                period=np.float64(ref.period),
+                joints=np.array(ref.joints, dtype=str),
+                harmonics=ref.harmonics,
+                amplitudes=ref.amplitudes,
+                phases=ref.phases,
+                coef_basis_first=np.ascontiguousarray(maps.coef.transpose(3, 0, 1, 2)),
+                sizes=np.array(maps.sizes, dtype=float),
+                ratios=np.array(maps.ratios, dtype=float),
+                residual=np.float64(maps.residual),
+            )
+        os.replace(tmp, path)
+        tmp = None
+    except OSError:
+        pass
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
 
 
 # --- stability -----------------------------------------------------------------------------------
@@ -566,12 +683,91 @@ def _support_margin(point: np.ndarray, corners: np.ndarray) -> float:
     return margin
 
 
+def _hull_edges(pts: list[tuple[float, float]]) -> list[tuple[tuple[float, float], ...]]:
+    """Counter-clockwise edges (a, b) of the convex hull of distinct points ``pts`` sorted
+    by (x, y) (monotone chain; collinear points dropped), with the arithmetic of
+    :func:`_support_margin`."""
+
+    def half(seq: list[tuple[float, float]]) -> list[tuple[float, float]]:
+        out: list[tuple[float, float]] = []
+        for p in seq:
+            while len(out) >= 2:
+                (ax, ay), (bx, by) = out[-2], out[-1]
+                if (bx - ax) * (p[1] - ay) - (by - ay) * (p[0] - ax) > 0:
+                    break
+                out.pop()
+            out.append(p)
+        return out
+
+    if len(pts) == 4:  # one sole: an axis-aligned rectangle, what the chain gives for it
+        (x0, y0), (x0b, y1), (x1, y0b), (x1b, y1b) = pts
+        if x0 == x0b < x1 == x1b and y0 == y0b < y1 == y1b:
+            hull = [pts[0], pts[2], pts[3], pts[1]]
+            return list(zip(hull, hull[1:] + hull[:1], strict=True))
+    hull = half(pts)[:-1] + half(pts[::-1])[:-1]
+    return list(zip(hull, hull[1:] + hull[:1], strict=True))
+
+
+def _support_margins(points: np.ndarray, valid: np.ndarray, com: np.ndarray) -> np.ndarray:
+    """:func:`_support_margin` of many samples at once, to the bit: ``points`` (n, k, 2)
+    m of which ``valid`` (n, k) count, centres of mass ``com`` (n, 2) -> (n,) m. The hulls
+    are found per sample (a few points each), the distances to every edge at once."""
+    pts = np.round(points, 12)
+    hulls: dict[tuple, list] = {}  # the same support polygon recurs along a gait
+    starts, ends, owner = [], [], []
+    for i, (rows, ok) in enumerate(zip(pts.tolist(), valid.tolist(), strict=True)):
+        key = tuple(sorted({tuple(r) for r, v in zip(rows, ok, strict=True) if v}))
+        edges = hulls.get(key)
+        if edges is None:
+            edges = hulls[key] = _hull_edges(list(key))
+        for a, b in edges:
+            starts.append(a)
+            ends.append(b)
+            owner.append(i)
+    a = np.array(starts)
+    e = np.array(ends) - a
+    norm = np.sqrt(np.vecdot(e, e))  # as np.linalg.norm of one edge (the BLAS dot)
+    normal = np.stack([-e[:, 1], e[:, 0]], axis=1) / norm[:, None]
+    d = np.vecdot(normal, com[owner] - a)  # as ``normal @ (point - a)`` per edge
+    out = np.full(len(points), np.inf)
+    np.minimum.at(out, np.array(owner), d)
+    return out
+
+
 def stability_margin(
     template: Template, names: tuple[str, ...], q: np.ndarray, contact: float = 0.002
 ) -> np.ndarray:
     """Static stability margin (n,) m: distance of the COM's ground projection inside the
     support polygon (the sole plates of the feet within ``contact`` m of the lowest one),
     with the trunk upright and the feet flat (as the gaits keep them)."""
+    model = template.model
+    Q = _q_full(model.q_names, names, np.atleast_2d(q))
+    frames = forward_kinematics(model, Q)
+    com = center_of_mass(model, Q)
+    feet = [model.body(f) for f in template.feet]
+    soles = np.array(
+        [
+            frames[:, b, :3, 3] + frames[:, b, :3, :3] @ p
+            for b, p in zip(feet, template.foot_points, strict=True)
+        ]
+    )  # (2, n, 3)
+    half = template.lengths["foot"] / 2
+    width = FOOT_WIDTH_RATIO * half
+    corners = np.array([[sx * half, sy * width] for sx in (-1, 1) for sy in (-1, 1)])
+    low = soles[:, :, 2].min(axis=0)
+    touching = soles[:, :, 2] <= low + contact  # (feet, n)
+    points = soles[:, :, None, :2] + corners  # (feet, n, 4, 2)
+    n = len(Q)
+    points = points.transpose(1, 0, 2, 3).reshape(n, -1, 2)
+    valid = np.repeat(touching.T, len(corners), axis=1)
+    return _support_margins(points, valid, np.ascontiguousarray(com[:, :2]))
+
+
+def _stability_margin_one_by_one(
+    template: Template, names: tuple[str, ...], q: np.ndarray, contact: float = 0.002
+) -> np.ndarray:
+    """:func:`stability_margin` sample by sample with :func:`_support_margin` (the
+    reference the batched one is tested against)."""
     model = template.model
     Q = _q_full(model.q_names, names, np.atleast_2d(q))
     frames = forward_kinematics(model, Q)

@@ -1067,14 +1067,40 @@ def _check_params(robot_type: str, p: TemplateParams) -> dict[str, float]:
     return lengths
 
 
+#: Templates built last, newest last: (robot type, repr of the params, repr of the
+#: template's lengths, template). The structure generator builds the same template several
+#: times an iteration (for the sizing update, the analysis, the record).
+_BUILT: list[tuple[str, str, str, Template]] = []
+#: How many recent templates ``build`` keeps.
+BUILD_CACHE_SIZE = 8
+
+
 def build(robot_type: str, params: TemplateParams | None = None) -> Template:
     """The parametric model of ``robot_type`` (a KIF class name, see ``TEMPLATES``).
 
     ValueError for an unknown type, unknown or non-positive lengths, bad radii, negative
     masses, or actuator masses for groups the template does not have (the message lists the
     valid names).
+
+    A template is immutable, so the same one is returned for parameters whose ``repr`` is
+    the same as one of the last ``BUILD_CACHE_SIZE`` builds' (``repr`` tells every float
+    apart, -0.0 from 0.0 too), unless the caller has since changed that template's
+    parameters or lengths in place.
     """
     p = params if params is not None else TemplateParams()
+    key = repr(p)
+    for k, (rt, pk, lk, t) in enumerate(_BUILT):
+        if rt == robot_type and pk == key and repr(t.params) == key and repr(t.lengths) == lk:
+            _BUILT.append(_BUILT.pop(k))
+            return t
+    t = _build(robot_type, p)
+    _BUILT.append((robot_type, key, repr(t.lengths), t))
+    del _BUILT[:-BUILD_CACHE_SIZE]
+    return t
+
+
+def _build(robot_type: str, p: TemplateParams) -> Template:
+    """:func:`build`, uncached."""
     _check_type(robot_type)
     lengths = _check_params(robot_type, p)
     b = _Builder(robot_type, p, lengths)

@@ -403,9 +403,14 @@ class Humanoid(Family):
         self, tmpl: Template
     ) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
         """Per gait: (name, times s, model coordinates (n, nq) rad, joint speeds (n, nq)
-        rad/s, the ground's wrenches (n, nbodies, 6)) with ``tmpl``'s masses."""
+        rad/s, the ground's wrenches (n, nbodies, 6)) with ``tmpl``'s masses; kept for the
+        last template asked (``load_cases`` and ``holds`` ask for the same one in turn; a
+        template is immutable, the arrays are only read)."""
         from gaits.humanoid import stance_loads
 
+        last = getattr(self, "_last_gait_loads", None)
+        if last is not None and last[0] is tmpl:
+            return last[1]
         model = tmpl.model
         index = {n: k for k, n in enumerate(model.q_names)}
         out = []
@@ -414,6 +419,7 @@ class Humanoid(Family):
             V = np.zeros_like(Q)
             V[:, [index[j] for j in joints]] = v
             out.append((name, t, Q, V, fext))
+        self._last_gait_loads = (tmpl, out)
         return out
 
     def holds(self, tmpl, p, catalog):

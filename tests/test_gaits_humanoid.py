@@ -654,3 +654,55 @@ def test_sizing_holds_each_joints_fastest_instant_of_the_gaits():
     assert speed > 4.0  # short legs swing fast (1 / sqrt(leg)): a slow servo fails it
     assert torque < 0.1  # the swinging knee carries its shank only
     assert "l_gripper" not in holds  # still in both gaits
+
+
+def test_batched_stability_margin_equals_the_one_by_one_margin_to_the_bit():
+    """The walking and turning gaits' samples (one foot, two feet, feet apart) and a case
+    built to differ: a COM outside the support (negative margins) and a foot in the air."""
+    import gaits.humanoid as H
+
+    tmpl = H.reference_template(0.08)
+    gait = H.reference_gait(0.08, H.WALK, 1.0, samples=96, template=tmpl)
+    q = gait.q.copy()
+    got = H.stability_margin(tmpl, gait.joints, q)
+    want = H._stability_margin_one_by_one(tmpl, gait.joints, q)
+    assert np.array_equal(got, want)
+    q[:, gait.joints.index("l_hip_roll")] += 0.6  # leans: some samples fall outside
+    got = H.stability_margin(tmpl, gait.joints, q)
+    want = H._stability_margin_one_by_one(tmpl, gait.joints, q)
+    assert np.array_equal(got, want) and got.min() < 0 < got.max()
+    # the points of one sample: a square and a point outside it, then two coincident feet
+    pts = np.array([[[0, 0], [1, 0], [1, 1], [0, 1]], [[0, 0], [0, 0], [2, 0], [0, 2]]], float)
+    valid = np.ones((2, 4), dtype=bool)
+    com = np.array([[0.25, 0.5], [3.0, 3.0]])
+    got = H._support_margins(pts, valid, com)
+    assert got[0] == H._support_margin(com[0], pts[0]) == 0.25
+    assert got[1] == H._support_margin(com[1], pts[1]) < 0
+
+
+def test_conversion_maps_come_back_from_the_disk_cache_bit_for_bit(tmp_path, monkeypatch):
+    """A second process reads the maps the first fitted; a damaged file is fitted again."""
+    import gaits.humanoid as H
+
+    monkeypatch.setenv(H.CACHE_ENV, str(tmp_path))
+    fitted = H.fit_maps(H.WALK)
+    path = H._maps_file(H.WALK)
+    assert path is not None and path.parent == tmp_path
+    H._write_maps(path, fitted)
+    again = H._read_maps(path, H.WALK)
+    assert again is not None
+    for a, b in ((fitted, again), (fitted.reference, again.reference)):
+        for k, v in vars(a).items():
+            w = getattr(b, k)
+            if isinstance(v, np.ndarray):  # the layout too: it decides the sums' order
+                assert v.dtype == w.dtype and v.strides == w.strides, k
+                assert np.array_equal(v, w), k
+            elif k != "reference":
+                assert v == w, k
+    x, r, t = 0.07, 0.8, np.linspace(0.0, 1.0, 50)
+    assert np.array_equal(fitted.trajectory(x, r, t)[0], again.trajectory(x, r, t)[0])
+    assert np.array_equal(fitted.components(x, t, t)[1], again.components(x, t, t)[1])
+    path.write_bytes(b"not a zip")
+    assert H._read_maps(path, H.WALK) is None
+    monkeypatch.setenv(H.CACHE_ENV, "")  # no cache
+    assert H._maps_file(H.WALK) is None

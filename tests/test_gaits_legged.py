@@ -571,3 +571,20 @@ def test_batched_support_margins_equal_the_one_by_one_margins() -> None:
             got = support_margins(feet, com)
             want = [support_margin(feet[i], com[i]) for i in range(4)]
             np.testing.assert_allclose(got, want, atol=1e-9)
+
+
+def test_batched_segment_distances_equal_the_one_by_one_distances() -> None:
+    """Random segment pairs, crossing ones (distance 0) and a pair with a zero-length
+    segment, to the bit."""
+    from gaits.hexapod import _segment_distance, _segment_distances
+
+    rng = np.random.default_rng(11)
+    a = rng.uniform(-0.3, 0.3, (200, 2, 2))
+    b = rng.uniform(-0.3, 0.3, (200, 2, 2))
+    a[0] = [[-1.0, 0.0], [1.0, 0.0]]
+    b[0] = [[0.0, -1.0], [0.0, 1.0]]  # crossing at a sample of both
+    b[1, 1] = b[1, 0]
+    got = _segment_distances(a, b)
+    want = [_segment_distance(x[0], x[1], y[0], y[1]) for x, y in zip(a, b, strict=True)]
+    assert np.array_equal(got, want)
+    assert got[0] == 0.0 and got.max() > 0.0

@@ -292,3 +292,24 @@ def test_default_lengths_are_a_copy() -> None:
     d["femur"] = 1.0
     assert default_lengths("HumanoidRobot")["femur"] != 1.0
     assert build("HumanoidRobot").lengths == DEFAULTS["HumanoidRobot"]
+
+
+def test_build_returns_the_same_template_for_the_same_params_unless_they_changed():
+    """Built again with equal params: the same (immutable) template; params that differ
+    in one float's sign, or a params dict changed in place since, build a new one."""
+    from kinematics.templates import TemplateParams, build
+
+    lengths = {"L1": 0.05, "L2": 0.1, "L3": 0.1}
+    a = build("Manipulator3DOF", TemplateParams(lengths=dict(lengths)))
+    assert build("Manipulator3DOF", TemplateParams(lengths=dict(lengths))) is a
+    p = TemplateParams(lengths=dict(lengths), payload=0.0)
+    assert build("Manipulator3DOF", p) is a
+    q = TemplateParams(lengths=dict(lengths), payload=-0.0)
+    assert build("Manipulator3DOF", q) is not a  # -0.0 is told apart
+    mutable = dict(lengths)
+    b = build("Manipulator3DOF", TemplateParams(lengths=mutable, payload=0.25))
+    mutable["L2"] = 0.2  # changed in place after the build
+    c = build("Manipulator3DOF", TemplateParams(lengths=dict(mutable), payload=0.25))
+    assert c is not b and c.lengths["L2"] == 0.2
+    d = build("Manipulator3DOF", TemplateParams(lengths={**lengths, "L2": 0.1}, payload=0.25))
+    assert d is not b and d.lengths["L2"] == 0.1
