@@ -362,10 +362,17 @@ def _relevance_texts() -> tuple[tuple[str, ...], tuple[str, ...]]:
     )
 
 
-def relevant(kb: KnowledgeBase, focus: str | None = None, rules: Sequence[str] = ()) -> Relevance:
+def relevant(
+    kb: KnowledgeBase,
+    focus: str | None = None,
+    rules: Sequence[str] = (),
+    grounded: bool = False,
+) -> Relevance:
     """Which translated forms of ``kb`` can reach the encodings' vocabulary (adron/relevance.py);
-    nothing is filtered when user ``rules`` are given (a rule file may read anything)."""
-    tr = kb.translation
+    nothing is filtered when user ``rules`` are given (a rule file may read anything).
+    ``grounded``: of ``kb.grounded`` (its rules materialised, adron/materialise.py), not of
+    ``kb.translation``."""
+    tr = kb.translation if not grounded or kb.grounded is None else kb.grounded
     if rules:
         n = len(tr.units)
         return Relevance((True,) * n, ("",) * n, "rule files are given (they may read anything)")
@@ -418,7 +425,10 @@ class _Core:
         )
         extra = [f"focus({asp_string(focus)})."] if focus is not None else []
         texts = [r.text for r in rules]
-        program = relevant(kb, focus, texts).program(kb.translation)
+        # with rule files the translation as it is (they may define any holds atom the
+        # ontology's rules read); without, its rules materialised (adron/materialise.py)
+        tr = kb.translation if texts or kb.grounded is None else kb.grounded
+        program = relevant(kb, focus, texts, tr is not kb.translation).program(tr)
         try:
             self._ctl.add("base", [], program)
             self._ctl.add("base", [], taxonomy_program(kb, extra, texts, program))

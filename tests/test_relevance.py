@@ -48,7 +48,7 @@ def _units(kb, rel: Relevance, keep: bool) -> list[str]:
 
 
 def _unfiltered(monkeypatch: pytest.MonkeyPatch) -> None:
-    def off(kb, focus=None, rules=()):
+    def off(kb, focus=None, rules=(), grounded=False):
         n = len(kb.translation.units)
         return Relevance((True,) * n, ("",) * n, "off for the test")
 
