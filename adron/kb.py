@@ -8,15 +8,16 @@ line with no Python change.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
 from adron.errors import InputError, OntologyError
 from adron.kif import MAX_DEPTH, Form, parse
 from adron.materialise import materialise
-from adron.translate import Translation, translate
+from adron.translate import Translation, translate, unit_rows
 
 
 @dataclass(frozen=True, slots=True)
@@ -57,6 +58,10 @@ class KnowledgeBase:
     #: nothing was materialised, and then ``why_not`` says why
     grounded: Translation | None = None
     why_not: str | None = None
+    #: the cache key of this knowledge base (a hash of its sources and of the code that
+    #: loads them), None when the cache is off: other caches of results derived from it
+    #: (synth/solver.py: the relevant program) key on it
+    key: str | None = field(default=None, compare=False)
 
     def ability(self, name: str) -> Ability | None:
         return next((a for a in self.abilities if a.name == name), None)
@@ -200,6 +205,19 @@ def _store(path: Path | None, kb: KnowledgeBase) -> None:
 
     if path is None:
         return
+    memo: dict[int, tuple] = {}
+    light = dataclasses.replace(
+        kb,
+        translation=dataclasses.replace(
+            kb.translation, units=unit_rows(kb.translation.units, memo)
+        ),
+    )
+    if kb.grounded is not None:
+        lazy = dataclasses.replace(kb.grounded, units=unit_rows(kb.grounded.units, memo))
+        light = dataclasses.replace(
+            light, grounded=lazy if kb.grounded is not kb.translation else light.translation
+        )
+    kb = light
     tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -227,6 +245,8 @@ def load(extra: Sequence[str | Path] = (), builtin: bool = True) -> KnowledgeBas
     kb = _cached(path, files)
     if kb is None:
         kb = _load(sources)
+        if path is not None:
+            kb = dataclasses.replace(kb, key=path.stem)
         _store(path, kb)
     return kb
 

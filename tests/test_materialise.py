@@ -153,3 +153,24 @@ def test_sumo_materialised_gives_the_same_answer(name: str) -> None:
 
 def test_cache_key_covers_the_code() -> None:
     assert "materialise.py" in kbmod._CODE and "translate.py" in kbmod._CODE
+
+
+def test_relevant_program_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The cached relevant program is the one computed; a cut-short file is ignored."""
+    from synth import solver
+
+    monkeypatch.setenv("PARMOR_CACHE", str(tmp_path / "cache"))
+    kb = load([_kif(tmp_path, RULES)])
+    assert kb.key is not None
+    fresh = solver._relevant_program(kb, None, (), kb.grounded)
+    (path,) = (tmp_path / "cache").glob("relevant-*.lp")
+    assert solver._relevant_program(kb, None, (), kb.grounded) == fresh
+    path.write_text(path.read_text(encoding="utf-8")[:-10], encoding="utf-8")
+    calls = []
+    real = solver.relevant
+    monkeypatch.setattr(solver, "relevant", lambda *a: calls.append(1) or real(*a))
+    assert solver._relevant_program(kb, None, (), kb.grounded) == fresh and calls
+    # another focus is another entry; rule files are never cached
+    solver._relevant_program(kb, "MyWalker", (), kb.grounded)
+    solver._relevant_program(kb, None, ("p.",), kb.translation)
+    assert len(list((tmp_path / "cache").glob("relevant-*.lp"))) == 2
