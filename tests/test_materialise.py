@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import re
 from pathlib import Path
 
@@ -174,3 +175,13 @@ def test_relevant_program_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch)
     solver._relevant_program(kb, "MyWalker", (), kb.grounded)
     solver._relevant_program(kb, None, ("p.",), kb.translation)
     assert len(list((tmp_path / "cache").glob("relevant-*.lp"))) == 2
+
+
+def test_ontology_check_reports_materialised_rules(cli, tmp_path: Path) -> None:
+    r = cli("ontology", "check", str(_kif(tmp_path, RULES)), "--json")
+    assert r.code == 0
+    rec = json.loads(r.out)["relevance"]
+    assert rec["materialised_rules"] == 2 and rec["derived_facts"] >= 2
+    assert rec["unfiltered_because"] is None
+    r = cli("ontology", "check", str(_kif(tmp_path, RULES)))
+    assert "2 rule(s) read only the ontology" in r.out
