@@ -16,7 +16,7 @@ the ontology defines. The encodings define unary atoms from the request
 negation) stays, its heads become open, transitively; an open binary relation makes its
 super-relations open and an open ``subclass``/``instance`` makes ``instance`` open (the
 taxonomy rules pass them on). Nothing is materialised when a rule derives
-``parameterValue`` or ``subrelation`` atoms from open ones, when the remaining program is
+``parameterValue`` atoms, or ``subrelation`` atoms from open ones, when the remaining program is
 not stratified into one model, or when the caller has rule files (``--rules``: they may
 define any ``holds`` atom; the solver then grounds the translation as it is).
 
@@ -52,6 +52,9 @@ def _open_rules(tr: Translation, pairs: set[tuple[str, str]]) -> tuple[list[bool
     """For each rule unit of ``tr``, whether it must stay a rule, given the ``subrelation``
     ``pairs`` (facts and derived ones); or a reason why nothing can be materialised."""
     rules = [u for u in tr.units if u.kind == "rule"]
+    for u in rules:  # the request's parameters would depend on what the rules derive
+        if any(r == PARAMETER_VALUE for r, _a in u.heads):
+            return [False] * len(rules), f"{u.where}: a rule derives {PARAMETER_VALUE} facts"
     opened: set[tuple[str, int]] = {(a[0], 1) for a in tr.relation(PARAMETER_VALUE) if a}
     supers: dict[str, set[str]] = {}
     for a, b in pairs:
@@ -76,8 +79,6 @@ def _open_rules(tr: Translation, pairs: set[tuple[str, str]]) -> tuple[list[bool
             keep[i] = True
             changed = True
             for r, a in u.heads:
-                if r == PARAMETER_VALUE:
-                    return keep, f"{u.where}: a rule derives {PARAMETER_VALUE} facts"
                 opened.add((r, len(a)))
     return keep, None
 
