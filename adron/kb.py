@@ -179,6 +179,8 @@ def _cache_file(sources: Sequence[tuple[str, str]]) -> Path | None:
 
 def _cached(path: Path | None, files: tuple[str, ...]) -> KnowledgeBase | None:
     """The knowledge base stored at ``path``, or None when it is absent or not valid."""
+    import contextlib
+    import os
     import pickle
 
     if path is None:
@@ -192,6 +194,8 @@ def _cached(path: Path | None, files: tuple[str, ...]) -> KnowledgeBase | None:
         return None
     if not isinstance(kb, KnowledgeBase) or kb.files != files:
         return None
+    with contextlib.suppress(OSError):  # recently used: kept by prune()
+        os.utime(path)
     return kb
 
 
@@ -229,6 +233,28 @@ def _store(path: Path | None, kb: KnowledgeBase) -> None:
         if tmp is not None:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
+        return
+    prune(path.parent)
+
+
+#: how many knowledge bases (and relevant programs) the cache keeps: the least recently
+#: used beyond this are removed when a new one is written (SUMO's is ~6 MB)
+CACHE_ENTRIES = 16
+
+
+def prune(folder: Path, keep: int = CACHE_ENTRIES) -> None:
+    """Remove all but the ``keep`` most recently used ``kb-*`` and ``relevant-*`` files of
+    ``folder`` (a hit touches its file); errors are ignored (another process may prune)."""
+    import contextlib
+
+    for pattern in ("kb-*.pickle", "relevant-*.lp"):
+        try:
+            entries = sorted(folder.glob(pattern), key=lambda p: p.stat().st_mtime_ns)
+        except OSError:
+            continue
+        for old in entries[: max(0, len(entries) - keep)]:
+            with contextlib.suppress(OSError):
+                old.unlink()
 
 
 def load(extra: Sequence[str | Path] = (), builtin: bool = True) -> KnowledgeBase:

@@ -31,7 +31,7 @@ import clingo
 
 from adron import relevance as relevance_module
 from adron.errors import InputError, OntologyError, ParmorError
-from adron.kb import KnowledgeBase, read_user_file
+from adron.kb import KnowledgeBase, prune, read_user_file
 from adron.relevance import Relevance, relevance
 from adron.translate import Translation, asp_string, isa_facts, taxonomy_closure
 from adron.units import cache_folder
@@ -406,6 +406,7 @@ def _relevant_program(
             with contextlib.suppress(OSError, UnicodeDecodeError):
                 text = path.read_text(encoding="utf-8")
                 if text.startswith(_RELEVANT_TAG) and text.endswith(_RELEVANT_END):
+                    os.utime(path)  # recently used (adron/kb.py: prune)
                     return text[len(_RELEVANT_TAG) : -len(_RELEVANT_END)]
     program = relevant(kb, focus, rules, grounded).program(tr)
     if path is not None:
@@ -416,6 +417,7 @@ def _relevant_program(
             with os.fdopen(fd, "w", encoding="utf-8") as f:
                 f.write(_RELEVANT_TAG + program + _RELEVANT_END)
             os.replace(tmp, path)
+            prune(path.parent)
         except OSError:
             if tmp is not None:
                 with contextlib.suppress(OSError):

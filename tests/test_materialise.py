@@ -194,3 +194,19 @@ def test_ontology_check_reports_materialised_rules(cli, tmp_path: Path) -> None:
     assert rec["unfiltered_because"] is None
     r = cli("ontology", "check", str(_kif(tmp_path, RULES)))
     assert "2 rule(s) read only the ontology" in r.out
+
+
+def test_prune_keeps_the_most_recently_used(tmp_path: Path) -> None:
+    import os
+
+    for i in range(5):
+        p = tmp_path / f"kb-{i}.pickle"
+        p.write_bytes(b"x")
+        os.utime(p, ns=(i * 10**9, i * 10**9))
+    (tmp_path / "units-x.json").write_text("{}", encoding="utf-8")
+    kbmod.prune(tmp_path, keep=2)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "kb-3.pickle",
+        "kb-4.pickle",
+        "units-x.json",
+    ]
