@@ -8,14 +8,16 @@ line with no Python change.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
 from adron.errors import InputError, OntologyError
 from adron.kif import MAX_DEPTH, Form, parse
-from adron.translate import Translation, translate
+from adron.materialise import materialise
+from adron.translate import Translation, translate, unit_rows
 
 
 @dataclass(frozen=True, slots=True)
@@ -51,6 +53,15 @@ class KnowledgeBase:
     translation: Translation
     abilities: tuple[Ability, ...]
     parameters: tuple[Parameter, ...]
+    #: the translation with its ontology-only rules materialised (adron/materialise.py),
+    #: what the solver grounds when no rule files are given; ``translation`` itself when
+    #: nothing was materialised, and then ``why_not`` says why
+    grounded: Translation | None = None
+    why_not: str | None = None
+    #: the cache key of this knowledge base (a hash of its sources and of the code that
+    #: loads them), None when the cache is off: other caches of results derived from it
+    #: (synth/solver.py: the relevant program) key on it
+    key: str | None = field(default=None, compare=False)
 
     def ability(self, name: str) -> Ability | None:
         return next((a for a in self.abilities if a.name == name), None)
@@ -135,9 +146,139 @@ def check_taxonomy(tr: Translation) -> None:
                 stack.append(iter(graph.get(b, ())))
 
 
+#: the modules whose code makes a KnowledgeBase: part of the cache key
+_CODE = ("kb.py", "kif.py", "translate.py", "materialise.py", "errors.py")
+_CACHE_FORMAT = b"parmor-kb-1"
+
+
+def _cache_file(sources: Sequence[tuple[str, str]]) -> Path | None:
+    """``$PARMOR_CACHE/kb-KEY.pickle`` (adron/units.py: cache_folder), KEY a hash of the
+    sources' names and texts, of this package's code that turns them into a knowledge base
+    and of the Python and clingo versions; None when the cache is off."""
+    import hashlib
+    import sys
+
+    import clingo
+
+    from adron.units import cache_folder
+
+    folder = cache_folder()
+    if folder is None:
+        return None
+    h = hashlib.sha256(_CACHE_FORMAT)
+    here = Path(__file__).parent
+    for name in _CODE:
+        h.update((here / name).read_bytes())
+    h.update(f"{sys.version}|{clingo.__version__}|{len(sources)}".encode())
+    for name, text in sources:
+        for part in (name, text):
+            b = part.encode("utf-8", "surrogatepass")
+            h.update(len(b).to_bytes(8, "little") + b)
+    return folder / f"kb-{h.hexdigest()[:32]}.pickle"
+
+
+def _cached(path: Path | None, files: tuple[str, ...]) -> KnowledgeBase | None:
+    """The knowledge base stored at ``path``, or None when it is absent or not valid."""
+    import contextlib
+    import os
+    import pickle
+
+    if path is None:
+        return None
+    try:
+        data = path.read_bytes()
+        if not data.startswith(_CACHE_FORMAT):
+            return None
+        kb = pickle.loads(data[len(_CACHE_FORMAT) :])
+    except Exception:  # noqa: BLE001 - a corrupt or foreign file is only a miss
+        return None
+    if not isinstance(kb, KnowledgeBase) or kb.files != files:
+        return None
+    with contextlib.suppress(OSError):  # recently used: kept by prune()
+        os.utime(path)
+    return kb
+
+
+def _store(path: Path | None, kb: KnowledgeBase) -> None:
+    """Write ``kb`` to ``path`` whole (temporary file + rename); an unwritable folder
+    only costs time."""
+    import contextlib
+    import os
+    import pickle
+    import tempfile
+
+    if path is None:
+        return
+    memo: dict[int, tuple] = {}
+    light = dataclasses.replace(
+        kb,
+        translation=dataclasses.replace(
+            kb.translation, units=unit_rows(kb.translation.units, memo)
+        ),
+    )
+    if kb.grounded is not None:
+        lazy = dataclasses.replace(kb.grounded, units=unit_rows(kb.grounded.units, memo))
+        light = dataclasses.replace(
+            light, grounded=lazy if kb.grounded is not kb.translation else light.translation
+        )
+    kb = light
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".kb-", suffix=".tmp")
+        with os.fdopen(fd, "wb") as f:
+            f.write(_CACHE_FORMAT + pickle.dumps(kb, protocol=pickle.HIGHEST_PROTOCOL))
+        os.replace(tmp, path)
+    except OSError:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+        return
+    prune(path.parent)
+
+
+#: how many knowledge bases (and relevant programs) the cache keeps: the least recently
+#: used beyond this are removed when a new one is written (SUMO's is ~6 MB)
+CACHE_ENTRIES = 16
+
+
+def prune(folder: Path, keep: int = CACHE_ENTRIES) -> None:
+    """Remove all but the ``keep`` most recently used ``kb-*`` and ``relevant-*`` files of
+    ``folder`` (a hit touches its file); errors are ignored (another process may prune)."""
+    import contextlib
+
+    for pattern in ("kb-*.pickle", "relevant-*.lp"):
+        try:
+            entries = sorted(folder.glob(pattern), key=lambda p: p.stat().st_mtime_ns)
+        except OSError:
+            continue
+        for old in entries[: max(0, len(entries) - keep)]:
+            with contextlib.suppress(OSError):
+                old.unlink()
+
+
 def load(extra: Sequence[str | Path] = (), builtin: bool = True) -> KnowledgeBase:
-    """Parse and translate the shipped ontology (unless ``builtin`` is False) and ``extra``."""
+    """Parse and translate the shipped ontology (unless ``builtin`` is False) and ``extra``,
+    and materialise its ontology-only rules (adron/materialise.py).
+
+    Cache: a successful load is kept on disk (``$PARMOR_CACHE/kb-KEY.pickle``, see
+    :func:`_cache_file`); the files are read each time, and a change to any of them, to
+    their names or to the code that loads them makes a new key, so a cached knowledge base
+    is never stale. A failing load is not cached: its error is raised again, as it is."""
     sources = (builtin_files() if builtin else []) + [read_user_file(p) for p in extra]
+    files = tuple(n for n, _ in sources)
+    path = _cache_file(sources)
+    kb = _cached(path, files)
+    if kb is None:
+        kb = _load(sources)
+        if path is not None:
+            kb = dataclasses.replace(kb, key=path.stem)
+        _store(path, kb)
+    return kb
+
+
+def _load(sources: Sequence[tuple[str, str]]) -> KnowledgeBase:
+    """The knowledge base of (name, text) ``sources``, uncached."""
     forms: list[Form] = []
     for name, text in sources:
         forms.extend(parse(text, name, MAX_DEPTH))
@@ -157,9 +298,12 @@ def load(extra: Sequence[str | Path] = (), builtin: bool = True) -> KnowledgeBas
         vals = tuple((v, t) for r, v, t in values if r == rel)
         params.append(Parameter(name, rel, vals))
     facts(tr, "structuralLimit", 3)  # checked here, used by the structure stage
+    grounded, why_not = materialise(tr)
     return KnowledgeBase(
         files=tuple(n for n, _ in sources),
         translation=tr,
         abilities=tuple(sorted(abilities, key=lambda a: a.name)),
         parameters=tuple(sorted(params, key=lambda p: p.name)),
+        grounded=grounded,
+        why_not=why_not,
     )

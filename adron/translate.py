@@ -26,7 +26,7 @@ silently. The output depends only on the forms and their order.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 from adron.kif import Form, RowVar, String, Symbol, Var
@@ -96,6 +96,57 @@ class Unit:
     body: tuple[tuple[bool, str, tuple[Arg, ...]], ...] = ()
 
 
+_UNIT_FIELDS = ("kind", "lines", "where", "relation", "args", "names", "heads", "body")
+
+
+class LazyUnits(Sequence[Unit]):
+    """A translation's units as plain tuples, turned into :class:`Unit` objects on first
+    use: what a cached knowledge base (adron/kb.py) holds, since unpickling 20,000 frozen
+    dataclasses costs ~0.5 s and a cached relevance result (synth/solver.py) needs none."""
+
+    def __init__(self, rows: tuple[tuple, ...]) -> None:
+        self._rows = rows
+        self._units: tuple[Unit, ...] | None = None
+
+    def _all(self) -> tuple[Unit, ...]:
+        if self._units is None:
+            self._units = tuple(Unit(*r) for r in self._rows)
+        return self._units
+
+    def __len__(self) -> int:
+        return len(self._rows)
+
+    def __getitem__(self, i):  # type: ignore[override]
+        return self._all()[i]
+
+    def __iter__(self) -> Iterator[Unit]:
+        return iter(self._all())
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, (tuple, LazyUnits)):
+            return tuple(self) == tuple(other)
+        return NotImplemented
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __reduce__(self) -> tuple:
+        return (LazyUnits, (self._rows,))
+
+
+def unit_rows(units: Iterable[Unit], memo: dict[int, tuple]) -> LazyUnits:
+    """``units`` as :class:`LazyUnits` for pickling; ``memo`` shares the rows of units two
+    translations share (a materialised one keeps the facts of its source)."""
+    if isinstance(units, LazyUnits) and units._units is None:
+        return units
+    rows = []
+    for u in units:
+        r = memo.get(id(u))
+        if r is None:
+            r = memo[id(u)] = tuple(getattr(u, f) for f in _UNIT_FIELDS)
+        rows.append(r)
+    return LazyUnits(tuple(rows))
+
+
 @dataclass(frozen=True)
 class Translation:
     """The ASP program of a set of KIF forms and an account of what was translated.
@@ -115,7 +166,9 @@ class Translation:
     documentation: dict[str, str] = field(default_factory=dict)
     ground: dict[str, tuple[tuple, ...]] = field(default_factory=dict)
     ground_at: dict[str, tuple[str, ...]] = field(default_factory=dict)  # file:line:col
-    units: tuple[Unit, ...] = ()  # every translated form but metadata, in program order
+    #: every translated form but metadata, in program order (a tuple, or LazyUnits when read
+    #: from the cache)
+    units: Sequence[Unit] = ()
 
     @property
     def translated(self) -> int:

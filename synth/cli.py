@@ -887,19 +887,25 @@ def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> in
     un = t.untranslated
     # relevance is judged with the shipped ontology loaded too (it holds the vocabulary)
     full = load(args.files)
-    rel = relevant(full)
+    # as the solver sees it: the ontology-only rules materialised (adron/materialise.py)
+    rel = relevant(full, grounded=True)
+    grounded = full.grounded if full.grounded is not None else full.translation
     mine = {f for f in kb.files}
     own = [
         (k, why)
-        for u, k, why in zip(full.translation.units, rel.kept, rel.reasons, strict=True)
+        for u, k, why in zip(grounded.units, rel.kept, rel.reasons, strict=True)
         if u.where.rsplit(":", 2)[0] in mine
     ]
     filtered = {r: sum(1 for _, w in own if w == r) for r in REASONS}
+    n_rules = sum(1 for u in full.translation.units if u.kind == "rule")
+    materialised = n_rules - sum(1 for u in grounded.units if u.kind == "rule")
     relevance_rec = {
         "forms": len(own),
         "relevant": sum(1 for k, _ in own if k),
         "filtered": {r: n for r, n in filtered.items() if n},
         "unfiltered_because": rel.off,
+        "materialised_rules": materialised,
+        "derived_facts": len(grounded.units) - len(full.translation.units) + materialised,
     }
     rec = {
         "files": list(kb.files),
@@ -930,6 +936,11 @@ def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> in
         f"{r['relevant']} of {r['forms']} translated forms (metadata aside) reach the robot "
         f"vocabulary and go to the grounder; filtered: {shown}\n"
     )
+    if r["materialised_rules"]:
+        out.write(
+            f"  {r['materialised_rules']} rule(s) read only the ontology: replaced by the "
+            f"{r['derived_facts']} fact(s) they derive, filtered as facts\n"
+        )
     if r["unfiltered_because"]:
         out.write(f"  nothing is filtered: {r['unfiltered_because']}\n")
     for u in rec["untranslated_forms"]:

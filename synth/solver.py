@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import functools
+import hashlib
 import itertools
 import os
 import re
@@ -28,10 +29,12 @@ from pathlib import Path
 
 import clingo
 
+from adron import relevance as relevance_module
 from adron.errors import InputError, OntologyError, ParmorError
-from adron.kb import KnowledgeBase, read_user_file
+from adron.kb import KnowledgeBase, prune, read_user_file
 from adron.relevance import Relevance, relevance
-from adron.translate import asp_string, taxonomy_closure
+from adron.translate import Translation, asp_string, taxonomy_closure
+from adron.units import cache_folder
 from synth import limits
 
 _SCRIPT = re.compile(r"#\s*script", re.IGNORECASE)
@@ -380,15 +383,69 @@ def _relevance_texts() -> tuple[tuple[str, ...], tuple[str, ...]]:
     )
 
 
-def relevant(kb: KnowledgeBase, focus: str | None = None, rules: Sequence[str] = ()) -> Relevance:
+def relevant(
+    kb: KnowledgeBase,
+    focus: str | None = None,
+    rules: Sequence[str] = (),
+    grounded: bool = False,
+) -> Relevance:
     """Which translated forms of ``kb`` can reach the encodings' vocabulary (adron/relevance.py);
-    nothing is filtered when user ``rules`` are given (a rule file may read anything)."""
-    tr = kb.translation
+    nothing is filtered when user ``rules`` are given (a rule file may read anything).
+    ``grounded``: of ``kb.grounded`` (its rules materialised, adron/materialise.py), not of
+    ``kb.translation``."""
+    tr = kb.translation if not grounded or kb.grounded is None else kb.grounded
     if rules:
         n = len(tr.units)
         return Relevance((True,) * n, ("",) * n, "rule files are given (they may read anything)")
     body, taxo = _relevance_texts()
     return relevance(tr, body, taxo, [focus] if focus is not None else [])
+
+
+def _relevant_program(
+    kb: KnowledgeBase, focus: str | None, rules: Sequence[str], tr: Translation
+) -> str:
+    """The relevant part of ``tr`` (``kb.translation`` or ``kb.grounded``) as ASP text.
+
+    Kept on disk beside the cached knowledge base (``$PARMOR_CACHE/relevant-KEY.lp``, KEY
+    a hash of the knowledge base's key, ``focus``, the encodings, and the code of this
+    module and adron/relevance.py): computing it costs ~0.3 s for SUMO. Written whole
+    (temporary file + rename); an unreadable or unwritable one only costs time."""
+    grounded = tr is not kb.translation
+    path = None
+    if kb.key is not None and not rules:
+        folder = cache_folder()
+        if folder is not None:
+            h = hashlib.sha256(f"{kb.key}|{grounded}|{focus!r}".encode())
+            for text in (*_relevance_texts()[0], *_relevance_texts()[1]):
+                h.update(hashlib.sha256(text.encode()).digest())
+            for mod in (relevance_module.__file__, __file__):
+                h.update(hashlib.sha256(Path(str(mod)).read_bytes()).digest())
+            path = folder / f"relevant-{h.hexdigest()[:32]}.lp"
+            with contextlib.suppress(OSError, UnicodeDecodeError):
+                text = path.read_text(encoding="utf-8")
+                if text.startswith(_RELEVANT_TAG) and text.endswith(_RELEVANT_END):
+                    os.utime(path)  # recently used (adron/kb.py: prune)
+                    return text[len(_RELEVANT_TAG) : -len(_RELEVANT_END)]
+    program = relevant(kb, focus, rules, grounded).program(tr)
+    if path is not None:
+        tmp = None
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".relevant-", suffix=".tmp")
+            with os.fdopen(fd, "w", encoding="utf-8") as f:
+                f.write(_RELEVANT_TAG + program + _RELEVANT_END)
+            os.replace(tmp, path)
+            prune(path.parent)
+        except OSError:
+            if tmp is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
+    return program
+
+
+#: the first and last line of a cached relevant program (a file cut short lacks the last)
+_RELEVANT_TAG = "% parmor relevant program 1\n"
+_RELEVANT_END = "% end\n"
 
 
 def taxonomy_program(
@@ -443,7 +500,10 @@ class _Core:
         if bus_limit is not None:
             extra.append(f"bus_limit({int(bus_limit)}).")
         texts = [r.text for r in rules]
-        program = relevant(kb, focus, texts).program(kb.translation)
+        # with rule files the translation as it is (they may define any holds atom the
+        # ontology's rules read); without, its rules materialised (adron/materialise.py)
+        tr = kb.translation if texts or kb.grounded is None else kb.grounded
+        program = _relevant_program(kb, focus, texts, tr)
         try:
             self._ctl.add("base", [], program)
             self._ctl.add("base", [], taxonomy_program(kb, extra, texts, program))

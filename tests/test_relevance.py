@@ -35,6 +35,12 @@ MINE = """
 """
 
 
+@pytest.fixture(autouse=True)
+def _no_cache(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No cached relevant program: these tests replace the filter."""
+    monkeypatch.setenv("PARMOR_CACHE", "")
+
+
 def _kif(tmp_path: Path, text: str) -> Path:
     p = tmp_path / "mine.kif"
     p.write_text(text, encoding="utf-8")
@@ -48,7 +54,7 @@ def _units(kb, rel: Relevance, keep: bool) -> list[str]:
 
 
 def _unfiltered(monkeypatch: pytest.MonkeyPatch) -> None:
-    def off(kb, focus=None, rules=()):
+    def off(kb, focus=None, rules=(), grounded=False):
         n = len(kb.translation.units)
         return Relevance((True,) * n, ("",) * n, "off for the test")
 
@@ -97,7 +103,7 @@ def test_filtering_too_much_changes_the_answer(
     for i in chain:
         kept[i] = False
     too_much = Relevance(tuple(kept), rel.reasons)
-    monkeypatch.setattr(solver, "relevant", lambda kb, focus=None, rules=(): too_much)
+    monkeypatch.setattr(solver, "relevant", lambda *a, **k: too_much)
     assert "MyWalker" not in [c.robot_type for c in Reasoner(kb).solve(WALK).candidates]
 
 
