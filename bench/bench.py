@@ -17,7 +17,9 @@ for p in (REPO, REPO / "bench"):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 
+from bench_assign import bench_assign  # noqa: E402
 from bench_links import bench_links  # noqa: E402
+from bench_onto import bench_onto  # noqa: E402
 from bench_parse import bench_parse  # noqa: E402
 from bench_rnea import bench_rnea  # noqa: E402
 from bench_sim import bench_sim  # noqa: E402
@@ -174,10 +176,12 @@ def main() -> int:
         sections.append([f"KIF reader: {SUMO} is absent, skipped"])
     sections += [
         bench_translation(),
+        bench_onto(),
         bench_queries(),
         bench_rnea(),
         bench_links(),
         bench_structures(),
+        bench_assign(),
         bench_stl(),
         bench_sim(),
         bench_simspeed(),
