@@ -785,7 +785,10 @@ class _Sizer:
         alike = "alike joints alike" if a["symmetric"] else "joints independent"
         lines = [
             f"{indent}sized:      {s['mass_kg']:.3f} kg, cost {s['cost']:.2f}",
-            f"{indent}assignments: {a['count']} feasible ({alike}), best first:",
+            f"{indent}assignments: {a['count']} feasible ({alike}), best first:"
+            if a.get("count_exact", True)
+            else f"{indent}assignments: at most {a['count']} feasible ({alike}; too many to "
+            "count exactly, the number of capable candidates), best first:",
         ]
         for n, x in enumerate(a["ranked"], 1):
             lines.append(

@@ -198,3 +198,16 @@ def test_count_gives_up_rather_than_guess() -> None:
         gave_up += got is None
         assert got is None or got == brute_count(p)
     assert gave_up > 0
+
+
+def test_an_upper_bound_is_printed_as_one() -> None:
+    """enumerate's text says "at most" when the count is not exact (count_exact false)."""
+    from synth.cli import _Sizer
+
+    rec = {
+        "structure": {"mass_kg": 1.0, "cost": 2.0},
+        "assignments": {"count": 12, "count_exact": True, "symmetric": True, "ranked": []},
+    }
+    assert "assignments: 12 feasible" in _Sizer.text(rec, "")
+    rec["assignments"]["count_exact"] = False
+    assert "assignments: at most 12 feasible" in _Sizer.text(rec, "")
