@@ -277,6 +277,16 @@ def load(extra: Sequence[str | Path] = (), builtin: bool = True) -> KnowledgeBas
     return kb
 
 
+def materialised(kb: KnowledgeBase) -> KnowledgeBase:
+    """``kb`` with its ontology-only rules materialised (``grounded``, ``why_not``: see
+    adron/materialise.py); this grounds them with clingo, so callers run it where a limit
+    or Ctrl-C can stop it (synth/solver.py does, in its worker process)."""
+    if kb.grounded is not None or kb.why_not is not None:
+        return kb
+    grounded, why_not = materialise(kb.translation)
+    return dataclasses.replace(kb, grounded=grounded, why_not=why_not)
+
+
 def _load(sources: Sequence[tuple[str, str]]) -> KnowledgeBase:
     """The knowledge base of (name, text) ``sources``, uncached."""
     forms: list[Form] = []
@@ -298,7 +308,9 @@ def _load(sources: Sequence[tuple[str, str]]) -> KnowledgeBase:
         vals = tuple((v, t) for r, v, t in values if r == rel)
         params.append(Parameter(name, rel, vals))
     facts(tr, "structuralLimit", 3)  # checked here, used by the structure stage
-    grounded, why_not = materialise(tr)
+    # materialised later, where grounding can be interrupted and limited (the reasoner's
+    # worker process: synth/solver.py), not here in the parse stage
+    grounded, why_not = None, None
     return KnowledgeBase(
         files=tuple(n for n, _ in sources),
         translation=tr,

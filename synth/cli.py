@@ -889,7 +889,9 @@ def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> in
     t = kb.translation
     un = t.untranslated
     # relevance is judged with the shipped ontology loaded too (it holds the vocabulary)
-    full = load(args.files)
+    from synth.solver import materialised_in_worker
+
+    full = materialised_in_worker(load(args.files))
     # as the solver sees it: the ontology-only rules materialised (adron/materialise.py)
     rel = relevant(full, grounded=True)
     grounded = full.grounded if full.grounded is not None else full.translation

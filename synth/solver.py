@@ -31,7 +31,7 @@ import clingo
 
 from adron import relevance as relevance_module
 from adron.errors import InputError, OntologyError, ParmorError
-from adron.kb import KnowledgeBase, prune, read_user_file
+from adron.kb import KnowledgeBase, materialised, prune, read_user_file
 from adron.relevance import Relevance, relevance
 from adron.translate import Translation, asp_string, taxonomy_closure
 from adron.units import cache_folder
@@ -402,15 +402,15 @@ def relevant(
 
 
 def _relevant_program(
-    kb: KnowledgeBase, focus: str | None, rules: Sequence[str], tr: Translation
+    kb: KnowledgeBase, focus: str | None, rules: Sequence[str], grounded: bool
 ) -> str:
-    """The relevant part of ``tr`` (``kb.translation`` or ``kb.grounded``) as ASP text.
+    """The relevant part of ``kb.translation``, or with ``grounded`` of ``kb.grounded``
+    (its ontology-only rules materialised here when the cache misses), as ASP text.
 
     Kept on disk beside the cached knowledge base (``$PARMOR_CACHE/relevant-KEY.lp``, KEY
     a hash of the knowledge base's key, ``focus``, the encodings, and the code of this
     module and adron/relevance.py): computing it costs ~0.3 s for SUMO. Written whole
     (temporary file + rename); an unreadable or unwritable one only costs time."""
-    grounded = tr is not kb.translation
     path = None
     if kb.key is not None and not rules:
         folder = cache_folder()
@@ -426,6 +426,9 @@ def _relevant_program(
                 if text.startswith(_RELEVANT_TAG) and text.endswith(_RELEVANT_END):
                     os.utime(path)  # recently used (adron/kb.py: prune)
                     return text[len(_RELEVANT_TAG) : -len(_RELEVANT_END)]
+    if grounded:
+        kb = materialised(kb)
+    tr = kb.grounded if grounded and kb.grounded is not None else kb.translation
     program = relevant(kb, focus, rules, grounded).program(tr)
     if path is not None:
         tmp = None
@@ -502,8 +505,7 @@ class _Core:
         texts = [r.text for r in rules]
         # with rule files the translation as it is (they may define any holds atom the
         # ontology's rules read); without, its rules materialised (adron/materialise.py)
-        tr = kb.translation if texts or kb.grounded is None else kb.grounded
-        program = _relevant_program(kb, focus, texts, tr)
+        program = _relevant_program(kb, focus, texts, grounded=not texts)
         try:
             self._ctl.add("base", [], program)
             self._ctl.add("base", [], taxonomy_program(kb, extra, texts, program))
@@ -715,6 +717,32 @@ def _serve(
 
 
 _ERRORS = {"InputError": InputError, "OntologyError": OntologyError}
+
+
+class _Materialiser:
+    """A worker's core that materialises a knowledge base's ontology-only rules."""
+
+    def __init__(self, kb: KnowledgeBase) -> None:
+        self.kb = materialised(kb)
+        self.externals: set = set()
+
+    def result(self) -> tuple[Translation | None, str | None]:
+        return self.kb.grounded, self.kb.why_not
+
+
+def materialised_in_worker(kb: KnowledgeBase) -> KnowledgeBase:
+    """:func:`adron.kb.materialised` in a worker process, so that a limit or Ctrl-C stops
+    it while clingo grounds (``ontology check``)."""
+    if kb.grounded is not None or kb.why_not is not None:
+        return kb
+    worker = _Worker(lambda: _Materialiser(kb), "the knowledge base's rules")  # type: ignore[arg-type, return-value]
+    try:
+        with limits.stage("ground"):
+            worker.result("ground")
+        grounded, why_not = worker.call("result")
+    finally:
+        worker.close()
+    return replace(kb, grounded=grounded, why_not=why_not)
 
 
 class _Worker:

@@ -562,7 +562,7 @@ def test_actuator_assignment_uses_the_catalogs_bus_limit(cat: Catalog) -> None:
     a robot of 2 joints and 2 other modules; one of 4 takes it)."""
     from importlib.resources import files as res
 
-    rules = (res("asp") / "actuators.lp").read_text(encoding="utf-8")
+    rules = res("asp") / "actuators.lp"  # loaded as a file: it includes serving.lp
     base = (
         'actuator("S","C",1,1,1,1,1). joint("a","","C"). joint("b","","C"). isa("C","C").'
         'robot("R"). other_active(2). #external capable("a","S"). #external capable("b","S").'
@@ -570,7 +570,8 @@ def test_actuator_assignment_uses_the_catalogs_bus_limit(cat: Catalog) -> None:
 
     def solve(limit: int) -> bool:
         ctl = clingo.Control(["--warn=none"])
-        ctl.add("base", [], base + f"bus_limit({limit})." + rules)
+        ctl.add("base", [], base + f"bus_limit({limit}).")
+        ctl.load(str(rules))
         ctl.ground([("base", [])])
         for j in ("a", "b"):
             ctl.assign_external(

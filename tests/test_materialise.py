@@ -13,7 +13,16 @@ import pytest
 from adron import kb as kbmod
 from adron import materialise as mat
 from adron.errors import ParmorError
-from adron.kb import load
+from adron.kb import load as _load_kb
+from adron.kb import materialised
+
+
+def load(*args, **kwargs):
+    """A knowledge base with its rules materialised, as the reasoner's worker has it (load
+    leaves that to the worker, where a limit or Ctrl-C can stop clingo's grounding)."""
+    return materialised(_load_kb(*args, **kwargs))
+
+
 from synth.solver import Query, Reasoner, encoding_dir
 
 PICK = Query(requests=("RobotPickAndPlace",), params=(("handledObjectShape", "BoxObject"),))
