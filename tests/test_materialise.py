@@ -15,6 +15,7 @@ from adron import materialise as mat
 from adron.errors import ParmorError
 from adron.kb import load as _load_kb
 from adron.kb import materialised
+from synth.solver import Query, Reasoner, encoding_dir
 
 
 def load(*args, **kwargs):
@@ -23,7 +24,6 @@ def load(*args, **kwargs):
     return materialised(_load_kb(*args, **kwargs))
 
 
-from synth.solver import Query, Reasoner, encoding_dir
 
 PICK = Query(requests=("RobotPickAndPlace",), params=(("handledObjectShape", "BoxObject"),))
 WALK = Query(requests=("RobotWalking",))
