@@ -24,7 +24,6 @@ def load(*args, **kwargs):
     return materialised(_load_kb(*args, **kwargs))
 
 
-
 PICK = Query(requests=("RobotPickAndPlace",), params=(("handledObjectShape", "BoxObject"),))
 WALK = Query(requests=("RobotWalking",))
 
