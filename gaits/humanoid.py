@@ -734,12 +734,11 @@ def _support_margins(points: np.ndarray, valid: np.ndarray, com: np.ndarray) -> 
     return out
 
 
-def stability_margin(
-    template: Template, names: tuple[str, ...], q: np.ndarray, contact: float = 0.002
-) -> np.ndarray:
-    """Static stability margin (n,) m: distance of the COM's ground projection inside the
-    support polygon (the sole plates of the feet within ``contact`` m of the lowest one),
-    with the trunk upright and the feet flat (as the gaits keep them)."""
+def _soles(
+    template: Template, names: tuple[str, ...], q: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(COM (n, 3), sole centres (feet, n, 3), sole corner offsets (4, 2)) m, with the
+    trunk upright and the feet flat (as the gaits keep them)."""
     model = template.model
     Q = _q_full(model.q_names, names, np.atleast_2d(q))
     frames = forward_kinematics(model, Q)
@@ -754,10 +753,20 @@ def stability_margin(
     half = template.lengths["foot"] / 2
     width = FOOT_WIDTH_RATIO * half
     corners = np.array([[sx * half, sy * width] for sx in (-1, 1) for sy in (-1, 1)])
+    return com, soles, corners
+
+
+def stability_margin(
+    template: Template, names: tuple[str, ...], q: np.ndarray, contact: float = 0.002
+) -> np.ndarray:
+    """Static stability margin (n,) m: distance of the COM's ground projection inside the
+    support polygon (the sole plates of the feet within ``contact`` m of the lowest one),
+    with the trunk upright and the feet flat (as the gaits keep them)."""
+    com, soles, corners = _soles(template, names, q)
     low = soles[:, :, 2].min(axis=0)
     touching = soles[:, :, 2] <= low + contact  # (feet, n)
     points = soles[:, :, None, :2] + corners  # (feet, n, 4, 2)
-    n = len(Q)
+    n = len(com)
     points = points.transpose(1, 0, 2, 3).reshape(n, -1, 2)
     valid = np.repeat(touching.T, len(corners), axis=1)
     return _support_margins(points, valid, np.ascontiguousarray(com[:, :2]))
@@ -768,25 +777,12 @@ def _stability_margin_one_by_one(
 ) -> np.ndarray:
     """:func:`stability_margin` sample by sample with :func:`_support_margin` (the
     reference the batched one is tested against)."""
-    model = template.model
-    Q = _q_full(model.q_names, names, np.atleast_2d(q))
-    frames = forward_kinematics(model, Q)
-    com = center_of_mass(model, Q)
-    feet = [model.body(f) for f in template.feet]
-    soles = np.array(
-        [
-            frames[:, b, :3, 3] + frames[:, b, :3, :3] @ p
-            for b, p in zip(feet, template.foot_points, strict=True)
-        ]
-    )  # (2, n, 3)
-    half = template.lengths["foot"] / 2
-    width = FOOT_WIDTH_RATIO * half
-    corners = np.array([[sx * half, sy * width] for sx in (-1, 1) for sy in (-1, 1)])
-    out = np.empty(len(Q))
-    for i in range(len(Q)):
+    com, soles, corners = _soles(template, names, q)
+    out = np.empty(len(com))
+    for i in range(len(com)):
         low = soles[:, i, 2].min()
         pts = [
-            soles[k, i, :2] + corners for k in range(len(feet)) if soles[k, i, 2] <= low + contact
+            soles[k, i, :2] + corners for k in range(len(soles)) if soles[k, i, 2] <= low + contact
         ]
         out[i] = _support_margin(com[i, :2], np.concatenate(pts))
     return out
