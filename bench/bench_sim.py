@@ -13,14 +13,15 @@ if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
 
-def bench_sim(seconds: float = 5.0) -> list[str]:
+def default_bundles(tmp: Path):
+    """Each base configuration's default design written as a bundle under ``tmp``:
+    yields (robot type, design record, bundle folder, its MuJoCo model, its controller)."""
     from adron.catalog import load_catalog
     from adron.kb import load
     from export.bundle import bundle_files, write_bundle
     from export.record import design_record
-    from export.simulate import load_bundle_model, simulate
-    from gaits import controller_for
-    from gaits.base import DesignGeometry
+    from export.simulate import load_bundle_model
+    from export.verify import controller_for_model
     from synth.conceptual import Design, Designer, Request
     from synth.solver import Query, Reasoner
     from synth.structure import design_structure
@@ -28,20 +29,23 @@ def bench_sim(seconds: float = 5.0) -> list[str]:
     kb = load()
     designer = Designer(kb, Reasoner(kb))
     catalog = load_catalog()
+    for cand in designer.reasoner.solve(Query()).candidates:
+        s = design_structure(kb, cand, catalog, {})
+        rec = design_record(
+            Design("designed", Request(), (cand,), cand, "only candidate"), designer.short, s
+        )
+        folder = Path(tmp) / cand.robot_type
+        write_bundle(folder, bundle_files(rec, s, catalog))
+        model = load_bundle_model(folder)
+        yield cand.robot_type, rec, folder, model, controller_for_model(rec, model)
+
+
+def bench_sim(seconds: float = 5.0) -> list[str]:
+    from export.simulate import simulate
+
     lines = [f"MuJoCo, {seconds:g} simulated s of a default behaviour (target >= 50x real time)"]
     with tempfile.TemporaryDirectory() as tmp:
-        for cand in designer.reasoner.solve(Query()).candidates:
-            s = design_structure(kb, cand, catalog, {})
-            rec = design_record(
-                Design("designed", Request(), (cand,), cand, "only candidate"), designer.short, s
-            )
-            folder = Path(tmp) / cand.robot_type
-            write_bundle(folder, bundle_files(rec, s, catalog))
-            model = load_bundle_model(folder)
-            ctl = controller_for(
-                DesignGeometry.from_record(rec),
-                base_position=tuple(float(x) for x in model.body(1).pos),
-            )
+        for robot_type, rec, _, model, ctl in default_bundles(Path(tmp)):
             names = sorted(set(ctl.behaviors) & set(rec["abilities"])) or sorted(ctl.behaviors)
             traj = ctl.run(names[0])
             t0 = time.perf_counter()
@@ -50,7 +54,7 @@ def bench_sim(seconds: float = 5.0) -> list[str]:
             ratio = seconds / wall
             mark = "ok  " if ratio >= 50 else "MISS"
             lines.append(
-                f"  {mark} {cand.robot_type:<24} {names[0]:<16} {ratio:7.1f}x real time "
+                f"  {mark} {robot_type:<24} {names[0]:<16} {ratio:7.1f}x real time "
                 f"({wall * 1000:.0f} ms)"
             )
     return lines

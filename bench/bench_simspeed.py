@@ -60,20 +60,12 @@ def _raw_loop(model, traj, seconds: float) -> float:
 
 
 def bench_simspeed(seconds: float = SECONDS, runs: int = RUNS) -> list[str]:
-    from adron.catalog import load_catalog
-    from adron.kb import load
-    from export.bundle import bundle_files, write_bundle
-    from export.record import design_record
-    from export.simulate import load_bundle_model, simulate
+    from bench_sim import default_bundles
+
+    from export.simulate import simulate
     from export.verify import controller_for_model
     from gaits.base import _PLANNED
-    from synth.conceptual import Design, Designer, Request
-    from synth.solver import Query, Reasoner
-    from synth.structure import design_structure
 
-    kb = load()
-    designer = Designer(kb, Reasoner(kb))
-    catalog = load_catalog()
     load_avg = ", ".join(f"{x:.2f}" for x in os.getloadavg())
     lines = [
         f"simulate's overhead over raw mj_step, {seconds:g} simulated s of a default behaviour "
@@ -82,15 +74,7 @@ def bench_simspeed(seconds: float = SECONDS, runs: int = RUNS) -> list[str]:
     startup = []
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     with tempfile.TemporaryDirectory() as tmp:
-        for cand in designer.reasoner.solve(Query()).candidates:
-            s = design_structure(kb, cand, catalog, {})
-            rec = design_record(
-                Design("designed", Request(), (cand,), cand, "only candidate"), designer.short, s
-            )
-            folder = Path(tmp) / cand.robot_type
-            write_bundle(folder, bundle_files(rec, s, catalog))
-            model = load_bundle_model(folder)
-            ctl = controller_for_model(rec, model)
+        for robot_type, rec, folder, model, ctl in default_bundles(Path(tmp)):
             names = sorted(ctl.listed(rec.get("abilities", ()))) or sorted(ctl.behaviors)
             name = names[0]
             traj = ctl.run(name)
@@ -111,7 +95,7 @@ def bench_simspeed(seconds: float = SECONDS, runs: int = RUNS) -> list[str]:
             ratio = min(sim) / min(raw)
             mark = "ok  " if ratio <= TARGET_RATIO else "MISS"
             lines.append(
-                f"  {mark} {cand.robot_type:<24} {name:<22} simulate {min(sim) * 1000:6.1f} ms, "
+                f"  {mark} {robot_type:<24} {name:<22} simulate {min(sim) * 1000:6.1f} ms, "
                 f"raw {min(raw) * 1000:6.1f} ms: {ratio:4.2f} x ({seconds / min(sim):4.0f} x "
                 "real time)"
             )
@@ -129,7 +113,7 @@ def bench_simspeed(seconds: float = SECONDS, runs: int = RUNS) -> list[str]:
                 t0 = time.perf_counter()
                 fresh.run(name)
                 plans.append(time.perf_counter() - t0)
-            startup.append((cand.robot_type, name, min(walls), min(sim), min(plans)))
+            startup.append((robot_type, name, min(walls), min(sim), min(plans)))
     lines.append(
         f"parmor simulate DIR --behavior X --seconds {seconds:g} as a process, less the "
         f"in-process simulation (target < {TARGET_STARTUP_S:g} s)"
