@@ -259,6 +259,14 @@ class Catalog:
     #: the shipped catalog's name ("default", "dynamixel"), or "" for a user's file
     shipped: str = ""
 
+    def printer_bed(self, printer: str) -> Size | None:
+        """The build volume (x, y, z) m of ``printer``: "" is the catalog's own printer
+        (``passive.printer_bed_m``), else one of ``printers`` by model; None for another
+        name (e.g. "split": none holds the part)."""
+        if printer == "":
+            return self.passive.printer_bed_m
+        return next((p.bed_m for p in self.printers if p.model == printer), None)
+
     def part_of(self, ontology_class: str) -> Part:
         """The first passive part of ``ontology_class``; InputError naming the file if none."""
         for p in self.parts:

@@ -126,14 +126,13 @@ def print_projects(asm: Assembly, catalog: Catalog) -> dict[str, bytes]:
     only for a part with overhangs as it lies (``export.threemf``)."""
     from export.threemf import part_3mf
 
-    beds = {"": catalog.passive.printer_bed_m} | {p.model: p.bed_m for p in catalog.printers}
     density = catalog.material.density_kg_m3 / 1000
     out: dict[str, bytes] = {}
     for p in asm.printed:
-        printer = "" if p.fits_bed else p.printer
-        if printer not in beds:
+        bed_m = catalog.printer_bed("" if p.fits_bed else p.printer)
+        if bed_m is None:
             continue
-        bed = [b * 1000 for b in beds[printer]]
+        bed = [b * 1000 for b in bed_m]
         out[f"print/{p.name}.3mf"] = part_3mf(
             p.name, p.stl, p.count, bed, density, p.overhang_m2 > 0
         )

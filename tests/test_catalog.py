@@ -732,3 +732,11 @@ def test_guide_words_follow_the_bus() -> None:
     from export.guide import _plural
 
     assert _plural("address") == "addresses" and _plural("ID") == "IDs"
+
+
+def test_printer_bed_by_name(cat: Catalog) -> None:
+    """"" is the catalog's own printer, a model one of its larger printers, else None."""
+    assert cat.printer_bed("") == cat.passive.printer_bed_m
+    for p in cat.printers:
+        assert cat.printer_bed(p.model) == p.bed_m
+    assert cat.printer_bed("split") is None

@@ -34,7 +34,6 @@ def sliced(kb, designer, catalog):
     cands = {c.robot_type: c for c in designer.reasoner.solve(Query()).candidates}
     requests = [(t, {}) for t in sorted(cands)] + list(NON_DEFAULT)
     parts: dict[bytes, tuple[str, dict, tuple[float, float, float]]] = {}
-    beds = {"": catalog.passive.printer_bed_m} | {p.model: p.bed_m for p in catalog.printers}
     for t, params in requests:
         s = design_structure(kb, cands[t], catalog, params)
         d = Design("designed", Request(), (cands[t],), cands[t], "only candidate")
@@ -42,8 +41,9 @@ def sliced(kb, designer, catalog):
         for row in csv.DictReader(io.StringIO(files["bom.csv"])):
             if row["type"] != "printed":
                 continue
-            assert row["printer"] in beds, (t, row["name"], row["printer"])  # never "split"
-            bed = tuple(b * 1000 for b in beds[row["printer"]])
+            bed_m = catalog.printer_bed(row["printer"])
+            assert bed_m is not None, (t, row["name"], row["printer"])  # never "split"
+            bed = tuple(b * 1000 for b in bed_m)
             parts.setdefault(files[row["file"]], (f"{t} {params} {row['name']}", row, bed))
     density = catalog.material.density_kg_m3 / 1000.0
 
