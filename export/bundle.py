@@ -17,8 +17,6 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from adron.errors import ExportError
 
 if TYPE_CHECKING:
@@ -32,18 +30,15 @@ _SAFE_STEM = re.compile(r"[a-z0-9_]+")
 def picture_files(asm: Assembly, title: str) -> dict[str, bytes]:
     """``pictures/robot.png`` (the robot at its zero pose) and ``pictures/<part>.png`` (each
     printed part as it lies on the bed)."""
-    import io
-
-    import trimesh
-
     from export.assembly import PRINTED_RGBA
+    from export.meshes import read_stl
     from export.render import assembly_png, mesh_png
 
     vertices = {}
     out: dict[str, bytes] = {}
     for p in asm.printed:
-        m = trimesh.load(io.BytesIO(p.stl), file_type="stl", process=False)
-        v, f = np.asarray(m.vertices) / 1000.0, np.asarray(m.faces)
+        v, f = read_stl(p.stl)
+        v = v / 1000.0
         vertices[f"{p.name}.stl"] = (v, f)
         out[f"pictures/{p.name}.png"] = mesh_png(v, f, PRINTED_RGBA, f"{p.name} (as printed)")
     out["pictures/robot.png"] = assembly_png(asm, vertices, title)

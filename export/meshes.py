@@ -421,6 +421,21 @@ def stl_bytes(mesh: trimesh.Trimesh) -> bytes:
     return STL_HEADER + struct.pack("<I", len(tri)) + data.tobytes()
 
 
+def read_stl(stl: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (n, 3) float, in the file's unit (mm for :func:`stl_bytes`), triangles
+    (m, 3) int) of a binary STL, coincident corners merged: the reverse of
+    :func:`stl_bytes`, for the 3MF projects and the pictures."""
+    if len(stl) < 84:
+        raise ValueError("not a binary STL: shorter than its header")
+    n = int(np.frombuffer(stl, "<u4", 1, 80)[0])
+    if len(stl) < 84 + 50 * n:
+        raise ValueError(f"not a binary STL: {n} triangles announced, fewer stored")
+    rec = np.dtype([("normal", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+    tri = np.frombuffer(stl, rec, n, 84)["v"].reshape(-1, 3)
+    vertices, index = np.unique(tri, axis=0, return_inverse=True)
+    return vertices.astype(float), index.reshape(-1, 3)
+
+
 def mesh_volume(mesh: trimesh.Trimesh) -> float:
     """Enclosed volume m^3 of a closed mesh."""
     return float(mesh.volume)

@@ -22,9 +22,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from export.meshes import read_stl
 from export.slicer import SKIRT_MARGIN, prusa_config
 
-__all__ = ["COPY_GAP_MM", "Plate", "part_3mf", "plate_of", "stl_mesh"]
+__all__ = ["COPY_GAP_MM", "Plate", "part_3mf", "plate_of"]
 
 #: mm between two copies on the bed: each copy's skirt loop is shared, so the gap only
 #: keeps the nozzle from joining them (PrusaSlicer's arrange uses 6 mm).
@@ -45,20 +46,6 @@ class Plate:
     offsets: tuple[tuple[float, float], ...]
     count: int
     plates: int
-
-
-def stl_mesh(stl: bytes) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices (n, 3) float mm, triangles (m, 3) int) of a binary STL, with coincident
-    corners merged (3MF meshes are indexed)."""
-    if len(stl) < 84:
-        raise ValueError("not a binary STL: shorter than its header")
-    n = int(np.frombuffer(stl, "<u4", 1, 80)[0])
-    if len(stl) < 84 + 50 * n:
-        raise ValueError(f"not a binary STL: {n} triangles announced, fewer stored")
-    rec = np.dtype([("normal", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
-    tri = np.frombuffer(stl, rec, n, 84)["v"].reshape(-1, 3)
-    vertices, index = np.unique(tri, axis=0, return_inverse=True)
-    return vertices.astype(float), index.reshape(-1, 3)
 
 
 def plate_of(extents_mm: Sequence[float], count: int, bed_mm: Sequence[float]) -> Plate:
@@ -140,7 +127,7 @@ def part_3mf(
     """The 3MF project of one printed part: ``count`` copies (as many as one bed of
     ``bed_mm`` holds), the print settings of :func:`export.slicer.prusa_config` for that
     bed, supports on only when ``supports``. ``name`` is a safe file stem."""
-    vertices, triangles = stl_mesh(stl)
+    vertices, triangles = read_stl(stl)
     extents = vertices.max(axis=0) - vertices.min(axis=0)
     plate = plate_of(extents, count, bed_mm)
     label = name if plate.plates == 1 else f"{name} x{len(plate.offsets)} of {count}"

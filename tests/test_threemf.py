@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 
 from export.bundle import bundle_files
+from export.meshes import read_stl
 from export.record import design_record
 from export.slicer import SKIRT_MARGIN, prusa_slicer, slice_3mf
-from export.threemf import COPY_GAP_MM, part_3mf, plate_of, stl_mesh
+from export.threemf import COPY_GAP_MM, part_3mf, plate_of
 from synth.conceptual import Design, Request
 from synth.solver import Query
 from synth.structure import design_structure
@@ -35,13 +36,13 @@ def _box_stl(dx: float, dy: float, dz: float) -> bytes:
 
 def test_the_mesh_is_the_stls_indexed() -> None:
     stl = _box_stl(30, 20, 10)
-    v, f = stl_mesh(stl)
+    v, f = read_stl(stl)
     assert len(v) == 8 and f.shape == (12, 3)
     # the volume of the indexed mesh (divergence theorem) is the box's
     a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
     assert abs(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6) == pytest.approx(6000)
     with pytest.raises(ValueError, match="binary STL"):
-        stl_mesh(stl[:-10])
+        read_stl(stl[:-10])
 
 
 @pytest.mark.parametrize(
