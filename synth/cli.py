@@ -529,13 +529,11 @@ def _designer(args: argparse.Namespace, err: TextIO):
     with stage("parse"):
         kb = load(args.ontology)
     _warn_untranslated(kb, err)
-    # the catalog bus's module limit governs the conceptual step too; a conceptual design
-    # without --catalog keeps the ontology's (the shipped catalog's bus has the same 24)
-    limit = None
-    if hasattr(args, "catalog") and (args.catalog or not getattr(args, "conceptual", False)):
+    limit = None  # the catalog bus's module limit governs the conceptual step too
+    if hasattr(args, "catalog"):
         from synth.pipeline import bus_limit
 
-        limit = bus_limit(args.catalog)
+        limit = bus_limit(args.catalog, getattr(args, "conceptual", False))
     return Designer(kb, Reasoner(kb, args.rules, args.allow_scripts, bus_limit=limit))
 
 

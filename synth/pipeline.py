@@ -37,9 +37,13 @@ def parse_objective(text: str) -> tuple[str, ...]:
     return order
 
 
-def bus_limit(path: str | None) -> int:
+def bus_limit(path: str | None, conceptual: bool = False) -> int | None:
     """The active module limit of the catalog's bus (``Bus.module_limit``), for the
-    conceptual step (InputError for a catalog that cannot be loaded)."""
+    conceptual step (InputError for a catalog that cannot be loaded). None for a conceptual
+    design without a catalog named: the ontology's ``activeModuleLimit`` then applies (the
+    shipped catalog's bus has the same 24), and no catalog is loaded."""
+    if conceptual and not path:
+        return None
     from adron.catalog import load_catalog
 
     return load_catalog(path).bus.module_limit

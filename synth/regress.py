@@ -141,9 +141,8 @@ def designer_for(opts: dict) -> Designer:
     from synth.solver import Reasoner
 
     kb = load(opts["ontology"])
-    conceptual_only = opts.get("conceptual") and not opts.get("catalog")
     try:
-        limit = None if conceptual_only else bus_limit(opts.get("catalog"))
+        limit = bus_limit(opts.get("catalog"), bool(opts.get("conceptual")))
     except InputError as e:  # named by the suite or study that gives the catalog
         raise InputError(f"{opts['suite']}: catalog: {e}") from None
     return Designer(kb, Reasoner(kb, opts["rules"], opts["allow_scripts"], bus_limit=limit))

@@ -333,7 +333,8 @@ def run_study(
     with _bounded(lim, f"checking the study {path}"):
         validate(opts, requests)
     files = (opts["catalog"], opts["ontology"], opts["rules"])
-    keys = [request_key(q, simulate, files_digest(*files)) for q in requests]
+    digest = files_digest(*files)  # reads and hashes every file: once per study
+    keys = [request_key(q, simulate, digest) for q in requests]
     seen: dict[str, int] = {}
     for i, (q, k) in enumerate(zip(requests, keys, strict=True)):
         if k in seen:

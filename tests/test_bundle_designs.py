@@ -21,7 +21,7 @@ from export.record import design_record
 from synth.conceptual import Design, Request
 from synth.solver import Query
 from synth.structure import design_structure
-from tests.conftest import CI
+from tests.conftest import CI, need
 
 
 @pytest.fixture(scope="module")
@@ -253,9 +253,13 @@ def test_urdf_meshes_load_in_pinocchio_and_mujoco_without_warnings(
     its visual and collision geometry with the bundle folder as its package directory,
     given as an argument or, with no argument, on ``ROS_PACKAGE_PATH`` (pinocchio resolves
     a relative path only against its package directories and that variable's)."""
+    from importlib.util import find_spec
+
     import mujoco
 
-    pin = pytest.importorskip("pinocchio") if not CI else __import__("pinocchio")
+    need(find_spec("pinocchio") is not None, "pinocchio is not installed (the test extras)")
+    import pinocchio as pin
+
     for t, (_, files) in bundles.items():
         folder = write_bundle(tmp_path / t, files)
         urdf = str(folder / "robot.urdf")

@@ -735,7 +735,7 @@ def test_guide_words_follow_the_bus() -> None:
 
 
 def test_printer_bed_by_name(cat: Catalog) -> None:
-    """"" is the catalog's own printer, a model one of its larger printers, else None."""
+    """ "" is the catalog's own printer, a model one of its larger printers, else None."""
     assert cat.printer_bed("") == cat.passive.printer_bed_m
     for p in cat.printers:
         assert cat.printer_bed(p.model) == p.bed_m

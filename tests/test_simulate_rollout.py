@@ -4,13 +4,12 @@ loop reading ``MjData`` at every step gives, to the bit."""
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 import pytest
 
-mujoco = pytest.importorskip("mujoco")
-
-from export.simulate import ServoLaw, simulate, step_through  # noqa: E402
-from gaits.base import Trajectory  # noqa: E402
+from export.simulate import ServoLaw, simulate, step_through
+from gaits.base import Trajectory
 
 # a free two-link body on a floor, one servo of each kind parmor writes and two it does not
 XML = """
