@@ -124,7 +124,7 @@ def print_projects(asm: Assembly, catalog: Catalog) -> dict[str, bytes]:
     density = catalog.material.density_kg_m3 / 1000
     out: dict[str, bytes] = {}
     for p in asm.printed:
-        bed_m = catalog.printer_bed("" if p.fits_bed else p.printer)
+        bed_m = catalog.printer_bed(p.printer)  # "" when it fits the catalog's printer
         if bed_m is None:
             continue
         bed = [b * 1000 for b in bed_m]
@@ -167,20 +167,6 @@ def assembly_of(structure: Structure, catalog: Catalog, record: dict):
     asm = build_assembly(structure, catalog, used)
     _LAST[:] = [(id(structure), id(catalog), key, structure, catalog, asm, trajectories)]
     return asm, trajectories
-
-
-def model_files(
-    record: dict, structure: Structure, catalog: Catalog, with_payload: bool
-) -> dict[str, str]:
-    """robot.urdf and robot.xml of a sized design, carrying the payload or not."""
-    from export.mjcf import mjcf_string
-    from export.urdf import urdf_string
-
-    asm, _ = assembly_of(structure, catalog, record)
-    return {
-        "robot.urdf": urdf_string(asm, with_payload=with_payload),
-        "robot.xml": mjcf_string(asm, with_payload=with_payload),
-    }
 
 
 def trajectory_files(record: dict) -> dict[str, str]:

@@ -11,6 +11,7 @@ constants).
 
 from __future__ import annotations
 
+import math
 import re
 import shutil
 import subprocess
@@ -18,6 +19,8 @@ import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+
+from export.meshes import OVERHANG_ANGLE
 
 __all__ = [
     "FILL_DENSITY",
@@ -66,7 +69,7 @@ SPEEDS = {
 }
 #: Supports where the slicer finds overhangs steeper than 45 degrees from the vertical
 #: (``export.meshes.OVERHANG_ANGLE``; PrusaSlicer's threshold is from the horizontal).
-SUPPORT_THRESHOLD_DEG = 45
+SUPPORT_THRESHOLD_DEG = round(math.degrees(OVERHANG_ANGLE))
 
 
 # --- the BOM's estimate, calibrated against the slicer -------------------------------------
@@ -109,9 +112,10 @@ def estimate(features: dict[str, float]) -> tuple[float, float]:
     return time, (volume + support) * 1e-9
 
 
-def prusa_config(bed_mm: Sequence[float], density_g_cm3: float) -> str:
+def prusa_config(bed_mm: Sequence[float], density_g_cm3: float, supports: bool = True) -> str:
     """PrusaSlicer config text (ini) of the parts' print settings for a printer whose build
-    volume is ``bed_mm`` (x, y, z mm), filament of ``density_g_cm3``."""
+    volume is ``bed_mm`` (x, y, z mm), filament of ``density_g_cm3``; supports where the
+    slicer finds overhangs, or none (a part that has none as it lies)."""
     x, y, z = (float(b) for b in bed_mm)
     lines = {
         "bed_shape": f"0x0,{x:g}x0,{x:g}x{y:g},0x{y:g}",
@@ -128,7 +132,7 @@ def prusa_config(bed_mm: Sequence[float], density_g_cm3: float) -> str:
         "fill_pattern": "rectilinear",
         "top_fill_pattern": "monotonic",
         "bottom_fill_pattern": "monotonic",
-        "support_material": "1",
+        "support_material": "1" if supports else "0",
         "support_material_auto": "1",
         "support_material_threshold": f"{90 - SUPPORT_THRESHOLD_DEG}",
         "skirts": str(SKIRTS),

@@ -131,9 +131,7 @@ def part_3mf(
     extents = vertices.max(axis=0) - vertices.min(axis=0)
     plate = plate_of(extents, count, bed_mm)
     label = name if plate.plates == 1 else f"{name} x{len(plate.offsets)} of {count}"
-    config = prusa_config(bed_mm, density_g_cm3)
-    if not supports:
-        config = config.replace("support_material = 1\n", "support_material = 0\n")
+    config = prusa_config(bed_mm, density_g_cm3, supports)
     entries = {
         "[Content_Types].xml": (
             '<?xml version="1.0" encoding="UTF-8"?>\n<Types xmlns='

@@ -772,22 +772,6 @@ def stability_margin(
     return _support_margins(points, valid, np.ascontiguousarray(com[:, :2]))
 
 
-def _stability_margin_one_by_one(
-    template: Template, names: tuple[str, ...], q: np.ndarray, contact: float = 0.002
-) -> np.ndarray:
-    """:func:`stability_margin` sample by sample with :func:`_support_margin` (the
-    reference the batched one is tested against)."""
-    com, soles, corners = _soles(template, names, q)
-    out = np.empty(len(com))
-    for i in range(len(com)):
-        low = soles[:, i, 2].min()
-        pts = [
-            soles[k, i, :2] + corners for k in range(len(soles)) if soles[k, i, 2] <= low + contact
-        ]
-        out[i] = _support_margin(com[i, :2], np.concatenate(pts))
-    return out
-
-
 # --- the controller ------------------------------------------------------------------------------
 
 

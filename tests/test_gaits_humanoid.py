@@ -656,6 +656,22 @@ def test_sizing_holds_each_joints_fastest_instant_of_the_gaits():
     assert "l_gripper" not in holds  # still in both gaits
 
 
+def _stability_margin_one_by_one(tmpl, names, q, contact: float = 0.002) -> np.ndarray:
+    """``stability_margin`` sample by sample with ``_support_margin``: the reference the
+    batched one is tested against."""
+    import gaits.humanoid as H
+
+    com, soles, corners = H._soles(tmpl, names, q)
+    out = np.empty(len(com))
+    for i in range(len(com)):
+        low = soles[:, i, 2].min()
+        pts = [
+            soles[k, i, :2] + corners for k in range(len(soles)) if soles[k, i, 2] <= low + contact
+        ]
+        out[i] = H._support_margin(com[i, :2], np.concatenate(pts))
+    return out
+
+
 def test_batched_stability_margin_equals_the_one_by_one_margin_to_the_bit():
     """The walking and turning gaits' samples (one foot, two feet, feet apart) and a case
     built to differ: a COM outside the support (negative margins) and a foot in the air."""
@@ -665,11 +681,11 @@ def test_batched_stability_margin_equals_the_one_by_one_margin_to_the_bit():
     gait = H.reference_gait(0.08, H.WALK, 1.0, samples=96, template=tmpl)
     q = gait.q.copy()
     got = H.stability_margin(tmpl, gait.joints, q)
-    want = H._stability_margin_one_by_one(tmpl, gait.joints, q)
+    want = _stability_margin_one_by_one(tmpl, gait.joints, q)
     assert np.array_equal(got, want)
     q[:, gait.joints.index("l_hip_roll")] += 0.6  # leans: some samples fall outside
     got = H.stability_margin(tmpl, gait.joints, q)
-    want = H._stability_margin_one_by_one(tmpl, gait.joints, q)
+    want = _stability_margin_one_by_one(tmpl, gait.joints, q)
     assert np.array_equal(got, want) and got.min() < 0 < got.max()
     # the points of one sample: a square and a point outside it, then two coincident feet
     pts = np.array([[[0, 0], [1, 0], [1, 1], [0, 1]], [[0, 0], [0, 0], [2, 0], [0, 2]]], float)
