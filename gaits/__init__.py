@@ -41,6 +41,8 @@ def controller_for(geometry: DesignGeometry, **options: object) -> Controller:
     accepted = inspect.signature(cls).parameters
     given = {k: v for k, v in sorted(options.items()) if k in accepted}
     controller = cls(geometry, **given)
-    key = _plain({"geometry": dataclasses.asdict(geometry), "options": given})
+    # the plans' key: what the controller reads of the geometry, and the options given
+    read = {k: v for k, v in dataclasses.asdict(geometry).items() if k not in cls.PLAN_IGNORES}
+    key = _plain({"geometry": read, "options": given})
     controller.identity = None if key is None else (module, name, key)
     return controller

@@ -263,6 +263,11 @@ def _key(value: object) -> object:
 class Controller(ABC):
     """The behaviours of one design."""
 
+    #: Fields of ``DesignGeometry`` that this controller never reads: designs that differ
+    #: only in them share their plans (``gaits.controller_for`` leaves them out of the
+    #: controller's ``identity``), e.g. a design sized, then its record with its masses.
+    PLAN_IGNORES: frozenset[str] = frozenset()
+
     def __init__(self, geometry: DesignGeometry) -> None:
         self.geometry = geometry
         self.template = geometry.build()

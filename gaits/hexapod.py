@@ -67,8 +67,10 @@ moves its stance foot radially, tilting the tibia) at 95 % of that margin, or at
 
 from __future__ import annotations
 
+import hashlib
 import math
-from collections.abc import Mapping, Sequence
+from collections import OrderedDict
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -240,21 +242,37 @@ def leg_ik(leg: Leg, p: np.ndarray) -> np.ndarray:
     (trunk frame), outward of the coxa axis, knee-up branch (|q_tibia| <= pi/2); ValueError
     when a point is out of the leg's reach.
     Joint limits are not checked (see :func:`limit_slack`)."""
-    p = np.asarray(p, dtype=float)
-    d = p - leg.mount
-    psi = np.arctan2(d[..., 1], d[..., 0])
-    q_coxa = (psi - leg.yaw + math.pi) % (2 * math.pi) - math.pi
-    rho = np.hypot(d[..., 0], d[..., 1]) - leg.coxa
-    z = d[..., 2]
-    f, t = leg.femur, leg.tibia
-    k = (f * f + t * t - rho * rho - z * z) / (2 * f * t)
+    q, k = _ik(leg.mount, leg.yaw, leg.coxa, leg.femur, leg.tibia, p)
     if np.any(np.abs(k) > 1 + 1e-12):
         worst = float(np.max(np.abs(k)))
         raise ValueError(f"leg {leg.name}: foot target out of reach (|sin q_tibia| = {worst:.3f})")
+    return q
+
+
+def _ik(
+    mount: np.ndarray,
+    yaw: float | np.ndarray,
+    coxa: float | np.ndarray,
+    femur: float | np.ndarray,
+    tibia: float | np.ndarray,
+    p: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`leg_ik`'s arithmetic without the reach check, for leg figures that are
+    numbers or arrays broadcasting against ``p`` (..., 3) (``mount`` against ``p``, the
+    others against ``p[..., 0]``; many legs at once): (joint angles (..., 3) rad,
+    sin q_tibia (...,), out of reach where its magnitude exceeds 1)."""
+    p = np.asarray(p, dtype=float)
+    d = p - mount
+    psi = np.arctan2(d[..., 1], d[..., 0])
+    q_coxa = (psi - yaw + math.pi) % (2 * math.pi) - math.pi
+    rho = np.hypot(d[..., 0], d[..., 1]) - coxa
+    z = d[..., 2]
+    f, t = femur, tibia
+    k = (f * f + t * t - rho * rho - z * z) / (2 * f * t)
     q_tibia = np.arcsin(np.clip(k, -1.0, 1.0))
     q_femur = np.arctan2(-z, rho) - np.arctan2(t * np.cos(q_tibia), f - t * np.sin(q_tibia))
     q_femur = (q_femur + math.pi) % (2 * math.pi) - math.pi
-    return np.stack([q_coxa, q_femur, q_tibia], axis=-1)
+    return np.stack([q_coxa, q_femur, q_tibia], axis=-1), k
 
 
 def limit_slack(leg: Leg, q: np.ndarray) -> np.ndarray:
@@ -546,31 +564,208 @@ def max_stride(
     """The longest stride s m such that every leg's stance segment, its neutral point
     +- s/2 x ``travel[leg]`` (a (2,) vector in the trunk frame, of length <= 1: the
     leg's share of the stride), is reachable (:func:`_segment_ok`) and neighbouring
-    segments stay ``LEG_CLEARANCE`` apart. 0 when none is."""
+    segments stay ``LEG_CLEARANCE`` apart. 0 when none is.
 
-    def ok(s: float) -> bool:
-        segs = {}
-        for leg in legs:
-            n = leg.neutral[:2]
-            half = 0.5 * s * np.asarray(travel[leg.name], dtype=float)
-            pts = n + np.linspace(-1.0, 1.0, 21)[:, None] * half
-            if not _segment_ok(leg, pts, height, step, coxa_swing):
-                return False
-            segs[leg.name] = (n - half, n + half)
-        names = list(segs)
-        first, second = np.triu_indices(len(names), 1)
-        if not len(first):
-            return True
-        ends = np.array([segs[n] for n in names])  # (legs, 2, 2)
-        return bool(np.all(_segment_distances(ends[first], ends[second]) >= LEG_CLEARANCE))
+    Found by ``STRIDE_BISECTIONS`` halvings of [0, 4 x the longest leg]; each batch of
+    ``STRIDE_BATCH_LEVELS`` of them is decided by one vectorised test of every midpoint
+    they can reach (:func:`_stride_tests`), so the result is the one-by-one bisection's to
+    the bit. Remembered per legs, travel, height and step (walking and running ask alike)."""
+    key = (
+        _legs_key(legs),
+        tuple(tuple(float(x) for x in np.asarray(travel[leg.name], dtype=float)) for leg in legs),
+        float(height),
+        float(step),
+        float(coxa_swing),
+    )
+    hit = _STRIDES.get(key)
+    if hit is not None:
+        _STRIDES.move_to_end(key)
+        return hit
+    out = _bisect_stride(legs, travel, height, step, coxa_swing)
+    _STRIDES[key] = out
+    while len(_STRIDES) > _MEMO_SIZE:
+        _STRIDES.popitem(last=False)
+    return out
 
-    if not ok(0.0):
-        return 0.0
+
+#: Halvings of the stride search (4 x leg length / 2^40: below a nanometre).
+STRIDE_BISECTIONS = 40
+#: Halvings decided by one batched test (its 2^k - 1 reachable midpoints).
+STRIDE_BATCH_LEVELS = 4
+#: Results kept by each memo of this module (strides, timings, plans).
+_MEMO_SIZE = 64
+_STRIDES: OrderedDict[tuple, float] = OrderedDict()
+
+
+def _legs_key(legs: Sequence[Leg]) -> tuple:
+    """What identifies the legs' geometry (a memo key)."""
+    return tuple(
+        (
+            leg.name,
+            leg.joints,
+            tuple(float(x) for x in leg.mount),
+            leg.yaw,
+            leg.coxa,
+            leg.femur,
+            leg.tibia,
+            tuple(float(x) for x in leg.lower),
+            tuple(float(x) for x in leg.upper),
+            leg.foot_body,
+        )
+        for leg in legs
+    )
+
+
+def model_key(template: Template) -> bytes:
+    """A digest of everything of ``template`` a gait plan reads: its model's bodies
+    (masses, centres of mass, inertias), joints (frames, axes, limits) and gravity, and
+    its feet (a memo key for plans of templates built alike)."""
+    h = hashlib.blake2b(digest_size=20)
+    m = template.model
+    for b in m.bodies:
+        h.update(repr((b.name, b.mass)).encode())
+        h.update(np.ascontiguousarray(b.com, dtype=float).tobytes())
+        h.update(np.ascontiguousarray(b.inertia, dtype=float).tobytes())
+    for j in m.joints:
+        h.update(repr((j.name, j.parent, j.child, j.kind, j.lower, j.upper)).encode())
+        h.update(np.ascontiguousarray(j.origin, dtype=float).tobytes())
+        h.update(np.ascontiguousarray(j.axis, dtype=float).tobytes())
+    h.update(np.ascontiguousarray(m.gravity, dtype=float).tobytes())
+    h.update(repr(tuple(template.feet)).encode())
+    for p in template.foot_points:
+        h.update(np.ascontiguousarray(p, dtype=float).tobytes())
+    return h.digest()
+
+
+def _bisect_stride(
+    legs: Sequence[Leg],
+    travel: Mapping[str, np.ndarray],
+    height: float,
+    step: float,
+    coxa_swing: float,
+) -> float:
+    """:func:`max_stride` without its memo."""
     lo, hi = 0.0, 4 * max(leg.coxa + leg.femur + leg.tibia for leg in legs)
-    for _ in range(40):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    left = STRIDE_BISECTIONS
+    first = True
+    while left > 0:
+        k = min(STRIDE_BATCH_LEVELS, left)
+        # every midpoint the next k halvings can reach, in heap order (node i's midpoint
+        # failing leads to node 2i + 1, passing to 2i + 2)
+        mids: list[float] = []
+        spans = [(lo, hi)]
+        for _ in range(k):
+            nxt = []
+            for a, b in spans:
+                m = 0.5 * (a + b)
+                mids.append(m)
+                nxt += [(a, m), (m, b)]
+            spans = nxt
+        skip = int(first)  # the first batch also tests stride 0
+        ok = _stride_tests(legs, travel, height, step, coxa_swing, [0.0] * skip + mids)
+        if first and not ok(0):
+            return 0.0
+        first = False
+        i = 0
+        for _ in range(k):
+            mid = 0.5 * (lo + hi)
+            lo, hi, i = (mid, hi, 2 * i + 2) if ok(skip + i) else (lo, mid, 2 * i + 1)
+        left -= k
     return lo
+
+
+def _stride_tests(
+    legs: Sequence[Leg],
+    travel: Mapping[str, np.ndarray],
+    height: float,
+    step: float,
+    coxa_swing: float,
+    strides: Sequence[float],
+) -> Callable[[int], bool]:
+    """``test(i)``: whether ``strides[i]`` m passes :func:`max_stride`'s test, with the
+    arithmetic of :func:`_segment_ok` and :func:`_segment_distances` leg by leg. The legs'
+    reach and the exact gaps between their segments are found for every stride at once;
+    the sampled distances of the segments that come near, only for a stride tested."""
+    s = np.asarray(strides, dtype=float)
+    n = np.array([leg.neutral[:2] for leg in legs])  # (L, 2)
+    tr = np.array([np.asarray(travel[leg.name], dtype=float) for leg in legs])
+    half = (0.5 * s)[None, :, None] * tr[:, None, :]  # (L, S, 2)
+    lin = np.linspace(-1.0, 1.0, 21)[:, None]
+    pts = n[:, None, None, :] + lin[None, None] * half[:, :, None, :]  # (L, S, 21, 2)
+    p = np.concatenate([pts, np.full((*pts.shape[:-1], 1), -height)], axis=-1)
+    lifted = p + (0.0, 0.0, step)
+
+    def fig(values: Sequence[float]) -> np.ndarray:  # (L, 1, 1): against (L, S, 21)
+        return np.array(values, dtype=float)[:, None, None]
+
+    mount = np.array([leg.mount for leg in legs], dtype=float)[:, None, None, :]
+    shape = (
+        fig([leg.yaw for leg in legs]),
+        fig([leg.coxa for leg in legs]),
+        fig([leg.femur for leg in legs]),
+        fig([leg.tibia for leg in legs]),
+    )
+    lower = np.array([leg.lower for leg in legs], dtype=float)[:, None, None, :]
+    upper = np.array([leg.upper for leg in legs], dtype=float)[:, None, None, :]
+    q, k = _ik(mount, *shape, p)
+    ql, kl = _ik(mount, *shape, lifted)
+    reach = (
+        ~np.any(np.abs(k) > 1 + 1e-12, axis=-1)
+        & ~np.any(np.abs(kl) > 1 + 1e-12, axis=-1)
+        & np.all(np.abs(q[..., 0]) <= coxa_swing, axis=-1)
+        & np.all(np.minimum(q - lower, upper - q).min(axis=-1) >= JOINT_MARGIN, axis=-1)
+        & np.all(np.minimum(ql - lower, upper - ql).min(axis=-1) >= JOINT_MARGIN, axis=-1)
+        & np.all(np.abs(q[..., 1] + q[..., 2]) <= TIBIA_TILT, axis=-1)
+    ).all(axis=0)  # (S,)
+    first, second = np.triu_indices(len(legs), 1)
+    ends = np.stack([n[:, None, :] - half, n[:, None, :] + half], axis=2)  # (L, S, 2, 2)
+    a, b = ends[first], ends[second]  # (pairs, S, 2, 2)
+    near = _segment_gaps(a.reshape(-1, 2, 2), b.reshape(-1, 2, 2)).reshape(len(first), len(s))
+    near = near < LEG_CLEARANCE + GAP_SLACK
+
+    def test(i: int) -> bool:
+        if not reach[i]:
+            return False
+        pairs = np.flatnonzero(near[:, i])
+        if not len(pairs):
+            return True
+        return bool(np.all(_segment_distances(a[pairs, i], b[pairs, i]) >= LEG_CLEARANCE))
+
+    return test
+
+
+#: The exact distance of two segments is at most their sampled distance
+#: (:func:`_segment_distances`); pairs whose exact distance clears ``LEG_CLEARANCE`` by
+#: this much (m, far above rounding) pass without sampling.
+GAP_SLACK = 1e-9
+
+
+def _segment_gaps(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Exact distances (P,) m between 2-D segments ``a`` and ``b`` (P, 2 ends, 2)."""
+
+    def to_segment(p: np.ndarray, s: np.ndarray) -> np.ndarray:
+        e = s[:, 1] - s[:, 0]
+        ee = np.einsum("ij,ij->i", e, e)
+        t = np.einsum("ij,ij->i", p - s[:, 0], e) / np.where(ee > 0, ee, 1.0)
+        t = np.clip(np.where(ee > 0, t, 0.0), 0.0, 1.0)
+        return np.linalg.norm(p - s[:, 0] - t[:, None] * e, axis=1)
+
+    def side(o: np.ndarray, e: np.ndarray, p: np.ndarray) -> np.ndarray:
+        return e[:, 0] * (p[:, 1] - o[:, 1]) - e[:, 1] * (p[:, 0] - o[:, 0])
+
+    ea, eb = a[:, 1] - a[:, 0], b[:, 1] - b[:, 0]
+    crossing = (side(a[:, 0], ea, b[:, 0]) * side(a[:, 0], ea, b[:, 1]) < 0) & (
+        side(b[:, 0], eb, a[:, 0]) * side(b[:, 0], eb, a[:, 1]) < 0
+    )
+    gap = np.minimum.reduce(
+        [
+            to_segment(a[:, 0], b),
+            to_segment(a[:, 1], b),
+            to_segment(b[:, 0], a),
+            to_segment(b[:, 1], a),
+        ]
+    )
+    return np.where(crossing, 0.0, gap)
 
 
 # --- planning ---------------------------------------------------------------------------------
@@ -699,9 +894,49 @@ def gait_timing(
     lead: float,
 ) -> GaitTiming:
     """The schedule of ``cycles`` cycles of ``pattern`` after ``t_rise`` s of rising and
-    ``lead`` s of standing (and ``lead`` s standing at the end)."""
+    ``lead`` s of standing (and ``lead`` s standing at the end). Remembered (read-only
+    arrays): a planner asks for the same schedule again and again while it settles a
+    gait's timing."""
     if cycles < 1 or not period > 0:
         raise ValueError("a gait needs at least one cycle of positive period")
+    key = (
+        _pattern_key(pattern),
+        tuple(leg.name for leg in legs),
+        int(cycles),
+        float(period),
+        float(t_rise),
+        float(lead),
+    )
+    hit = _TIMINGS.get(key)
+    if hit is not None:
+        _TIMINGS.move_to_end(key)
+        return hit
+    out = _timing(pattern, legs, cycles, period, t_rise, lead)
+    for a in (out.times, out.envelope, out.progress, *out.swings.values()):
+        a.setflags(write=False)
+    _TIMINGS[key] = out
+    while len(_TIMINGS) > _MEMO_SIZE:
+        _TIMINGS.popitem(last=False)
+    return out
+
+
+_TIMINGS: OrderedDict[tuple, GaitTiming] = OrderedDict()
+
+
+def _pattern_key(pattern: GaitPattern) -> tuple:
+    """What identifies a gait pattern (a memo key)."""
+    return (pattern.name, float(pattern.duty), tuple(sorted(pattern.phases.items())))
+
+
+def _timing(
+    pattern: GaitPattern,
+    legs: Sequence[Leg],
+    cycles: int,
+    period: float,
+    t_rise: float,
+    lead: float,
+) -> GaitTiming:
+    """:func:`gait_timing` without its memo."""
     t_start = t_rise + lead
     sw = _swings(pattern, legs, cycles, t_start, period)
     t_stop = max(float(iv[-1, 1]) for iv in sw.values())

@@ -951,6 +951,8 @@ class HumanoidController(Controller):
     ``info["planned_positions"]`` keeps the planned angles.
     """
 
+    PLAN_IGNORES = frozenset({"mass_kg", "joint_torque", "calibration", "joint_speed"})
+
     def __init__(
         self,
         geometry: DesignGeometry,

@@ -35,6 +35,7 @@ same).
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -49,10 +50,13 @@ from gaits.hexapod import (
     TRANSITION_S,
     GaitPattern,
     GaitPlan,
+    _legs_key,
+    _pattern_key,
     gait_pattern,
     gait_timing,
     legs_of,
     max_stride,
+    model_key,
     plan_gait,
     standing_height,
 )
@@ -84,11 +88,16 @@ RUN_GAITS: dict[int, tuple[str, float | None]] = {
 }
 #: Duties tried for running, from the shortest to the gait's own.
 RUN_DUTY_STEPS = 3
+#: Gait plans kept in memory (see ``LeggedController._plan``).
+PLAN_MEMO = 32
 #: Named directions of travel, rad (counter-clockwise from the trunk's +x).
 DIRECTIONS = {"forward": 0.0, "backward": math.pi, "left": math.pi / 2, "right": -math.pi / 2}
 
 
 # --- the controller ---------------------------------------------------------------------------
+
+#: Gait plans by what decides them (``LeggedController._plan``): a plan, or why none.
+_PLANS: OrderedDict[tuple, GaitPlan | str] = OrderedDict()
 
 
 @dataclass(frozen=True)
@@ -146,6 +155,8 @@ class LeggedController(Controller):
     default masses (the geometry, which alone decides the gaits, is the same).
     """
 
+    PLAN_IGNORES = frozenset({"mass_kg", "joint_torque", "calibration"})
+
     def __init__(self, geometry: DesignGeometry, template: Template | None = None) -> None:
         super().__init__(geometry)
         if template is not None:
@@ -156,6 +167,7 @@ class LeggedController(Controller):
             self.template = template
         self.com_masses = "design" if template is not None else "template defaults"
         self.legs = legs_of(self.template)
+        self._context: tuple | None = None  # what identifies the plans' template and legs
         self.gaits = GAITS.get(len(self.legs), ())
         if not self.gaits:
             raise ValueError(
@@ -427,9 +439,7 @@ class LeggedController(Controller):
         ):
             period = turn / (candidate.duty * (asked or self.speed / reach))
             try:
-                trial = plan_gait(
-                    self.template,
-                    self.legs,
+                trial = self._plan(
                     candidate,
                     2,
                     period,
@@ -457,6 +467,64 @@ class LeggedController(Controller):
         return self._trajectory(
             "turning", plan, pattern, {"motion": "turn", "heading_rad": float(plan.body[-1, 2])}
         )
+
+    def _plan(
+        self,
+        pattern: GaitPattern,
+        cycles: int,
+        period: float,
+        twist: tuple[float, float, float],
+        step: float,
+        height: float,
+        sway: bool | None = None,
+        stand: bool = False,
+    ) -> GaitPlan:
+        """``plan_gait`` on this design's template and legs, remembered by what decides
+        it (the template's content, legs, gait and arguments; read-only arrays): walking,
+        running and rough-terrain walking, the same design planned with other actuators
+        and the same plan asked again while a timing settles reuse it."""
+        if self._context is None:
+            self._context = (model_key(self.template), _legs_key(self.legs))
+        key = (
+            self._context,
+            _pattern_key(pattern),
+            int(cycles),
+            float(period),
+            tuple(float(x) for x in twist),
+            float(step),
+            float(height),
+            sway,
+            bool(stand),
+        )
+        hit = _PLANS.get(key)
+        if hit is None:
+            try:
+                hit = plan_gait(
+                    self.template,
+                    self.legs,
+                    pattern,
+                    cycles,
+                    period,
+                    twist,
+                    step,
+                    height,
+                    sway=sway,
+                    stand=stand,
+                )
+            except ValueError as e:
+                hit = str(e)
+            else:
+                for a in vars(hit).values():
+                    if isinstance(a, np.ndarray):
+                        a.setflags(write=False)
+            _PLANS[key] = hit
+            while len(_PLANS) > PLAN_MEMO:
+                _PLANS.popitem(last=False)
+        else:
+            _PLANS.move_to_end(key)
+        if isinstance(hit, str):
+            raise ValueError(hit)
+        return hit
 
     def _fit(
         self,
@@ -511,17 +579,8 @@ class LeggedController(Controller):
                 v = per_stance / (duty * period)
                 twist = (v * float(u[0]), v * float(u[1]), 0.0)
             try:
-                plan = plan_gait(
-                    self.template,
-                    self.legs,
-                    pattern,
-                    cycles,
-                    period,
-                    twist,
-                    step,
-                    self.height,
-                    sway=False,
-                    stand=bool(sway),
+                plan = self._plan(
+                    pattern, cycles, period, twist, step, self.height, sway=False, stand=bool(sway)
                 )
                 if sway is None:
                     sway = bool(plan.margin.min() < MIN_MARGIN)
@@ -529,17 +588,7 @@ class LeggedController(Controller):
                         continue  # the timing again, with the standing lead-in and -out
                 ratio = self._ratio(plan.q, plan.times)
                 if ratio <= 1 + 1e-6 and sway:
-                    plan = plan_gait(
-                        self.template,
-                        self.legs,
-                        pattern,
-                        cycles,
-                        period,
-                        twist,
-                        step,
-                        self.height,
-                        sway=True,
-                    )
+                    plan = self._plan(pattern, cycles, period, twist, step, self.height, sway=True)
                     ratio = self._ratio(plan.q, plan.times)
             except ValueError:  # a foot out of reach, or no sway: a shorter stride may do
                 return None

@@ -430,6 +430,8 @@ class ManipulatorController(Controller):
     ``elbow``: the preferred elbow branch, "up" or "down".
     """
 
+    PLAN_IGNORES = frozenset({"mass_kg", "joint_torque", "calibration"})
+
     def __init__(
         self,
         geometry: DesignGeometry,

@@ -372,6 +372,8 @@ class SnakeController(Controller):
     upright, stays within ``SPEED_MARGIN`` whatever the roll.)
     """
 
+    PLAN_IGNORES = frozenset({"mass_kg", "joint_torque", "calibration"})
+
     def __init__(self, geometry: DesignGeometry) -> None:
         super().__init__(geometry)
         m = self.template.model

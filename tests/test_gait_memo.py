@@ -1,0 +1,102 @@
+"""The multiped planner's shortcuts give what the plain computations give, to the bit:
+the batched stride search against the one-by-one bisection, and the memos of strides,
+timings and plans against fresh computations (gaits/hexapod.py)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gaits import hexapod
+from gaits.hexapod import (
+    COXA_SWING,
+    LEG_CLEARANCE,
+    _bisect_stride,
+    _segment_distances,
+    _segment_gaps,
+    _segment_ok,
+    legs_of,
+)
+from kinematics.templates import TemplateParams, build, default_lengths
+
+
+def _reference_stride(legs, travel, height, step, coxa_swing=COXA_SWING) -> float:
+    """``max_stride`` as it was: one test per halving, leg by leg."""
+
+    def ok(s: float) -> bool:
+        segs = {}
+        for leg in legs:
+            n = leg.neutral[:2]
+            half = 0.5 * s * np.asarray(travel[leg.name], dtype=float)
+            pts = n + np.linspace(-1.0, 1.0, 21)[:, None] * half
+            if not _segment_ok(leg, pts, height, step, coxa_swing):
+                return False
+            segs[leg.name] = (n - half, n + half)
+        first, second = np.triu_indices(len(segs), 1)
+        ends = np.array([segs[n] for n in segs])
+        return bool(np.all(_segment_distances(ends[first], ends[second]) >= LEG_CLEARANCE))
+
+    if not ok(0.0):
+        return 0.0
+    lo, hi = 0.0, 4 * max(leg.coxa + leg.femur + leg.tibia for leg in legs)
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    return lo
+
+
+def _legs(robot_type: str, obstacle: float):
+    """Legs of a multiped sized for an obstacle height (m), as ``Multipeds.size`` does."""
+    d = dict(default_lengths(robot_type))
+    femur = (obstacle + 0.01) / math.sin(math.pi / 4)
+    d.update(femur=femur, tibia=max(obstacle + 0.03, 1.25 * femur))
+    return legs_of(build(robot_type, TemplateParams(lengths=d)))
+
+
+CASES = [
+    (rt, h, direction, step)
+    for rt in ("HexapodRobot", "QuadrupedRobot")
+    for h in (0.01, 0.03, 0.05)
+    for direction in (0.0, math.pi / 2, 0.7, None)  # None: the turn's travel
+    for step in (0.02, 0.06)
+]
+
+
+@pytest.mark.parametrize(("robot_type", "obstacle", "direction", "step"), CASES)
+def test_batched_stride_search_is_the_bisection_to_the_bit(
+    robot_type, obstacle, direction, step
+) -> None:
+    legs = _legs(robot_type, obstacle)
+    if direction is None:
+        reach = max(float(np.hypot(*leg.neutral[:2])) for leg in legs)
+        travel = {leg.name: np.array([-leg.neutral[1], leg.neutral[0]]) / reach for leg in legs}
+    else:
+        u = np.array([math.cos(direction), math.sin(direction)])
+        travel = {leg.name: u for leg in legs}
+    height = max(float(-leg.neutral[2]) for leg in legs) + 0.01
+    want = _reference_stride(legs, travel, height, step)
+    assert _bisect_stride(legs, travel, height, step, COXA_SWING) == want
+    hexapod._STRIDES.clear()
+    assert hexapod.max_stride(legs, travel, height, step) == want
+    assert hexapod.max_stride(legs, travel, height, step) == want  # remembered
+
+
+def test_a_stride_no_leg_can_take_is_zero() -> None:
+    legs = _legs("HexapodRobot", 0.03)
+    travel = {leg.name: np.array([1.0, 0.0]) for leg in legs}
+    assert _bisect_stride(legs, travel, 5.0, 0.02, COXA_SWING) == 0.0  # feet far below reach
+
+
+def test_exact_segment_gaps_bound_the_sampled_distances() -> None:
+    rng = np.random.default_rng(3)
+    a = rng.uniform(-0.1, 0.1, (2000, 2, 2))
+    b = rng.uniform(-0.1, 0.1, (2000, 2, 2))
+    b[:10] = a[:10]  # identical segments
+    b[10:20, 1] = b[10:20, 0]  # points
+    gaps, sampled = _segment_gaps(a, b), _segment_distances(a, b)
+    assert np.all(gaps <= sampled + 1e-15)
+    assert np.all(sampled - gaps <= 0.2 / 40)  # within a sample step of the exact one
+    crossing = np.array([[[0.0, -1.0], [0.0, 1.0]]]), np.array([[[-1.0, 0.0], [1.0, 0.0]]])
+    assert _segment_gaps(*crossing)[0] == 0.0
