@@ -14,6 +14,7 @@ run with its default parameters and judged by :mod:`export.verdict`.
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -146,14 +147,26 @@ def run_behavior(
 ) -> tuple[Trajectory, SimResult]:
     """Run behaviour ``name`` of ``controller`` on ``model``: (trajectory, judged result).
     ValueError for an unknown behaviour or parameter (the message lists the valid ones)."""
+    traj = controller.run(name, **dict(params or {}))
+    return traj, _simulate(model, controller, traj, seconds, progress)
+
+
+def _simulate(
+    model,
+    controller: Controller,
+    traj: Trajectory,
+    seconds: float | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> SimResult:
+    """``traj`` of ``controller`` run on ``model`` and judged (``export.simulate.simulate``
+    told whether the robot can fall and where its gripper is)."""
     from export.simulate import simulate
 
-    traj = controller.run(name, **dict(params or {}))
     tmpl = controller.template
     body = traj.info.get("tool_body")
     if body is None and tmpl.end_effectors:
         body = tmpl.end_effectors[0]
-    result = simulate(
+    return simulate(
         model,
         traj,
         seconds,
@@ -161,7 +174,6 @@ def run_behavior(
         end_effector=str(body) if body is not None else None,
         progress=progress,
     )
-    return traj, result
 
 
 def figures(traj: Trajectory, result: SimResult) -> dict:
@@ -173,16 +185,68 @@ def figures(traj: Trajectory, result: SimResult) -> dict:
     return rec
 
 
+#: Simulations of one verification run at once, each on a thread of its own (MuJoCo steps
+#: without Python's lock); the results do not depend on it.
+VERIFY_THREADS = 2
+
+
 def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None) -> list[dict]:
     """Every listed behaviour of the design (default parameters) run and judged: one
-    :func:`figures` dict each, in name order."""
+    :func:`figures` dict each, in name order.
+
+    The behaviours are planned one after another, then simulated on up to
+    ``VERIFY_THREADS`` threads; behaviours with the same plan (the same trajectory and
+    promise under another name, e.g. running that the actuators hold to walking's pace)
+    are simulated once (a run depends on nothing else: the figures are the same)."""
+    import dataclasses
+    from concurrent.futures import ThreadPoolExecutor
+
     controller = controller_for_model(record, model)
     names = controller.listed(record.get("abilities", ())) if behaviors is None else list(behaviors)
+    trajs = [controller.run(n) for n in names]
+    same: dict[bytes, int] = {}
+    first = [same.setdefault(_plan_digest(t), k) for k, t in enumerate(trajs)]
+    runs = sorted(set(first))
+    threads = min(VERIFY_THREADS, len(runs), os.cpu_count() or 1)
+    if threads > 1:
+        with ThreadPoolExecutor(threads) as pool:
+            done = list(pool.map(lambda k: _simulate(model, controller, trajs[k]), runs))
+    else:
+        done = [_simulate(model, controller, trajs[k]) for k in runs]
+    results = dict(zip(runs, done, strict=True))
     out = []
-    for n in names:
-        fig = figures(*run_behavior(model, controller, n))
+    for k, n in enumerate(names):
+        result = dataclasses.replace(results[first[k]], behavior=trajs[k].behavior)
+        fig = figures(trajs[k], result)
         out.append({"behavior": n, "ability": controller.behaviors[n].realises} | fig)
     return out
+
+
+def _plan_digest(traj: Trajectory) -> bytes:
+    """A digest of everything of ``traj`` a simulation reads (samples, joints, promise),
+    its name left out."""
+    import hashlib
+
+    h = hashlib.blake2b(digest_size=20)
+
+    def feed(x: object) -> None:
+        if isinstance(x, np.ndarray):
+            h.update(f"a{x.dtype.str}{x.shape}".encode())
+            h.update(np.ascontiguousarray(x).tobytes())
+        elif isinstance(x, Mapping):
+            h.update(b"m%d" % len(x))
+            for k in sorted(x, key=str):
+                feed(str(k))
+                feed(x[k])
+        elif isinstance(x, (list, tuple)):
+            h.update(b"s%d" % len(x))
+            for v in x:
+                feed(v)
+        else:
+            h.update(f"{type(x).__name__}:{x!r};".encode())
+
+    feed([traj.times, traj.joints, traj.positions, traj.velocities, traj.info])
+    return h.digest()
 
 
 def verify_files(
