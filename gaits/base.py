@@ -101,8 +101,9 @@ class Trajectory:
         """Deterministic CSV: ``t`` then one position column per joint (rad)."""
         out = io.StringIO()
         out.write(",".join(["t", *self.joints]) + "\n")
-        for t, row in zip(self.times, self.positions, strict=True):
-            out.write(",".join(f"{x:.6f}" for x in (t, *row)) + "\n")
+        line = ",".join(["%.6f"] * (1 + len(self.joints))) + "\n"  # as f"{x:.6f}" writes
+        rows = np.column_stack([self.times, self.positions]).tolist()
+        out.write("".join(line % tuple(row) for row in rows))
         return out.getvalue()
 
 

@@ -1,6 +1,6 @@
 """The multiped planner's shortcuts give what the plain computations give, to the bit:
 the batched stride search against the one-by-one bisection, and the memos of strides,
-timings and plans against fresh computations (gaits/hexapod.py)."""
+timings and plans against fresh computations (gaits/hexapod.py); a trajectory's CSV."""
 
 from __future__ import annotations
 
@@ -100,3 +100,67 @@ def test_exact_segment_gaps_bound_the_sampled_distances() -> None:
     assert np.all(sampled - gaps <= 0.2 / 40)  # within a sample step of the exact one
     crossing = np.array([[[0.0, -1.0], [0.0, 1.0]]]), np.array([[[-1.0, 0.0], [1.0, 0.0]]])
     assert _segment_gaps(*crossing)[0] == 0.0
+
+
+def test_trajectory_csv_writes_each_number_as_the_fixed_point_format_does() -> None:
+    from gaits.base import Trajectory
+
+    t = np.linspace(0.0, 1.0, 5)
+    q = np.array(
+        [[-0.0, 1e300], [np.nan, -np.inf], [1 / 3, -2.5e-7], [0.0000005, 123456.7890125], [1, 2]]
+    )
+    got = Trajectory("x", t, ("a", "b"), q, np.zeros_like(q)).csv()
+    want = "t,a,b\n" + "".join(
+        ",".join(f"{x:.6f}" for x in (ti, *row)) + "\n" for ti, row in zip(t, q, strict=True)
+    )
+    assert got == want
+
+
+def _hexapod(**kw):
+    import dataclasses
+
+    from gaits.base import DesignGeometry
+
+    tmpl = build("HexapodRobot")
+    g = DesignGeometry(
+        robot_type="HexapodRobot",
+        template="HexapodRobot",
+        lengths=dict(tmpl.lengths),
+        modules=18,
+        wheel_radius=0.03,
+        params={"obstacle_height": 0.03, "speed": 0.05},
+        abilities=("walking",),
+        joint_speed={j.name: 6.0 for j in tmpl.model.joints if j.kind == "revolute"},
+    )
+    return dataclasses.replace(g, **kw)
+
+
+def test_remembered_plans_are_the_fresh_ones_and_read_only() -> None:
+    from gaits import legged
+    from gaits.legged import LeggedController
+
+    def fresh(name: str):
+        hexapod._STRIDES.clear()
+        hexapod._TIMINGS.clear()
+        legged._PLANS.clear()
+        return LeggedController(_hexapod()).run(name)
+
+    for name in ("walking", "turning"):
+        a = fresh(name)
+        b = LeggedController(_hexapod()).run(name)  # its plan remembered: shared, read-only
+        assert b.positions is a.positions
+        with pytest.raises(ValueError):
+            b.info["body_path"][0, 0] = 1.0
+        c = fresh(name)  # planned again from nothing: the same, to the bit
+        for x, y in ((a.times, c.times), (a.positions, c.positions), (a.velocities, c.velocities)):
+            assert x.tobytes() == y.tobytes()
+        assert a.info["stability_margin_m"].tobytes() == c.info["stability_margin_m"].tobytes()
+
+
+def test_plans_are_shared_across_what_a_controller_does_not_read() -> None:
+    from gaits import controller_for
+
+    a = controller_for(_hexapod()).run("walking")
+    assert controller_for(_hexapod(mass_kg=2.0, joint_torque={"x": 1.0})).run("walking") is a
+    slower = {k: 3.0 for k in _hexapod().joint_speed}
+    assert controller_for(_hexapod(joint_speed=slower)).run("walking") is not a
