@@ -844,19 +844,25 @@ def _swings(
 
 def _ramp_for(swings: Mapping[str, np.ndarray], t0: float, t1: float, budget: float) -> float:
     """The shortest ramp s whose envelope moves the body less than ``budget`` (s at full
-    speed) during each leg's first and last stance."""
+    speed) during each leg's first and last stance (the same arithmetic as
+    :func:`_envelope` and :func:`_progress` on a fine grid; the grid's steps and offsets
+    computed once, every leg's first lift-off and last landing read at once)."""
     grid = np.linspace(t0, t1, 4001)
+    dt, after, before = np.diff(grid), grid - t0, t1 - grid
+    legs = len(swings)
+    ends = np.array(
+        [float(iv[0, 0]) for iv in swings.values()] + [float(iv[-1, 1]) for iv in swings.values()]
+    )
+    prog = np.zeros_like(grid)
 
     def worst(ramp: float) -> float:
-        prog = _progress(grid, _envelope(grid, t0, t1, ramp))
-        w = 0.0
-        for iv in swings.values():
-            w = max(
-                w,
-                float(np.interp(iv[0, 0], grid, prog)),
-                float(prog[-1] - np.interp(iv[-1, 1], grid, prog)),
-            )
-        return w
+        if ramp <= 0:
+            e = ((grid >= t0) & (grid <= t1)).astype(float)
+        else:
+            e = _smooth(after / ramp) * _smooth(before / ramp)
+        prog[1:] = np.cumsum(0.5 * (e[1:] + e[:-1]) * dt)
+        at = np.interp(ends, grid, prog)
+        return max(0.0, float(at[:legs].max()), float((prog[-1] - at[legs:]).max()))
 
     lo, hi = 0.0, 0.5 * (t1 - t0)
     if worst(lo) <= budget:

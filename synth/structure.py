@@ -28,6 +28,7 @@ Starting from the conceptual design (a robot type with its parts and modules):
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -222,12 +223,20 @@ def speed_at(a: Actuator, torque: float) -> float:
 
 
 def _frame(direction: np.ndarray) -> np.ndarray:
-    """Rotation whose x axis is ``direction`` (columns: tube axes in the body frame)."""
-    x = direction / np.linalg.norm(direction)
+    """Rotation whose x axis is ``direction`` (columns: tube axes in the body frame);
+    read-only, remembered per direction (every load case asks it of every tube)."""
+    return _frame_of(tuple(float(c) for c in direction))
+
+
+@functools.lru_cache(maxsize=256)
+def _frame_of(direction: tuple[float, ...]) -> np.ndarray:
+    x = np.array(direction) / np.linalg.norm(direction)
     helper = np.array([0.0, 0.0, 1.0]) if abs(x[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
     y = np.cross(helper, x)
     y /= np.linalg.norm(y)
-    return np.column_stack([x, y, np.cross(x, y)])
+    out = np.column_stack([x, y, np.cross(x, y)])
+    out.setflags(write=False)
+    return out
 
 
 def free_end_load(seg: Segment, wrench: np.ndarray) -> np.ndarray:

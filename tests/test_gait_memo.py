@@ -164,3 +164,45 @@ def test_plans_are_shared_across_what_a_controller_does_not_read() -> None:
     assert controller_for(_hexapod(mass_kg=2.0, joint_torque={"x": 1.0})).run("walking") is a
     slower = {k: 3.0 for k in _hexapod().joint_speed}
     assert controller_for(_hexapod(joint_speed=slower)).run("walking") is not a
+
+
+def _reference_ramp(swings, t0: float, t1: float, budget: float) -> float:
+    """``_ramp_for`` as it was: the envelope and its progress rebuilt for every ramp."""
+    grid = np.linspace(t0, t1, 4001)
+
+    def worst(ramp: float) -> float:
+        prog = hexapod._progress(grid, hexapod._envelope(grid, t0, t1, ramp))
+        w = 0.0
+        for iv in swings.values():
+            w = max(
+                w,
+                float(np.interp(iv[0, 0], grid, prog)),
+                float(prog[-1] - np.interp(iv[-1, 1], grid, prog)),
+            )
+        return w
+
+    lo, hi = 0.0, 0.5 * (t1 - t0)
+    if worst(lo) <= budget:
+        return lo
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if worst(mid) <= budget else (mid, hi)
+    return hi
+
+
+@pytest.mark.parametrize("robot_type", ["HexapodRobot", "QuadrupedRobot"])
+def test_the_ramp_search_is_the_one_by_one_search_to_the_bit(robot_type) -> None:
+    legs = _legs(robot_type, 0.03)
+    for gait in hexapod.GAITS[len(legs)]:
+        for cycles, period, lead, share in (
+            (1, 0.7, 0.0, 0.5),
+            (4, 1.3, 0.3, 0.5),
+            (2, 2.0, 0.5, 0.2),
+        ):
+            pattern = hexapod.gait_pattern(gait, legs)
+            t_start = 1.0 + lead
+            sw = hexapod._swings(pattern, legs, cycles, t_start, period)
+            t_stop = max(float(iv[-1, 1]) for iv in sw.values())
+            budget = share * pattern.duty * period
+            want = _reference_ramp(sw, t_start, t_stop, budget)
+            assert hexapod._ramp_for(sw, t_start, t_stop, budget) == want
