@@ -380,8 +380,8 @@ def support_shares_batch(points: np.ndarray, mask: np.ndarray, cop: np.ndarray) 
 
 
 def _wrench_on(R: np.ndarray, o: np.ndarray, point: np.ndarray, force: np.ndarray) -> np.ndarray:
-    """Body-frame wrenches (B, 6) of world forces (B, 3) at world points (B, 3) on bodies
-    with rotations ``R`` (B, 3, 3) and origins ``o`` (B, 3)."""
+    """Body-frame wrenches (..., 6) of world forces (..., 3) at world points (..., 3) on
+    bodies with rotations ``R`` (..., 3, 3) and origins ``o`` (..., 3)."""
     Rt = np.swapaxes(R, -1, -2)
     f = (Rt @ force[..., None])[..., 0]
     mo = (Rt @ np.cross(point - o, force)[..., None])[..., 0]
@@ -399,10 +399,11 @@ def behaviour_case(tmpl: Template, mo: Motion) -> BehaviourCase:
     cs = contacts(tmpl)
     masses = np.array([b.mass for b in m.bodies])
     coms = np.array([b.com for b in m.bodies])
-    for b in range(nb):
-        if masses[b] > 0:
-            com_w = mo.o[:, b] + (mo.R[:, b] @ coms[b])
-            fext[:, b] += _wrench_on(mo.R[:, b], mo.o[:, b], com_w, -masses[b] * mo.trunk_acc)
+    heavy = np.flatnonzero(masses > 0)  # every body with mass at once
+    R, o = mo.R[:, heavy], mo.o[:, heavy]
+    com_w = o + (R @ coms[heavy][..., None])[..., 0]
+    inertial = -masses[heavy][None, :, None] * mo.trunk_acc[:, None, :]
+    fext[:, heavy] += _wrench_on(R, o, com_w, inertial)
     W0 = joint_wrenches(m, mo.q, mo.v, mo.a, fext)[:, 0]  # onto the root, root frame
     R0, o0 = mo.R[:, 0], mo.o[:, 0]
     F = (R0 @ W0[:, :3, None])[..., 0]
