@@ -14,10 +14,12 @@ parmor but ``kinematics``.
 from __future__ import annotations
 
 import io
+import os
 from abc import ABC, abstractmethod
 from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -227,6 +229,21 @@ class DesignGeometry:
                 lengths=self.lengths, modules=self.modules, wheel_radius=self.wheel_radius
             ),
         )
+
+
+#: Environment variable naming the folder of parmor's caches ("" turns them off); the
+#: same as ``adron.units.CACHE_ENV`` (gaits import nothing of adron).
+CACHE_ENV = "PARMOR_CACHE"
+
+
+def cache_folder() -> Path | None:
+    """The folder of parmor's caches: ``$PARMOR_CACHE``, else ``$XDG_CACHE_HOME/parmor``,
+    else ``~/.cache/parmor``; None when ``PARMOR_CACHE`` is set empty (no cache)."""
+    env = os.environ.get(CACHE_ENV)
+    if env is not None:
+        return Path(env) if env.strip() else None
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "parmor"
 
 
 #: Trajectories already planned in this process, by (controller identity, behaviour,

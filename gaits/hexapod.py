@@ -69,9 +69,11 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -1020,7 +1022,7 @@ def plan_gait(
         radial = (float(np.mean(np.abs(out[:, 0]))), float(np.mean(np.abs(out[:, 1]))))
         for _ in range(2):  # the legs' share of the COM follows the sway: iterate
             com = center_of_mass(template.model, q)[:, :2]
-            d = _sway_lp(times, plan, pos, yaw, com, height / g, t_rise, tm.t_end, period, radial)
+            d = _sway(times, plan, pos, yaw, com, height / g, t_rise, tm.t_end, period, radial)
             q, feet_b = _joint_plan(template, legs, plan, pos, yaw, d)
         margin = stability_margins(template, legs, q, plan["stance"])
     world = pos + np.einsum("nij,nj->ni", _rot(yaw), d)
@@ -1126,6 +1128,115 @@ def _joint_plan(
         for j, name in enumerate(leg.joints):
             q[:, m.q_index[m.joint(name)]] = qk[:, j]
     return q, feet_b
+
+
+#: Sway solutions kept on disk (``$PARMOR_CACHE/sway-KEY.npy``; the oldest beyond this
+#: many are deleted when one is written).
+SWAY_CACHE_FILES = 512
+
+
+def _sway(
+    times: np.ndarray,
+    plan: Mapping[str, np.ndarray],
+    pos: np.ndarray,
+    yaw: np.ndarray,
+    com: np.ndarray,
+    kz: float,
+    t0: float,
+    t1: float,
+    period: float,
+    radial: tuple[float, float] = (0.0, 0.0),
+) -> np.ndarray:
+    """:func:`_sway_lp`, its solutions kept in parmor's cache folder
+    (:func:`gaits.base.cache_folder`): the linear programmes (and scipy, whose import is
+    most of a quadruped's start-up) are skipped for a plan solved before. KEY hashes every
+    input the programmes read, this file (their code and constants) and scipy's and
+    numpy's versions and builds, so an entry is never stale; an unreadable one is solved
+    again."""
+    from gaits.base import cache_folder
+
+    folder = cache_folder()
+    path = None
+    if folder is not None:
+        key = _sway_key(times, plan, pos, yaw, com, (kz, t0, t1, period, *radial))
+        path = None if key is None else folder / f"sway-{key}.npy"
+    if path is not None:
+        try:
+            got = np.load(path, allow_pickle=False)
+            if got.shape == (len(times), 2) and got.dtype == np.float64:
+                return got
+        except (OSError, ValueError, EOFError):
+            pass
+    out = _sway_lp(times, plan, pos, yaw, com, kz, t0, t1, period, radial)
+    if path is not None:
+        _write_cached(path, out, "sway-", SWAY_CACHE_FILES)
+    return out
+
+
+def _sway_key(times, plan, pos, yaw, com, scalars: tuple[float, ...]) -> str | None:
+    """The cache key of a sway programme (see :func:`_sway`); None when scipy or the
+    sources cannot be read."""
+    if not _SWAY_CODE:
+        _SWAY_CODE.append(_sway_code())
+    code = _SWAY_CODE[0]
+    if code is None:
+        return None
+    h = hashlib.blake2b(code, digest_size=20)
+    for a in (times, plan["stance"], plan["feet"], pos, yaw, com):
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    h.update(repr(tuple(float(x) for x in scalars)).encode())
+    return h.hexdigest()
+
+
+_SWAY_CODE: list[bytes | None] = []  # _sway_code(), once a process
+
+
+def _sway_code() -> bytes | None:
+    """What the sway programmes' solutions depend on besides their inputs: this file, and
+    scipy's and numpy's versions and builds; None when they cannot be read."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("scipy")
+    if spec is None or spec.origin is None:
+        return None
+    try:
+        h = hashlib.blake2b(Path(__file__).read_bytes(), digest_size=20)
+        stat = os.stat(spec.origin)
+        core = os.stat(np._core._multiarray_umath.__file__)
+    except (OSError, AttributeError):
+        return None
+    h.update(f"{spec.origin}|{stat.st_size}|{stat.st_mtime_ns}".encode())
+    h.update(f"{np.__version__}|{np.__file__}|{core.st_size}|{core.st_mtime_ns}".encode())
+    return h.digest()
+
+
+def _write_cached(path: Path, array: np.ndarray, prefix: str, keep: int) -> None:
+    """``array`` saved to ``path`` (a temporary file renamed over it: concurrent writers
+    write the same bytes, no reader sees half a file), then the oldest ``prefix*`` files
+    beyond ``keep`` deleted; a folder that cannot be written only means no cache."""
+    import contextlib
+    import tempfile
+
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{prefix}", suffix=".tmp")
+        with os.fdopen(fd, "wb") as f:
+            np.save(f, array, allow_pickle=False)
+        os.replace(tmp, path)
+        tmp = None
+        old = sorted(path.parent.glob(f"{prefix}*.npy"), key=lambda p: p.stat().st_mtime_ns)
+        for p in old[: max(0, len(old) - keep)]:
+            with contextlib.suppress(OSError):
+                p.unlink()
+    except OSError:
+        pass
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
 
 
 def _sway_lp(

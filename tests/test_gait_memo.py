@@ -206,3 +206,37 @@ def test_the_ramp_search_is_the_one_by_one_search_to_the_bit(robot_type) -> None
             budget = share * pattern.duty * period
             want = _reference_ramp(sw, t_start, t_stop, budget)
             assert hexapod._ramp_for(sw, t_start, t_stop, budget) == want
+
+
+def _sway_plan():
+    tmpl = build("QuadrupedRobot")
+    legs = legs_of(tmpl)
+    pattern = hexapod.gait_pattern("crawl", legs)
+    h = hexapod.standing_height(legs)
+    return hexapod.plan_gait(tmpl, legs, pattern, 1, 2.0, (0.02, 0.0, 0.0), 0.03, h, sway=True)
+
+
+def test_sway_solutions_are_kept_on_disk_and_read_back_to_the_bit(monkeypatch, tmp_path):
+    monkeypatch.setenv("PARMOR_CACHE", str(tmp_path))
+    first = _sway_plan()
+    files = sorted(tmp_path.glob("sway-*.npy"))
+    assert files  # solved, then written
+    assert np.any(first.sway != 0)
+
+    def unsolved(*args, **kwargs):
+        raise AssertionError("solved again")
+
+    monkeypatch.setattr(hexapod, "_sway_lp", unsolved)
+    again = _sway_plan()  # read back
+    assert again.sway.tobytes() == first.sway.tobytes()
+    assert again.q.tobytes() == first.q.tobytes()
+    monkeypatch.undo()
+    monkeypatch.setenv("PARMOR_CACHE", str(tmp_path))
+    for f in files:
+        f.write_bytes(b"not an array")  # unreadable: solved again, the same
+    assert _sway_plan().sway.tobytes() == first.sway.tobytes()
+    monkeypatch.setenv("PARMOR_CACHE", "")  # no cache: solved, nothing written
+    for f in tmp_path.glob("sway-*.npy"):
+        f.unlink()
+    assert _sway_plan().sway.tobytes() == first.sway.tobytes()
+    assert not list(tmp_path.glob("sway-*.npy"))
