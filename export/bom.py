@@ -82,7 +82,7 @@ def bom_rows(asm: Assembly) -> list[dict]:
             "unit_volume_m3": p.volume_m3,
             "unit_print_time_s": p.print_time_s,
             "unit_filament_m3": p.filament_m3,
-            "fits_bed": p.fits_bed,
+            "fits_bed": p.fits_bed or p.printer not in ("", "split"),
             "printer": p.printer,
             "file": f"meshes/{p.name}.stl",
         }
@@ -96,9 +96,10 @@ def bom_rows(asm: Assembly) -> list[dict]:
 def bom_csv(asm: Assembly) -> str:
     """CSV text of the BOM of ``asm`` (see :func:`bom_rows`), a ``total`` line last.
 
-    A printed part that does not fit the catalog's ``printer_bed`` (its skirt included)
-    says so in ``fits_bed`` ("NO") and names in ``printer`` the catalog's larger printer
-    that fits it ("split" when none does); the default printer leaves ``printer`` empty.
+    ``printer`` names the catalog's larger printer that takes a printed part too big for the
+    catalog's ``printer_bed`` (its skirt included); empty: the catalog's printer. ``fits_bed``
+    says whether the part fits the bed of that printer: "NO" only for a part no catalog
+    printer holds (``printer`` "split": it must be split).
     Masses kg, volumes m^3, times s, costs in the catalog currency (printed parts: none).
     """
     out = io.StringIO()

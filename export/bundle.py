@@ -102,7 +102,7 @@ def bundle_files(
         "bom.csv": bom_csv(asm),
         "README.md": guide_markdown(record, asm, documentation, pictures),
         "print/prusaslicer.ini": prusa_config(
-            [b * 1000 for b in catalog.passive.printer_bed_m], catalog.material.density_kg_m3 / 1000
+            [b * 1000 for b in ini_bed(asm, catalog)], catalog.material.density_kg_m3 / 1000
         ),
     }
     if pictures:
@@ -113,6 +113,16 @@ def bundle_files(
     for name, t in trajectories.items():
         files[f"trajectories/{name}.csv"] = t.csv()
     return files
+
+
+def ini_bed(asm: Assembly, catalog: Catalog) -> tuple[float, float, float]:
+    """The build volume (m) of ``print/prusaslicer.ini``: the catalog's printer
+    (``passive.printer_bed_m``) or, when a part needs a larger one (the BOM's ``printer``
+    column), the largest bed the design uses, so that every part in ``meshes/`` slices with
+    that one file; each part's ``print/<part>.3mf`` holds its own printer's bed."""
+    beds = [catalog.passive.printer_bed_m]
+    beds += [b for p in asm.printed if (b := catalog.printer_bed(p.printer)) is not None]
+    return max(beds, key=lambda b: (b[0] * b[1], b))
 
 
 def print_projects(asm: Assembly, catalog: Catalog) -> dict[str, bytes]:
@@ -247,7 +257,7 @@ def write_bundle(
     tmp = None
     try:
         tmp = _temp_dir(target, "new")
-        _write_files(tmp, files, modes)
+        _write_files(tmp, anchor_urdfs(files, target), modes)
         _commit(tmp, target, shown, force)
         tmp = None
     except OSError as e:
@@ -259,6 +269,22 @@ def write_bundle(
                 with contextlib.suppress(OSError):
                     d.rmdir()
     return Path(out)
+
+
+def anchor_urdfs(files: Mapping[str, str | bytes], folder: Path) -> Mapping[str, str | bytes]:
+    """``files`` with every ``*.urdf``'s relative mesh paths made absolute ``file://`` URIs
+    under ``folder`` (the bundle's final place), so that pinocchio's ``buildGeomFromUrdf``
+    and RViz load the meshes with no package directory (``export.urdf.anchor_meshes``);
+    MuJoCo and yourdfpy find them in ``meshes/`` whatever the folder (the URDF's
+    ``<mujoco><compiler meshdir>``), so a moved bundle still loads there."""
+    from export.urdf import anchor_meshes
+
+    if not any(n.endswith(".urdf") for n in files):
+        return files
+    return {
+        n: anchor_meshes(t, folder / Path(n).parent) if n.endswith(".urdf") else t
+        for n, t in files.items()
+    }
 
 
 def check_out(out: str | Path, force: bool = False) -> Path:

@@ -14,8 +14,10 @@ FILES = (
     (
         "robot.urdf",
         "the robot description for ROS: links, inertias, joints, limits",
-        "`check_urdf robot.urdf`, yourdfpy, pinocchio (this folder on `ROS_PACKAGE_PATH` "
-        "or as `package_dirs`), RViz (`parmor ros` makes a ROS package of it)",
+        "`check_urdf robot.urdf`, MuJoCo, yourdfpy, pinocchio and RViz with no extra argument "
+        "(meshes named by absolute `file://` path of this folder; if the folder is moved, MuJoCo "
+        "and yourdfpy still find them in `meshes/`, pinocchio and RViz need the bundle "
+        "written again; `parmor ros` makes a ROS package with `package://` URIs)",
     ),
     (
         "robot.xml",
@@ -148,8 +150,9 @@ def guide_markdown(
         "printer, with its settings (solid, 0.2 mm layers, supports only where it "
         "overhangs); a project named `x1 of 2` is printed twice. Or slice the STL files as "
         "they are (millimetres, each already lying in its printing orientation; "
-        "`print/prusaslicer.ini` holds the settings the figures are for, on the catalog's "
-        "printer).",
+        "`print/prusaslicer.ini` holds the settings the figures are for, on the bed of the "
+        "largest printer a part needs; `print/<part>.3mf` is each part on its own printer's "
+        "bed).",
         "",
         "| part | count | mass (g) | print time (min) | printer | picture |",
         "|---|---|---|---|---|---|",

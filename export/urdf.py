@@ -23,8 +23,12 @@ The helpers :func:`number`, :func:`mesh_file`, :func:`rpy_from_matrix` and
 from __future__ import annotations
 
 import math
+import os
+import re
 import xml.etree.ElementTree as ET
+from pathlib import Path
 from typing import TYPE_CHECKING
+from xml.sax.saxutils import escape
 
 import numpy as np
 
@@ -378,9 +382,47 @@ def _write_joint(parent: ET.Element, joint: yourdfpy.Joint) -> None:
         ET.SubElement(el, "dynamics", damping=number(dyn.damping), friction=number(dyn.friction))
 
 
+#: MuJoCo's URDF extension (ignored by urdfdom, pinocchio, yourdfpy and RViz): mesh file
+#: names are looked up by their base name in ``meshes/`` beside the URDF (so an absolute URI
+#: of a moved folder still loads), and the root link is not fused into MuJoCo's world body
+#: (its mass stays in the model's ``body_mass``).
+MUJOCO_COMPILER = {"meshdir": "meshes", "strippath": "true", "fusestatic": "false"}
+
+_MESH_FILENAME = re.compile(r'(<mesh filename=")([^"]*)(")')
+
+
+def anchor_meshes(urdf: str, folder: Path) -> str:
+    """``urdf`` with each relative mesh path (``meshes/NAME.stl``) made the absolute URI
+    ``file://FOLDER/meshes/NAME.stl``: pinocchio resolves a relative path only against
+    package directories given to it (or ``ROS_PACKAGE_PATH``), so the written bundle names
+    its meshes where they are; URIs with a scheme (``package://``) are left as they are.
+    The folder is written as is (no percent-encoding: pinocchio does not decode it)."""
+    base = os.fspath(folder).rstrip("/")
+
+    def one(m: re.Match) -> str:
+        path = m.group(2)
+        if "://" in path or path.startswith("/"):
+            return m.group(0)
+        return m.group(1) + escape(f"file://{base}/{path}", {'"': "&quot;"}) + m.group(3)
+
+    return _MESH_FILENAME.sub(one, urdf)
+
+
+_ANCHORED = re.compile(r'(<mesh filename=")file://[^"]*/(meshes/[^"/]+)(")')
+
+
+def relative_meshes(urdf: str) -> str:
+    """The inverse of :func:`anchor_meshes` wherever the bundle now is: each
+    ``file://.../meshes/NAME`` URI becomes ``meshes/NAME`` (the folder the URI names may be
+    gone, as MuJoCo's ``meshdir`` lookup assumes)."""
+    return _ANCHORED.sub(r"\1\2\3", urdf)
+
+
 def robot_xml(robot: yourdfpy.Robot) -> str:
-    """URDF text of a yourdfpy ``Robot`` built by :func:`urdf_robot` (deterministic)."""
+    """URDF text of a yourdfpy ``Robot`` built by :func:`urdf_robot` (deterministic), with
+    MuJoCo's compiler extension (``MUJOCO_COMPILER``) first."""
     root = ET.Element("robot", name=robot.name)
+    ET.SubElement(ET.SubElement(root, "mujoco"), "compiler", MUJOCO_COMPILER)
     for link in robot.links:
         _write_link(root, link)
     for joint in robot.joints:

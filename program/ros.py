@@ -490,11 +490,12 @@ def package_files(
 def read_bundle(folder: Path) -> tuple[dict, str, dict[str, bytes]]:
     """(design record, URDF text, the meshes it names) of a bundle folder; RosInputError
     naming what is wrong."""
+    from export.urdf import relative_meshes
     from export.verify import bundle_record
 
     record = bundle_record(folder)
     try:
-        urdf = (folder / "robot.urdf").read_text(encoding="utf-8")
+        urdf = relative_meshes((folder / "robot.urdf").read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError) as e:
         raise RosInputError(f"{folder}: no readable robot.urdf ({e})") from None
     meshes = {}

@@ -207,7 +207,8 @@ def test_meshes_are_watertight_and_match_the_optimiser(bundles, catalog) -> None
             x, y, z = mesh.extents + (0.006, 0.006, 0.0)
             fits = (x <= bed_xyz[0] and y <= bed_xyz[1]) or (y <= bed_xyz[0] and x <= bed_xyz[1])
             fits = fits and z <= bed_xyz[2]
-            assert rows[stem]["fits_bed"] == ("yes" if fits else "NO"), (t, stem)
+            assert (rows[stem]["printer"] == "") == fits, (t, stem)
+            assert rows[stem]["fits_bed"] == "yes", (t, stem)  # on the printer it names
             if not fits:  # a larger printer of the catalog takes it
                 printer = next(p for p in catalog.printers if p.model == rows[stem]["printer"])
                 assert all(e <= b for e, b in zip(mesh.extents, printer.bed_m, strict=True))
@@ -248,11 +249,12 @@ def test_cli_bundle_with_readme_and_bom(cli, tmp_path) -> None:
 def test_urdf_meshes_load_in_pinocchio_and_mujoco_without_warnings(
     bundles, tmp_path, capfd, monkeypatch
 ):
-    """robot.urdf's relative mesh paths (meshes/NAME.stl, in mm, scale 0.001): MuJoCo loads
-    the URDF file with its meshes and no warning (unique geom names), and pinocchio builds
-    its visual and collision geometry with the bundle folder as its package directory,
-    given as an argument or, with no argument, on ``ROS_PACKAGE_PATH`` (pinocchio resolves
-    a relative path only against its package directories and that variable's)."""
+    """robot.urdf as written (meshes named by absolute file:// URI of the bundle folder, in
+    mm, scale 0.001): MuJoCo loads the URDF file with its meshes and no warning (unique geom
+    names) and keeps the whole robot's mass (the root link not fused into the world);
+    pinocchio builds its visual and collision geometry with no argument and no
+    ``ROS_PACKAGE_PATH``. Moved to another folder, MuJoCo still finds the meshes in
+    ``meshes/`` (its compiler extension); pinocchio no longer does (the documented limit)."""
     from importlib.util import find_spec
 
     import mujoco
@@ -260,26 +262,38 @@ def test_urdf_meshes_load_in_pinocchio_and_mujoco_without_warnings(
     need(find_spec("pinocchio") is not None, "pinocchio is not installed (the test extras)")
     import pinocchio as pin
 
-    for t, (_, files) in bundles.items():
-        folder = write_bundle(tmp_path / t, files)
+    monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
+    monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)
+    monkeypatch.chdir(tmp_path)
+    for t, (rec, files) in bundles.items():
+        folder = write_bundle(tmp_path / t, files).resolve()
         urdf = str(folder / "robot.urdf")
+        assert f'filename="file://{folder}/meshes/' in (folder / "robot.urdf").read_text()
         capfd.readouterr()
         model = mujoco.MjModel.from_xml_path(urdf)
         out, err = capfd.readouterr()
         assert "WARNING" not in out + err, (t, out + err)
         assert model.nmesh == len({n for n in files if n.startswith("meshes/")}), t
+        assert model.body_mass.sum() == pytest.approx(rec["mass_kg"], rel=1e-3), t
         pm = pin.buildModelFromUrdf(urdf)
         for kind in (pin.GeometryType.VISUAL, pin.GeometryType.COLLISION):
-            geom = pin.buildGeomFromUrdf(pm, urdf, kind, package_dirs=[str(folder)])
+            geom = pin.buildGeomFromUrdf(pm, urdf, kind)
             assert geom.ngeoms > 0, t
-            monkeypatch.setenv("ROS_PACKAGE_PATH", str(folder))
-            bare = pin.buildGeomFromUrdf(pm, urdf, kind)
-            monkeypatch.delenv("ROS_PACKAGE_PATH")
-            assert [g.meshPath for g in bare.geometryObjects] == [
-                g.meshPath for g in geom.geometryObjects
-            ], t
+            assert all(
+                g.meshPath.startswith(str(folder))
+                for g in geom.geometryObjects
+                if g.meshPath and g.meshPath.endswith(".stl")
+            ), t
         names = [g.name for g in geom.geometryObjects]
         assert len(names) == len(set(names)), t
+    # a moved bundle: MuJoCo by base name in meshes/; pinocchio's absolute path is gone
+    moved = tmp_path / "moved"
+    folder.rename(moved)
+    urdf = str(moved / "robot.urdf")
+    assert mujoco.MjModel.from_xml_path(urdf).nmesh > 0
+    pm = pin.buildModelFromUrdf(urdf)
+    with pytest.raises(ValueError):  # the old absolute path is gone
+        pin.buildGeomFromUrdf(pm, urdf, pin.GeometryType.VISUAL)
 
 
 def test_joint_ranges_fit_the_servos_travel_and_the_trajectories(bundles, catalog) -> None:

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from export.model3d import Assembly, BodySpec, Geometry, JointSpec, PartUse, PrintedPart
-from export.urdf import number, rpy_from_matrix, urdf_robot, urdf_string
+from export.urdf import MUJOCO_COMPILER, number, rpy_from_matrix, urdf_robot, urdf_string
 from tests.conftest import need
 
 trimesh = pytest.importorskip("trimesh")
@@ -402,7 +402,8 @@ def test_text_shape() -> None:
     text = urdf_string(arm())
     assert text.startswith('<?xml version="1.0" encoding="utf-8"?>\n<robot name="Manipulator3DOF">')
     root = ET.fromstring(text)
-    assert [e.tag for e in root][:6] == ["link"] * 6
+    assert [e.tag for e in root][:7] == ["mujoco"] + ["link"] * 6
+    assert root.find("mujoco/compiler").attrib == MUJOCO_COMPILER
     (shoulder,) = [j for j in root.iter("joint") if j.get("name") == "shoulder_pitch"]
     assert shoulder.find("origin").attrib == {"xyz": "0 0 0.1", "rpy": "0 0 0"}
     assert shoulder.find("axis").get("xyz") == "0 1 0"
@@ -568,3 +569,22 @@ def test_real_assemblies_load_and_match(real: dict[str, Assembly], tmp_path: Pat
         check_loaded(assembly, path)
         run_check_urdf(path)
         assert urdf_string(assembly) == path.read_text(encoding="utf-8")
+
+
+def test_anchored_mesh_uris_round_trip(tmp_path) -> None:
+    """A written bundle names its meshes by absolute file:// URI (pinocchio needs no
+    package directory); URIs with a scheme and absolute paths are kept; ``relative_meshes``
+    gives back the relative names wherever the folder is now."""
+    from export.urdf import anchor_meshes, relative_meshes
+
+    text = (
+        '<mesh filename="meshes/a.stl" scale="0.001 0.001 0.001" />\n'
+        '<mesh filename="package://p/meshes/b.stl" />\n<mesh filename="/abs/c.stl" />\n'
+    )
+    folder = tmp_path / 'odd "name" & more'
+    anchored = anchor_meshes(text, folder)
+    assert f'filename="file://{tmp_path}/odd &quot;name&quot; &amp; more/meshes/a.stl"' in anchored
+    assert 'filename="package://p/meshes/b.stl"' in anchored
+    assert 'filename="/abs/c.stl"' in anchored
+    assert relative_meshes(anchored) == text
+    assert anchor_meshes(anchored, tmp_path / "elsewhere") == anchored  # already absolute
