@@ -90,9 +90,12 @@ __all__ = [
     "gait_timing",
     "leg_fk",
     "leg_ik",
+    "legs_key",
     "legs_of",
     "limit_slack",
     "max_stride",
+    "model_key",
+    "pattern_key",
     "plan_gait",
     "stability_margins",
     "stance_inset",
@@ -573,7 +576,7 @@ def max_stride(
     they can reach (:func:`_stride_tests`), so the result is the one-by-one bisection's to
     the bit. Remembered per legs, travel, height and step (walking and running ask alike)."""
     key = (
-        _legs_key(legs),
+        legs_key(legs),
         tuple(tuple(float(x) for x in np.asarray(travel[leg.name], dtype=float)) for leg in legs),
         float(height),
         float(step),
@@ -599,7 +602,7 @@ _MEMO_SIZE = 64
 _STRIDES: OrderedDict[tuple, float] = OrderedDict()
 
 
-def _legs_key(legs: Sequence[Leg]) -> tuple:
+def legs_key(legs: Sequence[Leg]) -> tuple:
     """What identifies the legs' geometry (a memo key)."""
     return tuple(
         (
@@ -908,7 +911,7 @@ def gait_timing(
     if cycles < 1 or not period > 0:
         raise ValueError("a gait needs at least one cycle of positive period")
     key = (
-        _pattern_key(pattern),
+        pattern_key(pattern),
         tuple(leg.name for leg in legs),
         int(cycles),
         float(period),
@@ -931,7 +934,7 @@ def gait_timing(
 _TIMINGS: OrderedDict[tuple, GaitTiming] = OrderedDict()
 
 
-def _pattern_key(pattern: GaitPattern) -> tuple:
+def pattern_key(pattern: GaitPattern) -> tuple:
     """What identifies a gait pattern (a memo key)."""
     return (pattern.name, float(pattern.duty), tuple(sorted(pattern.phases.items())))
 

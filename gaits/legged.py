@@ -50,13 +50,13 @@ from gaits.hexapod import (
     TRANSITION_S,
     GaitPattern,
     GaitPlan,
-    _legs_key,
-    _pattern_key,
     gait_pattern,
     gait_timing,
+    legs_key,
     legs_of,
     max_stride,
     model_key,
+    pattern_key,
     plan_gait,
     standing_height,
 )
@@ -484,10 +484,10 @@ class LeggedController(Controller):
         running and rough-terrain walking, the same design planned with other actuators
         and the same plan asked again while a timing settles reuse it."""
         if self._context is None:
-            self._context = (model_key(self.template), _legs_key(self.legs))
+            self._context = (model_key(self.template), legs_key(self.legs))
         key = (
             self._context,
-            _pattern_key(pattern),
+            pattern_key(pattern),
             int(cycles),
             float(period),
             tuple(float(x) for x in twist),
