@@ -24,6 +24,7 @@ from bench_parse import bench_parse  # noqa: E402
 from bench_rnea import bench_rnea  # noqa: E402
 from bench_sim import bench_sim  # noqa: E402
 from bench_simspeed import bench_simspeed  # noqa: E402
+from bench_sizing import bench_sizing  # noqa: E402
 from bench_startup import bench_startup  # noqa: E402
 from bench_stl import bench_stl  # noqa: E402
 
@@ -182,6 +183,7 @@ def main() -> int:
         bench_links(),
         bench_structures(),
         bench_assign(),
+        bench_sizing(),
         bench_stl(),
         bench_sim(),
         bench_simspeed(),
