@@ -79,10 +79,13 @@ def bundle_files(
     documentation: str = "",
     with_payload: bool = False,
     pictures: bool = True,
+    simulated_only: bool = False,
 ) -> dict[str, str | bytes]:
     """Every file of the bundle of a sized design: design.json, robot.urdf, robot.xml,
     meshes/*.stl, bom.csv and README.md (relative name -> content). The models carry the
-    payload only ``with_payload``; design.json says where it is (``payload``)."""
+    payload only ``with_payload``; design.json says where it is (``payload``).
+    ``simulated_only``: just what a simulation reads (design.json, robot.xml, meshes), for
+    the verification's own bundle."""
     from export.bom import bom_csv
     from export.guide import guide_markdown
     from export.mjcf import mjcf_string
@@ -95,6 +98,12 @@ def bundle_files(
         if not _SAFE_STEM.fullmatch(p.name):
             raise ExportError(f"printed part name {p.name!r} is not a safe file name")
     record = {**record, "payload": payload_record(structure, with_payload)}
+    if simulated_only:
+        return {
+            "design.json": to_json(record),
+            "robot.xml": mjcf_string(asm, with_payload=with_payload),
+            **{f"meshes/{p.name}.stl": p.stl for p in asm.printed},
+        }
     files: dict[str, str | bytes] = {
         "design.json": to_json(record),
         "robot.urdf": urdf_string(asm, with_payload=with_payload),
