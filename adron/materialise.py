@@ -103,24 +103,38 @@ def _unit(sym: object) -> Unit:
     return Unit("fact", (f"{sym}.",), DERIVED, rel, tuple(shown), tuple(names))
 
 
+#: What materialising a translation changes (:func:`derivation`): which rules stay (one
+#: flag per rule, in order), the derived facts' units and, for each, its ground arguments
+#: (None: not all strings or numbers). Small to send from a worker process, where the
+#: translation itself (100,000 units for a large ontology) would take seconds to pickle.
+Derivation = tuple[tuple[bool, ...], tuple[Unit, ...], tuple[tuple | None, ...]]
+
+
 def materialise(tr: Translation) -> tuple[Translation, str | None]:
     """``tr`` with every rule that reads only the ontology replaced by what it derives
     (see the module doc), and None; or ``tr`` itself and why nothing was materialised."""
+    d, why = derivation(tr)
+    return (tr, why) if d is None else (applied(tr, d), None)
+
+
+def derivation(tr: Translation) -> tuple[Derivation | None, str | None]:
+    """What :func:`materialise` changes in ``tr`` (grounding with clingo), or None and why
+    nothing is materialised; :func:`applied` makes the materialised translation of it."""
     rules = [u for u in tr.units if u.kind == "rule"]
     if not rules:
-        return tr, "no rules"
+        return None, "no rules"
     facts = [u for u in tr.units if u.kind == "fact"]
     pairs = {(str(a[0]), str(a[1])) for a in tr.relation("subrelation") if len(a) == 2}
     while True:  # the derived subrelation pairs can open more relations: to a fixpoint
         keep, why = _open_rules(tr, pairs)
         if why is not None:
-            return tr, why
+            return None, why
         gone = [u for u, k in zip(rules, keep, strict=True) if not k]
         if not gone:
-            return tr, "every rule reads what the request sets"
+            return None, "every rule reads what the request sets"
         model = _model(facts, gone)
         if model is None:
-            return tr, "the ontology's rules do not have exactly one model"
+            return None, "the ontology's rules do not have exactly one model"
         more = {
             (s.arguments[1].string, s.arguments[2].string)
             for s in model
@@ -133,7 +147,7 @@ def materialise(tr: Translation) -> tuple[Translation, str | None]:
         if more <= pairs:
             break
         pairs |= more
-    return _replace(tr, facts, keep, model), None
+    return _derived(facts, keep, model), None
 
 
 def _model(facts: list[Unit], gone: list[Unit]) -> list | None:
@@ -159,13 +173,27 @@ def _model(facts: list[Unit], gone: list[Unit]) -> list | None:
     return models[0] if len(models) == 1 else None
 
 
-def _replace(tr: Translation, facts: list[Unit], keep: list[bool], model: list) -> Translation:
-    """``tr`` with the rules not kept replaced by what they derive in ``model``."""
+def _derived(facts: list[Unit], keep: list[bool], model: list) -> Derivation:
+    """The rules kept and the facts ``model`` derives beyond ``facts``, with their ground
+    arguments."""
     mats = [s.arguments[0] for s in model if s.name == "mat"]
     known = {ln for u in facts for ln in u.lines}
     by_text = {str(s): s for s in mats}
     derived = sorted(set(by_text) - {ln[:-1] for ln in known})
-    new = [_unit(by_text[t]) for t in derived]
+    new = tuple(_unit(by_text[t]) for t in derived)
+    vals = []
+    for t in derived:
+        v = tuple(
+            a.string if a.type.name == "String" else a.number if a.type.name == "Number" else None
+            for a in by_text[t].arguments[1:]
+        )
+        vals.append(None if None in v else v)
+    return tuple(keep), new, tuple(vals)
+
+
+def applied(tr: Translation, d: Derivation) -> Translation:
+    """``tr`` with the rules ``d`` does not keep replaced by the facts they derive."""
+    keep, new, vals = d
     units: list[Unit] = []
     k = iter(keep)
     for u in tr.units:
@@ -174,13 +202,9 @@ def _replace(tr: Translation, facts: list[Unit], keep: list[bool], model: list) 
     units.extend(new)
     ground = {r: list(v) for r, v in tr.ground.items()}
     ground_at = {r: list(v) for r, v in tr.ground_at.items()}
-    for u, s in zip(new, (by_text[t] for t in derived), strict=True):
-        vals = tuple(
-            a.string if a.type.name == "String" else a.number if a.type.name == "Number" else None
-            for a in s.arguments[1:]
-        )
-        if None not in vals:
-            ground.setdefault(u.relation, []).append(vals)
+    for u, v in zip(new, vals, strict=True):
+        if v is not None:
+            ground.setdefault(u.relation, []).append(v)
             ground_at.setdefault(u.relation, []).append(DERIVED)
     out = replace(
         tr,
@@ -192,4 +216,4 @@ def _replace(tr: Translation, facts: list[Unit], keep: list[bool], model: list) 
     return out
 
 
-__all__ = ["DERIVED", "KIF_TAXONOMY", "PARAMETER_VALUE", "materialise"]
+__all__ = ["DERIVED", "KIF_TAXONOMY", "PARAMETER_VALUE", "applied", "derivation", "materialise"]

@@ -43,6 +43,7 @@ of 18,500 forms.
 
 from __future__ import annotations
 
+import gc
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -255,33 +256,128 @@ def relevance(
     texts, taxonomy = list(texts), list(taxonomy)
     vocab = vocabulary(texts + taxonomy) | set(extra)
     active: set[str] = set()
-    while True:
-        later: set[str] = set()
-        down = downward(texts) | {r for r in vocabulary(taxonomy) if r in tr.ground}
-        out = _relevance(tr, vocab, wholesale(texts), down, active, later)
-        if out.off is not None or not (later & out.needed) - active:
-            return out
-        active |= later & out.needed
+    was = gc.isenabled()
+    gc.disable()  # 100,000s of short-lived containers, none in a cycle: no collections
+    try:
+        ix = _Index(tr)  # what every pass reads of the forms, built once
+        while True:
+            later: set[str] = set()
+            down = downward(texts) | {r for r in vocabulary(taxonomy) if r in tr.ground}
+            out = _relevance(ix, vocab, wholesale(texts), down, active, later)
+            if out.off is not None or not (later & out.needed) - active:
+                return out
+            active |= later & out.needed
+    finally:
+        if was:
+            gc.enable()
+
+
+class _Index:
+    """A translation's units grouped for the passes of :func:`_relevance`: facts by
+    relation, and (made when first asked) the facts of a relation by the name at one
+    argument position, each relation's downward links and the names of its facts. A pass
+    then visits the facts of the relations it needs, by name, not all the units."""
+
+    def __init__(self, tr: Translation) -> None:
+        self.units = tr.units
+        self.facts: list[Unit] = []
+        self.rules: list[Unit] = []
+        self.axioms: dict[str, list[Unit]] = {}
+        self.by_rel: dict[str, list[Unit]] = {}
+        for u in self.units:
+            if u.kind == "fact":
+                self.facts.append(u)
+                self.by_rel.setdefault(u.relation, []).append(u)
+            elif u.kind == "rule":
+                self.rules.append(u)
+            elif u.kind == "axiom":
+                self.axioms.setdefault(u.relation, []).append(u)
+        self.subs: dict[str, list[str]] = {}
+        for u in self.by_rel.get("subrelation", ()):
+            if len(u.args) == 2:
+                self.subs.setdefault(u.args[1], []).append(u.args[0])
+        self.derived = {h[0] for u in self.rules for h in u.heads} | set(self.by_rel)
+        self._at: dict[tuple[str, int], dict[str, list[Unit]]] = {}
+        self._by_names: dict[tuple[str, int], dict[str, list[Unit]]] = {}
+        self._below: dict[str, dict[str, list[str]]] = {}
+        self._names: dict[str, set[str]] = {}
+        self._merged: dict[tuple, dict[str, list]] = {}
+
+    def at(self, rel: str, p: int) -> dict[str, list[Unit]]:
+        """The facts of ``rel`` by their argument ``p`` as written."""
+        d = self._at.get((rel, p))
+        if d is None:
+            d = self._at[(rel, p)] = {}
+            for u in self.by_rel.get(rel, ()):
+                if p < len(u.args):
+                    d.setdefault(u.args[p], []).append(u)
+        return d
+
+    def by_name(self, rel: str, p: int) -> dict[str, list[Unit]]:
+        """The facts of ``rel`` by the name at argument ``p``, or by each name inside it
+        when it is a function term."""
+        d = self._by_names.get((rel, p))
+        if d is None:
+            d = self._by_names[(rel, p)] = {}
+            for u in self.by_rel.get(rel, ()):
+                if p < len(u.args):
+                    if u.args[p].startswith("("):
+                        for a in u.names:
+                            d.setdefault(a, []).append(u)
+                    else:
+                        d.setdefault(u.args[p], []).append(u)
+        return d
+
+    def below(self, rel: str) -> dict[str, list[str]]:
+        """For a downward relation: each name -> the first arguments of the facts that
+        link down to it (``(subclass A B)``: B -> [A])."""
+        d = self._below.get(rel)
+        if d is None:
+            d = self._below[rel] = {}
+            for u in self.by_rel.get(rel, ()):
+                if u.args:
+                    for a in u.names[1:] if u.names[:1] == u.args[:1] else u.names:
+                        d.setdefault(a, []).append(u.args[0])
+        return d
+
+    def merged(self, kinds: tuple[tuple[str, str, int], ...]) -> dict[str, list]:
+        """One dict of the lookups ``kinds`` (("below", rel, 0), ("name", rel, p) or
+        ("axiom", "", 0)): a pass asks it once per name instead of once per lookup (a
+        100,000-class chain has 100,000 names to ask about); kept for the next pass."""
+        d = self._merged.get(kinds)
+        if d is None:
+            get = {"below": lambda r, _p: self.below(r), "name": self.by_name}
+            parts = [get[k](r, p) if k in get else self.axioms for k, r, p in kinds]
+            if len(parts) == 1:
+                d = parts[0]
+            else:
+                d = {}
+                for part in parts:
+                    for key, vs in part.items():
+                        d.setdefault(key, []).extend(vs)
+            self._merged[kinds] = d
+        return d
+
+    def names(self, rel: str) -> set[str]:
+        """Every name in the facts of ``rel``."""
+        n = self._names.get(rel)
+        if n is None:
+            n = self._names[rel] = {a for u in self.by_rel.get(rel, ()) for a in u.names}
+        return n
 
 
 def _relevance(
-    tr: Translation,
+    ix: _Index,
     vocab: set[str],
     whole: set[str],
     down: set[str],
     active: set[str],
     later: set[str],
 ) -> Relevance:
-    units = tr.units
-    facts = [u for u in units if u.kind == "fact"]
-    rules = [u for u in units if u.kind == "rule"]
+    units, rules, subs = ix.units, ix.rules, ix.subs
     # 1. relations that something reads, and at which argument (binding patterns)
     need: dict[str, set[int]] = {v: {0} for v in vocab}
-    derived = {h[0] for u in rules for h in u.heads} | {u.relation for u in facts}
-    subs: dict[str, list[str]] = {}
-    for u in facts:
-        if u.relation == "subrelation" and len(u.args) == 2:
-            subs.setdefault(u.args[1], []).append(u.args[0])
+    derived = ix.derived
     keyc: dict[str, dict[int, set[str]]] = {}
 
     def size() -> tuple[int, ...]:
@@ -319,57 +415,57 @@ def _relevance(
                 down.add(r)
                 todo.append(r)
     reach = set(vocab)
-    below: dict[str, list[str]] = {}
-    for u in facts:
-        if u.relation not in rels or not u.args:
-            continue
-        if u.relation in whole:
-            reach.add(u.args[0])
-        elif u.relation in down:
-            for a in u.names[1:] if u.names[:1] == u.args[:1] else u.names:
-                below.setdefault(a, []).append(u.args[0])
-    todo = list(reach)
-    while todo:
-        for s in below.get(todo.pop(), ()):
-            if s not in reach:
-                reach.add(s)
-                todo.append(s)
+    for r in rels & set(ix.by_rel):
+        if r in whole:
+            reach.update(u.args[0] for u in ix.by_rel[r] if u.args)
+    below = ix.merged(
+        tuple(("below", r, 0) for r in sorted(rels & down & set(ix.by_rel)) if r not in whole)
+    )
+
+    def spread() -> None:  # down the links from what reaches
+        todo = list(reach)
+        while todo:
+            for s in below.get(todo.pop(), ()):
+                if s not in reach:
+                    reach.add(s)
+                    todo.append(s)
+
+    spread()
     kept_rules = [u for u in rules if any(h[0] in rels for h in u.heads)]
     for u in kept_rules:
         why = _reach_unsafe(u, reach, whole, down)
         if why is not None:
             return Relevance((True,) * len(units), ("",) * len(units), f"{u.where}: {why}")
-    todo = list(reach)  # constants the wholesale heads added
-    while todo:
-        for s in below.get(todo.pop(), ()):
-            if s not in reach:
-                reach.add(s)
-                todo.append(s)
+    spread()  # constants the wholesale heads added
     # 3. needed, upwards from what reaches
-    index: dict[str, list[Unit]] = {}
     needed = set(reach)
-    for u in units:
-        if u.kind == "axiom":
-            index.setdefault(u.relation, []).append(u)
-        elif u.kind == "fact" and u.relation in whole:
-            needed.update(u.names)
-        elif u.kind == "fact" and u.relation in need:
-            for p in need.get(u.relation, ()):
-                if p < len(u.args):
-                    if u.args[p].startswith("("):  # a function term: by what is inside it
-                        for a in u.names:
-                            index.setdefault(a, []).append(u)
-                    else:
-                        index.setdefault(u.args[p], []).append(u)
+    for r in whole:
+        if r in ix.by_rel:
+            needed |= ix.names(r)
+    index = ix.merged(
+        (
+            *(
+                ("name", r, p)
+                for r in sorted(need)
+                if r in ix.by_rel and r not in whole
+                for p in sorted(need[r])
+            ),
+            ("axiom", "", 0),
+        )
+    )
     for u in kept_rules:
         needed.update(a[1] for _r, args in u.heads for a in args if a[0] == "c")
         needed.update(a[1] for _p, _r, args in u.body for a in args if a[0] == "c")
     keep: set[int] = set()
-    for u in facts:
-        pairs = keyc.get(u.relation, {}).items() if u.relation not in whole else ()
-        if any(p < len(u.args) and u.args[p] in ks for p, ks in pairs):
-            keep.add(id(u))
-            needed.update(u.names)
+    for r, d in keyc.items():
+        if r in whole or r not in ix.by_rel:
+            continue
+        for p, ks in d.items():
+            at = ix.at(r, p)
+            for k in ks:
+                for u in at.get(k, ()):
+                    keep.add(id(u))
+                    needed.update(u.names)
     todo = list(needed)
     while todo:
         for u in index.get(todo.pop(), ()):

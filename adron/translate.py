@@ -169,6 +169,8 @@ class Translation:
     #: every translated form but metadata, in program order (a tuple, or LazyUnits when read
     #: from the cache)
     units: Sequence[Unit] = ()
+    #: file -> (forms, facts, rules, axioms, metadata) of its forms (the counts above, by file)
+    by_file: dict[str, tuple[int, int, int, int, int]] = field(default_factory=dict)
 
     @property
     def translated(self) -> int:
@@ -433,8 +435,19 @@ def translate(forms: Iterable[Form]) -> Translation:
     ground_at: dict[str, list[str]] = {}
     units: list[Unit] = []
     n_forms = n_facts = n_rules = n_axioms = n_meta = 0
+    by_file: dict[str, tuple[int, ...]] = {}
+    current, opened = None, (0, 0, 0, 0, 0)
+
+    def close() -> None:  # the counts since ``opened`` go to ``current``'s file
+        now = (n_forms, n_facts, n_rules, n_axioms, n_meta)
+        had = by_file.get(current, (0, 0, 0, 0, 0))
+        by_file[current] = tuple(h + n - o for h, n, o in zip(had, now, opened, strict=True))
 
     for f in forms:
+        if f.file != current:
+            if current is not None:
+                close()
+            current, opened = f.file, (n_forms, n_facts, n_rules, n_axioms, n_meta)
         n_forms += 1
         op = _op(f)
         where = f"{f.file}:{f.line}:{f.col}"
@@ -508,6 +521,8 @@ def translate(forms: Iterable[Form]) -> Translation:
             n_facts += 1
         except _Skip as why:
             untranslated.append(Untranslated(f.file, f.line, f.col, str(why), _short(f)))
+    if current is not None:
+        close()
 
     return Translation(
         program="\n".join(lines) + "\n",
@@ -522,6 +537,7 @@ def translate(forms: Iterable[Form]) -> Translation:
         ground={k: tuple(v) for k, v in ground.items()},
         ground_at={k: tuple(v) for k, v in ground_at.items()},
         units=tuple(units),
+        by_file=by_file,
     )
 
 

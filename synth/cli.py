@@ -881,19 +881,21 @@ def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> in
     from adron.kb import load
     from adron.relevance import REASONS
     from export.record import to_json
-    from synth.solver import relevant
+    from synth.solver import materialised_in_worker, relevant
 
-    kb = load(args.files, builtin=False)
-    t = kb.translation
-    un = t.untranslated
-    # relevance is judged with the shipped ontology loaded too (it holds the vocabulary)
-    from synth.solver import materialised_in_worker
-
-    full = materialised_in_worker(load(args.files))
+    # one load, the shipped ontology with the user's files (it holds the vocabulary that
+    # relevance is judged by); the user's files' own counts are read from it by file
+    full = load(args.files)
+    files = list(full.files[len(full.files) - len(args.files) :])
+    mine = set(files)
+    tr = full.translation
+    counts = [tr.by_file.get(f, (0, 0, 0, 0, 0)) for f in mine]
+    forms, facts, rules, axioms, metadata = (sum(c[i] for c in counts) for i in range(5))
+    un = [u for u in tr.untranslated if u.file in mine]
+    full = materialised_in_worker(full)
     # as the solver sees it: the ontology-only rules materialised (adron/materialise.py)
     rel = relevant(full, grounded=True)
     grounded = full.grounded if full.grounded is not None else full.translation
-    mine = {f for f in kb.files}
     own = [
         (k, why)
         for u, k, why in zip(grounded.units, rel.kept, rel.reasons, strict=True)
@@ -911,13 +913,13 @@ def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> in
         "derived_facts": len(grounded.units) - len(full.translation.units) + materialised,
     }
     rec = {
-        "files": list(kb.files),
-        "forms": t.forms,
-        "translated": t.translated,
-        "facts": t.facts,
-        "rules": t.rules,
-        "existential_axioms": t.axioms,
-        "metadata": t.metadata,
+        "files": files,
+        "forms": forms,
+        "translated": facts + rules + axioms + metadata,
+        "facts": facts,
+        "rules": rules,
+        "existential_axioms": axioms,
+        "metadata": metadata,
         "untranslated": len(un),
         "relevance": relevance_rec,
         "untranslated_forms": [
@@ -929,9 +931,9 @@ def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> in
         out.write(to_json(rec))
         return 0
     out.write(
-        f"{t.forms} forms in {len(kb.files)} file(s): {t.translated} translated "
-        f"({t.facts} facts, {t.rules} rules, {t.axioms} existential axioms, "
-        f"{t.metadata} metadata), {len(un)} untranslated\n"
+        f"{forms} forms in {len(files)} file(s): {rec['translated']} translated "
+        f"({facts} facts, {rules} rules, {axioms} existential axioms, "
+        f"{metadata} metadata), {len(un)} untranslated\n"
     )
     r = relevance_rec
     shown = ", ".join(f"{n} {REASONS[k]}" for k, n in r["filtered"].items()) or "nothing"

@@ -32,8 +32,9 @@ import clingo
 from adron import relevance as relevance_module
 from adron.errors import InputError, OntologyError, ParmorError
 from adron.kb import KnowledgeBase, materialised, prune, read_user_file
+from adron.materialise import Derivation
 from adron.relevance import Relevance, relevance
-from adron.translate import Translation, asp_string, taxonomy_closure
+from adron.translate import asp_string, taxonomy_closure
 from adron.units import cache_folder
 from synth import limits
 
@@ -723,11 +724,15 @@ class _Materialiser:
     """A worker's core that materialises a knowledge base's ontology-only rules."""
 
     def __init__(self, kb: KnowledgeBase) -> None:
-        self.kb = materialised(kb)
+        from adron.materialise import derivation
+
+        self.found = derivation(kb.translation)
         self.externals: set = set()
 
-    def result(self) -> tuple[Translation | None, str | None]:
-        return self.kb.grounded, self.kb.why_not
+    def result(self) -> tuple[Derivation | None, str | None]:
+        """What materialising changes, not the materialised translation: the parent has
+        the translation already, and pickling it back costs seconds for a large one."""
+        return self.found
 
 
 def materialised_in_worker(kb: KnowledgeBase) -> KnowledgeBase:
@@ -739,9 +744,12 @@ def materialised_in_worker(kb: KnowledgeBase) -> KnowledgeBase:
     try:
         with limits.stage("ground"):
             worker.result("ground")
-        grounded, why_not = worker.call("result")
+        found, why_not = worker.call("result")
     finally:
         worker.close()
+    from adron.materialise import applied
+
+    grounded = kb.translation if found is None else applied(kb.translation, found)
     return replace(kb, grounded=grounded, why_not=why_not)
 
 

@@ -218,3 +218,56 @@ def test_prune_keeps_the_most_recently_used(tmp_path: Path) -> None:
         "kb-4.pickle",
         "units-x.json",
     ]
+
+
+def test_a_large_knowledge_base_is_cached_by_a_detached_process(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Past ``BACKGROUND_STORE_UNITS`` forms the cache file is written by a grandchild
+    process while ``load`` returns: it appears whole (never a partial file under its
+    name) and a later load reads it; an unwritable cache folder costs nothing."""
+    import time
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("PARMOR_CACHE", str(cache))
+    monkeypatch.setattr(kbmod, "BACKGROUND_STORE_UNITS", 0)
+    src = _kif(tmp_path, RULES)
+    first = _load_kb([src])
+    for _ in range(200):  # the grandchild's write, at most 20 s on a loaded machine
+        if list(cache.glob("kb-*.pickle")):
+            break
+        time.sleep(0.1)
+    (hit,) = cache.glob("kb-*.pickle")
+    assert _load_kb([src]) == first
+    assert kbmod._cached(hit, first.files) == first  # read from the file itself
+    blocked = tmp_path / "file"
+    blocked.write_text("not a folder")
+    monkeypatch.setenv("PARMOR_CACHE", str(blocked))
+    assert _load_kb([src]) == first
+
+
+def test_ontology_check_counts_only_the_users_files(cli, tmp_path: Path) -> None:
+    """``ontology check`` reads one load of the shipped ontology with the user's files;
+    its counts are those of the user's files alone (``Translation.by_file``), as a
+    translation of those files by themselves counts them."""
+    import json
+
+    from adron.kif import parse
+    from adron.translate import translate
+
+    a = _kif(tmp_path, RULES)
+    b = tmp_path / "b.kif"
+    b.write_text('(subclass B1 Robot)\n(documentation B1 EnglishLanguage "b")\n(foo ?X)\n')
+    r = cli("ontology", "check", str(a), str(b), "--json")
+    assert r.code == 0, r.err
+    rec = json.loads(r.out)
+    alone = translate([f for p in (a, b) for f in parse(p.read_text(encoding="utf-8"), str(p))])
+    assert rec["files"] == [str(a), str(b)]
+    assert (rec["forms"], rec["facts"], rec["rules"], rec["metadata"]) == (
+        alone.forms,
+        alone.facts,
+        alone.rules,
+        alone.metadata,
+    )
+    assert rec["untranslated"] == len(alone.untranslated) == 1
+    assert sum(sum(c) for c in alone.by_file.values()) - alone.forms == alone.translated
