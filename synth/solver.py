@@ -607,11 +607,9 @@ class _Core:
             common: list = []
             for name, arity in _shown_signatures():
                 for a in atoms.by_signature(name, arity):
-                    first = a.symbol.arguments[0] if a.symbol.arguments else None
-                    key = first.string if first is not None and first.type == _STRING else None
-                    (by.setdefault(key, []) if key in robots else common).append(
-                        (a.literal, a.symbol)
-                    )
+                    sym = a.symbol
+                    key = _first_string(sym) if arity else None
+                    (by.setdefault(key, []) if key in robots else common).append((a.literal, sym))
             self._index = (chosen, by, common)
         return self._index
 
@@ -635,11 +633,15 @@ class _Core:
         chosen, by, common = self._shown_index()
         pending = list(chosen)
         out = []
+        last = 0  # clingo tends to enumerate the candidates in runs: look near the last one
         for m in _worker_models(self._ctl):
             robot = None
-            for i, (lit, _name) in enumerate(pending):
-                if m.is_true(lit):
+            n = len(pending)
+            for k in range(n):
+                i = (last - 1 - k) % n
+                if m.is_true(pending[i][0]):
                     robot = pending.pop(i)[1]
+                    last = i
                     break
             if robot is None:  # explain's focus mode: one model, nothing chosen
                 out.append((_symbols(m.symbols(shown=True)), tuple(m.cost)))
@@ -647,6 +649,19 @@ class _Core:
             syms = [s for lit, s in (*common, *by.get(robot, ())) if m.is_true(lit)]
             out.append((_symbols(syms), tuple(m.cost)))
         return out
+
+
+_FIRST_STRING = re.compile(r'[^(]*\("([^"\\]*)"[,)]')
+
+
+def _first_string(sym: clingo.Symbol) -> str | None:
+    """The first argument of ``sym`` when it is a string, else None: read from its text
+    (one call into clingo) where the string has no escapes, as most names have none."""
+    m = _FIRST_STRING.match(str(sym))
+    if m is not None:
+        return m.group(1)
+    first = sym.arguments[0] if sym.arguments else None
+    return first.string if first is not None and first.type == _STRING else None
 
 
 def _symbols(symbols: Iterable[clingo.Symbol]) -> tuple:
