@@ -268,7 +268,12 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="also print each candidate's mass/cost Pareto front of assignments",
     )
-    _backend_options(p, "candidates' sizings", "1, in this process; on Ray the cluster's CPUs")
+    _backend_options(
+        p,
+        "candidates' sizings",
+        "one per core up to the candidates to size, in this process for one; "
+        "on Ray the cluster's CPUs",
+    )
 
     p = sub.add_parser(
         "explain",
@@ -658,8 +663,7 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from synth.backend import Backend, tasks
     from synth.limits import stage
 
-    jobs = 1 if args.jobs is None and args.backend == "local" else args.jobs  # 1: in-process
-    engine = Backend(args.backend, jobs, args.address)
+    engine = Backend(args.backend, args.jobs, args.address)  # bad values told before any work
     designer = _designer(args, err)
     req = _request(args)
     opts = _options(args)
@@ -672,6 +676,12 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     cands, over = designer.within_limits(sol.candidates, physical)
     shown = cands[: args.limit] if args.limit is not None else cands
     sizing = not opts.conceptual
+    if args.backend == "local" and args.jobs is None:
+        # one process per core while there is more than one candidate to size (the sizings
+        # are independent; the output is the same), else in this process
+        from dataclasses import replace
+
+        engine = replace(engine, jobs=max(1, min(os.cpu_count() or 1, len(shown))) if sizing else 1)
     progress = _progress(err, len(shown)) if sizing and shown and err.isatty() else None
 
     def emit(i: int, rec: dict) -> None:

@@ -442,6 +442,27 @@ def test_enumerate_limit(cli) -> None:
     assert [c["robot_type"] for c in d["candidates"]] == ["QuadrupedRobot"]
 
 
+def test_enumerate_sizes_candidates_on_the_cores_with_the_same_output(cli, monkeypatch) -> None:
+    """By default ``enumerate`` sizes its candidates in one process per core (at most one
+    per candidate); the output is the one of a single process, byte for byte."""
+    import synth.backend as backend
+
+    used: list[int] = []
+    real = backend.tasks
+
+    def spy(engine, *a, **k):
+        used.append(engine.jobs)
+        return real(engine, *a, **k)
+
+    monkeypatch.setattr(backend, "tasks", spy)
+    monkeypatch.setattr("os.cpu_count", lambda: 2)
+    default = cli("enumerate", "driving", "--json")
+    one = cli("enumerate", "driving", "--json", "--jobs", "1")
+    assert default.code == one.code == 0
+    assert default.out == one.out
+    assert used == [2, 1]
+
+
 def test_enumerate_unsatisfiable(cli) -> None:
     r = cli("enumerate", "rolling", "grasping")
     assert r.code == 1
