@@ -17,9 +17,10 @@ import io
 import os
 from abc import ABC, abstractmethod
 from collections import OrderedDict
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
@@ -234,6 +235,37 @@ class DesignGeometry:
 #: Environment variable naming the folder of parmor's caches ("" turns them off); the
 #: same as ``adron.units.CACHE_ENV`` (gaits import nothing of adron).
 CACHE_ENV = "PARMOR_CACHE"
+
+
+def cache_write(
+    path: Path, write: Callable[[BinaryIO], None], prefix: str, keep: int | None = None
+) -> None:
+    """``write`` (into a binary file) made the cache entry ``path``: a temporary file
+    renamed over it (concurrent writers write the same bytes, no reader sees half a file),
+    then the oldest ``prefix*`` entries beyond ``keep`` deleted; a folder that cannot be
+    written only means no cache."""
+    import contextlib
+    import tempfile
+
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{prefix}", suffix=".tmp")
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+        os.replace(tmp, path)
+        tmp = None
+        if keep is not None:
+            old = sorted(path.parent.glob(f"{prefix}*"), key=lambda p: p.stat().st_mtime_ns)
+            for p in old[: max(0, len(old) - keep)]:
+                with contextlib.suppress(OSError):
+                    p.unlink()
+    except OSError:
+        pass
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
 
 
 def cache_folder() -> Path | None:

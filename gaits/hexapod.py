@@ -1216,30 +1216,11 @@ def _sway_code() -> bytes | None:
 
 
 def _write_cached(path: Path, array: np.ndarray, prefix: str, keep: int) -> None:
-    """``array`` saved to ``path`` (a temporary file renamed over it: concurrent writers
-    write the same bytes, no reader sees half a file), then the oldest ``prefix*`` files
-    beyond ``keep`` deleted; a folder that cannot be written only means no cache."""
-    import contextlib
-    import tempfile
+    """``array`` saved as the cache entry ``path`` (``gaits.base.cache_write``), keeping
+    the newest ``keep`` ``prefix*`` entries."""
+    from gaits.base import cache_write
 
-    tmp = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{prefix}", suffix=".tmp")
-        with os.fdopen(fd, "wb") as f:
-            np.save(f, array, allow_pickle=False)
-        os.replace(tmp, path)
-        tmp = None
-        old = sorted(path.parent.glob(f"{prefix}*.npy"), key=lambda p: p.stat().st_mtime_ns)
-        for p in old[: max(0, len(old) - keep)]:
-            with contextlib.suppress(OSError):
-                p.unlink()
-    except OSError:
-        pass
-    finally:
-        if tmp is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
+    cache_write(path, lambda f: np.save(f, array, allow_pickle=False), prefix, keep)
 
 
 def _sway_lp(

@@ -56,7 +56,6 @@ template's); a reference gait's world frame has the ground at z = 0.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import zipfile
 from collections.abc import Callable, Mapping
@@ -618,37 +617,27 @@ def _read_maps(path: Path, shape: GaitShape) -> ConversionMaps | None:
 
 
 def _write_maps(path: Path, maps: ConversionMaps) -> None:
-    """Cache ``maps`` in ``path`` (a temporary file renamed over it: concurrent writers
-    write the same bytes, none sees half a file); a folder that cannot be written only
-    means the maps are fitted again next time."""
-    import tempfile
+    """Cache ``maps`` in ``path`` (``gaits.base.cache_write``); a folder that cannot be
+    written only means the maps are fitted again next time."""
+    from gaits.base import cache_write
 
     ref = maps.reference
-    tmp = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".gait-maps-", suffix=".tmp")
-        with os.fdopen(fd, "wb") as f:
-            np.savez(
-                f,
-                period=np.float64(ref.period),
-                joints=np.array(ref.joints, dtype=str),
-                harmonics=ref.harmonics,
-                amplitudes=ref.amplitudes,
-                phases=ref.phases,
-                coef_basis_first=np.ascontiguousarray(maps.coef.transpose(3, 0, 1, 2)),
-                sizes=np.array(maps.sizes, dtype=float),
-                ratios=np.array(maps.ratios, dtype=float),
-                residual=np.float64(maps.residual),
-            )
-        os.replace(tmp, path)
-        tmp = None
-    except OSError:
-        pass
-    finally:
-        if tmp is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
+    cache_write(
+        path,
+        lambda f: np.savez(
+            f,
+            period=np.float64(ref.period),
+            joints=np.array(ref.joints, dtype=str),
+            harmonics=ref.harmonics,
+            amplitudes=ref.amplitudes,
+            phases=ref.phases,
+            coef_basis_first=np.ascontiguousarray(maps.coef.transpose(3, 0, 1, 2)),
+            sizes=np.array(maps.sizes, dtype=float),
+            ratios=np.array(maps.ratios, dtype=float),
+            residual=np.float64(maps.residual),
+        ),
+        "gait-maps-",
+    )
 
 
 # --- stability -----------------------------------------------------------------------------------
