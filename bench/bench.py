@@ -18,6 +18,7 @@ for p in (REPO, REPO / "bench"):
         sys.path.insert(0, str(p))
 
 from bench_assign import bench_assign  # noqa: E402
+from bench_chain import bench_chain  # noqa: E402
 from bench_links import bench_links  # noqa: E402
 from bench_onto import bench_onto  # noqa: E402
 from bench_parse import bench_parse  # noqa: E402
@@ -178,6 +179,7 @@ def main() -> int:
     sections += [
         bench_translation(),
         bench_onto(),
+        bench_chain(),
         bench_queries(),
         bench_rnea(),
         bench_links(),
