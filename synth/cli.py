@@ -539,7 +539,65 @@ def _designer(args: argparse.Namespace, err: TextIO):
         from synth.pipeline import bus_limit
 
         limit = bus_limit(args.catalog, getattr(args, "conceptual", False))
-    return Designer(kb, Reasoner(kb, args.rules, args.allow_scripts, bus_limit=limit))
+    modules: tuple[str, ...] = ()
+    if hasattr(args, "conceptual") and not args.conceptual:  # sizing follows
+        modules = SIZING_MODULES
+        if args.command == "design" and (not args.no_verify or args.out):
+            modules += MODEL_MODULES
+    reasoner = Reasoner(
+        kb,
+        args.rules,
+        args.allow_scripts,
+        bus_limit=limit,
+        while_grounding=(lambda: _prefetch(modules)) if modules else None,
+    )
+    return Designer(kb, reasoner)
+
+
+#: What sizing imports, and what the models of a verification or a bundle import (trimesh
+#: and MuJoCo: 1-2 s), imported on a thread while the reasoner's worker grounds: the main
+#: thread only waits on a pipe then, and a large ontology grounds for seconds.
+SIZING_MODULES = (
+    "synth.structure",
+    "synth.sizing",
+    "synth.behaviour_loads",
+    "gaits.legged",
+    "gaits.hexapod",
+    "gaits.humanoid",
+    "gaits.snake",
+    "gaits.wheeled",
+    "gaits.manipulator",
+)
+MODEL_MODULES = (
+    "export.bundle",
+    "export.assembly",
+    "export.meshes",
+    "export.mjcf",
+    "export.simulate",
+    "synth.verify",
+    "trimesh",
+    "mujoco",
+)
+
+
+def _prefetch(names: Sequence[str]) -> None:
+    """Import ``names`` on a daemon thread (Ctrl-C does not wait for it). Every later fork
+    of this process (a worker, a process pool) first waits for it, so that no child starts
+    with the import lock held. An import that fails is left to where the module is used,
+    which reports it."""
+    import importlib
+    import threading
+
+    def run() -> None:
+        for name in names:
+            try:
+                importlib.import_module(name)
+            except Exception:  # noqa: BLE001, S112 - imported again, and reported, where used
+                continue
+
+    thread = threading.Thread(target=run, name="parmor-prefetch", daemon=True)
+    os.register_at_fork(before=lambda: thread.join() if thread.is_alive() else None)
+    thread.start()
 
 
 def _warn_untranslated(kb, err: TextIO) -> None:

@@ -863,11 +863,14 @@ class Reasoner:
         allow_scripts: bool = False,
         focus: str | None = None,
         bus_limit: int | None = None,
+        while_grounding: Callable[[], object] | None = None,
     ) -> None:
         """Ground ``kb`` with the encodings and ``rules``. With ``focus`` (a robot class),
         the program describes that class instead of choosing among candidates. With
         ``bus_limit`` (the catalog bus's module limit, ``Bus.module_limit``), that is a
-        robot's active module limit instead of the ontology's ``activeModuleLimit``."""
+        robot's active module limit instead of the ontology's ``activeModuleLimit``.
+        ``while_grounding`` is called once the worker is forked, before this process waits
+        for it (to start work of its own meanwhile)."""
         self.kb = kb
         self._rules, self._allow_scripts = tuple(rules), allow_scripts
         self._bus_limit = bus_limit
@@ -875,6 +878,8 @@ class Reasoner:
         size = limits.current().size_atoms
         what = " + ".join(["the knowledge base", *(f.name for f in files)])
         self._worker = _Worker(lambda: _Core(kb, files, focus, size, bus_limit), what)
+        if while_grounding is not None:
+            while_grounding()
         with limits.stage("ground"):
             try:
                 externals = self._worker.result("ground")

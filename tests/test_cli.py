@@ -759,3 +759,29 @@ def test_same_bytes_across_hash_seeds(argv: list[str]) -> None:
         outs.append(p.stdout)
     assert outs[0] == outs[1]
     assert enumerated(outs[0].decode()) if argv[0] == "enumerate" else json.loads(outs[0])
+
+
+def test_prefetched_imports_finish_before_any_fork(tmp_path, monkeypatch) -> None:
+    """The imports a full design needs run on a thread while the reasoner grounds; a fork
+    (a worker, a process pool) waits for them, so no child starts with an import half
+    done; a module that cannot be imported is left to where it is used."""
+    import os
+    import sys
+    import time
+
+    from synth.cli import _prefetch
+
+    (tmp_path / "parmor_slow_import.py").write_text(
+        "import time\ntime.sleep(0.5)\nDONE = True\n", encoding="utf-8"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "parmor_slow_import", raising=False)
+    start = time.perf_counter()
+    _prefetch(["parmor_no_such_module", "parmor_slow_import"])
+    pid = os.fork()
+    if pid == 0:
+        os._exit(0 if "parmor_slow_import" in sys.modules else 1)
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0  # the child had the module whole
+    assert sys.modules["parmor_slow_import"].DONE
+    assert time.perf_counter() - start >= 0.5
