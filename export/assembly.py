@@ -76,8 +76,7 @@ from kinematics.spatial import (
 from kinematics.templates import LabelledPart, Template
 
 if TYPE_CHECKING:
-    import trimesh
-
+    from export.polymesh import Mesh
     from synth.structure import Structure
 
 __all__ = [
@@ -116,7 +115,7 @@ class _Design:
 
     name: str
     kind: str
-    mesh: trimesh.Trimesh  # as printed: on the bed in its best orientation
+    mesh: Mesh  # as printed: on the bed in its best orientation
     analytic_volume: float
     props: tuple[float, np.ndarray, np.ndarray]  # mass kg, com, inertia (part frame)
     to_bed: np.ndarray  # (4, 4): part frame -> print frame (``meshes.print_orientation``)

@@ -2,8 +2,8 @@
 
 Every function is pure and deterministic: identical inputs give identical vertices and
 identical STL bytes. Lengths in metres; the STL files hold millimetres (what every slicer
-expects; the URDF and MJCF scale them by 0.001). Meshes are ``trimesh.Trimesh`` objects,
-watertight volumes.
+expects; the URDF and MJCF scale them by 0.001). Meshes are ``export.polymesh.Mesh``
+objects (numpy; trimesh's formulas without its import), watertight volumes.
 
 Each part is built in its *print frame*: standing on z = 0, centred on the z axis, z up as
 it is printed:
@@ -31,15 +31,12 @@ from __future__ import annotations
 import struct
 from collections.abc import Sequence
 from math import cos, pi, sin
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from export.polymesh import Mesh
 from kinematics import templates as _templates
 from kinematics.templates import WHEEL_BORE
-
-if TYPE_CHECKING:  # trimesh and manifold3d are imported where they are used
-    import trimesh
 
 __all__ = [
     "STL_HEADER",
@@ -73,24 +70,23 @@ MM = 1000.0  # mm per m
 STL_RESOLUTION = 1e-6
 
 
-def _to_trimesh(solid) -> trimesh.Trimesh:
-    """The manifold ``solid`` as a trimesh (manifold3d's output is closed and oriented by
-    construction: its status is checked here; the tests check trimesh's is_volume)."""
+def _to_mesh(solid) -> Mesh:
+    """The manifold ``solid`` as a :class:`export.polymesh.Mesh` (manifold3d's output is
+    closed and oriented by construction: its status is checked here; the tests check
+    ``is_volume``, and trimesh's figures against ours)."""
     import manifold3d as mf
-    import trimesh
 
     if solid.status() != mf.Error.NoError or solid.is_empty():
         raise ValueError(f"internal error: a printed part's CSG failed ({solid.status()})")
     m = solid.to_mesh64()
     vertices = np.asarray(m.vert_properties, dtype=float)[:, :3]
     faces = np.asarray(m.tri_verts, dtype=np.int64)
-    mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
     # booleans can leave vertices a few nanometres apart, which an STL's float32
     # millimetres cannot keep apart: weld them (and drop the slivers between them)
     scale = float(np.abs(vertices).max()) if len(vertices) else 1.0
-    mesh.merge_vertices(digits_vertex=int(np.ceil(-np.log10(STL_RESOLUTION * scale))))
-    mesh.update_faces(mesh.nondegenerate_faces(height=1e-12 * scale))
-    mesh.remove_unreferenced_vertices()
+    mesh = Mesh(vertices, faces).welded(
+        int(np.ceil(-np.log10(STL_RESOLUTION * scale))), 1e-12 * scale
+    )
     if not mesh.is_watertight:
         raise ValueError("internal error: a printed part's mesh is not watertight once welded")
     return mesh
@@ -167,7 +163,7 @@ def link_mesh(
     segments: int = SEGMENTS,
     clearance: float | None = None,
     pin: bool = True,
-) -> trimesh.Trimesh:
+) -> Mesh:
     """The printed link module (m): tube along z over [0, length], plates at both ends.
 
     ``clearance`` (m; None: flat faces): the faces join their neighbours with a dovetail
@@ -208,7 +204,7 @@ def link_mesh(
             if pin:
                 solid = solid + dovetail_solid_mm(a).translate((0, 0, MM * float(length)))
             solid = solid - dovetail_solid_mm(a, c)
-    return _to_trimesh(solid.scale((1 / MM, 1 / MM, 1 / MM)))
+    return _to_mesh(solid.scale((1 / MM, 1 / MM, 1 / MM)))
 
 
 #: Dovetail profile (mm; ``kinematics.templates``' figures): the pin's width where it stands
@@ -255,23 +251,23 @@ def dovetail_volume(face_side: float, r_inner: float, clearance: float, pin: boo
     return pin_v - slot_v
 
 
-def plate_mesh(lx: float, ly: float, thickness: float) -> trimesh.Trimesh:
+def plate_mesh(lx: float, ly: float, thickness: float) -> Mesh:
     """A rectangular plate ``lx`` x ``ly`` m, ``thickness`` m thick over z in [0, thickness]."""
     import manifold3d as mf
 
     size = (_positive("lx", lx), _positive("ly", ly), _positive("thickness", thickness))
     box = mf.Manifold.cube(size, center=True).translate((0, 0, size[2] / 2))
-    return _to_trimesh(box)
+    return _to_mesh(box)
 
 
-def foot_mesh(side: float, thickness: float) -> trimesh.Trimesh:
+def foot_mesh(side: float, thickness: float) -> Mesh:
     """A square printed foot pad of ``side`` m, ``thickness`` m (sole on z = 0)."""
     return plate_mesh(side, side, thickness)
 
 
 def wheel_mesh(
     radius: float, width: float, bore: float = WHEEL_BORE, segments: int = 2 * SEGMENTS
-) -> trimesh.Trimesh:
+) -> Mesh:
     """A printed disc wheel of ``radius`` m and ``width`` m, axle along z over [0, width],
     with a hub bore of radius ``bore`` m (0: none) for the servo horn screw."""
     import manifold3d as mf
@@ -285,7 +281,7 @@ def wheel_mesh(
     if b > 0:
         hole = mf.Manifold.cylinder(w + 0.002, b, circular_segments=max(16, n // 4))
         disc = disc - hole.translate((0, 0, -0.001))
-    return _to_trimesh(disc)
+    return _to_mesh(disc)
 
 
 # --- printing orientation ------------------------------------------------------------------
@@ -316,7 +312,7 @@ def _down(n: np.ndarray) -> np.ndarray:
     return np.eye(3) + k + k @ k / (1 + c)
 
 
-def orientation_figures(mesh: trimesh.Trimesh, R: np.ndarray) -> tuple[float, float]:
+def orientation_figures(mesh: Mesh, R: np.ndarray) -> tuple[float, float]:
     """(overhang m^2, area on the bed m^2) of ``mesh`` turned by ``R`` (3,3): the area of
     the downward faces steeper than ``OVERHANG_ANGLE`` from the vertical that do not lie
     on the bed (they need support), and the area of the faces that do."""
@@ -331,7 +327,7 @@ def orientation_figures(mesh: trimesh.Trimesh, R: np.ndarray) -> tuple[float, fl
     return float(area[steep & ~on_bed].sum()), float(area[on_bed].sum())
 
 
-def print_orientation(mesh: trimesh.Trimesh) -> np.ndarray:
+def print_orientation(mesh: Mesh) -> np.ndarray:
     """The rigid transform (4,4) that puts ``mesh`` on the bed in its best printing
     orientation: of the orientations that lay one of its flat faces (its planar facets of
     at least ``MIN_FACE_SHARE`` of the largest one's area) or one of the six axis
@@ -363,7 +359,7 @@ def print_orientation(mesh: trimesh.Trimesh) -> np.ndarray:
     return T
 
 
-def support_measure(mesh: trimesh.Trimesh) -> float:
+def support_measure(mesh: Mesh) -> float:
     """m^3: the volume of the columns under the part's overhangs as it stands
     (``mesh`` on the bed): each downward face steeper than ``OVERHANG_ANGLE`` from the
     vertical and not on the bed, its area projected on the bed times its height above it.
@@ -383,7 +379,7 @@ def _support(v: np.ndarray, faces) -> float:
     return float((area * -nz * height)[steep].sum())
 
 
-def print_features(mesh: trimesh.Trimesh) -> dict[str, float]:
+def print_features(mesh: Mesh) -> dict[str, float]:
     """What a print's time and filament depend on, for ``mesh`` as printed (on the bed):
     ``volume`` m^3, ``side_area`` m^2 (faces steeper than 60 degrees from the horizontal:
     walls, printed as perimeters), ``flat_area`` m^2 (the others: top and bottom skins),
@@ -406,7 +402,7 @@ def print_features(mesh: trimesh.Trimesh) -> dict[str, float]:
 # --- figures -----------------------------------------------------------------------------
 
 
-def stl_bytes(mesh: trimesh.Trimesh) -> bytes:
+def stl_bytes(mesh: Mesh) -> bytes:
     """Binary STL of ``mesh`` (vertices in metres) in millimetres, with the fixed header
     ``STL_HEADER``; deterministic."""
     v = np.asarray(mesh.vertices, dtype=float) * MM
@@ -436,13 +432,13 @@ def read_stl(stl: bytes) -> tuple[np.ndarray, np.ndarray]:
     return vertices.astype(float), index.reshape(-1, 3)
 
 
-def mesh_volume(mesh: trimesh.Trimesh) -> float:
+def mesh_volume(mesh: Mesh) -> float:
     """Enclosed volume m^3 of a closed mesh."""
     return float(mesh.volume)
 
 
 def mesh_mass_properties(
-    mesh: trimesh.Trimesh, density: float
+    mesh: Mesh, density: float
 ) -> tuple[float, np.ndarray, np.ndarray]:
     """Mass kg, COM (3,) m and inertia (3,3) kg m^2 about the COM (mesh axes) of a solid
     ``mesh`` of uniform ``density`` kg/m^3."""
@@ -455,7 +451,7 @@ def mesh_mass_properties(
     )
 
 
-def extents(mesh: trimesh.Trimesh) -> tuple[float, float, float]:
+def extents(mesh: Mesh) -> tuple[float, float, float]:
     """Axis-aligned bounding box sizes (x, y, z) m of ``mesh`` in its print frame."""
     lo, hi = np.asarray(mesh.bounds, dtype=float)
     x, y, z = (float(d) for d in hi - lo)

@@ -575,7 +575,7 @@ MODEL_MODULES = (
     "export.mjcf",
     "export.simulate",
     "synth.verify",
-    "trimesh",
+    "export.polymesh",
     "mujoco",
 )
 

@@ -163,7 +163,7 @@ def test_print_orientation_puts_the_largest_flat_face_down() -> None:
 
     stem = mf.Manifold.cylinder(0.03, 0.005, circular_segments=32)
     cap = mf.Manifold.cube((0.04, 0.04, 0.004)).translate((-0.02, -0.02, 0.03))
-    mesh = meshes._to_trimesh(stem + cap)
+    mesh = meshes._to_mesh(stem + cap)
     upright = meshes.orientation_figures(mesh, np.eye(3))
     assert upright[0] > 0.04 * 0.04 * 0.9  # the cap's underside, printed over nothing
     T = meshes.print_orientation(mesh)
