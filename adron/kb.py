@@ -204,10 +204,9 @@ def _cached(path: Path | None, files: tuple[str, ...]) -> KnowledgeBase | None:
 def _store(path: Path | None, kb: KnowledgeBase) -> None:
     """Write ``kb`` to ``path`` whole (temporary file + rename); an unwritable folder
     only costs time."""
-    import contextlib
-    import os
     import pickle
-    import tempfile
+
+    from adron.units import write_cache_file
 
     if path is None:
         return
@@ -223,20 +222,9 @@ def _store(path: Path | None, kb: KnowledgeBase) -> None:
         light = dataclasses.replace(
             light, grounded=lazy if kb.grounded is not kb.translation else light.translation
         )
-    kb = light
-    tmp = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".kb-", suffix=".tmp")
-        with os.fdopen(fd, "wb") as f:
-            f.write(_CACHE_FORMAT + pickle.dumps(kb, protocol=pickle.HIGHEST_PROTOCOL))
-        os.replace(tmp, path)
-    except OSError:
-        if tmp is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-        return
-    prune(path.parent)
+    data = _CACHE_FORMAT + pickle.dumps(light, protocol=pickle.HIGHEST_PROTOCOL)
+    if write_cache_file(path, data):
+        prune(path.parent)
 
 
 #: how many knowledge bases (and relevant programs) the cache keeps: the least recently
@@ -246,17 +234,10 @@ CACHE_ENTRIES = 16
 
 def prune(folder: Path, keep: int = CACHE_ENTRIES) -> None:
     """Remove all but the ``keep`` most recently used ``kb-*`` and ``relevant-*`` files of
-    ``folder`` (a hit touches its file); errors are ignored (another process may prune)."""
-    import contextlib
+    ``folder`` (a hit touches its file; ``adron.units.prune_cache``)."""
+    from adron.units import prune_cache
 
-    for pattern in ("kb-*.pickle", "relevant-*.lp"):
-        try:
-            entries = sorted(folder.glob(pattern), key=lambda p: p.stat().st_mtime_ns)
-        except OSError:
-            continue
-        for old in entries[: max(0, len(entries) - keep)]:
-            with contextlib.suppress(OSError):
-                old.unlink()
+    prune_cache(folder, ("kb-*.pickle", "relevant-*.lp"), keep)
 
 
 def load(extra: Sequence[str | Path] = (), builtin: bool = True) -> KnowledgeBase:

@@ -162,6 +162,44 @@ def cache_folder() -> Path | None:
     return Path(base) / "parmor"
 
 
+def write_cache_file(path: Path, data: bytes) -> bool:
+    """``data`` made the cache file ``path`` whole: a temporary file beside it renamed
+    over it (concurrent writers write the same bytes; no reader sees half a file). False,
+    and nothing left behind, where the folder cannot be written: a cache is only a
+    shortcut."""
+    import contextlib
+    import tempfile
+
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}-", suffix=".tmp")
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+        return True
+    except OSError:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+        return False
+
+
+def prune_cache(folder: Path, patterns: tuple[str, ...], keep: int) -> None:
+    """Remove all but the ``keep`` most recently used files of each glob pattern in
+    ``folder``; errors are ignored (another process may prune at the same time)."""
+    import contextlib
+
+    for pattern in patterns:
+        try:
+            entries = sorted(folder.glob(pattern), key=lambda p: p.stat().st_mtime_ns)
+        except OSError:
+            continue
+        for old in entries[: max(0, len(entries) - keep)]:
+            with contextlib.suppress(OSError):
+                old.unlink()
+
+
 def _cache_key() -> str | None:
     """Hash of this module's code and pint's definitions and version; None without pint."""
     import hashlib

@@ -35,7 +35,7 @@ from adron.kb import KnowledgeBase, materialised, prune, read_user_file
 from adron.materialise import Derivation
 from adron.relevance import Relevance, relevance
 from adron.translate import asp_string, taxonomy_closure
-from adron.units import cache_folder
+from adron.units import cache_folder, write_cache_file
 from synth import limits
 
 _SCRIPT = re.compile(r"#\s*script", re.IGNORECASE)
@@ -431,19 +431,9 @@ def _relevant_program(
         kb = materialised(kb)
     tr = kb.grounded if grounded and kb.grounded is not None else kb.translation
     program = relevant(kb, focus, rules, grounded).program(tr)
-    if path is not None:
-        tmp = None
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".relevant-", suffix=".tmp")
-            with os.fdopen(fd, "w", encoding="utf-8") as f:
-                f.write(_RELEVANT_TAG + program + _RELEVANT_END)
-            os.replace(tmp, path)
-            prune(path.parent)
-        except OSError:
-            if tmp is not None:
-                with contextlib.suppress(OSError):
-                    os.unlink(tmp)
+    text = _RELEVANT_TAG + program + _RELEVANT_END
+    if path is not None and write_cache_file(path, text.encode("utf-8")):
+        prune(path.parent)
     return program
 
 

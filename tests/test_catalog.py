@@ -740,3 +740,45 @@ def test_printer_bed_by_name(cat: Catalog) -> None:
     for p in cat.printers:
         assert cat.printer_bed(p.model) == p.bed_m
     assert cat.printer_bed("split") is None
+
+
+def test_validated_catalogs_are_cached(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A catalog file is parsed and checked once; later loads read the validated catalog
+    back (equal to a fresh parse), a changed file is parsed again, a corrupt entry is a
+    miss, an invalid catalog is never cached (its error comes again), a catalog that
+    extends another and ``PARMOR_CACHE=`` are not cached."""
+    from adron.catalog import load_catalog
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("PARMOR_CACHE", str(cache))
+    text = files("adron").joinpath("catalog.toml").read_text(encoding="utf-8")
+    mine = tmp_path / "mine.toml"
+    mine.write_text(text, encoding="utf-8")
+    first = load_catalog(mine)
+    (entry,) = cache.glob("catalog-*.pickle")
+    assert load_catalog(mine) == first
+    entry.write_bytes(b"parmor-catalog-1\nnot a pickle")
+    assert load_catalog(mine) == first
+    mine.write_text(text.replace('version = "', 'version = "x', 1), encoding="utf-8")
+    changed = load_catalog(mine)
+    assert changed != first and len(list(cache.glob("catalog-*.pickle"))) == 2
+    bad = tmp_path / "bad.toml"
+    assert 'dovetail_face = "50 mm"' in text
+    bad_text = text.replace('dovetail_face = "50 mm"', 'dovetail_face = "-50 mm"', 1)
+    bad.write_text(bad_text, encoding="utf-8")
+    for _ in range(2):
+        with pytest.raises(InputError, match="dovetail_face"):
+            load_catalog(bad)
+    assert len(list(cache.glob("catalog-*.pickle"))) == 2
+    child = tmp_path / "child.toml"
+    child.write_text(
+        '[catalog]\nname = "c"\ncurrency = "EUR"\nversion = "1"\nextends = "default"\n',
+        encoding="utf-8",
+    )
+    load_catalog(child)
+    assert len(list(cache.glob("catalog-*.pickle"))) == 2
+    monkeypatch.setenv("PARMOR_CACHE", "")
+    for f in cache.glob("catalog-*.pickle"):
+        f.unlink()
+    assert load_catalog(mine) == changed
+    assert not list(cache.glob("catalog-*.pickle"))
