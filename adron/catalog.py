@@ -14,10 +14,8 @@ its ATtiny85 board and its printed housing with dovetail faces (see catalog.toml
 
 from __future__ import annotations
 
-import contextlib
 import difflib
 import math
-import os
 import re
 import tomllib
 from collections.abc import Collection, Iterable
@@ -1011,22 +1009,10 @@ def _cache_path(text: str, source: str, folder: Path | None, shipped: str) -> Pa
 
 def _cached_catalog(path: Path | None) -> Catalog | None:
     """The catalog cached at ``path``, or None (absent, cut short, foreign)."""
-    import pickle
+    from adron.units import read_cache_pickle
 
-    if path is None:
-        return None
-    try:
-        data = path.read_bytes()
-        if not data.startswith(_CATALOG_CACHE):
-            return None
-        cat = pickle.loads(data[len(_CATALOG_CACHE) :])
-    except Exception:  # noqa: BLE001 - a corrupt or foreign file is only a miss
-        return None
-    if not isinstance(cat, Catalog):
-        return None
-    with contextlib.suppress(OSError):  # recently used: kept by the pruning
-        os.utime(path)
-    return cat
+    cat = read_cache_pickle(path, _CATALOG_CACHE, Catalog)
+    return cat if isinstance(cat, Catalog) else None
 
 
 def _build(doc: dict[str, Any], source: str) -> Catalog:

@@ -181,24 +181,10 @@ def _cache_file(sources: Sequence[tuple[str, str]]) -> Path | None:
 
 def _cached(path: Path | None, files: tuple[str, ...]) -> KnowledgeBase | None:
     """The knowledge base stored at ``path``, or None when it is absent or not valid."""
-    import contextlib
-    import os
-    import pickle
+    from adron.units import read_cache_pickle
 
-    if path is None:
-        return None
-    try:
-        data = path.read_bytes()
-        if not data.startswith(_CACHE_FORMAT):
-            return None
-        kb = pickle.loads(data[len(_CACHE_FORMAT) :])
-    except Exception:  # noqa: BLE001 - a corrupt or foreign file is only a miss
-        return None
-    if not isinstance(kb, KnowledgeBase) or kb.files != files:
-        return None
-    with contextlib.suppress(OSError):  # recently used: kept by prune()
-        os.utime(path)
-    return kb
+    kb = read_cache_pickle(path, _CACHE_FORMAT, KnowledgeBase)
+    return kb if isinstance(kb, KnowledgeBase) and kb.files == files else None
 
 
 def _store(path: Path | None, kb: KnowledgeBase) -> None:

@@ -185,6 +185,29 @@ def write_cache_file(path: Path, data: bytes) -> bool:
         return False
 
 
+def read_cache_pickle(path: Path | None, tag: bytes, kind: type) -> object | None:
+    """The object pickled in the cache file ``path`` after ``tag`` (written by
+    :func:`write_cache_file`), when it is a ``kind``; None when absent, cut short, corrupt
+    or foreign. A hit touches the file (recently used: kept by :func:`prune_cache`)."""
+    import contextlib
+    import pickle
+
+    if path is None:
+        return None
+    try:
+        data = path.read_bytes()
+        if not data.startswith(tag):
+            return None
+        value = pickle.loads(data[len(tag) :])
+    except Exception:  # noqa: BLE001 - a corrupt or foreign file is only a miss
+        return None
+    if not isinstance(value, kind):
+        return None
+    with contextlib.suppress(OSError):
+        os.utime(path)
+    return value
+
+
 def prune_cache(folder: Path, patterns: tuple[str, ...], keep: int) -> None:
     """Remove all but the ``keep`` most recently used files of each glob pattern in
     ``folder``; errors are ignored (another process may prune at the same time)."""
