@@ -302,6 +302,7 @@ class _Index:
         self._below: dict[str, dict[str, list[str]]] = {}
         self._names: dict[str, set[str]] = {}
         self._merged: dict[tuple, dict[str, list]] = {}
+        self.results: dict[tuple, Relevance] = {}  # by what steps 2 and 3 read
 
     def at(self, rel: str, p: int) -> dict[str, list[Unit]]:
         """The facts of ``rel`` by their argument ``p`` as written."""
@@ -374,7 +375,7 @@ def _relevance(
     active: set[str],
     later: set[str],
 ) -> Relevance:
-    units, rules, subs = ix.units, ix.rules, ix.subs
+    rules, subs = ix.rules, ix.subs
     # 1. relations that something reads, and at which argument (binding patterns)
     need: dict[str, set[int]] = {v: {0} for v in vocab}
     derived = ix.derived
@@ -414,6 +415,33 @@ def _relevance(
             if r not in down:
                 down.add(r)
                 todo.append(r)
+    # what the rest reads; a later pass that reads the same (its newly active relations
+    # changed nothing here) has the same result, worked out once
+    key = (
+        frozenset((r, frozenset(ps)) for r, ps in need.items()),
+        frozenset((r, p, frozenset(ks)) for r, d in keyc.items() for p, ks in d.items()),
+        frozenset(whole),
+        frozenset(down),
+        frozenset(vocab),
+    )
+    if key in ix.results:
+        return ix.results[key]
+    out = _reached(ix, vocab, need, keyc, whole, down, rels)
+    ix.results[key] = out
+    return out
+
+
+def _reached(
+    ix: _Index,
+    vocab: set[str],
+    need: dict[str, set[int]],
+    keyc: dict[str, dict[int, set[str]]],
+    whole: set[str],
+    down: set[str],
+    rels: set[str],
+) -> Relevance:
+    """Steps 2 and 3 of :func:`_relevance`: what reaches the vocabulary, what it needs."""
+    units, rules = ix.units, ix.rules
     reach = set(vocab)
     for r in rels & set(ix.by_rel):
         if r in whole:
