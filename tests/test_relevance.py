@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from adron.kb import load
+from adron.kb import load, materialised
 from adron.relevance import Relevance
 from synth import solver
 from synth.solver import Query, Reasoner, relevant
@@ -155,3 +155,45 @@ def test_many_candidates_read_by_robot_give_the_same_solution(
     assert len(indexed.candidates) > solver._INDEXED
     monkeypatch.setattr(solver, "_INDEXED", 10**9)
     assert Reasoner(kb).solve(WALK) == indexed
+
+
+def test_a_pass_reading_what_the_last_one_read_reuses_its_result(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The filter runs its passes until no deferred relation becomes active; a pass whose
+    steps 2 and 3 read what an earlier pass's read reuses its result. Worked out again
+    each time, the result is the same."""
+    import adron.relevance as rel
+    from synth.solver import relevant
+
+    kb = materialised(load())
+    calls = {"pass": 0, "reached": 0}
+    passes, reached = rel._relevance, rel._reached
+
+    def count(name, f):
+        def wrapped(*a, **k):
+            calls[name] += 1
+            return f(*a, **k)
+
+        return wrapped
+
+    monkeypatch.setattr(rel, "_relevance", count("pass", passes))
+    monkeypatch.setattr(rel, "_reached", count("reached", reached))
+    reused = relevant(kb, grounded=True)
+    assert calls == {"pass": 2, "reached": 1}
+
+    class Forgetful(dict):
+        def __setitem__(self, key, value) -> None:
+            pass
+
+    real_init = rel._Index.__init__
+
+    def forgetful_init(self, tr) -> None:
+        real_init(self, tr)
+        self.results = Forgetful()
+
+    monkeypatch.setattr(rel._Index, "__init__", forgetful_init)
+    calls.update({"pass": 0, "reached": 0})
+    again = relevant(kb, grounded=True)
+    assert calls == {"pass": 2, "reached": 2}
+    assert again == reused
