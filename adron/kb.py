@@ -276,6 +276,8 @@ def _store_in_background(path: Path | None, kb: KnowledgeBase) -> None:
     try:
         if os.fork() == 0:
             os.setsid()  # Ctrl-C at the terminal is for the command, not for this write
+            with contextlib.suppress(OSError):
+                os.nice(19)  # the command's worker and threads come first on the cores
             null = os.open(os.devnull, os.O_RDWR)  # nor are its pipes held open by it
             for fd in (0, 1, 2):
                 os.dup2(null, fd)

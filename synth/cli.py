@@ -13,6 +13,7 @@ import errno
 import math
 import os
 import sys
+import threading
 from collections.abc import Sequence
 from typing import TextIO
 
@@ -544,13 +545,17 @@ def _designer(args: argparse.Namespace, err: TextIO):
         modules = SIZING_MODULES
         if args.command == "design" and (not args.no_verify or args.out):
             modules += MODEL_MODULES
-    reasoner = Reasoner(
-        kb,
-        args.rules,
-        args.allow_scripts,
-        bus_limit=limit,
-        while_grounding=(lambda: _prefetch(modules)) if modules else None,
-    )
+    grounded = threading.Event()
+    try:
+        reasoner = Reasoner(
+            kb,
+            args.rules,
+            args.allow_scripts,
+            bus_limit=limit,
+            while_grounding=(lambda: _prefetch(modules, kb, grounded)) if modules else None,
+        )
+    finally:
+        grounded.set()
     return Designer(kb, reasoner)
 
 
@@ -578,22 +583,39 @@ MODEL_MODULES = (
     "export.polymesh",
     "mujoco",
 )
+#: What only a first design needs (the quadruped's sway programmes, cached on disk after:
+#: gaits/hexapod.py: _sway): imported only while the worker still grounds, so that a
+#: design that does not need it does not share the core with its import.
+IDLE_MODULES = ("scipy.sparse", "scipy.optimize", "scipy.interpolate")
 
 
-def _prefetch(names: Sequence[str]) -> None:
-    """Import ``names`` on a daemon thread (Ctrl-C does not wait for it). Every later fork
-    of this process (a worker, a process pool) first waits for it, so that no child starts
-    with the import lock held. An import that fails is left to where the module is used,
-    which reports it."""
+def _prefetch(names: Sequence[str], kb=None, grounded: threading.Event | None = None) -> None:
+    """Import ``names`` on a daemon thread (Ctrl-C does not wait for it), then index
+    ``kb``'s taxonomy for the actuator assignment (``synth.assign.prepare_knowledge``),
+    then, until ``grounded`` is set, import IDLE_MODULES. Every later fork of this process
+    (a worker, a process pool) first waits for it, so that no child starts with the import
+    lock held. An import or an index that fails is left to where it is used, which reports
+    it."""
     import importlib
-    import threading
+
+    def load(name: str) -> None:
+        with contextlib.suppress(Exception):  # imported again, and reported, where used
+            importlib.import_module(name)
 
     def run() -> None:
         for name in names:
+            load(name)
+        if kb is not None:
             try:
-                importlib.import_module(name)
-            except Exception:  # noqa: BLE001, S112 - imported again, and reported, where used
-                continue
+                from synth.assign import prepare_knowledge
+
+                prepare_knowledge(kb)
+            except Exception:  # noqa: BLE001, S110 - done again, and reported, where used
+                pass
+        for name in IDLE_MODULES if grounded is not None else ():
+            if grounded.is_set():
+                break
+            load(name)
 
     thread = threading.Thread(target=run, name="parmor-prefetch", daemon=True)
     os.register_at_fork(before=lambda: thread.join() if thread.is_alive() else None)

@@ -184,7 +184,7 @@ def explained(e, kb, rules: Sequence, what: str, focus: str | None = None):
     try:
         texts = [r.text for r in rules]
         program = relevant(kb, focus, texts).program(kb.translation)  # as _Core grounds it
-        taxonomy = taxonomy_program(kb, extra, texts, program)
+        program, taxonomy = taxonomy_program(kb, extra, texts, program)
         found = culprit(kb, taxonomy, rules, limits.current().memory_mb, program=program)
     except (OSError, RuntimeError, MemoryError):
         found = ""

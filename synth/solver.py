@@ -34,7 +34,7 @@ from adron.errors import InputError, OntologyError, ParmorError
 from adron.kb import KnowledgeBase, materialised, prune, read_user_file
 from adron.materialise import Derivation
 from adron.relevance import Relevance, relevance
-from adron.translate import asp_string, taxonomy_closure
+from adron.translate import asp_string, closed_taxonomy
 from adron.units import cache_folder, write_cache_file
 from synth import limits
 
@@ -444,15 +444,16 @@ _RELEVANT_END = "% end\n"
 
 def taxonomy_program(
     kb: KnowledgeBase, others: Sequence[str], rules: Sequence[str], program: str | None = None
-) -> str:
-    """The taxonomy closure the program needs (facts), or the recursive rules when only
-    they are exact (adron/translate.py: taxonomy_closure). ``program``: the translation
-    as it goes to the grounder (by default all of it)."""
+) -> tuple[str, str]:
+    """``program`` (the translation as it goes to the grounder; by default all of it) as it
+    is grounded, and the taxonomy closure it needs: facts, with the program's direct edges
+    between classes that nothing asks about left out, or the recursive rules, with the
+    program whole, when only they are exact (adron/translate.py: closed_taxonomy)."""
     program = kb.translation.program if program is None else program
-    facts = taxonomy_closure(program, [*_encoding_texts(), *others], rules)
-    if facts is None:
-        return (encoding_dir() / "closure.lp").read_text(encoding="utf-8")
-    return facts
+    found = closed_taxonomy(program, [*_encoding_texts(), *others], rules)
+    if found is None:
+        return program, (encoding_dir() / "closure.lp").read_text(encoding="utf-8")
+    return found
 
 
 _STRING = clingo.SymbolType.String
@@ -498,8 +499,9 @@ class _Core:
         # ontology's rules read); without, its rules materialised (adron/materialise.py)
         program = _relevant_program(kb, focus, texts, grounded=not texts)
         try:
+            program, taxonomy = taxonomy_program(kb, extra, texts, program)
             self._ctl.add("base", [], program)
-            self._ctl.add("base", [], taxonomy_program(kb, extra, texts, program))
+            self._ctl.add("base", [], taxonomy)
             self._ctl.add("base", [], conceptual_text())
             for text in extra:
                 self._ctl.add("base", [], text)
