@@ -539,7 +539,8 @@ def _designer(args: argparse.Namespace, err: TextIO):
     if hasattr(args, "catalog"):
         from synth.pipeline import bus_limit
 
-        limit = bus_limit(args.catalog, getattr(args, "conceptual", False))
+        def limit() -> int | None:  # parsed while the worker filters the ontology
+            return bus_limit(args.catalog, getattr(args, "conceptual", False))
     modules: tuple[str, ...] = ()
     if hasattr(args, "conceptual") and not args.conceptual:  # sizing follows
         modules = SIZING_MODULES

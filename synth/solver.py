@@ -485,21 +485,26 @@ class _Core:
         rules: Sequence[RuleFile],
         focus: str | None,
         size: int | None,
-        bus_limit: int | None = None,
+        bus_limit: int | None | Callable[[], int | None] = None,
     ) -> None:
+        """``bus_limit`` may be a function that gives it: called once the program is
+        filtered and its taxonomy closed, just before grounding (the parent sends it
+        then, having parsed the catalog meanwhile)."""
         self._messages: list[str] = []
         self._ctl = clingo.Control(
             ["--models=0", "--opt-mode=enum"], logger=self._log, message_limit=20
         )
         extra = [f"focus({asp_string(focus)})."] if focus is not None else []
-        if bus_limit is not None:
-            extra.append(f"bus_limit({int(bus_limit)}).")
         texts = [r.text for r in rules]
         # with rule files the translation as it is (they may define any holds atom the
         # ontology's rules read); without, its rules materialised (adron/materialise.py)
         program = _relevant_program(kb, focus, texts, grounded=not texts)
+        program, taxonomy = taxonomy_program(kb, extra, texts, program)
+        if callable(bus_limit):
+            bus_limit = bus_limit()
+        if bus_limit is not None:  # no string in it: the closure's anchors are the same
+            extra.append(f"bus_limit({int(bus_limit)}).")
         try:
-            program, taxonomy = taxonomy_program(kb, extra, texts, program)
             self._ctl.add("base", [], program)
             self._ctl.add("base", [], taxonomy)
             self._ctl.add("base", [], conceptual_text())
@@ -676,9 +681,13 @@ def _address_space_kb() -> int:
 
 
 def _serve(
-    conn: Connection, make: Callable[[], _Core], memory_mb: int | None, orphan_dies: bool
+    conn: Connection,
+    make: Callable[[Connection], _Core],
+    memory_mb: int | None,
+    orphan_dies: bool,
 ) -> None:
-    """The worker's loop: build the core, then answer calls until the pipe closes."""
+    """The worker's loop: build the core (``make`` may read what the parent sends first
+    from ``conn``), then answer calls until the pipe closes."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides, and kills us
     signal.setitimer(signal.ITIMER_REAL, 0)
     signal.signal(signal.SIGALRM, signal.SIG_IGN)
@@ -695,7 +704,7 @@ def _serve(
     while True:
         try:
             if core is None:
-                core = make()
+                core = make(conn)
                 reply: tuple = ("ok", {str(x) for x in core.externals})
             else:
                 try:
@@ -747,7 +756,7 @@ def materialised_in_worker(kb: KnowledgeBase) -> KnowledgeBase:
     it while clingo grounds (``ontology check``)."""
     if kb.grounded is not None or kb.why_not is not None:
         return kb
-    worker = _Worker(lambda: _Materialiser(kb), "the knowledge base's rules")  # type: ignore[arg-type, return-value]
+    worker = _Worker(lambda _conn: _Materialiser(kb), "the knowledge base's rules")  # type: ignore[arg-type, return-value]
     try:
         with limits.stage("ground"):
             worker.result("ground")
@@ -763,7 +772,7 @@ def materialised_in_worker(kb: KnowledgeBase) -> KnowledgeBase:
 class _Worker:
     """A forked process that owns one :class:`_Core`; killed on SIGINT or a limit."""
 
-    def __init__(self, make: Callable[[], _Core], what: str) -> None:
+    def __init__(self, make: Callable[[Connection], _Core], what: str) -> None:
         lim = limits.current()
         self.what = what
         parent, child = Pipe()
@@ -854,24 +863,38 @@ class Reasoner:
         rules: Sequence[str | Path] = (),
         allow_scripts: bool = False,
         focus: str | None = None,
-        bus_limit: int | None = None,
+        bus_limit: int | None | Callable[[], int | None] = None,
         while_grounding: Callable[[], object] | None = None,
     ) -> None:
         """Ground ``kb`` with the encodings and ``rules``. With ``focus`` (a robot class),
         the program describes that class instead of choosing among candidates. With
         ``bus_limit`` (the catalog bus's module limit, ``Bus.module_limit``), that is a
-        robot's active module limit instead of the ontology's ``activeModuleLimit``.
-        ``while_grounding`` is called once the worker is forked, before this process waits
-        for it (to start work of its own meanwhile)."""
+        robot's active module limit instead of the ontology's ``activeModuleLimit``; given
+        as a function (parsing a catalog), it is called here while the worker filters the
+        ontology, and sent to it before it grounds. ``while_grounding`` is called once the
+        worker is forked, before this process waits for it (to start work of its own
+        meanwhile)."""
         self.kb = kb
         self._rules, self._allow_scripts = tuple(rules), allow_scripts
-        self._bus_limit = bus_limit
         files = read_rule_files(self._rules, allow_scripts)
         size = limits.current().size_atoms
         what = " + ".join(["the knowledge base", *(f.name for f in files)])
-        self._worker = _Worker(lambda: _Core(kb, files, focus, size, bus_limit), what)
+        deferred = callable(bus_limit)
+        self._worker = _Worker(
+            lambda conn: _Core(kb, files, focus, size, conn.recv if deferred else bus_limit),
+            what,
+        )
         if while_grounding is not None:
             while_grounding()
+        if callable(bus_limit):
+            try:
+                bus_limit = bus_limit()
+            except BaseException:
+                self._worker.close()
+                raise
+            with contextlib.suppress(OSError):  # a worker that died says why below
+                self._worker.conn.send(bus_limit)
+        self._bus_limit = bus_limit
         with limits.stage("ground"):
             try:
                 externals = self._worker.result("ground")

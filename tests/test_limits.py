@@ -173,6 +173,30 @@ def test_closure_pairs_reach_every_anchor() -> None:
     assert taxonomy_closure(prog, user=[':- isa("c0", X), bad(X).']) is None
 
 
+def test_closure_program_drops_only_edges_nothing_names() -> None:
+    """The program the closure returns leaves out the direct edges between two classes
+    that no other line names, keeps every other line in order, and names as class/1 only
+    the named classes; a rule reading the taxonomy with both arguments free keeps it all
+    (the recursive fallback)."""
+    from adron.translate import closed_taxonomy
+
+    edges = [f'holds("subclass","c{i}","c{i + 1}").' for i in range(5)]
+    prog = "\n".join([edges[0], 'p("c0").', *edges[1:], 'q("c5").']) + "\n"
+    found = closed_taxonomy(prog)
+    assert found is not None
+    kept, facts = found
+    # c0-c1 and c4-c5 touch a named class; c1-c2, c2-c3, c3-c4 do not
+    assert kept.splitlines() == [edges[0], 'p("c0").', edges[4], 'q("c5").']
+    assert sorted(ln for ln in facts.splitlines() if ln.startswith("class(")) == [
+        'class("c0").',
+        'class("c5").',
+    ]
+    # what the dropped edges gave is still asked for in the closure: c0 reaches c5
+    assert 'holds("subclass","c0",("c1";"c2";"c3";"c4";"c5")).' in facts
+    free = prog + 'r(X,Y) :- holds("subclass",V_X,V_Y), s(V_X), t(V_Y).\n'
+    assert closed_taxonomy(free) is None
+
+
 def test_python_closure_answers_as_the_recursive_one(tmp_path: Path) -> None:
     """Every base configuration's design, with the closure computed once and with the
     recursive rules (a rule file that mentions the taxonomy forces them)."""
