@@ -3,7 +3,7 @@ rough-terrain-walking`` and ``parmor enumerate walking --assignments 5`` as proc
 synthetic catalogs of 6 (the shipped actuators), 20, 60, 200 and 1000 actuators
 (``bench/synthetic_catalog.py``); wall time (best of ``runs``) with its target and as a
 ratio to the 6-actuator catalog in the same run, and the counts of feasible assignments
-``enumerate`` prints (``~`` marks an upper bound, the exact count not found in budget)."""
+``enumerate`` prints (``L..U``: bounds, the exact count not found in budget)."""
 
 from __future__ import annotations
 
@@ -51,7 +51,8 @@ def _counts(stdout: str) -> str:
         rec = json.loads(line)
         a = rec.get("assignments")
         if rec.get("type") == "candidate" and a:
-            out.append(f"{rec['robot_type']} {'' if a['count_exact'] else '~'}{a['count']}")
+            shown = a["count"] if a["count_exact"] else f"{a['count_lower']:.3g}..{a['count']:.3g}"
+            out.append(f"{rec['robot_type']} {shown}")
     return ", ".join(out)
 
 

@@ -437,9 +437,7 @@ def mesh_volume(mesh: Mesh) -> float:
     return float(mesh.volume)
 
 
-def mesh_mass_properties(
-    mesh: Mesh, density: float
-) -> tuple[float, np.ndarray, np.ndarray]:
+def mesh_mass_properties(mesh: Mesh, density: float) -> tuple[float, np.ndarray, np.ndarray]:
     """Mass kg, COM (3,) m and inertia (3,3) kg m^2 about the COM (mesh axes) of a solid
     ``mesh`` of uniform ``density`` kg/m^3."""
     props = mesh.mass_properties  # unit density

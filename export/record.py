@@ -161,6 +161,7 @@ def alternatives_record(a: Alternatives) -> dict:
     return {
         "count": a.count,
         "count_exact": a.exact,
+        "count_lower": a.count if a.exact or a.lower is None else a.lower,
         "symmetric": a.symmetric,
         "ranked": [one(x) for x in a.ranked],
         "pareto": None if a.pareto is None else [one(x) for x in a.pareto],

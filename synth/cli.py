@@ -541,6 +541,7 @@ def _designer(args: argparse.Namespace, err: TextIO):
 
         def limit() -> int | None:  # parsed while the worker filters the ontology
             return bus_limit(args.catalog, getattr(args, "conceptual", False))
+
     modules: tuple[str, ...] = ()
     if hasattr(args, "conceptual") and not args.conceptual:  # sizing follows
         modules = SIZING_MODULES
@@ -876,8 +877,8 @@ class _Sizer:
             f"{indent}sized:      {s['mass_kg']:.3f} kg, cost {s['cost']:.2f}",
             f"{indent}assignments: {a['count']} feasible ({alike}), best first:"
             if a.get("count_exact", True)
-            else f"{indent}assignments: at most {a['count']} feasible ({alike}; too many to "
-            "count exactly, the number of capable candidates), best first:",
+            else f"{indent}assignments: between {a.get('count_lower', 0)} and {a['count']} "
+            f"feasible ({alike}; too many to count exactly), best first:",
         ]
         for n, x in enumerate(a["ranked"], 1):
             lines.append(

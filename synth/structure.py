@@ -56,8 +56,8 @@ from synth.assign import (
     JointSlot,
     Points,
     best_first,
+    count_bounds,
     count_by_enumeration,
-    count_feasible,
     distinct_points,
     dominated,
     feasible_mask,
@@ -1118,6 +1118,7 @@ class Alternatives:
     ranked: tuple[Alternative, ...]
     pareto: tuple[Alternative, ...] | None
     exact: bool = True  # False: count is an upper bound (too many to check one by one)
+    lower: int | None = None  # with exact False: a lower bound (else the count)
 
 
 def count_assignments(
@@ -1316,10 +1317,11 @@ def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> A
     Candidates are the assignments capable at the converged design's torques (the
     lightest actuators: any other assignment only adds mass); an assignment is feasible
     when it stays capable with its own actuator masses (``_TorqueModel``). The count is
-    exact (``synth.assign.count_feasible``, or every candidate checked when there are at
-    most ENUMERATE_LIMIT) unless its branch and bound gives up on more (then the number of
-    candidates, an upper bound, and ``exact`` False); the best come lazily, candidates in
-    objective order each checked until ``k`` (or all) feasible ones are found."""
+    exact (``synth.assign.count_bounds``, or every candidate checked when there are at
+    most ENUMERATE_LIMIT) unless its branch and bound gives up on more: then ``count`` is
+    an upper bound and ``lower`` a lower one, from the boxes it left (``exact`` False); the
+    best come lazily, candidates in objective order each checked until ``k`` (or all)
+    feasible ones are found."""
     req = designer.requirements
     capable = designer.capable(req)
     fixed_mass = sum(n * m for _, _, n, m, _, _ in designer._fixed_modules())
@@ -1348,11 +1350,11 @@ def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> A
         sorted(ms, key=lambda m: (*(field[n](m) for n in designer.objective), m)) for _, ms in units
     ]
     problem = model.coupled([(u, ms) for (u, _), ms in zip(units, lists, strict=True)])
-    found_count = count_feasible(problem) if units else 0
-    if found_count is None and upper <= ENUMERATE_LIMIT:  # small enough to check each
-        found_count = count_by_enumeration(problem)
-    exact = found_count is not None
-    count = found_count if found_count is not None else upper
+    low, high = count_bounds(problem) if units else (0, 0)
+    if low != high and upper <= ENUMERATE_LIMIT:  # small enough to check each
+        low = high = count_by_enumeration(problem)
+    exact = low == high
+    count = high
 
     def make(idx: tuple[int, ...]) -> Assignment:
         chosen = [ms[i] for ms, i in zip(lists, idx, strict=True)]
@@ -1397,4 +1399,4 @@ def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> A
                 front_list.append(x)
                 best_cost = x.cost
         front = tuple(front_list)
-    return Alternatives(count, designer.symmetric, tuple(ranked), front, exact)
+    return Alternatives(count, designer.symmetric, tuple(ranked), front, exact, low)
