@@ -214,11 +214,14 @@ def _bindings(
     return pos, cons, full
 
 
-def _reach_unsafe(unit: Unit, reach: set[str], whole: set[str], down: set[str]) -> str | None:
+def _reach_unsafe(
+    unit: Unit, reach: set[str], whole: set[str], down: set[str], added: list[str]
+) -> str | None:
     """Why a rule could make its head's first argument reach the vocabulary where no fact
     says so, or None: every other head argument must be a constant outside the vocabulary
     or a variable bound from the first argument through the body's atoms. A wholesale
-    head's first argument reaches it: it must be a constant (added to ``reach``)."""
+    head's first argument reaches it: it must be a constant (added to ``reach``, and to
+    ``added`` when new)."""
     for rel, hargs in unit.heads:
         if not hargs or (rel not in whole and rel not in down):
             continue
@@ -226,7 +229,9 @@ def _reach_unsafe(unit: Unit, reach: set[str], whole: set[str], down: set[str]) 
         if rel in whole:
             if kind != "c":
                 return f"it derives ({rel} {name} ...) for any {name}"
-            reach.add(name)
+            if name not in reach:
+                reach.add(name)
+                added.append(name)
             continue
         linked = set(_vs(kind, name)) if kind in "vf" else set()
         changed = True
@@ -351,11 +356,12 @@ class _Index:
             parts = [get[k](r, p) if k in get else self.axioms for k, r, p in kinds]
             if len(parts) == 1:
                 d = parts[0]
-            else:
+            else:  # a key in one part shares its list (nothing changes these lists)
                 d = {}
                 for part in parts:
                     for key, vs in part.items():
-                        d.setdefault(key, []).extend(vs)
+                        old = d.get(key)
+                        d[key] = vs if old is None else old + vs
             self._merged[kinds] = d
         return d
 
@@ -450,21 +456,21 @@ def _reached(
         tuple(("below", r, 0) for r in sorted(rels & down & set(ix.by_rel)) if r not in whole)
     )
 
-    def spread() -> None:  # down the links from what reaches
-        todo = list(reach)
+    def spread(todo: list[str]) -> None:  # down the links from what reaches
         while todo:
             for s in below.get(todo.pop(), ()):
                 if s not in reach:
                     reach.add(s)
                     todo.append(s)
 
-    spread()
+    spread(list(reach))
     kept_rules = [u for u in rules if any(h[0] in rels for h in u.heads)]
+    added: list[str] = []
     for u in kept_rules:
-        why = _reach_unsafe(u, reach, whole, down)
+        why = _reach_unsafe(u, reach, whole, down, added)
         if why is not None:
             return Relevance((True,) * len(units), ("",) * len(units), f"{u.where}: {why}")
-    spread()  # constants the wholesale heads added
+    spread(added)  # from the constants the wholesale heads added
     # 3. needed, upwards from what reaches
     needed = set(reach)
     for r in whole:
