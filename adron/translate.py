@@ -649,6 +649,8 @@ def _rule_lines(program: str) -> Iterator[str]:
         end = len(program) if end < 0 else end
         yield program[start:end]
         at = program.find(":-", end)
+
+
 _CLASS_DECL = re.compile(rf"^(?:exists_axiom\(\d+,({_STR})\)|witness\(\d+,{_STR},({_STR})\))\.$")
 
 
