@@ -444,6 +444,200 @@ def count_by_enumeration(p: Coupled, chunk: int = 50_000) -> int:
     return count
 
 
+#: The count by intervals runs where the two largest units' model pairs times the other
+#: units' model combinations are at most this many (~1 s on one core at the most).
+INTERVAL_PAIRS = 60_000_000
+#: Relative margin within which a pair is checked one by one (``feasible_mask``) rather
+#: than decided by the intervals (float rounding of their bounds is ~1e-15).
+INTERVAL_TOL = 1e-9
+
+
+def _torque_limits(p: Coupled, pts: Points, models: np.ndarray) -> np.ndarray:
+    """Per model and linear point, the largest ``|C + sum_g d_g S_g|`` the model meets
+    there ((models, points)): its usable torque, and with a positive speed its torque at
+    that speed on the line to stall, over the point's factor ``F``; -inf where it meets
+    no torque, +inf where ``F`` is 0 and it meets the point."""
+    usable = p.usable[models][:, None]
+    stall = p.stall[models][:, None]
+    w0 = p.w0[models][:, None]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        at_speed = np.where(pts.W[None, :] > 0, stall * (1.0 - pts.W[None, :] / w0), np.inf)
+        cap = np.minimum(usable, at_speed)
+        k = np.where(pts.F[None, :] > 0, cap / pts.F[None, :], np.nan)
+    zero = _meets(p, models[:, None], np.zeros((len(models), len(pts.F))), pts.W[None, :])
+    k = np.where(np.isnan(k), np.where(zero, np.inf, -np.inf), k)
+    return np.where(k < 0, -np.inf, k)
+
+
+def _near(values: np.ndarray, bounds: np.ndarray, pads: np.ndarray) -> np.ndarray:
+    """Per bound, whether some of ``values`` lies within its pad of it."""
+    v = np.sort(values)
+    with np.errstate(invalid="ignore"):
+        first = np.searchsorted(v, bounds - pads, side="left")
+        last = np.searchsorted(v, bounds + pads, side="right")
+    return np.isfinite(bounds) & (last > first)
+
+
+class _Bounds:
+    """The intervals that some units' linear points put on one unit's mass (``y``, group
+    ``gy``) for each model of another (the *row* unit, group ``gx``, masses ``dx``), with
+    the masses of the ``outer`` groups given per combination: a point's ``-k <= C +
+    sum_g d_g S_g <= k`` is ``y`` between ``(+-k - C - o - dx t) / s`` (``s``, ``t`` its
+    sensitivities to ``gy`` and ``gx``, ``o`` the outer groups' share), so all but ``o``
+    is worked out once and a combination costs one subtraction and one max (or min) per
+    row and point. Points with ``s`` 0 are checked whole per combination. ``pad``: per
+    row, a margin above the bounds' rounding over every combination."""
+
+    def __init__(
+        self,
+        p: Coupled,
+        sources: Sequence[tuple[Points, np.ndarray, bool]],
+        dx: np.ndarray,
+        gx: int,
+        gy: int,
+        outer_groups: Sequence[int],
+        dmax: np.ndarray,
+    ) -> None:
+        """``sources``: (points, k, per_row): ``k`` (rows, points) when ``per_row`` (the
+        row unit's own points), else (models of that outer unit, points)."""
+        self.parts = []
+        rows = len(dx)
+        pad = np.zeros(rows)
+        og = list(outer_groups)
+        for pts, k, per_row in sources:
+            if not len(pts.C):
+                continue
+            s, t = pts.S[:, gy], pts.S[:, gx]
+            flat = s == 0
+            so = pts.S[:, og]  # (points, outer groups)
+            reach = np.abs(pts.C) + (np.abs(so) * dmax[og][None, :]).sum(axis=1)
+            kfin = np.where(np.isfinite(k), np.abs(k), 0.0)
+            kmax = kfin if per_row else kfin.max(axis=0)[None, :]
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                scale = kmax + reach[None, :] + np.abs(dx[:, None] * t[None, :]) + 1e-300
+                margin = np.where(flat[None, :], 0.0, INTERVAL_TOL * scale / np.abs(s)[None, :])
+                pad = np.maximum(pad, margin.max(axis=1) if margin.shape[1] else 0.0)
+                sp = np.where(flat, 1.0, s)
+                shift = dx[:, None] * (t / sp)[None, :]  # (rows, points)
+                if per_row:
+                    a = (-k - pts.C[None, :]) / sp[None, :] - shift
+                    b = (k - pts.C[None, :]) / sp[None, :] - shift
+                    lo = np.where(s[None, :] > 0, a, b)[:, ~flat]
+                    hi = np.where(s[None, :] > 0, b, a)[:, ~flat]
+                else:
+                    lo, hi = -shift[:, ~flat], -shift[:, ~flat]
+            self.parts.append((pts, k, per_row, s, t, flat, so, sp, lo, hi))
+        self.pad = pad
+        self.dx, self.rows = dx, rows
+
+    def at(self, o_masses: np.ndarray, pick: Mapping[int, int], unit_of: Mapping[int, int]):
+        """(low, high, unsure) per row for the outer masses ``o_masses`` (by outer group)
+        and the outer units' models ``pick`` (source index -> model row in its k)."""
+        low = np.full(self.rows, -np.inf)
+        high = np.full(self.rows, np.inf)
+        unsure = np.zeros(self.rows, bool)
+        for n, (pts, k, per_row, s, t, flat, so, sp, lo, hi) in enumerate(self.parts):
+            o = so @ o_masses  # (points,)
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                if per_row:
+                    kk = k
+                    nf = ~flat
+                    lo_c = lo - (o / sp)[None, nf]
+                    hi_c = hi - (o / sp)[None, nf]
+                else:
+                    kk = k[pick[unit_of[n]]][None, :]
+                    nf = ~flat
+                    a = ((-kk[0] - pts.C - o) / sp)[nf]
+                    b = ((kk[0] - pts.C - o) / sp)[nf]
+                    sn = s[nf] > 0
+                    lo_c = np.where(sn, a, b)[None, :] + lo
+                    hi_c = np.where(sn, b, a)[None, :] + hi
+                if lo_c.shape[1]:
+                    low = np.maximum(low, lo_c.max(axis=1))
+                    high = np.minimum(high, hi_c.min(axis=1))
+                if flat.any():
+                    r = (pts.C + o)[None, flat] + self.dx[:, None] * t[None, flat]
+                    kf = np.broadcast_to(kk, (self.rows, len(s)))[:, flat]
+                    inside = np.abs(r) <= kf
+                    high = np.where(inside.all(axis=1), high, -np.inf)
+                    edge = np.isfinite(kf) & (
+                        np.abs(np.abs(r) - kf) <= INTERVAL_TOL * (np.abs(kf) + np.abs(r) + 1e-300)
+                    )
+                    unsure |= edge.any(axis=1)
+        return low, high, unsure
+
+
+def count_by_intervals(p: Coupled, max_pairs: int = INTERVAL_PAIRS) -> int | None:
+    """The exact number of feasible assignments of ``p`` (one unit per mass group), or
+    None when it would check more than ``max_pairs`` model pairs.
+
+    For each combination of the models of all units but the two with the most models
+    (i and j), every constraint ``-k <= C + sum_g d_g S_g <= k`` is linear in the two
+    masses left: for each model of i, the points of i and of the other units bound j's
+    mass to one interval; for each model of j, j's points bound i's mass to one
+    (:class:`_Bounds`). A pair is feasible when each mass is in the other's interval, so
+    each combination counts an (i models x j models) table of comparisons. Rows and
+    columns with a bound within a rounding margin of a mass are checked one by one
+    (``feasible_mask``), so the count is exact."""
+    n = len(p.options)
+    if n < 2 or len(set(p.group)) != n:
+        return None
+    opts = []
+    for u, pts in enumerate(p.points):  # models that fail a fixed point fail everywhere
+        o = np.asarray(p.options[u])
+        for t, v in zip(pts.T, pts.V, strict=True):
+            o = o[_meets(p, o, np.full(len(o), t), v)]
+        opts.append(o)
+    if any(len(o) == 0 for o in opts):
+        return 0
+    order = sorted(range(n), key=lambda u: (-len(opts[u]), u))
+    i, j = order[0], order[1]
+    outer = sorted(order[2:])
+    combos = 1
+    for u in outer:
+        combos *= len(opts[u])
+    if combos * len(opts[i]) * len(opts[j]) > max_pairs:
+        return None
+    d = [p.mass[o] - p.base[p.group[u]] for u, o in enumerate(opts)]
+    k = [_torque_limits(p, pts, opts[u]) for u, pts in enumerate(p.points)]
+    gi, gj = p.group[i], p.group[j]
+    og = [p.group[u] for u in outer]
+    dmax = np.zeros(len(p.base))
+    for u in range(n):
+        dmax[p.group[u]] = np.abs(d[u]).max()
+    srcs_i = [(p.points[i], k[i], True)] + [(p.points[u], k[u], False) for u in outer]
+    unit_of_i = {n_: u for n_, u in enumerate([u for u in [i, *outer] if len(p.points[u].C)])}
+    rows_i = _Bounds(p, srcs_i, d[i], gi, gj, og, dmax)
+    rows_j = _Bounds(p, [(p.points[j], k[j], True)], d[j], gj, gi, og, dmax)
+    count = 0
+    for combo in itertools.product(*(range(len(opts[u])) for u in outer)):
+        pick = dict(zip(outer, combo, strict=True))
+        om = np.array([d[u][c] for u, c in pick.items()])
+        lo_i, hi_i, un_i = rows_i.at(om, pick, unit_of_i)
+        lo_j, hi_j, un_j = rows_j.at(om, pick, {})
+        pad_i, pad_j = rows_i.pad, rows_j.pad
+        # rows and columns with a bound within its margin of some mass: checked one by one
+        near_i = un_i | _near(d[j], lo_i, pad_i) | _near(d[j], hi_i, pad_i)
+        near_j = un_j | _near(d[i], lo_j, pad_j) | _near(d[i], hi_j, pad_j)
+        rows = np.flatnonzero(~near_i & (lo_i <= hi_i))
+        cols = np.flatnonzero(~near_j & (lo_j <= hi_j))
+        if len(rows) and len(cols):
+            dj, di = d[j][cols][None, :], d[i][rows][:, None]
+            ok = (dj >= lo_i[rows, None]) & (dj <= hi_i[rows, None])
+            ok &= (di >= lo_j[None, cols]) & (di <= hi_j[None, cols])
+            count += int(ok.sum())
+        if near_i.any() or near_j.any():
+            grid = near_i[:, None] | near_j[None, :]
+            at_i, at_j = np.nonzero(grid)
+            choice = np.empty((len(at_i), n), int)
+            for u, c in pick.items():
+                choice[:, u] = opts[u][c]
+            choice[:, i] = opts[i][at_i]
+            choice[:, j] = opts[j][at_j]
+            count += int(feasible_mask(p, choice).sum())
+    return count
+
+
 #: Branch and bound: a box whose assignments are at most this many is checked one by one.
 LEAF = 4096
 #: Branch and bound: boxes examined, and assignments checked one by one in them, before it
@@ -513,10 +707,11 @@ def count_feasible(
     max_boxes: int = MAX_BOXES,
     max_checked: int = MAX_CHECKED,
     max_work: int = MAX_WORK,
+    intervals: bool = True,
 ) -> int | None:
     """The exact number of feasible assignments of ``p``, or None when it could not be
     found within the budgets of :func:`count_bounds`."""
-    low, high = count_bounds(p, leaf, max_boxes, max_checked, max_work)
+    low, high = count_bounds(p, leaf, max_boxes, max_checked, max_work, intervals)
     return low if low == high else None
 
 
@@ -545,11 +740,14 @@ def count_bounds(
     max_boxes: int = MAX_BOXES,
     max_checked: int = MAX_CHECKED,
     max_work: int = MAX_WORK,
+    intervals: bool = True,
 ) -> tuple[int, int]:
     """Lower and upper bounds on the number of feasible assignments of ``p``, equal when
-    it is exact: found within ``max_boxes`` boxes, ``max_work`` model-point pairs
-    classified in them and ``max_checked`` assignments checked one by one. Past any
-    budget, each box left is bounded by :func:`_box_bounds`.
+    it is exact: by :func:`count_by_intervals` where its table is small enough (with
+    ``intervals``: up to three units on any catalog), else found within ``max_boxes``
+    boxes, ``max_work`` model-point pairs classified in them and ``max_checked``
+    assignments checked one by one. Past any budget, each box left is bounded by
+    :func:`_box_bounds`.
 
     Where every mass group has one unit (alike joints alike), a branch and bound over the
     units' mass ranges: in a box (each unit's options between two masses) a model whose
@@ -562,6 +760,9 @@ def count_bounds(
     checked, up to ``max_checked`` of them."""
     if any(len(o) == 0 for o in p.options):
         return 0, 0
+    exact = count_by_intervals(p) if intervals else None
+    if exact is not None:
+        return exact, exact
     single = len(set(p.group)) == len(p.group)
     if not single:
         total = _box_size(p.options)

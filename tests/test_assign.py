@@ -19,7 +19,9 @@ from synth.assign import (
     JointSlot,
     Points,
     count_bounds,
+    count_by_intervals,
     count_feasible,
+    feasible_mask,
     distinct_points,
     dominated,
 )
@@ -183,7 +185,7 @@ def test_count_is_exact_against_brute_force(seed) -> None:
     check of every assignment (groups shared by two units), equal brute force."""
     p = random_problem(seed, 2 + seed % 3)
     want = brute_count(p)
-    assert count_feasible(p, leaf=1, max_boxes=10**6, max_checked=10**6) == want
+    assert count_feasible(p, leaf=1, max_boxes=10**6, max_checked=10**6, intervals=False) == want
     assert count_feasible(p) == want
     shared = random_problem(seed, 4, shared=True)
     assert count_feasible(shared) == brute_count(shared)
@@ -195,7 +197,7 @@ def test_count_gives_up_rather_than_guess() -> None:
     gave_up = 0
     for seed in range(12):
         p = random_problem(seed, 2 + seed % 3)
-        got = count_feasible(p, leaf=1, max_boxes=2)
+        got = count_feasible(p, leaf=1, max_boxes=2, intervals=False)
         gave_up += got is None
         assert got is None or got == brute_count(p)
     assert gave_up > 0
@@ -224,12 +226,53 @@ def test_bounds_bracket_the_count_at_any_budget(boxes) -> None:
     for seed in range(16):
         p = random_problem(seed, 2 + seed % 3)
         want = brute_count(p)
-        low, high = count_bounds(p, leaf=1, max_boxes=boxes)
+        low, high = count_bounds(p, leaf=1, max_boxes=boxes, intervals=False)
         assert low <= want <= high
         tight += low == high
         missed += not (low + 1 <= want <= high) or not (low <= want <= high - 1)
-        full = count_bounds(p, leaf=1, max_boxes=10**6, max_checked=10**6)
+        full = count_bounds(p, leaf=1, max_boxes=10**6, max_checked=10**6, intervals=False)
         assert full == (want, want)
     assert missed > 0
     if boxes >= 8:
         assert tight > 0
+
+
+@pytest.mark.parametrize("units", [2, 3, 4])
+def test_intervals_count_equals_brute_force(units) -> None:
+    """The count by intervals (the masses of the two largest units bound each other to
+    intervals) equals brute force on random problems, mirrored points and fixed points
+    included."""
+    for seed in range(40):
+        p = random_problem(seed, units)
+        assert count_by_intervals(p) == brute_count(p)
+    assert count_by_intervals(random_problem(0, 4, shared=True)) is None  # groups shared
+
+
+def test_intervals_decide_a_pair_on_a_bound_one_by_one() -> None:
+    """A model whose usable torque is exactly the torque one assignment asks of it: the
+    assignment is feasible; one ulp less, it is not. The intervals' rounding would decide
+    either way; the pair is checked one by one and the count follows brute force."""
+    from dataclasses import replace
+
+    for seed in range(6):
+        p = random_problem(seed, 3)
+        choice = np.array([[o[0] for o in p.options]])
+        pts = p.points[0]
+        if not len(pts.C):
+            continue
+        d = p.mass[choice[0]] - p.base
+        lin = pts.C.copy()
+        for g in range(len(p.base)):
+            lin = lin + d[g] * pts.S[:, g]
+        tt = float((np.abs(lin) * pts.F).max())
+        m = choice[0, 0]
+        counts = []
+        for usable in (tt, np.nextafter(tt, 0.0)):
+            u = p.usable.copy()
+            u[m] = usable
+            w0 = p.w0.copy()
+            w0[m] = 1e9  # speed never binds for this model
+            q = replace(p, usable=u, w0=w0)
+            assert count_by_intervals(q) == brute_count(q)
+            counts.append(bool(feasible_mask(q, choice)[0]))
+        assert counts[1] is False
