@@ -21,9 +21,9 @@ from synth.assign import (
     count_bounds,
     count_by_intervals,
     count_feasible,
-    feasible_mask,
     distinct_points,
     dominated,
+    feasible_mask,
 )
 from synth.solver import encoding_dir
 
