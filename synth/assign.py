@@ -445,8 +445,11 @@ def count_by_enumeration(p: Coupled, chunk: int = 50_000) -> int:
 
 
 #: The count by intervals runs where the two largest units' model pairs times the other
-#: units' model combinations are at most this many (~1 s on one core at the most).
+#: units' model combinations are at most this many (~1 s on one core at the most), and
+#: the combinations times the units at most INTERVAL_STEPS (each unit of a combination is
+#: a few numpy calls, ~0.1 ms: a humanoid's 9 units on 20 actuators made 10^5 of them).
 INTERVAL_PAIRS = 60_000_000
+INTERVAL_STEPS = 4_000
 #: Relative margin within which a pair is checked one by one (``feasible_mask``) rather
 #: than decided by the intervals (float rounding of their bounds is ~1e-15).
 INTERVAL_TOL = 1e-9
@@ -596,7 +599,7 @@ def count_by_intervals(p: Coupled, max_pairs: int = INTERVAL_PAIRS) -> int | Non
     combos = 1
     for u in outer:
         combos *= len(opts[u])
-    if combos * len(opts[i]) * len(opts[j]) > max_pairs:
+    if combos * len(opts[i]) * len(opts[j]) > max_pairs or combos * n > INTERVAL_STEPS:
         return None
     d = [p.mass[o] - p.base[p.group[u]] for u, o in enumerate(opts)]
     k = [_torque_limits(p, pts, opts[u]) for u, pts in enumerate(p.points)]

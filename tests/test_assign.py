@@ -276,3 +276,19 @@ def test_intervals_decide_a_pair_on_a_bound_one_by_one() -> None:
             assert count_by_intervals(q) == brute_count(q)
             counts.append(bool(feasible_mask(q, choice)[0]))
         assert counts[1] is False
+
+
+def test_intervals_leave_many_combinations_to_the_branch_and_bound() -> None:
+    """Where the other units' combinations times the units pass INTERVAL_STEPS (a
+    humanoid's 9 units), the count by intervals declines (None) and count_bounds still
+    brackets the brute-force count."""
+    from synth.assign import INTERVAL_STEPS
+
+    p = random_problem(0, 9)  # 17,280 assignments
+    sizes = sorted(len(o) for o in p.options)
+    combos = int(np.prod(sizes[:-2]))
+    assert combos * 9 > INTERVAL_STEPS
+    assert count_by_intervals(p) is None
+    low, high = count_bounds(p)
+    want = brute_count(p)
+    assert low <= want <= high
