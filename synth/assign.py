@@ -704,17 +704,10 @@ def _classify(p: Coupled, alive: Sequence[np.ndarray]) -> tuple[list[np.ndarray]
     return always, never
 
 
-def count_feasible(
-    p: Coupled,
-    leaf: int = LEAF,
-    max_boxes: int = MAX_BOXES,
-    max_checked: int = MAX_CHECKED,
-    max_work: int = MAX_WORK,
-    intervals: bool = True,
-) -> int | None:
+def count_feasible(p: Coupled, **budgets: int | bool) -> int | None:
     """The exact number of feasible assignments of ``p``, or None when it could not be
-    found within the budgets of :func:`count_bounds`."""
-    low, high = count_bounds(p, leaf, max_boxes, max_checked, max_work, intervals)
+    found within the budgets of :func:`count_bounds` (its keyword arguments)."""
+    low, high = count_bounds(p, **budgets)  # type: ignore[arg-type]
     return low if low == high else None
 
 
