@@ -550,6 +550,7 @@ _EDGE_LINE = re.compile(rf'^holds\("(subclass|subrelation)",({_TERM}),({_TERM})\
 _TAXO_WHOLE_LINE = re.compile(r'^holds\("sub(?:class|relation)",.*(?:\n|$)', re.M)
 _LITERAL = re.compile(_STR)
 _TAXO_HEAD = re.compile(r'holds\("sub(?:class|relation)"')
+_READS_UP = re.compile(rf'holds\("(?:subclass|instance)",(?:{_STR}|[A-Z_]\w*|-?\d+),[A-Z_]\w*\)')
 _ENUMERATED = re.compile(
     rf'(?:\bisa\(\s*[A-Z_]\w*\s*,\s*|holds\(\s*"subclass"\s*,\s*[A-Z_]\w*\s*,\s*)({_STR})\s*\)'
 )
@@ -601,7 +602,12 @@ def closed_taxonomy(
     checked for this; tests/test_limits.py compares every design with the recursive
     closure over hierarchies hung below every class). So D's pairs from non-anchor
     descendants are given only for such D: a 100,000-class chain of leg kinds gives
-    100,000 pairs instead of one per ancestor of ``RobotLeg``.
+    100,000 pairs instead of one per ancestor of ``RobotLeg``. Likewise upwards: unless a
+    translated rule reads a class's ancestors or an instance's classes by a variable
+    (``holds("subclass", _, V_Y)``, ``holds("instance", _, V_C)``), an anchor's pairs go
+    only to anchors and to the classes such a D's descendants can bind (the encodings'
+    ``isa(R, C)`` with C free asks for robot classes, below the enumerated ``Robot``): a
+    100,000-class chain above ``Robot`` is not paired with every robot class.
     """
     edges = _EDGE_LINE.findall(program)
     starts = sum(program.startswith(p) + program.count("\n" + p) for p in _TAXO_PREFIXES)
@@ -628,6 +634,18 @@ def closed_taxonomy(
     enumerated: set[str] = set()
     for text in [*_rule_lines(program), *others, *user]:
         enumerated.update(_ENUMERATED.findall(text))
+    # unless a translated rule reads a class's ancestors (or an instance's classes) by a
+    # variable, an anchor's pairs to ancestors are needed only to anchors and to classes
+    # a rule can bind by a variable (the non-anchor descendants of the enumerated ones)
+    reads_up = any(_READS_UP.search(line) for line in _rule_lines(program))
+    readable: set[str] = set()
+    if not reads_up:
+        stack = [d for d in enumerated]
+        while stack:
+            for x in down["subclass"].get(stack.pop(), ()):
+                if x not in readable:
+                    readable.add(x)
+                    stack.append(x)
     out: list[str] = []
     for rel in ("subclass", "subrelation"):
         for start in sorted(anchors & (up[rel].keys() | down[rel].keys())):
@@ -643,6 +661,8 @@ def closed_taxonomy(
                     seen -= anchors
                     if rel == "subclass" and start not in enumerated:
                         seen = set()  # nothing names those classes or reads them by a variable
+                elif rel == "subclass" and not reads_up:
+                    seen = {x for x in seen if x in anchors or x in readable}
                 if seen:  # one fact with a pool: clingo parses it 3x faster than many
                     pool = "(" + ";".join(sorted(seen)) + ")"
                     pair = f"{start},{pool}" if forward else f"{pool},{start}"
