@@ -638,31 +638,31 @@ def closed_taxonomy(
     # variable, an anchor's pairs to ancestors are needed only to anchors and to classes
     # a rule can bind by a variable (the non-anchor descendants of the enumerated ones)
     reads_up = any(_READS_UP.search(line) for line in _rule_lines(program))
-    readable: set[str] = set()
-    if not reads_up:
-        stack = [d for d in enumerated]
+
+    def reach(graph: dict[str, list[str]], start: str) -> set[str]:
+        seen: set[str] = set()
+        stack = list(graph.get(start, ()))
         while stack:
-            for x in down["subclass"].get(stack.pop(), ()):
-                if x not in readable:
-                    readable.add(x)
-                    stack.append(x)
+            x = stack.pop()
+            if x not in seen:
+                seen.add(x)
+                stack.extend(graph.get(x, ()))
+        return seen
+
+    below = {d: reach(down["subclass"], d) for d in sorted(enumerated & down["subclass"].keys())}
+    readable: set[str] = set().union(*below.values()) if not reads_up else set()
     out: list[str] = []
     for rel in ("subclass", "subrelation"):
         for start in sorted(anchors & (up[rel].keys() | down[rel].keys())):
-            for graph, forward in ((up[rel], True), (down[rel], False)):
-                seen: set[str] = set()
-                stack = list(graph.get(start, ()))
-                while stack:
-                    x = stack.pop()
-                    if x not in seen:
-                        seen.add(x)
-                        stack.extend(graph.get(x, ()))
-                if not forward:  # pairs between anchors came with the lower one's ancestors
-                    seen -= anchors
-                    if rel == "subclass" and start not in enumerated:
-                        seen = set()  # nothing names those classes or reads them by a variable
-                elif rel == "subclass" and not reads_up:
-                    seen = {x for x in seen if x in anchors or x in readable}
+            for forward in (True, False):
+                if forward:
+                    seen = reach(up[rel], start)
+                    if rel == "subclass" and not reads_up:
+                        seen = {x for x in seen if x in anchors or x in readable}
+                elif rel == "subclass":  # nothing names the others or reads them freely
+                    seen = below[start] - anchors if start in below else set()
+                else:  # pairs between anchors came with the lower one's ancestors
+                    seen = reach(down[rel], start) - anchors
                 if seen:  # one fact with a pool: clingo parses it 3x faster than many
                     pool = "(" + ";".join(sorted(seen)) + ")"
                     pair = f"{start},{pool}" if forward else f"{pool},{start}"
