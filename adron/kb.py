@@ -112,40 +112,48 @@ def check_taxonomy(tr: Translation) -> None:
     """OntologyError when the ground ``subclass`` facts form a cycle, such as
     ``(subclass Robot HexapodRobot)`` beside the shipped ``HexapodRobot`` under ``Robot``:
     the message names the cycle's last-loaded fact (a user's file comes after the shipped
-    ones). Iterative depth-first search, linear in the facts."""
-    edges = [(a[0], a[1], where, i) for i, (a, where) in enumerate(tr.located("subclass"))]
-    graph: dict[str, list[tuple[str, str, int]]] = {}
-    for a, b, where, i in edges:
+    ones). Iterative depth-first search over the names only, linear in the facts; where
+    the facts are is looked up only for a cycle found."""
+    graph: dict[str, list[str]] = {}
+    for args in tr.relation("subclass"):
+        a, b = args[0], args[1]
         if isinstance(a, str) and isinstance(b, str):
-            graph.setdefault(a, []).append((b, where, i))
+            graph.setdefault(a, []).append(b)
     state: dict[str, int] = {}  # 1 on the current path, 2 done
     for root in graph:
         if root in state:
             continue
         state[root] = 1
-        path: list[tuple[str, str, int]] = [(root, "", -1)]  # (class, where, index) of edge in
-        stack = [iter(graph.get(root, ()))]
+        path = [root]
+        stack = [iter(graph[root])]
         while stack:
-            step = next(stack[-1], None)
-            if step is None:
-                state[path.pop()[0]] = 2
+            b = next(stack[-1], None)
+            if b is None:
+                state[path.pop()] = 2
                 stack.pop()
                 continue
-            b, where, i = step
-            if state.get(b) == 1:  # back to a class on the path: a cycle
-                at = next(k for k, p in enumerate(path) if p[0] == b)
-                cycle = [*path[at + 1 :], (b, where, i)]
-                _, blame, _ = max(cycle, key=lambda p: p[2])
-                names = [b, *(p[0] for p in cycle)]
-                shown = " < ".join(names if len(names) <= 8 else [*names[:4], "...", *names[-3:]])
-                raise OntologyError(
-                    f"{blame}: this subclass fact closes a cycle in the class hierarchy "
-                    f"({shown}); a class cannot be its own subclass"
-                )
-            if b not in state:
+            seen = state.get(b)
+            if seen == 1:  # back to a class on the path: a cycle
+                _cycle_error(tr, [*path[path.index(b) :], b])
+            if seen is None:
                 state[b] = 1
-                path.append((b, where, i))
+                path.append(b)
                 stack.append(iter(graph.get(b, ())))
+
+
+def _cycle_error(tr: Translation, names: list[str]) -> None:
+    """The OntologyError of the cycle through ``names`` (its first name again at the end):
+    blamed on its last-loaded fact (each step the first fact of that pair, the one the
+    search followed)."""
+    first: dict[tuple[str, str], tuple[int, str]] = {}
+    for i, (args, where) in enumerate(tr.located("subclass")):
+        first.setdefault((args[0], args[1]), (i, where))
+    _, blame = max(first[(a, b)] for a, b in zip(names, names[1:], strict=False))
+    shown = " < ".join(names if len(names) <= 8 else [*names[:4], "...", *names[-3:]])
+    raise OntologyError(
+        f"{blame}: this subclass fact closes a cycle in the class hierarchy "
+        f"({shown}); a class cannot be its own subclass"
+    )
 
 
 #: the modules whose code makes a KnowledgeBase: part of the cache key
