@@ -14,8 +14,9 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
+
+from cli_timing import best_time
 
 REPO = Path(__file__).resolve().parents[1]
 TARGET = 5.0  # s (issue 11)
@@ -47,21 +48,15 @@ def chain(n: int) -> str:
 
 
 def _time(args: list[str], runs: int, warm: Path | None) -> float:
-    best = float("inf")
-    for _ in range(runs):
-        with tempfile.TemporaryDirectory(prefix="parmor-bench-chain-") as cold:
-            for p in warm.glob("*") if warm is not None else ():  # the gaits', not the ontology's
-                if not p.name.startswith(("kb-", "relevant-")):
-                    shutil.copy(p, cold)
-            env = {**os.environ, "PYTHONPATH": str(REPO), "PARMOR_CACHE": cold}
-            t0 = time.perf_counter()
-            r = subprocess.run(
-                [sys.executable, "-m", "synth.cli", *args], env=env, capture_output=True, cwd=REPO
-            )
-            best = min(best, time.perf_counter() - t0)
-        if r.returncode != 0:
-            raise RuntimeError(r.stderr.decode()[-500:])
-    return best
+    """Best wall-clock time of ``args`` with a cold cache holding only ``warm``'s gaits'
+    files (not the ontology's); every cache cold when ``warm`` is None."""
+
+    def seed(cold: Path) -> None:
+        for p in warm.glob("*") if warm is not None else ():
+            if not p.name.startswith(("kb-", "relevant-")):
+                shutil.copy(p, cold)
+
+    return best_time(args, runs, seed=seed)
 
 
 def bench_chain(runs: int = 2) -> list[str]:

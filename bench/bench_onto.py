@@ -7,11 +7,10 @@ generated into a temporary folder (target: under 1 s). Best of ``runs`` wall-clo
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
+
+from cli_timing import best_time
 
 REPO = Path(__file__).resolve().parents[1]
 SUMO = REPO.parent / "shared" / "kif" / "sumo"
@@ -57,21 +56,10 @@ def extra_abilities(n: int) -> str:
 
 
 def _time(args: list[str], runs: int, cache: str | None = None) -> float:
-    """Best wall-clock time of ``runs`` processes; ``cache``: the PARMOR_CACHE folder (a
-    new empty one per run when None: a cold cache)."""
-    cmd = [sys.executable, "-m", "synth.cli", "design", "walking", "--conceptual", "--no-input"]
-    best = float("inf")
-    for _ in range(runs):
-        with tempfile.TemporaryDirectory(prefix="parmor-bench-cache-") as cold:
-            env = {**os.environ, "PYTHONPATH": str(REPO), "PARMOR_CACHE": cache or cold}
-            if cache is not None:  # warm it first
-                subprocess.run(cmd + args, env=env, capture_output=True, cwd=REPO, check=False)
-            t0 = time.perf_counter()
-            r = subprocess.run(cmd + args, env=env, capture_output=True, cwd=REPO, check=False)
-            best = min(best, time.perf_counter() - t0)
-        if r.returncode not in (0, 3):
-            raise RuntimeError(r.stderr.decode()[-500:])
-    return best
+    """Best wall-clock time of ``design walking --conceptual`` with ``args``; ``cache``:
+    the PARMOR_CACHE folder (a new empty one per run when None: a cold cache)."""
+    cmd = ["design", "walking", "--conceptual", "--no-input", *args]
+    return best_time(cmd, runs, cache, ok=(0, 3))
 
 
 def bench_onto(runs: int = 3) -> list[str]:
