@@ -569,6 +569,7 @@ _STR = r'"(?:[^"\\]|\\.)*"'
 _TERM = rf"(?:{_STR}|-?\d+)"
 _EDGE = re.compile(rf'^holds\("(subclass|subrelation)",({_TERM}),({_TERM})\)\.$')
 _EDGE_LINE = re.compile(rf'^holds\("(subclass|subrelation)",({_TERM}),({_TERM})\)\.$\n?', re.M)
+_TAXO_PREFIXES = ('holds("subclass",', 'holds("subrelation",')
 _TAXO_WHOLE_LINE = re.compile(r'^holds\("sub(?:class|relation)",.*(?:\n|$)', re.M)
 _LITERAL = re.compile(_STR)
 _TAXO_HEAD = re.compile(r'holds\("sub(?:class|relation)"')
@@ -635,7 +636,8 @@ def closed_taxonomy(
     starts = sum(program.startswith(p) + program.count("\n" + p) for p in _TAXO_PREFIXES)
     if len(edges) != starts:
         return None  # a taxonomy fact between other than plain names
-    for line in _rule_lines(program):
+    rule_lines = list(_rule_lines(program))
+    for line in rule_lines:
         if _EDGE.match(line) is None:
             head = line.split(":-", 1)[0]
             if _TAXO_HEAD.search(head) or _TAXO_FREE.search(line):
@@ -654,37 +656,26 @@ def closed_taxonomy(
     # the classes whose descendants a rule reads through a variable: isa(X, "D") in the
     # encodings, holds("subclass", V_X, "D") in a translated rule
     enumerated: set[str] = set()
-    for text in [*_rule_lines(program), *others, *user]:
+    for text in [*rule_lines, *others, *user]:
         enumerated.update(_ENUMERATED.findall(text))
     # unless a translated rule reads a class's ancestors (or an instance's classes) by a
     # variable, an anchor's pairs to ancestors are needed only to anchors and to classes
     # a rule can bind by a variable (the non-anchor descendants of the enumerated ones)
-    reads_up = any(_READS_UP.search(line) for line in _rule_lines(program))
-
-    def reach(graph: dict[str, list[str]], start: str) -> set[str]:
-        seen: set[str] = set()
-        stack = list(graph.get(start, ()))
-        while stack:
-            x = stack.pop()
-            if x not in seen:
-                seen.add(x)
-                stack.extend(graph.get(x, ()))
-        return seen
-
-    below = {d: reach(down["subclass"], d) for d in sorted(enumerated & down["subclass"].keys())}
+    reads_up = any(_READS_UP.search(line) for line in rule_lines)
+    below = {d: _reach(down["subclass"], d) for d in sorted(enumerated & down["subclass"].keys())}
     readable: set[str] = set().union(*below.values()) if not reads_up else set()
     out: list[str] = []
     for rel in ("subclass", "subrelation"):
         for start in sorted(anchors & (up[rel].keys() | down[rel].keys())):
             for forward in (True, False):
                 if forward:
-                    seen = reach(up[rel], start)
+                    seen = _reach(up[rel], start)
                     if rel == "subclass" and not reads_up:
                         seen = {x for x in seen if x in anchors or x in readable}
                 elif rel == "subclass":  # nothing names the others or reads them freely
                     seen = below[start] - anchors if start in below else set()
                 else:  # pairs between anchors came with the lower one's ancestors
-                    seen = reach(down[rel], start) - anchors
+                    seen = _reach(down[rel], start) - anchors
                 if seen:  # one fact with a pool: clingo parses it 3x faster than many
                     pool = "(" + ";".join(sorted(seen)) + ")"
                     pair = f"{start},{pool}" if forward else f"{pool},{start}"
@@ -699,7 +690,17 @@ def closed_taxonomy(
     return kept if kept.endswith("\n") or not kept else kept + "\n", "\n".join(out) + "\n"
 
 
-_TAXO_PREFIXES = ('holds("subclass",', 'holds("subrelation",')
+def _reach(graph: dict[str, list[str]], start: str) -> set[str]:
+    """Every name reached from ``start`` along ``graph`` (not ``start`` itself, unless on
+    a cycle)."""
+    seen: set[str] = set()
+    stack = list(graph.get(start, ()))
+    while stack:
+        x = stack.pop()
+        if x not in seen:
+            seen.add(x)
+            stack.extend(graph.get(x, ()))
+    return seen
 
 
 def _rule_lines(program: str) -> Iterator[str]:
@@ -755,7 +756,7 @@ class IsaIndex:
                 elif b in wanted:
                     return None
                 continue
-            if line.startswith(('holds("subclass",', 'holds("subrelation",')):
+            if line.startswith(_TAXO_PREFIXES):
                 return None
             if ":-" in line:
                 head = line.split(":-", 1)[0]
@@ -773,13 +774,7 @@ class IsaIndex:
         """:func:`isa_facts` of these ``classes``."""
         out = []
         for c in sorted(set(classes)):
-            seen: set[str] = set()
-            stack = list(self.up.get(c, ()))
-            while stack:
-                x = stack.pop()
-                if x not in seen:
-                    seen.add(x)
-                    stack.extend(self.up.get(x, ()))
+            seen = _reach(self.up, c)
             if c in self.known:
                 seen.add(c)
             out.extend(f"isa({c},{d})." for d in sorted(seen))
