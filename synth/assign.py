@@ -403,6 +403,15 @@ def _meets(p: Coupled, a: np.ndarray, tt: np.ndarray, w: np.ndarray | float) -> 
     return (p.usable[a] >= tt) & (speed >= w)
 
 
+def _fixed_ok(p: Coupled, pts: Points, models: np.ndarray) -> np.ndarray:
+    """Per model, whether it meets every fixed point of ``pts`` (torque ``T`` at speed
+    ``V``, whatever the masses)."""
+    ok = np.ones(len(models), bool)
+    for t, v in zip(pts.T, pts.V, strict=True):
+        ok &= _meets(p, models, np.full(len(models), t), v)
+    return ok
+
+
 def feasible_mask(p: Coupled, choice: np.ndarray) -> np.ndarray:
     """Which rows of ``choice`` ((N, units) model indices) are feasible."""
     n = choice.shape[0]
@@ -472,12 +481,11 @@ def _torque_limits(p: Coupled, pts: Points, models: np.ndarray) -> np.ndarray:
     return np.where(k < 0, -np.inf, k)
 
 
-def _near(values: np.ndarray, bounds: np.ndarray, pads: np.ndarray) -> np.ndarray:
-    """Per bound, whether some of ``values`` lies within its pad of it."""
-    v = np.sort(values)
+def _near(ordered: np.ndarray, bounds: np.ndarray, pads: np.ndarray) -> np.ndarray:
+    """Per bound, whether some of the values ``ordered`` (sorted) lies within its pad."""
     with np.errstate(invalid="ignore"):
-        first = np.searchsorted(v, bounds - pads, side="left")
-        last = np.searchsorted(v, bounds + pads, side="right")
+        first = np.searchsorted(ordered, bounds - pads, side="left")
+        last = np.searchsorted(ordered, bounds + pads, side="right")
     return np.isfinite(bounds) & (last > first)
 
 
@@ -494,24 +502,25 @@ class _Bounds:
     def __init__(
         self,
         p: Coupled,
-        sources: Sequence[tuple[Points, np.ndarray, bool]],
+        sources: Sequence[tuple[int, Points, np.ndarray, bool]],
         dx: np.ndarray,
         gx: int,
         gy: int,
         outer_groups: Sequence[int],
         dmax: np.ndarray,
     ) -> None:
-        """``sources``: (points, k, per_row): ``k`` (rows, points) when ``per_row`` (the
-        row unit's own points), else (models of that outer unit, points)."""
+        """``sources``: (unit, points, k, per_row): ``k`` (rows, points) when ``per_row``
+        (the row unit's own points), else (models of that outer unit, points)."""
         self.parts = []
         rows = len(dx)
         pad = np.zeros(rows)
         og = list(outer_groups)
-        for pts, k, per_row in sources:
+        for unit, pts, k, per_row in sources:
             if not len(pts.C):
                 continue
             s, t = pts.S[:, gy], pts.S[:, gx]
             flat = s == 0
+            nf = ~flat
             so = pts.S[:, og]  # (points, outer groups)
             reach = np.abs(pts.C) + (np.abs(so) * dmax[og][None, :]).sum(axis=1)
             kfin = np.where(np.isfinite(k), np.abs(k), 0.0)
@@ -525,31 +534,29 @@ class _Bounds:
                 if per_row:
                     a = (-k - pts.C[None, :]) / sp[None, :] - shift
                     b = (k - pts.C[None, :]) / sp[None, :] - shift
-                    lo = np.where(s[None, :] > 0, a, b)[:, ~flat]
-                    hi = np.where(s[None, :] > 0, b, a)[:, ~flat]
+                    lo = np.where(s[None, :] > 0, a, b)[:, nf]
+                    hi = np.where(s[None, :] > 0, b, a)[:, nf]
                 else:
-                    lo, hi = -shift[:, ~flat], -shift[:, ~flat]
-            self.parts.append((pts, k, per_row, s, t, flat, so, sp, lo, hi))
+                    lo = hi = -shift[:, nf]
+            self.parts.append((unit, pts, k, per_row, s, t, flat, nf, so, sp, lo, hi))
         self.pad = pad
         self.dx, self.rows = dx, rows
 
-    def at(self, o_masses: np.ndarray, pick: Mapping[int, int], unit_of: Mapping[int, int]):
+    def at(self, o_masses: np.ndarray, pick: Mapping[int, int]):
         """(low, high, unsure) per row for the outer masses ``o_masses`` (by outer group)
-        and the outer units' models ``pick`` (source index -> model row in its k)."""
+        and the outer units' models ``pick`` (unit -> model row in its k)."""
         low = np.full(self.rows, -np.inf)
         high = np.full(self.rows, np.inf)
         unsure = np.zeros(self.rows, bool)
-        for n, (pts, k, per_row, s, t, flat, so, sp, lo, hi) in enumerate(self.parts):
+        for unit, pts, k, per_row, s, t, flat, nf, so, sp, lo, hi in self.parts:
             o = so @ o_masses  # (points,)
             with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
                 if per_row:
                     kk = k
-                    nf = ~flat
                     lo_c = lo - (o / sp)[None, nf]
                     hi_c = hi - (o / sp)[None, nf]
                 else:
-                    kk = k[pick[unit_of[n]]][None, :]
-                    nf = ~flat
+                    kk = k[pick[unit]][None, :]
                     a = ((-kk[0] - pts.C - o) / sp)[nf]
                     b = ((kk[0] - pts.C - o) / sp)[nf]
                     sn = s[nf] > 0
@@ -585,12 +592,11 @@ def count_by_intervals(p: Coupled, max_pairs: int = INTERVAL_PAIRS) -> int | Non
     n = len(p.options)
     if n < 2 or len(set(p.group)) != n:
         return None
-    opts = []
-    for u, pts in enumerate(p.points):  # models that fail a fixed point fail everywhere
-        o = np.asarray(p.options[u])
-        for t, v in zip(pts.T, pts.V, strict=True):
-            o = o[_meets(p, o, np.full(len(o), t), v)]
-        opts.append(o)
+    # models that fail a fixed point fail everywhere
+    opts = [
+        np.asarray(o)[_fixed_ok(p, pts, np.asarray(o))]
+        for o, pts in zip(p.options, p.points, strict=True)
+    ]
     if any(len(o) == 0 for o in opts):
         return 0
     order = sorted(range(n), key=lambda u: (-len(opts[u]), u))
@@ -608,20 +614,20 @@ def count_by_intervals(p: Coupled, max_pairs: int = INTERVAL_PAIRS) -> int | Non
     dmax = np.zeros(len(p.base))
     for u in range(n):
         dmax[p.group[u]] = np.abs(d[u]).max()
-    srcs_i = [(p.points[i], k[i], True)] + [(p.points[u], k[u], False) for u in outer]
-    unit_of_i = {n_: u for n_, u in enumerate([u for u in [i, *outer] if len(p.points[u].C)])}
+    srcs_i = [(i, p.points[i], k[i], True)] + [(u, p.points[u], k[u], False) for u in outer]
     rows_i = _Bounds(p, srcs_i, d[i], gi, gj, og, dmax)
-    rows_j = _Bounds(p, [(p.points[j], k[j], True)], d[j], gj, gi, og, dmax)
+    rows_j = _Bounds(p, [(j, p.points[j], k[j], True)], d[j], gj, gi, og, dmax)
+    sorted_i, sorted_j = np.sort(d[i]), np.sort(d[j])
     count = 0
     for combo in itertools.product(*(range(len(opts[u])) for u in outer)):
         pick = dict(zip(outer, combo, strict=True))
         om = np.array([d[u][c] for u, c in pick.items()])
-        lo_i, hi_i, un_i = rows_i.at(om, pick, unit_of_i)
-        lo_j, hi_j, un_j = rows_j.at(om, pick, {})
+        lo_i, hi_i, un_i = rows_i.at(om, pick)
+        lo_j, hi_j, un_j = rows_j.at(om, pick)
         pad_i, pad_j = rows_i.pad, rows_j.pad
         # rows and columns with a bound within its margin of some mass: checked one by one
-        near_i = un_i | _near(d[j], lo_i, pad_i) | _near(d[j], hi_i, pad_i)
-        near_j = un_j | _near(d[i], lo_j, pad_j) | _near(d[i], hi_j, pad_j)
+        near_i = un_i | _near(sorted_j, lo_i, pad_i) | _near(sorted_j, hi_i, pad_i)
+        near_j = un_j | _near(sorted_i, lo_j, pad_j) | _near(sorted_i, hi_j, pad_j)
         rows = np.flatnonzero(~near_i & (lo_i <= hi_i))
         cols = np.flatnonzero(~near_j & (lo_j <= hi_j))
         if len(rows) and len(cols):
@@ -695,10 +701,9 @@ def _classify(p: Coupled, alive: Sequence[np.ndarray]) -> tuple[list[np.ndarray]
             A = a[:, None]
             ok_all &= _meets(p, A, amax, pts.W[None, :]).all(axis=1)
             bad |= ~_meets(p, A, amin, pts.W[None, :]).all(axis=1)
-        for k in range(len(pts.T)):
-            fixed = _meets(p, a, np.full(len(a), pts.T[k]), pts.V[k])
-            ok_all &= fixed
-            bad |= ~fixed
+        fixed = _fixed_ok(p, pts, a)
+        ok_all &= fixed
+        bad |= ~fixed
         always.append(ok_all & ~bad)
         never.append(bad)
     return always, never
