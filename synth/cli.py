@@ -608,12 +608,10 @@ def _prefetch(names: Sequence[str], kb=None, grounded: threading.Event | None = 
         for name in names:
             load(name)
         if kb is not None:
-            try:
+            with contextlib.suppress(Exception):  # done again, and reported, where used
                 from synth.assign import prepare_knowledge
 
                 prepare_knowledge(kb)
-            except Exception:  # noqa: BLE001, S110 - done again, and reported, where used
-                pass
         for name in IDLE_MODULES if grounded is not None else ():
             if grounded.is_set():
                 break

@@ -886,9 +886,9 @@ class Reasoner:
         )
         if while_grounding is not None:
             while_grounding()
-        if callable(bus_limit):
+        if deferred:
             try:
-                bus_limit = bus_limit()
+                bus_limit = bus_limit()  # type: ignore[operator]
             except BaseException:
                 self._worker.close()
                 raise
