@@ -243,7 +243,9 @@ def cache_write(
     """``write`` (into a binary file) made the cache entry ``path``: a temporary file
     renamed over it (concurrent writers write the same bytes, no reader sees half a file),
     then the oldest ``prefix*`` entries beyond ``keep`` deleted; a folder that cannot be
-    written only means no cache."""
+    written only means no cache. (``adron.units.write_cache_file`` and ``prune_cache`` do
+    the same for adron and synth: DESIGN.md has gaits import nothing of adron, and adron
+    nothing of ours.)"""
     import contextlib
     import tempfile
 

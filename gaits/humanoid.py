@@ -56,7 +56,6 @@ template's); a reference gait's world frame has the ground at z = 0.
 
 from __future__ import annotations
 
-import os
 import zipfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -66,7 +65,15 @@ from pathlib import Path
 
 import numpy as np
 
-from gaits.base import BehaviorSpec, Controller, DesignGeometry, Parameter, Trajectory
+from gaits.base import (  # noqa: F401 - CACHE_ENV: the cache folder's variable, for callers
+    CACHE_ENV,
+    BehaviorSpec,
+    Controller,
+    DesignGeometry,
+    Parameter,
+    Trajectory,
+    cache_folder,
+)
 from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics, rnea
 from kinematics.templates import (
     DEFAULTS,
@@ -547,9 +554,6 @@ def conversion_maps(gait: str = "walking") -> ConversionMaps:
     return maps
 
 
-#: Environment variable naming the folder of parmor's caches ("" turns them off); the
-#: same variable as ``adron.units.CACHE_ENV`` (gaits import nothing of adron).
-CACHE_ENV = "PARMOR_CACHE"
 #: What the fitted maps depend on besides the constants of this file: the templates and
 #: the multibody code they are planned with (paths relative to the package root).
 _MAPS_SOURCES = (
@@ -570,14 +574,9 @@ def _maps_file(shape: GaitShape) -> Path | None:
     and an entry is never stale. None when there is no cache folder."""
     import hashlib
 
-    env = os.environ.get(CACHE_ENV)
-    if env is not None:
-        if not env.strip():
-            return None
-        folder = Path(env)
-    else:
-        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-        folder = Path(base) / "parmor"
+    folder = cache_folder()
+    if folder is None:
+        return None
     root = Path(__file__).resolve().parents[1]
     h = hashlib.sha256(repr(shape).encode())
     try:
