@@ -14,6 +14,7 @@ import gc
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from importlib import resources
+from typing import NoReturn
 from pathlib import Path
 
 from adron.errors import InputError, OntologyError
@@ -141,7 +142,7 @@ def check_taxonomy(tr: Translation) -> None:
                 stack.append(iter(graph.get(b, ())))
 
 
-def _cycle_error(tr: Translation, names: list[str]) -> None:
+def _cycle_error(tr: Translation, names: list[str]) -> NoReturn:
     """The OntologyError of the cycle through ``names`` (its first name again at the end):
     blamed on its last-loaded fact (each step the first fact of that pair, the one the
     search followed)."""
