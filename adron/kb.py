@@ -14,8 +14,8 @@ import gc
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from importlib import resources
-from typing import NoReturn
 from pathlib import Path
+from typing import NoReturn
 
 from adron.errors import InputError, OntologyError
 from adron.kif import MAX_DEPTH, Form, parse
