@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -87,6 +87,9 @@ class LoadCase:
     v: np.ndarray
     a: np.ndarray
     fext: np.ndarray | None = None
+    #: where a family picked the case among others by its load (a gait's instant: (gait,
+    #: sample index)), so that ``Family.load_cases_like`` can pick the same one again
+    instant: tuple[str, int] | None = None
 
 
 @dataclass
@@ -216,6 +219,22 @@ class Family(ABC):
         self, tmpl: Template, p: Mapping[str, float], sizing: Sizing | None
     ) -> dict[str, float]:
         """Required speed (rad/s) of each movable joint."""
+
+    def load_cases_like(
+        self, tmpl: Template, p: Mapping[str, float], catalog: Catalog, like: Sequence[LoadCase]
+    ) -> list[LoadCase]:
+        """The cases ``like`` (``load_cases`` of a template with other masses) on ``tmpl``:
+        the same poses, motions and instants with ``tmpl``'s masses, so that the torques
+        of one case with two sets of masses can be compared (``synth.structure``'s
+        torque model; ``load_cases`` itself may pick other instants as the masses move).
+        Default: ``load_cases``, whose choices must not depend on the masses."""
+        cases = self.load_cases(tmpl, p, catalog)
+        if [c.name for c in cases] != [c.name for c in like]:
+            raise RuntimeError(
+                f"{type(self).__name__}.load_cases picks its cases by the masses; "
+                "override load_cases_like"
+            )
+        return cases
 
     def analysis_modules(self, modules: int, lifted_share: float = 0.5) -> int:
         """Snake modules in the analysed chain (others: unused)."""
@@ -488,6 +507,15 @@ class Humanoid(Family):
         return _joint_q(tmpl, dict(zip(names, (float(a) for a in angles), strict=True)))
 
     def load_cases(self, tmpl, p, catalog):
+        return self._cases(tmpl, catalog, None)
+
+    def load_cases_like(self, tmpl, p, catalog, like):
+        """The stance cases, and the gaits at the instants of ``like``."""
+        return self._cases(tmpl, catalog, [c.instant for c in like if c.instant is not None])
+
+    def _cases(self, tmpl, catalog, instants: Sequence[tuple[str, int]] | None) -> list[LoadCase]:
+        """The stance cases, then the gaits' cases: each joint's peak instant, or the
+        ``instants`` (gait, sample index) given."""
         from kinematics.dynamics import rnea
 
         q = self.stance(tmpl)
@@ -516,9 +544,15 @@ class Humanoid(Family):
             )
         zero = np.zeros(model.nv)
         for name, t, Q, _, fext in self._gait_loads(tmpl):
-            tau = np.abs(rnea(model, Q, np.zeros_like(Q), np.zeros_like(Q), fext))
-            for i in sorted({int(i) for i in np.argmax(tau, axis=0)}):  # each joint's peak
-                cases.append(LoadCase(f"{name} at {t[i]:.2f} s", Q[i], zero, zero, fext[i]))
+            if instants is None:  # each joint's peak
+                tau = np.abs(rnea(model, Q, np.zeros_like(Q), np.zeros_like(Q), fext))
+                picked = sorted({int(i) for i in np.argmax(tau, axis=0)})
+            else:
+                picked = [i for gait, i in instants if gait == name]
+            for i in picked:
+                cases.append(
+                    LoadCase(f"{name} at {t[i]:.2f} s", Q[i], zero, zero, fext[i], (name, i))
+                )
         return cases
 
     def speeds(self, tmpl, p, sizing):

@@ -1150,15 +1150,18 @@ class _TorqueModel:
 
     RNEA torques are linear in the bodies' masses for fixed motion and loads, and so is the
     ground's support force in the total mass: per load case, tau(m) = tau0 + sum over
-    actuator groups of (m_g - m0_g) s_g, with s_g from one finite step. (The share of the
-    weight each foot carries moves with the centre of mass; that small effect is not
-    modelled.) A joint's requirement is the largest |tau| over the cases; its hold (a
+    actuator groups of (m_g - m0_g) s_g, with s_g from one finite step. The cases are those
+    of the converged masses, held (``Family.load_cases_like``: a humanoid's gait instants
+    are each joint's peak there, not re-picked as the masses move, which would pair
+    different instants in the step). (The share of the weight each foot carries moves
+    with the centre of mass; that small effect is not modelled.) A joint's requirement is the largest |tau| over the cases; its hold (a
     gripper's squeeze, a skid-steer's turn) is taken from the converged design."""
 
     def __init__(self, designer: StructureDesigner) -> None:
         self.d = designer
         sizing, tubes, act_mass = designer.converged
         self.base = dict(act_mass)
+        self.cases: list[LoadCase] | None = None  # the converged masses' (``_raw``)
         self.names, self.t0, self.b0, self.w = self._raw(sizing, tubes, self.base)
         self.sens, self.bsens = {}, {}
         for g, m in sorted(self.base.items()):
@@ -1179,8 +1182,11 @@ class _TorqueModel:
             d.type, replace(tp, modules=d.family.analysis_modules(tp.modules, d.lifted_share))
         )
         m = analysis.model
-        cases = d.family.load_cases(analysis, d.values, d.catalog)
-        t = np.array([rnea(m, c.q, c.v, c.a, c.fext) for c in cases])
+        if self.cases is None:
+            cases = self.cases = d.family.load_cases(analysis, d.values, d.catalog)
+        else:
+            cases = d.family.load_cases_like(analysis, d.values, d.catalog, self.cases)
+        t = np.array([rnea(m, c.q, c.v, c.a, c.fext) for c in cases]).reshape(-1, m.nv)
         b = [np.zeros((0, m.nv))]
         w = [np.zeros((0, m.nv))]
         for bc in d._behaviour_cases(analysis, sizing, d.actuator_sets):

@@ -722,3 +722,55 @@ def test_conversion_maps_come_back_from_the_disk_cache_bit_for_bit(tmp_path, mon
     assert H._read_maps(path, H.WALK) is None
     monkeypatch.setenv(H.CACHE_ENV, "")  # no cache
     assert H._maps_file(H.WALK) is None
+
+
+def test_load_cases_like_holds_the_gait_instants_as_the_masses_move():
+    """The torque model's finite steps compare one case at two sets of masses: re-picking
+    each joint's peak instant would pair different instants (torques jumping by most of a
+    N m: a sensitivity of tens of N m per kg); the held instants give torques linear in
+    the masses."""
+    from adron.catalog import load_catalog
+    from synth.sizing import HUMANOID, Humanoid
+
+    catalog = load_catalog()
+    p = {"height": 0.4, "payload": 0.0}
+    lengths = {k: f * 0.4 for k, f in HUMANOID.items()}
+    fam = Humanoid()
+
+    def tmpl(group: str, extra: float):
+        return build("HumanoidRobot", TemplateParams(lengths, actuator_mass={group: 0.055 + extra}))
+
+    def torques(t, cases):
+        m = t.model
+        return np.array([rnea(m, c.q, c.v, c.a, c.fext) for c in cases])
+
+    base = fam.load_cases(tmpl("knee_pitch", 0.0), p, catalog)
+    repicked = 0
+    for group in ("knee_pitch", "shoulder_pitch", "hip_pitch"):
+        steps = [tmpl(group, s) for s in (0.0, 0.03, 0.06)]
+        held = [fam.load_cases_like(t, p, catalog, base) for t in steps]
+        assert all([c.name for c in h] == [c.name for c in base] for h in held)
+        tau = [torques(t, h) for t, h in zip(steps, held, strict=True)]
+        assert np.abs(tau[2] - 2 * tau[1] + tau[0]).max() < 2e-3  # linear in the mass
+        picked = fam.load_cases(steps[2], p, catalog)
+        repicked += [c.name for c in picked] != [c.name for c in base]
+    assert repicked  # the masses do move the peaks: the case guarded against occurs
+
+
+def test_a_family_that_picks_its_cases_by_the_masses_must_hold_them():
+    from adron.catalog import load_catalog
+    from synth.sizing import LoadCase, Multipeds
+
+    class ByMass(Multipeds):
+        def load_cases(self, tmpl, p, catalog):
+            z = np.zeros(tmpl.model.nv)
+            return [LoadCase(f"heaviest {tmpl.model.total_mass:.3f}", z, z, z)]
+
+    catalog = load_catalog()
+    light = build("QuadrupedRobot", TemplateParams())
+    heavy = build("QuadrupedRobot", TemplateParams(actuator_mass={"leg_femur": 0.2}))
+    fam = ByMass()
+    like = fam.load_cases(light, {}, catalog)
+    assert fam.load_cases_like(light, {}, catalog, like)[0].name == like[0].name
+    with pytest.raises(RuntimeError, match="override load_cases_like"):
+        fam.load_cases_like(heavy, {}, catalog, like)
