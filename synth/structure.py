@@ -1154,8 +1154,9 @@ class _TorqueModel:
     of the converged masses, held (``Family.load_cases_like``: a humanoid's gait instants
     are each joint's peak there, not re-picked as the masses move, which would pair
     different instants in the step). (The share of the weight each foot carries moves
-    with the centre of mass; that small effect is not modelled.) A joint's requirement is the largest |tau| over the cases; its hold (a
-    gripper's squeeze, a skid-steer's turn) is taken from the converged design."""
+    with the centre of mass; that small effect is not modelled.) A joint's requirement is
+    the largest |tau| over the cases; its hold (a gripper's squeeze, a skid-steer's turn)
+    is taken from the converged design."""
 
     def __init__(self, designer: StructureDesigner) -> None:
         self.d = designer
