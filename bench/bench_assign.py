@@ -2,8 +2,10 @@
 rough-terrain-walking`` and ``parmor enumerate walking --assignments 5`` as processes, with
 synthetic catalogs of 6 (the shipped actuators), 20, 60, 200 and 1000 actuators
 (``bench/synthetic_catalog.py``); wall time (best of ``runs``) with its target and as a
-ratio to the 6-actuator catalog in the same run, and the counts of feasible assignments
-``enumerate`` prints (``L..U``: bounds, the exact count not found in budget)."""
+ratio to the 6-actuator catalog in the same run, and the counts ``enumerate`` prints:
+the assignments capable at the sized design's requirements (exact, by combinatorics) and
+those of them feasible with their own actuators' masses (``L..U``: bounds, that exact
+count not found in budget)."""
 
 from __future__ import annotations
 
@@ -52,7 +54,7 @@ def _counts(stdout: str) -> str:
         a = rec.get("assignments")
         if rec.get("type") == "candidate" and a:
             shown = a["count"] if a["count_exact"] else f"{a['count_lower']:.3g}..{a['count']:.3g}"
-            out.append(f"{rec['robot_type']} {shown}")
+            out.append(f"{rec['robot_type']} {a['count_capable']} capable, {shown} feasible")
     return ", ".join(out)
 
 

@@ -162,6 +162,7 @@ def alternatives_record(a: Alternatives) -> dict:
         "count": a.count,
         "count_exact": a.exact,
         "count_lower": a.count if a.exact or a.lower is None else a.lower,
+        "count_capable": a.count if a.capable is None else a.capable,
         "symmetric": a.symmetric,
         "ranked": [one(x) for x in a.ranked],
         "pareto": None if a.pareto is None else [one(x) for x in a.pareto],

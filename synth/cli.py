@@ -871,12 +871,13 @@ class _Sizer:
             return f"{indent}{rec.get('note', '')}\n"
         s, a = rec["structure"], rec["assignments"]
         alike = "alike joints alike" if a["symmetric"] else "joints independent"
+        of = a.get("count_capable", a["count"])
         lines = [
             f"{indent}sized:      {s['mass_kg']:.3f} kg, cost {s['cost']:.2f}",
-            f"{indent}assignments: {a['count']} feasible ({alike}), best first:"
+            f"{indent}assignments: {a['count']} feasible of {of} capable ({alike}), best first:"
             if a.get("count_exact", True)
             else f"{indent}assignments: between {a.get('count_lower', 0)} and {a['count']} "
-            f"feasible ({alike}; too many to count exactly), best first:",
+            f"feasible of {of} capable ({alike}; too many to count exactly), best first:",
         ]
         for n, x in enumerate(a["ranked"], 1):
             lines.append(

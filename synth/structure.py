@@ -1119,26 +1119,9 @@ class Alternatives:
     pareto: tuple[Alternative, ...] | None
     exact: bool = True  # False: count is an upper bound (too many to check one by one)
     lower: int | None = None  # with exact False: a lower bound (else the count)
-
-
-def count_assignments(
-    slots: Sequence[JointSlot], capable: Mapping[str, Sequence[str]], symmetric: bool
-) -> int:
-    """The exact number of feasible assignments. Joints only interact through symmetry
-    (the active module count is the same for every assignment), so it is the product over
-    symmetry groups of the models capable for every joint of the group (over joints
-    without symmetry)."""
-    groups: dict[str, set[str]] = {}
-    total = 1
-    for s in slots:
-        ok = set(capable.get(s.name, ()))
-        if symmetric and s.group:
-            groups[s.group] = groups[s.group] & ok if s.group in groups else ok
-        else:
-            total *= len(ok)
-    for ok in groups.values():
-        total *= len(ok)
-    return total
+    #: the assignments that meet the sized design's requirements joint by joint (what
+    #: ``asp/actuators.lp`` admits): always exact, and at least ``count``
+    capable: int | None = None
 
 
 ENUMERATE_LIMIT = 200_000
@@ -1351,7 +1334,7 @@ def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> A
         return (*(f(x) for f in order), x.models)
 
     units = designer.assigner.options(capable, designer.symmetric)
-    upper = count_assignments(designer.slots, capable, designer.symmetric) if units else 0
+    upper = designer.assigner.count(capable, designer.symmetric)
     field = {"mass": lambda m: by_model[m].mass_kg, "cost": lambda m: by_model[m].cost}
     lists = [
         sorted(ms, key=lambda m: (*(field[n](m) for n in designer.objective), m)) for _, ms in units
@@ -1406,4 +1389,4 @@ def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> A
                 front_list.append(x)
                 best_cost = x.cost
         front = tuple(front_list)
-    return Alternatives(count, designer.symmetric, tuple(ranked), front, exact, low)
+    return Alternatives(count, designer.symmetric, tuple(ranked), front, exact, low, upper)

@@ -209,12 +209,18 @@ def test_bounds_are_printed_as_bounds() -> None:
 
     rec = {
         "structure": {"mass_kg": 1.0, "cost": 2.0},
-        "assignments": {"count": 12, "count_exact": True, "symmetric": True, "ranked": []},
+        "assignments": {
+            "count": 12,
+            "count_exact": True,
+            "count_capable": 40,
+            "symmetric": True,
+            "ranked": [],
+        },
     }
-    assert "assignments: 12 feasible" in _Sizer.text(rec, "")
+    assert "assignments: 12 feasible of 40 capable" in _Sizer.text(rec, "")
     rec["assignments"]["count_exact"] = False
     rec["assignments"]["count_lower"] = 5
-    assert "assignments: between 5 and 12 feasible" in _Sizer.text(rec, "")
+    assert "assignments: between 5 and 12 feasible of 40 capable" in _Sizer.text(rec, "")
 
 
 @pytest.mark.parametrize("boxes", [1, 2, 3, 5, 8])
