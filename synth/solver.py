@@ -353,18 +353,31 @@ def _encoding_texts() -> tuple[str, ...]:
     )
 
 
+#: Without rule files and focus, ground every candidate into one answer set (asp/every.lp:
+#: the same candidates, solved and read ~2x faster with 1000 of them); False: always the
+#: choice of one per answer set (tests compare the two).
+EVERY_IN_ONE = True
+#: The fast path's replacements of conceptual.lp's includes (asp/every.lp says why).
+_EVERY = {"choice.lp": "every.lp", "preference.lp": None}
+
+
 @functools.cache
-def conceptual_text() -> str:
+def conceptual_text(every: bool = False) -> str:
     """asp/conceptual.lp with its ``#include`` lines replaced by the files they name. Not
     ``Control.load``: clingo looks for an included file in the working folder first, so a
-    ``choice.lp`` of the user's there would replace parmor's."""
+    ``choice.lp`` of the user's there would replace parmor's. With ``every``, every
+    candidate in one answer set (asp/every.lp in place of choice.lp and preference.lp)."""
+
+    def include(name: str) -> str:
+        if every and name in _EVERY:
+            name = _EVERY[name]
+            if name is None:
+                return ""
+        return inline((encoding_dir() / name).read_text(encoding="utf-8"))
 
     def inline(text: str) -> str:
         return re.sub(
-            r'^#include\s+"([^"]+)"\s*\.[ \t]*$',
-            lambda m: inline((encoding_dir() / m.group(1)).read_text(encoding="utf-8")),
-            text,
-            flags=re.M,
+            r'^#include\s+"([^"]+)"\s*\.[ \t]*$', lambda m: include(m.group(1)), text, flags=re.M
         )
 
     return inline((encoding_dir() / "conceptual.lp").read_text(encoding="utf-8"))
@@ -494,6 +507,8 @@ class _Core:
         self._ctl = clingo.Control(
             ["--models=0", "--opt-mode=enum"], logger=self._log, message_limit=20
         )
+        # the fast path: every candidate in one answer set (asp/every.lp)
+        self.every = EVERY_IN_ONE and not rules and focus is None
         extra = [f"focus({asp_string(focus)})."] if focus is not None else []
         texts = [r.text for r in rules]
         # with rule files the translation as it is (they may define any holds atom the
@@ -507,7 +522,7 @@ class _Core:
         try:
             self._ctl.add("base", [], program)
             self._ctl.add("base", [], taxonomy)
-            self._ctl.add("base", [], conceptual_text())
+            self._ctl.add("base", [], conceptual_text(self.every))
             for text in extra:
                 self._ctl.add("base", [], text)
             self._tmp: dict[str, str] = {}
@@ -580,11 +595,45 @@ class _Core:
 
     def satisfiable(self, on: set[str]) -> bool:
         self._assign(on)
-        for _ in _worker_models(self._ctl):
-            return True
+        for m in _worker_models(self._ctl):
+            if not self.every:
+                return True
+            chosen = self._ctl.symbolic_atoms.by_signature("chosen", 1)
+            return any(m.is_true(a.literal) for a in chosen)
         return False
 
+    def _each(self, on: set[str]) -> list[tuple[list[tuple[str, tuple]], tuple[int, ...]]]:
+        """The fast path's answer sets, as the choice's would be: per chosen robot, the
+        shown atoms about no robot and those about it (its name their first argument), as
+        (text, (name, args)), and its cost (asp/preference.lp: the sum of its active
+        module counts)."""
+        self._assign(on)
+        atoms = self._ctl.symbolic_atoms
+        # every robot with atoms: candidates over the bus limit are not chosen/1 here
+        robots = {a.symbol.arguments[0].string for a in atoms.by_signature("sel", 1)}
+        for m in _worker_models(self._ctl):
+            common: list[tuple[str, tuple]] = []
+            by: dict[str, list[tuple[str, tuple]]] = {}
+            for sym in m.symbols(shown=True):
+                text = str(sym)
+                atom = _read_symbol(text, sym)
+                args = atom[1]
+                key = args[0] if args and isinstance(args[0], str) else None
+                (by.setdefault(key, []) if key in robots else common).append((text, atom))
+            out = []
+            for r in sorted(by):
+                if any(atom[0] == "chosen" for _, atom in by[r]):
+                    cost = sum(atom[1][2] for _, atom in by[r] if atom[0] == "active")
+                    out.append((common + by[r], (cost,)))
+            return out
+        return []
+
     def answer_sets(self, on: set[str], keep: set[str] | None) -> frozenset:
+        if self.every:
+            return frozenset(
+                frozenset(text for text, (name, _) in atoms if keep is None or name in keep)
+                for atoms, _ in self._each(on)
+            )
         self._assign(on)
         return frozenset(
             frozenset(str(s) for s in m.symbols(shown=True) if keep is None or s.name in keep)
@@ -615,6 +664,8 @@ class _Core:
         and its cost. Reading a model's shown atoms costs the size of the output table, all
         candidates' designs: per model, only the chosen robot's atoms are looked up, or a
         request with 1000 candidates would take time quadratic in them."""
+        if self.every:
+            return [(tuple(atom for _, atom in atoms), cost) for atoms, cost in self._each(on)]
         self._assign(on)
         if (
             sum(
@@ -663,12 +714,27 @@ def _first_string(sym: clingo.Symbol) -> str | None:
 
 def _symbols(symbols: Iterable[clingo.Symbol]) -> tuple:
     """Shown atoms as plain (name, args) tuples (picklable)."""
-    return tuple(
-        (
-            s.name,
-            tuple(_str(a) if a.type != clingo.SymbolType.Number else a.number for a in s.arguments),
-        )
-        for s in symbols
+    return tuple(_read_symbol(str(s), s) for s in symbols)
+
+
+#: An atom whose arguments are all strings without escapes or integers: read from its text
+#: (one call into clingo instead of one per argument and property).
+_SIMPLE_ATOM = re.compile(r'(\w+)(?:\(((?:"[^"\\]*"|-?\d+)(?:,(?:"[^"\\]*"|-?\d+))*)\))?')
+_SIMPLE_ARG = re.compile(r'"([^"\\]*)"|(-?\d+)')
+
+
+def _read_symbol(text: str, sym: clingo.Symbol) -> tuple[str, tuple]:
+    """``sym`` (whose text is ``text``) as (name, args): strings as their contents, numbers
+    as ints, other terms as their text."""
+    m = _SIMPLE_ATOM.fullmatch(text)
+    if m is not None:
+        inner = m.group(2)
+        if inner is None:
+            return m.group(1), ()
+        return m.group(1), tuple(int(n) if n else t for t, n in _SIMPLE_ARG.findall(inner))
+    return (
+        sym.name,
+        tuple(_str(a) if a.type != clingo.SymbolType.Number else a.number for a in sym.arguments),
     )
 
 
