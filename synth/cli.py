@@ -874,10 +874,12 @@ class _Sizer:
         of = a.get("count_capable", a["count"])
         lines = [
             f"{indent}sized:      {s['mass_kg']:.3f} kg, cost {s['cost']:.2f}",
-            f"{indent}assignments: {a['count']} feasible of {of} capable ({alike}), best first:"
+            f"{indent}assignments: {_count(a['count'])} feasible of {_count(of)} capable "
+            f"({alike}), best first:"
             if a.get("count_exact", True)
-            else f"{indent}assignments: between {a.get('count_lower', 0)} and {a['count']} "
-            f"feasible of {of} capable ({alike}; too many to count exactly), best first:",
+            else f"{indent}assignments: between {_count(a.get('count_lower', 0), -1)} and "
+            f"{_count(a['count'], 1)} feasible of {_count(of)} capable ({alike}; too many "
+            "to count exactly), best first:",
         ]
         for n, x in enumerate(a["ranked"], 1):
             lines.append(
@@ -892,6 +894,22 @@ class _Sizer:
                 for x in a["pareto"]
             ]
         return "\n".join(lines) + "\n"
+
+
+def _count(n: int, way: int = 0) -> str:
+    """A count for people: exact up to 10^9, else three significant digits (``1.25e+20``),
+    rounded down (``way`` -1: a lower bound), up (1: an upper bound) or to the nearest
+    (0: an exact count, said to be approximate). ``--json`` keeps every digit."""
+    if n < 10**9:
+        return str(n)
+    exp = len(str(n)) - 3
+    head, rest = divmod(n, 10**exp)
+    half = 5 * 10 ** (exp - 1)
+    head += (way > 0 and rest > 0) or (way == 0 and rest >= half)
+    if head >= 1000:
+        head, exp = head // 10, exp + 1
+    text = f"{head / 100:.2f}e+{exp + 2:02d}"
+    return text if way else f"about {text}"
 
 
 def _sizer_init(arg: tuple) -> _Sizer:

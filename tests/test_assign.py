@@ -221,6 +221,16 @@ def test_bounds_are_printed_as_bounds() -> None:
     rec["assignments"]["count_exact"] = False
     rec["assignments"]["count_lower"] = 5
     assert "assignments: between 5 and 12 feasible of 40 capable" in _Sizer.text(rec, "")
+    # counts past 10^9 in three digits, bounds rounded outwards
+    rec["assignments"].update(
+        count_lower=125366914606500452095,
+        count=2277560092257815953019,
+        count_capable=3055317477523290000000,
+    )
+    text = _Sizer.text(rec, "")
+    assert "between 1.25e+20 and 2.28e+21 feasible of about 3.06e+21 capable" in text
+    rec["assignments"].update(count_lower=1999999999, count=1000000001)
+    assert "between 1.99e+09 and 1.01e+09" in _Sizer.text(rec, "")
 
 
 @pytest.mark.parametrize("boxes", [1, 2, 3, 5, 8])
