@@ -525,16 +525,18 @@ suite format (TOML; paths are relative to the suite file):
 """
 
 
-def _designer(args: argparse.Namespace, err: TextIO):
-    """Load the knowledge base and ground it; returns a Designer."""
+def _designer(args: argparse.Namespace, err: TextIO, req=None):
+    """Load the knowledge base and ground it; returns a Designer. ``req``: the command's
+    request, whose query the reasoner then grounds for first (``Reasoner``'s ``first``)."""
     from adron.kb import load
-    from synth.conceptual import Designer
+    from synth.conceptual import Designer, query_for
     from synth.limits import stage
     from synth.solver import Reasoner
 
     with stage("parse"):
         kb = load(args.ontology)
     _warn_untranslated(kb, err)
+    first = query_for(kb, req) if req is not None else None
     limit = None  # the catalog bus's module limit governs the conceptual step too
     if hasattr(args, "catalog"):
         from synth.pipeline import bus_limit
@@ -555,6 +557,7 @@ def _designer(args: argparse.Namespace, err: TextIO):
             args.allow_scripts,
             bus_limit=limit,
             while_grounding=(lambda: _prefetch(modules, kb, grounded)) if modules else None,
+            first=first,
         )
     finally:
         grounded.set()
@@ -689,8 +692,8 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         from export.bundle import check_out
 
         check_out(args.out, args.force)  # before any work (written after it)
-    designer = _designer(args, err)
     req = _request(args)
+    designer = _designer(args, err, req)
     opts = _options(args)
     interactive = not args.no_input and sys.stdin.isatty()
     while interactive:
@@ -744,8 +747,8 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from synth.limits import stage
 
     engine = Backend(args.backend, args.jobs, args.address)  # bad values told before any work
-    designer = _designer(args, err)
     req = _request(args)
+    designer = _designer(args, err, req)
     opts = _options(args)
     if args.limit is not None and args.limit < 0:
         raise InputError("--limit must be 0 or more")

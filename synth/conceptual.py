@@ -82,6 +82,12 @@ def parse_param(text: str) -> tuple[str, str]:
     return name.strip(), value.strip()
 
 
+def query_for(kb: KnowledgeBase, req: Request) -> Query:
+    """The solver query of ``req``, its names checked against ``kb``, before any grounding
+    (a command passes it to its Reasoner as the query to expect first)."""
+    return Designer(kb, None).query(req)  # type: ignore[arg-type]  # reads kb only
+
+
 class Designer:
     """Runs the procedure on one grounded knowledge base; queries re-use the grounding."""
 

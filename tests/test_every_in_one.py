@@ -1,6 +1,7 @@
-"""The fast path (asp/every.lp: every candidate in one answer set) gives what the choice
-of one candidate per answer set gives, for every kind of query: abilities, answers, the
-bus limit excluding some candidates, conflicts."""
+"""The fast path (asp/every.lp: every candidate in one answer set; the first query's
+externals grounded as facts) gives what the choice of one candidate per answer set gives,
+for every kind of query: abilities, answers, the bus limit excluding some candidates,
+conflicts, and queries after the first."""
 
 from __future__ import annotations
 
@@ -89,3 +90,39 @@ def test_the_bus_limit_drops_candidates_on_the_fast_path(kbs) -> None:
     finally:
         wide.close()
         narrow.close()
+
+
+@pytest.mark.parametrize("which", ["shipped", "generated"])
+def test_the_first_query_as_facts_answers_as_the_choice_does(kbs, which, monkeypatch) -> None:
+    """A reasoner grounded for its first query (as facts) answers it, and then any other
+    query (on a program with externals, grounded then), as the choice does."""
+    kb = kbs[which]
+    queries = _queries(kb)[::3]
+    fast, choice = _both(kb, 14, monkeypatch)
+    fast.close()
+    try:
+        for k, q in enumerate(queries):
+            first = Reasoner(kb, bus_limit=14, first=q)
+            try:
+                other = queries[(k + 1) % len(queries)]
+                for asked in (q, other, q):
+                    assert first.solve(asked) == choice.solve(asked), asked
+                assert first.satisfiable(q) == choice.satisfiable(q)
+                assert first.answer_sets(q) == choice.answer_sets(q)
+            finally:
+                first.close()
+    finally:
+        choice.close()
+
+
+def test_a_first_query_unknown_to_the_knowledge_base_is_refused(kbs) -> None:
+    from adron.errors import InputError
+
+    bogus = Query(requests=("NoSuchAction",))
+    r = Reasoner(kbs["shipped"], first=bogus)
+    try:
+        with pytest.raises(InputError, match="not known to the knowledge base"):
+            r.solve(bogus)
+        assert r.solve(Query()).candidates
+    finally:
+        r.close()
