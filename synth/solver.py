@@ -752,21 +752,36 @@ def _symbols(symbols: Iterable[clingo.Symbol]) -> tuple:
     return tuple(_read_symbol(str(s), s) for s in symbols)
 
 
-#: An atom whose arguments are all strings without escapes or integers: read from its text
-#: (one call into clingo instead of one per argument and property).
-_SIMPLE_ATOM = re.compile(r'(\w+)(?:\(((?:"[^"\\]*"|-?\d+)(?:,(?:"[^"\\]*"|-?\d+))*)\))?')
-_SIMPLE_ARG = re.compile(r'"([^"\\]*)"|(-?\d+)')
+#: An atom with arguments, as text: its name and the text between its parentheses.
+_ATOM_TEXT = re.compile(r"(\w+)\((.*)\)\Z")
 
 
 def _read_symbol(text: str, sym: clingo.Symbol) -> tuple[str, tuple]:
     """``sym`` (whose text is ``text``) as (name, args): strings as their contents, numbers
-    as ints, other terms as their text."""
-    m = _SIMPLE_ATOM.fullmatch(text)
-    if m is not None:
-        inner = m.group(2)
-        if inner is None:
-            return m.group(1), ()
-        return m.group(1), tuple(int(n) if n else t for t, n in _SIMPLE_ARG.findall(inner))
+    as ints, other terms as their text. Read from the text (one call into clingo instead
+    of one per argument and property) where every argument is a string without quotes,
+    commas or escapes in it, or an integer; else from the symbol."""
+    m = _ATOM_TEXT.match(text)
+    if m is None:
+        if text.isidentifier():
+            return text, ()
+    elif "\\" not in text:
+        args: list[str | int] = []
+        quoted = 0
+        try:
+            for part in m.group(2).split(","):
+                if part[0] == '"':
+                    if part[-1] != '"' or len(part) < 2:
+                        raise ValueError(part)
+                    args.append(part[1:-1])
+                    quoted += 1
+                else:
+                    args.append(int(part))
+        except (ValueError, IndexError):
+            pass
+        else:
+            if text.count('"') == 2 * quoted:
+                return m.group(1), tuple(args)
     return (
         sym.name,
         tuple(_str(a) if a.type != clingo.SymbolType.Number else a.number for a in sym.arguments),
@@ -1062,7 +1077,7 @@ class Reasoner:
     def solve(self, query: Query) -> Solution:
         """Every candidate of ``query``, in preference order: the cost asp/preference.lp
         gives each answer set (fewest active modules), then the type name."""
-        found: dict[str, Candidate] = {}
+        read: dict[str, tuple[Candidate, tuple[int, ...]]] = {}
         needed: set[str] = set()
         excluded: set[str] = set()
         for symbols, cost in self._worker.call("solve", self._on(query)):
@@ -1070,9 +1085,9 @@ class Reasoner:
             needed |= need
             excluded |= excl
             if cand is not None:
-                found[cand.robot_type] = replace(cand, preference=cost)
+                read[cand.robot_type] = (cand, cost)
         demanded = tuple(sorted(needed))
-        found = {t: replace(c, needed=demanded) for t, c in found.items()}
+        found = {t: replace(c, preference=cost, needed=demanded) for t, (c, cost) in read.items()}
         order = sorted(found.values(), key=lambda c: (c.preference, c.robot_type))
         return Solution(
             tuple(order), tuple(sorted(needed)), tuple(sorted(excluded)), satisfiable=bool(order)

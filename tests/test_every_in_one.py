@@ -126,3 +126,35 @@ def test_a_first_query_unknown_to_the_knowledge_base_is_refused(kbs) -> None:
         assert r.solve(Query()).candidates
     finally:
         r.close()
+
+
+def test_shown_atoms_read_from_their_text_as_from_the_symbol() -> None:
+    """The reader takes strings and integers from an atom's text, and anything it cannot
+    read safely (commas, quotes, escapes in strings, nested terms) from the symbol."""
+    import clingo
+    from clingo import Function as F
+    from clingo import Number as N
+    from clingo import String as S
+
+    from synth.solver import _read_symbol, _str
+
+    cases = [
+        F("p"),
+        F("p", [S("a"), S("b"), N(3)]),
+        F("p", [S("a,b"), N(1)]),
+        F("p", [S('a"b')]),
+        F("p", [F("f", [N(1), N(2)]), S("x")]),
+        F("p", [F("", [N(1), N(2)])]),
+        F("p", [N(-3), S("")]),
+        F("p", [S("x"), F("c"), N(1)]),
+        F("p", [S("("), S(")")]),
+        F("p", [S("a\\")]),
+        F("p", [S('",')]),
+        F("p", [S('","')]),
+        F("p", [S('"')]),
+    ]
+    for sym in cases:
+        ref = tuple(
+            _str(a) if a.type != clingo.SymbolType.Number else a.number for a in sym.arguments
+        )
+        assert _read_symbol(str(sym), sym) == (sym.name, ref), str(sym)
