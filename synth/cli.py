@@ -536,7 +536,8 @@ def _designer(args: argparse.Namespace, err: TextIO, req=None):
     with stage("parse"):
         kb = load(args.ontology)
     _warn_untranslated(kb, err)
-    first = query_for(kb, req) if req is not None else None
+    # checked while the worker filters the ontology (a large one's abilities take a while)
+    first = (lambda: query_for(kb, req)) if req is not None else None
     limit = None  # the catalog bus's module limit governs the conceptual step too
     if hasattr(args, "catalog"):
         from synth.pipeline import bus_limit

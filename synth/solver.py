@@ -511,7 +511,7 @@ class _Core:
         focus: str | None,
         size: int | None,
         bus_limit: int | None | Callable[[], int | None] = None,
-        first: frozenset[str] | None = None,
+        first: frozenset[str] | None | Callable[[], frozenset[str]] = None,
     ) -> None:
         """``bus_limit`` may be a function that gives it: called once the program is
         filtered and its taxonomy closed, just before grounding (the parent sends it
@@ -534,6 +534,8 @@ class _Core:
         if bus_limit is not None:  # no string in it: the closure's anchors are the same
             extra.append(f"bus_limit({int(bus_limit)}).")
         self._program = (program, taxonomy, *extra)
+        if callable(first):  # sent as bus_limit is, after it
+            first = first()
         self._fixed = frozenset(first) if self.every and first is not None else None
         self._ctl = self._ground(self._fixed)
         self._general = None if self._fixed is not None else self._ctl
@@ -981,7 +983,7 @@ class Reasoner:
         focus: str | None = None,
         bus_limit: int | None | Callable[[], int | None] = None,
         while_grounding: Callable[[], object] | None = None,
-        first: Query | None = None,
+        first: Query | None | Callable[[], Query] = None,
     ) -> None:
         """Ground ``kb`` with the encodings and ``rules``. With ``focus`` (a robot class),
         the program describes that class instead of choosing among candidates. With
@@ -991,30 +993,42 @@ class Reasoner:
         ontology, and sent to it before it grounds. ``while_grounding`` is called once the
         worker is forked, before this process waits for it (to start work of its own
         meanwhile). ``first``: the query expected first (a command's request), grounded
-        with its externals as facts where that is quicker (``_Core``); any query may come."""
+        with its externals as facts where that is quicker (``_Core``); any query may come.
+        Given as a function, it is called and sent as ``bus_limit`` is (after it)."""
         self.kb = kb
         self._rules, self._allow_scripts = tuple(rules), allow_scripts
         files = read_rule_files(self._rules, allow_scripts)
         size = limits.current().size_atoms
         what = " + ".join(["the knowledge base", *(f.name for f in files)])
         deferred = callable(bus_limit)
-        expected = None if first is None else frozenset(self._texts(first))
+        later = callable(first)
+        expected = None if first is None or later else frozenset(self._texts(first))  # type: ignore[arg-type]
         self._worker = _Worker(
             lambda conn: _Core(
-                kb, files, focus, size, conn.recv if deferred else bus_limit, expected
+                kb,
+                files,
+                focus,
+                size,
+                conn.recv if deferred else bus_limit,
+                conn.recv if later else expected,
             ),
             what,
         )
         if while_grounding is not None:
             while_grounding()
-        if deferred:
-            try:
+        try:
+            sends = []
+            if deferred:
                 bus_limit = bus_limit()  # type: ignore[operator]
-            except BaseException:
-                self._worker.close()
-                raise
+                sends.append(bus_limit)
+            if later:
+                sends.append(frozenset(self._texts(first())))  # type: ignore[operator]
+        except BaseException:
+            self._worker.close()
+            raise
+        for value in sends:
             with contextlib.suppress(OSError):  # a worker that died says why below
-                self._worker.conn.send(bus_limit)
+                self._worker.conn.send(value)
         self._bus_limit = bus_limit
         with limits.stage("ground"):
             try:
