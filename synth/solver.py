@@ -544,12 +544,18 @@ class _Core:
         if self._fixed is not None:
             self.externals = {a.symbol.arguments[0] for a in atoms.by_signature(_EXTERNAL, 1)}
         else:
-            self.externals = {
-                a.symbol
-                for sig in (("request", 1), ("answer", 2), ("param", 2))
-                for a in atoms.by_signature(*sig)
-                if a.is_external
-            }
+            self.externals = self._externals(self._ctl)
+
+    @staticmethod
+    def _externals(ctl: clingo.Control) -> set[clingo.Symbol]:
+        """The externals a query may set in ``ctl`` (asp/request.lp)."""
+        atoms = ctl.symbolic_atoms
+        return {
+            a.symbol
+            for sig in (("request", 1), ("answer", 2), ("param", 2))
+            for a in atoms.by_signature(*sig)
+            if a.is_external
+        }
 
     def _ground(self, fixed: frozenset[str] | None) -> clingo.Control:
         """The program grounded: with ``fixed``, those externals as facts and the others
@@ -595,7 +601,10 @@ class _Core:
         if self._fixed is not None and on == self._fixed:
             return self._ctl
         if self._general is None:
-            self._general = self._ground(None)
+            # from now on every query here: the first query's control is let go (memory)
+            self._ctl = self._general = self._ground(None)
+            self._fixed = None
+            self.externals = self._externals(self._ctl)
         for sym in self.externals:
             self._general.assign_external(sym, str(sym) in on)
         return self._general
