@@ -231,7 +231,12 @@ class ActuatorAssigner:
 
     def count(self, capable: Mapping[str, Iterable[str]], symmetric: bool) -> int:
         """The number of assignments: the product of the units' option counts."""
-        opts = self.options(capable, symmetric)
+        return self.count_options(self.options(capable, symmetric))
+
+    @staticmethod
+    def count_options(opts: Sequence[tuple[object, Sequence[str]]]) -> int:
+        """The number of assignments of units ``opts`` (``options``): the product of their
+        option counts (0 without units: the limit is exceeded)."""
         if not opts:
             return 0
         total = 1

@@ -712,23 +712,18 @@ class _Core:
         request with 1000 candidates would take time quadratic in them."""
         if self.every:
             return [(tuple(atom for _, atom in atoms), cost) for atoms, cost in self._each(on)]
-        self._control(on)
+        ctl = self._control(on)
         if (
-            sum(
-                1
-                for _ in itertools.islice(
-                    self._ctl.symbolic_atoms.by_signature("chosen", 1), _INDEXED
-                )
-            )
+            sum(1 for _ in itertools.islice(ctl.symbolic_atoms.by_signature("chosen", 1), _INDEXED))
             < _INDEXED
         ):
-            models = _worker_models(self._ctl)
+            models = _worker_models(ctl)
             return [(_symbols(m.symbols(shown=True)), tuple(m.cost)) for m in models]
         chosen, by, common = self._shown_index()
         pending = list(chosen)
         out = []
         last = 0  # clingo tends to enumerate the candidates in runs: look near the last one
-        for m in _worker_models(self._ctl):
+        for m in _worker_models(ctl):
             robot = None
             n = len(pending)
             for k in range(n):

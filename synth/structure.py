@@ -1334,7 +1334,7 @@ def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> A
         return (*(f(x) for f in order), x.models)
 
     units = designer.assigner.options(capable, designer.symmetric)
-    upper = designer.assigner.count(capable, designer.symmetric)
+    upper = designer.assigner.count_options(units)
     field = {"mass": lambda m: by_model[m].mass_kg, "cost": lambda m: by_model[m].cost}
     lists = [
         sorted(ms, key=lambda m: (*(field[n](m) for n in designer.objective), m)) for _, ms in units
