@@ -1096,9 +1096,6 @@ MIN_SIM_SECONDS = 0.1
 def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from pathlib import Path
 
-    # nothing here renders: MuJoCo without its OpenGL back-end (glfw) imports 50-150 ms sooner
-    os.environ.setdefault("MUJOCO_GL", "disable")
-
     from export.record import to_json
 
     folder = Path(args.dir)
@@ -1311,6 +1308,11 @@ def main(
     argv: Sequence[str] | None = None, out: TextIO | None = None, err: TextIO | None = None
 ) -> int:
     """Run the command line; returns the exit code (never raises for user errors)."""
+    # Nothing parmor does renders through MuJoCo's OpenGL back-end. Without this, `import
+    # mujoco` on Linux first runs a Python child to probe glfw's version (50-150 ms), and a
+    # process killed meanwhile (a block-page run at its time limit) leaves that child to
+    # print a BrokenPipeError traceback. Processes started from here inherit it.
+    os.environ.setdefault("MUJOCO_GL", "disable")
     out = out or sys.stdout
     err = err or sys.stderr
     argv = sys.argv[1:] if argv is None else list(argv)

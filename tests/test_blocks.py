@@ -530,3 +530,40 @@ def test_a_design_with_sensing_gets_its_sensing_blocks(bundles) -> None:
     plain = [b["name"] for b in toolbox(c, rec["abilities"])]
     sensing = [b["name"] for b in toolbox(c, [*rec["abilities"], "line-tracking"])]
     assert "line-tracking" not in plain and sensing == sorted([*plain, "line-tracking"])
+
+
+_PROBE = """
+import os, sys
+started = []
+sys.addaudithook(lambda event, args: started.append(args) if event == "subprocess.Popen" else None)
+if sys.argv[1] == "cli":
+    from synth.cli import main
+    main(["blocks", "--help"], open(os.devnull, "w"), open(os.devnull, "w"))
+import mujoco
+print(len(started))
+"""
+
+
+def test_the_command_line_imports_mujoco_without_a_child_process() -> None:
+    # `import mujoco` on Linux runs a Python child to probe glfw unless MUJOCO_GL says
+    # otherwise; a run killed at its time limit left that child printing a BrokenPipeError
+    # traceback into the server's log. The command line turns the probe off for its process
+    # and those it starts; without it (the built-to-fail case) the child is started.
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    env["PYTHONPATH"] = str(REPO)
+
+    def children(how: str) -> int:
+        r = subprocess.run(
+            [sys.executable, "-c", _PROBE, how],
+            capture_output=True,
+            text=True,
+            env=env,
+            cwd=REPO,
+            timeout=120,
+        )
+        assert r.returncode == 0, r.stderr
+        return int(r.stdout)
+
+    assert children("cli") == 0
+    if sys.platform.startswith("linux"):
+        assert children("bare") >= 1
