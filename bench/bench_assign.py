@@ -2,7 +2,8 @@
 rough-terrain-walking`` and ``parmor enumerate walking --assignments 5`` as processes, with
 synthetic catalogs of 6 (the shipped actuators), 20, 60, 200 and 1000 actuators
 (``bench/synthetic_catalog.py``); wall time (best of ``runs``) with its target and as a
-ratio to the 6-actuator catalog in the same run, and the counts ``enumerate`` prints:
+ratio to the 6-actuator catalog in the same run (best of three: a shared 2-core machine varies
+by +-0.5 s from run to run), and the counts ``enumerate`` prints:
 the assignments capable at the sized design's requirements (exact, by combinatorics) and
 those of them feasible with their own actuators' masses (``L..U``: bounds, that exact
 count not found in budget)."""
@@ -58,7 +59,7 @@ def _counts(stdout: str) -> str:
     return ", ".join(out)
 
 
-def bench_assign(runs: int = 2, sizes: tuple[int, ...] = SIZES) -> list[str]:
+def bench_assign(runs: int = 3, sizes: tuple[int, ...] = SIZES) -> list[str]:
     lines = [
         "Actuator assignment vs catalog size (processes; best of "
         f"{runs}; targets at 1000: design {TARGETS['design']:g} s, "
@@ -87,4 +88,4 @@ def bench_assign(runs: int = 2, sizes: tuple[int, ...] = SIZES) -> list[str]:
 
 
 if __name__ == "__main__":
-    print("\n".join(bench_assign(runs=int(sys.argv[1]) if sys.argv[1:] else 2)))
+    print("\n".join(bench_assign(runs=int(sys.argv[1]) if sys.argv[1:] else 3)))
