@@ -22,6 +22,7 @@ from bench_chain import bench_chain  # noqa: E402
 from bench_links import bench_links  # noqa: E402
 from bench_onto import bench_onto  # noqa: E402
 from bench_parse import bench_parse  # noqa: E402
+from bench_ray import bench_ray  # noqa: E402
 from bench_rnea import bench_rnea  # noqa: E402
 from bench_sim import bench_sim  # noqa: E402
 from bench_simspeed import bench_simspeed  # noqa: E402
@@ -192,6 +193,7 @@ def main() -> int:
         bench_process(),
         bench_startup(),
         bench_verified(),
+        bench_ray(),
     ]
     for lines in sections:
         print("\n".join(lines))
