@@ -27,22 +27,23 @@ _LIGHT = np.array([-0.4, -0.6, 0.7]) / np.linalg.norm([-0.4, -0.6, 0.7])
 
 def triangles_of(g: Geometry, mesh_vertices: dict[str, tuple[np.ndarray, np.ndarray]]):
     """(n, 3, 3) triangles (m) of geometry ``g`` in its body frame. ``mesh_vertices``:
-    mesh file name -> (vertices m, faces)."""
-    import trimesh
+    mesh file name -> (vertices m, faces). Boxes, spheres and cylinders are tessellated by
+    manifold3d (as the printed parts are; no trimesh import for a picture)."""
+    import manifold3d as mf
 
     if g.kind == "mesh":
         v, f = mesh_vertices[g.mesh]
-    elif g.kind == "box":
-        m = trimesh.creation.box(extents=g.size)
-        v, f = m.vertices, m.faces
-    elif g.kind == "sphere":
-        m = trimesh.creation.icosphere(subdivisions=1, radius=g.size[0])
-        v, f = m.vertices, m.faces
-    elif g.kind == "cylinder":
-        m = trimesh.creation.cylinder(radius=g.size[0], height=g.size[1], sections=24)
-        v, f = m.vertices, m.faces
     else:
-        raise ValueError(f"no picture for geometry kind {g.kind!r}")
+        if g.kind == "box":
+            solid = mf.Manifold.cube(tuple(g.size), center=True)
+        elif g.kind == "sphere":
+            solid = mf.Manifold.sphere(g.size[0], circular_segments=16)
+        elif g.kind == "cylinder":
+            solid = mf.Manifold.cylinder(g.size[1], g.size[0], circular_segments=24, center=True)
+        else:
+            raise ValueError(f"no picture for geometry kind {g.kind!r}")
+        m = solid.to_mesh64()
+        v, f = m.vert_properties[:, :3], m.tri_verts
     v = np.asarray(v, dtype=float) @ g.origin[:3, :3].T + g.origin[:3, 3]
     return v[np.asarray(f, dtype=np.int64)]
 

@@ -2,7 +2,9 @@
 
 The robot is built with yourdfpy's data model (:func:`urdf_robot`: ``yourdfpy.Robot`` of
 ``Link``/``Joint``/``Inertial``/``Visual``/``Collision``/``Geometry``), the one structure a
-caller can also hand to ``yourdfpy.URDF(robot=...)`` for forward kinematics. yourdfpy's own
+caller can also hand to ``yourdfpy.URDF(robot=...)`` for forward kinematics; the text is
+written from the same builder with plain records in place of the classes (``_RECORDS``), so
+writing it does not import yourdfpy (and trimesh behind it). yourdfpy's own
 writer formats numbers with ``str`` and recomputes roll-pitch-yaw from each 4x4 with
 ``euler_from_matrix`` (float noise such as ``6.1e-17``), so :func:`urdf_string` serialises the
 same data model with :mod:`xml.etree.ElementTree` and deterministic numbers instead: 10
@@ -27,6 +29,7 @@ import os
 import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from types import SimpleNamespace
 from typing import TYPE_CHECKING
 from xml.sax.saxutils import escape
 
@@ -202,23 +205,34 @@ def symmetric_inertia(inertia: np.ndarray, what: str) -> np.ndarray:
 # --- the yourdfpy data model ---------------------------------------------------------------
 
 
-def _geometry(g: Geometry, mesh_dir: str) -> yourdfpy.Geometry:
-    import yourdfpy
+class _Records:
+    """yourdfpy's classes as plain records (``types.SimpleNamespace`` of the keyword fields
+    given, which is all :func:`robot_xml` reads): the text is written without importing
+    yourdfpy, and trimesh and scipy.spatial behind it (about half a second of every
+    ``design --out``). Every field the writer reads is given explicitly for that reason."""
 
+    def __getattr__(self, name: str) -> type[SimpleNamespace]:
+        return SimpleNamespace
+
+
+_RECORDS = _Records()
+
+
+def _geometry(g: Geometry, mesh_dir: str, y) -> yourdfpy.Geometry:
     size = tuple(float(s) for s in g.size)
+    shape = {"mesh": None, "box": None, "cylinder": None, "sphere": None}
     if g.kind == "mesh":
-        return yourdfpy.Geometry(
-            mesh=yourdfpy.Mesh(
-                filename=mesh_path(mesh_dir, mesh_file(g.mesh)), scale=np.full(3, MESH_SCALE)
-            )
-        )
-    if g.kind == "box" and len(size) == 3:
-        return yourdfpy.Geometry(box=yourdfpy.Box(size=np.array(size)))
-    if g.kind == "cylinder" and len(size) == 2:
-        return yourdfpy.Geometry(cylinder=yourdfpy.Cylinder(radius=size[0], length=size[1]))
-    if g.kind == "sphere" and len(size) == 1:
-        return yourdfpy.Geometry(sphere=yourdfpy.Sphere(radius=size[0]))
-    raise ValueError(f"geometry {g.name!r}: kind {g.kind!r} with size {size} is not supported")
+        file = mesh_path(mesh_dir, mesh_file(g.mesh))
+        shape["mesh"] = y.Mesh(filename=file, scale=np.full(3, MESH_SCALE))
+    elif g.kind == "box" and len(size) == 3:
+        shape["box"] = y.Box(size=np.array(size))
+    elif g.kind == "cylinder" and len(size) == 2:
+        shape["cylinder"] = y.Cylinder(radius=size[0], length=size[1])
+    elif g.kind == "sphere" and len(size) == 1:
+        shape["sphere"] = y.Sphere(radius=size[0])
+    else:
+        raise ValueError(f"geometry {g.name!r}: kind {g.kind!r} with size {size} is not supported")
+    return y.Geometry(**shape)
 
 
 def material_name(rgba) -> str:
@@ -226,14 +240,12 @@ def material_name(rgba) -> str:
     return "rgba_" + "_".join(number(c) for c in rgba)
 
 
-def _link(body: BodySpec, mesh_dir: str) -> yourdfpy.Link:
-    import yourdfpy
-
-    link = yourdfpy.Link(name=body.name)
+def _link(body: BodySpec, mesh_dir: str, y) -> yourdfpy.Link:
+    link = y.Link(name=body.name, inertial=None, visuals=[], collisions=[])
     if body.mass > 0:
         origin = np.eye(4)
         origin[:3, 3] = np.asarray(body.com, dtype=float)
-        link.inertial = yourdfpy.Inertial(
+        link.inertial = y.Inertial(
             origin=origin,
             mass=float(body.mass),
             inertia=symmetric_inertia(body.inertia, f"body {body.name!r}"),
@@ -250,34 +262,30 @@ def _link(body: BodySpec, mesh_dir: str) -> yourdfpy.Link:
         k += 1
         origin = _check_transform(g.origin, f"geometry {name!r}")
         rgba = np.array([float(c) for c in g.rgba])
-        material = yourdfpy.Material(name=material_name(rgba), color=yourdfpy.Color(rgba=rgba))
+        material = y.Material(name=material_name(rgba), color=y.Color(rgba=rgba), texture=None)
         link.visuals.append(
-            yourdfpy.Visual(
-                name=name, origin=origin, geometry=_geometry(g, mesh_dir), material=material
+            y.Visual(
+                name=name, origin=origin, geometry=_geometry(g, mesh_dir, y), material=material
             )
         )
         link.collisions.append(
-            yourdfpy.Collision(
-                name=f"{name}/collision", origin=origin, geometry=_geometry(g, mesh_dir)
-            )
+            y.Collision(name=f"{name}/collision", origin=origin, geometry=_geometry(g, mesh_dir, y))
         )
     return link
 
 
-def _joint(j: JointSpec) -> yourdfpy.Joint:
-    import yourdfpy
-
+def _joint(j: JointSpec, y) -> yourdfpy.Joint:
     limit = None
     if j.kind == "revolute":
-        limit = yourdfpy.Limit(
+        limit = y.Limit(
             effort=float(j.effort),
             velocity=float(j.velocity),
             lower=float(j.lower),
             upper=float(j.upper),
         )
     elif j.kind == "continuous":
-        limit = yourdfpy.Limit(effort=float(j.effort), velocity=float(j.velocity))
-    return yourdfpy.Joint(
+        limit = y.Limit(effort=float(j.effort), velocity=float(j.velocity), lower=None, upper=None)
+    return y.Joint(
         name=j.name,
         type=j.kind,
         parent=j.parent,
@@ -285,21 +293,22 @@ def _joint(j: JointSpec) -> yourdfpy.Joint:
         origin=np.asarray(j.origin, dtype=float),
         axis=None if j.kind == "fixed" else unit_axis(j.axis, j.name),
         limit=limit,
-        dynamics=None
-        if j.kind == "fixed"
-        else yourdfpy.Dynamics(damping=joint_damping(j), friction=0.0),
+        dynamics=None if j.kind == "fixed" else y.Dynamics(damping=joint_damping(j), friction=0.0),
     )
 
 
-def urdf_robot(assembly: Assembly, mesh_dir: str = "meshes") -> yourdfpy.Robot:
-    """yourdfpy's data model of ``assembly``: links in body order, joints in tree order."""
-    import yourdfpy
+def urdf_robot(assembly: Assembly, mesh_dir: str = "meshes", classes=None) -> yourdfpy.Robot:
+    """yourdfpy's data model of ``assembly``: links in body order, joints in tree order.
+    ``classes``: where the classes come from (default the ``yourdfpy`` module; ``_RECORDS``
+    for plain records of the same fields)."""
+    if classes is None:
+        import yourdfpy as classes
 
     bodies = check_assembly(assembly)
-    return yourdfpy.Robot(
+    return classes.Robot(
         name=assembly.robot_type,
-        links=[_link(b, mesh_dir) for b in bodies.values()],
-        joints=[_joint(j) for j in assembly.joints],
+        links=[_link(b, mesh_dir, classes) for b in bodies.values()],
+        joints=[_joint(j, classes) for j in assembly.joints],
     )
 
 
@@ -443,4 +452,4 @@ def urdf_string(assembly: Assembly, mesh_dir: str = "meshes", with_payload: bool
         from export.assembly import with_payload as loaded
 
         assembly = loaded(assembly)
-    return robot_xml(urdf_robot(assembly, mesh_dir))
+    return robot_xml(urdf_robot(assembly, mesh_dir, _RECORDS))

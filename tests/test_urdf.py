@@ -21,7 +21,14 @@ import numpy as np
 import pytest
 
 from export.model3d import Assembly, BodySpec, Geometry, JointSpec, PartUse, PrintedPart
-from export.urdf import MUJOCO_COMPILER, number, rpy_from_matrix, urdf_robot, urdf_string
+from export.urdf import (
+    MUJOCO_COMPILER,
+    number,
+    robot_xml,
+    rpy_from_matrix,
+    urdf_robot,
+    urdf_string,
+)
 from tests.conftest import need
 
 trimesh = pytest.importorskip("trimesh")
@@ -569,6 +576,37 @@ def test_real_assemblies_load_and_match(real: dict[str, Assembly], tmp_path: Pat
         check_loaded(assembly, path)
         run_check_urdf(path)
         assert urdf_string(assembly) == path.read_text(encoding="utf-8")
+
+
+def test_the_text_is_that_of_yourdfpys_data_model(real: dict[str, Assembly]) -> None:
+    # urdf_string builds plain records instead of yourdfpy's classes (no trimesh import);
+    # the same builder with the classes gives the same text, for every base configuration
+    for assembly in real.values():
+        robot = urdf_robot(assembly)
+        assert isinstance(robot.links[0], yourdfpy.Link)
+        assert robot_xml(robot) == urdf_string(assembly)
+
+
+def test_writing_a_urdf_imports_neither_yourdfpy_nor_trimesh() -> None:
+    import pickle
+
+    # the assembly goes in pickled: this test module imports yourdfpy itself
+    code = (
+        "import pickle, sys; from export.urdf import urdf_string; "
+        "text = urdf_string(pickle.load(sys.stdin.buffer)); "
+        "print(len(text), sorted(m for m in ('yourdfpy', 'trimesh') if m in sys.modules))"
+    )
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        input=pickle.dumps(arm()),
+        capture_output=True,
+        env=env,
+        cwd=REPO,
+        timeout=120,
+    )
+    assert r.returncode == 0, r.stderr.decode()
+    assert r.stdout.decode().split(" ", 1) == [str(len(urdf_string(arm()))), "[]\n"]
 
 
 def test_anchored_mesh_uris_round_trip(tmp_path) -> None:
