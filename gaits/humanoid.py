@@ -75,6 +75,7 @@ from gaits.base import (  # noqa: F401 - CACHE_ENV: the cache folder's variable,
     cache_folder,
 )
 from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics, rnea
+from kinematics.model import GRAVITY
 from kinematics.templates import (
     DEFAULTS,
     FOOT_WIDTH_RATIO,
@@ -113,7 +114,6 @@ __all__ = [
     "synthesize",
 ]
 
-G = 9.81  # m/s^2
 SIDES = ("l", "r")  # left (+y), right (-y)
 LEG_JOINTS = ("hip_yaw", "hip_roll", "hip_pitch", "knee_pitch", "ankle_pitch", "ankle_roll")
 ARM_JOINTS = ("shoulder_pitch", "elbow_pitch", "gripper")
@@ -281,7 +281,7 @@ def _lipm_periodic(p: np.ndarray, period: float, zc: float) -> np.ndarray:
     Fourier component."""
     n = len(p)
     w = 2 * pi * np.fft.rfftfreq(n, period / n)
-    return np.fft.irfft(np.fft.rfft(p) / (1 + w * w * zc / G), n)
+    return np.fft.irfft(np.fft.rfft(p) / (1 + w * w * zc / GRAVITY), n)
 
 
 def reference_gait(
@@ -880,7 +880,7 @@ def stance_loads(
     acc = np.zeros_like(com)
     if n >= 3:  # the COM's acceleration, m/s^2
         acc = np.gradient(np.gradient(com, dt, axis=0), dt, axis=0)
-    force = model.total_mass * (acc + np.array([0.0, 0.0, G]))  # (n, 3), world = trunk axes
+    force = model.total_mass * (acc + np.array([0.0, 0.0, GRAVITY]))  # (n, 3), world = trunk axes
     zmp = com[:, :2] - com[:, 2:3] * acc[:, :2] / force[:, 2:3] * model.total_mass
     world = soles + trunk[None]  # (2, n, 3)
     down = _smooth(1 - (soles[:, :, 2] - ground[None]) / CONTACT)  # (2, n): 1 on the ground

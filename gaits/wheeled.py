@@ -71,6 +71,7 @@ from gaits.base import (
     min_jerk_integral,
 )
 from kinematics.dynamics import forward_kinematics
+from kinematics.model import GRAVITY
 from kinematics.templates import WHEEL_WIDTH, Template, TemplateParams, build
 
 __all__ = [
@@ -94,11 +95,10 @@ SAMPLE_DT = 0.01
 #: designed differential robot tracks 99 % of its top speed within 1 % (measured).
 SPEED_MARGIN = 1.0
 #: The load model's floor: tyre-on-floor Coulomb friction (the MJCF's wheel contact class and
-#: the sizing use the same value), the ball caster's (modelled as a low-friction slider, as
-#: in the MJCF), and gravity, m/s^2.
+#: the sizing use the same value) and the ball caster's (modelled as a low-friction slider,
+#: as in the MJCF); gravity is the models' (kinematics.model.GRAVITY).
 TYRE_FRICTION = 1.0
 CASTER_FRICTION = 0.05
-GRAVITY = 9.81
 #: A turn in place of default duration peaks at this fraction of the wheels' top speed (at
 #: their rims): slow enough for the chassis' inertia to stay a small load, fast enough
 #: that the load model's error stays small against the speed.

@@ -68,6 +68,8 @@ __all__ = [
 
 #: Joint kinds; "continuous" is a revolute joint without position limits.
 JOINT_KINDS = ("revolute", "continuous", "fixed")
+#: m/s^2, downwards: the gravity of every model, and MuJoCo's default (the MJCF sets none)
+GRAVITY = 9.81
 _TOL = 1e-9
 
 
@@ -227,7 +229,7 @@ class Model:
 
     bodies: tuple[Body, ...]
     joints: tuple[Joint, ...]
-    gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -9.81]))
+    gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -GRAVITY]))
     nq: int = field(init=False)
     nv: int = field(init=False)
     q_index: tuple[int, ...] = field(init=False)

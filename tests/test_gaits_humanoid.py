@@ -17,7 +17,6 @@ from gaits.humanoid import (
     REFERENCE_SIZE,
     RUN,
     WALK,
-    G,
     GaitPlan,
     HumanoidController,
     conversion_maps,
@@ -31,6 +30,7 @@ from gaits.humanoid import (
     synthesize,
 )
 from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics, rnea
+from kinematics.model import GRAVITY as G
 from kinematics.templates import DEFAULTS, TemplateParams, build
 
 LEGS = tuple(f"{s}_{j}" for s in "lr" for j in LEG_JOINTS)
