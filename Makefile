@@ -3,9 +3,10 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
-# The project's packages, compiled to bytecode at install (pip does not for an editable
-# install): where PYTHONDONTWRITEBYTECODE is set, each parmor process would otherwise
-# compile every module it imports, ~0.13 s of its start-up.
+# The project's packages, compiled to bytecode at install and before each target that runs
+# parmor (only what changed; pip does not for an editable install): where
+# PYTHONDONTWRITEBYTECODE is set, each parmor process would otherwise compile every module
+# it imports, ~0.13 s of its start-up.
 PACKAGES := asp adron synth kinematics gaits export program
 BYTECODE := $(BIN)/python -m compileall -q $(PACKAGES)
 
@@ -31,6 +32,7 @@ $(WEB_STAMP): web/package.json web/package-lock.json
 web: $(WEB_STAMP)
 
 demo: $(STAMP) $(WEB_STAMP)
+	$(BYTECODE)
 	$(BIN)/parmor abilities
 	$(BIN)/parmor design walking --no-input || test $$? -eq 3
 	$(BIN)/parmor design walking --answer grasping=yes
@@ -40,10 +42,11 @@ demo: $(STAMP) $(WEB_STAMP)
 	$(BIN)/parmor blocks demo/cart
 
 test: $(STAMP) $(WEB_STAMP)
+	$(BYTECODE)
 	$(BIN)/python -m pytest
 
 bench: $(STAMP)
-	$(BYTECODE) >/dev/null
+	$(BYTECODE)
 	$(BIN)/python bench/bench.py
 
 lint: $(STAMP)
