@@ -1,8 +1,8 @@
 """A study of 100 requests on both engines (issue 12): ``parmor sweep`` with simulation, once
 on local processes (``--jobs 2``) and once on a throwaway Ray instance on this machine
 (``--backend ray --jobs 2``), each as a process; the wall times (Ray's as a ratio to the
-local run's) and whether the outputs are byte-identical: ``results.csv``, ``summary.md``
-and every stored request.
+local run's) and whether the outputs are byte-identical: ``results.csv``, ``summary.md``,
+the plots and every stored request.
 
 The study mixes cheap designs (carts, skid-steers, snakes, 3- and 6-DOF arms), one that no
 robot can meet and one that waits for an answer: a hundred requests in a few minutes on
@@ -97,14 +97,12 @@ TIME_LIMIT = 1800  # s per sweep
 
 
 def outputs(folder: Path) -> dict[str, bytes]:
-    """Every file a sweep wrote that its result consists of (plots are pictures of
-    ``results.csv``: compared through it)."""
-    out = {}
-    for p in sorted(folder.rglob("*")):
-        rel = p.relative_to(folder).as_posix()
-        if p.is_file() and (rel in ("results.csv", "summary.md") or rel.startswith("requests/")):
-            out[rel] = p.read_bytes()
-    return out
+    """Every file a sweep wrote (results.csv, summary.md, plots, stored requests)."""
+    return {
+        p.relative_to(folder).as_posix(): p.read_bytes()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
 
 
 def _sweep(study: Path, out: Path, *extra: str) -> tuple[float, int, str]:
@@ -155,10 +153,11 @@ def bench_ray() -> list[str]:
         lines.append(f"       Ray (its start too)  {t_ray:7.1f} s   {t_ray / t_local:4.2f} x local")
         csv = a.get("results.csv", b"")
         rows = csv.count(b"\n") - 1
+        verdict = "yes" if same else "no: " + ", ".join(differ[:5])
         lines.append(
             f"  {'ok  ' if same and stored == N_REQUESTS else 'MISS'} results.csv "
-            f"({len(csv)} bytes, {rows} rows), summary.md and every stored "
-            f"request byte-identical: {'yes' if same else 'no: ' + ', '.join(differ[:5])}"
+            f"({len(csv)} bytes, {rows} rows), summary.md, {len(a) - stored - 2} plots and "
+            f"every stored request byte-identical: {verdict}"
         )
     return lines
 
