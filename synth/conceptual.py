@@ -82,10 +82,48 @@ def parse_param(text: str) -> tuple[str, str]:
     return name.strip(), value.strip()
 
 
+def ability_kif(kb: KnowledgeBase, name: str) -> str:
+    """The KIF name of the ability ``name``; InputError (with a suggestion) if unknown."""
+    a = kb.ability(name)
+    if a is None:
+        names = [x.name for x in kb.abilities]
+        raise InputError(
+            f"unknown ability {name!r}{suggest(name, names)}; 'parmor abilities' lists them"
+        )
+    return a.kif
+
+
 def query_for(kb: KnowledgeBase, req: Request) -> Query:
-    """The solver query of ``req``, its names checked against ``kb``, before any grounding
-    (a command passes it to its Reasoner as the query to expect first)."""
-    return Designer(kb, None).query(req)  # type: ignore[arg-type]  # reads kb only
+    """The solver query of ``req``, every name checked against ``kb`` (it needs no
+    grounding: a command builds it for its Reasoner's ``first`` query)."""
+    requests = tuple(dict.fromkeys(ability_kif(kb, a) for a in req.abilities))
+    answers: dict[str, bool] = {}
+    for name, yes in req.answers:
+        kif = ability_kif(kb, name)
+        if answers.get(kif, yes) != yes:
+            raise InputError(f"--answer {name}: answered both yes and no")
+        answers[kif] = yes
+    params: dict[str, tuple[str, str]] = {}
+    for name, value in req.params:
+        p = kb.parameter(name)
+        if p is None and name in STRUCTURAL:
+            continue  # a physical parameter: see structural()
+        if p is None:
+            names = sorted([x.name for x in kb.parameters] + list(STRUCTURAL))
+            raise InputError(
+                f"unknown parameter {name!r}{suggest(name, names)}; known: {', '.join(names)}"
+            )
+        term = p.term(value)
+        if term is None:
+            vals = [v for v, _ in p.values]
+            raise InputError(
+                f"--param {name}={value}: unknown value{suggest(value, vals)}; "
+                f"one of: {', '.join(vals)}"
+            )
+        if name in params and params[name][1] != term:
+            raise InputError(f"--param {name} given twice with different values")
+        params[name] = (p.relation, term)
+    return Query(requests, tuple(sorted(answers.items())), tuple(sorted(params.values())))
 
 
 class Designer:
@@ -96,15 +134,6 @@ class Designer:
         self.reasoner = reasoner
 
     # -- names ------------------------------------------------------------------------
-    def ability_kif(self, name: str) -> str:
-        a = self.kb.ability(name)
-        if a is None:
-            names = [x.name for x in self.kb.abilities]
-            raise InputError(
-                f"unknown ability {name!r}{suggest(name, names)}; 'parmor abilities' lists them"
-            )
-        return a.kif
-
     def short(self, kif: str) -> str:
         a = self.kb.ability_of_kif(kif)
         return a.name if a else kif
@@ -117,34 +146,7 @@ class Designer:
 
     def query(self, req: Request) -> Query:
         """Check every name of ``req`` against the ontology and build the solver query."""
-        requests = tuple(dict.fromkeys(self.ability_kif(a) for a in req.abilities))
-        answers: dict[str, bool] = {}
-        for name, yes in req.answers:
-            kif = self.ability_kif(name)
-            if answers.get(kif, yes) != yes:
-                raise InputError(f"--answer {name}: answered both yes and no")
-            answers[kif] = yes
-        params: dict[str, tuple[str, str]] = {}
-        for name, value in req.params:
-            p = self.kb.parameter(name)
-            if p is None and name in STRUCTURAL:
-                continue  # a physical parameter: see structural()
-            if p is None:
-                names = sorted([x.name for x in self.kb.parameters] + list(STRUCTURAL))
-                raise InputError(
-                    f"unknown parameter {name!r}{suggest(name, names)}; known: {', '.join(names)}"
-                )
-            term = p.term(value)
-            if term is None:
-                vals = [v for v, _ in p.values]
-                raise InputError(
-                    f"--param {name}={value}: unknown value{suggest(value, vals)}; "
-                    f"one of: {', '.join(vals)}"
-                )
-            if name in params and params[name][1] != term:
-                raise InputError(f"--param {name} given twice with different values")
-            params[name] = (p.relation, term)
-        return Query(requests, tuple(sorted(answers.items())), tuple(sorted(params.values())))
+        return query_for(self.kb, req)
 
     def structural(self, req: Request) -> dict[str, float]:
         """The physical parameters of ``req`` in SI units (units are required)."""
