@@ -875,7 +875,7 @@ class _Sizer:
             return f"{indent}{rec.get('note', '')}\n"
         s, a = rec["structure"], rec["assignments"]
         alike = "alike joints alike" if a["symmetric"] else "joints independent"
-        of = a.get("count_capable", a["count"])
+        of = a["count_capable"]
         lines = [
             f"{indent}sized:      {s['mass_kg']:.3f} kg, cost {s['cost']:.2f}",
             f"{indent}assignments: {_count(a['count'])} feasible of {_count(of)} capable "
