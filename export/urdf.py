@@ -205,17 +205,19 @@ def symmetric_inertia(inertia: np.ndarray, what: str) -> np.ndarray:
 # --- the yourdfpy data model ---------------------------------------------------------------
 
 
-class _Records:
-    """yourdfpy's classes as plain records (``types.SimpleNamespace`` of the keyword fields
-    given, which is all :func:`robot_xml` reads): the text is written without importing
-    yourdfpy, and trimesh and scipy.spatial behind it (about half a second of every
-    ``design --out``). Every field the writer reads is given explicitly for that reason."""
-
-    def __getattr__(self, name: str) -> type[SimpleNamespace]:
-        return SimpleNamespace
-
-
-_RECORDS = _Records()
+#: yourdfpy's classes as plain records (``types.SimpleNamespace`` of the keyword fields
+#: given, which is all :func:`robot_xml` reads): the text is written without importing
+#: yourdfpy, and trimesh and scipy.spatial behind it (about half a second of every
+#: ``design --out``). The builders give every field the writer reads, for that reason.
+_RECORDS = SimpleNamespace(
+    **{
+        name: SimpleNamespace
+        for name in (
+            "Robot", "Link", "Joint", "Inertial", "Visual", "Collision", "Material", "Color",
+            "Geometry", "Mesh", "Box", "Cylinder", "Sphere", "Limit", "Dynamics",
+        )
+    }
+)  # fmt: skip
 
 
 def _geometry(g: Geometry, mesh_dir: str, y) -> yourdfpy.Geometry:
