@@ -4,9 +4,10 @@ on local processes (``--jobs 2``) and once on a throwaway Ray instance on this m
 local run's) and whether the outputs are byte-identical: ``results.csv``, ``summary.md``,
 the plots and every stored request.
 
-The study mixes cheap designs (carts, skid-steers, snakes, 3- and 6-DOF arms), one that no
-robot can meet and one that waits for an answer: a hundred requests in a few minutes on
-two cores. Ray is optional (``pip install 'parmor[ray]'``); without it the section says so.
+The study is the shipped ``studies/parameter-range.toml``'s requests of cheap types (carts,
+skid-steers, snakes, 3- and 6-DOF arms), spread evenly to 98, with one request no robot
+can meet and one that waits for an answer: a hundred requests in a minute or two on two
+cores. Ray is optional (``pip install 'parmor[ray]'``); without it the section says so.
 """
 
 from __future__ import annotations
@@ -19,81 +20,48 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
 
-#: 20 + 12 + 12 + 12 + 9 + 20 + 6 + 6 + 2 + 1 = 100 requests once the lists expand
-STUDY = """\
-[[request]]
-name = "differential-drive"
-abilities = ["driving"]
-[request.params]
-payload = ["0.1kg", "0.3kg", "0.5kg", "0.8kg", "1kg"]
-speed = ["0.1m/s", "0.2m/s", "0.3m/s", "0.5m/s"]
-
-[[request]]
-name = "differential-drive"
-abilities = ["driving"]
-[request.params]
-load_area = ["150cm2", "300cm2", "600cm2"]
-slope = ["0deg", "5deg", "10deg", "15deg"]
-
-[[request]]
-name = "snake-rolling"
-abilities = ["rolling"]
-[request.params]
-payload = ["0kg", "0.05kg", "0.1kg", "0.2kg"]
-deflection = ["0.5mm", "1mm", "2mm"]
-
-[[request]]
-name = "snake-sidewinding"
-abilities = ["sidewinding"]
-[request.params]
-payload = ["0kg", "0.05kg", "0.1kg", "0.2kg"]
-deflection = ["0.5mm", "1mm", "2mm"]
-
-[[request]]
-name = "skid-steer"
-abilities = ["driving"]
-[request.params]
-payload = ["1.5kg", "2kg", "3kg"]
-speed = ["0.1m/s", "0.2m/s", "0.3m/s"]
-
-[[request]]
-name = "arm-3dof"
-abilities = ["pick-and-place"]
-[request.params]
-object_shape = "cylinder"
-reach = ["15cm", "20cm", "25cm", "30cm", "35cm"]
-payload = ["0.05kg", "0.1kg", "0.2kg", "0.3kg"]
-
-[[request]]
-name = "arm-3dof"
-abilities = ["pick-and-place"]
-[request.params]
-object_shape = "sphere"
-reach = ["20cm", "25cm", "30cm"]
-deflection = ["0.5mm", "2mm"]
-
-[[request]]
-name = "arm-6dof"
-abilities = ["pick-and-place"]
-[request.params]
-object_shape = "box"
-reach = ["20cm", "25cm", "30cm"]
-deflection = ["0.5mm", "2mm"]
-
-[[request]]
-name = "snake-rolling-circular-path"
-abilities = ["rolling", "circular-path"]
-[request.params]
-payload = ["0kg", "0.1kg"]
-
-[[request]]
-name = "rolling-and-grasping"
-abilities = ["rolling", "grasping"]
-"""
+#: The shipped parameter study, whose requests of cheap robot types the bench spreads over
+#: its 100 requests.
+SOURCE = REPO / "studies" / "parameter-range.toml"
+#: Robot types left out: the legged ones take seconds each.
+COSTLY = ("hexapod", "quadruped", "humanoid")
+#: Added to the source's: one request no robot meets, one that waits for an answer.
+EXTRA = (
+    {"name": "rolling-and-grasping", "abilities": ["rolling", "grasping"]},
+    {"name": "walking", "abilities": ["walking"]},
+)
 N_REQUESTS = 100
 JOBS = 2
 TIME_LIMIT = 1800  # s per sweep
+
+
+def study_text() -> str:
+    """The bench's study: ``N_REQUESTS`` requests, ``EXTRA`` and the rest spread evenly over
+    the source's requests of cheap types (each expanded, one table per request)."""
+    import json
+
+    from synth.sweep import load_study
+
+    cheap = [q for q in load_study(SOURCE)[1] if q["name"] not in COSTLY]
+    n = N_REQUESTS - len(EXTRA)
+    picked = [cheap[i * len(cheap) // n] for i in range(n)]
+
+    def inline(table: dict) -> str:
+        return "{" + ", ".join(f"{k} = {json.dumps(v)}" for k, v in table.items()) + "}"
+
+    out = []
+    for q in [*picked, *EXTRA]:
+        out.append("[[request]]")
+        out.append(f"name = {json.dumps(q['name'])}")
+        out.append(f"abilities = {json.dumps(q['abilities'])}")
+        for key in ("answers", "params"):
+            if q.get(key):
+                out.append(f"{key} = {inline(q[key])}")
+        out.append("")
+    return "\n".join(out)
 
 
 def outputs(folder: Path) -> dict[str, bytes]:
@@ -139,7 +107,7 @@ def bench_ray() -> list[str]:
     lines = [f"{head}; load {os.getloadavg()[0]:.1f}"]
     with tempfile.TemporaryDirectory() as tmp:
         study = Path(tmp) / "hundred.toml"
-        study.write_text(STUDY, encoding="utf-8")
+        study.write_text(study_text(), encoding="utf-8")
         here, there = Path(tmp) / "local", Path(tmp) / "ray"
         t_local, code_l, err_l = _sweep(study, here)
         t_ray, code_r, err_r = _sweep(study, there, "--backend", "ray")
