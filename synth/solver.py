@@ -242,39 +242,81 @@ def check_rules_file(path: str | Path, allow_scripts: bool) -> str:
 _PROTECTED: frozenset[tuple[str, int]] | None = None
 
 
-def _heads(stmt: object) -> list[tuple[str, int, object]]:
-    """(name, arity, location) of the atoms a parsed statement defines or shows."""
+def _atom_names(term: object) -> Iterator[tuple[str, int, object]]:
+    """(name, arity, location) of every atom an atom's term can stand for: a pool
+    (``chosen("A";"B")``) any of its elements, ``-p(..)`` p's (classical negation)."""
     from clingo import ast
 
-    out: list[tuple[str, int, object]] = []
+    t = term.ast_type
+    if t == ast.ASTType.Pool:
+        for e in term.arguments:
+            yield from _atom_names(e)
+    elif t == ast.ASTType.Function:
+        if not term.external:
+            yield term.name, len(term.arguments), term.location
+    elif t == ast.ASTType.UnaryOperation:
+        yield from _atom_names(term.argument)
+    elif t == ast.ASTType.SymbolicTerm and term.symbol.type == clingo.SymbolType.Function:
+        yield term.symbol.name, len(term.symbol.arguments), term.location
 
-    def atom(lit: object, loc: object) -> None:
-        a = getattr(lit, "atom", None)
-        sym = getattr(a, "symbol", None)
-        if sym is not None and sym.ast_type == ast.ASTType.Function:
-            out.append((sym.name, len(sym.arguments), getattr(lit, "location", loc)))
 
+def _literal_names(lit: object) -> Iterator[tuple[str, int, object]]:
+    """What a head literal defines: its atom unless it is ``not a`` (a constraint);
+    ``not not a`` is a choice of ``a``."""
+    from clingo import ast
+
+    if lit.ast_type != ast.ASTType.Literal or lit.sign == ast.Sign.Negation:
+        return
+    if lit.atom.ast_type == ast.ASTType.SymbolicAtom:
+        yield from _atom_names(lit.atom.symbol)
+
+
+def _heads(stmt: object) -> list[tuple[str, int, object]]:
+    """(name, arity, location) of the atoms a parsed statement defines, declares external,
+    shows, projects or steers (``#heuristic``), in every form clingo accepts: pools in
+    heads and arguments, disjunctions, conditional heads, choices and head aggregates."""
+    from clingo import ast
+
+    T = ast.ASTType
     t = stmt.ast_type
-    if t == ast.ASTType.Rule:
+    out: list[tuple[str, int, object]] = []
+    if t == T.Rule:
         h = stmt.head
-        if h.ast_type == ast.ASTType.Literal:
-            atom(h, stmt.location)
-        elif h.ast_type in (ast.ASTType.Disjunction, ast.ASTType.Aggregate):
+        if h.ast_type == T.Literal:
+            out += _literal_names(h)
+        elif h.ast_type in (T.Disjunction, T.Aggregate):
             for e in h.elements:
-                atom(e.literal, stmt.location)
-        elif h.ast_type == ast.ASTType.HeadAggregate:
+                out += _literal_names(e.literal)
+        elif h.ast_type == T.HeadAggregate:
             for e in h.elements:
-                atom(e.condition.literal, stmt.location)
-    elif t == ast.ASTType.External:
-        sym = stmt.atom.symbol if hasattr(stmt.atom, "symbol") else stmt.atom
-        if getattr(sym, "ast_type", None) == ast.ASTType.Function:
-            out.append((sym.name, len(sym.arguments), stmt.location))
-    elif t == ast.ASTType.ShowTerm:
-        if stmt.term.ast_type == ast.ASTType.Function:
-            out.append((stmt.term.name, len(stmt.term.arguments), stmt.location))
-    elif t == ast.ASTType.ShowSignature:
+                out += _literal_names(e.condition.literal)
+        # a theory atom (&p {...}) defines no ordinary atom
+    elif t in (T.External, T.Heuristic, T.ProjectAtom):
+        if stmt.atom.ast_type == T.SymbolicAtom:
+            out += _atom_names(stmt.atom.symbol)
+    elif t == T.ShowTerm:
+        out += _atom_names(stmt.term)
+    elif t in (T.ShowSignature, T.ProjectSignature):
         out.append((stmt.name, stmt.arity, stmt.location))
     return out
+
+
+def _open_show(term: object) -> object | None:
+    """The location of a ``#show`` term that a variable or a script call gives (``#show X
+    : p(X).`` shows whatever ``X`` is bound to, ``chosen("A")`` included), else None."""
+    from clingo import ast
+
+    t = term.ast_type
+    if t == ast.ASTType.Variable or (t == ast.ASTType.Function and term.external):
+        return term.location
+    if t == ast.ASTType.UnaryOperation:
+        return _open_show(term.argument)
+    if t == ast.ASTType.Pool:
+        for e in term.arguments:
+            loc = _open_show(e)
+            if loc is not None:
+                return loc
+    return None
 
 
 def _parse(text: str) -> list[object]:
@@ -291,8 +333,9 @@ def protected_predicates() -> frozenset[tuple[str, int]]:
     A user's rule file may constrain them (``:- chosen("X").``) but not define them."""
     global _PROTECTED
     if _PROTECTED is None:
-        # explain's mode switch and the catalog bus's limit: facts the solver adds
-        found = {("focus", 1), ("bus_limit", 1)}
+        # explain's mode switch, the catalog bus's limit and the fast path's externals:
+        # facts and rules the solver adds
+        found = {("focus", 1), ("bus_limit", 1), (_EXTERNAL, 1)}
         for lp in sorted(encoding_dir().glob("*.lp")):
             for stmt in _parse(_blank_includes(lp.read_text(encoding="utf-8"))):
                 found.update((n, a) for n, a, _ in _heads(stmt) if n and n not in OPEN_PREDICATES)
@@ -301,15 +344,35 @@ def protected_predicates() -> frozenset[tuple[str, int]]:
 
 
 def _refuse_protected(name: str, text: str) -> None:
+    """InputError (file:line:col) for the first statement of ``text`` that defines,
+    declares external, projects or steers a protected predicate, or shows one (by name, at
+    any arity: the solver reads shown atoms by name) or a term a variable gives."""
+    from clingo import ast
+
     try:
         stmts = _parse(text)
     except RuntimeError:
         return  # a syntax error: clingo reports it with its location when grounding
     protected = protected_predicates()
+    names = {n for n, _ in protected}
     for stmt in stmts:
+        show = stmt.ast_type in (ast.ASTType.ShowTerm, ast.ASTType.ShowSignature)
+        if stmt.ast_type == ast.ASTType.ShowTerm:
+            loc = _open_show(stmt.term)
+            if loc is not None:
+                raise InputError(
+                    f"{name}:{loc.begin.line}:{loc.begin.column}: a rule file may not show "
+                    f"the term {stmt.term} (a variable or script could give chosen/1 or "
+                    "another atom parmor derives); show name(...) with a name of its own"
+                )
         for pred, arity, loc in _heads(stmt):
+            line, col = loc.begin.line, loc.begin.column
+            if show and pred in names and (pred, arity) not in protected:
+                raise InputError(
+                    f"{name}:{line}:{col}: a rule file may not show {pred}/{arity}: parmor "
+                    f"reads every shown atom named {pred} as its own (asp/doc.lp)"
+                )
             if (pred, arity) in protected:
-                line, col = loc.begin.line, loc.begin.column
                 raise InputError(
                     f"{name}:{line}:{col}: a rule file may not define {pred}/{arity}: parmor "
                     "derives it (asp/doc.lp); constrain it instead, e.g. ':- "
