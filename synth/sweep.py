@@ -27,6 +27,7 @@ import hashlib
 import io
 import itertools
 import json
+import math
 import os
 import tempfile
 from collections import Counter, defaultdict
@@ -67,9 +68,11 @@ def _param_values(value: object, where: str) -> list[str]:
     if isinstance(value, str):
         return [value]
     if isinstance(value, list) and value and all(isinstance(v, str) for v in value):
-        if len(set(value)) != len(value):
-            dup = next(v for v in value if value.count(v) > 1)
-            raise InputError(f"{where}: {dup!r} listed twice")
+        seen: set[str] = set()
+        for v in value:
+            if v in seen:
+                raise InputError(f"{where}: {v!r} listed twice")
+            seen.add(v)
         return list(value)
     raise InputError(
         f'{where}: expected a value with its unit ("0.2kg") or a non-empty list of them'
@@ -81,15 +84,85 @@ def default_out(study: Path) -> Path:
     return study.with_name(study.stem + ".sweep")
 
 
+#: The most requests a study may expand to: counted before anything is expanded, a larger
+#: study is refused (exit 2). Checking a request costs about 1 ms and designing one with
+#: simulation seconds to a minute, so 10,000 is already hours of a 2-core machine's work
+#: (a day's on a small Ray cluster); a larger range is split into several studies.
+MAX_STUDY_REQUESTS = 10_000
+
+
+def _list_lengths(t: dict) -> list[int]:
+    """The lengths of the lists among a ``[[request]]`` table's ``params`` (values that are
+    not lists count once; malformed ones are refused when the table is read)."""
+    params = t.get("params")
+    if not isinstance(params, dict):
+        return []
+    return [len(v) for v in params.values() if isinstance(v, list)]
+
+
+#: Sizes up to this are written exactly in messages, larger ones as a power of ten.
+_EXACT = 10**15
+
+
+def _size(lengths: Sequence[int]) -> tuple[int | None, float]:
+    """(the product of ``lengths`` when at most :data:`_EXACT`, else None; its log10),
+    without making a huge integer (a 1 KB study can name 10^300 requests)."""
+    if 0 in lengths:
+        return 0, -math.inf
+    lg = sum(math.log10(n) for n in lengths)
+    return (math.prod(lengths) if lg <= 15.5 else None), lg
+
+
+def _total(sizes: Sequence[tuple[int | None, float]]) -> int | None:
+    """The sum of ``sizes`` (see :func:`_size`), None past :data:`_EXACT`."""
+    total = 0
+    for n, _ in sizes:
+        if n is None or total + n > _EXACT:
+            return None
+        total += n
+    return total
+
+
+def _size_text(sizes: Sequence[tuple[int | None, float]]) -> str:
+    """``1,000,000``, or ``about 10^40`` past :data:`_EXACT`, for the sum of ``sizes``."""
+    total = _total(sizes)
+    if total is not None:
+        return f"{total:,}"
+    return f"about 10^{int(max(lg for _, lg in sizes))}"
+
+
+def check_study_size(tables: Sequence[tuple[str, dict]], path: Path) -> None:
+    """InputError (exit 2) when the ``[[request]]`` tables expand to more than
+    :data:`MAX_STUDY_REQUESTS` requests, naming the size, the limit and the largest table;
+    counted from the lists' lengths, before anything is expanded."""
+    sizes = [_size(_list_lengths(t)) for _, t in tables]
+    total = _total(sizes)
+    if total is not None and total <= MAX_STUDY_REQUESTS:
+        return
+    k = max(range(len(sizes)), key=lambda i: sizes[i][1])
+    where, t = tables[k]
+    lists = " x ".join(f"{name} {len(v)}" for name, v in t["params"].items() if isinstance(v, list))
+    raise InputError(
+        f"{path}: the study expands to {_size_text(sizes)} requests, more than the "
+        f"{MAX_STUDY_REQUESTS:,} a study may have (the most from "
+        f"{where.removeprefix(f'{path}: ')}: params {lists} = {_size_text([sizes[k]])}); "
+        "split it into smaller studies"
+    )
+
+
 def load_study(path: Path) -> tuple[dict, list[dict]]:
     """The study's options and its expanded requests, in file order (each list expanded
     in the order of its ``params`` keys, the last varying fastest). Each request:
     ``name``, ``abilities``, ``answers`` (name -> "yes"/"no"), ``params`` (name -> value
-    string), ``where`` (file and table, for messages). Errors name the file and key."""
+    string), ``where`` (file and table, for messages). Errors name the file and key; a
+    study of more than :data:`MAX_STUDY_REQUESTS` requests is refused before it is
+    expanded."""
     data = read_toml(path, STUDY_KEYS)
     opts = kb_options(data, path)
+    tables = list(array_tables(data, "request", REQUEST_KEYS, path))
+    check_study_size(tables, path)
     out = []
-    for where, t in array_tables(data, "request", REQUEST_KEYS, path):
+    for where, t in tables:
         abilities = str_list(t.get("abilities"), f"{where}: abilities")
         if not abilities:
             raise InputError(f"{where}: abilities: name at least one ability")
@@ -130,9 +203,16 @@ def request_key(q: dict, simulate: bool, files_digest: str) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:KEY_LENGTH]
 
 
+#: Significant digits two parameter values in SI units must share to be the same value
+#: ("0.3m" and "30cm" differ in the last bit of their floats).
+SI_DIGITS = 12
+
+
 def validate(opts: dict, requests: Sequence[dict]) -> None:
     """Check every name and value of every request against the knowledge base and the
-    catalog before anything runs (an InputError names the file and the request)."""
+    catalog before anything runs, and refuse a request given twice (its parameters
+    compared in SI units: ``1kg`` is ``1000g``); an InputError names the file and the
+    request."""
     from synth.pipeline import load_checked_catalog
 
     designer = designer_for(opts)
@@ -140,13 +220,27 @@ def validate(opts: dict, requests: Sequence[dict]) -> None:
         load_checked_catalog(opts["catalog"], designer)
     except InputError as e:
         raise InputError(f"{opts['suite']}: catalog: {e}") from None
+    seen: dict[tuple, dict] = {}
     for q in requests:
         try:
             req = request_for(q)
             designer.query(req)
-            designer.structural(req)
+            physical = designer.structural(req)
         except InputError as e:
             raise InputError(f"{q['where']}: {e}") from None
+        params = {
+            k: float(f"{physical[k]:.{SI_DIGITS}g}") if k in physical else v
+            for k, v in q["params"].items()
+        }
+        ident = (req.abilities, tuple(sorted(req.answers)), tuple(sorted(params.items())))
+        first = seen.setdefault(ident, q)
+        if first is not q:
+            given = json.dumps(q["params"], ensure_ascii=False)
+            if first["params"] != q["params"]:
+                given += (
+                    f" and {json.dumps(first['params'], ensure_ascii=False)}, the same in SI units"
+                )
+            raise InputError(f"{q['where']}: the same request as {first['where']} (params {given})")
 
 
 # --- designing and simulating one request (in a worker process) ---------------------------
@@ -335,15 +429,6 @@ def run_study(
     files = (opts["catalog"], opts["ontology"], opts["rules"])
     digest = files_digest(*files)  # reads and hashes every file: once per study
     keys = [request_key(q, simulate, digest) for q in requests]
-    seen: dict[str, int] = {}
-    for i, (q, k) in enumerate(zip(requests, keys, strict=True)):
-        if k in seen:
-            first = requests[seen[k]]
-            raise InputError(
-                f"{q['where']}: the same request as {first['where']} "
-                f"(params {json.dumps(q['params'], ensure_ascii=False)})"
-            )
-        seen[k] = i
     store = out / "requests"
     results: dict[int, dict] = {}
     for i, k in enumerate(keys):
