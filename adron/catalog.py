@@ -17,7 +17,6 @@ from __future__ import annotations
 import difflib
 import math
 import re
-import tomllib
 from collections.abc import Collection, Iterable
 from dataclasses import dataclass, replace
 from decimal import ROUND_HALF_UP, Decimal
@@ -25,6 +24,7 @@ from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
+from adron import readers
 from adron.errors import InputError
 from adron.translate import asp_string
 from adron.units import quantity
@@ -405,7 +405,6 @@ _MERGED_ARRAYS = ("actuator", "module", "part", "printer")
 MAX_EXTENDS = 8
 _CLASS_NAME = re.compile(r"[A-Z][A-Za-z0-9]*")
 _CURRENCY = re.compile(r"[A-Z]{3}")
-_TOML_AT = re.compile(r"(?s)(.*) \(at line (\d+), column (\d+)\)")
 
 #: Largest catalog quantity of each dimension parmor accepts, with its unit. Beyond them no
 #: module of a modular robot makes sense, and the ASP facts (integers: milligrams, cents,
@@ -790,19 +789,6 @@ def _header(t: _Table) -> tuple[str, str, str]:
     return t.text("name"), currency, version
 
 
-def _toml_error(error: tomllib.TOMLDecodeError, text: str, source: str) -> InputError:
-    """``file:line:col: message`` from tomllib's "message (at line L, column C)"."""
-    message = str(error)
-    match = _TOML_AT.fullmatch(message)
-    if match:
-        return InputError(f"{source}:{match[2]}:{match[3]}: {match[1]}")
-    if message.endswith(" (at end of document)"):
-        lines = text.split("\n")
-        line, col = len(lines), len(lines[-1]) + 1
-        return InputError(f"{source}:{line}:{col}: {message}")
-    return InputError(f"{source}: {message}")
-
-
 #: The catalogs shipped with parmor, by the name ``--catalog NAME`` takes: file names
 #: inside the ``adron`` package.
 SHIPPED: dict[str, str] = {
@@ -823,25 +809,11 @@ def _shipped_text(name: str) -> tuple[str, str]:
 
 
 def _read_text(path: Path, source: str) -> str:
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise InputError(f"{source}: no such file") from None
-    except IsADirectoryError:
-        raise InputError(f"{source}: is a folder, not a catalog file") from None
-    except OSError as error:
-        raise InputError(f"{source}: cannot read: {error.strerror or error}") from None
-    try:
-        return raw.decode("utf-8-sig")  # a leading byte order mark is ignored
-    except UnicodeDecodeError as error:
-        raise InputError(f"{source}: not UTF-8 text (byte {error.start})") from None
+    return readers.read_text(path, source, "catalog file")  # a byte order mark is dropped
 
 
 def _toml(text: str, source: str) -> dict[str, Any]:
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise _toml_error(error, text, source) from None
+    doc = readers.parse_toml(text, source)  # nesting and numbers bounded
     for key in doc:
         if key not in _TOP_KEYS:
             raise InputError(f"{source}: unknown key '{key}'{_suggest(key, _TOP_KEYS)}")

@@ -11,15 +11,13 @@ import contextlib
 import difflib
 import json
 import os
-import re
 import tempfile
-import tomllib
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
+from adron import readers
 from adron.errors import ExportError, InputError
-from adron.kb import read_user_file
 from synth import limits
 
 if TYPE_CHECKING:
@@ -47,12 +45,7 @@ def str_table(value: object, where: str) -> dict[str, str]:
 
 def read_toml(path: Path, keys: set[str]) -> dict:
     """The TOML table of a user's file whose top-level keys are among ``keys``."""
-    _, text = read_user_file(path)
-    try:
-        data = tomllib.loads(text.removeprefix("\ufeff"))  # a byte order mark is ignored
-    except tomllib.TOMLDecodeError as e:
-        at = re.fullmatch(r"(?s)(.*) \(at line (\d+), column (\d+)\)", str(e))
-        raise InputError(f"{path}:{at[2]}:{at[3]}: {at[1]}" if at else f"{path}: {e}") from None
+    data = readers.read_toml(path)  # nesting and numbers bounded, a byte order mark dropped
     unknown = sorted(set(data) - keys)
     if unknown:
         raise InputError(f"{path}: unknown key {unknown[0]!r}")
@@ -225,16 +218,9 @@ def run_suite(
         write_atomic(snap, _dump(results))
         out.write(f"stored {len(results)} result(s) in {snap}\n")
         return 0
-    try:
-        stored = json.loads(snap.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(
-            f"{snap}: no snapshot; run 'parmor regress {suite} --update' first"
-        ) from None
-    except json.JSONDecodeError as e:
-        raise InputError(f"{snap}:{e.lineno}:{e.colno}: {e.msg}") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"{snap}: cannot read: {e}") from None
+    if not snap.exists():
+        raise InputError(f"{snap}: no snapshot; run 'parmor regress {suite} --update' first")
+    stored = readers.read_json(snap)  # nesting and numbers bounded
     if not isinstance(stored, dict) or not all(isinstance(v, dict) for v in stored.values()):
         raise InputError(
             f"{snap}: not a snapshot (expected an object of query name -> record); "

@@ -35,6 +35,7 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import TextIO
 
+from adron import readers
 from adron.errors import ExportError, InputError
 from synth import limits
 from synth.backend import Backend, files_digest, tasks
@@ -343,8 +344,8 @@ def write_atomic(path: Path, data: bytes) -> None:
 def _stored(path: Path) -> dict | None:
     """A stored result, or None when absent or unreadable (then it is designed again)."""
     try:
-        rec = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        rec = readers.read_json(path)  # nesting and numbers bounded
+    except InputError:
         return None
     if not isinstance(rec, dict) or rec.get("format") != RESULT_FORMAT:
         return None
