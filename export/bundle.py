@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import dataclasses
 import errno
 import hashlib
 import json
@@ -12,6 +13,7 @@ import os
 import re
 import secrets
 import shutil
+import stat
 import sys
 from collections.abc import Mapping
 from pathlib import Path
@@ -215,14 +217,38 @@ _SAFE_BEHAVIOR = re.compile(r"[a-z0-9_-]+")
 #: web server), whatever the umask; ``tempfile.mkdtemp`` alone would leave 0700.
 DIR_MODE = 0o755
 FILE_MODE = 0o644
-#: The file ``write_bundle`` leaves in every folder it writes: ``force`` replaces only a
-#: folder holding it (or a bundle of ours from before it, see ``_ours``), so that a typo
-#: in ``--out DIR --force`` cannot delete a folder of the user's.
+#: The file ``write_bundle`` leaves in every folder it writes: the list of the files it
+#: wrote there, each with its SHA-256 (``manifest_text``). ``force`` replaces only those
+#: files, and only as parmor wrote them, in a folder holding it; every other file there
+#: (``.git``, a user's program, the block page of a bundle) is kept.
 MARKER = ".parmor"
-MARKER_TEXT = (
+MANIFEST_FORMAT = "parmor-files-1"
+MANIFEST_NOTE = (
+    "The files parmor wrote into this folder, with their SHA-256. 'parmor ... --force' "
+    "replaces these files when they are unchanged and keeps every other file here."
+)
+#: The marker of folders written before the manifest: it lists no files, so parmor cannot
+#: tell its files from a user's there (such a folder is refused, as a foreign one is).
+LEGACY_MARKER_TEXT = (
     "This folder was written by parmor; 'parmor ... --force' may replace it whole.\n"
     "Remove this file to keep parmor from replacing it.\n"
 )
+_DIGEST = re.compile(r"sha256:[0-9a-f]{64}")
+
+
+def manifest_text(files: Mapping[str, str | bytes]) -> str:
+    """``MARKER``'s text for a folder holding ``files`` (relative name -> content; a str is
+    written as UTF-8): each name with ``sha256:<hex>`` of its bytes, in name order."""
+    listed = {
+        Path(name).as_posix(): "sha256:" + hashlib.sha256(_bytes(content)).hexdigest()
+        for name, content in files.items()
+    }
+    body = {"format": MANIFEST_FORMAT, "note": MANIFEST_NOTE, "files": listed}
+    return json.dumps(body, indent=1, sort_keys=True, ensure_ascii=False) + "\n"
+
+
+def _bytes(content: str | bytes) -> bytes:
+    return content.encode("utf-8") if isinstance(content, str) else content
 
 
 def write_bundle(
@@ -230,6 +256,7 @@ def write_bundle(
     files: Mapping[str, str | bytes],
     force: bool = False,
     modes: Mapping[str, int] | None = None,
+    adopt: bool = False,
 ) -> Path:
     """Write ``files`` (relative name -> content) into the folder ``out``; returns it.
 
@@ -239,41 +266,52 @@ def write_bundle(
 
     - ``out`` absent or empty: ``rename`` (which fails, rather than replace it, when a
       non-empty folder or a file appeared at ``out`` meanwhile);
-    - ``out`` a non-empty folder of ours (``force``): on Linux ``renameat2`` with
-      ``RENAME_EXCHANGE`` swaps the two folders, then the old one is deleted; where the
-      exchange is not available, ``out`` is renamed aside, the new folder into place and
-      the old one deleted (a kill between the two renames leaves ``out`` absent: the next
-      write to ``out`` puts the old one back first).
+    - ``out`` a non-empty folder holding ``MARKER`` (``force``): every file there that
+      ``MARKER`` does not list (or a folder of them) is hard-linked into the new folder at
+      the same place (``_plan``, ``_carry``); on Linux ``renameat2`` with
+      ``RENAME_EXCHANGE`` swaps the two folders; where the exchange is not available,
+      ``out`` is renamed aside and the new folder into place (a kill between the two
+      renames leaves ``out`` absent: the next write to ``out`` puts the old one back
+      first). The old folder is then emptied of parmor's files and of the links' other
+      names (``_discard``): what the new folder does not hold is moved there, never
+      deleted.
 
-    Temporary folders are named ``.<out>.<hash>.parmor-new|old-<pid>-<random>`` beside
-    ``out``; one left by a killed run (its process gone) is deleted by the next write to
-    the same ``out``. Refused (ExportError, nothing written): an ``out`` of '', '.', '..'
+    Refused (ExportError naming the value, nothing written): an ``out`` of '', '.', '..'
     or '/', the working folder or one above it, a symbolic link (never followed: the link
     is not a folder of ours), a file, a non-empty folder without ``force`` or, with it,
-    one parmor did not write (``MARKER`` absent, ``_ours``). Every folder written holds
-    ``MARKER``. Files get ``FILE_MODE``, or their mode in ``modes`` (an executable
-    script), folders ``DIR_MODE``.
+    one without ``MARKER`` (unless ``adopt``: the block page's folder, whose files are all
+    kept), a file ``MARKER`` lists that was changed since, and a kept file where a new
+    file or folder goes. Every folder written holds ``MARKER`` (``manifest_text``). Files
+    get ``FILE_MODE``, or their mode in ``modes`` (an executable script), folders
+    ``DIR_MODE``.
+
+    Temporary folders are named ``.<out>.<hash>.parmor-new|old-<pid>-<random>`` beside
+    ``out``; one left by a killed run (its process gone) is emptied as the old folder is
+    (``_discard``) by the next write to the same ``out``.
     """
     modes = modes or {}
+    names = set()
     for name in files:
         parts = Path(name).parts
-        if Path(name).is_absolute() or ".." in parts or not parts or name == MARKER:
+        if Path(name).is_absolute() or ".." in parts or not parts or parts == (MARKER,):
             raise ExportError(f"{name!r}: a bundle file must stay inside the folder")
-    _clean_leftovers(_target(out))
-    target = check_out(out, force)
-    shown = str(out)
+        names.add(Path(name).as_posix())
+    target = _target(out)
+    _clean_leftovers(target)
+    shown = os.fspath(out)
+    plan = _plan(target, shown, names, force, adopt)
     made = _make_parents(target.parent, shown)
     tmp = None
     try:
         tmp = _temp_dir(target, "new")
         _write_files(tmp, anchor_urdfs(files, target), modes)
-        _commit(tmp, target, shown, force)
+        _commit(tmp, target, shown, plan, names, force, adopt)
         tmp = None
     except OSError as e:
         raise ExportError(f"{shown}: cannot write: {e.strerror or e}") from None
     finally:
         if tmp is not None:
-            shutil.rmtree(tmp, ignore_errors=True)
+            _rmtree(tmp)
             for d in reversed(made):
                 with contextlib.suppress(OSError):
                     d.rmdir()
@@ -300,15 +338,7 @@ def check_out(out: str | Path, force: bool = False) -> Path:
     """Refuse ``out`` as ``write_bundle`` would, before any work (ExportError); returns
     it as an absolute path (its folder resolved, its last name not)."""
     target = _target(out)
-    shown = os.fspath(out)
-    state = _state(target, shown)
-    if state == "full" and not force:
-        raise ExportError(f"{shown}: already exists and is not empty; pass --force to replace it")
-    if state == "full" and not _ours(target):
-        raise ExportError(
-            f"{shown}: not a folder parmor wrote (no {MARKER} file, no design.json of ours); "
-            "--force replaces only those: remove it yourself or choose another folder"
-        )
+    _plan(target, os.fspath(out), set(), force, adopt=False)
     return target
 
 
@@ -339,8 +369,6 @@ def _state(target: Path, shown: str) -> str:
         return "absent"
     except OSError as e:
         raise ExportError(f"{shown}: cannot use: {e.strerror}") from None
-    import stat
-
     if stat.S_ISLNK(st.st_mode):
         raise ExportError(
             f"{shown}: is a symbolic link; parmor does not write through links: give the "
@@ -355,20 +383,172 @@ def _state(target: Path, shown: str) -> str:
         raise ExportError(f"{shown}: cannot read: {e.strerror}") from None
 
 
-def _ours(folder: Path) -> bool:
-    """Whether parmor wrote ``folder``: it holds ``MARKER``, or (a bundle written before
-    the marker) a design.json that is a design record; or it lies one or two levels inside
-    such a folder (the ROS package in ``DIR/ros/``, the block page in ``DIR/blocks/``)."""
-    for d in (folder, folder.parent, folder.parent.parent):
-        if (d / MARKER).is_file() and not (d / MARKER).is_symlink():
-            return True
-        try:
-            rec = json.loads((d / "design.json").read_text(encoding="utf-8"))
-        except (OSError, ValueError):
+def _read_manifest(folder: Path, shown: str) -> tuple[bytes | None, dict[str, str]]:
+    """(``MARKER``'s bytes, relative name -> ``sha256:<hex>``) of ``folder``; (None, {})
+    when it holds no ``MARKER``. ExportError naming it when it is not a list of parmor's
+    files (a link, a folder, the marker of an older parmor, malformed)."""
+    path = folder / MARKER
+    where = os.path.join(shown, MARKER)
+    try:
+        st = path.lstat()
+    except FileNotFoundError:
+        return None, {}
+    except OSError as e:
+        raise ExportError(f"{where}: cannot read: {e.strerror}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise ExportError(f"{where}: is not a file parmor wrote (a link or a folder)")
+    try:
+        raw = path.read_bytes()
+    except OSError as e:
+        raise ExportError(f"{where}: cannot read: {e.strerror}") from None
+    if raw == LEGACY_MARKER_TEXT.encode():
+        raise ExportError(
+            f"{where}: written by an older parmor, which did not list the files it wrote, so "
+            "parmor cannot tell them from yours: move your files out and remove the folder "
+            "yourself, or choose another folder"
+        )
+    try:
+        body = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as e:
+        raise ExportError(f"{where}: not parmor's list of its files ({e})") from None
+    listed = body.get("files") if isinstance(body, dict) else None
+    if (
+        not isinstance(body, dict)
+        or body.get("format") != MANIFEST_FORMAT
+        or not isinstance(listed, dict)
+        or not all(isinstance(v, str) and _DIGEST.fullmatch(v) for v in listed.values())
+    ):
+        raise ExportError(
+            f"{where}: not parmor's list of its files (expected a JSON object with "
+            f"format {MANIFEST_FORMAT!r} and files: name -> 'sha256:<hex>')"
+        )
+    return raw, listed
+
+
+def _entries(root: Path) -> list[tuple[str, os.stat_result]]:
+    """Every entry below ``root``: (relative name with '/', its lstat), a folder right
+    before what it holds, names in order; links are entries, never followed."""
+    out: list[tuple[str, os.stat_result]] = []
+    stack: list[tuple[Path, str]] = [(root, "")]
+    while stack:  # no recursion: a deep tree is no error
+        d, prefix = stack.pop()
+        with os.scandir(d) as it:
+            for e in it:
+                st = e.stat(follow_symlinks=False)
+                out.append((prefix + e.name, st))
+                if stat.S_ISDIR(st.st_mode):
+                    stack.append((d / e.name, prefix + e.name + "/"))
+    return sorted(out, key=lambda e: e[0].split("/"))
+
+
+def _sha(path: Path) -> str:
+    with path.open("rb") as f:
+        return "sha256:" + hashlib.file_digest(f, "sha256").hexdigest()
+
+
+@dataclasses.dataclass
+class _Plan:
+    """What replacing the target involves: its state ('absent', 'empty', 'full'), its
+    ``MARKER``'s bytes (None: none there), what is kept (relative names: every file that
+    is not parmor's and every empty folder, each below the folders holding it) and the
+    lstat of every entry."""
+
+    state: str
+    raw: bytes | None = None
+    keep: list[str] = dataclasses.field(default_factory=list)
+    stats: dict[str, os.stat_result] = dataclasses.field(default_factory=dict)
+
+
+def _plan(target: Path, shown: str, names: set[str], force: bool, adopt: bool) -> _Plan:
+    """The target's ``_Plan``; ExportError naming what is refused: a non-empty folder
+    without ``force``, one without ``MARKER`` (unless ``adopt``), a file ``MARKER`` lists
+    that was changed since, a kept entry where one of the new ``names`` (or a folder of
+    them) goes."""
+    state = _state(target, shown)
+    if state != "full":
+        return _Plan(state)
+    if not force:
+        raise ExportError(
+            f"{shown}: already exists and is not empty; pass --force to replace it (the "
+            "files parmor wrote there; other files are kept)"
+        )
+    raw, listed = _read_manifest(target, shown)
+    if raw is None and not adopt:
+        raise ExportError(
+            f"{shown}: not a folder parmor wrote (it holds no {MARKER} listing parmor's files); "
+            "--force replaces only those: remove it yourself or choose another folder"
+        )
+    try:
+        entries = _entries(target)
+    except OSError as e:
+        raise ExportError(f"{shown}: cannot read {e.filename}: {e.strerror}") from None
+    folders = {p.as_posix() for n in names for p in Path(n).parents} - {"."}
+    entries_st = dict(entries)
+    keep = []
+    holding: set[str] = set()  # folders holding something
+    for rel, st in entries:
+        holding.add(rel.rpartition("/")[0])
+        if rel == MARKER or stat.S_ISDIR(st.st_mode):
             continue
-        if isinstance(rec, dict) and "robot_type" in rec and "abilities" in rec:
-            return True
-    return False
+        digest = listed.get(rel)
+        if digest is None:
+            keep.append(rel)
+            continue
+        try:
+            same = stat.S_ISREG(st.st_mode) and _sha(target / rel) == digest
+        except OSError as e:
+            raise ExportError(f"{os.path.join(shown, rel)}: cannot read: {e.strerror}") from None
+        if not same:
+            raise ExportError(
+                f"{os.path.join(shown, rel)}: parmor wrote this file and it was changed "
+                "since; --force replaces only parmor's files as parmor wrote them: move "
+                "yours out of the folder (or delete it) and run again"
+            )
+    keep += [rel for rel, st in entries if stat.S_ISDIR(st.st_mode) and rel not in holding]
+    keep.sort(key=lambda r: r.split("/"))
+    for rel in keep:
+        parts = rel.split("/")
+        last = not stat.S_ISDIR(entries_st[rel].st_mode)  # a kept file where a folder goes
+        for i in range(1, len(parts) + 1):
+            p = "/".join(parts[:i])
+            if p in names or (last and i == len(parts) and p in folders):
+                what = "file" if p in names else "folder"
+                raise ExportError(
+                    f"{os.path.join(shown, rel)}: parmor did not write it, and a new {what} "
+                    f"goes at {p!r}; move it out of the folder and run again"
+                )
+    return _Plan(state, raw, keep, entries_st)
+
+
+def _carry(target: Path, tmp: Path, plan: _Plan, shown: str) -> dict[str, tuple[int, int]]:
+    """Hard-link every kept entry of ``target`` into ``tmp`` at the same place (folders
+    made, with their modes at the end); returns relative name -> (device, inode) of each
+    link made. ExportError naming an entry that cannot be linked."""
+    made: list[tuple[Path, int]] = []
+    carried = {}
+    for rel in plan.keep:
+        parts = rel.split("/")
+        try:
+            for i in range(1, len(parts) + 1):
+                sub = "/".join(parts[:i])
+                st = plan.stats[sub]
+                if i < len(parts) or stat.S_ISDIR(st.st_mode):
+                    d = tmp / sub
+                    if not os.path.lexists(d):
+                        d.mkdir()
+                        made.append((d, stat.S_IMODE(st.st_mode)))
+                    continue
+                os.link(target / rel, tmp / rel, follow_symlinks=False)
+                got = (tmp / rel).lstat()
+                carried[rel] = (got.st_dev, got.st_ino)
+        except OSError as e:
+            raise ExportError(
+                f"{os.path.join(shown, rel)}: cannot keep it (a hard link in the new folder "
+                f"failed: {e.strerror}); nothing was written"
+            ) from None
+    for d, mode in reversed(made):
+        d.chmod(mode)
+    return carried
 
 
 def _prefix(target: Path) -> str:
@@ -380,8 +560,12 @@ def _prefix(target: Path) -> str:
     return f".{short}.{digest}.parmor-"
 
 
+def _temp_name(target: Path, kind: str) -> Path:
+    return target.parent / f"{_prefix(target)}{kind}-{os.getpid()}-{secrets.token_hex(4)}"
+
+
 def _temp_dir(target: Path, kind: str) -> Path:
-    path = target.parent / f"{_prefix(target)}{kind}-{os.getpid()}-{secrets.token_hex(4)}"
+    path = _temp_name(target, kind)
     path.mkdir(mode=0o700)
     path.chmod(DIR_MODE)
     return path
@@ -398,26 +582,112 @@ def _alive(pid: int) -> bool:
 
 
 def _clean_leftovers(target: Path) -> None:
-    """Delete the temporary folders of ``target`` whose process is gone (a run killed
-    before its end); put an old folder back where ``target`` is absent (killed between
-    the two renames of the fallback)."""
+    """Empty the temporary folders of ``target`` whose process is gone (a run killed
+    before its end; ``_discard``); put an old folder back where ``target`` is absent
+    (killed between the two renames of the fallback) first."""
     prefix = _prefix(target)
     try:
         with os.scandir(target.parent) as it:
             names = sorted(e.name for e in it if e.name.startswith(prefix))
     except OSError:
         return
+    dead = []
     for name in names:
         kind, _, rest = name[len(prefix) :].partition("-")
         pid = rest.partition("-")[0]
-        if kind not in ("new", "old") or not pid.isdigit() or _alive(int(pid)):
-            continue
-        path = target.parent / name
+        if kind in ("new", "old", "mark") and pid.isdigit() and not _alive(int(pid)):
+            dead.append((kind, target.parent / name))
+    for kind, path in dead:
         if kind == "old" and not os.path.lexists(target):
             with contextlib.suppress(OSError):
                 os.rename(path, target)
+    for kind, path in dead:
+        if kind == "mark":
+            with contextlib.suppress(OSError):
+                if stat.S_ISREG(path.lstat().st_mode):
+                    path.unlink()
+        elif os.path.lexists(path):
+            _discard(path, target)
+
+
+def _discard(
+    folder: Path, target: Path, carried: Mapping[str, tuple[int, int]] | None = None
+) -> None:
+    """Delete the replaced folder (or a killed run's temporary one) ``folder`` whose
+    successor is ``target``, deleting only what is parmor's or held by ``target`` too:
+    files its ``MARKER`` lists, unchanged; files ``target`` holds at the same place
+    (the other name of a link ``_carry`` made). Any other file (written there while the
+    folders were swapped) is moved into ``target`` where that place is free or holds the
+    link made of it (``carried``), and kept here otherwise. A folder with no ``MARKER``
+    is a new folder killed before its end (only parmor's files): deleted whole; one whose
+    ``MARKER`` is not parmor's list is left alone."""
+    try:
+        raw, listed = _read_manifest(folder, str(folder))
+        entries = _entries(folder) if raw is not None else []
+    except (ExportError, OSError):
+        return
+    if raw is None:
+        _rmtree(folder)
+        return
+    carried = carried or {}
+    there_st = _lstat(target)
+    into = there_st is not None and stat.S_ISDIR(there_st.st_mode)
+    for rel, st in reversed(entries):  # what a folder holds before the folder
+        if rel == MARKER:
+            continue
+        path = folder / rel
+        with contextlib.suppress(OSError):
+            if stat.S_ISDIR(st.st_mode):
+                path.rmdir()  # only when emptied
                 continue
-        shutil.rmtree(path, ignore_errors=True)
+            if rel in listed and stat.S_ISREG(st.st_mode) and _sha(path) == listed[rel]:
+                path.unlink()
+                continue
+            there = _lstat(target / rel) if into else None
+            ident = (st.st_dev, st.st_ino)
+            if there is not None and (there.st_dev, there.st_ino) == ident:
+                path.unlink()
+                continue
+            free = there is None or carried.get(rel) == (there.st_dev, there.st_ino)
+            if into and free and _folders_inside(target, rel):
+                os.rename(path, target / rel)
+    with contextlib.suppress(OSError):
+        if [p.name for p in folder.iterdir()] == [MARKER]:
+            (folder / MARKER).unlink()
+            folder.rmdir()
+
+
+def _lstat(path: Path) -> os.stat_result | None:
+    try:
+        return path.lstat()
+    except OSError:
+        return None
+
+
+def _folders_inside(root: Path, rel: str) -> bool:
+    """Make the folders of ``rel`` below ``root`` that are missing; False when one of
+    them is a link or a file."""
+    d = root
+    for part in rel.split("/")[:-1]:
+        d = d / part
+        st = _lstat(d)
+        if st is None:
+            d.mkdir()
+        elif not stat.S_ISDIR(st.st_mode):
+            return False
+    return True
+
+
+def _rmtree(path: Path) -> None:
+    """Delete the folder ``path`` (a temporary folder of parmor's), its read-only folders
+    (a kept folder's mode) included."""
+
+    def retry(func, p, _exc) -> None:
+        with contextlib.suppress(OSError):
+            os.chmod(os.path.dirname(p), DIR_MODE | 0o200)
+            func(p)
+
+    shutil.rmtree(path, onerror=retry)
 
 
 def _make_parents(parent: Path, shown: str) -> list[Path]:
@@ -444,8 +714,9 @@ def _make_parents(parent: Path, shown: str) -> list[Path]:
 
 
 def _write_files(tmp: Path, files: Mapping[str, str | bytes], modes: Mapping[str, int]) -> None:
-    """Write ``files`` and ``MARKER`` into the fresh folder ``tmp``."""
-    for name, content in sorted({**files, MARKER: MARKER_TEXT}.items()):
+    """Write ``files`` into the fresh folder ``tmp``, then ``MARKER`` listing them (a
+    folder killed before its end has none: ``_discard`` deletes it whole)."""
+    for name, content in sorted(files.items()):
         path = tmp / name
         for d in reversed(path.relative_to(tmp).parents[:-1]):
             (tmp / d).mkdir(exist_ok=True)
@@ -455,10 +726,34 @@ def _write_files(tmp: Path, files: Mapping[str, str | bytes], modes: Mapping[str
         else:
             path.write_bytes(content)
         path.chmod(modes.get(name, FILE_MODE))
+    (tmp / MARKER).write_text(manifest_text(files), encoding="utf-8", newline="\n")
+    (tmp / MARKER).chmod(FILE_MODE)
 
 
-def _commit(tmp: Path, target: Path, shown: str, force: bool) -> None:
-    """Put the written folder ``tmp`` in ``target``'s place (see write_bundle)."""
+def _mark(target: Path, shown: str) -> bytes:
+    """Give the adopted folder ``target`` an empty ``MARKER`` (parmor wrote nothing there
+    yet), so that a killed run's old folder is never taken for a new one; returns it."""
+    raw = manifest_text({}).encode()
+    path = _temp_name(target, "mark")
+    path.write_bytes(raw)
+    path.chmod(FILE_MODE)
+    try:
+        os.link(path, target / MARKER)
+    except FileExistsError:
+        raise ExportError(
+            f"{os.path.join(shown, MARKER)}: appeared while the files were written; nothing "
+            "was written (run again)"
+        ) from None
+    finally:
+        path.unlink()
+    return raw
+
+
+def _commit(
+    tmp: Path, target: Path, shown: str, plan: _Plan, names: set[str], force: bool, adopt: bool
+) -> None:
+    """Put the written folder ``tmp`` in ``target``'s place (see write_bundle); ``plan``
+    is what ``target`` was before the files were written."""
     appeared = ExportError(
         f"{shown}: a folder or file appeared there while the bundle was written; it was "
         "left alone and nothing was written (run again to replace it)"
@@ -472,15 +767,19 @@ def _commit(tmp: Path, target: Path, shown: str, force: bool) -> None:
                 raise appeared from None
             raise
         return
-    if not force or not _ours(target):
+    if plan.state != "full" or _manifest_raw(target) != plan.raw:
         raise appeared
+    now = _plan(target, shown, names, force, adopt)  # a file changed meanwhile: named
+    if now.raw is None:
+        now.raw = _mark(target, shown)
+    carried = _carry(target, tmp, now, shown)
     if _exchange(tmp, target):
-        if not _ours(tmp):  # swapped in between for a folder that is not ours: swap back
+        if _manifest_raw(tmp) != now.raw:  # swapped in meanwhile: not that folder, swap back
             _exchange(tmp, target)
             raise appeared
-        shutil.rmtree(tmp, ignore_errors=True)
+        _discard(tmp, target, carried)
         return
-    old = target.parent / f"{_prefix(target)}old-{os.getpid()}-{secrets.token_hex(4)}"
+    old = _temp_name(target, "old")
     os.rename(target, old)
     try:
         os.rename(tmp, target)
@@ -488,7 +787,19 @@ def _commit(tmp: Path, target: Path, shown: str, force: bool) -> None:
         with contextlib.suppress(OSError):
             os.rename(old, target)
         raise
-    shutil.rmtree(old, ignore_errors=True)
+    _discard(old, target, carried)
+
+
+def _manifest_raw(folder: Path) -> bytes | None:
+    """``MARKER``'s bytes in ``folder`` (None: none, or not a readable file)."""
+    path = folder / MARKER
+    st = _lstat(path)
+    if st is None or not stat.S_ISREG(st.st_mode):
+        return None
+    try:
+        return path.read_bytes()
+    except OSError:
+        return None
 
 
 #: renameat2's flag that swaps two paths atomically (Linux 3.15; glibc 2.28 has the call)

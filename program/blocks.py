@@ -199,13 +199,16 @@ def page_files(config: Mapping, web: Path | None = None) -> dict[str, bytes]:
 
 
 def write_page(folder: str | Path) -> Path:
-    """Write the block page of the bundle ``folder`` into ``folder/blocks/`` (replaced
-    whole: written to a temporary folder beside it, then renamed). Returns the page."""
+    """Write the block page of the bundle ``folder`` into ``folder/blocks/``; returns the
+    page. The page's files replace those parmor wrote there before, all at once (a
+    temporary folder beside it takes its place, ``export.bundle.write_bundle``); every
+    other file there (a user's program) is kept, and one where a page file goes is refused
+    (ExportError naming it)."""
     folder = Path(folder)
     record = read_record(folder)
     controller = bundle_controller(folder, record)
     files = page_files(page_config(folder, record, controller))
     from export.bundle import write_bundle
 
-    target = write_bundle(folder / PAGE_DIR, files, force=True)
+    target = write_bundle(folder / PAGE_DIR, files, force=True, adopt=True)
     return target / "index.html"

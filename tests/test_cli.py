@@ -383,7 +383,7 @@ def test_out_existing_needs_force(cli, tmp_path: Path) -> None:
     (ours / "mine.txt").write_text("added", encoding="utf-8")
     r = cli(*argv, "--out", str(ours), "--force")
     assert r.code == 0, r.err
-    assert "mine.txt" not in [p.name for p in ours.iterdir()]
+    assert (ours / "mine.txt").read_text(encoding="utf-8") == "added"  # not parmor's: kept
     assert (ours / "design.json").read_text(encoding="utf-8") == r.out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bundle", "ours"]
 
