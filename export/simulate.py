@@ -188,11 +188,12 @@ def load_files_model(files: Mapping[str, str | bytes]):
     text = xml.decode("utf-8") if isinstance(xml, bytes) else xml
     raw = files.get("design.json")
     if raw is not None:
-        import json
+        from adron import readers
 
-        text = carrying_payload(
-            text, json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
+        record = readers.parse_json(
+            raw.decode("utf-8") if isinstance(raw, bytes) else raw, "design.json"
         )
+        text = carrying_payload(text, record)
     meshes = {
         Path(k).name: (v.encode() if isinstance(v, str) else v)
         for k, v in sorted(files.items())

@@ -13,7 +13,6 @@ run with its default parameters and judged by :mod:`export.verdict`.
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -21,6 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from adron import readers
 from adron.errors import InputError
 
 if TYPE_CHECKING:
@@ -34,14 +34,9 @@ def bundle_record(folder: str | Path, structure: bool = True) -> dict:
     design with no structure to run)."""
     folder = Path(folder)
     path = folder / "design.json"
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(
-            f"{folder}: no design.json (write one with 'parmor design ... --out DIR')"
-        ) from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise InputError(f"{path}: {e}") from None
+    if not path.exists():
+        raise InputError(f"{folder}: no design.json (write one with 'parmor design ... --out DIR')")
+    record = readers.read_json(path, what="design record")  # nesting and numbers bounded
     if not isinstance(record, dict):
         raise InputError(f"{path}: not a design record (expected an object)")
     if structure and record.get("template") is None:
@@ -62,6 +57,8 @@ def load_model(folder: str | Path):
 
     try:
         model = load_bundle_model(folder)
+    except InputError as e:  # its design.json
+        raise InputError(f"{Path(folder) / str(e)}") from None
     except (OSError, ValueError, KeyError, SyntaxError) as e:  # xml.etree's ParseError too
         why = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise InputError(f"{folder}: cannot load the MuJoCo model robot.xml: {why}") from None
@@ -256,7 +253,8 @@ def verify_files(
     from export.simulate import load_files_model
 
     raw = files["design.json"]
-    record = json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
+    text = raw.decode("utf-8") if isinstance(raw, bytes) else raw
+    record = readers.parse_json(text, "design.json")
     return verify_model(record, load_files_model(files), behaviors)
 
 
