@@ -102,12 +102,20 @@ def registry() -> pint.UnitRegistry:
     """The one pint registry of parmor (created on first use: pint is slow to import).
 
     pint's own definition cache (in the user's cache folder) cuts the registry's start-up
-    from about 0.3 s to 0.02 s; where that folder cannot be written, it starts uncached.
+    from about 0.3 s to 0.02 s; where that folder cannot be written, it starts uncached. That
+    cache is a pickle too: a folder another user owns or may write is not used
+    (:func:`unsafe_cache_folder`, a one-line warning).
     """
     import pint
+    import platformdirs  # pint's own dependency: where its ":auto:" cache folder is
 
+    folder = platformdirs.user_cache_path(appname="pint", appauthor=False)
+    why = unsafe_cache_folder(folder)
+    if why is not None:
+        _warn_unsafe(folder, why, "pint's definition cache")
+        return pint.UnitRegistry()
     try:
-        return pint.UnitRegistry(cache_folder=":auto:")
+        return pint.UnitRegistry(cache_folder=folder)
     except OSError:
         return pint.UnitRegistry()
 
@@ -154,25 +162,105 @@ class _Scale(NamedTuple):
 
 def cache_folder() -> Path | None:
     """The folder of parmor's caches: ``$PARMOR_CACHE``, else ``$XDG_CACHE_HOME/parmor``,
-    else ``~/.cache/parmor``; None when ``PARMOR_CACHE`` is set empty (no cache)."""
+    else ``~/.cache/parmor``; None when ``PARMOR_CACHE`` is set empty (no cache), or when
+    the folder is not safe to use (:func:`unsafe_cache_folder`: a one-line warning)."""
     env = os.environ.get(CACHE_ENV)
     if env is not None:
-        return Path(env) if env.strip() else None
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "parmor"
+        if not env.strip():
+            return None
+        folder = Path(env)
+    else:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        folder = Path(base) / "parmor"
+    why = unsafe_cache_folder(folder)
+    if why is not None:
+        _warn_unsafe(folder, why)
+        return None
+    return folder
+
+
+def unsafe_cache_folder(folder: Path) -> str | None:
+    """Why ``folder`` must not hold parmor's caches, or None when it may: it is absent
+    (made private, 0700, when first written) or a folder of this user's that no one else
+    may write. A cache is read back into the process (the knowledge base and the catalog
+    are pickles, and unpickling runs code): a folder that another user owns or may write
+    would let them plant a file that runs code in every parmor process."""
+    import stat
+
+    getuid = getattr(os, "getuid", None)
+    if getuid is None:  # no POSIX owners (not a platform parmor runs on)
+        return None
+    try:
+        st = os.stat(folder)
+    except OSError:  # absent (made private when written), or unreachable (no cache then)
+        return None
+    if not stat.S_ISDIR(st.st_mode):
+        return None  # every read and write there fails: no cache, and nothing to fear
+    if st.st_uid != getuid():
+        return f"it belongs to another user (uid {st.st_uid})"
+    if st.st_mode & 0o022:
+        who = (
+            "its group and others"
+            if st.st_mode & 0o002 and st.st_mode & 0o020
+            else ("others" if st.st_mode & 0o002 else "its group")
+        )
+        return f"{who} may write it (mode {stat.S_IMODE(st.st_mode):04o}; chmod go-w fixes it)"
+    return None
+
+
+_WARNED: set[str] = set()
+
+
+def _warn_unsafe(folder: Path, why: str, what: str = CACHE_ENV) -> None:
+    """One line on stderr, once per folder and process: the cache is off and why."""
+    import sys
+
+    # gaits.base warns with the same words (gaits may not import adron): once in all
+    if str(folder) in _WARNED | getattr(sys.modules.get("gaits.base"), "_WARNED", set()):
+        return
+    _WARNED.add(str(folder))
+    with contextlib.suppress(OSError, ValueError):
+        sys.stderr.write(f"parmor: warning: not using the cache folder {folder} ({what}): {why}\n")
+
+
+def read_cache_bytes(path: Path) -> bytes | None:
+    """The bytes of the cache file ``path``, or None when it is absent, unreadable, not a
+    regular file, a symbolic link, or not this user's own file that no one else may write
+    (checked on the open file: a file put there by someone else is never read)."""
+    import stat
+
+    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError:
+        return None
+    try:
+        st = os.fstat(fd)
+        getuid = getattr(os, "getuid", None)
+        foreign = getuid is not None and st.st_uid != getuid()
+        if not stat.S_ISREG(st.st_mode) or foreign or st.st_mode & 0o022:
+            return None
+        with os.fdopen(fd, "rb") as f:
+            fd = -1  # closed by the file object
+            return f.read()
+    except OSError:
+        return None
+    finally:
+        if fd >= 0:
+            os.close(fd)
 
 
 def write_cache_file(path: Path, data: bytes) -> bool:
     """``data`` made the cache file ``path`` whole: a temporary file beside it renamed
     over it (concurrent writers write the same bytes; no reader sees half a file). False,
     and nothing left behind, where the folder cannot be written: a cache is only a
-    shortcut."""
+    shortcut. A folder it makes is private (0700): see :func:`unsafe_cache_folder`."""
     import contextlib
     import tempfile
 
     tmp = None
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}-", suffix=".tmp")
         with os.fdopen(fd, "wb") as f:
             f.write(data)
@@ -195,8 +283,8 @@ def read_cache_pickle(path: Path | None, tag: bytes, kind: type) -> object | Non
     if path is None:
         return None
     try:
-        data = path.read_bytes()
-        if not data.startswith(tag):
+        data = read_cache_bytes(path)  # this user's own file, or nothing: see its doc
+        if data is None or not data.startswith(tag):
             return None
         value = pickle.loads(data[len(tag) :])
     except Exception:  # noqa: BLE001 - a corrupt or foreign file is only a miss
@@ -260,9 +348,10 @@ class _DiskCache:
     @staticmethod
     def _read(path: Path) -> dict[str, _Scale]:
         """The valid entries of ``path``; {} when it is absent, unreadable or invalid."""
+        raw = read_cache_bytes(path)
         try:
-            data = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
+            data = json.loads(raw.decode("utf-8")) if raw is not None else {}
+        except ValueError:
             return {}
         out: dict[str, _Scale] = {}
         if not isinstance(data, dict):
@@ -304,7 +393,7 @@ class _DiskCache:
 
         tmp = None
         try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(dir=self.path.parent, prefix=".units-", suffix=".tmp")
             with os.fdopen(fd, "w", encoding="utf-8") as f:
                 f.write(text)

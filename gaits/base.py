@@ -251,7 +251,7 @@ def cache_write(
 
     tmp = None
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)  # private: cache_folder
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{prefix}", suffix=".tmp")
         with os.fdopen(fd, "wb") as f:
             write(f)
@@ -272,12 +272,63 @@ def cache_write(
 
 def cache_folder() -> Path | None:
     """The folder of parmor's caches: ``$PARMOR_CACHE``, else ``$XDG_CACHE_HOME/parmor``,
-    else ``~/.cache/parmor``; None when ``PARMOR_CACHE`` is set empty (no cache)."""
+    else ``~/.cache/parmor``; None when ``PARMOR_CACHE`` is set empty (no cache), or when
+    another user owns the folder or may write it (a one-line warning; the same rule and
+    words as ``adron.units.cache_folder``, which gaits may not import: a test holds them
+    equal)."""
     env = os.environ.get(CACHE_ENV)
     if env is not None:
-        return Path(env) if env.strip() else None
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "parmor"
+        if not env.strip():
+            return None
+        folder = Path(env)
+    else:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        folder = Path(base) / "parmor"
+    why = unsafe_cache_folder(folder)
+    if why is not None:
+        import contextlib
+        import sys
+
+        # once per process: adron.units warns with the same words (read, not imported)
+        other = getattr(sys.modules.get("adron.units"), "_WARNED", set())
+        if str(folder) not in _WARNED | other:
+            _WARNED.add(str(folder))
+            with contextlib.suppress(OSError, ValueError):
+                sys.stderr.write(
+                    f"parmor: warning: not using the cache folder {folder} ({CACHE_ENV}): {why}\n"
+                )
+        return None
+    return folder
+
+
+_WARNED: set[str] = set()
+
+
+def unsafe_cache_folder(folder: Path) -> str | None:
+    """Why ``folder`` must not hold parmor's caches (another user owns it or may write
+    it), or None when it may (absent: made 0700 when first written); see
+    ``adron.units.unsafe_cache_folder``."""
+    import stat
+
+    getuid = getattr(os, "getuid", None)
+    if getuid is None:
+        return None
+    try:
+        st = os.stat(folder)
+    except OSError:
+        return None
+    if not stat.S_ISDIR(st.st_mode):
+        return None
+    if st.st_uid != getuid():
+        return f"it belongs to another user (uid {st.st_uid})"
+    if st.st_mode & 0o022:
+        who = (
+            "its group and others"
+            if st.st_mode & 0o002 and st.st_mode & 0o020
+            else ("others" if st.st_mode & 0o002 else "its group")
+        )
+        return f"{who} may write it (mode {stat.S_IMODE(st.st_mode):04o}; chmod go-w fixes it)"
+    return None
 
 
 #: Trajectories already planned in this process, by (controller identity, behaviour,
