@@ -809,6 +809,9 @@ def _shipped_text(name: str) -> tuple[str, str]:
 
 
 def _read_text(path: Path, source: str) -> str:
+    from adron.userfiles import check_regular
+
+    check_regular(path, source)  # a FIFO or a device: refused at once, not waited on
     return readers.read_text(path, source, "catalog file")  # a byte order mark is dropped
 
 

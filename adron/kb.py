@@ -84,8 +84,12 @@ def builtin_files() -> list[tuple[str, str]]:
 
 
 def read_user_file(path: str | Path) -> tuple[str, str]:
-    """(display name, text) of a user's file; a missing or unreadable file is an InputError."""
+    """(display name, text) of a user's file; a missing or unreadable file is an InputError,
+    and so is a named pipe or a device (adron/userfiles.py: reading it would not end)."""
+    from adron.userfiles import check_regular
+
     p = Path(path)
+    check_regular(p, str(path))
     try:
         return str(path), p.read_text(encoding="utf-8")
     except FileNotFoundError:

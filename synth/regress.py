@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, TextIO
 
 from adron import readers
 from adron.errors import ExportError, InputError
+from adron.userfiles import check_regular
 from synth import limits
 
 if TYPE_CHECKING:
@@ -45,6 +46,7 @@ def str_table(value: object, where: str) -> dict[str, str]:
 
 def read_toml(path: Path, keys: set[str]) -> dict:
     """The TOML table of a user's file whose top-level keys are among ``keys``."""
+    check_regular(path)  # a FIFO or a device: refused at once, not waited on
     data = readers.read_toml(path)  # nesting and numbers bounded, a byte order mark dropped
     unknown = sorted(set(data) - keys)
     if unknown:
@@ -69,16 +71,38 @@ def array_tables(data: dict, key: str, allowed: set[str], path: Path) -> Iterato
         yield where, t
 
 
+def confined(path: Path, key: str, given: str) -> str:
+    """The file ``given`` (relative to the suite or study ``path``) of its ``key``, which
+    must lie in the suite's folder or below it: a path that leaves it (``..``, an absolute
+    path elsewhere, a symbolic link pointing out) is an InputError naming the key. A suite
+    or study can come from anywhere; it must not make parmor read (and quote in its
+    messages) files of the user's it does not ship with."""
+    base = path.parent
+    target = base / given
+    try:
+        inside = target.resolve().is_relative_to(base.resolve())
+    except (OSError, RuntimeError, ValueError):  # a symbolic link loop, a NUL
+        inside = False
+    if not inside:
+        raise InputError(
+            f"{path}: {key}: {given!r} is outside the folder of {path.name}; a suite or "
+            "study reads only files in its own folder or below it"
+        )
+    return str(target)
+
+
 def kb_options(data: dict, path: Path) -> dict:
     """The ``ontology``, ``rules`` and ``catalog`` of a suite or study file (paths relative
-    to it), validated; ``allow_scripts`` is False."""
-    base = path.parent
+    to it, inside its folder: :func:`confined`), validated; ``allow_scripts`` is False."""
     opts = {
         "suite": str(path),
         "ontology": [
-            str(base / p) for p in str_list(data.get("ontology", []), f"{path}: ontology")
+            confined(path, "ontology", p)
+            for p in str_list(data.get("ontology", []), f"{path}: ontology")
         ],
-        "rules": [str(base / p) for p in str_list(data.get("rules", []), f"{path}: rules")],
+        "rules": [
+            confined(path, "rules", p) for p in str_list(data.get("rules", []), f"{path}: rules")
+        ],
         # running a rule file's scripts is the user's call on the command line, never the
         # suite file's (a suite can come from anywhere)
         "allow_scripts": False,
@@ -91,7 +115,7 @@ def kb_options(data: dict, path: Path) -> dict:
     if catalog in SHIPPED:  # a shipped catalog's name ("dynamixel"), not a path
         opts["catalog"] = catalog
     else:
-        opts["catalog"] = str(base / catalog) if catalog else None
+        opts["catalog"] = confined(path, "catalog", catalog) if catalog else None
     return opts
 
 
@@ -220,6 +244,7 @@ def run_suite(
         return 0
     if not snap.exists():
         raise InputError(f"{snap}: no snapshot; run 'parmor regress {suite} --update' first")
+    check_regular(snap)
     stored = readers.read_json(snap)  # nesting and numbers bounded
     if not isinstance(stored, dict) or not all(isinstance(v, dict) for v in stored.values()):
         raise InputError(
