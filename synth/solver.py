@@ -35,7 +35,7 @@ from adron.kb import KnowledgeBase, materialised, prune, read_user_file
 from adron.materialise import Derivation
 from adron.relevance import Relevance, relevance
 from adron.translate import asp_string, closed_taxonomy
-from adron.units import cache_folder, write_cache_file
+from adron.units import cache_folder, read_cache_bytes, write_cache_file
 from synth import limits
 
 _SCRIPT = re.compile(r"#\s*script", re.IGNORECASE)
@@ -511,7 +511,7 @@ def _relevant_program(
                 h.update(hashlib.sha256(Path(str(mod)).read_bytes()).digest())
             path = folder / f"relevant-{h.hexdigest()[:32]}.lp"
             with contextlib.suppress(OSError, UnicodeDecodeError):
-                text = path.read_text(encoding="utf-8")
+                text = (read_cache_bytes(path) or b"").decode("utf-8")  # the user's own only
                 if text.startswith(_RELEVANT_TAG) and text.endswith(_RELEVANT_END):
                     os.utime(path)  # recently used (adron/kb.py: prune)
                     return text[len(_RELEVANT_TAG) : -len(_RELEVANT_END)]
