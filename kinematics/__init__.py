@@ -30,7 +30,6 @@ from kinematics.spatial import (
     tube_mass,
 )
 from kinematics.templates import (
-    TEMPLATES,
     Segment,
     Template,
     TemplateParams,
@@ -39,7 +38,6 @@ from kinematics.templates import (
 )
 
 __all__ = [
-    "TEMPLATES",
     "Body",
     "Joint",
     "Model",

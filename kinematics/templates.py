@@ -78,6 +78,7 @@ from types import MappingProxyType
 
 import numpy as np
 
+from kinematics.bodyplan import BodyPlan
 from kinematics.model import Body, Joint, Model
 from kinematics.spatial import (
     Part,
@@ -96,13 +97,16 @@ from kinematics.spatial import (
 __all__ = [
     "DEFAULTS",
     "PART_KINDS",
-    "TEMPLATES",
+    "PLANS",
     "LabelledPart",
     "Segment",
     "Template",
     "TemplateParams",
     "build",
     "default_lengths",
+    "plan_of",
+    "register_plan",
+    "use_part_kinds",
     "dovetail_volumes",
 ]
 
@@ -138,30 +142,49 @@ _UP = np.eye(3)
 _DOWN = np.diag([1.0, -1.0, -1.0])
 _BACK = np.column_stack([(0.0, 1.0, 0.0), (0.0, 0.0, -1.0), (-1.0, 0.0, 0.0)])
 
-#: Length names and defaults (m) of each template (read-only; ``default_lengths`` copies).
-DEFAULTS: Mapping[str, Mapping[str, float]] = {
-    "Manipulator3DOF": {"L1": 0.10, "L2": 0.15, "L3": 0.15},
-    "Manipulator6DOF": {"L1": 0.10, "L2": 0.15, "L3": 0.12, "L4": 0.06},
-    "HexapodRobot": {"La1": 0.20, "La2": 0.12, "coxa": 0.04, "femur": 0.08, "tibia": 0.12},
-    "QuadrupedRobot": {"La1": 0.20, "La2": 0.10, "coxa": 0.04, "femur": 0.08, "tibia": 0.10},
-    "HumanoidRobot": {
-        "trunk_height": 0.15,
-        "hip_width": 0.08,
-        "shoulder_width": 0.16,
-        "femur": 0.09,
-        "tibia": 0.09,
-        "foot": 0.10,
-        "upper_arm": 0.07,
-        "forearm": 0.08,
-    },
-    "SnakeRobot": {"module": 0.06},
-    "DifferentialDriveRobot": {"L1": 0.16, "L2": 0.12},
-    "SkidSteerRobot": {"L1": 0.20, "L2": 0.16},
-}
-DEFAULTS = MappingProxyType({k: MappingProxyType(v) for k, v in DEFAULTS.items()})
+#: Body plans known to this process, by robot type (``register_plan``): the ontology's
+#: types as ``synth`` reads them, and a bundle's own as its record keeps it.
+PLANS: dict[str, BodyPlan] = {}
+#: Where a plan not registered yet comes from (set by ``synth.bodyplan``: the shipped
+#: ontology's types), or None.
+PLAN_SOURCE: Callable[[str], BodyPlan | None] | None = None
 
-#: The supported robot types (KIF class names of the ontology's base configurations).
-TEMPLATES: tuple[str, ...] = tuple(DEFAULTS)
+
+def register_plan(plan: BodyPlan) -> BodyPlan:
+    """Make ``plan`` the body plan of its robot type in this process; returns it."""
+    PLANS[plan.robot_type] = plan
+    return plan
+
+
+def plan_of(robot_type: str) -> BodyPlan:
+    """The body plan of ``robot_type``: registered, or from ``PLAN_SOURCE``; ValueError
+    when there is none."""
+    plan = PLANS.get(robot_type)
+    if plan is None and PLAN_SOURCE is not None:
+        plan = PLAN_SOURCE(robot_type)
+        if plan is not None:
+            register_plan(plan)
+    if plan is None:
+        known = ", ".join(sorted(PLANS)) or "none registered"
+        raise ValueError(f"unknown robot type {robot_type!r}: no body plan (known: {known})")
+    return plan
+
+
+class _Defaults(Mapping[str, Mapping[str, float]]):
+    """robot type -> its length names and defaults (m), read-only, from its body plan."""
+
+    def __getitem__(self, robot_type: str) -> Mapping[str, float]:
+        return MappingProxyType(default_lengths(robot_type))
+
+    def __iter__(self):
+        return iter(sorted(PLANS))
+
+    def __len__(self) -> int:
+        return len(PLANS)
+
+
+#: Length names and defaults (m) of each known robot type (``default_lengths`` copies).
+DEFAULTS: Mapping[str, Mapping[str, float]] = _Defaults()
 
 
 @dataclass(frozen=True)
@@ -383,6 +406,10 @@ class Template:
     lengths: Mapping[str, float] = field(default_factory=dict)
     params: TemplateParams = field(default_factory=TemplateParams)
     parts: Mapping[str, tuple[LabelledPart, ...]] = field(default_factory=dict)
+    #: joint -> the catalog class that drives it, where the part kinds name one
+    modules: Mapping[str, str] = field(default_factory=dict)
+    #: the body plan it was assembled from
+    plan: BodyPlan | None = None
 
     @property
     def groups(self) -> dict[str, tuple[str, ...]]:
@@ -394,15 +421,13 @@ class Template:
         return {g: tuple(names) for g, names in out.items()}
 
 
-def default_lengths(robot_type: str) -> dict[str, float]:
-    """The length names of ``robot_type`` with their default values, m."""
-    return dict(DEFAULTS[_check_type(robot_type)])
+def default_lengths(robot_type: str | BodyPlan) -> dict[str, float]:
+    """The length names of a robot type (or body plan) with their default values, m."""
+    from kinematics.assemble import length_defaults
+    from kinematics.partkinds import load
 
-
-def _check_type(robot_type: str) -> str:
-    if robot_type not in DEFAULTS:
-        raise ValueError(f"unknown robot type {robot_type!r}; templates: {', '.join(TEMPLATES)}")
-    return robot_type
+    plan = robot_type if isinstance(robot_type, BodyPlan) else plan_of(robot_type)
+    return length_defaults(plan, PART_DATA[0] or load())
 
 
 # --- building blocks ---------------------------------------------------------------------------
@@ -588,394 +613,6 @@ def _gripper_parts(
     return [*out, _point(body, "payload", payload)]
 
 
-# --- templates -----------------------------------------------------------------------------------
-
-
-def _manipulator(b: _Builder, six: bool) -> dict:
-    p, L = b.p, b.L
-    base = b.add(
-        "root",
-        None,
-        "fixed",
-        np.eye(4),
-        [_trunk("base", p.trunk_mass, BASE_SIZE, (0, 0, -BASE_SIZE[2] / 2), _DOWN)],
-        body="base",
-    )
-    col = "base_yaw_link"
-    b.add(
-        "base_yaw",
-        base,
-        "revolute",
-        np.eye(4),
-        [b.tube("L1", "L1", col, (0, 0, 1), "shoulder_pitch")],
-        group="base_yaw",
-    )
-    up = "shoulder_pitch_link"
-    b.add(
-        "shoulder_pitch",
-        col,
-        "revolute",
-        transform((0, 0, L["L1"])),
-        [b.tube("L2", "L2", up, (1, 0, 0), "elbow_pitch")],
-        axis=(0, 1, 0),
-        limits=(-pi / 2, pi / 2),
-        group="shoulder_pitch",
-    )
-    fore = "elbow_pitch_link"
-    tip_joint = "wrist_roll" if six else "gripper"
-    b.add(
-        "elbow_pitch",
-        up,
-        "revolute",
-        transform((L["L2"], 0, 0)),
-        [b.tube("L3", "L3", fore, (1, 0, 0), tip_joint)],
-        axis=(0, 1, 0),
-        limits=(-5 * pi / 6, 5 * pi / 6),
-        group="elbow_pitch",
-    )
-    last = fore
-    at = transform((L["L3"], 0, 0))
-    if six:
-        wr = b.add("wrist_roll", fore, "revolute", at, [], axis=(1, 0, 0), group="wrist_roll")
-        wp = "wrist_pitch_link"
-        b.add(
-            "wrist_pitch",
-            wr,
-            "revolute",
-            np.eye(4),
-            [b.tube("L4", "L4", wp, (1, 0, 0), "tool_roll")],
-            axis=(0, 1, 0),
-            limits=(-pi / 2, pi / 2),
-            group="wrist_pitch",
-        )
-        last = b.add(
-            "tool_roll",
-            wp,
-            "revolute",
-            transform((L["L4"], 0, 0)),
-            [],
-            axis=(1, 0, 0),
-            group="tool_roll",
-        )
-        at = np.eye(4)
-    grip = b.add(
-        "gripper",
-        last,
-        "revolute",
-        at,
-        _gripper_parts(p, p.payload, "gripper_link"),
-        limits=(0.0, pi / 2),
-        group="gripper",
-    )
-    return {"end_effectors": (grip,), "arms": 1}
-
-
-_HEXAPOD_LEGS = (
-    ("lf", 1, 1),
-    ("lm", 0, 1),
-    ("lh", -1, 1),
-    ("rf", 1, -1),
-    ("rm", 0, -1),
-    ("rh", -1, -1),
-)
-_QUADRUPED_LEGS = (("lf", 1, 1), ("lh", -1, 1), ("rf", 1, -1), ("rh", -1, -1))
-
-
-def _multiped(b: _Builder, legs: tuple[tuple[str, int, int], ...]) -> dict:
-    p, L = b.p, b.L
-    trunk = b.add(
-        "root",
-        None,
-        "fixed",
-        np.eye(4),
-        [
-            _trunk("trunk", p.trunk_mass, (L["La1"], L["La2"], TRUNK_THICKNESS), (0, 0, 0), _UP),
-            _point("trunk", "payload", p.payload),
-        ],
-        body="trunk",
-    )
-    feet, points = [], []
-    for leg, fx, side in legs:
-        mount = transform_from(rot_z(side * pi / 2), (fx * L["La1"] / 2, side * L["La2"] / 2, 0))
-        coxa, femur, tibia = (f"{leg}_{s}_link" for s in ("coxa", "femur", "tibia"))
-        b.add(
-            f"{leg}_coxa",
-            trunk,
-            "revolute",
-            mount,
-            [b.tube(f"{leg}_coxa", "coxa", coxa, (1, 0, 0), f"{leg}_femur")],
-            limits=(-pi / 3, pi / 3),
-            group="leg_coxa",
-        )
-        b.add(
-            f"{leg}_femur",
-            coxa,
-            "revolute",
-            transform((L["coxa"], 0, 0)),
-            [b.tube(f"{leg}_femur", "femur", femur, (1, 0, 0), f"{leg}_tibia")],
-            axis=(0, 1, 0),
-            limits=(-pi / 2, pi / 2),
-            group="leg_femur",
-        )
-        foot = (0.0, 0.0, -L["tibia"])
-        b.add(
-            f"{leg}_tibia",
-            femur,
-            "revolute",
-            transform((L["femur"], 0, 0)),
-            [
-                b.tube(f"{leg}_tibia", "tibia", tibia, (0, 0, -1), None),
-                _point(tibia, "foot", p.foot_mass, foot),
-            ],
-            axis=(0, 1, 0),
-            limits=(-2 * pi / 3, 2 * pi / 3),
-            group="leg_tibia",
-        )
-        feet.append(tibia)
-        points.append(_frozen(foot))
-    return {"feet": tuple(feet), "foot_points": tuple(points), "legs": len(legs)}
-
-
-def _humanoid(b: _Builder) -> dict:
-    p, L = b.p, b.L
-    th = L["trunk_height"]
-    trunk = b.add(
-        "root",
-        None,
-        "fixed",
-        np.eye(4),
-        [
-            _trunk(
-                "trunk",
-                p.trunk_mass,
-                (HUMANOID_TRUNK_DEPTH, L["shoulder_width"], th),
-                (0, 0, th / 2),
-                _BACK,
-            ),
-            _point("trunk", "payload", p.payload, (0, 0, th / 2)),
-        ],
-        body="trunk",
-    )
-    sole = p.actuator_size[2] / 2
-    q4, q3 = pi / 4, pi / 3
-    feet, points, hands = [], [], []
-    for s, side in (("l", 1), ("r", -1)):
-        hy = b.add(
-            f"{s}_hip_yaw",
-            trunk,
-            "revolute",
-            transform((0, side * L["hip_width"] / 2, 0)),
-            [],
-            limits=(-q4, q4),
-            group="hip_yaw",
-        )
-        hr = b.add(
-            f"{s}_hip_roll",
-            hy,
-            "revolute",
-            np.eye(4),
-            [],
-            axis=(1, 0, 0),
-            limits=(-q4, q4),
-            group="hip_roll",
-        )
-        thigh = f"{s}_hip_pitch_link"
-        b.add(
-            f"{s}_hip_pitch",
-            hr,
-            "revolute",
-            np.eye(4),
-            [b.tube(f"{s}_femur", "femur", thigh, (0, 0, -1), f"{s}_knee_pitch")],
-            axis=(0, 1, 0),
-            limits=(-pi / 2, pi / 2),
-            group="hip_pitch",
-        )
-        shank = f"{s}_knee_pitch_link"
-        b.add(
-            f"{s}_knee_pitch",
-            thigh,
-            "revolute",
-            transform((0, 0, -L["femur"])),
-            [b.tube(f"{s}_tibia", "tibia", shank, (0, 0, -1), f"{s}_ankle_pitch")],
-            axis=(0, 1, 0),
-            limits=(0.0, 5 * pi / 6),
-            group="knee_pitch",
-        )
-        ap = b.add(
-            f"{s}_ankle_pitch",
-            shank,
-            "revolute",
-            transform((0, 0, -L["tibia"])),
-            [],
-            axis=(0, 1, 0),
-            limits=(-q3, q3),
-            group="ankle_pitch",
-        )
-        plate = (L["foot"], FOOT_WIDTH_RATIO * L["foot"], FOOT_PLATE)
-        sole_part = LabelledPart(
-            f"{s}_ankle_roll_link",
-            "foot",
-            p.foot_mass,
-            np.array([0.0, 0.0, -sole + FOOT_PLATE / 2]),
-            box_inertia(p.foot_mass, plate),
-            transform((0, 0, -sole)),
-            plate,
-        )
-        foot = b.add(
-            f"{s}_ankle_roll",
-            ap,
-            "revolute",
-            np.eye(4),
-            [sole_part],
-            axis=(1, 0, 0),
-            limits=(-q4, q4),
-            group="ankle_roll",
-        )
-        feet.append(foot)
-        points.append(_frozen((0.0, 0.0, -sole)))
-        upper = f"{s}_shoulder_pitch_link"
-        b.add(
-            f"{s}_shoulder_pitch",
-            trunk,
-            "revolute",
-            transform((0, side * L["shoulder_width"] / 2, th)),
-            [b.tube(f"{s}_upper_arm", "upper_arm", upper, (0, 0, -1), f"{s}_elbow_pitch")],
-            axis=(0, 1, 0),
-            group="shoulder_pitch",
-        )
-        fore = f"{s}_elbow_pitch_link"
-        b.add(
-            f"{s}_elbow_pitch",
-            upper,
-            "revolute",
-            transform((0, 0, -L["upper_arm"])),
-            [b.tube(f"{s}_forearm", "forearm", fore, (0, 0, -1), f"{s}_gripper")],
-            axis=(0, 1, 0),
-            limits=(-5 * pi / 6, 0.0),
-            group="elbow_pitch",
-        )
-        hand = b.add(
-            f"{s}_gripper",
-            fore,
-            "revolute",
-            transform((0, 0, -L["forearm"])),
-            _gripper_parts(p, 0.0, f"{s}_gripper_link", (0, 0, -1), (0, 1, 0)),
-            axis=(1, 0, 0),
-            limits=(0.0, pi / 2),
-            group="gripper",
-        )
-        hands.append(hand)
-    return {
-        "feet": tuple(feet),
-        "foot_points": tuple(points),
-        "end_effectors": tuple(hands),
-        "legs": 2,
-        "arms": 2,
-    }
-
-
-def _snake(b: _Builder) -> dict:
-    p, L = b.p, b.L
-    m = p.modules
-    if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
-        raise ValueError(f"modules must be an integer >= 1, got {m!r}")
-    size = (p.actuator_size[0], p.actuator_size[0], TRUNK_THICKNESS)
-    base = [
-        _trunk("base", p.trunk_mass, size, (0, 0, 0), _UP),
-        _point("base", "payload", p.payload),
-    ]
-    parent = b.add("root", None, "fixed", np.eye(4), base, body="base")
-    origin = np.eye(4)
-    for i in range(1, m + 1):
-        body = f"module_{i}"
-        distal = f"joint_{i + 1}" if i < m else None
-        axis = (0, 1, 0) if i % 2 else (0, 0, 1)
-        parent = b.add(
-            f"joint_{i}",
-            parent,
-            "revolute",
-            origin,
-            [b.tube(body, "module", body, (1, 0, 0), distal)],
-            axis=axis,
-            limits=(-pi / 2, pi / 2),
-            group="snake_module",
-            body=body,
-        )
-        origin = transform((L["module"], 0, 0))
-    return {}
-
-
-def _wheeled(b: _Builder, skid: bool) -> dict:
-    p, L = b.p, b.L
-    r = p.wheel_radius
-    if not (isfinite(r) and r > 0):
-        raise ValueError(f"wheel_radius must be positive, got {r}")
-    # the root frame is the point the drive's kinematics (eqs. 5-6) describe: the middle of
-    # the wheels (a differential drive's axle centre, ROS's base_link); the plate is centred
-    # on it for a skid-steer and a quarter of its length behind the axle for a differential
-    # drive, whose caster trails at the plate's rear edge
-    centre = (0.0, 0.0, 0.0) if skid else (-L["L1"] / 4, 0.0, 0.0)
-    chassis = b.add(
-        "root",
-        None,
-        "fixed",
-        np.eye(4),
-        [
-            _trunk("chassis", p.trunk_mass, (L["L1"], L["L2"], CHASSIS_THICKNESS), centre, _UP),
-            _point("chassis", "payload", p.payload, centre),
-        ],
-        body="chassis",
-    )
-
-    def wheel(body: str) -> list[LabelledPart]:
-        inertia = tube_inertia(p.wheel_mass, WHEEL_WIDTH, r, 0, (0, 1, 0))
-        frame = transform_from(rot_x(-pi / 2), (0, 0, 0))  # part z = the axle (body y)
-        return [
-            LabelledPart(body, "wheel", p.wheel_mass, np.zeros(3), inertia, frame, (r, WHEEL_WIDTH))
-        ]
-
-    if skid:
-        spots = (
-            ("front_left_wheel", 1, 1),
-            ("front_right_wheel", 1, -1),
-            ("rear_left_wheel", -1, 1),
-            ("rear_right_wheel", -1, -1),
-        )
-        places = [(n, (fx * L["L1"] / 2, side * L["L2"] / 2, 0)) for n, fx, side in spots]
-    else:
-        places = [
-            (n, (0, side * L["L2"] / 2, 0)) for n, side in (("left_wheel", 1), ("right_wheel", -1))
-        ]
-    wheels = tuple(
-        b.add(
-            n,
-            chassis,
-            "continuous",
-            transform(xyz),
-            wheel(f"{n}_link"),
-            axis=(0, 1, 0),
-            group="wheel",
-        )
-        for n, xyz in places
-    )
-    _servos_on_chassis(b, chassis, wheels)
-    casters: tuple[str, ...] = ()
-    if not skid:
-        rc = p.caster_radius
-        ball = LabelledPart(
-            "caster_link",
-            "caster",
-            p.caster_mass,
-            np.array([0, 0, rc]),
-            sphere_inertia(p.caster_mass, rc),
-            transform((0, 0, rc)),
-            (rc,),
-        )
-        rear = (centre[0] - L["L1"] / 2, 0, -r)
-        casters = (b.add("caster", chassis, "fixed", transform(rear), [ball]),)
-    return {"wheels": wheels, "casters": casters}
-
-
 def _servos_on_chassis(b: _Builder, chassis: str, wheels: tuple[str, ...]) -> None:
     """Move each wheel's actuator module from the wheel's body to the chassis: the servo's
     case is fixed to the chassis and only its shaft turns with the wheel, so nothing but
@@ -1005,18 +642,6 @@ def _servos_on_chassis(b: _Builder, chassis: str, wheels: tuple[str, ...]) -> No
     b.bodies[k] = Body.from_parts(chassis, [lp.part for lp in b.parts[chassis]])
 
 
-_BUILDERS: dict[str, Callable[[_Builder], dict]] = {
-    "Manipulator3DOF": lambda b: _manipulator(b, six=False),
-    "Manipulator6DOF": lambda b: _manipulator(b, six=True),
-    "HexapodRobot": lambda b: _multiped(b, _HEXAPOD_LEGS),
-    "QuadrupedRobot": lambda b: _multiped(b, _QUADRUPED_LEGS),
-    "HumanoidRobot": _humanoid,
-    "SnakeRobot": _snake,
-    "DifferentialDriveRobot": lambda b: _wheeled(b, skid=False),
-    "SkidSteerRobot": lambda b: _wheeled(b, skid=True),
-}
-
-
 # --- checking and the entry point ----------------------------------------------------------------
 
 
@@ -1025,9 +650,10 @@ def _nonneg(name: str, x: float) -> None:
         raise ValueError(f"{name} must be a finite number >= 0, got {x!r}")
 
 
-def _check_params(robot_type: str, p: TemplateParams) -> dict[str, float]:
-    """Validated lengths with defaults filled in; ValueError naming the valid choices."""
-    defaults = DEFAULTS[robot_type]
+def check_params(
+    robot_type: str, p: TemplateParams, defaults: Mapping[str, float]
+) -> dict[str, float]:
+    """Validated lengths with ``defaults`` filled in; ValueError naming the valid choices."""
     names = ", ".join(defaults)
     unknown = sorted(set(p.lengths) - set(defaults))
     if unknown:
@@ -1067,71 +693,49 @@ def _check_params(robot_type: str, p: TemplateParams) -> dict[str, float]:
     return lengths
 
 
-#: Templates built last, newest last: (robot type, repr of the params, repr of the
+#: Templates built last, newest last: (plan key, repr of the params, repr of the
 #: template's lengths, template). The structure generator builds the same template several
 #: times an iteration (for the sizing update, the analysis, the record).
 _BUILT: list[tuple[str, str, str, Template]] = []
 #: How many recent templates ``build`` keeps.
 BUILD_CACHE_SIZE = 8
+#: The part kinds ``build`` assembles with (None: the shipped ones); ``use_part_kinds`` sets it.
+PART_DATA: list = [None]
 
 
-def build(robot_type: str, params: TemplateParams | None = None) -> Template:
-    """The parametric model of ``robot_type`` (a KIF class name, see ``TEMPLATES``).
+def use_part_kinds(kinds) -> None:
+    """Assemble with ``kinds`` (``kinematics.partkinds.PartKinds``; None: the shipped)."""
+    if PART_DATA[0] is not kinds:
+        PART_DATA[0] = kinds
+        _BUILT.clear()
+
+
+def build(robot_type: str | BodyPlan, params: TemplateParams | None = None) -> Template:
+    """The parametric model of a robot type (its registered body plan, ``plan_of``) or of
+    a body plan, assembled from the part kinds (``kinematics.assemble``).
 
     ValueError for an unknown type, unknown or non-positive lengths, bad radii, negative
     masses, or actuator masses for groups the template does not have (the message lists the
-    valid names).
+    valid names); ``kinematics.assemble.AssemblyError`` (a ValueError) for a plan the part
+    kinds cannot assemble.
 
     A template is immutable, so the same one is returned for parameters whose ``repr`` is
     the same as one of the last ``BUILD_CACHE_SIZE`` builds' (``repr`` tells every float
     apart, -0.0 from 0.0 too), unless the caller has since changed that template's
     parameters or lengths in place.
     """
+    from kinematics.assemble import assemble
+    from kinematics.partkinds import load
+
+    plan = robot_type if isinstance(robot_type, BodyPlan) else plan_of(robot_type)
     p = params if params is not None else TemplateParams()
     key = repr(p)
-    for k, (rt, pk, lk, t) in enumerate(_BUILT):
-        if rt == robot_type and pk == key and repr(t.params) == key and repr(t.lengths) == lk:
+    pk = plan.key()
+    for k, (rt, ck, lk, t) in enumerate(_BUILT):
+        if rt == pk and ck == key and repr(t.params) == key and repr(t.lengths) == lk:
             _BUILT.append(_BUILT.pop(k))
             return t
-    t = _build(robot_type, p)
-    _BUILT.append((robot_type, key, repr(t.lengths), t))
+    t = assemble(plan, p, PART_DATA[0] or load())
+    _BUILT.append((pk, key, repr(t.lengths), t))
     del _BUILT[:-BUILD_CACHE_SIZE]
     return t
-
-
-def _build(robot_type: str, p: TemplateParams) -> Template:
-    """:func:`build`, uncached."""
-    _check_type(robot_type)
-    lengths = _check_params(robot_type, p)
-    b = _Builder(robot_type, p, lengths)
-    extra = _BUILDERS[robot_type](b)
-    model = b.model()
-    tubes = sorted({s.length_name for s in b.segments})
-    unknown = sorted(set(p.tubes) - set(tubes))
-    if unknown:
-        raise ValueError(
-            f"{robot_type} has no tube {', '.join(unknown)}; tubes: {', '.join(tubes) or 'none'}"
-        )
-    groups = {j.group for j in model.joints if j.movable}
-    unknown = sorted(set(p.actuator_mass) - groups)
-    if unknown:
-        raise ValueError(
-            f"{robot_type} has no joint group {', '.join(unknown)}; "
-            f"groups: {', '.join(sorted(groups))}"
-        )
-    return Template(
-        robot_type=robot_type,
-        model=model,
-        segments=tuple(b.segments),
-        end_effectors=extra.get("end_effectors", ()),
-        feet=extra.get("feet", ()),
-        foot_points=extra.get("foot_points", ()),
-        wheels=extra.get("wheels", ()),
-        legs=extra.get("legs", 0),
-        arms=extra.get("arms", 0),
-        length_names=tuple(DEFAULTS[robot_type]),
-        casters=extra.get("casters", ()),
-        lengths=lengths,
-        params=p,
-        parts=MappingProxyType(dict(b.parts)),
-    )

@@ -1,0 +1,575 @@
+"""One assembler for every robot: a body plan (the ontology's parts and how they connect)
+and the part kinds' data (``kinematics/partkinds.toml``) -> a kinematic :class:`Template`.
+
+The walk starts at the plan's root part (its body is welded to the world: the fixed joint
+``root``) and attaches each child where its parent's mount pattern puts it (legs along both
+sides of a trunk, wheels in axles, an arm's joints one after the other). A part's joints
+follow each other, each at the end of the previous one's printed tube (or at the previous
+joint when it has none). Names are made from the part kinds' joint names with the prefix
+the layout gives (``lf_coxa``, ``l_hip_yaw``, ``front_left_wheel``) or the chain index
+(``joint_3``); a serial arm's joints are named from the ``[serial]`` table. Nothing here
+knows a robot type by its name.
+
+Errors are :class:`AssemblyError` (a ValueError) naming the part and the ontology location
+(``where``) of the axiom that declared it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+import numpy as np
+
+from kinematics.bodyplan import BodyPlan, PartNode
+from kinematics.partkinds import AXES, JointSpec, Mount, PartKind, PartKinds, evaluate
+from kinematics.templates import (
+    WHEEL_WIDTH,
+    LabelledPart,
+    Template,
+    TemplateParams,
+    _BACK,
+    _DOWN,
+    _UP,
+    _Builder,
+    _frozen,
+    _gripper_parts,
+    _point,
+    _servos_on_chassis,
+    _trunk,
+    check_params,
+)
+from kinematics.spatial import (
+    box_inertia,
+    rot_x,
+    rot_z,
+    sphere_inertia,
+    transform,
+    transform_from,
+    tube_inertia,
+)
+
+__all__ = ["AssemblyError", "assemble", "length_defaults"]
+
+_FACES = {"up": _UP, "down": _DOWN, "back": _BACK}
+_SIDE_WORDS = {1: "l", -1: "r"}
+_POSITIONS = {1: ("m",), 2: ("f", "h"), 3: ("f", "m", "h")}
+_AXLES = {1: ("",), 2: ("front", "rear"), 3: ("front", "middle", "rear")}
+#: Roles of the parts that form chains (one joint or one printed link each).
+_CHAIN = ("joint", "link", "module")
+
+
+class AssemblyError(ValueError):
+    """A body plan the part kinds cannot assemble."""
+
+
+def _where(node: PartNode) -> str:
+    return f" ({node.where})" if node.where else ""
+
+
+@dataclass
+class _Rec:
+    """One joint (and its body) to add, in order."""
+
+    name: str
+    body: str
+    parent: int | None  # index of the parent record; None: the root body
+    kind: str
+    origin: np.ndarray
+    axis: np.ndarray
+    limits: tuple[float, float]
+    group: str
+    tube: tuple[str, str, np.ndarray] | None = None  # (segment name, length name, direction)
+    end: str = ""
+    forward: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+    on_parent: bool = False
+    module: str = ""
+
+
+@dataclass
+class _Tip:
+    """Where a child attaches: the record of the body (None: the root), the frame there
+    (body frame), the prefix of names and the direction the chain points."""
+
+    rec: int | None
+    frame: np.ndarray
+    prefix: str
+    forward: np.ndarray
+
+
+def _kind(kinds: PartKinds, node: PartNode) -> PartKind:
+    k = kinds.of(node.kinds)
+    if k is None:
+        raise AssemblyError(
+            f"part {node.kind}{_where(node)}: no part kind describes it (neither it nor a "
+            f"class above it: {', '.join(node.kinds)}); add one to a part kinds file "
+            "(--parts) or use a part class that has one"
+        )
+    return k
+
+
+def _ordered_children(
+    node: PartNode, kind: PartKind, kinds: PartKinds
+) -> list[tuple[PartNode, Mount | None]]:
+    """The children of ``node`` with the mount that places each, in assembly order: by
+    the kind's mounts in order (children of a kind with no mount: last, at the tip)."""
+    out: list[tuple[PartNode, Mount | None]] = []
+    rest = list(node.children)
+    for m in kind.mounts:
+        mine = [c for c in rest if m.child in c.kinds]
+        rest = [c for c in rest if m.child not in c.kinds]
+        out += [(c, m) for c in mine]
+    out += [(c, None) for c in rest]
+    return out
+
+
+def length_defaults(plan: BodyPlan, kinds: PartKinds) -> dict[str, float]:
+    """The plan's named lengths with their defaults (m), in the order a template lists
+    them: the root's, then each part's in assembly order; the ontology's
+    ``defaultLength`` values (``plan.lengths``) win."""
+    out: dict[str, float] = {}
+
+    def visit(node: PartNode, chain_links: list[int]) -> None:
+        kind = _kind(kinds, node)
+        for k, v in kind.lengths.items():
+            out.setdefault(k, v)
+        for j in kind.joints:
+            if j.tube_length and j.tube_length not in out:
+                out[j.tube_length] = kind.lengths.get(j.tube_length, 0.0)
+        if kind.link:
+            chain_links[0] += 1
+            k = chain_links[0]
+            name = f"{kind.link.get('names', 'L')}{k}"
+            pick = "first" if k == 1 else "rest"
+            out.setdefault(name, kinds.serial_lengths.get(pick, 0.1))
+        for c, _ in _ordered_children(node, kind, kinds):
+            visit(c, chain_links if _kind(kinds, c).role in _CHAIN else [0])
+
+    visit(plan.root, [0])
+    for k in out:
+        if k in plan.lengths:
+            out[k] = float(plan.lengths[k])
+    return out
+
+
+class _Walk:
+    def __init__(self, plan: BodyPlan, kinds: PartKinds, p: TemplateParams, lengths: dict):
+        self.plan, self.kinds, self.p, self.L = plan, kinds, p, lengths
+        self.names = {
+            **kinds.constants,
+            **lengths,
+            "actuator_x": float(p.actuator_size[0]),
+            "actuator_y": float(p.actuator_size[1]),
+            "actuator_z": float(p.actuator_size[2]),
+            "wheel_radius": float(p.wheel_radius),
+        }
+        self.recs: list[_Rec] = []
+        self.legs = 0
+        self.payload_at_effector = False
+        self.link_index = 0
+
+    def ev(self, x, node: PartNode, what: str) -> float:
+        try:
+            return evaluate(x, self.names)
+        except KeyError as e:
+            raise AssemblyError(
+                f"part {node.kind}{_where(node)}: its {what} names {e.args[0]!r}, which is "
+                "no length of this design nor a constant of the part kinds"
+            ) from None
+
+    # -- the root -----------------------------------------------------------------------
+    def root(self) -> list[LabelledPart]:
+        node = self.plan.root
+        kind = _kind(self.kinds, node)
+        if not kind.root:
+            raise AssemblyError(
+                f"{self.plan.robot_type}: its body plan's root {node.kind}{_where(node)} is "
+                "not a part the others can hang on (no root part kind)"
+            )
+        at = kind.at
+        for c in node.children:
+            for cls, v in kind.at_with.items():
+                if cls in c.kinds:
+                    at = v
+        self.root_at = tuple(self.ev(x, node, "at") for x in at)
+        box = tuple(self.ev(x, node, "box") for x in kind.box)
+        parts = [_trunk(kind.body, self.p.trunk_mass, box, self.root_at, _FACES[kind.faces])]
+        if kind.payload == "root":
+            parts.append(_point(kind.body, "payload", self.p.payload, self.root_at))
+        else:
+            self.payload_at_effector = True
+        self.root_body = kind.body
+        tip = _Tip(None, np.eye(4), "", np.array([1.0, 0.0, 0.0]))
+        self.children(node, kind, tip, placed=True)
+        return parts
+
+    # -- children -----------------------------------------------------------------------
+    def children(self, node: PartNode, kind: PartKind, tip: _Tip, placed: bool) -> None:
+        """Attach ``node``'s children: by its mounts when ``placed`` (the layouts), else
+        at ``tip``."""
+        ordered = _ordered_children(node, kind, self.kinds)
+        chain = [c for c, _ in ordered if _kind(self.kinds, c).role in _CHAIN]
+        others = [(c, m) for c, m in ordered if c not in chain]
+        jobs: list[tuple[int, int, PartNode, _Tip, int]] = []  # (side key, order, node, tip, index)
+        by_mount: dict[int, list[PartNode]] = {}
+        mounts: dict[int, Mount | None] = {}
+        for c, m in others:
+            key = id(m) if m is not None else 0
+            by_mount.setdefault(key, []).append(c)
+            mounts[key] = m
+        order = 0
+        for key, group in by_mount.items():
+            m = mounts[key]
+            if placed and m is not None and m.layout not in ("serial", "tip"):
+                places = self.layout(m, group, node)
+            else:
+                places = [(0, tip.prefix, tip.frame) for _ in group]
+            for c, (side, prefix, frame) in zip(group, places, strict=True):
+                jobs.append((side, order, c, _Tip(tip.rec, frame, prefix, tip.forward), 0))
+                order += 1
+        if kind.order == "side":
+            jobs.sort(key=lambda j: (-j[0], j[1]))
+        for _, _, c, t, _ in jobs:
+            self.part(c, t)
+        if chain:
+            self.serial(node, chain, tip)
+
+    def layout(self, m: Mount, group: list[PartNode], parent: PartNode):
+        """(side, name prefix, frame on the parent) of each child of a mount."""
+        n = len(group)
+        span = self.ev(m.span, parent, "mount span") if m.span else 0.0
+        track = self.ev(m.track, parent, "mount track") if m.track else 0.0
+        out = []
+        if m.layout == "bilateral" and n % 2 == 0:
+            k = n // 2
+            letters = _POSITIONS.get(k, tuple(str(i + 1) for i in range(k)))
+            for side in (1, -1):
+                for i in range(k):
+                    fx = 1 - 2 * i / (k - 1) if k > 1 else 0.0
+                    xyz = (fx * span / 2, side * track / 2, 0)
+                    frame = transform_from(rot_z(side * math.pi / 2), xyz)
+                    out.append((side, f"{_SIDE_WORDS[side]}{letters[i]}", frame))
+        elif m.layout in ("bilateral", "radial"):
+            for i in range(n):
+                th = 2 * math.pi * i / n
+                xyz = (span / 2 * math.cos(th), track / 2 * math.sin(th), 0.0)
+                side = 1 if math.sin(th) > 1e-12 else (-1 if math.sin(th) < -1e-12 else 0)
+                out.append((side, f"leg{i + 1}", transform_from(rot_z(th), xyz)))
+        elif m.layout == "pair":
+            if n != 2:
+                raise AssemblyError(
+                    f"part {group[0].kind}{_where(group[0])}: a pair layout takes 2, got {n}"
+                )
+            at = [self.ev(x, parent, "mount at") for x in m.at]
+            for side in (1, -1):
+                out.append((side, _SIDE_WORDS[side], transform((at[0], side * at[1], at[2]))))
+        elif m.layout == "axle":
+            if n % 2:
+                raise AssemblyError(
+                    f"part {group[0].kind}{_where(group[0])}: wheels on axles come in pairs, "
+                    f"got {n}"
+                )
+            a = n // 2
+            words = _AXLES.get(a, tuple(f"axle{i + 1}" for i in range(a)))
+            for i in range(a):
+                fx = 1 - 2 * i / (a - 1) if a > 1 else 0
+                for side in (1, -1):
+                    name = "left" if side > 0 else "right"
+                    prefix = f"{words[i]}_{name}" if words[i] else name
+                    xyz = (fx * span / 2, side * track / 2, 0) if a > 1 else (
+                        0, side * track / 2, 0
+                    )
+                    out.append((side, prefix, transform(xyz)))
+        elif m.layout == "trailing":
+            rear = (self.root_at[0] - span / 2, 0, -float(self.p.wheel_radius))
+            for i in range(n):
+                out.append((0, "" if n == 1 else f"rear{i + 1}", transform(rear)))
+        else:  # pragma: no cover (LAYOUTS is checked when the data is read)
+            raise AssertionError(m.layout)
+        return out
+
+    # -- a part with joints -----------------------------------------------------------
+    def part(self, node: PartNode, tip: _Tip) -> None:
+        kind = _kind(self.kinds, node)
+        if kind.root:
+            raise AssemblyError(
+                f"part {node.kind}{_where(node)}: a second root part in the body plan of "
+                f"{self.plan.robot_type}; one part (a trunk, chassis or base) carries the rest"
+            )
+        if kind.role == "leg":
+            self.legs += 1
+        here = tip
+        for j in kind.joints:
+            here = self.joint(node, kind, j, here, index=None)
+        self.children(node, kind, here, placed=False)
+
+    def joint(
+        self,
+        node: PartNode,
+        kind: PartKind,
+        j: JointSpec,
+        tip: _Tip,
+        index: int | None,
+        serial: tuple[str, str, float | str, float | str] | None = None,
+        link: tuple[str, np.ndarray] | None = None,
+        axis_index: int = 0,
+    ) -> _Tip:
+        """Add joint ``j`` of ``node`` at ``tip``; the tip after it."""
+        base = serial[0] if serial else j.name
+        if index is not None:
+            name = f"{base}_{index}"
+            body = f"{j.body or base}_{index}" if j.body else f"{name}_link"
+        else:
+            name = f"{tip.prefix}_{base}" if tip.prefix else base
+            body = f"{name}_link"
+        if j.axes:
+            axis = np.array(AXES[j.axes[axis_index % len(j.axes)]])
+        elif serial:
+            axis = np.array(AXES[serial[1]])
+        elif j.axis == "across":
+            side = np.array([0.0, 1.0, 0.0])
+            axis = np.cross(tip.forward, side)
+            if np.linalg.norm(axis) < 1e-9:
+                axis = np.cross(tip.forward, np.array([0.0, 0.0, 1.0]))
+            axis = axis / np.linalg.norm(axis) + 0.0
+        else:
+            axis = np.array(AXES[j.axis])
+        lim = (serial[2], serial[3]) if serial else j.limits
+        limits = (self.ev(lim[0], node, "joint limit"), self.ev(lim[1], node, "joint limit"))
+        tube = None
+        forward = tip.forward
+        if j.tube_length:
+            d = np.array(AXES[j.tube_along])
+            seg = body if index is not None else (
+                f"{tip.prefix}_{j.tube_length}" if tip.prefix else j.tube_length
+            )
+            tube = (seg, j.tube_length, d)
+            forward = d
+        elif link is not None:
+            tube = (link[0], link[0], link[1])
+            forward = link[1]
+        rec = _Rec(
+            name=name,
+            body=body,
+            parent=tip.rec,
+            kind=j.kind,
+            origin=tip.frame,
+            axis=axis,
+            limits=limits,
+            group=j.group or base,
+            tube=tube,
+            end=kind.end if j is kind.joints[-1] else "",
+            forward=forward,
+            on_parent=j.actuator_on_parent,
+        )
+        rec.module = j.module
+        self.recs.append(rec)
+        k = len(self.recs) - 1
+        frame = transform(self.L[tube[1]] * tube[2]) if tube else np.eye(4)
+        return _Tip(k, frame, tip.prefix, forward)
+
+    # -- chains of one-joint parts (a snake's modules, an arm's servos and links) -------
+    def serial(self, parent: PartNode, first: list[PartNode], tip: _Tip) -> None:
+        if len(first) > 1:
+            raise AssemblyError(
+                f"part {first[1].kind}{_where(first[1])}: {parent.kind} has more than one "
+                "chain of modules connected to it; a chain starts at one connector"
+            )
+        chain: list[PartNode] = []
+        node = first[0]
+        while True:
+            chain.append(node)
+            nxt = [c for c in node.children if _kind(self.kinds, c).role in _CHAIN]
+            if len(nxt) > 1:
+                raise AssemblyError(
+                    f"part {nxt[1].kind}{_where(nxt[1])}: {node.kind} connects to two "
+                    "modules of a chain; a serial chain has no branches"
+                )
+            if not nxt:
+                break
+            node = nxt[0]
+        joints = [n for n in chain if _kind(self.kinds, n).role == "joint" or (
+            _kind(self.kinds, n).joints and not _kind(self.kinds, n).link
+        )]
+        ext = [n for n in joints if any(k in self.plan.extensible for k in n.kinds)]
+        if ext:
+            m = self.p.modules
+            if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
+                raise ValueError(f"modules must be an integer >= 1, got {m!r}")
+            chain = [joints[0]] * int(m)
+            joints = chain
+        serial_rows = None
+        if any(_kind(self.kinds, n).joints[0].name == "serial" for n in joints
+               if _kind(self.kinds, n).joints):
+            n = len(joints)
+            serial_rows = self.kinds.serial.get(n)
+            if serial_rows is None:
+                have = ", ".join(str(k) for k in sorted(self.kinds.serial))
+                raise AssemblyError(
+                    f"part {joints[0].kind}{_where(joints[0])}: a serial chain of {n} joints, "
+                    f"but the part kinds' [serial] table has chains of {have} joints"
+                )
+        here = tip
+        i = 0
+        links = 0
+        pos = 0
+        while pos < len(chain):
+            node = chain[pos]
+            kind = _kind(self.kinds, node)
+            if kind.link and not kind.joints:
+                raise AssemblyError(
+                    f"part {node.kind}{_where(node)}: a link with no joint before it "
+                    f"(connected straight to {parent.kind})"
+                )
+            link = None
+            if pos + 1 < len(chain) and _kind(self.kinds, chain[pos + 1]).link:
+                lk = _kind(self.kinds, chain[pos + 1])
+                links += 1
+                d = np.array(AXES[lk.link.get("first" if links == 1 else "rest", "x")])
+                link = (f"{lk.link.get('names', 'L')}{links}", d)
+            spec = kind.joints[0]
+            row = serial_rows[i] if serial_rows is not None else None
+            index = i + 1 if kind.naming == "index" else None
+            here = self.joint(node, kind, spec, here, index, row, link, axis_index=i)
+            i += 1
+            pos += 2 if link is not None else 1
+            # what else hangs on this module (a gripper at the end of an arm)
+            rest = [c for c in node.children if _kind(self.kinds, c).role not in _CHAIN]
+            if link is not None:
+                rest += [
+                    c for c in chain[pos - 1].children
+                    if _kind(self.kinds, c).role not in _CHAIN
+                ]
+            for c in rest:
+                self.part(c, here)
+
+
+def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Template:
+    """The kinematic template of ``plan`` with ``params`` (see ``kinematics.templates``)."""
+    p = params
+    defaults = length_defaults(plan, kinds)
+    lengths = check_params(plan.robot_type, p, defaults)
+    w = _Walk(plan, kinds, p, lengths)
+    root_parts = w.root()
+    recs = w.recs
+    b = _Builder(plan.robot_type, p, lengths)
+    b.add("root", None, "fixed", np.eye(4), root_parts, body=w.root_body)
+    feet: list[str] = []
+    points: list[np.ndarray] = []
+    wheels: list[str] = []
+    casters: list[str] = []
+    effectors: list[str] = []
+    moved: dict[str, list[str]] = {}
+    for k, r in enumerate(recs):
+        parent = w.root_body if r.parent is None else recs[r.parent].body
+        parts: list[LabelledPart] = []
+        if r.tube is not None:
+            distal = next((c.name for c in recs[k + 1 :] if c.parent == k), None)
+            parts.append(b.tube(r.tube[0], r.tube[1], r.body, tuple(r.tube[2]), distal))
+        end_point = (
+            r.tube[2] * lengths[r.tube[1]] if r.tube is not None else np.zeros(3)
+        )
+        if r.end == "point_foot":
+            foot = tuple(float(x) + 0.0 for x in end_point)
+            parts.append(_point(r.body, "foot", p.foot_mass, foot))
+            feet.append(r.body)
+            points.append(_frozen(foot))
+        elif r.end == "foot_plate":
+            sole = p.actuator_size[2] / 2
+            c = kinds.constants
+            plate = (lengths["foot"], c["foot_width_ratio"] * lengths["foot"], c["foot_plate"])
+            parts.append(
+                LabelledPart(
+                    r.body,
+                    "foot",
+                    p.foot_mass,
+                    np.array([0.0, 0.0, -sole + c["foot_plate"] / 2]),
+                    box_inertia(p.foot_mass, plate),
+                    transform((0, 0, -sole)),
+                    plate,
+                )
+            )
+            feet.append(r.body)
+            points.append(_frozen((0.0, 0.0, -sole)))
+        elif r.end == "gripper":
+            payload = p.payload if w.payload_at_effector else 0.0
+            parts += _gripper_parts(p, payload, r.body, tuple(r.forward), (0.0, 1.0, 0.0))
+            effectors.append(r.body)
+        elif r.end == "wheel":
+            rr = p.wheel_radius
+            if not (math.isfinite(rr) and rr > 0):
+                raise ValueError(f"wheel_radius must be positive, got {rr}")
+            inertia = tube_inertia(p.wheel_mass, WHEEL_WIDTH, rr, 0, tuple(r.axis))
+            frame = transform_from(rot_x(-math.pi / 2), (0, 0, 0))
+            parts.append(
+                LabelledPart(
+                    r.body, "wheel", p.wheel_mass, np.zeros(3), inertia, frame, (rr, WHEEL_WIDTH)
+                )
+            )
+            wheels.append(r.body)
+        elif r.end == "caster":
+            rc = p.caster_radius
+            parts.append(
+                LabelledPart(
+                    r.body,
+                    "caster",
+                    p.caster_mass,
+                    np.array([0, 0, rc]),
+                    sphere_inertia(p.caster_mass, rc),
+                    transform((0, 0, rc)),
+                    (rc,),
+                )
+            )
+            casters.append(r.body)
+        if r.end == "wheel" and not (math.isfinite(p.wheel_radius) and p.wheel_radius > 0):
+            raise ValueError(f"wheel_radius must be positive, got {p.wheel_radius}")
+        b.add(
+            r.name,
+            parent,
+            r.kind,
+            r.origin,
+            parts,
+            axis=tuple(r.axis),
+            limits=r.limits,
+            group=r.group if r.kind != "fixed" else "",
+            body=r.body,
+        )
+        if r.on_parent:
+            moved.setdefault(parent, []).append(r.body)
+    for parent, bodies in moved.items():
+        _servos_on_chassis(b, parent, tuple(bodies))
+    model = b.model()
+    tubes = sorted({s.length_name for s in b.segments})
+    unknown = sorted(set(p.tubes) - set(tubes))
+    if unknown:
+        raise ValueError(
+            f"{plan.robot_type} has no tube {', '.join(unknown)}; "
+            f"tubes: {', '.join(tubes) or 'none'}"
+        )
+    groups = {j.group for j in model.joints if j.movable}
+    unknown = sorted(set(p.actuator_mass) - groups)
+    if unknown:
+        raise ValueError(
+            f"{plan.robot_type} has no joint group {', '.join(unknown)}; "
+            f"groups: {', '.join(sorted(groups))}"
+        )
+    modules = {r.name: r.module for r in recs}
+    return Template(
+        robot_type=plan.robot_type,
+        model=model,
+        segments=tuple(b.segments),
+        end_effectors=tuple(effectors),
+        feet=tuple(feet),
+        foot_points=tuple(points),
+        wheels=tuple(wheels),
+        legs=w.legs,
+        arms=len(effectors),
+        length_names=tuple(defaults),
+        casters=tuple(casters),
+        lengths=lengths,
+        params=p,
+        parts=MappingProxyType(dict(b.parts)),
+        modules=MappingProxyType({k: v for k, v in modules.items() if v}),
+        plan=plan,
+    )

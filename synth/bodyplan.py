@@ -1,0 +1,294 @@
+"""A robot type's body plan read off the ontology (``kinematics.bodyplan.BodyPlan``).
+
+The parts are the witnesses of the type's existential axioms and its ancestors' that are a
+``part`` (or ``robotPart``, any subrelation of part) of the robot, with the counts the
+ASP encoding gives them (``asp/parts.lp``): of each part class the largest count any
+axiom declares, and a more specific class (``MyLeg`` where an ancestor says
+``BipedLeg``) refines the general one. Witnesses of the same class in different axioms
+are the same parts, in order (the humanoid's trunk, named by ``HumanoidRobot`` and by
+``BipedalRobot``, is one trunk). ``connectedTo`` between witnesses joins parts; the tree
+is rooted at the one part whose part kind is a root (a trunk, a chassis, an arm's base)
+and grows away from it. Parts the axioms do not connect to anything hang on the root (the
+part kinds' mount patterns place them). Only parts with a part kind (or structural parts,
+which must have one) enter the plan: the main module, the battery and sensors ride on
+the root and are counted by the conceptual design.
+
+``(defaultLength ROBOT "name" "quantity")`` gives a length's default for a type and its
+subclasses (the nearest class's wins); ``extensiblePart`` marks the classes whose chains
+grow with the design (a snake's modules).
+
+Refusals (``OntologyError``, exit 2) name the part and the axiom's file:line:col: a part
+kind no data describes, a ``connectedTo`` cycle, a body plan with no root or two, parts
+not connected to the root.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from adron.errors import InputError, OntologyError
+from adron.kb import KnowledgeBase
+from adron.units import quantity
+from kinematics.bodyplan import BodyPlan, PartNode
+from kinematics.partkinds import PartKinds
+
+__all__ = ["ancestors", "plan_of"]
+
+
+#: (translation, parents, axioms) of the last few knowledge bases read (kept by identity)
+_MEMO: list[tuple[object, dict, dict]] = []
+
+
+def _memo(kb: KnowledgeBase) -> tuple[dict, dict]:
+    """(class -> its parents, class -> its existential axioms) of ``kb``, read once."""
+    tr = kb.translation
+    for t, up, axioms in _MEMO:
+        if t is tr:
+            return up, axioms
+    up: dict[str, list[str]] = {}
+    for args in tr.relation("subclass"):
+        if len(args) == 2 and isinstance(args[0], str) and isinstance(args[1], str):
+            up.setdefault(args[0], []).append(args[1])
+    _MEMO.append((tr, up, _read_axioms(kb)))
+    del _MEMO[:-4]
+    return _MEMO[-1][1], _MEMO[-1][2]
+
+
+def ancestors(kb: KnowledgeBase, cls: str) -> tuple[str, ...]:
+    """``cls`` and every class above it, nearest first (breadth first, file order)."""
+    up = _memo(kb)[0]
+    out, seen, queue = [], {cls}, deque([cls])
+    while queue:
+        c = queue.popleft()
+        out.append(c)
+        for p in up.get(c, ()):
+            if p not in seen:
+                seen.add(p)
+                queue.append(p)
+    return tuple(out)
+
+
+@dataclass
+class _Axiom:
+    id: int
+    cls: str
+    where: str
+    witnesses: dict[str, str]  # variable -> class, in order
+    links: list[tuple[str, str, str]]  # (relation, a, b): "self", "?V" or a constant
+
+
+def _read_axioms(kb: KnowledgeBase) -> dict[str, list[_Axiom]]:
+    """The existential axioms by the class they quantify over."""
+    import clingo
+
+    where = {s.id: s.location for s in kb.translation.sources}
+    out: dict[int, _Axiom] = {}
+    for unit in kb.translation.units:
+        if unit.kind != "axiom":
+            continue
+        for line in unit.lines:
+            if not line.startswith(("exists_axiom(", "witness(", "link(")):
+                continue
+            t = clingo.parse_term(line.rstrip(".").strip())
+            a = t.arguments
+            i = a[0].number
+            if t.name == "exists_axiom":
+                out[i] = _Axiom(i, a[1].string, where.get(i, unit.where), {}, [])
+            elif t.name == "witness" and i in out:
+                out[i].witnesses[a[1].string] = a[2].string
+            elif t.name == "link" and i in out:
+
+                def ref(x) -> str:
+                    if x.type == clingo.SymbolType.String:
+                        return x.string
+                    if x.type == clingo.SymbolType.Function and x.name == "self":
+                        return "self"
+                    return f"c:{x.arguments[0].string}" if x.arguments else str(x)
+
+                out[i].links.append((a[1].string, ref(a[2]), ref(a[3])))
+    by_cls: dict[str, list[_Axiom]] = {}
+    for ax in out.values():
+        by_cls.setdefault(ax.cls, []).append(ax)
+    return by_cls
+
+
+def _part_relations(kb: KnowledgeBase) -> set[str]:
+    """``part`` and its subrelations (robotPart)."""
+    down: dict[str, list[str]] = {}
+    for args in kb.translation.relation("subrelation"):
+        if len(args) == 2:
+            down.setdefault(str(args[1]), []).append(str(args[0]))
+    out, queue = {"part"}, deque(["part"])
+    while queue:
+        for r in down.get(queue.popleft(), ()):
+            if r not in out:
+                out.add(r)
+                queue.append(r)
+    return out
+
+
+def plan_of(kb: KnowledgeBase, robot_type: str, kinds: PartKinds) -> BodyPlan:
+    """The body plan of ``robot_type`` (see the module's docstring)."""
+    lineage = ancestors(kb, robot_type)
+    axioms = _memo(kb)[1]
+    part_rel = _part_relations(kb)
+    mine = [ax for c in lineage for ax in axioms.get(c, ())]
+    # the part witnesses of each axiom, by class, in order
+    per_axiom: list[tuple[_Axiom, dict[str, list[str]]]] = []
+    for ax in mine:
+        parts = [v for r, v, s in ax.links if s == "self" and r in part_rel and v in ax.witnesses]
+        by_kind: dict[str, list[str]] = {}
+        for v in ax.witnesses:
+            if v in parts:
+                by_kind.setdefault(ax.witnesses[v], []).append(v)
+        per_axiom.append((ax, by_kind))
+    counts: dict[str, int] = {}
+    first_where: dict[str, str] = {}
+    for ax, by_kind in per_axiom:
+        for k, vs in by_kind.items():
+            counts[k] = max(counts.get(k, 0), len(vs))
+            first_where.setdefault(k, ax.where)
+    lineage_of = {k: ancestors(kb, k) for k in counts}
+    refined = {
+        k: next((k2 for k2 in counts if k2 != k and k in lineage_of[k2]), None) for k in counts
+    }
+
+    def final(k: str) -> str:
+        seen = set()
+        while refined.get(k) and k not in seen:
+            seen.add(k)
+            k = refined[k]  # type: ignore[assignment]
+        return k
+
+    structural = {k for k in counts if "StructuralRobotPart" in lineage_of[k]}
+    wanted = [k for k in counts if final(k) == k and (kinds.of(lineage_of[k]) or k in structural)]
+    for k in wanted:
+        if kinds.of(lineage_of[k]) is None:
+            raise OntologyError(
+                f"{first_where[k]}: {robot_type} has a part of class {k}, but no part kind "
+                f"describes it (nor a class above it: {', '.join(lineage_of[k][1:]) or 'none'});"
+                " add one with --parts FILE.toml (README: Part kinds)"
+            )
+    # the parts: (class, index)
+    nodes: list[tuple[str, int]] = [(k, i) for k in wanted for i in range(counts[k])]
+    where = {n: first_where[n[0]] for n in nodes}
+    edges: list[tuple[tuple[str, int], tuple[str, int], str]] = []
+    for ax, by_kind in per_axiom:
+        index = {v: (final(k), i) for k, vs in by_kind.items() for i, v in enumerate(vs)}
+        for r, a, b in ax.links:
+            if r != "connectedTo" or a not in index or b not in index:
+                continue
+            na, nb = index[a], index[b]
+            if na in where and nb in where:
+                for n in (na, nb):
+                    where[n] = where.get(n) or ax.where
+                if na == nb:
+                    raise OntologyError(f"{ax.where}: {a} ({na[0]}) is connectedTo itself")
+                edges.append((na, nb, ax.where))
+    roots = [n for n in nodes if (k := kinds.of(lineage_of[n[0]])) is not None and k.root]
+    here = (axioms.get(robot_type) or mine or [None])[0]
+    at = here.where if here is not None else robot_type
+    if not roots:
+        named = ", ".join(sorted({n[0] for n in nodes})) or "no structural parts"
+        raise OntologyError(
+            f"{at}: the body plan of {robot_type} has no root: none of its parts ({named}) is "
+            "a part the others hang on (a trunk, a chassis, an arm's base: a part kind with "
+            "root = true)"
+        )
+    if len(roots) > 1:
+        raise OntologyError(
+            f"{where[roots[1]]}: the body plan of {robot_type} has {len(roots)} root parts "
+            f"({', '.join(r[0] for r in roots)}); one part carries the rest"
+        )
+    adj: dict[tuple[str, int], list[tuple[tuple[str, int], str]]] = {n: [] for n in nodes}
+    seen_edges = set()
+    for a, b, w in edges:
+        key = frozenset((a, b))
+        if key in seen_edges:
+            continue
+        seen_edges.add(key)
+        adj[a].append((b, w))
+        adj[b].append((a, w))
+    root = roots[0]
+    parent: dict[tuple[str, int], tuple[str, int] | None] = {root: None}
+    order = [root]
+    queue = deque([root])
+    while queue:
+        n = queue.popleft()
+        for m, w in adj[n]:
+            if m == parent[n]:
+                continue
+            if m in parent:
+                raise OntologyError(
+                    f"{w}: the connectedTo links of {robot_type} close a cycle through "
+                    f"{m[0]} and {n[0]}; a body plan is a tree"
+                )
+            parent[m] = n
+            order.append(m)
+            queue.append(m)
+    for n in nodes:
+        if n in parent:
+            continue
+        if adj[n]:
+            raise OntologyError(
+                f"{where[n]}: part {n[0]} of {robot_type} is connected to other parts but not "
+                f"to its root {root[0]}"
+            )
+        parent[n] = root
+        order.append(n)
+
+    def node(n: tuple[str, int]) -> PartNode:
+        kids = [m for m in order if parent.get(m) == n]
+        return PartNode(n[0], lineage_of[n[0]], tuple(node(m) for m in kids), where[n])
+
+    return BodyPlan(
+        robot_type,
+        node(root),
+        _default_lengths(kb, lineage),
+        tuple(
+            str(args[1])
+            for args in kb.translation.relation("extensiblePart")
+            if len(args) == 2 and args[0] in lineage
+        ),
+    )
+
+
+def _default_lengths(kb: KnowledgeBase, lineage: Sequence[str]) -> dict[str, float]:
+    rank = {c: i for i, c in enumerate(lineage)}
+    best: dict[str, tuple[int, float]] = {}
+    for args, where in kb.translation.located("defaultLength"):
+        if len(args) != 3 or args[0] not in rank:
+            continue
+        name, text = args[1], args[2]
+        if not isinstance(name, str) or not isinstance(text, str):
+            raise OntologyError(f"{where}: defaultLength takes a class, a name and a quantity")
+        try:
+            value = quantity(text, "length", f"{where}: defaultLength {name}")
+        except InputError as e:
+            raise OntologyError(str(e)) from None
+        r = rank[args[0]]
+        if name not in best or r < best[name][0]:
+            best[name] = (r, value)
+    return {k: v for k, (_, v) in sorted(best.items())}
+
+
+def shipped_plan(robot_type: str) -> BodyPlan | None:
+    """The body plan of a class of the shipped ontology (None for a class that is no robot
+    there): ``kinematics.templates.PLAN_SOURCE`` once ``install`` ran."""
+    from adron.kb import load
+    from kinematics.partkinds import load as load_kinds
+
+    kb = load()
+    if "Robot" not in ancestors(kb, robot_type)[1:]:
+        return None
+    return plan_of(kb, robot_type, load_kinds())
+
+
+def install() -> None:
+    """Let ``kinematics.templates.build`` find the shipped ontology's robot types by name."""
+    import kinematics.templates as templates
+
+    if templates.PLAN_SOURCE is None:
+        templates.PLAN_SOURCE = shipped_plan
