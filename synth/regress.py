@@ -11,7 +11,6 @@ import contextlib
 import difflib
 import json
 import os
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
@@ -203,13 +202,31 @@ def _dump(obj: object) -> str:
     return json.dumps(obj, indent=2, ensure_ascii=False) + "\n"
 
 
+def temp_beside(path: Path) -> tuple[int, str]:
+    """(open descriptor, name) of a new temporary file beside ``path``, to be renamed over
+    it: made with the mode any new file gets (0666 less the umask, usually 0644), not
+    ``tempfile.mkstemp``'s 0600, so the file it becomes is as readable as one written
+    in place. OSError when the folder cannot be written."""
+    import secrets
+
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(100):
+        tmp = os.path.join(path.parent, f".{path.name}.{secrets.token_hex(6)}.tmp")
+        try:
+            return os.open(tmp, flags, 0o666), tmp
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"no free temporary name beside {path}")
+
+
 def write_atomic(path: Path, text: str) -> None:
     """Write ``text`` (UTF-8) to ``path`` through a temporary file in the same folder and a
-    rename: the old file stays whole on any failure (full disk, no permission, a kill).
-    ExportError (exit 2) naming the file otherwise."""
+    rename: the old file stays whole on any failure (full disk, no permission, a kill); the
+    new one has the mode a new file gets (:func:`temp_beside`). ExportError (exit 2) naming
+    the file otherwise."""
     tmp = None
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        fd, tmp = temp_beside(path)
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
             fh.flush()

@@ -29,7 +29,6 @@ import itertools
 import json
 import math
 import os
-import tempfile
 from collections import Counter, defaultdict
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
@@ -48,6 +47,7 @@ from synth.regress import (
     request_for,
     str_list,
     str_table,
+    temp_beside,
 )
 
 STUDY_KEYS = {"ontology", "rules", "catalog", "request"}
@@ -323,10 +323,11 @@ def design_one(q: dict, designer, sopts, simulate: bool) -> dict:
 
 
 def write_atomic(path: Path, data: bytes) -> None:
-    """Write ``path`` through a temporary sibling renamed into place (all or nothing)."""
+    """Write ``path`` through a temporary sibling renamed into place (all or nothing), with
+    the mode a new file gets (``synth.regress.temp_beside``)."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+        fd, tmp = temp_beside(path)
     except OSError as e:
         raise ExportError(f"{path}: cannot write: {e.strerror}") from None
     try:

@@ -82,9 +82,7 @@ def test_paths_inside_the_folder_are_kept(tmp_path: Path) -> None:
     cwd = os.getcwd()
     os.chdir(folder)
     try:
-        assert kb_options({"ontology": ["sub/x.kif"]}, Path("s.toml"))["ontology"] == [
-            "sub/x.kif"
-        ]
+        assert kb_options({"ontology": ["sub/x.kif"]}, Path("s.toml"))["ontology"] == ["sub/x.kif"]
         with pytest.raises(InputError, match="ontology: '../outside.kif' is outside"):
             kb_options({"ontology": ["../outside.kif"]}, Path("s.toml"))
     finally:
@@ -172,9 +170,7 @@ def test_a_device_is_refused(cli, device: str) -> None:
     assert r.code == 2 and f"{device}: is a character device, not a file" in r.err
 
 
-def test_regular_files_folders_and_missing_files_keep_their_messages(
-    cli, tmp_path: Path
-) -> None:
+def test_regular_files_folders_and_missing_files_keep_their_messages(cli, tmp_path: Path) -> None:
     r = cli(*DESIGN, "--ontology", str(tmp_path / "none.kif"))
     assert r.code == 2 and "none.kif: no such file" in r.err
     r = cli(*DESIGN, "--catalog", str(tmp_path))
