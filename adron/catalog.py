@@ -875,11 +875,21 @@ def _merge(parent: dict[str, Any], child: dict[str, Any], source: str) -> dict[s
     return out
 
 
+def _file_key(source: str) -> str:
+    """What identifies a catalog file in a chain of ``extends``: its resolved path (two
+    spellings of one file are the same file), or ``source`` as given."""
+    try:
+        return str(Path(source).resolve())
+    except (OSError, RuntimeError, ValueError):
+        return source
+
+
 def _resolve(
-    text: str, source: str, folder: Path | None, chain: tuple[str, ...]
+    text: str, source: str, folder: Path | None, chain: tuple[tuple[str, str], ...]
 ) -> tuple[dict[str, Any], str]:
     """The merged TOML document of ``text`` and every catalog it extends, and the sha256
-    of those texts; each parent is validated on its own first (its errors name it)."""
+    of those texts; each parent is validated on its own first (its errors name it).
+    ``chain``: (key, name) of the catalogs that extend this one, this one last."""
     import hashlib
 
     doc = _toml(text, source)
@@ -904,13 +914,23 @@ def _resolve(
             path = folder / path
         psource = str(path)
         ptext, pfolder = _read_text(path, f"{source}: catalog.extends: {psource}"), path.parent
-    key = psource
-    if key in chain or len(chain) >= MAX_EXTENDS:
+    key = psource if pfolder is None else _file_key(psource)
+    keys = [k for k, _ in chain]
+    if key in keys:
+        if key == keys[-1]:
+            raise InputError(
+                f"{source}: catalog.extends: '{parent_name}' extends itself (it is this file)"
+            )
+        cycle = [name for _, name in chain[keys.index(key) :]] + [psource]
         raise InputError(
-            f"{source}: catalog.extends: '{parent_name}' "
-            + ("extends itself" if key in chain else f"is more than {MAX_EXTENDS} levels deep")
+            f"{source}: catalog.extends: '{parent_name}' closes a cycle of catalogs that "
+            f"extend each other ({' -> '.join(cycle)})"
         )
-    parent_doc, parent_digest = _resolve(ptext, psource, pfolder, (*chain, key))
+    if len(chain) > MAX_EXTENDS:
+        raise InputError(
+            f"{source}: catalog.extends: '{parent_name}' is more than {MAX_EXTENDS} levels deep"
+        )
+    parent_doc, parent_digest = _resolve(ptext, psource, pfolder, (*chain, (key, psource)))
     parent = _build(parent_doc, psource)  # the parent must be a valid catalog on its own
     currency = header.get("currency")
     if isinstance(currency, str) and currency != parent.currency:
@@ -939,7 +959,8 @@ def parse_catalog(text: str, source: str, folder: Path | None = None, shipped: s
     path = _cache_path(text, source, folder, shipped)
     cat = _cached_catalog(path)
     if cat is None:
-        doc, digest = _resolve(text, source, folder, ())
+        root = source if folder is None else _file_key(source)
+        doc, digest = _resolve(text, source, folder, ((root, source),))
         cat = replace(_build(doc, source), sha256=digest, shipped=shipped)
         if path is not None:
             import pickle

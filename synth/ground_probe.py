@@ -12,7 +12,8 @@ The order is the program's: the knowledge base's facts and the taxonomy (one par
 KIF rule form (file:line:col, translated again on its own), parmor's encodings (one part),
 then each statement of each rule file (file:line:col). When the probe is stopped in
 parmor's encodings, they grew on what a rule of the user's gave them: the KIF rule or rule
-file statement that added the most atoms before them is named, with its count. Grounding a
+file statement of the user's that added the most atoms before them is named, with its count
+(none when no statement of the user's added any: nothing of theirs is blamed). Grounding a
 statement once, on what the statements before it derived, is an approximation of the
 whole grounding (a rule is not grounded again with atoms derived after it), good for the
 rules that blow up on their own (a huge interval, a cross product, many variables). When
@@ -96,6 +97,8 @@ def culprit(
 ) -> str:
     """The place of the statement that grew (see the module), or '' when none did
     within ``budget_s`` seconds and ``memory_mb`` (None: no memory cap)."""
+    from adron.kb import builtin_files
+
     parts = pieces(kb, taxonomy, rules, program)
     read, write = Pipe(duplex=False)
     pid = os.fork()
@@ -135,12 +138,33 @@ def culprit(
             os.waitpid(pid, 0)
     if done or last < 0:
         return ""
-    if parts[last][0] == ENCODINGS:
-        users = {i: n for i, n in added.items() if 0 < i < last}
-        if users:
-            i = max(users, key=lambda k: (users[k], -k))
-            return f"{parts[i][0]} (its {users[i]} atoms, on which parmor's encodings ground)"
-    return parts[last][0]
+    return blamed([place for place, _ in parts], added, last, {n for n, _ in builtin_files()})
+
+
+def blamed(places: Sequence[str], added: dict[int, int], last: int, shipped: set[str]) -> str:
+    """What grew, of pieces at ``places``, the probe stopped in piece ``last`` having seen
+    piece ``i`` add ``added[i]`` atoms: that piece; or, stopped in parmor's encodings, the
+    user's statement before them that added the most atoms (a KIF rule of a ``shipped``
+    file is parmor's own, and a statement that added none fed the encodings nothing), and
+    '' when there is none: then nothing of the user's is to blame."""
+    if places[last] != ENCODINGS:
+        return places[last]
+    users = {
+        i: n
+        for i, n in added.items()
+        if 0 < i < last and n > 0 and _file_of(places[i]) not in shipped
+    }
+    if not users:
+        return ""
+    i = max(users, key=lambda k: (users[k], -k))
+    return f"{places[i]} (its {users[i]} atoms, on which parmor's encodings ground)"
+
+
+def _file_of(place: str) -> str | None:
+    """The file of a piece's place ``the rule at FILE:LINE:COL``; None for other pieces."""
+    if not place.startswith("the rule at "):
+        return None
+    return place.removeprefix("the rule at ").rsplit(":", 2)[0]
 
 
 def _ground(parts: list[tuple[str, str]], conn, memory_mb: int | None) -> None:
