@@ -68,6 +68,7 @@ def structure_record(s: Structure) -> dict:
     at = s.bus.address_text
     return {
         "template": s.template.robot_type,
+        "body_plan": s.template.plan.to_dict() if s.template.plan is not None else None,
         "params": {k: _r(v) for k, v in s.params.items()},
         "ignored_params": list(s.ignored_params),
         "lengths_m": {k: _r(v) for k, v in s.lengths.items()},

@@ -1,7 +1,8 @@
-"""Behaviour (gait) generators for each robot type: a controller per design.
+"""Behaviour (gait) generators: a controller per design.
 
-``controller_for(geometry)`` picks the controller of the design's kinematic template; the
-modules are imported on demand.
+``controller_for(geometry)`` picks the controller of the design's structure (what its body
+plan contains: ``kinematics.assemble.structure_of``), never by its type's name; the modules
+are imported on demand.
 """
 
 from __future__ import annotations
@@ -12,17 +13,23 @@ from importlib import import_module
 
 from gaits.base import Controller, DesignGeometry, _plain
 
-#: template -> (module, controller class)
+#: structure -> (module, controller class)
 CONTROLLERS: dict[str, tuple[str, str]] = {
-    "DifferentialDriveRobot": ("gaits.wheeled", "WheeledController"),
-    "SkidSteerRobot": ("gaits.wheeled", "WheeledController"),
-    "SnakeRobot": ("gaits.snake", "SnakeController"),
-    "Manipulator3DOF": ("gaits.manipulator", "ManipulatorController"),
-    "Manipulator6DOF": ("gaits.manipulator", "ManipulatorController"),
-    "HexapodRobot": ("gaits.legged", "LeggedController"),
-    "QuadrupedRobot": ("gaits.legged", "LeggedController"),
-    "HumanoidRobot": ("gaits.humanoid", "HumanoidController"),
+    "wheeled": ("gaits.wheeled", "WheeledController"),
+    "module_chain": ("gaits.snake", "SnakeController"),
+    "serial_arm": ("gaits.manipulator", "ManipulatorController"),
+    "multiped": ("gaits.legged", "LeggedController"),
+    "biped": ("gaits.humanoid", "HumanoidController"),
 }
+
+
+def structure(geometry: DesignGeometry) -> str:
+    """The structure of a design (``kinematics.assemble.structure_of`` of its body plan)."""
+    from kinematics.assemble import structure_of
+    from kinematics.partkinds import load
+    from kinematics.templates import PART_DATA, plan_of
+
+    return structure_of(plan_of(geometry.template), PART_DATA[0] or load())
 
 
 def controller_for(geometry: DesignGeometry, **options: object) -> Controller:
@@ -31,10 +38,12 @@ def controller_for(geometry: DesignGeometry, **options: object) -> Controller:
     ``options`` that the controller's constructor accepts are passed on (e.g.
     ``base_position``: where a fixed base stands in the world); others are ignored.
     """
-    entry = CONTROLLERS.get(geometry.template)
+    kind = structure(geometry)
+    entry = CONTROLLERS.get(kind)
     if entry is None:
         raise ValueError(
-            f"no controller for {geometry.template} (controllers: {', '.join(sorted(CONTROLLERS))})"
+            f"no controller for {geometry.template}: its structure is {kind or 'none known'} "
+            f"(controllers serve: {', '.join(sorted(CONTROLLERS))})"
         )
     module, name = entry
     cls = getattr(import_module(module), name)

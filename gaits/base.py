@@ -24,7 +24,8 @@ from typing import BinaryIO
 
 import numpy as np
 
-from kinematics.templates import Template, TemplateParams, build
+from kinematics.bodyplan import BodyPlan
+from kinematics.templates import Template, TemplateParams, build, register_plan
 
 
 def min_jerk(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -198,9 +199,13 @@ class DesignGeometry:
 
     @classmethod
     def from_record(cls, record: Mapping) -> DesignGeometry:
-        """From a design record with a structure (``parmor design --json``)."""
+        """From a design record with a structure (``parmor design --json``); the record's
+        body plan becomes its type's plan in this process (``register_plan``), so that a
+        bundle is rebuilt without the ontology that made it."""
         if record.get("template") is None:
             raise ValueError("the design record has no structure (designed with --conceptual?)")
+        if record.get("body_plan"):
+            register_plan(BodyPlan.from_dict(record["body_plan"]))
         return cls(
             robot_type=record["robot_type"],
             template=record["template"],

@@ -573,3 +573,27 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
         modules=MappingProxyType({k: v for k, v in modules.items() if v}),
         plan=plan,
     )
+
+
+#: The structures a body plan can have (what sizing and controllers are chosen by).
+STRUCTURES = ("serial_arm", "multiped", "biped", "module_chain", "wheeled")
+
+
+def structure_of(plan: BodyPlan, kinds: PartKinds) -> str:
+    """What a body plan is, by the roles of its parts (never by its type's name): wheels
+    on a chassis ("wheeled"), three or more legs ("multiped"), two legs ("biped"), a chain
+    of modules ("module_chain"), a chain of joints ending in an end effector on a fixed
+    base ("serial_arm"); "" for none of these."""
+    roles = [(_kind(kinds, n).role if kinds.of(n.kinds) else "") for n in plan.root.walk()]
+    legs = roles.count("leg")
+    if "wheel" in roles:
+        return "wheeled"
+    if legs >= 3:
+        return "multiped"
+    if legs == 2:
+        return "biped"
+    if "module" in roles:
+        return "module_chain"
+    if "joint" in roles and "end_effector" in roles:
+        return "serial_arm"
+    return ""

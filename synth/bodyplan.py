@@ -292,3 +292,38 @@ def install() -> None:
 
     if templates.PLAN_SOURCE is None:
         templates.PLAN_SOURCE = shipped_plan
+
+
+def current_kinds() -> PartKinds:
+    """The part kinds in use (``kinematics.templates.use_part_kinds``; the shipped ones)."""
+    import kinematics.templates as templates
+    from kinematics.partkinds import load as load_kinds
+
+    return templates.PART_DATA[0] or load_kinds()
+
+
+def structure_of_type(kb: KnowledgeBase, robot_type: str) -> tuple[BodyPlan, str]:
+    """(body plan, structure) of ``robot_type`` with the part kinds in use."""
+    from kinematics.assemble import structure_of
+
+    kinds = current_kinds()
+    plan = plan_of(kb, robot_type, kinds)
+    return plan, structure_of(plan, kinds)
+
+
+def parameter_defaults(kb: KnowledgeBase, robot_type: str) -> dict[str, float | None]:
+    """The structural parameters' defaults of ``robot_type`` (its structure's, with the
+    ontology's ``defaultParameter`` over them); {} when its body plan cannot be made (the
+    design step says why)."""
+    from synth.params import ontology_defaults, structure_defaults
+
+    try:
+        _, structure = structure_of_type(kb, robot_type)
+    except InputError:
+        return {}
+    if not structure:
+        return {}
+    return structure_defaults(structure, ontology_defaults(kb, ancestors(kb, robot_type)))
+
+
+install()

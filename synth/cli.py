@@ -10,11 +10,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import errno
+import io
 import math
 import os
+import signal
 import sys
-import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TextIO
 
 from adron.errors import AnswerNeeded, ExportError, InputError, ParmorError
@@ -550,24 +551,20 @@ def _designer(args: argparse.Namespace, err: TextIO, req=None):
         modules = SIZING_MODULES
         if args.command == "design" and (not args.no_verify or args.out):
             modules += MODEL_MODULES
-    grounded = threading.Event()
-    try:
-        reasoner = Reasoner(
-            kb,
-            args.rules,
-            args.allow_scripts,
-            bus_limit=limit,
-            while_grounding=(lambda: _prefetch(modules, kb, grounded)) if modules else None,
-            first=first,
-        )
-    finally:
-        grounded.set()
+    reasoner = Reasoner(
+        kb,
+        args.rules,
+        args.allow_scripts,
+        bus_limit=limit,
+        while_grounding=(lambda ready: _prefetch(modules, kb, ready)) if modules else None,
+        first=first,
+    )
     return Designer(kb, reasoner)
 
 
 #: What sizing imports, and what the models of a verification or a bundle import (trimesh
-#: and MuJoCo: 1-2 s), imported on a thread while the reasoner's worker grounds: the main
-#: thread only waits on a pipe then, and a large ontology grounds for seconds.
+#: and MuJoCo: 1-2 s on a loaded machine), imported while the reasoner's worker grounds:
+#: this process only waits on a pipe then, and a large ontology grounds for seconds.
 SIZING_MODULES = (
     "synth.structure",
     "synth.sizing",
@@ -591,39 +588,46 @@ MODEL_MODULES = (
 )
 #: What only a first design needs (the quadruped's sway programmes, cached on disk after:
 #: gaits/hexapod.py: _sway): imported only while the worker still grounds, so that a
-#: design that does not need it does not share the core with its import.
+#: design that does not need it does not wait for its import.
 IDLE_MODULES = ("scipy.sparse", "scipy.optimize", "scipy.interpolate")
 
 
-def _prefetch(names: Sequence[str], kb=None, grounded: threading.Event | None = None) -> None:
-    """Import ``names`` on a daemon thread (Ctrl-C does not wait for it), then index
-    ``kb``'s taxonomy for the actuator assignment (``synth.assign.prepare_knowledge``),
-    then, until ``grounded`` is set, import IDLE_MODULES. Every later fork of this process
-    (a worker, a process pool) first waits for it, so that no child starts with the import
-    lock held. An import or an index that fails is left to where it is used, which reports
-    it."""
+def _prefetch(names: Sequence[str], kb=None, ready: Callable[[], bool] | None = None) -> None:
+    """Import ``names``, then index ``kb``'s taxonomy for the actuator assignment
+    (``synth.assign.prepare_knowledge``), then import IDLE_MODULES until ``ready()`` (the
+    worker has replied). Run by the reasoner on this (the main) thread while its worker
+    grounds, not on a thread of its own: a thread still importing when the process forks
+    (the ground probe after a time limit) or exits (Ctrl-C, an early refusal) deadlocked
+    the fork or crashed the interpreter's shutdown (issue 23). Ctrl-C and the time limit
+    stop an import here as they stop anything else of this process. An import or an index
+    that fails otherwise is left to where it is used, which reports it."""
     import importlib
 
+    from synth.limits import LimitExceeded
+
     def load(name: str) -> None:
-        with contextlib.suppress(Exception):  # imported again, and reported, where used
+        try:
             importlib.import_module(name)
+        except LimitExceeded:  # the time limit rang during the import
+            raise
+        except Exception:  # noqa: BLE001 - imported again, and reported, where used
+            pass
 
-    def run() -> None:
-        for name in names:
-            load(name)
-        if kb is not None:
-            with contextlib.suppress(Exception):  # done again, and reported, where used
-                from synth.assign import prepare_knowledge
+    for name in names:
+        load(name)
+    if kb is not None:
+        try:
+            from synth.assign import prepare_knowledge
 
-                prepare_knowledge(kb)
-        for name in IDLE_MODULES if grounded is not None else ():
-            if grounded.is_set():
-                break
-            load(name)
-
-    thread = threading.Thread(target=run, name="parmor-prefetch", daemon=True)
-    os.register_at_fork(before=lambda: thread.join() if thread.is_alive() else None)
-    thread.start()
+            prepare_knowledge(kb)
+        except LimitExceeded:
+            raise
+        except Exception:  # noqa: BLE001 - done again, and reported, where used
+            pass
+    for name in IDLE_MODULES if ready is not None else ():
+        if ready():
+            break
+        load(name)
 
 
 def _warn_untranslated(kb, err: TextIO) -> None:
@@ -843,13 +847,10 @@ class _Sizer:
         self.catalog = load_checked_catalog(opts.catalog, designer)
 
     def size(self, c) -> dict:
-        from adron.errors import InfeasibleError
+        from adron.errors import InfeasibleError, InputError
         from export.record import alternatives_record, structure_record
-        from kinematics.templates import TEMPLATES
         from synth.structure import StructureDesigner, alternatives
 
-        if c.robot_type not in TEMPLATES:
-            return {"structure": None, "note": "no kinematic template: conceptual only"}
         try:
             sd = StructureDesigner(
                 self.designer.kb,
@@ -863,6 +864,8 @@ class _Sizer:
             alts = alternatives(sd, self.k, self.pareto)
         except InfeasibleError as e:
             return {"structure": None, "infeasible": str(e)}
+        except InputError as e:  # a candidate whose body plan cannot be sized: said, not sized
+            return {"structure": None, "note": str(e)}
         srec = structure_record(s)
         keep = ("mass_kg", "cost", "iterations", "params", "lengths_m", "wheel_radius_m")
         return {"structure": {k: srec[k] for k in keep}, "assignments": alternatives_record(alts)}
@@ -1307,29 +1310,53 @@ COMMANDS = {
 def main(
     argv: Sequence[str] | None = None, out: TextIO | None = None, err: TextIO | None = None
 ) -> int:
-    """Run the command line; returns the exit code (never raises for user errors)."""
+    """Run the command line; returns the exit code (never raises for user errors). Run as
+    the program (``argv`` None), it also stands in for standard streams the shell closed
+    (``>&-``), and ignores Ctrl-C once the exit code is decided: a Ctrl-C while the
+    interpreter shuts down would end it with a traceback and signal 2 instead."""
+    program = argv is None
+    if program:
+        _fill_closed_fds()
+    out = out or sys.stdout or _ClosedOutput()
+    err = err or sys.stderr or open(os.devnull, "w", encoding="utf-8")  # noqa: SIM115
+    try:
+        return _main(sys.argv[1:] if argv is None else list(argv), out, err)
+    except KeyboardInterrupt:  # before the command ran, or again while an exit was told
+        _tell(err, "parmor: interrupted\n")
+        return 130
+    except ParmorError as e:  # the time limit's alarm again while an exit was told
+        _tell(err, f"parmor: error: {_one_line(str(e))}\n")
+        return e.exit_code
+    finally:
+        if program:
+            with contextlib.suppress(ValueError, OSError):
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _main(argv: list[str], out: TextIO, err: TextIO) -> int:
     # Nothing parmor does renders through MuJoCo's OpenGL back-end. Without this, `import
     # mujoco` on Linux first runs a Python child to probe glfw's version (50-150 ms), and a
     # process killed meanwhile (a block-page run at its time limit) leaves that child to
     # print a BrokenPipeError traceback. Processes started from here inherit it.
     os.environ.setdefault("MUJOCO_GL", "disable")
-    out = out or sys.stdout
-    err = err or sys.stderr
-    argv = sys.argv[1:] if argv is None else list(argv)
     for arg in argv:  # a shell cannot pass one; a caller in Python can (open() would raise)
         if "\x00" in arg:
             err.write(f"parmor: error: argument {arg!r} contains a NUL character\n")
             return InputError.exit_code
     parser = build_parser()
-    try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            args = parser.parse_args(argv)
-    except SystemExit as e:  # argparse: --help (0) or a usage error (2)
-        return int(e.code or 0)
-    handler = cmd_ontology_check if args.command == "ontology" else COMMANDS[args.command]
-    limited = hasattr(args, "memory_limit")  # every command but blocks (its own --time-limit)
+    limited = False
     uncap = None
     try:
+        shown = io.StringIO()  # argparse ignores a write that fails: written below
+        try:
+            with contextlib.redirect_stdout(shown), contextlib.redirect_stderr(err):
+                args = parser.parse_args(argv)
+        except SystemExit as e:  # argparse: --help (0) or a usage error (2)
+            out.write(shown.getvalue())
+            out.flush()
+            return int(e.code or 0)
+        handler = cmd_ontology_check if args.command == "ontology" else COMMANDS[args.command]
+        limited = hasattr(args, "memory_limit")  # every command but blocks (its own limit)
         if limited:
             from synth import limits
 
@@ -1363,8 +1390,14 @@ def main(
         err.write("parmor: interrupted\n")
         return 130
     except OSError as e:
-        # the output went away (``| head -1``: a broken pipe) or is full (``> /dev/full``)
-        if e.errno not in (errno.EPIPE, errno.ENOSPC, errno.EDQUOT, errno.EIO):
+        # the output went away (``| head -1``: a broken pipe), is full (``> /dev/full``) or
+        # was closed (``>&-``)
+        if not isinstance(e, _OutputClosed) and e.errno not in (
+            errno.EPIPE,
+            errno.ENOSPC,
+            errno.EDQUOT,
+            errno.EIO,
+        ):
             raise
         _discard_output(out)
         why = "closed early (broken pipe)" if e.errno == errno.EPIPE else e.strerror
@@ -1375,6 +1408,47 @@ def main(
             uncap()
         if limited:
             limits.configure(limits.Limits())
+
+
+def _tell(err: TextIO, text: str) -> None:
+    """Write ``text`` to ``err`` if it can be written."""
+    with contextlib.suppress(OSError, ValueError):
+        err.write(text)
+        err.flush()
+
+
+class _OutputClosed(OSError):
+    """A write to a standard output the shell closed (``>&-``)."""
+
+
+class _ClosedOutput(io.TextIOBase):
+    """Standard output when the process started without one: each write fails, as a
+    write to a closed pipe would, so the command ends with exit 2 and says why."""
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, text: str) -> int:
+        if not text:
+            return 0
+        raise _OutputClosed(errno.EBADF, "standard output is closed")
+
+
+def _fill_closed_fds() -> None:
+    """Put /dev/null on each of the descriptors 0, 1 and 2 that the shell closed: else the
+    next file or pipe opened takes the number, and a child writes its output into it.
+    (Python leaves ``sys.stdout`` None then; ``main`` writes to a ``_ClosedOutput``.)"""
+    for fd in (0, 1, 2):
+        try:
+            os.fstat(fd)
+        except OSError:
+            with contextlib.suppress(OSError):
+                null = os.open(os.devnull, os.O_RDWR)
+                if null != fd:
+                    os.dup2(null, fd)
+                    os.close(null)
+    if sys.stdin is None:  # read as "no answer" (exit 3), as an empty input is
+        sys.stdin = open(os.devnull, encoding="utf-8")  # noqa: SIM115
 
 
 #: Longest error message printed, characters (a message quoting a huge input is cut).

@@ -166,7 +166,14 @@ class Designer:
         limits = self.kb.translation.located("structuralLimit")
         if not limits:
             return tuple(cands), {}
-        over = {c.robot_type: exceeded_limits(c, limits, physical) for c in cands}
+        from synth.bodyplan import parameter_defaults
+
+        over = {
+            c.robot_type: exceeded_limits(
+                c, limits, physical, lambda c=c: parameter_defaults(self.kb, c.robot_type)
+            )
+            for c in cands
+        }
         over = {t: w for t, w in over.items() if w}
         return tuple(c for c in cands if c.robot_type not in over), over
 

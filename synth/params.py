@@ -1,4 +1,4 @@
-"""Structural design parameters: names, dimensions, which robot types use them, defaults.
+"""Structural design parameters: names, dimensions, which structures use them, defaults.
 
 Conceptual parameters (``object_shape``) are declared in the ontology (``parameterName``);
 the physical ones below size the structure. Values take units (``--param reach=30cm``)
@@ -7,14 +7,14 @@ section" (``deflection``, ``slope``).
 
 | name | dimension | used by | default | range |
 |---|---|---|---|---|
-| payload | mass | all | kg: arm 0.2/0.1 (3/6-DOF); legs 0.1 (humanoid 0.05); wheels 0.5 | 0-50 kg |
-| reach | length | Manipulator3DOF, Manipulator6DOF | 0.25 m | 5 cm-2 m |
-| speed | speed | all but snake | m/s: arms 0.2 (tip), legged 0.05, wheeled 0.3 | 1 mm/s-10 m/s |
-| obstacle_height | length | HexapodRobot, QuadrupedRobot | 0.03 m | 1 mm-1 m |
-| load_area | area | DifferentialDriveRobot, SkidSteerRobot | 0.03 m^2 (300 cm^2) | 25 cm^2-1 m^2 |
-| height | length | HumanoidRobot | 0.40 m | 5 cm-2 m |
-| deflection | length | every type | catalog max_tip_deflection | 0.01 mm-10 cm |
-| slope | angle | DifferentialDriveRobot, SkidSteerRobot | catalog max_slope | 0-45 deg |
+| payload | mass | all | kg: serial arm 0.2 (Manipulator6DOF: 0.1, defaultParameter); multiped 0.1; biped 0.05; wheeled 0.5 | 0-50 kg |
+| reach | length | serial_arm | 0.25 m | 5 cm-2 m |
+| speed | speed | all but module_chain | m/s: arms 0.2 (tip), multiped and biped 0.05, wheeled 0.3 | 1 mm/s-10 m/s |
+| obstacle_height | length | multiped | 0.03 m | 1 mm-1 m |
+| load_area | area | wheeled | 0.03 m^2 (300 cm^2) | 25 cm^2-1 m^2 |
+| height | length | biped | 0.40 m | 5 cm-2 m |
+| deflection | length | every structure | catalog max_tip_deflection | 0.01 mm-10 cm |
+| slope | angle | wheeled | catalog max_slope | 0-45 deg |
 
 The range is where a design of ParMoR-like modules makes sense (see RANGES); a value
 outside it is refused (InputError, exit 2) before any work. Inside it, sizing may still
@@ -28,10 +28,13 @@ from dataclasses import dataclass
 
 from adron.errors import InputError
 
-MANIPULATORS = ("Manipulator3DOF", "Manipulator6DOF")
-LEGGED = ("HexapodRobot", "QuadrupedRobot")
-WHEELED = ("DifferentialDriveRobot", "SkidSteerRobot")
-ALL = (*MANIPULATORS, *LEGGED, "HumanoidRobot", "SnakeRobot", *WHEELED)
+# Parameters apply by the design's structure (``kinematics.assemble.structure_of``), never
+# by a robot type's name; a type may change a default with the ontology's
+# ``(defaultParameter TYPE "name" "quantity")`` (the nearest class's wins).
+MANIPULATORS = ("serial_arm",)
+LEGGED = ("multiped",)
+WHEELED = ("wheeled",)
+ALL = (*MANIPULATORS, *LEGGED, "biped", "module_chain", *WHEELED)
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,8 +56,8 @@ class ParamSpec:
         """Why the range stops where it does (shown when a value is refused)."""
         return RANGES[self.name][2]
 
-    def applies_to(self, robot_type: str) -> bool:
-        return robot_type in self.defaults
+    def applies_to(self, structure: str) -> bool:
+        return structure in self.defaults
 
 
 def _for(types: tuple[str, ...], value: float | None) -> dict[str, float | None]:
@@ -95,11 +98,10 @@ PARAMS: tuple[ParamSpec, ...] = (
         "mass",
         "mass carried: at the gripper (manipulators), on the trunk (mobile robots)",
         {
-            "Manipulator3DOF": 0.2,
-            "Manipulator6DOF": 0.1,
+            "serial_arm": 0.2,
             **_for(LEGGED, 0.1),
-            "HumanoidRobot": 0.05,
-            "SnakeRobot": 0.0,
+            "biped": 0.05,
+            "module_chain": 0.0,
             **_for(WHEELED, 0.5),
         },
     ),
@@ -116,7 +118,7 @@ PARAMS: tuple[ParamSpec, ...] = (
         {
             **_for(MANIPULATORS, 0.2),
             **_for(LEGGED, 0.05),
-            "HumanoidRobot": 0.05,
+            "biped": 0.05,
             **_for(WHEELED, 0.3),
         },
     ),
@@ -127,7 +129,7 @@ PARAMS: tuple[ParamSpec, ...] = (
         _for(LEGGED, 0.03),
     ),
     ParamSpec("load_area", "area", "area of the load platform (L1 x L2)", _for(WHEELED, 0.03)),
-    ParamSpec("height", "length", "standing height of the humanoid", {"HumanoidRobot": 0.40}),
+    ParamSpec("height", "length", "standing height of the humanoid", {"biped": 0.40}),
     ParamSpec(
         "deflection", "length", "allowed tip deflection of each printed link", _for(ALL, None)
     ),
@@ -159,11 +161,15 @@ def check_range(spec: ParamSpec, value: float, text: str) -> None:
 
 
 def exceeded_limits(
-    candidate, limits: Iterable[tuple[tuple, str]], given: Mapping[str, float]
+    candidate,
+    limits: Iterable[tuple[tuple, str]],
+    given: Mapping[str, float],
+    defaults=None,
 ) -> list[str]:
     """The ontology's ``structuralLimit`` facts ((type, name, quantity), "file:line:col") on
     ``candidate``'s class or any robot class above it that its parameters exceed (the given
-    values, else its defaults), as readable phrases."""
+    values, else ``defaults``: its structure's, a mapping or a function that gives it, asked
+    only when a limit applies), as readable phrases."""
     from adron.errors import OntologyError
     from adron.units import quantity
 
@@ -177,7 +183,9 @@ def exceeded_limits(
                 f"(known: {', '.join(sorted(BY_NAME))})"
             )
         spec = BY_NAME[name]
-        value = given.get(name, spec.defaults.get(candidate.robot_type))
+        if callable(defaults):
+            defaults = defaults()
+        value = given.get(name, (defaults or {}).get(name))
         if value is None:
             continue
         limit = quantity(text, spec.dimension, f"{where}: structuralLimit", allow_zero=True)
@@ -200,22 +208,62 @@ def parse_structural(items: Mapping[str, str]) -> dict[str, float]:
     return out
 
 
-def resolve(
-    robot_type: str, given: Mapping[str, float], design_defaults: Mapping[str, float]
-) -> tuple[dict[str, float], tuple[str, ...]]:
-    """The parameters of ``robot_type``: given values over defaults.
+def structure_defaults(
+    structure: str, overrides: Mapping[str, float] | None = None
+) -> dict[str, float | None]:
+    """The defaults (SI; None: from the catalog) of the parameters a structure uses, with
+    the ontology's ``defaultParameter`` values (``overrides``) over them."""
+    out = {s.name: s.defaults[structure] for s in PARAMS if s.applies_to(structure)}
+    out.update({k: v for k, v in (overrides or {}).items() if k in out})
+    return out
 
-    Returns (values, ignored): the names given that this type does not use.
+
+def ontology_defaults(kb, lineage) -> dict[str, float]:
+    """The ``(defaultParameter TYPE "name" "quantity")`` values for a type whose classes,
+    nearest first, are ``lineage``: the nearest class's wins; OntologyError for a name
+    that is no parameter or a quantity of the wrong dimension."""
+    from adron.errors import OntologyError
+    from adron.units import quantity
+
+    rank = {c: i for i, c in enumerate(lineage)}
+    best: dict[str, tuple[int, float]] = {}
+    for args, where in kb.translation.located("defaultParameter"):
+        if len(args) != 3 or args[0] not in rank:
+            continue
+        name, text = args[1], args[2]
+        if name not in BY_NAME:
+            raise OntologyError(
+                f"{where}: defaultParameter names {name!r}, not a parameter "
+                f"(known: {', '.join(sorted(BY_NAME))})"
+            )
+        spec = BY_NAME[name]
+        value = quantity(text, spec.dimension, f"{where}: defaultParameter", allow_zero=True)
+        if name not in best or rank[args[0]] < best[name][0]:
+            best[name] = (rank[args[0]], value)
+    return {k: v for k, (_, v) in best.items()}
+
+
+def resolve(
+    structure: str,
+    given: Mapping[str, float],
+    design_defaults: Mapping[str, float],
+    overrides: Mapping[str, float] | None = None,
+) -> tuple[dict[str, float], tuple[str, ...]]:
+    """The parameters of a design of ``structure``: given values over defaults (the
+    ontology's ``overrides`` over the structure's).
+
+    Returns (values, ignored): the names given that this structure does not use.
     ``design_defaults`` supplies the catalog-driven defaults (``deflection``, ``slope``).
     """
     values: dict[str, float] = {}
+    defaults = structure_defaults(structure, overrides)
     for spec in PARAMS:
-        if not spec.applies_to(robot_type):
+        if not spec.applies_to(structure):
             continue
         if spec.name in given:
             values[spec.name] = given[spec.name]
         else:
-            default = spec.defaults[robot_type]
+            default = defaults[spec.name]
             values[spec.name] = design_defaults[spec.name] if default is None else default
     ignored = tuple(sorted(n for n in given if n not in values))
     for name, v in values.items():

@@ -164,12 +164,6 @@ def run(designer: Designer, req: Request, opts: StructureOptions) -> Outcome:
     d = designer.step(req)
     if d.status != "designed" or opts.conceptual:
         return Outcome(d)
-    from kinematics.templates import TEMPLATES
-
-    if d.chosen.robot_type not in TEMPLATES:
-        return Outcome(
-            d, note=f"{d.chosen.robot_type} has no kinematic template; the design stays conceptual"
-        )
     from synth.structure import design_structure
 
     catalog = load_checked_catalog(opts.catalog, designer)

@@ -1,4 +1,4 @@
-"""Per-type sizing rules of the structure generator (the paper's sections 4.2.1 and 4.3):
+"""Sizing rules of the structure generator, one family per structure (the paper's sections 4.2.1 and 4.3):
 tentative link lengths from the requirements, and the worst-case load cases.
 
 Each family turns the resolved parameters (SI, see ``synth.params``) into
@@ -754,13 +754,12 @@ class Wheeled(Family):
         return {j: (float(drag * r), float(speed), "turning in place") for j in _movable(tmpl)}
 
 
+#: The sizing rules of each structure (``kinematics.assemble.structure_of``): chosen by what
+#: the design contains, never by its type's name.
 FAMILIES: dict[str, Family] = {
-    "Manipulator3DOF": Manipulators(),
-    "Manipulator6DOF": Manipulators(),
-    "HexapodRobot": Multipeds(),
-    "QuadrupedRobot": Multipeds(),
-    "HumanoidRobot": Humanoid(),
-    "SnakeRobot": Snake(),
-    "DifferentialDriveRobot": Wheeled(),
-    "SkidSteerRobot": Wheeled(),
+    "serial_arm": Manipulators(),
+    "multiped": Multipeds(),
+    "biped": Humanoid(),
+    "module_chain": Snake(),
+    "wheeled": Wheeled(),
 }

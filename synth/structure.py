@@ -42,12 +42,12 @@ from kinematics.dynamics import joint_wrenches, rnea
 from kinematics.spatial import link_part_volume
 from kinematics.templates import (
     FOOT_WIDTH_RATIO,
-    TEMPLATES,
     WHEEL_BORE,
     Segment,
     Template,
     TemplateParams,
     build,
+    register_plan,
 )
 from synth.assign import (
     ActuatorAssigner,
@@ -181,28 +181,16 @@ class Structure:
         return self.mass_kg - self.payload_kg
 
 
-def template_for(candidate: Candidate) -> str | None:
-    """The kinematic template of a robot type: its own, or that of the robot class above
-    it that has one (a user's HeavyHexapod sized as a HexapodRobot); None when none."""
-    if candidate.robot_type in TEMPLATES and candidate.robot_type in FAMILIES:
-        return candidate.robot_type
-    own = sorted(a for a in candidate.ancestors if a in TEMPLATES and a in FAMILIES)
-    return own[0] if own else None
-
-
-def module_class(model_joint_name: str, kind: str, group: str) -> str:
-    """The ontology class of the module that drives a template joint."""
-    if kind == "continuous":
-        return "ContinuousRotationServomotor"
-    if group == "gripper" or model_joint_name.endswith("gripper"):
-        return "GripperServomotor"
-    return "PositionServomotor"
+def module_class(tmpl: Template, joint: str) -> str:
+    """The ontology class of the module that drives a template joint: the part kind's
+    ``module`` (a position servo unless the part kinds name another)."""
+    return tmpl.modules.get(joint) or "PositionServomotor"
 
 
 def _slots(tmpl: Template) -> list[JointSlot]:
     m = tmpl.model
     return [
-        JointSlot(j.name, j.group, module_class(j.name, j.kind, j.group))
+        JointSlot(j.name, j.group, module_class(tmpl, j.name))
         for j in m.joints
         if m.q_index[m.joint(j.name)] >= 0
     ]
@@ -342,15 +330,22 @@ class StructureDesigner:
         symmetric: bool = True,
         objective: Sequence[str] = ("mass", "cost"),
     ) -> None:
-        template = template_for(candidate)
-        if template is None:
+        from kinematics.assemble import STRUCTURES
+        from synth.bodyplan import ancestors, structure_of_type
+        from synth.params import ontology_defaults
+
+        plan, structure = structure_of_type(kb, candidate.robot_type)
+        if structure not in FAMILIES:
             raise InputError(
-                f"{candidate.robot_type}: no kinematic template to size it "
-                f"(templates: {', '.join(TEMPLATES)})"
+                f"{plan.root.where or candidate.robot_type}: {candidate.robot_type} has no "
+                "sizing rules: its body plan is none of the structures parmor sizes "
+                f"({', '.join(STRUCTURES)}); see README 'Extending parmor'"
             )
-        self.type = template  # the template (a class the robot type is, itself or above)
+        register_plan(plan)
+        self.plan, self.structure = plan, structure
+        self.type = candidate.robot_type  # the template: the type's own body plan
         self.candidate, self.catalog, self.symmetric = candidate, catalog, symmetric
-        self.family: Family = FAMILIES[self.type]
+        self.family: Family = FAMILIES[structure]
         shares = [
             n / d
             for gait, n, d in kb.translation.relation("liftedModuleShare")
@@ -364,7 +359,9 @@ class StructureDesigner:
             "deflection": catalog.design.max_tip_deflection_m,
             "slope": catalog.design.max_slope_rad,
         }
-        self.values, self.ignored = resolve(self.type, params, defaults)
+        self.values, self.ignored = resolve(
+            structure, params, defaults, ontology_defaults(kb, ancestors(kb, candidate.robot_type))
+        )
         self.modules = max(candidate.dof, 1)
         probe = build(self.type, TemplateParams(modules=self.modules))
         self.slots = _slots(probe)

@@ -23,7 +23,8 @@ from export import meshes
 from export.assembly import build_assembly, with_payload
 from export.slicer import estimate
 from kinematics.spatial import box_inertia, combine_parts, sphere_inertia
-from kinematics.templates import DEFAULTS, PART_KINDS, TEMPLATES, TemplateParams, build
+from kinematics.templates import DEFAULTS, PART_KINDS, TemplateParams, build
+from tests.conftest import TEMPLATES
 from synth.solver import Query
 from synth.structure import Structure, design_structure
 

@@ -24,7 +24,8 @@ from kinematics.spatial import (
     transform_from_pq,
     tube_inertia,
 )
-from kinematics.templates import TEMPLATES, build
+from kinematics.templates import build
+from tests.conftest import TEMPLATES
 
 try:
     from tests import pin_ref

@@ -19,13 +19,13 @@ from kinematics.spatial import tube_mass
 from kinematics.templates import (
     DEFAULT_ACTUATOR_MASS,
     DEFAULTS,
-    TEMPLATES,
     Template,
     TemplateParams,
     build,
     default_lengths,
 )
 from synth.solver import Query
+from tests.conftest import TEMPLATES
 
 # --- agreement with the ontology ---------------------------------------------------------------
 
@@ -264,7 +264,7 @@ def test_snake_and_wheeled_geometry() -> None:
 
 
 def test_bad_input_lists_the_valid_names() -> None:
-    with pytest.raises(ValueError, match="unknown robot type 'Hexapod'; templates: .*HexapodRobot"):
+    with pytest.raises(ValueError, match="unknown robot type 'Hexapod': no body plan .known: .*HexapodRobot"):
         build("Hexapod")
     with pytest.raises(ValueError, match="has no length L9; lengths: L1, L2, L3"):
         build("Manipulator3DOF", TemplateParams(lengths={"L9": 0.1}))
