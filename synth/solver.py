@@ -1049,7 +1049,7 @@ class Reasoner:
         allow_scripts: bool = False,
         focus: str | None = None,
         bus_limit: int | None | Callable[[], int | None] = None,
-        while_grounding: Callable[[], object] | None = None,
+        while_grounding: Callable[[Callable[[], bool]], object] | None = None,
         first: Query | None | Callable[[], Query] = None,
     ) -> None:
         """Ground ``kb`` with the encodings and ``rules``. With ``focus`` (a robot class),
@@ -1057,11 +1057,13 @@ class Reasoner:
         ``bus_limit`` (the catalog bus's module limit, ``Bus.module_limit``), that is a
         robot's active module limit instead of the ontology's ``activeModuleLimit``; given
         as a function (parsing a catalog), it is called here while the worker filters the
-        ontology, and sent to it before it grounds. ``while_grounding`` is called once the
-        worker is forked, before this process waits for it (to start work of its own
-        meanwhile). ``first``: the query expected first (a command's request), grounded
-        with its externals as facts where that is quicker (``_Core``); any query may come.
-        Given as a function, it is called and sent as ``bus_limit`` is (after it)."""
+        ontology, and sent to it before it grounds. ``while_grounding`` is called on this
+        thread once the worker has what it needs, before this process waits for it (to do
+        work of its own meanwhile), with a function that tells whether the worker has
+        replied; Ctrl-C or the time limit inside it stops the worker as a wait would.
+        ``first``: the query expected first (a command's request), grounded with its
+        externals as facts where that is quicker (``_Core``); any query may come. Given as
+        a function, it is called and sent as ``bus_limit`` is (after it)."""
         self.kb = kb
         self._rules, self._allow_scripts = tuple(rules), allow_scripts
         files = read_rule_files(self._rules, allow_scripts)
@@ -1081,8 +1083,6 @@ class Reasoner:
             ),
             what,
         )
-        if while_grounding is not None:
-            while_grounding()
         try:
             sends = []
             if deferred:
@@ -1099,6 +1099,12 @@ class Reasoner:
         self._bus_limit = bus_limit
         with limits.stage("ground"):
             try:
+                if while_grounding is not None:
+                    try:
+                        while_grounding(self._worker.conn.poll)
+                    except BaseException:
+                        self._worker.close()
+                        raise
                 externals = self._worker.result("ground")
             except limits.LimitExceeded as e:  # name the files and the rule that grew
                 from synth.ground_probe import explained
