@@ -58,6 +58,7 @@ from pathlib import Path
 
 import numpy as np
 
+from adron.errors import InputError
 from gaits.base import Trajectory
 
 
@@ -132,6 +133,50 @@ def load_bundle_model(folder: str | Path):
     return load_files_model(files)
 
 
+def check_agrees(xml: str, record: object) -> None:
+    """InputError (exit 2) when ``design.json``'s ``record`` and the ``robot.xml`` text are
+    not of one design: another robot type (the MJCF model's name), or other joint names
+    (the MJCF's joints but the free one; each joint of the record is a joint there and each
+    of the model's is in the record). Files of two designs in one folder would otherwise be
+    simulated as one: the record's controller driving another robot's model. A record
+    or model too malformed to compare is left to the checks that read them."""
+    import xml.etree.ElementTree as ET
+
+    if not isinstance(record, Mapping):
+        return
+    try:
+        root = ET.fromstring(xml)
+    except ET.ParseError:
+        return  # load_mjcf says what is wrong with it
+    fix = "the two files are of different designs; write both with 'parmor design ... --out DIR'"
+    robot_type, model = record.get("robot_type"), root.get("model")
+    if isinstance(robot_type, str) and robot_type != model:
+        raise InputError(
+            f"design.json: robot_type {robot_type!r}, but robot.xml is a model of {model!r}: " + fix
+        )
+    joints = record.get("joints")
+    if not isinstance(joints, list):
+        return
+    named = {j.get("name") for j in joints if isinstance(j, Mapping)}
+    modelled = {j.get("name") for j in root.iter("joint") if j.get("type", "hinge") != "free"}
+    if named != modelled:
+
+        def shown(names: set) -> str:
+            listed = sorted(str(n) for n in names)
+            return ", ".join(listed[:6]) + (
+                f" and {len(listed) - 6} more" if len(listed) > 6 else ""
+            )
+
+        only = [
+            f"{shown(named - modelled)} only in design.json" if named - modelled else "",
+            f"{shown(modelled - named)} only in robot.xml" if modelled - named else "",
+        ]
+        raise InputError(
+            f"design.json: its joints and robot.xml's differ ({'; '.join(o for o in only if o)}): "
+            + fix
+        )
+
+
 def carrying_payload(xml: str, record: Mapping) -> str:
     """``robot.xml`` text with the design's payload (``record["payload"]``) as a point mass
     in each body that holds it, unless the models already carry it (``in_models``,
@@ -193,6 +238,7 @@ def load_files_model(files: Mapping[str, str | bytes]):
         record = readers.parse_json(
             raw.decode("utf-8") if isinstance(raw, bytes) else raw, "design.json"
         )
+        check_agrees(text, record)
         text = carrying_payload(text, record)
     meshes = {
         Path(k).name: (v.encode() if isinstance(v, str) else v)
