@@ -1244,9 +1244,13 @@ def cmd_run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             raise InputError(f"{path}:{e.lineno}:{e.colno}: {e.msg}") from None
         except (OSError, UnicodeDecodeError) as e:
             raise InputError(f"{path}: {e}") from None
-        result = run_program(args.dir, program, progress)
-    else:
-        result = run_python(args.dir, path, progress)
+    from synth.limits import stage
+
+    with stage("run"):  # the program and its behaviours: a limit here is not in 'parse'
+        if path.suffix == ".json":
+            result = run_program(args.dir, program, progress)
+        else:
+            result = run_python(args.dir, path, progress)
     if not args.animation:
         result.pop("animation")
     if args.json:

@@ -128,3 +128,32 @@ def test_a_tiny_memory_limit_blames_no_rule_with_0_atoms(tmp_path: Path) -> None
     assert "memory limit (1 MB, --memory-limit) reached while in stage ground" in r.stderr
     assert "0 atoms" not in r.stderr and "shapes.kif" not in r.stderr
     assert "Traceback" not in r.stderr
+
+
+# --- the stage a time limit names ---------------------------------------------------------
+
+
+def test_a_time_limit_in_a_programs_run_names_the_run_stage(cli, tmp_path: Path) -> None:
+    import io
+
+    from synth.cli import main
+
+    bundle = tmp_path / "cart"
+    err = io.StringIO()
+    code = main(["design", "driving", "--no-verify", "--out", str(bundle)], io.StringIO(), err)
+    assert code == 0, err.getvalue()
+    program = tmp_path / "loop.py"
+    program.write_text("def main(robot):\n    while True:\n        pass\n", encoding="utf-8")
+    r = cli("run", str(program), str(bundle), "--time-limit", "1")
+    assert r.code == 1, r.err
+    assert r.err == "parmor: error: time limit (1 s, --time-limit) reached while in stage run\n"
+    # a JSON program too: its behaviours run in the same stage (200 drives of 5 s each,
+    # 1000 s simulated: minutes of work, far past the limit on any machine)
+    looping = tmp_path / "p.json"
+    looping.write_text(
+        '{"program": [{"repeat": 4, "body": [{"repeat": 50, "body": [{"do": "driving"}]}]}]}',
+        encoding="utf-8",
+    )
+    r = cli("run", str(looping), str(bundle), "--time-limit", "1")
+    assert r.code == 1, r.err
+    assert r.err == "parmor: error: time limit (1 s, --time-limit) reached while in stage run\n"
