@@ -423,8 +423,30 @@ class GaitPattern:
     phases: Mapping[str, float]
 
 
+class _GaitsByLegs(Mapping[int, tuple[str, ...]]):
+    """Gaits by leg count: a hexapod's tripod, ripple and wave, a quadruped's crawl, and
+    for any other count of at least four legs (a pentapod, an octopod) the wave, one leg
+    at a time (statically stable for any count: ``1 - 1/n`` of the legs stand), with the
+    ripple for even counts (each side a trailing-to-leading wave)."""
+
+    _KNOWN = {6: ("tripod", "ripple", "wave"), 4: ("crawl",)}
+
+    def __getitem__(self, n: int) -> tuple[str, ...]:
+        if n in self._KNOWN:
+            return self._KNOWN[n]
+        if isinstance(n, int) and n >= 5:
+            return ("ripple", "wave") if n % 2 == 0 else ("wave",)
+        raise KeyError(n)
+
+    def __iter__(self):
+        return iter(self._KNOWN)
+
+    def __len__(self) -> int:
+        return len(self._KNOWN)
+
+
 #: Gaits by leg count.
-GAITS: Mapping[int, tuple[str, ...]] = {6: ("tripod", "ripple", "wave"), 4: ("crawl",)}
+GAITS: Mapping[int, tuple[str, ...]] = _GaitsByLegs()
 
 
 def _ranked(

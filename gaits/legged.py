@@ -86,6 +86,12 @@ RUN_GAITS: dict[int, tuple[str, float | None]] = {
     6: ("tripod", None),
     4: ("crawl", MIN_CRAWL_DUTY),
 }
+
+
+def run_gait(legs: int) -> tuple[str, float | None]:
+    """Running's gait for ``legs`` legs: ``RUN_GAITS``, else the first gait of the count
+    (``GAITS``) with its own duty."""
+    return RUN_GAITS.get(legs) or (GAITS[legs][0], None)
 #: Duties tried for running, from the shortest to the gait's own.
 RUN_DUTY_STEPS = 3
 #: Gait plans kept in memory (see ``LeggedController._plan``).
@@ -241,9 +247,9 @@ class LeggedController(Controller):
             Parameter("stride", "float", 0.0, "stride (0: automatic)", "m", low=0.0, high=10.0),
             step,
         )
-        run_gait, run_duty = RUN_GAITS[len(self.legs)]
-        duty = run_duty or gait_pattern(run_gait, self.legs).duty
-        own = gait_pattern(run_gait, self.legs).duty
+        run_name, run_duty = run_gait(len(self.legs))
+        duty = run_duty or gait_pattern(run_name, self.legs).duty
+        own = gait_pattern(run_name, self.legs).duty
         duties = f"{duty:.2f}" if abs(duty - own) < 1e-9 else f"{duty:.2f} (up to {own:.2f})"
         out = {
             "walking": BehaviorSpec(
@@ -251,7 +257,7 @@ class LeggedController(Controller):
             ),
             "running": BehaviorSpec(
                 "running",
-                f"Travel a straight line fast: a {run_gait} of duty {duties} at "
+                f"Travel a straight line fast: a {run_name} of duty {duties} at "
                 f"{RUN_SPEED_FACTOR:g}x the walking speed within the actuators' speeds "
                 "(statically stable, no flight phase).",
                 tuple(p for p in walk if p.name != "gait"),
@@ -309,7 +315,7 @@ class LeggedController(Controller):
             ROUGH_STEP_FACTOR if rough else 1.0
         )
         if name == "running":
-            gait, duty = RUN_GAITS[len(self.legs)]
+            gait, duty = run_gait(len(self.legs))
             own = gait_pattern(gait, self.legs).duty
             # the shortest duty first; longer ones (up to the gait's own) when a design's
             # trunk cannot sway far enough for it

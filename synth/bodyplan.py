@@ -223,7 +223,7 @@ def plan_of(kb: KnowledgeBase, robot_type: str, kinds: PartKinds) -> BodyPlan:
             if m in parent:
                 raise OntologyError(
                     f"{w}: the connectedTo links of {robot_type} close a cycle through "
-                    f"{m[0]} and {n[0]}; a body plan is a tree"
+                    f"{m[0]} #{m[1] + 1} and {n[0]} #{n[1] + 1}; a body plan is a tree"
                 )
             parent[m] = n
             order.append(m)

@@ -50,6 +50,14 @@ def _structure_options(p: argparse.ArgumentParser) -> None:
         "dynamixel: ROBOTIS DYNAMIXEL X servos) or your own file",
     )
     g.add_argument(
+        "--parts",
+        action="append",
+        default=[],
+        metavar="FILE.toml",
+        help="part kinds of your own (bodies, joints, mounts of a part class; README: Part "
+        "kinds), added to or replacing the shipped ones (repeatable)",
+    )
+    g.add_argument(
         "--conceptual", action="store_true", help="stop after the conceptual design (no sizing)"
     )
     g.add_argument(
@@ -526,6 +534,20 @@ suite format (TOML; paths are relative to the suite file):
 """
 
 
+def use_parts(files) -> None:
+    """Assemble with the shipped part kinds and ``files`` (``--parts``); InputError (exit
+    2) naming the file and the key of a part kind that cannot be used."""
+    from adron.errors import InputError
+    from kinematics.partkinds import PartKindError
+    from kinematics.partkinds import load as load_kinds
+    from kinematics.templates import use_part_kinds
+
+    try:
+        use_part_kinds(load_kinds(files) if files else None)
+    except PartKindError as e:
+        raise InputError(str(e)) from None
+
+
 def _designer(args: argparse.Namespace, err: TextIO, req=None):
     """Load the knowledge base and ground it; returns a Designer. ``req``: the command's
     request, whose query the reasoner then grounds for first (``Reasoner``'s ``first``)."""
@@ -536,6 +558,7 @@ def _designer(args: argparse.Namespace, err: TextIO, req=None):
 
     with stage("parse"):
         kb = load(args.ontology)
+        use_parts(getattr(args, "parts", ()))
     _warn_untranslated(kb, err)
     # checked while the worker filters the ontology (a large one's abilities take a while)
     first = (lambda: query_for(kb, req)) if req is not None else None

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from adron.catalog import I2C_DEFAULT, Actuator, Bus, Catalog, catalog_facts
-from adron.errors import InfeasibleError, InputError
+from adron.errors import InfeasibleError, InputError, OntologyError
 from adron.kb import KnowledgeBase
 from kinematics.dynamics import joint_wrenches, rnea
 from kinematics.spatial import link_part_volume
@@ -363,7 +363,12 @@ class StructureDesigner:
             structure, params, defaults, ontology_defaults(kb, ancestors(kb, candidate.robot_type))
         )
         self.modules = max(candidate.dof, 1)
-        probe = build(self.type, TemplateParams(modules=self.modules))
+        from kinematics.assemble import AssemblyError
+
+        try:
+            probe = build(self.type, TemplateParams(modules=self.modules))
+        except AssemblyError as e:
+            raise OntologyError(str(e)) from None
         self.slots = _slots(probe)
         # the conceptual design's FingerModules shared among the template's grippers
         fingers = dict(candidate.passive).get("FingerModule", 0)
