@@ -113,12 +113,39 @@ def facts(tr: Translation, relation: str, arity: int) -> list[tuple[str, ...]]:
     return out
 
 
+#: The relations whose ground facts parmor reads by position, with the shape of a fact:
+#: one of another arity (``(subclass Foo)``) is an OntologyError naming it.
+SHAPES: dict[str, tuple[str, ...]] = {
+    "subclass": ("CLASS", "PARENT"),
+    "subrelation": ("RELATION", "PARENT"),
+    "extensiblePart": ("ROBOT", "PART"),
+    "defaultLength": ("CLASS", "NAME", "LENGTH"),
+    "liftedModuleShare": ("GAIT", "N", "D"),
+}
+
+
+def check_arities(tr: Translation) -> None:
+    """OntologyError (file:line:col) for the first ground fact of a relation of
+    :data:`SHAPES` with another number of arguments; where it is is looked up only then."""
+    for relation, shape in SHAPES.items():
+        for i, args in enumerate(tr.relation(relation)):
+            if len(args) != len(shape):
+                where = tr.located(relation)[i][1]
+                shown = " ".join([relation, *map(str, args)])
+                raise OntologyError(
+                    f"{where}: ({shown}): expected ({' '.join([relation, *shape])}), "
+                    f"{len(shape)} arguments, not {len(args)}"
+                )
+
+
 def check_taxonomy(tr: Translation) -> None:
-    """OntologyError when the ground ``subclass`` facts form a cycle, such as
+    """OntologyError when a fact parmor reads by position has another arity
+    (:func:`check_arities`), or when the ground ``subclass`` facts form a cycle, such as
     ``(subclass Robot HexapodRobot)`` beside the shipped ``HexapodRobot`` under ``Robot``:
     the message names the cycle's last-loaded fact (a user's file comes after the shipped
     ones). Iterative depth-first search over the names only, linear in the facts; where
     the facts are is looked up only for a cycle found."""
+    check_arities(tr)
     graph: dict[str, list[str]] = {}
     for args in tr.relation("subclass"):
         a, b = args[0], args[1]
