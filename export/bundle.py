@@ -203,7 +203,10 @@ def _trajectories(record: dict) -> dict:
     from gaits import controller_for
     from gaits.base import DesignGeometry
 
-    controller = controller_for(DesignGeometry.from_record(record))
+    try:
+        controller = controller_for(DesignGeometry.from_record(record))
+    except ValueError:  # no controller serves this structure yet: no trajectories to write
+        return {}
     out = {}
     for name in controller.listed(record.get("abilities", ())):
         if not _SAFE_BEHAVIOR.fullmatch(name):
@@ -525,6 +528,7 @@ def _carry(target: Path, tmp: Path, plan: _Plan, shown: str) -> dict[str, tuple[
     made, with their modes at the end); returns relative name -> (device, inode) of each
     link made. ExportError naming an entry that cannot be linked."""
     made: list[tuple[Path, int]] = []
+    ready: set[str] = set()  # folders of tmp known to exist
     carried = {}
     for rel in plan.keep:
         parts = rel.split("/")
@@ -533,13 +537,15 @@ def _carry(target: Path, tmp: Path, plan: _Plan, shown: str) -> dict[str, tuple[
                 sub = "/".join(parts[:i])
                 st = plan.stats[sub]
                 if i < len(parts) or stat.S_ISDIR(st.st_mode):
-                    d = tmp / sub
-                    if not os.path.lexists(d):
-                        d.mkdir()
-                        made.append((d, stat.S_IMODE(st.st_mode)))
+                    if sub not in ready:
+                        d = tmp / sub
+                        if not os.path.lexists(d):
+                            d.mkdir()
+                            made.append((d, stat.S_IMODE(st.st_mode)))
+                        ready.add(sub)
                     continue
                 os.link(target / rel, tmp / rel, follow_symlinks=False)
-                got = (tmp / rel).lstat()
+                got = os.lstat(tmp / rel)
                 carried[rel] = (got.st_dev, got.st_ino)
         except OSError as e:
             raise ExportError(
