@@ -14,14 +14,19 @@ stdin and stdout:
   when ok; ``response`` holds every response field of the service, ``message`` the
   reason of a refusal: the field, its value and its range).
 
-It ends at the end of its input, so it never outlives the node. A float field that is
-NaN and a string field that is empty take the parameter's default.
+It ends at the end of its input, so it never outlives the node, and quietly when the node
+is gone (its output closed). It ignores SIGINT: roslaunch sends it to the node's whole
+process group on shutdown, and the node ends its worker itself (closes its input, or kills
+it). A float field that is NaN and a string field that is empty take the parameter's
+default.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
+import signal
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -192,6 +197,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if len(args) != 1:
         out.write(json.dumps({"ready": False, "message": "usage: rosworker PACKAGE_DIR"}) + "\n")
         return 2
+    _quiet_signals()
     _limit_memory()
     try:
         worker = Worker.load(args[0])
@@ -203,10 +209,31 @@ def main(argv: Sequence[str] | None = None) -> int:
         out.flush()
         return 2
     hello = {"ready": True, "robot": worker.iface["robot"], "services": sorted(worker.services)}
-    out.write(json.dumps(hello) + "\n")
-    out.flush()
-    serve(worker, sys.stdin, out)
+    try:
+        out.write(json.dumps(hello) + "\n")
+        out.flush()
+        serve(worker, sys.stdin, out)
+    except BrokenPipeError:  # the node is gone: nobody to answer; end without a word
+        _drop_output(out)
     return 0
+
+
+def _quiet_signals() -> None:
+    """SIGINT ignored (the node ends its worker; see the module docstring), SIGTERM the
+    default (end at once, no traceback)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _drop_output(out: IO[str]) -> None:
+    """Point ``out``'s descriptor at /dev/null, so that the interpreter's last flush of
+    what is still buffered for a closed pipe does not print an error."""
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, out.fileno())
+        os.close(null)
+    except (OSError, ValueError):
+        pass
 
 
 if __name__ == "__main__":

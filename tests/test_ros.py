@@ -683,3 +683,59 @@ def test_the_launch_file_runs_the_node(ros, packages) -> None:
     assert ros.nodes["arm"].poll() is None
     assert sys.executable == iface["worker"]["python"]
     assert math.isfinite(iface["plan_timeout_s"])
+
+
+def worker_pids(root: int) -> list[int]:
+    """The parmor workers below process ``root``."""
+    out = []
+    for pid in descendants(root):
+        try:
+            cmdline = Path(f"/proc/{pid}/cmdline").read_bytes()
+        except OSError:
+            continue
+        if b"program.rosworker" in cmdline and alive(pid):
+            out.append(pid)
+    return out
+
+
+def test_a_worker_that_died_is_replaced_and_roslaunch_stops_quietly(ros, bundles, tmp_path):
+    """Cases built to fail: the worker killed while idle (SIGKILL), then ended by SIGTERM;
+    each next call starts a new worker and is answered. roslaunch's shutdown (SIGINT to the
+    node's process group, the worker included) leaves no traceback in the log."""
+    folder = tmp_path / "cart"
+    shutil.copytree(bundles["cart"], folder, ignore=shutil.ignore_patterns("ros"))
+    assert parmor("ros", str(folder), "--name", "phoenix_cart")[0] == 0
+    path = folder / "ros" / "parmor_phoenix_cart"
+    env = ros.package_env(path)
+    launch = ros.start(["roslaunch", "parmor_phoenix_cart", "parmor.launch"], "phoenix", env)
+    log = ros.home / "phoenix.log"
+    wait_for("turning", lambda: ros.has_service("/phoenix_cart/turning"), launch, log)
+
+    def call() -> str:
+        proc = subprocess.run(
+            ["rosservice", "call", "/phoenix_cart/turning", "{angle: 0.5, seconds: 0.0}"],
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=300,
+        )
+        assert proc.returncode == 0, proc.stderr
+        return proc.stdout
+
+    assert "ok: True" in call()
+    for sig in (signal.SIGKILL, signal.SIGTERM):
+        (worker,) = wait_for("the worker", lambda: worker_pids(launch.pid), launch, log)
+        os.kill(worker, sig)
+        end = time.monotonic() + WAIT_S
+        while alive(worker) and time.monotonic() < end:
+            time.sleep(0.1)
+        assert not alive(worker)
+        reply = call()
+        assert "ok: True" in reply, reply
+        assert worker not in worker_pids(launch.pid)
+    assert launch.poll() is None
+    ros.stop(launch)
+    assert launch.returncode is not None
+    text = log.read_text(errors="replace")
+    for word in ("Traceback", "KeyboardInterrupt", "Broken pipe", "BrokenPipeError"):
+        assert word not in text, text[-3000:]

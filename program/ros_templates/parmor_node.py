@@ -75,8 +75,9 @@ START_TIMEOUT_S = 120.0
 
 
 class Worker:
-    """The parmor worker process: one request at a time, restarted when it fails; one
-    that gives no answer within ``timeout`` s is killed."""
+    """The parmor worker process: one request at a time. One that gives no answer within
+    ``timeout`` s is killed; one that failed in any way (ended while idle or during a
+    call, answered garbage) is replaced by a new one at the next call."""
 
     def __init__(self, command, env, timeout):
         self.command, self.env, self.timeout = command, env, timeout
@@ -95,7 +96,11 @@ class Worker:
         )
         self.lines = queue.Queue()
         threading.Thread(target=self._read, args=(self.proc, self.lines), daemon=True).start()
-        hello = self._line(START_TIMEOUT_S)
+        try:
+            hello = self._line(START_TIMEOUT_S)
+        except Exception:
+            self.stop(kill=True)
+            raise
         if not hello.get("ready"):
             self.stop()
             raise WorkerError(
@@ -126,12 +131,30 @@ class Worker:
             return self._start()
 
     def call(self, request):
+        """The worker's reply to ``request``. A worker that ended since the last call
+        (killed, out of memory) is replaced before the request goes out; one that fails
+        during the call (ends, answers garbage, or gives no answer in time) is stopped and
+        the error raised: the next call starts a new one."""
+        line = json.dumps(request) + "\n"
         with self.lock:
-            if self.proc is None:
-                self._start()
-            self.proc.stdin.write(json.dumps(request) + "\n")
-            self.proc.stdin.flush()
-            return self._line(self.timeout)
+            for attempt in (1, 2):
+                if self.proc is not None and self.proc.poll() is not None:
+                    self.stop(kill=True)  # it ended while idle
+                if self.proc is None:
+                    self._start()
+                try:
+                    self.proc.stdin.write(line)
+                    self.proc.stdin.flush()
+                    break
+                except OSError:  # it ended between the check and the write
+                    self.stop(kill=True)
+                    if attempt == 2:
+                        raise
+            try:
+                return self._line(self.timeout)
+            except Exception:
+                self.stop(kill=True)
+                raise
 
     def stop(self, kill=False):
         """End the worker: close its input (it ends at EOF), or kill it."""
