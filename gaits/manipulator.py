@@ -443,19 +443,23 @@ class ManipulatorController(Controller):
         max_acceleration: float = MAX_ACCELERATION,
         elbow: str = "up",
     ) -> None:
-        if geometry.template not in _ARMS:
-            raise ValueError(
-                f"ManipulatorController drives {', '.join(_ARMS)}, not {geometry.template}"
-            )
         super().__init__(geometry)
+        chain = tuple(n for n in self.template.model.q_names if n != _GRIPPER)
+        if chain not in _ARMS.values():
+            raise ValueError(
+                f"ManipulatorController drives serial arms of "
+                f"{' or '.join(str(len(c)) for c in _ARMS.values())} joints "
+                f"({'; '.join(', '.join(c) for c in _ARMS.values())}), not {geometry.template}'s "
+                f"{len(chain)} ({', '.join(chain)})"
+            )
         if not 0 < speed_margin <= 1:
             raise ValueError(f"speed_margin must be in (0, 1], got {speed_margin}")
         if not max_acceleration > 0:
             raise ValueError(f"max_acceleration must be > 0, got {max_acceleration}")
         if elbow not in ("up", "down"):
             raise ValueError(f"elbow: expected 'up' or 'down', got {elbow!r}")
-        self.six = geometry.template == "Manipulator6DOF"
-        self.arm = _ARMS[geometry.template]
+        self.six = chain == _ARMS["Manipulator6DOF"]
+        self.arm = chain
         self.lengths = dict(self.template.lengths)
         self.base_position = np.array(base_position, dtype=float)
         if self.base_position.shape != (3,) or not np.all(np.isfinite(self.base_position)):
