@@ -19,7 +19,7 @@ for p in (REPO, REPO / "bench"):
 
 from bench_assign import bench_assign  # noqa: E402
 from bench_chain import bench_chain  # noqa: E402
-from bench_links import bench_links  # noqa: E402
+from bench_links import bench_chain_links, bench_links  # noqa: E402
 from bench_onto import bench_onto  # noqa: E402
 from bench_parse import bench_parse  # noqa: E402
 from bench_ray import bench_ray  # noqa: E402
@@ -184,6 +184,7 @@ def main() -> int:
         bench_queries(),
         bench_rnea(),
         bench_links(),
+        bench_chain_links(),
         bench_structures(),
         bench_assign(),
         bench_sizing(),

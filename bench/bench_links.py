@@ -1,7 +1,9 @@
 """Benchmark of the link sizing: closed form (KKT) against the SLSQP cross-check.
 
 Usage: ``python bench/bench_links.py [N]`` (default N = 400 random cases, a quarter per
-branch). ``bench_links`` returns the report lines for ``bench/bench.py``.
+branch). ``bench_links`` returns the report lines for ``bench/bench.py``, and so does
+``bench_chain_links``: a serial chain's links sized one by one (even shares of the tip
+deflection budget) against the joint convex program of ``synth.chain_links``.
 
 Both solvers get the same seeded cases. Throughput is calls per second over the whole
 set, best of 3 runs for the closed form and one run for SLSQP (it is ~1000x slower).
@@ -86,10 +88,91 @@ def bench_links(n: int = 400) -> list[str]:
     ]
 
 
+CHAIN_E, CHAIN_ALLOWED, CHAIN_KT = 2.3e9, 20e6, 1.8  # the shipped catalog: PLA, 40 MPa / 2
+
+
+def chain_cases(n: int, seed: int = SEED) -> list[tuple[list, list]]:
+    """``n`` seeded serial chains of 2-6 links for ``chain_links``: the shipped catalog's
+    section (r2max 20 mm, wall 1.2 mm, PLA, Kt 1.8), lengths 40-300 mm, 1-3 random loads a
+    link (none overstressed in its strongest tube) and a budget the per-link sizing can
+    meet (1.05-30 times n x the largest share of a stiffest tube)."""
+    from synth.chain_links import Chain, ChainLink, deflection_coefficient, stress_floor
+
+    rng = np.random.default_rng(seed)
+    out = []
+    while len(out) < n:
+        links: list = []
+        size = int(rng.integers(2, 7))
+        while len(links) < size:
+            length = rng.uniform(0.04, 0.3)
+            force, moment = 10 ** rng.uniform(-1.0, 1.3), 10 ** rng.uniform(-2.0, 0.3)
+            loads = tuple(
+                np.concatenate([rng.normal(size=3) * force, rng.normal(size=3) * moment])
+                for _ in range(rng.integers(1, 4))
+            )
+            link = ChainLink(f"L{len(links) + 1}", TubeLimits(0.02, 0.0012, length, length), loads)
+            try:
+                stress_floor(link, CHAIN_ALLOWED, CHAIN_KT)
+            except Exception:  # overstressed whatever its tube: draw another
+                continue
+            links.append(link)
+        lengths = [lk.length for lk in links]
+        best = max(
+            max(
+                deflection_coefficient(ld, lk.length, sum(lengths[i + 1 :]), CHAIN_E)
+                for ld in lk.loads
+            )
+            / (np.pi / 4.0 * 0.02**4)
+            for i, lk in enumerate(links)
+        )
+        budget = size * best * 10 ** rng.uniform(0.02, 1.5)
+        out.append((links, [Chain(tuple(lk.name for lk in links), budget)]))
+    return out
+
+
+def bench_chain_links(n: int = 100) -> list[str]:
+    """Time a chain for per-link sizing (even shares of the tip budget, then stress) and
+    for the joint convex program (cvxpy + Clarabel), best of 3 over ``n`` seeded chains,
+    and the program's saving; the first call's cost (cvxpy's import, compiling) apart."""
+    work = chain_cases(n)
+    t0 = time.perf_counter()
+    from synth.chain_links import chain_tubes, per_link_tubes
+
+    chain_tubes(*work[0], CHAIN_E, CHAIN_ALLOWED, CHAIN_KT)
+    cold = time.perf_counter() - t0
+    for links, chains in work:  # compile every shape once (2-6 links) before timing
+        chain_tubes(links, chains, CHAIN_E, CHAIN_ALLOWED, CHAIN_KT)
+    best = {}
+    for name, fn in (("per-link", per_link_tubes), ("joint", chain_tubes)):
+        best[name] = float("inf")
+        for _ in range(3):
+            t0 = time.perf_counter()
+            got = [fn(links, chains, CHAIN_E, CHAIN_ALLOWED, CHAIN_KT) for links, chains in work]
+            best[name] = min(best[name], time.perf_counter() - t0)
+        if name == "per-link":
+            alone = got
+        else:
+            joint = got
+    saving = [1.0 - j.volume_m3 / a.volume_m3 for j, a in zip(joint, alone, strict=True)]
+    its = [j.iterations for j in joint]
+    per, both = best["per-link"] / n * 1e3, best["joint"] / n * 1e3
+    return [
+        f"chain link sizing, {n} random chains of 2-6 links (seed {SEED})",
+        f"  per-link (even shares)   {per:8.2f} ms a chain",
+        f"  joint program (Clarabel) {both:8.2f} ms a chain  ({both / per:.1f}x per-link; "
+        f"{min(its)}-{max(its)} solves, mean {np.mean(its):.1f}); first call {cold:.2f} s "
+        "(cvxpy import, compile)",
+        f"  volume saved by the joint program: mean {np.mean(saving):.1%}, "
+        f"max {max(saving):.1%}, min {min(saving):.1e}",
+    ]
+
+
 def main(argv: list[str]) -> int:
     """Print the benchmark lines (``argv[1]``: number of cases)."""
     n = int(argv[1]) if len(argv) > 1 else 400
     for line in bench_links(n):
+        print(line)
+    for line in bench_chain_links():
         print(line)
     return 0
 
