@@ -444,3 +444,28 @@ def test_serial_chains_of_a_tree() -> None:
     # tips given: the leg's foot touches 3 cm below its origin
     got = serial_chains(model, segs, {"foot": (0.0, 0.0, -0.03), "grip_a": (0.02, 0.0, 0.0)})
     assert dict(got) == {("L3",): pytest.approx((0.03,)), ("L1", "L2"): pytest.approx((0.18, 0.03))}
+
+
+def test_a_failed_solve_keeps_the_feasible_start(monkeypatch: pytest.MonkeyPatch) -> None:
+    """When Clarabel returns no solution the program keeps its start, the per-link
+    sizing (feasible), instead of failing or returning nothing."""
+    from types import SimpleNamespace
+
+    import synth.chain_links as chain_links
+
+    def failing(n: int, m: int):
+        params = {
+            k: SimpleNamespace(value=None)
+            for k in ("weight", "coeff", "lo", "hi", "t_hi", "a", "b", "slope", "icpt")
+        }
+        problem = SimpleNamespace(status="solver_error", solve=lambda *a, **k: None)
+        return problem, SimpleNamespace(value=None), params
+
+    rng = np.random.default_rng(11)
+    links, chain = random_chain(rng, 3)
+    monkeypatch.setattr(chain_links, "_program", failing)
+    kept = chain_tubes(links, [chain], E, ALLOWED, KT)
+    alone = per_link_tubes(links, [chain], E, ALLOWED, KT)
+    assert kept.iterations == 1
+    assert kept.volume_m3 == pytest.approx(alone.volume_m3, rel=1e-12)
+    check_design(kept, links, [chain])
