@@ -19,7 +19,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from adron.errors import ExportError
+from adron import readers
+from adron.errors import ExportError, InputError
 
 if TYPE_CHECKING:
     from adron.catalog import Catalog
@@ -411,9 +412,11 @@ def _read_manifest(folder: Path, shown: str) -> tuple[bytes | None, dict[str, st
             "yourself, or choose another folder"
         )
     try:
-        body = json.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as e:
+        body = readers.parse_json(raw.decode("utf-8"), where)  # nesting and numbers bounded
+    except UnicodeDecodeError as e:
         raise ExportError(f"{where}: not parmor's list of its files ({e})") from None
+    except InputError as e:
+        raise ExportError(f"{e} (not parmor's list of its files)") from None
     listed = body.get("files") if isinstance(body, dict) else None
     if (
         not isinstance(body, dict)

@@ -189,3 +189,16 @@ def test_a_hostile_snapshot(cli, tmp_path: Path) -> None:
     for hostile in sorted(HOSTILE):
         snap.write_text(HOSTILE[hostile]["json"], encoding="utf-8")
         refused(cli("regress", str(suite)), snap)
+
+
+@pytest.mark.parametrize("hostile", sorted(HOSTILE))
+def test_a_hostile_marker_of_an_output_folder(cli, tmp_path: Path, hostile: str) -> None:
+    """``--out DIR --force`` reads DIR/.parmor, parmor's JSON list of the files it wrote."""
+    out = tmp_path / "b"
+    out.mkdir()
+    marker = out / ".parmor"
+    marker.write_text(HOSTILE[hostile]["json"], encoding="utf-8")
+    (out / "mine.txt").write_text("mine", encoding="utf-8")
+    argv = ["design", "driving", "--conceptual", "--no-input", "--out", str(out), "--force"]
+    refused(cli(*argv), marker)
+    assert sorted(p.name for p in out.iterdir()) == [".parmor", "mine.txt"]
