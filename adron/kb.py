@@ -266,15 +266,22 @@ def prune(folder: Path, keep: int = CACHE_ENTRIES) -> None:
     prune_cache(folder, ("kb-*.pickle", "relevant-*.lp"), keep)
 
 
-def load(extra: Sequence[str | Path] = (), builtin: bool = True) -> KnowledgeBase:
+def load(
+    extra: Sequence[str | Path] = (),
+    builtin: bool = True,
+    texts: Sequence[tuple[str, str]] = (),
+) -> KnowledgeBase:
     """Parse and translate the shipped ontology (unless ``builtin`` is False) and ``extra``,
-    and materialise its ontology-only rules (adron/materialise.py).
+    and materialise its ontology-only rules (adron/materialise.py). ``texts``: generated
+    sources (display name, KIF text) read after the files (a composed robot type).
 
     Cache: a successful load is kept on disk (``$PARMOR_CACHE/kb-KEY.pickle``, see
     :func:`_cache_file`); the files are read each time, and a change to any of them, to
     their names or to the code that loads them makes a new key, so a cached knowledge base
     is never stale. A failing load is not cached: its error is raised again, as it is."""
-    sources = (builtin_files() if builtin else []) + [read_user_file(p) for p in extra]
+    sources = (
+        (builtin_files() if builtin else []) + [read_user_file(p) for p in extra] + list(texts)
+    )
     files = tuple(n for n, _ in sources)
     path = _cache_file(sources)
     with _no_gc():

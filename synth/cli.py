@@ -548,6 +548,34 @@ def use_parts(files) -> None:
         raise InputError(str(e)) from None
 
 
+def _with_composed_arm(kb, args: argparse.Namespace):
+    """``kb``, or ``kb`` with a serial arm of ``--param dof=N`` joints composed from the
+    part kinds (``synth.compose``) when none of its base configurations is one."""
+    from synth.conceptual import parse_param
+
+    given = [v for n, v in (parse_param(p) for p in getattr(args, "param", ())) if n == "dof"]
+    if not given:
+        return kb
+    from adron.kb import load
+    from synth.bodyplan import current_kinds, structure_of_type
+    from synth.compose import parse_dof, serial_arm_kif
+
+    n = parse_dof(given[-1])
+    for args_ in kb.translation.relation("instance"):
+        if len(args_) == 2 and args_[1] == "BaseConfiguration":
+            try:
+                plan, structure = structure_of_type(kb, args_[0])
+            except InputError:
+                continue
+            joints = sum(
+                1 for p in plan.root.walk() if "PositionServomotor" in p.kinds
+            )
+            if structure == "serial_arm" and joints == n:
+                return kb
+    text = serial_arm_kif(n, current_kinds())
+    return load(args.ontology, texts=[(f"<parmor: arm composed for --param dof={n}>", text)])
+
+
 def _designer(args: argparse.Namespace, err: TextIO, req=None):
     """Load the knowledge base and ground it; returns a Designer. ``req``: the command's
     request, whose query the reasoner then grounds for first (``Reasoner``'s ``first``)."""
@@ -559,6 +587,7 @@ def _designer(args: argparse.Namespace, err: TextIO, req=None):
     with stage("parse"):
         kb = load(args.ontology)
         use_parts(getattr(args, "parts", ()))
+        kb = _with_composed_arm(kb, args)
     _warn_untranslated(kb, err)
     # checked while the worker filters the ontology (a large one's abilities take a while)
     first = (lambda: query_for(kb, req)) if req is not None else None

@@ -158,6 +158,26 @@ class Designer:
                 given[name] = value
         return parse_structural(given) if given else {}
 
+    def with_dof(
+        self, cands: Sequence[Candidate], physical: Mapping[str, float]
+    ) -> tuple[Candidate, ...]:
+        """The candidates that are serial arms of ``--param dof`` joints (all without it)."""
+        if "dof" not in physical:
+            return tuple(cands)
+        from synth.bodyplan import structure_of_type
+
+        n = int(physical["dof"])
+        out = []
+        for c in cands:
+            if c.dof != n:
+                continue
+            try:
+                if structure_of_type(self.kb, c.robot_type)[1] == "serial_arm":
+                    out.append(c)
+            except InputError:
+                continue
+        return tuple(out)
+
     def within_limits(
         self, cands: Sequence[Candidate], physical: Mapping[str, float]
     ) -> tuple[tuple[Candidate, ...], dict[str, list[str]]]:
@@ -196,7 +216,20 @@ class Designer:
             return Design(
                 "unsatisfiable", req, questions=asked, conflict=self.conflict(req), needed=needed
             )
-        cands, over = self.within_limits(sol.candidates, physical)
+        arms = self.with_dof(sol.candidates, physical)
+        if not arms:
+            n = int(physical["dof"])
+            return Design(
+                "unsatisfiable",
+                req,
+                questions=asked,
+                conflict=(*req.abilities, f"dof={n}"),
+                needed=needed,
+                note=f"no candidate is a serial arm of {n} joints (candidates: "
+                + ", ".join(f"{c.robot_type} ({c.dof} joints)" for c in sol.candidates)
+                + ")",
+            )
+        cands, over = self.within_limits(arms, physical)
         excluded = "; ".join(f"{t} is not built for {', '.join(ws)}" for t, ws in over.items())
         if not cands:
             conflict = self.limit_conflict(req, over)

@@ -15,6 +15,7 @@ section" (``deflection``, ``slope``).
 | height | length | biped | 0.40 m | 5 cm-2 m |
 | deflection | length | every structure | catalog max_tip_deflection | 0.01 mm-10 cm |
 | slope | angle | wheeled | catalog max_slope | 0-45 deg |
+| dof | count | serial_arm (composes the arm, synth/compose.py) | the arm's own | 3-7 |
 
 The range is where a design of ParMoR-like modules makes sense (see RANGES); a value
 outside it is refused (InputError, exit 2) before any work. Inside it, sizing may still
@@ -89,6 +90,9 @@ RANGES: dict[str, tuple[str, str, str]] = {
     "deflection": ("0.01 mm", "10 cm", "printing accuracy to a link bent out of shape"),
     # A rubber tyre's friction coefficient is about 1: on a steeper slope the wheels slip.
     "slope": ("0 deg", "45 deg", "a tyre's grip (friction ~1) ends at 45 deg"),
+    # The part kinds' serial arms (synth/compose.py): a yaw and two pitch joints position
+    # what the gripper holds; a wrist of three more orients it; a seventh is redundant.
+    "dof": ("3", "7", "three joints position a gripper, six orient it, a seventh is redundant"),
 }
 
 
@@ -134,6 +138,8 @@ PARAMS: tuple[ParamSpec, ...] = (
         "deflection", "length", "allowed tip deflection of each printed link", _for(ALL, None)
     ),
     ParamSpec("slope", "angle", "steepest slope to climb while accelerating", _for(WHEELED, None)),
+    # not a sizing parameter: it composes the arm (synth/compose.py) and picks it
+    ParamSpec("dof", "count", "joints of a serial arm besides its gripper (3 to 7)", {}),
 )
 BY_NAME = {p.name: p for p in PARAMS}
 
@@ -202,6 +208,11 @@ def parse_structural(items: Mapping[str, str]) -> dict[str, float]:
     out = {}
     for name, text in items.items():
         spec = BY_NAME[name]
+        if spec.dimension == "count":
+            from synth.compose import parse_dof
+
+            out[name] = float(parse_dof(text))
+            continue
         zero_ok = name in ("payload", "slope")
         out[name] = quantity(text, spec.dimension, f"--param {name}", allow_zero=zero_ok)
         check_range(spec, out[name], text)
@@ -265,7 +276,9 @@ def resolve(
         else:
             default = defaults[spec.name]
             values[spec.name] = design_defaults[spec.name] if default is None else default
-    ignored = tuple(sorted(n for n in given if n not in values))
+    ignored = tuple(
+        sorted(n for n in given if n not in values and n in BY_NAME and BY_NAME[n].defaults)
+    )
     for name, v in values.items():
         if v < 0 or (v == 0 and name not in ("payload", "slope")):
             raise InputError(f"--param {name}: must be positive")

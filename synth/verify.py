@@ -120,11 +120,33 @@ def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Ou
     refusal also names the largest value of a parameter that designs and verifies
     (:func:`best_value`)."""
     params = designer.structural(req)
+    missing = _no_controller(designer, outcome)
+    if missing is not None:
+        return replace(outcome, infeasible=missing)
     out = _verified(designer, params, opts, outcome)
     if out.infeasible is None:
         return out
     hint = best_value(designer, params, opts, outcome)
     return out if hint is None else replace(out, infeasible=f"{out.infeasible}; {hint}")
+
+
+def _no_controller(designer: Designer, outcome: Outcome) -> str | None:
+    """Why the design's behaviours cannot be simulated (no controller serves its
+    structure yet), or None: such a design is refused rather than claimed verified; with
+    --no-verify it is sized and exported unverified."""
+    from export.record import design_record
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    record = design_record(outcome.design, designer.short, outcome.structure)
+    try:
+        controller_for(DesignGeometry.from_record(record))
+    except ValueError as e:
+        return (
+            f"{outcome.design.chosen.robot_type}: its abilities cannot be simulated: {e}; "
+            "design it with --no-verify for the sized bundle, unverified"
+        )
+    return None
 
 
 def best_value(

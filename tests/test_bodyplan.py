@@ -316,3 +316,58 @@ def test_a_serial_chain_longer_than_the_table_is_refused() -> None:
     plan = BodyPlan("LongArm", PartNode("ArmBase", ("ArmBase", "RobotTrunk"), (node,)))
     with pytest.raises(AssemblyError, match="serial chain of 9 joints.*3, 4, 5, 6, 7"):
         build(plan)
+
+
+# --- the manipulator's degrees of freedom as a parameter -----------------------------------
+
+
+@pytest.mark.parametrize(
+    ("shape", "dof", "robot", "joints"),
+    [
+        ("cylinder", "4", "SerialArm4DOF", ("base_yaw", "shoulder_pitch", "elbow_pitch", "wrist_pitch")),
+        ("cylinder", "5", "SerialArm5DOF", ("base_yaw", "shoulder_pitch", "elbow_pitch", "wrist_pitch", "tool_roll")),
+        ("cylinder", "3", "Manipulator3DOF", ("base_yaw", "shoulder_pitch", "elbow_pitch")),
+        ("oval", "6", "Manipulator6DOF", ("base_yaw", "shoulder_pitch", "elbow_pitch", "wrist_roll", "wrist_pitch", "tool_roll")),
+    ],
+)
+def test_dof_composes_or_picks_an_arm_of_that_many_joints(cli, shape, dof, robot, joints) -> None:
+    import json
+
+    r = cli(
+        "design", "pick-and-place", "--param", f"object_shape={shape}", "--param", f"dof={dof}",
+        "--no-input", "--no-verify", "--json",
+    )  # fmt: skip
+    assert r.code == 0, r.err
+    rec = json.loads(r.out)
+    assert rec["robot_type"] == robot
+    names = tuple(j["name"] for j in rec["joints"] if j["group"] != "gripper")
+    assert names == joints
+    assert "dof" not in rec.get("ignored_params", [])
+
+
+@pytest.mark.parametrize("dof", ["2", "8", "five", "4.5"])
+def test_dof_outside_the_arms_parmor_composes_is_refused(cli, dof) -> None:
+    r = cli("design", "pick-and-place", "--param", f"dof={dof}", "--no-input", "--no-verify")
+    assert r.code == 2 and "3 to 7 joints" in r.err and "Traceback" not in r.err
+
+
+def test_dof_on_a_request_no_arm_meets_is_refused(cli) -> None:
+    """A walking robot is no serial arm: dof=4 leaves no candidate (exit 1)."""
+    r = cli("design", "walking", "--param", "dof=4", "--no-input", "--no-verify")
+    assert r.code == 1 and "dof=4" in r.err
+
+
+def test_a_type_without_a_controller_is_refused_unless_unverified(cli, tmp_path) -> None:
+    """Until a controller serves an arm of 5 joints, verifying its design is refused with a
+    message that says so (never exit 0 with abilities it cannot show); --no-verify sizes
+    and exports it."""
+    src = tmp_path / "arm5.kif"
+    src.write_text(arm_kif(5))
+    r = cli("design", "positioning-5", "--answer", "orienting=no", "--ontology", str(src), "--no-input")
+    assert r.code == 1, r.err
+    assert "cannot be simulated" in r.err and "--no-verify" in r.err
+    r = cli(
+        "design", "positioning-5", "--answer", "orienting=no", "--ontology", str(src),
+        "--no-input", "--no-verify",
+    )  # fmt: skip
+    assert r.code == 0, r.err
