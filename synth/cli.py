@@ -763,7 +763,7 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     with stage("structure/simulate"):
         result = run(designer, req, opts)
     d = result.design
-    if result.note:
+    if result.note and not opts.conceptual:
         err.write(f"parmor: note: {result.note}\n")
     rec = result.record(designer)
     if result.infeasible:
@@ -1255,16 +1255,14 @@ def cmd_blocks(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from pathlib import Path
 
     from program.blocks import write_page
-    from program.server import DEFAULT_PORT, DEFAULT_TIME_LIMIT, serve
+    from program.server import DEFAULT_PORT, DEFAULT_TIME_LIMIT, check_time_limit, serve
 
     if not args.serve and (args.port is not None or args.time_limit is not None):
         raise InputError("--port and --time-limit need --serve")
     port = DEFAULT_PORT if args.port is None else args.port
     if not 0 <= port <= 65535:
         raise InputError(f"--port {port}: expected a port number in [0, 65535] (0: any free)")
-    limit = DEFAULT_TIME_LIMIT if args.time_limit is None else args.time_limit
-    if not (math.isfinite(limit) and limit > 0):
-        raise InputError(f"--time-limit {limit}: expected a positive number of seconds")
+    limit = check_time_limit(DEFAULT_TIME_LIMIT if args.time_limit is None else args.time_limit)
     page = write_page(Path(args.dir))
     err.write(f"parmor: wrote {page}\n")
     if args.serve:
@@ -1274,10 +1272,10 @@ def cmd_blocks(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def cmd_run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    import json
     from pathlib import Path
 
     from export.record import to_json
+    from program.script import read_file
     from program.session import run_program, run_python
 
     path = Path(args.program)
@@ -1287,19 +1285,11 @@ def cmd_run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         def progress(text: str) -> None:
             err.write(f"running {text}\n")
 
-    if path.suffix == ".json":
-        try:
-            program = json.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise InputError(f"{path}: no such program file") from None
-        except json.JSONDecodeError as e:
-            raise InputError(f"{path}:{e.lineno}:{e.colno}: {e.msg}") from None
-        except (OSError, UnicodeDecodeError) as e:
-            raise InputError(f"{path}: {e}") from None
+    form, program = read_file(path)  # JSON or Python, by content and suffix
     from synth.limits import stage
 
     with stage("run"):  # the program and its behaviours: a limit here is not in 'parse'
-        if path.suffix == ".json":
+        if form == "json":
             result = run_program(args.dir, program, progress)
         else:
             result = run_python(args.dir, path, progress)

@@ -142,6 +142,8 @@ class Outcome:
             rec["payload"] = payload_record(self.structure, self.with_payload)
         if self.calibration:
             rec["calibration"] = dict(sorted(self.calibration.items()))
+        if self.note is not None and self.structure is None:
+            rec["no_structure"] = self.note  # why there is none (the request keeps its params)
         v = self.verification
         if v is not None:
             rec["verified"] = v.record()
@@ -162,8 +164,10 @@ class Outcome:
 def run(designer: Designer, req: Request, opts: StructureOptions) -> Outcome:
     """The conceptual step of ``req`` and, for a designed robot, its structure."""
     d = designer.step(req)
-    if d.status != "designed" or opts.conceptual:
+    if d.status != "designed":
         return Outcome(d)
+    if opts.conceptual:
+        return Outcome(d, note="designed with --conceptual: stopped after the conceptual design")
     from synth.structure import design_structure
 
     catalog = load_checked_catalog(opts.catalog, designer)
