@@ -1,10 +1,14 @@
-"""Parametric kinematic models of parmor's base configurations (the paper's section 4.3).
+"""Parametric kinematic models of robots (the paper's section 4.3): the template data model
+and its building blocks; ``kinematics.assemble`` builds every template from a body plan
+and the part kinds' data (no robot type is built by code of its own).
 
-``build(robot_type, params)`` returns a :class:`Template`: a :class:`~kinematics.model.Model`
-whose link lengths, tube radii and masses come from ``params``, plus what the designer
-needs to analyse it (the printed tubes, feet, grippers, wheels). Type names are the
-ontology's KIF class names. The fixed root body (base, trunk or chassis) is welded to the
-world: a worst-case static or dynamic analysis of the limbs needs exactly that.
+``build(robot_type_or_plan, params)`` returns a :class:`Template`: a
+:class:`~kinematics.model.Model` whose link lengths, tube radii and masses come from
+``params``, plus what the designer needs to analyse it (the printed tubes, feet, grippers,
+wheels). A type's name finds its body plan (``plan_of``: registered, e.g. from a design's
+record, or from the shipped ontology once ``synth.bodyplan`` is imported). The fixed root
+body (base, trunk or chassis) is welded to the world: a worst-case static or dynamic
+analysis of the limbs needs exactly that.
 
 Conventions (all templates): z up, x forward, SI units. Every joint ``J`` moves the body
 ``J_link``; the root body hangs on the fixed joint ``root``. A movable joint's body holds
@@ -22,7 +26,8 @@ a square dovetail face plate at each end and a fillet between each plate and the
 ``Template.parts`` keeps every body's parts, labelled, with their placement and
 dimensions (:class:`LabelledPart`), so that exporters can rebuild each body from them.
 
-Templates (length names and defaults in ``DEFAULTS``):
+What the shipped ontology's types assemble to (documentation of the result; length names
+and defaults in ``DEFAULTS``):
 
 - ``Manipulator3DOF`` (Fig. 16): ``base_yaw`` (z) at the base top, a vertical column
   ``L1``; ``shoulder_pitch`` (y), upper arm ``L2`` along +x; ``elbow_pitch`` (y), forearm
