@@ -12,6 +12,8 @@ one of
 
 :func:`validate` checks a program against a design's behaviours and the :data:`LIMITS`,
 naming the place of the first problem as a JSON path (``program[1].body[0].params.distance``).
+:func:`parse` reads a program's JSON text within bounds (nesting, numbers), and
+:func:`read_file` reads a program file of either form (``parmor run``).
 :func:`to_python` writes the Python text the program stands for (what the block page
 shows); :func:`execute` runs a program on anything with ``do``, ``wait`` and ``report``
 (a :class:`program.session.Session`). The same Python text runs with ``parmor run``.
@@ -21,7 +23,9 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any, Protocol
 
 from adron.errors import InputError
@@ -50,6 +54,13 @@ LIMITS: dict[str, float] = {
     "sim_s": 300.0,  # simulated seconds of the whole run (checked as it runs)
 }
 
+#: Bounds on a program's JSON text: arrays and objects inside each other (a program nested
+#: LIMITS["depth"] deep needs 2 x 8 + 3), digits of an integer read as a number (more are
+#: no value a behaviour takes, and Python refuses to read more than 4300), bytes of a file.
+JSON_DEPTH = 64
+INT_DIGITS = 30
+FILE_BYTES = 1024 * 1024
+
 _KEYS = {"do": {"do", "params"}, "repeat": {"repeat", "body"}, "wait": {"wait"}}
 _KEYS["if"] = {"if", "then", "else"}
 
@@ -57,6 +68,125 @@ _KEYS["if"] = {"if", "then", "else"}
 class ProgramError(InputError):
     """A program that is malformed, asks for what the design cannot do, or exceeds the
     :data:`LIMITS`; the message starts with the JSON path of the problem."""
+
+
+class JsonError(ProgramError):
+    """A program text that is not JSON, or JSON beyond :data:`JSON_DEPTH`: ``line`` and
+    ``col`` (1-based) of the problem, ``reason``, and whether it is a ``syntax`` error."""
+
+    def __init__(self, reason: str, line: int, col: int, syntax: bool = True) -> None:
+        self.reason, self.line, self.col, self.syntax = reason, line, col, syntax
+        super().__init__(f"{line}:{col}: {reason}")
+
+
+class Unreadable:
+    """A JSON number no behaviour can take, kept (instead of failing the whole parse) so
+    that :func:`validate` names its place: NaN or Infinity, an integer of more than
+    :data:`INT_DIGITS` digits, a number beyond the float range."""
+
+    def __init__(self, text: str, why: str) -> None:
+        self.text, self.why = text, why
+
+    def __repr__(self) -> str:
+        return self.why
+
+
+def _int(text: str) -> int | Unreadable:
+    digits = len(text.lstrip("-"))
+    if digits > INT_DIGITS:
+        return Unreadable(text, f"an integer of {digits} digits (too large)")
+    return int(text)
+
+
+def _float(text: str) -> float | Unreadable:
+    x = float(text)
+    if not math.isfinite(x):
+        return Unreadable(text, f"{_cut(text)} (beyond the range of numbers)")
+    return x
+
+
+def _constant(text: str) -> Unreadable:
+    return Unreadable(text, f"{text} (not a number JSON allows)")
+
+
+def _cut(text: str, n: int = 24) -> str:
+    return text if len(text) <= n else f"{text[: n // 2]}...{text[-n // 2 :]}"
+
+
+#: What the depth scan steps over: strings (brackets inside them do not count), brackets.
+_SCAN = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"|[\[\]{}]')
+
+
+def _position(text: str, offset: int) -> tuple[int, int]:
+    line = text.count("\n", 0, offset) + 1
+    return line, offset - (text.rfind("\n", 0, offset) + 1) + 1
+
+
+def parse(text: str) -> object:
+    """``text`` (a program as JSON) parsed; JsonError (line, column) when it is not JSON or
+    nests arrays and objects deeper than :data:`JSON_DEPTH`. Numbers no behaviour can take
+    (NaN, Infinity, huge integers, beyond the float range) come back as
+    :class:`Unreadable`, for :func:`validate` to refuse by their place in the program."""
+    depth = 0
+    for m in _SCAN.finditer(text):
+        c = m.group()[0]
+        if c in "[{":
+            depth += 1
+            if depth > JSON_DEPTH:
+                line, col = _position(text, m.start())
+                raise JsonError(
+                    f"arrays and objects nested deeper than {JSON_DEPTH}", line, col, syntax=False
+                )
+        elif c in "]}":
+            depth -= 1
+    try:
+        return json.loads(text, parse_int=_int, parse_float=_float, parse_constant=_constant)
+    except json.JSONDecodeError as e:
+        raise JsonError(e.msg, e.lineno, e.colno) from None
+    except RecursionError:  # the scan bounds the nesting; this is a fence behind it
+        raise JsonError(f"nested too deep (at most {JSON_DEPTH})", 1, 1, syntax=False) from None
+
+
+def read_file(path: str | Path) -> tuple[str, object]:
+    """``("json", program)`` for a JSON program file, ``("python", None)`` for a Python one.
+
+    The form is chosen by the content, and the suffix in any case: a ``.json`` file is
+    JSON; a ``.py`` file is Python unless it parses as a JSON object holding ``program``;
+    any other file is JSON when its text starts with ``{`` (after white space), else
+    Python. A JSON file larger than :data:`FILE_BYTES` is refused. InputError naming the
+    file (and line:column) otherwise."""
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            head = f.read(FILE_BYTES + 1)
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such program file") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: a folder, not a program file") from None
+    except OSError as e:
+        raise InputError(f"{path}: cannot read it: {e.strerror or e}") from None
+    suffix = path.suffix.lower()
+    python = ("python", None)
+    if suffix != ".json" and not head.removeprefix(b"\xef\xbb\xbf").lstrip().startswith(b"{"):
+        return python
+    try:
+        if len(head) > FILE_BYTES:
+            raise InputError(f"{path}: a JSON program larger than {FILE_BYTES} bytes")
+        try:
+            text = head.decode("utf-8-sig")
+        except UnicodeDecodeError as e:
+            raise InputError(f"{path}: not UTF-8 text (byte {e.start})") from None
+        try:
+            program = parse(text)
+        except JsonError as e:
+            raise InputError(f"{path}:{e.line}:{e.col}: {e.reason}") from None
+    except InputError:
+        if suffix == ".py":
+            return python
+        raise
+    if suffix == ".py" and not (isinstance(program, dict) and "program" in program):
+        return python
+    return ("json", program)
 
 
 class Robot(Protocol):
@@ -70,11 +200,26 @@ class Robot(Protocol):
 
 
 def _number(value: object) -> bool:
-    return (
-        isinstance(value, (int, float))
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
+    """Whether ``value`` is a number a behaviour can take: finite as a float."""
+    if not isinstance(value, (int, float)) or isinstance(value, bool):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:  # an integer beyond the float range
+        return False
+
+
+def _shown(value: object) -> str:
+    """``value`` for a message: its repr, a huge integer by its digits, anything long cut."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**INT_DIGITS:
+        digits = int(abs(value).bit_length() * math.log10(2)) + 1  # str() refuses > 4300
+        return f"an integer of about {digits} digits (too large)"
+    return _cut(repr(value), 60)
+
+
+def _need_number(value: object, path: str) -> None:
+    if not _number(value):
+        raise ProgramError(f"{path}: expected a number, got {_shown(value)}")
 
 
 def validate(program: object, behaviors: Mapping[str, Any]) -> None:
@@ -124,7 +269,7 @@ def _statement(
         name = st["do"]
         if not isinstance(name, str) or name not in behaviors:
             raise ProgramError(
-                f"{path}.do: the design has no behaviour {name!r} "
+                f"{path}.do: the design has no behaviour {_shown(name)} "
                 f"(behaviours: {', '.join(sorted(behaviors))})"
             )
         params = st.get("params", {})
@@ -138,8 +283,13 @@ def _statement(
                     f"(parameters: {', '.join(specs) or 'none'})"
                 )
             spec = specs[key]
-            if spec.kind != "choice" and not _number(value):
-                raise ProgramError(f"{path}.params.{key}: expected a number, got {value!r}")
+            if spec.kind == "choice" and not isinstance(value, str):
+                raise ProgramError(
+                    f"{path}.params.{key}: expected one of {', '.join(spec.choices)}, "
+                    f"got {_shown(value)}"
+                )
+            if spec.kind != "choice":
+                _need_number(value, f"{path}.params.{key}")
             if spec.kind == "int" and float(value) != int(value):
                 raise ProgramError(f"{path}.params.{key}: expected a whole number, got {value}")
             try:
@@ -152,27 +302,30 @@ def _statement(
         s = st["wait"]
         if not _number(s) or not 0 <= float(s) <= LIMITS["wait_s"]:
             raise ProgramError(
-                f"{path}.wait: expected seconds in [0, {LIMITS['wait_s']:g}], got {s!r}"
+                f"{path}.wait: expected seconds in [0, {LIMITS['wait_s']:g}], got {_shown(s)}"
             )
         return 0
     if kind == "repeat":
         n = st["repeat"]
         if not _number(n) or float(n) != int(n) or not 0 <= int(n) <= LIMITS["repeat"]:
             raise ProgramError(
-                f"{path}.repeat: expected a whole number in [0, {LIMITS['repeat']:g}], got {n!r}"
+                f"{path}.repeat: expected a whole number in [0, {LIMITS['repeat']:g}], "
+                f"got {_shown(n)}"
             )
         return int(n) * _body(st.get("body", []), f"{path}.body", behaviors, depth + 1, count)
     cond = st["if"]
     if not isinstance(cond, Mapping) or set(cond) != {"report", "op", "value"}:
         raise ProgramError(f'{path}.if: expected {{"report": NAME, "op": OP, "value": NUMBER}}')
-    if cond["report"] not in REPORTS:
+    if not isinstance(cond["report"], str) or cond["report"] not in REPORTS:
         raise ProgramError(
-            f"{path}.if.report: unknown report {cond['report']!r} (reports: {', '.join(REPORTS)})"
+            f"{path}.if.report: unknown report {_shown(cond['report'])} "
+            f"(reports: {', '.join(REPORTS)})"
         )
-    if cond["op"] not in OPS:
-        raise ProgramError(f"{path}.if.op: expected one of {' '.join(OPS)}, got {cond['op']!r}")
-    if not _number(cond["value"]):
-        raise ProgramError(f"{path}.if.value: expected a number, got {cond['value']!r}")
+    if not isinstance(cond["op"], str) or cond["op"] not in OPS:
+        raise ProgramError(
+            f"{path}.if.op: expected one of {' '.join(OPS)}, got {_shown(cond['op'])}"
+        )
+    _need_number(cond["value"], f"{path}.if.value")
     a = _body(st.get("then", []), f"{path}.then", behaviors, depth + 1, count)
     b = _body(st.get("else", []), f"{path}.else", behaviors, depth + 1, count)
     return max(a, b)

@@ -1,22 +1,27 @@
 """The local server of ``parmor blocks DIR --serve``: the block page and its Run button.
 
-It listens on 127.0.0.1 only (a thread per request, so several pages can use it at once),
-serves the page (``DIR/blocks/``) and the meshes it animates (``DIR/meshes/``), and answers
-``POST /run``: the body is a program as JSON (``{"program": [...]}``, see
-:mod:`program.script`), never code. The program is validated against the design's
-behaviours and their limits (:func:`program.script.validate`), then run
+It listens on 127.0.0.1 only (a thread per connection, at most :data:`MAX_CONNECTIONS`
+at once, each closed after :data:`SOCKET_TIMEOUT_S` s without traffic), serves the page
+(``DIR/blocks/``) and the meshes it animates (``DIR/meshes/``), and answers ``POST /run``:
+the body is a program as JSON (``{"program": [...]}``, see :mod:`program.script`), never
+code, read within bounds (:func:`program.script.parse`). The program is validated against
+the design's behaviours and their limits (:func:`program.script.validate`), then run
 (:func:`program.session.run_program`) in a child process that is killed when it exceeds
-the time limit. The reply is JSON: ``{"result": {...}}`` (the run's path, verdict figures
-and animation) or ``{"error": "..."}`` with a 4xx/5xx status; the server keeps serving
-after every error.
+the time limit; at most :func:`run_slots` run at once (the CPUs, and the memory available
+for :data:`RUN_MEMORY_MB` each). The reply is JSON: ``{"result": {...}}`` (the run's path,
+verdict figures and animation) or ``{"error": "..."}`` with a 4xx/5xx status; the server
+keeps serving after every error.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
+import math
 import mimetypes
 import multiprocessing
 import os
+import socket
 import sys
 import threading
 import time
@@ -38,17 +43,99 @@ DEFAULT_PORT = 8765
 MAX_BODY = 64 * 1024
 #: Largest body read and dropped to answer 413 cleanly; beyond it the connection is closed.
 MAX_DRAIN = 4 * 1024 * 1024
-#: Wall-clock seconds a run may take (its child process is killed then), by default.
+#: Wall-clock seconds a run may take (its child process is killed then), by default, and
+#: the range accepted: below it a run cannot even start its process; above it the waits
+#: would overflow the system's timers (a run simulates at most 300 s anyway).
 DEFAULT_TIME_LIMIT = 120.0
-#: Runs at once (each in its own process); more wait for a free slot, within their limit.
-DEFAULT_MAX_RUNS = max(1, (os.cpu_count() or 1))
+TIME_LIMIT_RANGE = (0.1, 86_400.0)
+#: Memory one run takes, MB: measured, a 300-s program (the most a program may simulate)
+#: on the hexapod (56 drawn parts, the most of the shipped designs) peaks at 290 MB in its
+#: process, and its 25 MB reply passes through the server; with room to spare.
+RUN_MEMORY_MB = 400
+#: Connections served at once (a thread each); more are answered 503 and closed.
+MAX_CONNECTIONS = 32
+#: Seconds a connection may stay silent (a request not sent, a reply not read) before the
+#: server closes it.
+SOCKET_TIMEOUT_S = 30.0
 #: Folders of the bundle the server serves files from (read-only).
 SERVED_DIRS = ("blocks", "meshes")
 
 
-def _no_constant(name: str) -> object:
-    """JSON's extensions NaN and Infinity are not numbers a program may hold."""
-    raise ValueError(f"{name} is not a number JSON allows")
+def check_time_limit(seconds: float) -> float:
+    """``seconds`` when a run's time limit can be honoured (:data:`TIME_LIMIT_RANGE`);
+    InputError naming the value and the range otherwise."""
+    low, high = TIME_LIMIT_RANGE
+    if not (math.isfinite(seconds) and low <= seconds <= high):
+        raise InputError(
+            f"--time-limit {seconds:g}: expected seconds in [{low:g}, {high:g}] "
+            "(the wall-clock time one run may take)"
+        )
+    return seconds
+
+
+def available_memory_mb() -> float | None:
+    """Memory a run could still take, MB: the system's available memory (``MemAvailable``),
+    or less when this process's control group (v2 ``memory.max``, v1
+    ``memory.limit_in_bytes``) leaves less room; None when neither can be read."""
+    found: list[float] = []
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    found.append(int(line.split()[1]) / 1024)
+                    break
+    except (OSError, ValueError, IndexError):
+        pass
+    room = _cgroup_room_mb()
+    if room is not None:
+        found.append(room)
+    return min(found) if found else None
+
+
+def _cgroup_room_mb() -> float | None:
+    """What this process's memory control group leaves, MB; None without a limit."""
+    try:
+        lines = Path("/proc/self/cgroup").read_text(encoding="utf-8").splitlines()
+    except OSError:
+        return None
+    root = Path("/sys/fs/cgroup")
+    for line in lines:
+        parts = line.split(":", 2)
+        if len(parts) != 3:
+            continue
+        _, controllers, group = parts
+        if controllers == "":  # v2
+            dirs, names = (root / group.lstrip("/"), root), ("memory.max", "memory.current")
+        elif "memory" in controllers.split(","):  # v1
+            mem = root / "memory"
+            dirs, names = (
+                (mem / group.lstrip("/"), mem),
+                (
+                    "memory.limit_in_bytes",
+                    "memory.usage_in_bytes",
+                ),
+            )
+        else:
+            continue
+        for d in dirs:
+            try:
+                limit = (d / names[0]).read_text().strip()
+                if limit == "max" or int(limit) >= 2**60:  # no limit
+                    break
+                return (int(limit) - int((d / names[1]).read_text())) / 2**20
+            except (OSError, ValueError):
+                continue
+    return None
+
+
+def run_slots(cpus: int | None = None, available_mb: float | None = None) -> int:
+    """Runs at once: one per CPU, and no more than the available memory holds at
+    :data:`RUN_MEMORY_MB` each; at least one. Without arguments, this machine's now."""
+    cpus = (os.cpu_count() or 1) if cpus is None else cpus
+    if available_mb is None:
+        available_mb = available_memory_mb()
+    by_memory = cpus if available_mb is None else int(available_mb // RUN_MEMORY_MB)
+    return max(1, min(cpus, by_memory))
 
 
 class RunFailed(Exception):
@@ -61,7 +148,8 @@ class RunFailed(Exception):
 
 def _child(conn, bundle: str, program: dict) -> None:
     """Run ``program`` on the bundle in this (child) process; send back JSON bytes:
-    ``{"result": ...}`` or ``{"error": ..., "input": bool}``. A Ctrl-C at the terminal
+    ``{"result": ...}`` (the reply the server forwards as it is) or ``{"error": ...,
+    "input": bool}``. A Ctrl-C at the terminal
     reaches the whole process group: the server stops its runs itself, so a run ignores
     it (no KeyboardInterrupt traceback from a child)."""
     import signal
@@ -93,14 +181,16 @@ class Runner:
 
     def __init__(self, bundle: Path, time_limit: float, max_runs: int) -> None:
         self.bundle = bundle
-        self.time_limit = time_limit
+        self.time_limit = check_time_limit(time_limit)
+        self.max_runs = max_runs
         self.slots = threading.BoundedSemaphore(max_runs)
         self.ctx = multiprocessing.get_context("spawn")  # the server has threads: no fork
         self.children: set = set()
         self.lock = threading.Lock()
 
-    def run(self, program: dict) -> dict:
-        """The run's result; RunFailed otherwise."""
+    def run(self, program: dict) -> bytes:
+        """The reply of a run that ended with a result: ``{"result": ...}`` as JSON bytes;
+        RunFailed otherwise."""
         t0 = time.monotonic()
         if not self.slots.acquire(timeout=self.time_limit):
             raise RunFailed(
@@ -151,14 +241,12 @@ class Runner:
                     self.children.discard(proc)
         finally:
             self.slots.release()
+        if data.startswith(b'{"result"'):
+            return data
         reply = json.loads(data)
-        if "error" in reply:
-            bad_input = reply.get("input")
-            status = (
-                HTTPStatus.UNPROCESSABLE_ENTITY if bad_input else HTTPStatus.INTERNAL_SERVER_ERROR
-            )
-            raise RunFailed(status, reply["error"])
-        return reply["result"]
+        bad_input = reply.get("input")
+        status = HTTPStatus.UNPROCESSABLE_ENTITY if bad_input else HTTPStatus.INTERNAL_SERVER_ERROR
+        raise RunFailed(status, reply["error"])
 
     def stop(self) -> None:
         """Kill every run still going."""
@@ -180,19 +268,26 @@ class BlocksServer(ThreadingHTTPServer):
         bundle: Path,
         port: int,
         time_limit: float = DEFAULT_TIME_LIMIT,
-        max_runs: int = DEFAULT_MAX_RUNS,
+        max_runs: int | None = None,
         log: TextIO | None = None,
+        max_connections: int = MAX_CONNECTIONS,
+        socket_timeout: float = SOCKET_TIMEOUT_S,
     ) -> None:
+        """``max_runs`` None: :func:`run_slots`."""
         from program.blocks import bundle_controller, read_record
         from program.session import program_behaviors
 
+        check_time_limit(time_limit)
         self.bundle = bundle.resolve()
         self.record = read_record(self.bundle)
         self.controller = bundle_controller(self.bundle, self.record)
         #: the behaviours a program may call (as program.session.Session offers them)
         self.behaviors = program_behaviors(self.controller, self.record.get("abilities", ()))
-        self.runner = Runner(self.bundle, time_limit, max_runs)
+        self.runner = Runner(self.bundle, time_limit, run_slots() if max_runs is None else max_runs)
         self.log = log
+        self.socket_timeout = socket_timeout
+        self.connections = threading.BoundedSemaphore(max_connections)
+        self.max_connections = max_connections
         super().__init__((HOST, port), Handler)
 
     def validate(self, program: object) -> None:
@@ -200,6 +295,53 @@ class BlocksServer(ThreadingHTTPServer):
         from program.script import validate
 
         validate(program, self.behaviors)
+
+    def process_request(self, request: socket.socket, client_address: tuple) -> None:
+        """A thread for the connection, or 503 and close when MAX_CONNECTIONS are open."""
+        if not self.connections.acquire(blocking=False):
+            self._refuse(request)
+            return
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            self.connections.release()
+            raise
+
+    def process_request_thread(self, request: socket.socket, client_address: tuple) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self.connections.release()
+
+    def _refuse(self, request: socket.socket) -> None:
+        body = json.dumps(
+            {
+                "error": f"the server has {self.max_connections} connections open, the most it "
+                "serves at once; try again"
+            }
+        ).encode()
+        head = (
+            "HTTP/1.1 503 Service Unavailable\r\nContent-Type: application/json\r\n"
+            f"Content-Length: {len(body)}\r\nRetry-After: 1\r\nConnection: close\r\n\r\n"
+        )
+        try:
+            request.settimeout(0)  # never wait on this client: the accepting thread is ours
+            with contextlib.suppress(BlockingIOError):
+                request.recv(65536)  # what it sent already: closing on unread data resets
+            request.sendall(head.encode() + body)
+        except OSError:
+            pass
+        self.shutdown_request(request)
+
+    def handle_error(self, request: object, client_address: tuple) -> None:
+        """A connection that failed (reset, timed out): one line in the log, no traceback."""
+        exc = sys.exc_info()[1]
+        if self.log is not None:
+            self.log.write(
+                f"parmor blocks: {client_address[0]} connection failed: "
+                f"{type(exc).__name__}: {exc}\n"
+            )
+            self.log.flush()
 
     def server_close(self) -> None:
         self.runner.stop()
@@ -210,6 +352,10 @@ class Handler(BaseHTTPRequestHandler):
     server: BlocksServer
     server_version = "parmor-blocks"
     protocol_version = "HTTP/1.1"
+
+    def setup(self) -> None:
+        self.timeout = self.server.socket_timeout  # StreamRequestHandler sets it on the socket
+        super().setup()
 
     def log_message(self, format: str, *args: object) -> None:  # noqa: A002 (the base's name)
         log = self.server.log
@@ -296,15 +442,32 @@ class Handler(BaseHTTPRequestHandler):
                 f"the program is too large: {length} bytes (at most {MAX_BODY})",
             )
             return
-        raw = self.rfile.read(length)
         try:
-            program = json.loads(raw.decode("utf-8"), parse_constant=_no_constant)
-        except (UnicodeDecodeError, ValueError) as e:
-            self._error(HTTPStatus.BAD_REQUEST, f"the program is not JSON: {e}")
+            raw = self.rfile.read(length)
+        except TimeoutError:
+            self.close_connection = True
+            self._error(
+                HTTPStatus.REQUEST_TIMEOUT,
+                f"the program did not arrive within {self.server.socket_timeout:g} s",
+            )
+            return
+        if len(raw) < length:
+            self.close_connection = True
+            return  # the client closed the connection before sending it all: nobody to answer
+        from program.script import JsonError, ProgramError, parse
+
+        try:
+            program = parse(raw.decode("utf-8"))
+        except UnicodeDecodeError as e:
+            self._error(HTTPStatus.BAD_REQUEST, f"the program is not UTF-8 text (byte {e.start})")
+            return
+        except JsonError as e:
+            what = "the program is not JSON" if e.syntax else "the program"
+            self._error(HTTPStatus.BAD_REQUEST, f"{what}: line {e.line} column {e.col}: {e.reason}")
             return
         try:
             self.server.validate(program)
-        except InputError as e:
+        except ProgramError as e:
             self._error(HTTPStatus.UNPROCESSABLE_ENTITY, str(e))
             return
         except Exception as e:  # a bug in the validation: say so, keep serving
@@ -315,7 +478,7 @@ class Handler(BaseHTTPRequestHandler):
             )
             return
         try:
-            result = self.server.runner.run(program)
+            reply = self.server.runner.run(program)
         except RunFailed as e:
             self._error(e.status, str(e))
             return
@@ -323,7 +486,7 @@ class Handler(BaseHTTPRequestHandler):
             self.log_message("run failed: %s: %s", type(e).__name__, e)
             self._error(HTTPStatus.INTERNAL_SERVER_ERROR, f"the run failed: {e}")
             return
-        self._json(HTTPStatus.OK, {"result": result})
+        self._send(HTTPStatus.OK, reply, "application/json")
 
     def _drain(self, length: int | None = None) -> None:
         """Read and drop the request body (so the client gets the reply), or close the
@@ -347,13 +510,14 @@ def serve(
     bundle: str | Path,
     port: int = DEFAULT_PORT,
     time_limit: float = DEFAULT_TIME_LIMIT,
-    max_runs: int = DEFAULT_MAX_RUNS,
+    max_runs: int | None = None,
     out: TextIO | None = None,
     log: TextIO | None = None,
 ) -> None:
     """Serve the bundle's block page on 127.0.0.1:``port`` (0: a free port) until Ctrl-C.
     Prints the page's address on ``out`` once it listens."""
     out = out or sys.stdout
+    check_time_limit(time_limit)
     try:
         server = BlocksServer(Path(bundle), port, time_limit, max_runs, log)
     except OSError as e:

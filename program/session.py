@@ -614,28 +614,109 @@ def run_python(
     path: str | Path,
     progress: Callable[[str], None] | None = None,
 ) -> dict:
-    """Run the ``main(robot)`` of a Python program file (``parmor run``) on the bundle."""
-    import runpy
+    """Run the ``main(robot)`` of a Python program file (``parmor run``) on the bundle.
+
+    The program is Python run with the user's rights, as any script they run; it runs in
+    a forked child process (where the system can fork), which ends as soon as ``main``
+    returns and its result is sent: threads the program started end with it, so they keep
+    nothing waiting, and a program stopped at the time limit or by Ctrl-C (the child is
+    killed) leaves nothing running. What the program prints goes out before the result."""
+    import contextlib
+    import os
 
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such program file")
+    if not hasattr(os, "fork"):
+        return _run_python_here(folder, path, progress)
+    import pickle
+    import signal
+    import sys
+
+    for stream in (sys.stdout, sys.stderr):  # nothing buffered is written twice
+        stream.flush()
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: run, send the outcome, end at once (its threads with it)
+        code = 0
+        try:
+            os.close(read)
+            signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops it
+            try:
+                reply: tuple = ("ok", _run_python_here(folder, path, progress))
+            except ParmorError as e:
+                reply = ("error", e.exit_code, str(e))
+            except MemoryError:
+                reply = ("memory",)
+            except BaseException as e:  # noqa: BLE001 - reported, never a traceback
+                reply = ("error", InputError.exit_code, f"{path}: {type(e).__name__}: {e}")
+            for stream in (sys.stdout, sys.stderr):
+                with contextlib.suppress(Exception):  # the program's output is its own
+                    stream.flush()
+            with os.fdopen(write, "wb") as f:
+                f.write(pickle.dumps(reply))
+        except BaseException:  # noqa: BLE001 - a child never returns into the caller
+            code = 1
+        finally:
+            os._exit(code)
+    os.close(write)
+    try:
+        with os.fdopen(read, "rb") as f:
+            data = f.read()  # until the child ends; a time limit or Ctrl-C interrupts it
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+        _, status = os.waitpid(pid, 0)
+    if not data:
+        how = (
+            f"signal {os.WTERMSIG(status)}"
+            if os.WIFSIGNALED(status)
+            else f"exit code {os.waitstatus_to_exitcode(status)}"
+        )
+        raise InputError(f"{path}: the program's process ended without a result ({how})")
+    reply = pickle.loads(data)
+    if reply[0] == "ok":
+        return reply[1]
+    if reply[0] == "memory":
+        raise MemoryError
+    _, code, message = reply
+    error = InputError(message) if code == InputError.exit_code else ParmorError(message)
+    error.exit_code = code
+    raise error
+
+
+def _run_python_here(
+    folder: str | Path,
+    path: Path,
+    progress: Callable[[str], None] | None = None,
+) -> dict:
+    """:func:`run_python` in this process."""
+    import runpy
+
     try:
         namespace = runpy.run_path(str(path), run_name="parmor_program")
     except SyntaxError as exc:
         raise InputError(f"{path}:{exc.lineno}:{exc.offset}: {exc.msg}") from None
+    except (ParmorError, KeyboardInterrupt, MemoryError):
+        raise
+    except (Exception, SystemExit) as exc:  # its top level failed: where, not a traceback
+        raise InputError(f"{_where(exc, path)}: {type(exc).__name__}: {exc}") from None
     main = namespace.get("main")
     if not callable(main):
         raise InputError(f"{path}: defines no main(robot) function")
     session = Session(folder, progress=progress)
     try:
         main(session)
-    except (ParmorError, KeyboardInterrupt):
+    except (ParmorError, KeyboardInterrupt, MemoryError):
         raise
-    except Exception as exc:  # the user's program failed: say where, without a traceback
-        import traceback
-
-        frames = [f for f in traceback.extract_tb(exc.__traceback__) if f.filename == str(path)]
-        where = f"{path}:{frames[-1].lineno}" if frames else str(path)
-        raise InputError(f"{where}: {type(exc).__name__}: {exc}") from None
+    except (Exception, SystemExit) as exc:  # the program failed: where, not a traceback
+        raise InputError(f"{_where(exc, path)}: {type(exc).__name__}: {exc}") from None
     return session.result()
+
+
+def _where(exc: BaseException, path: Path) -> str:
+    """``path:line`` of the program's last frame in ``exc``'s traceback, or ``path``."""
+    import traceback
+
+    frames = [f for f in traceback.extract_tb(exc.__traceback__) if f.filename == str(path)]
+    return f"{path}:{frames[-1].lineno}" if frames else str(path)

@@ -6,9 +6,12 @@ from __future__ import annotations
 import io
 import json
 import math
+import os
 import random
 import re
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +20,7 @@ import pytest
 from gaits.base import BehaviorSpec, Parameter
 from program import script
 from program.script import LIMITS, ProgramError, execute, number_text, to_python, validate
+from tests.conftest import REPO
 
 SPECS = {
     "walking": BehaviorSpec(
@@ -347,3 +351,190 @@ def test_the_shipped_example_drives_a_square(cli, cart) -> None:
     res = json.loads(r.out)
     assert res["verdict"] == "ok" and len(res["steps"]) == 8
     assert math.hypot(*res["final_pose"][:2]) < 0.05 and res["end_pose_error_m"] < 0.05
+
+
+# -- reading programs: bounded JSON, the form of a file, wrong values ------------------
+
+
+def _refusal(text: str) -> str:
+    with pytest.raises(ProgramError) as e:
+        validate(script.parse(text), SPECS)
+    return str(e.value)
+
+
+@pytest.mark.parametrize(
+    "text, where",
+    [
+        ('{"program": [{"wait": %s}]}' % ("9" * 400), "program[0].wait: "),
+        ('{"program": [{"wait": %s}]}' % ("9" * 5000), "program[0].wait: "),
+        (json.dumps({"program": [walk(steps=int("1" * 400))]}), "program[0].params.steps: "),
+        ('{"program": [{"repeat": %s, "body": []}]}' % ("5" * 5000), "program[0].repeat: "),
+        ('{"program": [{"wait": 1e400}]}', "program[0].wait: "),
+        ('{"program": [{"wait": NaN}]}', "program[0].wait: "),
+        ('{"program": [{"wait": -Infinity}]}', "program[0].wait: "),
+        ('{"program": [{"if": {"report": ["x_m"], "op": ">", "value": 1}}]}', ".if.report"),
+        ('{"program": [{"if": {"report": {}, "op": ">", "value": 1}}]}', ".if.report"),
+        ('{"program": [{"if": {"report": "x_m", "op": [">"], "value": 1}}]}', ".if.op"),
+        ('{"program": [{"if": {"report": "x_m", "op": ">", "value": "1"}}]}', ".if.value"),
+        ('{"program": [{"do": ["walking"]}]}', "program[0].do: "),
+        ('{"program": [{"do": "walking", "params": {"gait": ["wave"]}}]}', ".params.gait"),
+        ('{"program": [{"do": "walking", "params": {"speed": {"a": 1}}}]}', ".params.speed"),
+        ('{"program": [{"do": "walking", "params": {"steps": null}}]}', ".params.steps"),
+    ],
+)
+def test_huge_numbers_and_wrong_types_are_refused_by_their_key(text: str, where: str) -> None:
+    """Cases built to fail: each was a traceback (OverflowError, ValueError, TypeError)."""
+    message = _refusal(text)
+    assert where in message, message
+    assert len(message) < 400  # a 5000-digit number is described, not quoted
+    if "9999" in text or "5555" in text:
+        assert "digits" in message
+
+
+def test_json_nesting_is_bounded_with_its_place() -> None:
+    deep = "[" * 30_000 + "]" * 30_000
+    with pytest.raises(script.JsonError) as e:
+        script.parse(deep)
+    assert (e.value.line, e.value.col) == (1, script.JSON_DEPTH + 1) and not e.value.syntax
+    text = '{"program": [\n' + '{"repeat": 1, "body": [' * 40 + "]}" * 40 + "]}"
+    with pytest.raises(script.JsonError) as e:
+        script.parse(text)
+    assert e.value.line == 2 and "nested deeper than 64" in str(e.value)
+    # brackets inside strings do not count; a program nested as deep as LIMITS allow parses
+    assert script.parse('{"a": "' + "[" * 1000 + '"}') == {"a": "[" * 1000}
+    body: list = [walk()]
+    for _ in range(int(LIMITS["depth"])):
+        body = [{"repeat": 1, "body": body}]
+    validate(script.parse(json.dumps({"program": body[0]["body"]})), SPECS)
+    with pytest.raises(script.JsonError, match="Expecting"):
+        script.parse('{"program": [')
+
+
+PROGRAM_JSON = '{"program": [{"do": "driving", "params": {"seconds": 1}}]}'
+PROGRAM_PY = "def main(robot):\n    robot.do('driving', seconds=1)\n"
+
+
+@pytest.mark.parametrize(
+    "name, text, form",
+    [
+        ("p.json", PROGRAM_JSON, "json"),
+        ("p.JSON", PROGRAM_JSON, "json"),
+        ("p.Json", "  \n" + PROGRAM_JSON, "json"),
+        ("p.txt", PROGRAM_JSON, "json"),
+        ("p", PROGRAM_JSON, "json"),
+        ("p.py", PROGRAM_JSON, "json"),  # the content says JSON program
+        ("p.PY", PROGRAM_PY, "python"),
+        ("p.txt", PROGRAM_PY, "python"),
+        ("p", PROGRAM_PY, "python"),
+        ("p.py", '{"a": 1}\ndef main(robot):\n    pass\n', "python"),  # not a program's shape
+    ],
+)
+def test_the_form_of_a_program_file_is_chosen_by_content_and_suffix(
+    tmp_path, name: str, text: str, form: str
+) -> None:
+    path = tmp_path / name
+    path.write_text(text)
+    got, program = script.read_file(path)
+    assert got == form
+    if form == "json":
+        assert program == json.loads(text)
+
+
+def test_a_program_file_that_cannot_be_read_is_named(tmp_path) -> None:
+    cases = {
+        "p.JSON": ("def main(robot):\n    pass\n", "p.JSON:1:1: Expecting value"),
+        "p.txt": ('{"program": [\n  {"do": }]}', "p.txt:2:10: Expecting value"),
+        "deep.json": ("[" * 30_000, "deep.json:1:65: arrays and objects nested deeper"),
+        "big.json": ('{"program": [' + " " * script.FILE_BYTES + "]}", "larger than"),
+        "latin.json": (b'{"program": ["\xe9"]}', "not UTF-8"),
+    }
+    for name, (text, message) in cases.items():
+        path = tmp_path / name
+        if isinstance(text, bytes):
+            path.write_bytes(text)
+        else:
+            path.write_text(text)
+        with pytest.raises(script.InputError) as e:
+            script.read_file(path)
+        assert message in str(e.value), (name, str(e.value))
+    with pytest.raises(script.InputError, match="no such program file"):
+        script.read_file(tmp_path / "missing.json")
+    with pytest.raises(script.InputError, match="a folder"):
+        script.read_file(tmp_path)
+
+
+def test_parmor_run_refuses_bad_json_programs_by_key_without_a_traceback(cli, cart, tmp_path):
+    cases = {
+        "huge.json": ('{"program": [{"wait": %s}]}' % ("9" * 5000), "program[0].wait: "),
+        "big.json": ('{"program": [{"wait": %s}]}' % ("9" * 400), "program[0].wait: "),
+        "report.JSON": (
+            '{"program": [{"if": {"report": ["x_m"], "op": ">", "value": 1}}]}',
+            "program[0].if.report: ",
+        ),
+        "param.txt": (
+            '{"program": [{"do": "driving", "params": {"seconds": [1]}}]}',
+            "program[0].params.seconds: ",
+        ),
+        "deep.json": ("[" * 30_000 + "]" * 30_000, "deep.json:1:65: "),
+    }
+    for name, (text, message) in cases.items():
+        path = tmp_path / name
+        path.write_text(text)
+        r = cli("run", str(path), str(cart))
+        assert r.code == 2 and message in r.err, (name, r.err)
+        assert "Traceback" not in r.err and len(r.err) < 1000
+
+
+THREADED = """
+import os, sys, threading, time
+
+def main(robot):
+    threading.Thread(target=time.sleep, args=(3600,)).start()  # a non-daemon thread
+    print("the program printed this", flush=False)
+    robot.do("driving", seconds=1)
+    if os.environ.get("FAIL_AFTER"):
+        raise RuntimeError("failed after starting a thread")
+"""
+
+
+def _parmor_process(*argv: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    """``parmor ARGV`` as its own process (a thread left running would keep it alive)."""
+    return subprocess.run(
+        [sys.executable, "-m", "synth.cli", *argv],
+        capture_output=True,
+        text=True,
+        timeout=600,  # a loaded machine runs this in seconds; a wait on the thread is 3600 s
+        cwd=REPO,
+        env=dict(os.environ, PYTHONPATH=str(REPO), **(env or {})),
+    )
+
+
+def test_parmor_run_does_not_wait_for_the_programs_threads(cart, tmp_path) -> None:
+    """A case built to fail: the program leaves a non-daemon thread sleeping an hour; parmor
+    exits with its code when main returns (it waited on the thread for the hour before)."""
+    program = tmp_path / "threads.py"
+    program.write_text(THREADED)
+    r = _parmor_process("run", str(program), str(cart))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("the program printed this\n")  # before the results
+    assert "verdict: ok" in r.stdout
+    r = _parmor_process("run", str(program), str(cart), env={"FAIL_AFTER": "1"})
+    assert r.returncode == 2 and "threads.py:9: RuntimeError: failed after" in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_parmor_run_stops_a_program_at_its_time_limit_and_reports_odd_exits(
+    cli, cart, tmp_path
+) -> None:
+    forever = tmp_path / "forever.py"
+    forever.write_text("def main(robot):\n    while True:\n        pass\n")
+    r = cli("run", str(forever), str(cart), "--time-limit", "3")
+    assert r.code == 1 and "time limit (3 s, --time-limit) reached" in r.err, r.err
+    quits = tmp_path / "quits.py"
+    quits.write_text("import os\n\ndef main(robot):\n    os._exit(5)\n")
+    r = cli("run", str(quits), str(cart))
+    assert r.code == 2 and "ended without a result (exit code 5)" in r.err, r.err
+    exits = tmp_path / "exits.py"
+    exits.write_text("import sys\n\ndef main(robot):\n    sys.exit(3)\n")
+    r = cli("run", str(exits), str(cart))
+    assert r.code == 2 and "exits.py:4: SystemExit: 3" in r.err, r.err
