@@ -262,6 +262,8 @@ class BlocksServer(ThreadingHTTPServer):
     """The page, the meshes and ``POST /run`` of one bundle."""
 
     daemon_threads = True
+    #: connections the system queues until they are accepted (served or answered 503)
+    request_queue_size = 64
 
     def __init__(
         self,

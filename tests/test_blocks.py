@@ -11,14 +11,18 @@ PARMOR_README_SHOT=FILE.png makes that test save it there too (then cropped and 
 
 from __future__ import annotations
 
+import contextlib
+import http.client
 import io
 import json
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import threading
+import time
 import urllib.error
 import urllib.request
 from pathlib import Path
@@ -430,7 +434,7 @@ def test_bad_programs_get_errors_in_the_page_and_the_server_keeps_serving(
             "oversized": (json.dumps({"program": [{"wait": 1}] * 20000}), "too large"),
             "unknown behaviour": (json.dumps({"program": [{"do": "flying"}]}), "flying"),
             "not a program": ("[1, 2]", "program"),
-            "NaN": ('{"program": [{"wait": NaN}]}', "NaN is not a number JSON allows"),
+            "NaN": ('{"program": [{"wait": NaN}]}', "NaN (not a number JSON allows)"),
         }
         for case, (body, expected) in cases.items():
             reply = run_in_page(page, body)
@@ -567,3 +571,230 @@ def test_the_command_line_imports_mujoco_without_a_child_process() -> None:
     assert children("cli") == 0
     if sys.platform.startswith("linux"):
         assert children("bare") >= 1
+
+
+# --- the server's bounds, in-process (no browser) --------------------------------------------
+
+
+@contextlib.contextmanager
+def serving(bundle: Path, **options):
+    """A BlocksServer on a free port in a thread of this process; its log in ``.log``."""
+    from program.server import BlocksServer
+
+    log = io.StringIO()
+    server = BlocksServer(bundle, 0, log=log, **options)
+    server.log_text = log
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield server
+    finally:
+        server.shutdown()
+        server.server_close()
+        thread.join(timeout=60)
+
+
+def post(server, body: bytes, timeout: float = 300) -> tuple[int, dict]:
+    """POST /run with ``body``: (status, the JSON reply)."""
+    port = server.server_address[1]
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=timeout)
+    try:
+        conn.request("POST", "/run", body=body, headers={"Content-Type": "application/json"})
+        r = conn.getresponse()
+        return r.status, json.loads(r.read())
+    finally:
+        conn.close()
+
+
+def page_status(server) -> int:
+    port = server.server_address[1]
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=60)
+    try:
+        conn.request("GET", "/blocks/index.html")
+        return conn.getresponse().status
+    finally:
+        conn.close()
+
+
+@pytest.fixture(scope="module")
+def cart_page(bundles) -> Path:
+    """The cart's bundle with its block page written (``parmor blocks``)."""
+    from program.blocks import write_page
+
+    need(web_dir() is not None, f"the npm files are absent ({MAKE_TARGET})")
+    write_page(bundles["cart"])
+    return bundles["cart"]
+
+
+def test_every_bad_body_is_answered_4xx_with_a_message(cart_page) -> None:
+    """Cases built to fail: a 30,000-deep body got no reply at all; huge integers were 500;
+    wrong types were tracebacks in the server's log."""
+    bodies = {
+        "deep": (b"[" * 30_000 + b"]" * 30_000, 400, "nested deeper than 64"),
+        "deep object": (b'{"a":' * 10_000 + b"1" + b"}" * 10_000, 400, "line 1 column 321"),
+        "5000 digits": (
+            b'{"program": [{"wait": %s}]}' % (b"9" * 5000),
+            422,
+            "program[0].wait: expected seconds in [0, 60], got an integer of 5000 digits",
+        ),
+        "400 digits": (
+            b'{"program": [{"do": "driving", "params": {"seconds": %s}}]}' % (b"1" * 400),
+            422,
+            "program[0].params.seconds: expected a number, got an integer of 400 digits",
+        ),
+        "1e400": (b'{"program": [{"wait": 1e400}]}', 422, "program[0].wait: "),
+        "report list": (
+            b'{"program": [{"if": {"report": ["x_m"], "op": ">", "value": 1}}]}',
+            422,
+            "program[0].if.report: unknown report ['x_m']",
+        ),
+        "op object": (
+            b'{"program": [{"if": {"report": "x_m", "op": {}, "value": 1}}]}',
+            422,
+            "program[0].if.op: ",
+        ),
+        "params list": (
+            b'{"program": [{"do": "driving", "params": {"seconds": [1]}}]}',
+            422,
+            "program[0].params.seconds: expected a number, got [1]",
+        ),
+        "not UTF-8": (b'{"program": ["\xe9"]}', 400, "not UTF-8"),
+        "cut short": (b'{"program": [', 400, "the program is not JSON: line 1 column 14"),
+    }
+    with serving(cart_page) as server:
+        for case, (body, status, message) in bodies.items():
+            got, reply = post(server, body)
+            assert (got, case) == (status, case) and message in reply["error"], (case, reply)
+            assert page_status(server) == 200, case
+        log = server.log_text.getvalue()
+    assert "Traceback" not in log and "failed" not in log, log
+
+
+def _read_all(s: socket.socket) -> bytes:
+    data = b""
+    while chunk := s.recv(4096):
+        data += chunk
+    return data
+
+
+def test_connections_are_capped(cart_page) -> None:
+    """A case built to fail: 30 idle connections held 30 threads; now 4 are served (a
+    thread each) and the others answered 503 at once and closed."""
+    with serving(cart_page, max_connections=4) as server:
+        address = ("127.0.0.1", server.server_address[1])
+        before = threading.active_count()
+        idle = [socket.create_connection(address, timeout=120) for _ in range(4)]
+        refused = [socket.create_connection(address, timeout=120) for _ in range(26)]
+        for s in refused:
+            head, _, body = _read_all(s).partition(b"\r\n\r\n")
+            s.close()
+            assert head.startswith(b"HTTP/1.1 503"), head
+            assert "4 connections open" in json.loads(body)["error"]
+        assert threading.active_count() <= before + 4
+        for s in idle:
+            s.close()
+        end = time.monotonic() + 120  # their threads see the end and free their slots
+        while time.monotonic() < end:
+            with socket.create_connection(address, timeout=120) as s:
+                s.sendall(
+                    b"GET /blocks/index.html HTTP/1.1\r\nHost: %s:%d\r\n\r\n"
+                    % (address[0].encode(), address[1])
+                )
+                if not s.recv(64).startswith(b"HTTP/1.1 503"):
+                    break
+            time.sleep(0.2)
+        assert page_status(server) == 200
+        log = server.log_text.getvalue()
+    assert "Traceback" not in log, log
+
+
+def test_idle_and_slow_connections_time_out(cart_page) -> None:
+    """Cases built to fail: a connection that sends nothing was kept open for ever; one
+    whose body stops coming is answered 408 after the socket timeout (1 s here)."""
+    with serving(cart_page, socket_timeout=1.0) as server:
+        address = ("127.0.0.1", server.server_address[1])
+        with socket.create_connection(address, timeout=120) as idle:
+            assert idle.recv(4096) == b""  # closed by the server (before the 120 s here)
+        with socket.create_connection(address, timeout=120) as slow:
+            slow.sendall(
+                b'POST /run HTTP/1.1\r\nHost: %s:%d\r\nContent-Length: 100\r\n\r\n{"pro'
+                % (address[0].encode(), address[1])
+            )
+            reply = _read_all(slow)
+        assert reply.startswith(b"HTTP/1.1 408"), reply
+        assert b"did not arrive within 1 s" in reply
+        assert page_status(server) == 200
+        log = server.log_text.getvalue()
+    assert "Traceback" not in log, log
+
+
+def test_runs_at_once_are_capped_by_memory_and_cpus(cart_page, monkeypatch) -> None:
+    """Cases built to fail: 8 CPUs with memory for two runs give two slots, not eight."""
+    from program import server as srv
+
+    per = srv.RUN_MEMORY_MB
+    assert srv.run_slots(8, 2.5 * per) == 2
+    assert srv.run_slots(8, 0.5 * per) == 1  # one run is always allowed
+    assert srv.run_slots(2, 100 * per) == 2
+    assert srv.run_slots(3, None) == 3  # memory unknown: the CPUs
+    if sys.platform.startswith("linux"):
+        assert srv.available_memory_mb() > 0
+    monkeypatch.setattr(srv, "available_memory_mb", lambda: 1.5 * per)
+    monkeypatch.setattr(srv.os, "cpu_count", lambda: 16)
+    with serving(cart_page) as server:
+        assert server.runner.max_runs == 1
+
+
+_MEASURE = """
+import json, resource, sys
+from pathlib import Path
+from program.server import Runner
+
+if __name__ == "__main__":
+    runner = Runner(Path(sys.argv[1]), time_limit=3000, max_runs=1)
+    reply = runner.run(json.loads(sys.argv[2]))
+    seconds = json.loads(reply)["result"]["seconds"]
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024  # KB -> MB
+    print(json.dumps({"seconds": seconds, "child_mb": peak, "reply_mb": len(reply) / 2**20}))
+"""
+
+
+def test_a_run_of_the_longest_program_fits_the_memory_estimate(bundles, tmp_path) -> None:
+    """RUN_MEMORY_MB against a measurement: the longest program a run may simulate (300 s)
+    on the hexapod (the most drawn parts): its process's peak and its reply."""
+    from program.server import RUN_MEMORY_MB
+
+    script = tmp_path / "measure.py"
+    script.write_text(_MEASURE)
+    program = {"program": [{"repeat": 5, "body": [{"wait": 59.5}]}]}
+    r = subprocess.run(
+        [sys.executable, str(script), str(bundles["hexapod"]), json.dumps(program)],
+        capture_output=True,
+        text=True,
+        timeout=1800,
+        env=dict(os.environ, PYTHONPATH=str(REPO)),
+    )
+    assert r.returncode == 0, r.stderr[-3000:]
+    m = json.loads(r.stdout)
+    assert m["seconds"] > 290
+    assert m["child_mb"] + 2 * m["reply_mb"] < RUN_MEMORY_MB, m
+
+
+@pytest.mark.parametrize("limit", ["1e10", "86401", "0.01", "0", "-1", "nan", "inf"])
+def test_time_limits_the_server_cannot_honour_are_refused_at_start(
+    bundles, tmp_path, limit: str
+) -> None:
+    """A case built to fail: --time-limit 1e10 was accepted and every run failed with 500."""
+    from adron.errors import InputError
+    from program.server import TIME_LIMIT_RANGE, Runner
+
+    folder = tmp_path / "cart"
+    shutil.copytree(bundles["cart"], folder, ignore=shutil.ignore_patterns("blocks"))
+    out, err = io.StringIO(), io.StringIO()
+    code = main(["blocks", str(folder), "--serve", "--time-limit", limit], out, err)
+    low, high = TIME_LIMIT_RANGE
+    assert code == 2 and f"expected seconds in [{low:g}, {high:g}]" in err.getvalue()
+    assert "Traceback" not in err.getvalue()
+    assert not (folder / "blocks").exists()  # refused before anything is written
+    with pytest.raises(InputError):
+        Runner(folder, float(limit), 1)
