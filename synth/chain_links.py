@@ -601,7 +601,10 @@ def chain_tubes(
     per-link sizing (or, when that has no solution, the stiffest tubes); the solution is
     then made exactly feasible: the stiffnesses of a chain's links are raised by the
     solver's residual (~1e-10) when its deflection exceeds the budget, and never fall
-    below the stress floors. One link gives ``optimal_tube``'s tube.
+    below the stress floors. One link gives ``optimal_tube``'s tube. When the per-link
+    sizing already puts every link at its floor (stress, buckling: nothing is
+    deflection-governed) it is the optimum and is returned without solving (0
+    iterations; cvxpy is not imported).
 
     Raises InfeasibleError when a chain's tip deflection exceeds its budget even with the
     stiffest printable tubes (naming the chain, the link that contributes most and the
@@ -648,6 +651,9 @@ def chain_tubes(
         ) / (math.pi * big_r**2)
     except InfeasibleError:  # some link cannot take an even share: see _slack_start
         x0 = _slack_start(prob, scale)
+    else:
+        if np.all(start <= prob.floor):  # every link at its least area: nothing to share
+            return _result(prob, start, allowed, 0)
     x0 = np.clip(x0, lo, 1.0)
 
     # scaled for the solver about the start: y = x / start and t = sigma / I~ with
@@ -672,7 +678,9 @@ def chain_tubes(
         par["icpt"].value = icpt / root
         with warnings.catch_warnings():  # "may be inaccurate": the status says it
             warnings.simplefilter("ignore", UserWarning)
-            problem.solve(solver="CLARABEL", **SOLVER_OPTIONS)
+            # no warm start: a solver updated from an earlier problem's factorisation
+            # differs in the last digits, and identical inputs must give identical tubes
+            problem.solve(solver="CLARABEL", warm_start=False, **SOLVER_OPTIONS)
         if problem.status not in ("optimal", "optimal_inaccurate") or y.value is None:
             break  # x0 is feasible: keep it
         x1 = np.clip(np.asarray(y.value, dtype=float) * start, lo, 1.0)

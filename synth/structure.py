@@ -64,6 +64,7 @@ from synth.assign import (
     product_rows,
 )
 from synth.behaviour_loads import BehaviourCase, analyse
+from synth.chain_links import Chain, ChainLink, chain_tubes, serial_chains
 from synth.links import (
     Tube,
     TubeLimits,
@@ -653,22 +654,102 @@ class StructureDesigner:
             out[s.name] = [n for n, k in zip(names, ok, strict=True) if k]
         return out
 
-    def _size_link(self, name: str, length: float, loads: list[np.ndarray]) -> tuple[Tube, dict]:
+    def _link_inputs(
+        self, length: float, loads: list[np.ndarray]
+    ) -> tuple[list[np.ndarray], TubeLimits, float]:
+        """A link's distinct loads, its tube limits and its Euler buckling floor on the
+        stiffness ``(r2^4 - r1^4) / L^3`` (m)."""
         cat = self.catalog
         E = cat.material.youngs_modulus_Pa
-        dmax = self.values["deflection"]
         # alike segments of alike limbs carry the same loads: check each load once
         loads = list({tuple(np.round(ld, 12)): ld for ld in loads}.values())
-        allowed = max_allowed_stress(
-            cat.material.yield_strength_Pa, cat.design.stress_safety_factor
-        )
         limits = TubeLimits(cat.passive.max_outer_radius_m, cat.passive.min_wall_m, length, length)
-        force = max(_equivalent_force(ld, length) for ld in loads)
-        k0 = stiffness_constant(force, E, dmax)
         # Euler buckling of a cantilever (effective length 2L) under the axial compression:
         # P sf <= pi^2 E I / (2L)^2, I = pi/4 (r2^4 - r1^4)  =>  a lower bound on K0
         squeeze = max(max(-ld[0], 0.0) for ld in loads)
         k_buckle = 16 * squeeze * cat.design.stress_safety_factor / (math.pi**3 * E * length)
+        return loads, limits, k_buckle
+
+    def _size_links(
+        self,
+        lengths: Mapping[str, float],
+        loads: Mapping[str, list[np.ndarray]],
+        counts: Mapping[str, int],
+        analysis: Template,
+    ) -> dict[str, tuple[Tube, dict]]:
+        """Every printed link design (length name -> length m, free-end loads): the links
+        of a serial chain of two or more of them (root to a foot, an end effector, or a
+        leaf when there are neither) as one convex program (``synth.chain_links``): least
+        printed volume (``counts`` copies of each) with the chain's allowance, the
+        ``deflection`` parameter times its links, shared among them, each link within its
+        stress and buckling floors; every other link on its own (``_size_link``)."""
+        tips = {
+            **dict(zip(analysis.feet, analysis.foot_points, strict=True)),
+            **{b: np.zeros(3) for b in analysis.end_effectors},
+        }
+        chains = []
+        for names, _ in serial_chains(analysis.model, analysis.segments, tips or None):
+            distinct = tuple(dict.fromkeys(n for n in names if n in lengths))
+            if len(distinct) >= 2:
+                chains.append(distinct)
+        joint = sorted({n for c in chains for n in c})
+        out = {n: self._size_link(n, lengths[n], loads[n]) for n in lengths if n not in joint}
+        if joint:
+            out.update(self._size_chains(joint, chains, lengths, loads, counts))
+        return out
+
+    def _size_chains(
+        self,
+        names: Sequence[str],
+        chains: Sequence[tuple[str, ...]],
+        lengths: Mapping[str, float],
+        loads: Mapping[str, list[np.ndarray]],
+        counts: Mapping[str, int],
+    ) -> dict[str, tuple[Tube, dict]]:
+        """The links ``names`` of ``chains`` (link names, root to tip) sized together; a
+        chain of N links may deflect N times the ``deflection`` parameter, each link's
+        part its own tip deflection (no levers: the allowance per link of ``_size_link``,
+        pooled)."""
+        cat = self.catalog
+        dmax = self.values["deflection"]
+        allowed = max_allowed_stress(
+            cat.material.yield_strength_Pa, cat.design.stress_safety_factor
+        )
+        links = []
+        for n in names:
+            own, limits, k_buckle = self._link_inputs(lengths[n], loads[n])
+            links.append(ChainLink(n, limits, tuple(own), max(counts.get(n, 1), 1), k_buckle))
+        budgets = [len(c) * dmax for c in chains]
+        sized = chain_tubes(
+            links,
+            [Chain(c, b, (0.0,) * len(c)) for c, b in zip(chains, budgets, strict=True)],
+            cat.material.youngs_modulus_Pa,
+            allowed,
+            cat.passive.stress_concentration,
+        )
+        out = {}
+        for n in names:
+            allowance = min(b for c, b in zip(chains, budgets, strict=True) if n in c)
+            info = {
+                "deflection": sized.share_m[n],
+                "max_deflection": allowance,
+                "stress": sized.stress_Pa[n],
+                "allowed": allowed,
+                "governed": sized.governed[n],
+            }
+            out[n] = (sized.tubes[n], info)
+        return out
+
+    def _size_link(self, name: str, length: float, loads: list[np.ndarray]) -> tuple[Tube, dict]:
+        cat = self.catalog
+        E = cat.material.youngs_modulus_Pa
+        dmax = self.values["deflection"]
+        loads, limits, k_buckle = self._link_inputs(length, loads)
+        allowed = max_allowed_stress(
+            cat.material.yield_strength_Pa, cat.design.stress_safety_factor
+        )
+        force = max(_equivalent_force(ld, length) for ld in loads)
+        k0 = stiffness_constant(force, E, dmax)
         k0 = max(k0, k_buckle)
         try:
             tube = optimal_tube(k0, limits, name)
@@ -737,6 +818,9 @@ class StructureDesigner:
         p = cat.passive
         probe = build(self.type, self._params(sizing, {}, {}, self.modules))
         names = sorted({s.length_name or s.name for s in probe.segments})
+        counts: dict[str, int] = {}  # length name -> printed copies (the volume's weight)
+        for s in probe.segments:
+            counts[s.length_name or s.name] = counts.get(s.length_name or s.name, 0) + 1
         tubes = {n: (p.max_outer_radius_m, p.max_outer_radius_m - p.min_wall_m) for n in names}
         act_mass = {
             s.group: min(self.by_model[m].mass_kg for m in self.assigner.serving[s.name])
@@ -767,16 +851,17 @@ class StructureDesigner:
             for joint, model in assignment.models:
                 g = next(s.group for s in self.slots if s.name == joint)
                 new_mass[g] = max(new_mass.get(g, 0.0), self.by_model[model].mass_kg)
-            sized = {
-                n: self._size_link(
-                    n,
-                    sizing.lengths.get(n, analysis.lengths.get(n, 0.0))
-                    or _segment_length(analysis, n),
-                    req.loads[n],
-                )
-                for n in names
-                if n in req.loads
-            }
+            sized = self._size_links(
+                {
+                    n: sizing.lengths.get(n, analysis.lengths.get(n, 0.0))
+                    or _segment_length(analysis, n)
+                    for n in names
+                    if n in req.loads
+                },
+                req.loads,
+                counts,
+                analysis,
+            )
             tubes = {n: (t.r_outer, t.r_inner) for n, (t, _) in sized.items()}
             act_mass = new_mass
             vector = np.array(
@@ -882,7 +967,7 @@ class StructureDesigner:
                 self._part_volume(t),
                 self._part_volume(t) * rho,
                 info["deflection"],
-                self.values["deflection"],
+                info.get("max_deflection", self.values["deflection"]),
                 info["stress"],
                 info["allowed"],
                 t.active,
