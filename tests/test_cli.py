@@ -171,7 +171,8 @@ def test_design_answered(cli) -> None:
     assert d["questions"] == [{"ability": "grasping", "text": GRASP_QUESTION, "answer": "yes"}]
     parts = counts(d["parts"])
     assert parts["BipedLeg"] == 2  # inherited from BipedalRobot
-    assert parts["RobotTrunk"] == 1  # named by both BipedalRobot and HumanoidRobot: one
+    # named by both BipedalRobot (RobotTrunk) and HumanoidRobot (HumanoidTorso, refining it): one
+    assert parts["HumanoidTorso"] == 1 and "RobotTrunk" not in parts
     assert parts["HumanoidArm"] == 2
     modules = counts(d["modules"])
     # 2 legs x 6 joints + 2 arms x 2 joints; gripper actuators are not degrees of freedom
