@@ -611,7 +611,9 @@ def page_status(server) -> int:
     conn = http.client.HTTPConnection("127.0.0.1", port, timeout=60)
     try:
         conn.request("GET", "/blocks/index.html")
-        return conn.getresponse().status
+        r = conn.getresponse()
+        r.read()  # closing on an unread reply resets the connection
+        return r.status
     finally:
         conn.close()
 
