@@ -5,7 +5,8 @@ without simulation (start-up), as processes, each as wall time (best of ``runs``
 ratio to ``import numpy, clingo`` in the same run; then, in process on the 1000-actuator
 hexapod, the sizing (its behaviours planned from nothing) and the verification run as
 ``parmor design`` runs it (plans simulated once each, on threads) against the same
-simulations one after another."""
+simulations one after another; last, the 3-DOF arm's and the hexapod's structure loop with
+their chains' links sized together as a ratio to each link on its own (issue 20)."""
 
 from __future__ import annotations
 
@@ -112,6 +113,50 @@ def _in_process(catalog: Path, runs: int) -> list[str]:
     ]
 
 
+def _chain_sizing(runs: int) -> list[str]:
+    """The structure loop with a serial chain's links sized together (``chain_tubes``)
+    against each link on its own (the closed form it replaced), in process after a
+    warm-up (cvxpy imported, the program compiled: their first-use cost is the
+    subprocess line), for the 3-DOF arm and the hexapod."""
+    from adron.catalog import load_catalog
+    from adron.kb import load
+    from synth.conceptual import Designer
+    from synth.solver import Query, Reasoner
+    from synth.structure import StructureDesigner
+
+    def per_link(self, lengths, loads, counts, analysis):
+        return {n: self._size_link(n, lengths[n], loads[n]) for n in lengths}
+
+    kb = load()
+    cat = load_catalog()
+    cands = {c.robot_type: c for c in Designer(kb, Reasoner(kb)).reasoner.solve(Query()).candidates}
+    py = sys.executable
+    first = _best([py, "-c", "import cvxpy"], runs) - _best([py, "-c", "import numpy"], runs)
+    lines = [f"  chain sizing (best of {runs}; importing cvxpy on first use: {first:.2f} s)"]
+    wired = StructureDesigner._size_links
+    for t in ("Manipulator3DOF", "HexapodRobot"):
+        out = {}
+        for how, fn in (("chains", wired), ("per link", per_link)):
+            StructureDesigner._size_links = fn
+            try:
+                best, mass = float("inf"), 0.0
+                for i in range(runs + 1):  # the first a warm-up
+                    t0 = time.perf_counter()
+                    s = StructureDesigner(kb, cands[t], cat, {}).run()
+                    if i:
+                        best = min(best, time.perf_counter() - t0)
+                    mass = sum(link.count * link.mass_kg for link in s.links)
+            finally:
+                StructureDesigner._size_links = wired
+            out[how] = (best, mass)
+        (tc, mc), (tp, mp) = out["chains"], out["per link"]
+        lines.append(
+            f"       {t:<16} {tc * 1000:7.1f} ms = {tc / tp:4.2f} x per link ({tp * 1000:.1f} ms);"
+            f" printed links {mc * 1000:.2f} g vs {mp * 1000:.2f} g"
+        )
+    return lines
+
+
 def bench_sizing(runs: int = 3) -> list[str]:
     py = sys.executable
     parmor = [py, "-m", "synth.cli"]
@@ -142,6 +187,7 @@ def bench_sizing(runs: int = 3) -> list[str]:
             goal = "" if target is None else f"  target < {target:g} s"
             lines.append(f"  {mark} {name:<40} {t:6.2f} s {t / ref:6.1f} x{goal}")
         lines += _in_process(big, runs)
+    lines += _chain_sizing(runs)
     return lines
 
 
