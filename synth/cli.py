@@ -651,19 +651,14 @@ def _prefetch(names: Sequence[str], kb=None, ready: Callable[[], bool] | None = 
     grounds, not on a thread of its own: a thread still importing when the process forks
     (the ground probe after a time limit) or exits (Ctrl-C, an early refusal) deadlocked
     the fork or crashed the interpreter's shutdown (issue 23). Ctrl-C and the time limit
-    stop an import here as they stop anything else of this process. An import or an index
-    that fails otherwise is left to where it is used, which reports it."""
-    import importlib
-
+    stop these imports as any other (see ``_SignalsWait``). An import or an index that
+    fails is left to where it is used, which reports it."""
     from synth.limits import LimitExceeded
 
     def load(name: str) -> None:
-        try:
-            importlib.import_module(name)
-        except LimitExceeded:  # the time limit rang during the import
-            raise
-        except Exception:  # noqa: BLE001 - imported again, and reported, where used
-            pass
+        # a failed import is tried again, and reported, where the module is used
+        with contextlib.suppress(Exception):
+            __import__(name)  # through the import statement's hook (``_SignalsWait``)
 
     for name in names:
         load(name)
@@ -1360,9 +1355,11 @@ def main(
     the program (``argv`` None), it also stands in for standard streams the shell closed
     (``>&-``), and ignores Ctrl-C once the exit code is decided: a Ctrl-C while the
     interpreter shuts down would end it with a traceback and signal 2 instead."""
+    global _WAIT
     program = argv is None
     if program:
         _fill_closed_fds()
+        _WAIT = _SignalsWait()
     out = out or sys.stdout or _ClosedOutput()
     err = err or sys.stderr or open(os.devnull, "w", encoding="utf-8")  # noqa: SIM115
     try:
@@ -1377,6 +1374,8 @@ def main(
         if program:
             with contextlib.suppress(ValueError, OSError):
                 signal.signal(signal.SIGINT, signal.SIG_IGN)
+            _WAIT.remove()
+            _WAIT = None
 
 
 def _main(argv: list[str], out: TextIO, err: TextIO) -> int:
@@ -1415,6 +1414,8 @@ def _main(argv: list[str], out: TextIO, err: TextIO) -> int:
                 args.limits = lim
                 lim = limits.Limits(None, lim.memory_mb, lim.size_atoms)
             limits.configure(lim)
+            if _WAIT is not None:
+                _WAIT.hold_alarm()
             if getattr(args, "backend", "local") != "ray":  # Ray's own processes inherit it
                 uncap = limits.cap_memory(lim.memory_mb)
         with contextlib.ExitStack() as stack:
@@ -1454,6 +1455,70 @@ def _main(argv: list[str], out: TextIO, err: TextIO) -> int:
             uncap()
         if limited:
             limits.configure(limits.Limits())
+
+
+class _SignalsWait:
+    """Run as the program, Ctrl-C and the time limit's alarm wait while the main thread
+    imports a module, and act as soon as the outermost import is done (a module takes
+    0.2 s at most, more on a loaded machine). Raised inside an extension module's
+    initialisation, the exception was lost to an ImportError (the command went on: a
+    hang while the worker grounded), turned into an ImportError's traceback (numpy), or
+    left the interpreter to end by signal 2 after the message (MuJoCo runs Python code
+    through ``PyRun_String``, which records a KeyboardInterrupt as never caught).
+
+    Imports are counted by a hook on ``builtins.__import__`` (every import statement, and
+    C code's ``PyImport_Import``); signals wait in their Python handlers, not in the
+    signal mask (the libraries' threads, OpenBLAS's, would take a masked signal, and
+    Python runs every handler on the main thread). The alarm waits only under the handler
+    in force when ``hold_alarm`` is called (``limits.bounded`` sets its own)."""
+
+    def __init__(self) -> None:
+        import _thread
+        import builtins
+
+        self.depth = 0
+        self.came: list[tuple[int, Callable | None]] = []
+        self.main = _thread.get_ident()
+        self._ident = _thread.get_ident
+        self._builtins = builtins
+        self._import = builtins.__import__
+        builtins.__import__ = self.importing
+        signal.signal(signal.SIGINT, self.signalled)
+
+    def hold_alarm(self) -> None:
+        """Let the time limit's alarm (its handler now in force) wait too."""
+        handler = signal.getsignal(signal.SIGALRM)
+        if callable(handler):
+            signal.signal(signal.SIGALRM, lambda n, f: self.signalled(n, f, handler))
+
+    def remove(self) -> None:
+        if self._builtins.__import__ == self.importing:
+            self._builtins.__import__ = self._import
+
+    def signalled(self, signum: int, frame: object, handler: Callable | None = None) -> None:
+        if self.depth:
+            self.came.append((signum, handler))
+        elif handler is None:
+            raise KeyboardInterrupt
+        else:
+            handler(signum, frame)
+
+    def importing(self, *args, **kwargs):  # noqa: ANN002, ANN003, ANN204 - __import__'s
+        if self._ident() != self.main:
+            return self._import(*args, **kwargs)
+        self.depth += 1
+        try:
+            return self._import(*args, **kwargs)
+        finally:
+            self.depth -= 1
+            if not self.depth and self.came:
+                came, self.came = self.came, []
+                for signum, handler in came:  # the first that raises ends the import
+                    self.signalled(signum, None, handler)
+
+
+#: The program's _SignalsWait (None when ``main`` is called from Python)
+_WAIT: _SignalsWait | None = None
 
 
 def _tell(err: TextIO, text: str) -> None:

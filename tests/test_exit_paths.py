@@ -100,7 +100,8 @@ class Ended:
     def describe(self) -> str:
         c = self.case
         at = "" if c.sigint_at is None else f" (Ctrl-C at {c.sigint_at:.2f} s)"
-        tail = " | ".join(self.err.strip().splitlines()[-6:])
+        lines = self.err.strip().splitlines()
+        tail = " | ".join(lines if self.code is None else lines[-6:])
         return f"{c.name}{at}: {'; '.join(self.problems())}; stderr: {tail}"
 
 
@@ -116,7 +117,8 @@ def run_case(case: Case, root: Path) -> Ended:
     here = root / f"{case.name}-{time.monotonic_ns()}"
     here.mkdir()
     (here / "explode.lp").write_text(BLOW_UP, encoding="utf-8")
-    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    # a hang is ended with SIGABRT first: faulthandler prints where each process was
+    env = {**os.environ, "PYTHONPATH": str(REPO), "PYTHONFAULTHANDLER": "1"}
     env.pop("CI", None)  # the command's behaviour does not depend on it
     sink = open("/dev/full" if case.stdout == "full" else os.devnull, "wb")  # noqa: SIM115
     start = time.monotonic()
@@ -141,8 +143,12 @@ def run_case(case: Case, root: Path) -> Ended:
         _, err = p.communicate(timeout=max(limit - (time.monotonic() - start), 1.0))
         code: int | None = p.returncode
     except subprocess.TimeoutExpired:
-        os.killpg(p.pid, signal.SIGKILL)
-        _, err = p.communicate()
+        os.killpg(p.pid, signal.SIGABRT)
+        try:
+            _, err = p.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.killpg(p.pid, signal.SIGKILL)
+            _, err = p.communicate()
         code = None
     seconds = time.monotonic() - start
     left = sorted(x.name for x in here.iterdir() if x.name != "explode.lp")
@@ -329,19 +335,15 @@ def test_prefetch_imports_on_the_calling_thread(tmp_path: Path, monkeypatch) -> 
     """The imports done while the worker grounds run on the caller's thread (a thread
     left importing deadlocked a later fork and crashed the exit): done when it returns,
     no thread started; a module that fails is left to where it is used; the idle
-    imports stop once the worker has replied; the time limit and Ctrl-C come through."""
+    imports stop once the worker has replied."""
     import threading
 
     from synth import cli
-    from synth.limits import LimitExceeded
 
     for name, body in {
         "parmor_t_ok": "DONE = True\n",
         "parmor_t_broken": "raise RuntimeError('broken')\n",
         "parmor_t_idle": "DONE = True\n",
-        "parmor_t_limit": "from synth.limits import LimitExceeded\n"
-        "raise LimitExceeded('time limit (1 s, --time-limit)', 'ground')\n",
-        "parmor_t_ctrl_c": "raise KeyboardInterrupt\n",
     }.items():
         (tmp_path / f"{name}.py").write_text(body, encoding="utf-8")
         monkeypatch.delitem(sys.modules, name, raising=False)
@@ -353,10 +355,55 @@ def test_prefetch_imports_on_the_calling_thread(tmp_path: Path, monkeypatch) -> 
     assert "parmor_t_broken" not in sys.modules and "parmor_t_idle" not in sys.modules
     cli._prefetch([], ready=lambda: False)
     assert sys.modules["parmor_t_idle"].DONE
-    with pytest.raises(LimitExceeded):
-        cli._prefetch(["parmor_t_limit", "parmor_t_ok"])
-    with pytest.raises(KeyboardInterrupt):
-        cli._prefetch(["parmor_t_ctrl_c"])
+
+
+class Rang(Exception):
+    pass
+
+
+def _rang(signum: int, frame: object) -> None:
+    raise Rang
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGALRM])
+def test_ctrl_c_and_the_alarm_wait_for_the_outermost_import(
+    tmp_path: Path, monkeypatch, sig: int
+) -> None:
+    """Run as the program, Ctrl-C or the time limit's alarm during an import acts once
+    the outermost import is done (inside an extension's initialisation the exception was
+    lost, became an ImportError, or ended the interpreter by signal 2), and at once
+    outside an import."""
+    import builtins
+
+    from synth import cli
+
+    (tmp_path / "parmor_t_outer.py").write_text(
+        "import parmor_t_inner\nDONE = True\n", encoding="utf-8"
+    )
+    (tmp_path / "parmor_t_inner.py").write_text(
+        f"import os\nos.kill(os.getpid(), {int(sig)})\nfor _ in range(10**5): pass\nDONE = True\n",
+        encoding="utf-8",
+    )
+    for m in ("parmor_t_outer", "parmor_t_inner"):
+        monkeypatch.delitem(sys.modules, m, raising=False)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    expected = KeyboardInterrupt if sig == signal.SIGINT else Rang
+    alarm = signal.signal(signal.SIGALRM, _rang)
+    wait = cli._SignalsWait()
+    try:
+        wait.hold_alarm()
+        with pytest.raises(expected):
+            import parmor_t_outer  # noqa: F401
+        assert sys.modules["parmor_t_outer"].DONE and sys.modules["parmor_t_inner"].DONE
+        with pytest.raises(expected):
+            os.kill(os.getpid(), sig)
+            for _ in range(10**6):
+                pass
+    finally:
+        wait.remove()
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGALRM, alarm)
+    assert builtins.__import__ != wait.importing
 
 
 @pytest.mark.parametrize("stop", [KeyboardInterrupt, "limit"])
