@@ -1,1 +1,5 @@
 """Exporters of a design: URDF, MJCF, STL, bill of materials, design record."""
+
+# a bundle written before design records kept their body plan is rebuilt from the shipped
+# ontology's (synth.bodyplan.install: cheap, the ontology is read only when asked)
+import synth.bodyplan  # noqa: E402, F401

@@ -92,6 +92,8 @@ def run_gait(legs: int) -> tuple[str, float | None]:
     """Running's gait for ``legs`` legs: ``RUN_GAITS``, else the first gait of the count
     (``GAITS``) with its own duty."""
     return RUN_GAITS.get(legs) or (GAITS[legs][0], None)
+
+
 #: Duties tried for running, from the shortest to the gait's own.
 RUN_DUTY_STEPS = 3
 #: Gait plans kept in memory (see ``LeggedController._plan``).

@@ -24,22 +24,6 @@ import numpy as np
 
 from kinematics.bodyplan import BodyPlan, PartNode
 from kinematics.partkinds import AXES, JointSpec, Mount, PartKind, PartKinds, evaluate
-from kinematics.templates import (
-    WHEEL_WIDTH,
-    LabelledPart,
-    Template,
-    TemplateParams,
-    _BACK,
-    _DOWN,
-    _UP,
-    _Builder,
-    _frozen,
-    _gripper_parts,
-    _point,
-    _servos_on_chassis,
-    _trunk,
-    check_params,
-)
 from kinematics.spatial import (
     box_inertia,
     rot_x,
@@ -48,6 +32,22 @@ from kinematics.spatial import (
     transform,
     transform_from,
     tube_inertia,
+)
+from kinematics.templates import (
+    _BACK,
+    _DOWN,
+    _UP,
+    WHEEL_WIDTH,
+    LabelledPart,
+    Template,
+    TemplateParams,
+    _Builder,
+    _frozen,
+    _gripper_parts,
+    _point,
+    _servos_on_chassis,
+    _trunk,
+    check_params,
 )
 
 __all__ = ["AssemblyError", "assemble", "length_defaults"]
@@ -277,8 +277,8 @@ class _Walk:
                 for side in (1, -1):
                     name = "left" if side > 0 else "right"
                     prefix = f"{words[i]}_{name}" if words[i] else name
-                    xyz = (fx * span / 2, side * track / 2, 0) if a > 1 else (
-                        0, side * track / 2, 0
+                    xyz = (
+                        (fx * span / 2, side * track / 2, 0) if a > 1 else (0, side * track / 2, 0)
                     )
                     out.append((side, prefix, transform(xyz)))
         elif m.layout == "trailing":
@@ -341,8 +341,10 @@ class _Walk:
         forward = tip.forward
         if j.tube_length:
             d = np.array(AXES[j.tube_along])
-            seg = body if index is not None else (
-                f"{tip.prefix}_{j.tube_length}" if tip.prefix else j.tube_length
+            seg = (
+                body
+                if index is not None
+                else (f"{tip.prefix}_{j.tube_length}" if tip.prefix else j.tube_length)
             )
             tube = (seg, j.tube_length, d)
             forward = d
@@ -389,9 +391,12 @@ class _Walk:
             if not nxt:
                 break
             node = nxt[0]
-        joints = [n for n in chain if _kind(self.kinds, n).role == "joint" or (
-            _kind(self.kinds, n).joints and not _kind(self.kinds, n).link
-        )]
+        joints = [
+            n
+            for n in chain
+            if _kind(self.kinds, n).role == "joint"
+            or (_kind(self.kinds, n).joints and not _kind(self.kinds, n).link)
+        ]
         ext = [n for n in joints if any(k in self.plan.extensible for k in n.kinds)]
         if ext:
             m = self.p.modules
@@ -400,8 +405,11 @@ class _Walk:
             chain = [joints[0]] * int(m)
             joints = chain
         serial_rows = None
-        if any(_kind(self.kinds, n).joints[0].name == "serial" for n in joints
-               if _kind(self.kinds, n).joints):
+        if any(
+            _kind(self.kinds, n).joints[0].name == "serial"
+            for n in joints
+            if _kind(self.kinds, n).joints
+        ):
             n = len(joints)
             serial_rows = self.kinds.serial.get(n)
             if serial_rows is None:
@@ -438,8 +446,7 @@ class _Walk:
             rest = [c for c in node.children if _kind(self.kinds, c).role not in _CHAIN]
             if link is not None:
                 rest += [
-                    c for c in chain[pos - 1].children
-                    if _kind(self.kinds, c).role not in _CHAIN
+                    c for c in chain[pos - 1].children if _kind(self.kinds, c).role not in _CHAIN
                 ]
             for c in rest:
                 self.part(c, here)
@@ -467,9 +474,7 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
         if r.tube is not None:
             distal = next((c.name for c in recs[k + 1 :] if c.parent == k), None)
             parts.append(b.tube(r.tube[0], r.tube[1], r.body, tuple(r.tube[2]), distal))
-        end_point = (
-            r.tube[2] * lengths[r.tube[1]] if r.tube is not None else np.zeros(3)
-        )
+        end_point = r.tube[2] * lengths[r.tube[1]] if r.tube is not None else np.zeros(3)
         if r.end == "point_foot":
             foot = tuple(float(x) + 0.0 for x in end_point)
             parts.append(_point(r.body, "foot", p.foot_mass, foot))

@@ -89,8 +89,17 @@ def _check_expression(text: str) -> ast.AST:
     for node in ast.walk(tree):
         if not isinstance(
             node,
-            (ast.Expression, ast.BinOp, ast.UnaryOp, ast.USub, ast.UAdd, ast.Name, ast.Load,
-             ast.Constant, *_OPS),
+            (
+                ast.Expression,
+                ast.BinOp,
+                ast.UnaryOp,
+                ast.USub,
+                ast.UAdd,
+                ast.Name,
+                ast.Load,
+                ast.Constant,
+                *_OPS,
+            ),
         ) or (isinstance(node, ast.Constant) and not isinstance(node.value, (int, float))):
             raise ValueError(f"{text!r} is not an arithmetic expression of names and numbers")
     return tree
@@ -125,9 +134,7 @@ def evaluate(value: float | str, names: Mapping[str, float]) -> float:
 def _names(text: float | str) -> set[str]:
     if not isinstance(text, str):
         return set()
-    return {
-        n.id for n in ast.walk(_check_expression(text)) if isinstance(n, ast.Name)
-    } - {"pi"}
+    return {n.id for n in ast.walk(_check_expression(text)) if isinstance(n, ast.Name)} - {"pi"}
 
 
 @dataclass(frozen=True)
@@ -319,8 +326,23 @@ class _Reader:
         if not isinstance(d, dict):
             self.fail(key, "must be a table")
         allowed = {
-            "class", "doc", "root", "body", "box", "at", "at_with", "faces", "payload",
-            "order", "lengths", "joints", "end", "role", "mounts", "naming", "link",
+            "class",
+            "doc",
+            "root",
+            "body",
+            "box",
+            "at",
+            "at_with",
+            "faces",
+            "payload",
+            "order",
+            "lengths",
+            "joints",
+            "end",
+            "role",
+            "mounts",
+            "naming",
+            "link",
         }
         for k in d:
             if k not in allowed:
@@ -380,8 +402,16 @@ class _Reader:
         if not isinstance(d, dict):
             self.fail(key, "must be a table")
         allowed = {
-            "name", "kind", "axis", "axes", "limits", "group", "module",
-            "actuator_on_parent", "tube", "body",
+            "name",
+            "kind",
+            "axis",
+            "axes",
+            "limits",
+            "group",
+            "module",
+            "actuator_on_parent",
+            "tube",
+            "body",
         }
         for k in d:
             if k not in allowed:

@@ -91,8 +91,6 @@ from kinematics.spatial import (
     link_part_mass_properties,
     point_inertia,
     rot_x,
-    rot_z,
-    sphere_inertia,
     transform,
     transform_from,
     tube_inertia,

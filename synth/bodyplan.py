@@ -27,12 +27,14 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from adron.errors import InputError, OntologyError
-from adron.kb import KnowledgeBase
-from adron.units import quantity
 from kinematics.bodyplan import BodyPlan, PartNode
-from kinematics.partkinds import PartKinds
+
+if TYPE_CHECKING:  # imported where used: importing this module stays cheap (install())
+    from adron.kb import KnowledgeBase
+    from kinematics.partkinds import PartKinds
 
 __all__ = ["ancestors", "plan_of"]
 
@@ -256,6 +258,8 @@ def plan_of(kb: KnowledgeBase, robot_type: str, kinds: PartKinds) -> BodyPlan:
 
 
 def _default_lengths(kb: KnowledgeBase, lineage: Sequence[str]) -> dict[str, float]:
+    from adron.units import quantity
+
     rank = {c: i for i, c in enumerate(lineage)}
     best: dict[str, tuple[int, float]] = {}
     for args, where in kb.translation.located("defaultLength"):

@@ -74,7 +74,8 @@ def serial_arm_kif(n: int, kinds: PartKinds) -> str:
 ;; Composed by parmor for --param dof={n}: a serial arm of {n} joints ({joints}).
 (subclass {name} IndustrialRobot)
 (instance {name} BaseConfiguration)
-(documentation {name} EnglishLanguage "A stationary arm of {n} joints ({joints}) ending in a gripper, composed from the part kinds for --param dof={n}.")
+(documentation {name} EnglishLanguage "A stationary arm of {n} joints ({joints}) ending \
+in a gripper, composed from the part kinds for --param dof={n}.")
 (=>
   (instance ?ROB {name})
   (exists (?BASE ?GRIP {" ".join(servos)} {" ".join(links)})

@@ -1,15 +1,16 @@
 """Structural design parameters: names, dimensions, which structures use them, defaults.
 
-Conceptual parameters (``object_shape``) are declared in the ontology (``parameterName``);
+The 6-DOF arm's payload default is the ontology's ``defaultParameter``. Conceptual
+parameters (``object_shape``) are declared in the ontology (``parameterName``);
 the physical ones below size the structure. Values take units (``--param reach=30cm``)
 and are SI floats inside. A default of ``None`` means "from the catalog's [design]
 section" (``deflection``, ``slope``).
 
 | name | dimension | used by | default | range |
 |---|---|---|---|---|
-| payload | mass | all | kg: serial arm 0.2 (Manipulator6DOF: 0.1, defaultParameter); multiped 0.1; biped 0.05; wheeled 0.5 | 0-50 kg |
+| payload | mass | all | kg: arm 0.2 (6-DOF 0.1); multiped 0.1; biped 0.05; wheels 0.5 | 0-50 kg |
 | reach | length | serial_arm | 0.25 m | 5 cm-2 m |
-| speed | speed | all but module_chain | m/s: arms 0.2 (tip), multiped and biped 0.05, wheeled 0.3 | 1 mm/s-10 m/s |
+| speed | speed | all but module_chain | m/s: arm 0.2 (tip), legs 0.05, wheels 0.3 | 1 mm/s-10 m/s |
 | obstacle_height | length | multiped | 0.03 m | 1 mm-1 m |
 | load_area | area | wheeled | 0.03 m^2 (300 cm^2) | 25 cm^2-1 m^2 |
 | height | length | biped | 0.40 m | 5 cm-2 m |

@@ -1,4 +1,5 @@
-"""Sizing rules of the structure generator, one family per structure (the paper's sections 4.2.1 and 4.3):
+"""Sizing rules of the structure generator, one family per structure (the paper's sections
+4.2.1 and 4.3):
 tentative link lengths from the requirements, and the worst-case load cases.
 
 Each family turns the resolved parameters (SI, see ``synth.params``) into

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from adron.kb import KnowledgeBase, load
 import synth.bodyplan  # noqa: F401  (the shipped ontology's body plans, by type name)
+from adron.kb import KnowledgeBase, load
 from synth.cli import main
 from synth.conceptual import Designer
 from synth.solver import Reasoner
@@ -22,9 +22,7 @@ REPO = Path(__file__).resolve().parents[1]
 def _shipped_types() -> tuple[str, ...]:
     """The shipped ontology's base configurations, in the order the paper presents them."""
     kb = load()
-    bases = {
-        a[0] for a in kb.translation.relation("instance") if a[1:] == ("BaseConfiguration",)
-    }
+    bases = {a[0] for a in kb.translation.relation("instance") if a[1:] == ("BaseConfiguration",)}
     order = ("Manipulator3DOF", "Manipulator6DOF", "HexapodRobot", "QuadrupedRobot")
     return tuple(t for t in order if t in bases) + tuple(sorted(bases - set(order)))
 

@@ -24,9 +24,9 @@ from export.assembly import build_assembly, with_payload
 from export.slicer import estimate
 from kinematics.spatial import box_inertia, combine_parts, sphere_inertia
 from kinematics.templates import DEFAULTS, PART_KINDS, TemplateParams, build
-from tests.conftest import TEMPLATES
 from synth.solver import Query
 from synth.structure import Structure, design_structure
+from tests.conftest import TEMPLATES
 
 FACES = {"face_side": 0.05, "face_thickness": 0.004, "fillet": 0.003}
 

@@ -103,8 +103,22 @@ HEAVY = """
 CASES = [
     ("arm4", arm_kif(4), "positioning-4", ["--answer", "orienting=no"], "Arm4Joints", 4),
     ("arm5", arm_kif(5), "positioning-5", ["--answer", "orienting=no"], "Arm5Joints", 5),
-    ("arm7", arm_kif(7), "positioning-7", ["--answer", "orienting=yes", "--param", "payload=0.1kg"], "Arm7Joints", 7),
-    ("pentapod", legged_kif("Pentapod", 5, "five-leg-walking"), "five-leg-walking", [], "Pentapod", 15),
+    (
+        "arm7",
+        arm_kif(7),
+        "positioning-7",
+        ["--answer", "orienting=yes", "--param", "payload=0.1kg"],
+        "Arm7Joints",
+        7,
+    ),
+    (
+        "pentapod",
+        legged_kif("Pentapod", 5, "five-leg-walking"),
+        "five-leg-walking",
+        [],
+        "Pentapod",
+        15,
+    ),
     (
         "octopod",
         legged_kif("Octopod", 8, "eight-leg-walking"),
@@ -191,11 +205,14 @@ LOOP = legged_kif("LoopBot", 4, "loop-walking").replace(
 FLOAT = legged_kif("FloatBot", 4, "float-walking").replace(
     "(instance ?T RobotTrunk)", "(instance ?T BodyPlateModule)"
 )
-TENTACLE = legged_kif("TentacleBot", 4, "tentacle-walking") + """
+TENTACLE = (
+    legged_kif("TentacleBot", 4, "tentacle-walking")
+    + """
 (subclass Tentacle RobotLimb)
 (=> (instance ?ROB TentacleBot)
   (exists (?X) (and (instance ?X Tentacle) (robotPart ?X ?ROB))))
 """
+)
 
 
 @pytest.mark.parametrize(
@@ -212,7 +229,9 @@ def test_a_body_plan_that_cannot_be_assembled_is_refused_with_its_location(
     src = tmp_path / "bad.kif"
     src.write_text(kif)
     out = tmp_path / "out"
-    r = cli("design", ability, "--ontology", str(src), "--no-input", "--no-verify", "--out", str(out))
+    r = cli(
+        "design", ability, "--ontology", str(src), "--no-input", "--no-verify", "--out", str(out)
+    )
     assert r.code == 2, r.err
     assert message in r.err
     assert f"{src}:" in r.err  # file:line:col of the axiom
@@ -268,7 +287,8 @@ def test_a_users_part_kind_replaces_the_shipped_one(tmp_path, cli) -> None:
     text = shipped_text()[1]
     start = text.index('class = "MultipedLeg"')
     mine = "[[kind]]\n" + text[start : text.index("[[kind]]", start)].replace(
-        'limits = ["-pi/3", "pi/3"], group = "leg_coxa"', 'limits = ["-pi/6", "pi/6"], group = "leg_coxa"'
+        'limits = ["-pi/3", "pi/3"], group = "leg_coxa"',
+        'limits = ["-pi/6", "pi/6"], group = "leg_coxa"',
     )
     f = tmp_path / "legs.toml"
     f.write_text(mine)
@@ -288,11 +308,17 @@ def test_a_users_part_kind_replaces_the_shipped_one(tmp_path, cli) -> None:
 @pytest.mark.parametrize(
     ("text", "key"),
     [
-        ('[[kind]]\nclass = "X"\njoints = [{ name = "a", axis = "w" }]\n', "kind[0].joints[0].axis"),
+        (
+            '[[kind]]\nclass = "X"\njoints = [{ name = "a", axis = "w" }]\n',
+            "kind[0].joints[0].axis",
+        ),
         ('[[kind]]\nclass = "X"\ncolour = 1\n', "kind[0].colour"),
         ('[[kind]]\nclass = "X"\nroot = true\n', "needs a 'body' name and a 'box'"),
         ('[serial]\n3 = [["a", "z", "-pi", "pi"]]\n', "serial.3"),
-        ('[[kind]]\nclass = "X"\njoints = [{ name = "a", limits = ["import os", 1] }]\n', "limits[0]"),
+        (
+            '[[kind]]\nclass = "X"\njoints = [{ name = "a", limits = ["import os", 1] }]\n',
+            "limits[0]",
+        ),
     ],
 )
 def test_a_bad_part_kinds_file_names_the_file_and_the_key(tmp_path, cli, text, key) -> None:
@@ -324,10 +350,25 @@ def test_a_serial_chain_longer_than_the_table_is_refused() -> None:
 @pytest.mark.parametrize(
     ("shape", "dof", "robot", "joints"),
     [
-        ("cylinder", "4", "SerialArm4DOF", ("base_yaw", "shoulder_pitch", "elbow_pitch", "wrist_pitch")),
-        ("cylinder", "5", "SerialArm5DOF", ("base_yaw", "shoulder_pitch", "elbow_pitch", "wrist_pitch", "tool_roll")),
+        (
+            "cylinder",
+            "4",
+            "SerialArm4DOF",
+            ("base_yaw", "shoulder_pitch", "elbow_pitch", "wrist_pitch"),
+        ),
+        (
+            "cylinder",
+            "5",
+            "SerialArm5DOF",
+            ("base_yaw", "shoulder_pitch", "elbow_pitch", "wrist_pitch", "tool_roll"),
+        ),
         ("cylinder", "3", "Manipulator3DOF", ("base_yaw", "shoulder_pitch", "elbow_pitch")),
-        ("oval", "6", "Manipulator6DOF", ("base_yaw", "shoulder_pitch", "elbow_pitch", "wrist_roll", "wrist_pitch", "tool_roll")),
+        (
+            "oval",
+            "6",
+            "Manipulator6DOF",
+            ("base_yaw", "shoulder_pitch", "elbow_pitch", "wrist_roll", "wrist_pitch", "tool_roll"),
+        ),
     ],
 )
 def test_dof_composes_or_picks_an_arm_of_that_many_joints(cli, shape, dof, robot, joints) -> None:
@@ -363,7 +404,9 @@ def test_a_type_without_a_controller_is_refused_unless_unverified(cli, tmp_path)
     and exports it."""
     src = tmp_path / "arm5.kif"
     src.write_text(arm_kif(5))
-    r = cli("design", "positioning-5", "--answer", "orienting=no", "--ontology", str(src), "--no-input")
+    r = cli(
+        "design", "positioning-5", "--answer", "orienting=no", "--ontology", str(src), "--no-input"
+    )
     assert r.code == 1, r.err
     assert "cannot be simulated" in r.err and "--no-verify" in r.err
     r = cli(

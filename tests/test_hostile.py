@@ -231,6 +231,10 @@ def _values_for(command: str, action: argparse.Action) -> list[str]:
         out = []
         # every parameter through design; enumerate parses them with the same code
         for spec in PARAMS if command == "design" else PARAMS[:2]:
+            if spec.dimension == "count":  # a whole number (dof): no unit
+                out += [f"{spec.name}={m}" for m in MAGNITUDES]
+                out += [f"{spec.name}=", f"{spec.name}=☃", f"{spec.name}=5 kg"]
+                continue
             unit = DIMENSIONS[spec.dimension].example.split(" ", 1)[1]
             out += [f"{spec.name}={m} {unit}" for m in MAGNITUDES]
             out += [f"{spec.name}=", f"{spec.name}=☃", f"{spec.name}=5"]

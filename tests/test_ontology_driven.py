@@ -58,7 +58,8 @@ def test_a_gait_minimum_edited_in_kif_changes_the_snake(tmp_path) -> None:
             "(requiredPartCount RobotSidewinding SnakeModule 7)",
         )
     )
-    assert dict(d.step(Request(("sidewinding",))).chosen.parts) == {"SnakeHead": 1, "SnakeModule": 7}
+    parts = dict(d.step(Request(("sidewinding",))).chosen.parts)
+    assert parts == {"SnakeHead": 1, "SnakeModule": 7}
 
 
 def test_a_users_ontology_adds_an_ability_and_a_robot(tmp_path) -> None:
