@@ -631,6 +631,8 @@ def chain_tubes(
                 "deflection, a larger r_outer_max, or carry less"
             )
             err.required, err.reachable = chain.budget_m, float(best.sum())
+            # for a caller's own message: the chain, its worst link and that link's part
+            err.chain, err.link, err.link_reachable = chain.links, prob.links[k].name, best[k]
             raise err
     # scaled: x = area / (pi r2max^2), I~ = I / scale, t = 1 / I~
     lo = np.array(

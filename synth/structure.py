@@ -720,13 +720,27 @@ class StructureDesigner:
             own, limits, k_buckle = self._link_inputs(lengths[n], loads[n])
             links.append(ChainLink(n, limits, tuple(own), max(counts.get(n, 1), 1), k_buckle))
         budgets = [len(c) * dmax for c in chains]
-        sized = chain_tubes(
-            links,
-            [Chain(c, b, (0.0,) * len(c)) for c, b in zip(chains, budgets, strict=True)],
-            cat.material.youngs_modulus_Pa,
-            allowed,
-            cat.passive.stress_concentration,
-        )
+        try:
+            sized = chain_tubes(
+                links,
+                [Chain(c, b, (0.0,) * len(c)) for c, b in zip(chains, budgets, strict=True)],
+                cat.material.youngs_modulus_Pa,
+                allowed,
+                cat.passive.stress_concentration,
+            )
+        except InfeasibleError as e:
+            if getattr(e, "chain", None) is None:
+                raise  # a link overstressed in its strongest tube: says so
+            link = e.link
+            raise InfeasibleError(
+                f"chain '{' -> '.join(e.chain)}' cannot keep its tip deflection within "
+                f"{e.required * 1000:.3g} mm ({len(e.chain)} links x {dmax * 1000:.3g} mm): "
+                f"with the stiffest printable tubes (solid, r = "
+                f"{cat.passive.max_outer_radius_m * 1000:.0f} mm) it deflects "
+                f"{e.reachable * 1000:.3g} mm, link '{link}' ({lengths[link] * 1000:.0f} mm) "
+                f"alone {e.link_reachable * 1000:.3g} mm; allow a larger deflection "
+                "(--param deflection=...) or carry less"
+            ) from None
         out = {}
         for n in names:
             allowance = min(b for c, b in zip(chains, budgets, strict=True) if n in c)

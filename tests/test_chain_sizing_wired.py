@@ -131,8 +131,9 @@ def test_a_budget_too_tight_names_the_chain_and_the_link(kb, bases, catalog) -> 
     with pytest.raises(InfeasibleError) as e:
         d.run()
     text = str(e.value)
-    assert "chain 'L1 -> L2 -> L3'" in text and "0.03 mm" in text, text
+    assert "chain 'L1 -> L2 -> L3'" in text and "within 0.03 mm (3 links x 0.01 mm)" in text
     assert any(f"link '{n}'" in text for n in ("L1", "L2", "L3")), text
+    assert "--param deflection=" in text, text
 
 
 def test_the_command_line_refuses_a_budget_too_tight(cli) -> None:
