@@ -270,9 +270,7 @@ class _Reader:
     def read(self) -> None:
         d = self.data
         known = {"format", "constants", "kind", "serial"}
-        for k in d:
-            if k not in known:
-                self.fail(k, f"unknown key (keys: {', '.join(sorted(known))})")
+        self.only("", d, known)
         if d.get("format", 1) != 1:
             self.fail("format", f"format {d.get('format')!r} is not 1")
         consts = d.get("constants", {})
@@ -288,6 +286,13 @@ class _Reader:
             self.kinds[kind.cls] = kind
         if "serial" in d:
             self.read_serial(d["serial"])
+
+    def only(self, key: str, d: dict, allowed: set[str]) -> None:
+        """Refuse a key of table ``d`` (at ``key``) not in ``allowed``."""
+        for k in d:
+            if k not in allowed:
+                where = f"{key}.{k}" if key else k
+                self.fail(where, f"unknown key (keys: {', '.join(sorted(allowed))})")
 
     def number(self, key: str, v, positive: bool = True) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -344,9 +349,7 @@ class _Reader:
             "naming",
             "link",
         }
-        for k in d:
-            if k not in allowed:
-                self.fail(f"{key}.{k}", f"unknown key (keys: {', '.join(sorted(allowed))})")
+        self.only(key, d, allowed)
         cls = self.text(f"{key}.class", d.get("class"))
         where = f"{self.name}: {key} ({cls})"
         root = d.get("root", False)
@@ -413,9 +416,7 @@ class _Reader:
             "tube",
             "body",
         }
-        for k in d:
-            if k not in allowed:
-                self.fail(f"{key}.{k}", f"unknown key (keys: {', '.join(sorted(allowed))})")
+        self.only(key, d, allowed)
         name = self.text(f"{key}.name", d.get("name"))
         kind = self.word(f"{key}.kind", d.get("kind", "revolute"), JOINT_KINDS)
         axis = self.word(f"{key}.axis", d.get("axis", "z"), (*AXES, "across"))
@@ -451,9 +452,7 @@ class _Reader:
         if not isinstance(d, dict):
             self.fail(key, "must be a table")
         allowed = {"child", "layout", "span", "track", "at"}
-        for k in d:
-            if k not in allowed:
-                self.fail(f"{key}.{k}", f"unknown key (keys: {', '.join(sorted(allowed))})")
+        self.only(key, d, allowed)
         layout = self.word(f"{key}.layout", d.get("layout"), LAYOUTS)
         span = str(self.expr(f"{key}.span", d["span"])) if "span" in d else ""
         track = str(self.expr(f"{key}.track", d["track"])) if "track" in d else ""
