@@ -1415,7 +1415,7 @@ def _main(argv: list[str], out: TextIO, err: TextIO) -> int:
                 lim = limits.Limits(None, lim.memory_mb, lim.size_atoms)
             limits.configure(lim)
             if _WAIT is not None:
-                _WAIT.hold_alarm()
+                _WAIT.hold_alarm(limits.remaining)
             if getattr(args, "backend", "local") != "ray":  # Ray's own processes inherit it
                 uncap = limits.cap_memory(lim.memory_mb)
         with contextlib.ExitStack() as stack:
@@ -1470,7 +1470,13 @@ class _SignalsWait:
     C code's ``PyImport_Import``); signals wait in their Python handlers, not in the
     signal mask (the libraries' threads, OpenBLAS's, would take a masked signal, and
     Python runs every handler on the main thread). The alarm waits only under the handler
-    in force when ``hold_alarm`` is called (``limits.bounded`` sets its own)."""
+    in force when ``hold_alarm`` is called (``limits.bounded`` sets its own).
+
+    A Ctrl-C that Python reports as unraisable (its handler ran inside a ``__del__`` or a
+    weakref callback, which cannot raise: clingo's AST objects are collected at any
+    moment) is raised again 20 ms later by the alarm, instead of being printed and lost
+    (the command then waited for its worker: a hang). Nothing can raise it sooner: each
+    way of sending a signal from Python runs the handler at once, still inside the hook."""
 
     def __init__(self) -> None:
         import _thread
@@ -1478,22 +1484,48 @@ class _SignalsWait:
 
         self.depth = 0
         self.came: list[tuple[int, Callable | None]] = []
+        self.lost = False  # a Ctrl-C lost in a finalizer, for the alarm to raise again
+        self._remaining: Callable[[], float | None] | None = None
         self.main = _thread.get_ident()
         self._ident = _thread.get_ident
         self._builtins = builtins
         self._import = builtins.__import__
         builtins.__import__ = self.importing
+        self._unraisable = sys.unraisablehook
+        sys.unraisablehook = self.unraisable
         signal.signal(signal.SIGINT, self.signalled)
 
-    def hold_alarm(self) -> None:
-        """Let the time limit's alarm (its handler now in force) wait too."""
+    def hold_alarm(self, remaining: Callable[[], float | None]) -> None:
+        """Let the time limit's alarm (its handler now in force) wait too; ``remaining``:
+        the seconds left before the limit (``limits.remaining``)."""
         handler = signal.getsignal(signal.SIGALRM)
         if callable(handler):
-            signal.signal(signal.SIGALRM, lambda n, f: self.signalled(n, f, handler))
+            self._remaining = remaining
+            signal.signal(signal.SIGALRM, lambda n, f: self.rang(n, f, handler))
+
+    def rang(self, signum: int, frame: object, handler: Callable) -> None:
+        if not self.lost:
+            self.signalled(signum, frame, handler)
+            return
+        self.lost = False  # the alarm was set to raise a lost Ctrl-C again
+        left = self._remaining() if self._remaining is not None else None
+        if left is not None and left > 0:  # the time limit's own ring, back in place
+            signal.setitimer(signal.ITIMER_REAL, left)
+        self.signalled(signal.SIGINT, frame)
 
     def remove(self) -> None:
         if self._builtins.__import__ == self.importing:
             self._builtins.__import__ = self._import
+        if sys.unraisablehook == self.unraisable:
+            sys.unraisablehook = self._unraisable
+
+    def unraisable(self, info) -> None:  # noqa: ANN001 - sys.UnraisableHookArgs
+        ctrl_c = info.exc_type is not None and issubclass(info.exc_type, KeyboardInterrupt)
+        if ctrl_c and self._remaining is not None:
+            self.lost = True
+            signal.setitimer(signal.ITIMER_REAL, 0.02)
+        else:
+            self._unraisable(info)
 
     def signalled(self, signum: int, frame: object, handler: Callable | None = None) -> None:
         if self.depth:
