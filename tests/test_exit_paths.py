@@ -198,13 +198,15 @@ def ctrl_c_cases(runs: int) -> list[Case]:
             sigint_at=t,
             bundle="bundle",
         )
-        for t in spread(0.6, 2.4, 4 * runs)
+        for t in spread(0.8, 4.0, 4 * runs)
     ]
     return blow + full
 
 
 def time_limit_cases(runs: int) -> list[Case]:
-    return [
+    """The time limit while a huge rule file grounds (0.9-1.1 s), and at any stage of a
+    full design --out (1-3 s: it may end first)."""
+    blow = [
         Case(
             "time-limit",
             [*DESIGN, "--rules", "explode.lp", "--time-limit", f"{t:.2f}", "--out", "bundle"],
@@ -215,6 +217,18 @@ def time_limit_cases(runs: int) -> list[Case]:
         )
         for t in spread(0.9, 1.1, 3 * runs)
     ]
+    full = [
+        Case(
+            "time-limit-design",
+            [*DESIGN, "--time-limit", f"{t:.2f}", "--out", "bundle"],
+            {0, 1},
+            {1: "time limit"},
+            bundle="bundle",
+            takes=t + PROBE_S + 2.0,
+        )
+        for t in spread(1.0, 3.0, 2 * runs)
+    ]
+    return blow + full
 
 
 def refusal_cases(runs: int) -> list[Case]:
@@ -273,13 +287,6 @@ def output_cases(runs: int) -> list[Case]:
     for how in ("closed", "full"):
         cases += [
             Case(f"abilities-{how}", ["abilities"], {2}, cannot, stdout=how),
-            Case(
-                f"explain-json-{how}",
-                ["explain", "HexapodRobot", "--json"],
-                {2},
-                cannot,
-                stdout=how,
-            ),
             Case(f"help-{how}", ["--help"], {2}, cannot, stdout=how),
             Case(f"design-{how}", [*DESIGN, "--no-verify", "--json"], {2}, cannot, stdout=how),
         ]
