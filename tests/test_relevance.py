@@ -76,7 +76,9 @@ def test_chains_to_the_vocabulary_are_kept_and_the_rest_filtered(tmp_path: Path)
     assert any('"Banana","Fruit"' in line for line in dropped)
     assert any('"disjoint"' in line for line in dropped)
     assert any('"Peel"' in line for line in dropped)
-    assert rel.counts == {"relation": 47, "class": 7, "axiom": 1}
+    # with the shipped ontology's own: e.g. defaultLength and defaultParameter facts (read
+    # by Python only: synth/bodyplan.py, synth/params.py), the part classes no rule reads
+    assert rel.counts == {"relation": 56, "class": 9, "axiom": 1}
 
 
 def test_the_answer_is_unchanged_by_the_filter(
