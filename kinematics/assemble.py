@@ -130,7 +130,7 @@ def length_defaults(plan: BodyPlan, kinds: PartKinds) -> dict[str, float]:
     ``defaultLength`` values (``plan.lengths``) win."""
     out: dict[str, float] = {}
 
-    def visit(node: PartNode, chain_links: list[int]) -> None:
+    def visit(node: PartNode, chain_links: list, prefix: str) -> None:
         kind = _kind(kinds, node)
         for k, v in kind.lengths.items():
             out.setdefault(k, v)
@@ -140,13 +140,17 @@ def length_defaults(plan: BodyPlan, kinds: PartKinds) -> dict[str, float]:
         if kind.link:
             chain_links[0] += 1
             k = chain_links[0]
-            name = f"{kind.link.get('names', 'L')}{k}"
+            name = f"{prefix or kind.link.get('names', 'L')}{k}"
             pick = "first" if k == 1 else "rest"
             out.setdefault(name, kinds.serial_lengths.get(pick, 0.1))
-        for c, _ in _ordered_children(node, kind, kinds):
-            visit(c, chain_links if _kind(kinds, c).role in _CHAIN else [0])
+        for c, m in _ordered_children(node, kind, kinds):
+            if _kind(kinds, c).role in _CHAIN:
+                start = m is not None and kind.role not in _CHAIN
+                visit(c, [0] if start else chain_links, (m.links if start else prefix))
+            else:
+                visit(c, [0], "")
 
-    visit(plan.root, [0])
+    visit(plan.root, [0], "")
     for k in out:
         if k in plan.lengths:
             out[k] = float(plan.lengths[k])
@@ -233,7 +237,11 @@ class _Walk:
         for _, _, c, t, _ in jobs:
             self.part(c, t)
         if chain:
-            self.serial(node, chain, tip)
+            m = next((m for c, m in ordered if c is chain[0]), None)
+            if placed and m is not None:  # where a chain starts on a root part
+                at = tuple(self.ev(x, node, "mount at") for x in m.at)
+                tip = _Tip(tip.rec, transform(at), tip.prefix, tip.forward)
+            self.serial(node, chain, tip, m.links if m is not None else "")
 
     def layout(self, m: Mount, group: list[PartNode], parent: PartNode):
         """(side, name prefix, frame on the parent) of each child of a mount."""
@@ -372,7 +380,7 @@ class _Walk:
         return _Tip(k, frame, tip.prefix, forward)
 
     # -- chains of one-joint parts (a snake's modules, an arm's servos and links) -------
-    def serial(self, parent: PartNode, first: list[PartNode], tip: _Tip) -> None:
+    def serial(self, parent: PartNode, first: list[PartNode], tip: _Tip, names: str = "") -> None:
         if len(first) > 1:
             raise AssemblyError(
                 f"part {first[1].kind}{_where(first[1])}: {parent.kind} has more than one "
@@ -435,7 +443,7 @@ class _Walk:
                 lk = _kind(self.kinds, chain[pos + 1])
                 links += 1
                 d = np.array(AXES[lk.link.get("first" if links == 1 else "rest", "x")])
-                link = (f"{lk.link.get('names', 'L')}{links}", d)
+                link = (f"{names or lk.link.get('names', 'L')}{links}", d)
             spec = kind.joints[0]
             row = serial_rows[i] if serial_rows is not None else None
             index = i + 1 if kind.naming == "index" else None
@@ -581,16 +589,19 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
 
 
 #: The structures a body plan can have (what sizing and controllers are chosen by).
-STRUCTURES = ("serial_arm", "multiped", "biped", "module_chain", "wheeled")
+STRUCTURES = ("serial_arm", "multiped", "biped", "module_chain", "wheeled", "mobile_manipulator")
 
 
 def structure_of(plan: BodyPlan, kinds: PartKinds) -> str:
     """What a body plan is, by the roles of its parts (never by its type's name): wheels
     on a chassis ("wheeled"), three or more legs ("multiped"), two legs ("biped"), a chain
     of modules ("module_chain"), a chain of joints ending in an end effector on a fixed
-    base ("serial_arm"); "" for none of these."""
+    base ("serial_arm"), both a chain ending in an end effector and wheels
+    ("mobile_manipulator"); "" for none of these."""
     roles = [(_kind(kinds, n).role if kinds.of(n.kinds) else "") for n in plan.root.walk()]
     legs = roles.count("leg")
+    if "wheel" in roles and "joint" in roles and "end_effector" in roles:
+        return "mobile_manipulator"
     if "wheel" in roles:
         return "wheeled"
     if legs >= 3:
@@ -602,3 +613,31 @@ def structure_of(plan: BodyPlan, kinds: PartKinds) -> str:
     if "joint" in roles and "end_effector" in roles:
         return "serial_arm"
     return ""
+
+
+def serial_links(plan: BodyPlan, kinds: PartKinds) -> list[list[str]]:
+    """The length names of each serial chain's printed links, root to tip (an arm's
+    column first), in assembly order."""
+    return [c for c in _chains(plan, kinds) if c]
+
+
+def _chains(plan: BodyPlan, kinds: PartKinds) -> list[list[str]]:
+    out: list[list[str]] = []
+
+    def visit(node: PartNode, chain: list[str] | None, prefix: str) -> None:
+        kind = _kind(kinds, node)
+        if kind.link and chain is not None:
+            chain.append(f"{prefix or kind.link.get('names', 'L')}{len(chain) + 1}")
+        for c, m in _ordered_children(node, kind, kinds):
+            if _kind(kinds, c).role in _CHAIN:
+                if chain is None or kind.role not in _CHAIN:
+                    new: list[str] = []
+                    out.append(new)
+                    visit(c, new, m.links if m is not None else "")
+                else:
+                    visit(c, chain, prefix)
+            else:
+                visit(c, None, "")
+
+    visit(plan.root, None, "")
+    return out

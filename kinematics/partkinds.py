@@ -31,7 +31,9 @@ A kind (``[[kind]]``):
   along both sides over ``span``, ``track`` apart; odd counts: radial), radial (around
   the part on the ellipse span x track), pair (left and right at ``at``, y mirrored),
   axle (wheels in axles over ``span``, ``track`` apart), trailing (behind the plate at
-  ground level), serial or tip (at the end of the part's chain);
+  ground level), serial (a chain of joints and links starting at ``at`` on a root part,
+  its printed links named ``links`` 1, 2 ... instead of L1, L2 ...: an arm on a chassis
+  whose own lengths are L1 and L2) or tip (at the end of the part's chain);
 - ``naming = "index"``: joints and bodies of a chain of such parts are numbered
   (``joint_1``, ``module_1``);
 - ``order = "side"``: children of pair mounts are joined side by side (left leg, left
@@ -159,6 +161,7 @@ class Mount:
     span: str = ""
     track: str = ""
     at: tuple[float | str, float | str, float | str] = (0.0, 0.0, 0.0)
+    links: str = ""  # a chain's printed links are named links1, links2 ... (default: L)
 
 
 @dataclass(frozen=True)
@@ -451,7 +454,7 @@ class _Reader:
     def mount(self, key: str, d) -> Mount:
         if not isinstance(d, dict):
             self.fail(key, "must be a table")
-        allowed = {"child", "layout", "span", "track", "at"}
+        allowed = {"child", "layout", "span", "track", "at", "links"}
         self.only(key, d, allowed)
         layout = self.word(f"{key}.layout", d.get("layout"), LAYOUTS)
         span = str(self.expr(f"{key}.span", d["span"])) if "span" in d else ""
@@ -466,6 +469,7 @@ class _Reader:
             span=span,
             track=track,
             at=self.vec(f"{key}.at", d["at"]) if "at" in d else (0.0, 0.0, 0.0),
+            links=self.text(f"{key}.links", d["links"]) if "links" in d else "",
         )
 
     def read_serial(self, d) -> None:

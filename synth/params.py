@@ -16,6 +16,7 @@ section" (``deflection``, ``slope``).
 | height | length | biped | 0.40 m | 5 cm-2 m |
 | deflection | length | every structure | catalog max_tip_deflection | 0.01 mm-10 cm |
 | slope | angle | wheeled | catalog max_slope | 0-45 deg |
+| (mobile_manipulator) | | payload, reach, speed (tip and travel), load_area, deflection, slope | | |
 | dof | count | serial_arm (composes the arm, synth/compose.py) | the arm's own | 3-7 |
 
 The range is where a design of ParMoR-like modules makes sense (see RANGES); a value
@@ -36,7 +37,9 @@ from adron.errors import InputError
 MANIPULATORS = ("serial_arm",)
 LEGGED = ("multiped",)
 WHEELED = ("wheeled",)
-ALL = (*MANIPULATORS, *LEGGED, "biped", "module_chain", *WHEELED)
+#: a serial arm on a wheeled base takes the parameters of both
+MOBILE = ("mobile_manipulator",)
+ALL = (*MANIPULATORS, *LEGGED, "biped", "module_chain", *WHEELED, *MOBILE)
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,6 +107,7 @@ PARAMS: tuple[ParamSpec, ...] = (
         "mass carried: at the gripper (manipulators), on the trunk (mobile robots)",
         {
             "serial_arm": 0.2,
+            **_for(MOBILE, 0.2),
             **_for(LEGGED, 0.1),
             "biped": 0.05,
             "module_chain": 0.0,
@@ -114,7 +118,7 @@ PARAMS: tuple[ParamSpec, ...] = (
         "reach",
         "length",
         "horizontal reach from the shoulder axis to the gripper",
-        _for(MANIPULATORS, 0.25),
+        _for((*MANIPULATORS, *MOBILE), 0.25),
     ),
     ParamSpec(
         "speed",
@@ -122,6 +126,7 @@ PARAMS: tuple[ParamSpec, ...] = (
         "tip speed (manipulators) or travel speed (mobile robots)",
         {
             **_for(MANIPULATORS, 0.2),
+            **_for(MOBILE, 0.2),
             **_for(LEGGED, 0.05),
             "biped": 0.05,
             **_for(WHEELED, 0.3),
@@ -133,12 +138,19 @@ PARAMS: tuple[ParamSpec, ...] = (
         "height of the obstacles the legs must step over",
         _for(LEGGED, 0.03),
     ),
-    ParamSpec("load_area", "area", "area of the load platform (L1 x L2)", _for(WHEELED, 0.03)),
+    ParamSpec(
+        "load_area", "area", "area of the load platform (L1 x L2)", _for((*WHEELED, *MOBILE), 0.03)
+    ),
     ParamSpec("height", "length", "standing height of the humanoid", {"biped": 0.40}),
     ParamSpec(
         "deflection", "length", "allowed tip deflection of each printed link", _for(ALL, None)
     ),
-    ParamSpec("slope", "angle", "steepest slope to climb while accelerating", _for(WHEELED, None)),
+    ParamSpec(
+        "slope",
+        "angle",
+        "steepest slope to climb while accelerating",
+        _for((*WHEELED, *MOBILE), None),
+    ),
     # not a sizing parameter: it composes the arm (synth/compose.py) and picks it
     ParamSpec("dof", "count", "joints of a serial arm besides its gripper (3 to 7)", {}),
 )

@@ -133,11 +133,18 @@ def _movable(tmpl: Template) -> list[str]:
 
 
 def _accel_cases(
-    tmpl: Template, q: np.ndarray, v: np.ndarray, accel: float, fext: np.ndarray | None, name: str
+    tmpl: Template,
+    q: np.ndarray,
+    v: np.ndarray,
+    accel: float,
+    fext: np.ndarray | None,
+    name: str,
+    mask: np.ndarray | None = None,
 ) -> list[LoadCase]:
-    """The case at rest plus all joints accelerating one way and the other."""
+    """The case at rest plus all joints (those of ``mask``) accelerating one way and the
+    other."""
     nv = tmpl.model.nv
-    ones = np.ones(nv) * accel
+    ones = np.ones(nv) * accel if mask is None else mask * accel
     return [
         LoadCase(f"{name}, holding", q, np.zeros(nv), np.zeros(nv), fext),
         LoadCase(f"{name}, accelerating", q, v, ones, fext),
@@ -202,8 +209,42 @@ def alternate_feet(tmpl: Template) -> list[str]:
     return ring[::2]
 
 
+def _arm_links(tmpl_or_type) -> list[str]:
+    """The length names of a design's serial arm's printed links, column first."""
+    from kinematics.assemble import serial_links
+    from kinematics.partkinds import load
+    from kinematics.templates import PART_DATA, plan_of
+
+    plan = tmpl_or_type.plan if isinstance(tmpl_or_type, Template) else plan_of(tmpl_or_type)
+    chains = serial_links(plan, PART_DATA[0] or load())
+    return chains[0] if chains else []
+
+
 class Family(ABC):
-    """Sizing of one kind of base configuration."""
+    """Sizing of one kind of base configuration.
+
+    ``joints``: when the family sizes one part of a composition (an arm on a wheeled
+    base), a function of the template giving the joints it moves; None: all."""
+
+    joints = None
+
+    def movable(self, tmpl: Template) -> list[str]:
+        """The joints this family moves: ``joints(tmpl)``, or every movable joint."""
+        every = _movable(tmpl)
+        if self.joints is None:
+            return every
+        mine = set(self.joints(tmpl))
+        return [j for j in every if j in mine]
+
+    def mask(self, tmpl: Template) -> np.ndarray | None:
+        """(nv,) 1 for this family's joints, 0 elsewhere; None when it moves them all."""
+        if self.joints is None:
+            return None
+        m = tmpl.model
+        out = np.zeros(m.nv)
+        for j in self.movable(tmpl):
+            out[m.q_index[m.joint(j)]] = 1.0
+        return out
 
     @abstractmethod
     def size(self, robot_type: str, p: Mapping[str, float], catalog: Catalog) -> Sizing:
@@ -273,15 +314,22 @@ class Manipulators(Family):
     catalog's maximum joint acceleration."""
 
     def size(self, robot_type, p, catalog):
+        """The column keeps its default; the reach is shared by the other links: evenly
+        by two, or with three or more the last (the wrist) gets its default up to a
+        quarter of the reach and the rest share what remains."""
         d = default_lengths(robot_type)
+        links = _arm_links(robot_type)
         reach = p["reach"]
         why = f"reach {reach * 100:.0f} cm"
-        if "L4" in d:
-            wrist = min(d["L4"], reach / 4)
-            arm = (reach - wrist) / 2
-            lengths = {"L1": d["L1"], "L2": arm, "L3": arm, "L4": wrist}
+        column, rest = links[0], links[1:]
+        lengths = {column: d[column]}
+        if len(rest) >= 3:
+            wrist = min(d[rest[-1]], reach / 4)
+            arm = (reach - wrist) / (len(rest) - 1)
+            lengths.update({k: arm for k in rest[:-1]})
+            lengths[rest[-1]] = wrist
         else:
-            lengths = {"L1": d["L1"], "L2": reach / 2, "L3": reach / 2}
+            lengths.update({k: reach / len(rest) for k in rest})
         return Sizing({k: _clamp_length(k, v, catalog, why) for k, v in lengths.items()})
 
     def load_cases(self, tmpl, p, catalog):
@@ -294,6 +342,7 @@ class Manipulators(Family):
             catalog.design.max_joint_acceleration_rad_s2,
             None,
             "stretched at full reach",
+            self.mask(tmpl),
         )
 
     def _speed_vector(self, tmpl, p):
@@ -311,14 +360,18 @@ class Manipulators(Family):
         squeeze = p.get("payload", 0.0) * g / (2 * GRIP_FRICTION)
         return {
             j: (squeeze * JAW_LEVER, 0.0, "gripping the payload")
-            for j in _movable(tmpl)
-            if j.endswith("gripper")
+            for j in self.movable(tmpl)
+            if tmpl.modules.get(j) == "GripperServomotor"
         }
 
     def speeds(self, tmpl, p, sizing):
-        reach = sum(tmpl.lengths[k] for k in tmpl.lengths if k != "L1")
+        links = _arm_links(tmpl)
+        reach = sum(tmpl.lengths[k] for k in tmpl.lengths if k in links[1:])
         w = p["speed"] / reach
-        return {j: (GRIPPER_SPEED if j == "gripper" else w) for j in _movable(tmpl)}
+        grip = "GripperServomotor"
+        return {
+            j: (GRIPPER_SPEED if tmpl.modules.get(j) == grip else w) for j in self.movable(tmpl)
+        }
 
 
 class Multipeds(Family):
@@ -719,6 +772,9 @@ class Wheeled(Family):
             fext[b] += external_force_at(m, q, b, contact, force)
         v = np.full(m.nv, p["speed"] / r)
         a = np.full(m.nv, accel / r)
+        mask = self.mask(tmpl)
+        if mask is not None:  # an arm on the base stands still meanwhile
+            v, a = v * mask, a * mask
         return [
             LoadCase(
                 f"climbing {math.degrees(p['slope']):.0f} deg while accelerating", q, v, a, fext
@@ -726,7 +782,7 @@ class Wheeled(Family):
         ]
 
     def speeds(self, tmpl, p, sizing):
-        return dict.fromkeys(_movable(tmpl), p["speed"] / tmpl.params.wheel_radius)
+        return dict.fromkeys(self.movable(tmpl), p["speed"] / tmpl.params.wheel_radius)
 
     @staticmethod
     def turning_drag(tmpl: Template, mass: float, catalog: Catalog) -> float:
@@ -752,7 +808,42 @@ class Wheeled(Family):
             return {}
         r = tmpl.params.wheel_radius
         speed = TURN_SPEED_FRACTION * p["speed"] / r
-        return {j: (float(drag * r), float(speed), "turning in place") for j in _movable(tmpl)}
+        return {j: (float(drag * r), float(speed), "turning in place") for j in self.movable(tmpl)}
+
+
+class MobileManipulator(Family):
+    """A serial arm on a wheeled base: the base sized as ``Wheeled`` (the traction of the
+    whole robot, the arm standing still) and the arm as ``Manipulators`` (stretched at
+    full reach, the wheels standing still), each on its own joints of the one template;
+    the chassis' lengths (L1, L2) and the arm's (arm_L1 ...) are apart."""
+
+    def __init__(self) -> None:
+        self.base = Wheeled()
+        self.arm = Manipulators()
+        self.base.joints = lambda t: [j for j in _movable(t) if _wheel_joint(t, j)]
+        self.arm.joints = lambda t: [j for j in _movable(t) if not _wheel_joint(t, j)]
+
+    def size(self, robot_type, p, catalog):
+        b, a = self.base.size(robot_type, p, catalog), self.arm.size(robot_type, p, catalog)
+        return replace(b, lengths={**b.lengths, **a.lengths}, notes=[*b.notes, *a.notes])
+
+    def update(self, sizing, tmpl, p, catalog):
+        return self.base.update(sizing, tmpl, p, catalog)
+
+    def load_cases(self, tmpl, p, catalog):
+        return [*self.base.load_cases(tmpl, p, catalog), *self.arm.load_cases(tmpl, p, catalog)]
+
+    def speeds(self, tmpl, p, sizing):
+        return {**self.base.speeds(tmpl, p, sizing), **self.arm.speeds(tmpl, p, sizing)}
+
+    def holds(self, tmpl, p, catalog):
+        return {**self.base.holds(tmpl, p, catalog), **self.arm.holds(tmpl, p, catalog)}
+
+
+def _wheel_joint(tmpl: Template, joint: str) -> bool:
+    """Whether ``joint`` turns one of ``tmpl``'s wheels."""
+    m = tmpl.model
+    return m.bodies[m.joints[m.joint(joint)].child].name in tmpl.wheels
 
 
 #: The sizing rules of each structure (``kinematics.assemble.structure_of``): chosen by what
@@ -763,4 +854,5 @@ FAMILIES: dict[str, Family] = {
     "biped": Humanoid(),
     "module_chain": Snake(),
     "wheeled": Wheeled(),
+    "mobile_manipulator": MobileManipulator(),
 }

@@ -99,7 +99,30 @@ HEAVY = """
          (robotPart ?L4 ?ROB) (robotPart ?L5 ?ROB) (robotPart ?L6 ?ROB))))
 """
 
-#: (case, KIF, ability, extra options, robot type, actuated joints besides grippers)
+#: A differential-drive base carrying a 3-DOF arm and a gripper on its chassis, written
+#: like the paper's manipulator axiom: a composition of two structures.
+MOBILE = """(subclass MobileManipulator WheeledRobot)
+(instance MobileManipulator BaseConfiguration)
+(documentation MobileManipulator EnglishLanguage "A differential-drive base carrying a 3-DOF arm with a gripper.")
+(=>
+  (instance ?ROB MobileManipulator)
+  (exists (?LEFT ?RIGHT ?CASTER ?CHASSIS ?S1 ?S2 ?S3 ?C ?U ?F ?GRIP)
+    (and
+      (instance ?LEFT DriveWheel) (instance ?RIGHT DriveWheel)
+      (instance ?CASTER CasterWheel) (instance ?CHASSIS RobotChassis)
+      (instance ?S1 PositionServomotor) (instance ?S2 PositionServomotor)
+      (instance ?S3 PositionServomotor)
+      (instance ?C LinkModule) (instance ?U LinkModule) (instance ?F LinkModule)
+      (instance ?GRIP RoboticGripper)
+      (robotPart ?LEFT ?ROB) (robotPart ?RIGHT ?ROB) (robotPart ?CASTER ?ROB)
+      (robotPart ?CHASSIS ?ROB) (robotPart ?S1 ?ROB) (robotPart ?S2 ?ROB) (robotPart ?S3 ?ROB)
+      (robotPart ?C ?ROB) (robotPart ?U ?ROB) (robotPart ?F ?ROB) (robotPart ?GRIP ?ROB)
+      (connectedTo ?LEFT ?CHASSIS) (connectedTo ?RIGHT ?CHASSIS) (connectedTo ?CASTER ?CHASSIS)
+      (connectedTo ?CHASSIS ?S1) (connectedTo ?S1 ?C) (connectedTo ?C ?S2) (connectedTo ?S2 ?U)
+      (connectedTo ?U ?S3) (connectedTo ?S3 ?F) (connectedTo ?F ?GRIP))))
+"""
+
+#: (case, KIF, abilities, extra options, robot type, actuated joints besides grippers)
 CASES = [
     ("arm4", arm_kif(4), "positioning-4", ["--answer", "orienting=no"], "Arm4Joints", 4),
     ("arm5", arm_kif(5), "positioning-5", ["--answer", "orienting=no"], "Arm5Joints", 5),
@@ -128,6 +151,14 @@ CASES = [
         24,
     ),
     ("heavy", HEAVY, "heavy-walking", [], "HeavyHexapod", 18),
+    (
+        "mobile",
+        MOBILE,
+        "driving pick-and-place",
+        ["--param", "object_shape=cylinder"],
+        "MobileManipulator",
+        5,
+    ),
 ]
 
 
@@ -144,7 +175,7 @@ def test_a_kif_only_type_is_designed_exported_and_loads(
     src.write_text(kif)
     out = tmp_path / "bundle"
     r = cli(
-        "design", ability, "--ontology", str(src), "--no-input", "--no-verify",
+        "design", *ability.split(), "--ontology", str(src), "--no-input", "--no-verify",
         "--out", str(out), *extra,
     )  # fmt: skip
     assert r.code == 0, r.err
@@ -414,3 +445,30 @@ def test_a_type_without_a_controller_is_refused_unless_unverified(cli, tmp_path)
         "--no-input", "--no-verify",
     )  # fmt: skip
     assert r.code == 0, r.err
+
+
+def test_a_mobile_manipulator_is_sized_as_its_base_and_its_arm(tmp_path) -> None:
+    """The composition: its arm's links are named apart from the chassis' (arm_L1 ...),
+    the arm stands on the plate, the wheels are sized for the whole robot's traction and
+    the arm's joints for the arm's reach, each with its own speeds."""
+    from adron.kb import load as load_kb
+    from kinematics.assemble import serial_links
+    from synth.bodyplan import plan_of as ontology_plan
+
+    f = tmp_path / "mm.kif"
+    f.write_text(MOBILE)
+    kinds = load()
+    plan = ontology_plan(load_kb([f]), "MobileManipulator", kinds)
+    assert structure_of(plan, kinds) == "mobile_manipulator"
+    assert serial_links(plan, kinds) == [["arm_L1", "arm_L2", "arm_L3"]]
+    t = build(plan)
+    assert {"L1", "L2", "arm_L1", "arm_L2", "arm_L3"} == set(t.length_names)
+    assert t.wheels and t.casters and t.end_effectors == ("gripper_link",)
+    base_yaw = t.model.joints[t.model.joint("base_yaw")]
+    assert t.model.bodies[base_yaw.parent].name == "chassis"
+    from synth.sizing import FAMILIES
+
+    fam = FAMILIES["mobile_manipulator"]
+    speeds = fam.speeds(t, {"speed": 0.2, "reach": 0.25}, None)
+    assert speeds["left_wheel"] == pytest.approx(0.2 / t.params.wheel_radius)
+    assert speeds["shoulder_pitch"] == pytest.approx(0.2 / 0.30)  # arm_L2 + arm_L3
