@@ -16,7 +16,7 @@ section" (``deflection``, ``slope``).
 | height | length | biped | 0.40 m | 5 cm-2 m |
 | deflection | length | every structure | catalog max_tip_deflection | 0.01 mm-10 cm |
 | slope | angle | wheeled | catalog max_slope | 0-45 deg |
-| (mobile_manipulator) | | payload, reach, speed (tip and travel), load_area, deflection, slope | | |
+| (mobile_manipulator) | | payload, reach, speed, load_area, deflection, slope | | |
 | dof | count | serial_arm (composes the arm, synth/compose.py) | the arm's own | 3-7 |
 
 The range is where a design of ParMoR-like modules makes sense (see RANGES); a value

@@ -103,7 +103,7 @@ HEAVY = """
 #: like the paper's manipulator axiom: a composition of two structures.
 MOBILE = """(subclass MobileManipulator WheeledRobot)
 (instance MobileManipulator BaseConfiguration)
-(documentation MobileManipulator EnglishLanguage "A differential-drive base carrying a 3-DOF arm with a gripper.")
+(documentation MobileManipulator EnglishLanguage "A base on two wheels carrying an arm.")
 (=>
   (instance ?ROB MobileManipulator)
   (exists (?LEFT ?RIGHT ?CASTER ?CHASSIS ?S1 ?S2 ?S3 ?C ?U ?F ?GRIP)
