@@ -256,7 +256,10 @@ def test_joint_program_where_even_shares_fail() -> None:
 
 def test_shared_links_and_counts() -> None:
     """Two chains sharing their root link (each with its own levers) both meet their
-    budgets; a link printed five times is made lighter than its twin printed once."""
+    budgets; a link printed five times is made lighter than when printed once (the
+    shared root thicker). Its twin in the other chain, with the same load and budget,
+    is as light: with the root given, each chain's last link is the thinnest that keeps
+    its chain within budget, so the two are equal at the optimum."""
     load = np.array([0.0, 2.0, 1.0, 0.0, 0.1, 0.0])
     links = [
         ChainLink("hip", limits(0.1), (load,)),
@@ -267,9 +270,14 @@ def test_shared_links_and_counts() -> None:
         Chain(("hip", "a"), 4e-4, levers_m=(0.2, 0.0)),
         Chain(("hip", "b"), 4e-4, levers_m=(0.2, 0.0)),
     ]
-    sized = chain_tubes(links, chains, E, ALLOWED, KT)
+    sized = chain_tubes(links, chains, E, ALLOWED, KT)  # they share "hip": the program
+    assert sized.iterations >= 1
     check_design(sized, links, chains)
-    assert sized.tubes["a"].volume < sized.tubes["b"].volume
+    once = [links[0], ChainLink("a", limits(0.15), (load,)), links[2]]
+    single = chain_tubes(once, chains, E, ALLOWED, KT)
+    assert sized.tubes["a"].volume < single.tubes["a"].volume * (1.0 - 1e-3)
+    assert sized.tubes["hip"].volume > single.tubes["hip"].volume * (1.0 + 1e-3)
+    assert sized.tubes["a"].volume == pytest.approx(sized.tubes["b"].volume, rel=1e-9)
     weighted = sum(lk.count * sized.tubes[lk.name].volume for lk in links)
     assert sized.volume_m3 == pytest.approx(weighted, rel=1e-12)
     alone = per_link_tubes(links, chains, E, ALLOWED, KT)
@@ -447,8 +455,10 @@ def test_serial_chains_of_a_tree() -> None:
 
 
 def test_a_failed_solve_keeps_the_feasible_start(monkeypatch: pytest.MonkeyPatch) -> None:
-    """When Clarabel returns no solution the program keeps its start, the per-link
-    sizing (feasible), instead of failing or returning nothing."""
+    """When Clarabel returns no solution the program (run explicitly: one chain takes the
+    separable solve) keeps its start, the per-link sizing (feasible), instead of failing
+    or returning nothing: never heavier (the polish may improve it, or give up from so
+    far), and without the polish the per-link sizing itself."""
     from types import SimpleNamespace
 
     import synth.chain_links as chain_links
@@ -464,8 +474,13 @@ def test_a_failed_solve_keeps_the_feasible_start(monkeypatch: pytest.MonkeyPatch
     rng = np.random.default_rng(11)
     links, chain = random_chain(rng, 3)
     monkeypatch.setattr(chain_links, "_program", failing)
-    kept = chain_tubes(links, [chain], E, ALLOWED, KT)
+    polished = chain_tubes(links, [chain], E, ALLOWED, KT, method="program")
     alone = per_link_tubes(links, [chain], E, ALLOWED, KT)
+    assert polished.iterations == 1
+    assert polished.volume_m3 <= alone.volume_m3 * (1.0 + 1e-12)
+    check_design(polished, links, [chain])
+    monkeypatch.setattr(chain_links, "_polish", lambda *a: None)
+    kept = chain_tubes(links, [chain], E, ALLOWED, KT, method="program")
     assert kept.iterations == 1
     assert kept.volume_m3 == pytest.approx(alone.volume_m3, rel=1e-12)
     check_design(kept, links, [chain])
