@@ -6,7 +6,8 @@ ratio to ``import numpy, clingo`` in the same run; then, in process on the 1000-
 hexapod, the sizing (its behaviours planned from nothing) and the verification run as
 ``parmor design`` runs it (plans simulated once each, on threads) against the same
 simulations one after another; last, the 3-DOF arm's and the hexapod's structure loop with
-their chains' links sized together as a ratio to each link on its own (issue 20)."""
+their chains' links sized together (the separable solve, and the convex program) as a
+ratio to each link on its own (issue 20)."""
 
 from __future__ import annotations
 
@@ -114,12 +115,17 @@ def _in_process(catalog: Path, runs: int) -> list[str]:
 
 
 def _chain_sizing(runs: int) -> list[str]:
-    """The structure loop with a serial chain's links sized together (``chain_tubes``)
-    against each link on its own (the closed form it replaced), in process after a
-    warm-up (cvxpy imported, the program compiled: their first-use cost is the
-    subprocess line), for the 3-DOF arm and the hexapod."""
+    """The structure loop with a serial chain's links sized together (``chain_tubes``: the
+    separable solve, no cvxpy) and with the same chains through the convex program
+    (cvxpy + Clarabel, ``method="program"``, after a warm-up: cvxpy imported, the program
+    compiled; that first-use cost is the subprocess line), each as a ratio to each link
+    on its own (the closed form they replaced), for the 3-DOF arm and the hexapod."""
+    from functools import partial
+
+    import synth.structure as structure
     from adron.catalog import load_catalog
     from adron.kb import load
+    from synth.chain_links import chain_tubes
     from synth.conceptual import Designer
     from synth.solver import Query, Reasoner
     from synth.structure import StructureDesigner
@@ -132,12 +138,20 @@ def _chain_sizing(runs: int) -> list[str]:
     cands = {c.robot_type: c for c in Designer(kb, Reasoner(kb)).reasoner.solve(Query()).candidates}
     py = sys.executable
     first = _best([py, "-c", "import cvxpy"], runs) - _best([py, "-c", "import numpy"], runs)
-    lines = [f"  chain sizing (best of {runs}; importing cvxpy on first use: {first:.2f} s)"]
+    lines = [
+        f"  chain sizing (best of {runs}; importing cvxpy, for chains that share a link "
+        f"only: {first:.2f} s)"
+    ]
     wired = StructureDesigner._size_links
+    ways = (
+        ("separable", wired, chain_tubes),
+        ("program", wired, partial(chain_tubes, method="program")),
+        ("per link", per_link, chain_tubes),
+    )
     for t in ("Manipulator3DOF", "HexapodRobot"):
         out = {}
-        for how, fn in (("chains", wired), ("per link", per_link)):
-            StructureDesigner._size_links = fn
+        for how, fn, solve in ways:
+            StructureDesigner._size_links, structure.chain_tubes = fn, solve
             try:
                 best, mass = float("inf"), 0.0
                 for i in range(runs + 1):  # the first a warm-up
@@ -147,12 +161,13 @@ def _chain_sizing(runs: int) -> list[str]:
                         best = min(best, time.perf_counter() - t0)
                     mass = sum(link.count * link.mass_kg for link in s.links)
             finally:
-                StructureDesigner._size_links = wired
+                StructureDesigner._size_links, structure.chain_tubes = wired, chain_tubes
             out[how] = (best, mass)
-        (tc, mc), (tp, mp) = out["chains"], out["per link"]
+        (ts, ms), (tc, _), (tp, mp) = out["separable"], out["program"], out["per link"]
         lines.append(
-            f"       {t:<16} {tc * 1000:7.1f} ms = {tc / tp:4.2f} x per link ({tp * 1000:.1f} ms);"
-            f" printed links {mc * 1000:.2f} g vs {mp * 1000:.2f} g"
+            f"       {t:<16} {ts * 1000:7.1f} ms = {ts / tp:4.2f} x per link ({tp * 1000:.1f} ms;"
+            f" program {tc * 1000:.1f} ms = {tc / tp:4.2f} x); printed links {ms * 1000:.2f} g"
+            f" vs {mp * 1000:.2f} g"
         )
     return lines
 
