@@ -1353,8 +1353,10 @@ def main(
 ) -> int:
     """Run the command line; returns the exit code (never raises for user errors). Run as
     the program (``argv`` None), it also stands in for standard streams the shell closed
-    (``>&-``), and ignores Ctrl-C once the exit code is decided: a Ctrl-C while the
-    interpreter shuts down would end it with a traceback and signal 2 instead."""
+    (``>&-``), lets Ctrl-C and the time limit wait while a module is imported
+    (``_SignalsWait``), ignores Ctrl-C once the exit code is decided (a Ctrl-C while the
+    interpreter shuts down would end it with a traceback and signal 2), and ends the
+    process without the interpreter's shutdown when that is not safe (``_end``)."""
     global _WAIT
     program = argv is None
     if program:
@@ -1363,19 +1365,44 @@ def main(
     out = out or sys.stdout or _ClosedOutput()
     err = err or sys.stderr or open(os.devnull, "w", encoding="utf-8")  # noqa: SIM115
     try:
-        return _main(sys.argv[1:] if argv is None else list(argv), out, err)
+        code = _main(sys.argv[1:] if argv is None else list(argv), out, err)
     except KeyboardInterrupt:  # before the command ran, or again while an exit was told
         _tell(err, "parmor: interrupted\n")
-        return 130
+        code = 130
     except ParmorError as e:  # the time limit's alarm again while an exit was told
         _tell(err, f"parmor: error: {_one_line(str(e))}\n")
-        return e.exit_code
+        code = e.exit_code
     finally:
         if program:
             with contextlib.suppress(ValueError, OSError):
                 signal.signal(signal.SIGINT, signal.SIG_IGN)
             _WAIT.remove()
             _WAIT = None
+    if program:
+        _end(code)
+    return code
+
+
+def _end(code: int) -> None:
+    """End the program at once, without the interpreter's shutdown, unless it ended well
+    with no other thread running: a run stopped by a limit, Ctrl-C or an error may leave
+    threads simulating (the time limit's alarm interrupts the wait for them) or a
+    library's C state half done, and the shutdown then died of SIGSEGV after the message
+    (issue 23). The standard streams are flushed and the atexit functions run first (they
+    stop the reasoner's workers and process pools)."""
+    import threading
+
+    if code == 0 and threading.active_count() == 1:
+        return
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            if stream is not None:
+                stream.flush()
+    import atexit
+
+    with contextlib.suppress(BaseException):
+        atexit._run_exitfuncs()
+    os._exit(code)
 
 
 def _main(argv: list[str], out: TextIO, err: TextIO) -> int:
@@ -1445,11 +1472,13 @@ def _main(argv: list[str], out: TextIO, err: TextIO) -> int:
             errno.EDQUOT,
             errno.EIO,
         ):
-            raise
+            return _unexpected(e, err, limited)
         _discard_output(out)
         why = "closed early (broken pipe)" if e.errno == errno.EPIPE else e.strerror
         err.write(f"parmor: error: cannot write the output: {why}\n")
         return ExportError.exit_code
+    except Exception as e:  # noqa: BLE001 - told when a stop caused it, else raised
+        return _unexpected(e, err, limited)
     finally:
         if uncap is not None:
             uncap()
@@ -1476,7 +1505,8 @@ class _SignalsWait:
     weakref callback, which cannot raise: clingo's AST objects are collected at any
     moment) is raised again 20 ms later by the alarm, instead of being printed and lost
     (the command then waited for its worker: a hang). Nothing can raise it sooner: each
-    way of sending a signal from Python runs the handler at once, still inside the hook."""
+    way of sending a signal from Python runs the handler at once, still inside the hook.
+    A time limit lost so is not printed either: its alarm rings again until the run ends."""
 
     def __init__(self) -> None:
         import _thread
@@ -1485,6 +1515,7 @@ class _SignalsWait:
         self.depth = 0
         self.came: list[tuple[int, Callable | None]] = []
         self.lost = False  # a Ctrl-C lost in a finalizer, for the alarm to raise again
+        self.interrupted = False  # Ctrl-C came
         self._remaining: Callable[[], float | None] | None = None
         self.main = _thread.get_ident()
         self._ident = _thread.get_ident
@@ -1520,14 +1551,17 @@ class _SignalsWait:
             sys.unraisablehook = self._unraisable
 
     def unraisable(self, info) -> None:  # noqa: ANN001 - sys.UnraisableHookArgs
-        ctrl_c = info.exc_type is not None and issubclass(info.exc_type, KeyboardInterrupt)
-        if ctrl_c and self._remaining is not None:
+        from synth.limits import LimitExceeded
+
+        kind = info.exc_type if isinstance(info.exc_type, type) else type(None)
+        if issubclass(kind, KeyboardInterrupt) and self._remaining is not None:
             self.lost = True
             signal.setitimer(signal.ITIMER_REAL, 0.02)
-        else:
+        elif not issubclass(kind, LimitExceeded):  # the alarm rings again (REPEAT_S)
             self._unraisable(info)
 
     def signalled(self, signum: int, frame: object, handler: Callable | None = None) -> None:
+        self.interrupted |= handler is None
         if self.depth:
             self.came.append((signum, handler))
         elif handler is None:
@@ -1551,6 +1585,30 @@ class _SignalsWait:
 
 #: The program's _SignalsWait (None when ``main`` is called from Python)
 _WAIT: _SignalsWait | None = None
+
+
+def _unexpected(e: Exception, err: TextIO, limited: bool) -> int:
+    """Tell ``e``, an error parmor does not expect, as what stopped the run when a stop
+    caused it (Ctrl-C or the time limit's alarm raised inside a library that turned it
+    into another error: numpy's TypeError, an ImportError), and return the exit code;
+    otherwise raise it (a bug: its traceback is the report)."""
+    from synth import limits
+
+    x: BaseException | None = e
+    while x is not None and not isinstance(x, (KeyboardInterrupt, limits.LimitExceeded)):
+        x = x.__cause__ or x.__context__
+    left = limits.remaining() if limited else None
+    if x is None and _WAIT is not None and _WAIT.interrupted:
+        x = KeyboardInterrupt()
+    elif x is None and left is not None and left <= 0:
+        x = limits.LimitExceeded(limits.current().describe("time"), limits.stage_name())
+    if isinstance(x, KeyboardInterrupt):
+        err.write("parmor: interrupted\n")
+        return 130
+    if isinstance(x, limits.LimitExceeded):
+        err.write(f"parmor: error: {_one_line(str(x))}\n")
+        return x.exit_code
+    raise e
 
 
 def _tell(err: TextIO, text: str) -> None:

@@ -442,6 +442,83 @@ def test_a_ctrl_c_lost_in_a_finalizer_is_raised_again(capsys) -> None:
     assert sys.unraisablehook is not wait.unraisable
 
 
+def test_a_time_limit_lost_in_a_finalizer_is_not_printed(monkeypatch) -> None:
+    """The alarm's LimitExceeded raised inside a finalizer is not printed (the alarm rings
+    again until the run ends); any other unraisable error still is."""
+    from types import SimpleNamespace
+
+    from synth import cli, limits
+
+    told: list[type] = []
+    monkeypatch.setattr(sys, "unraisablehook", lambda info: told.append(info.exc_type))
+    wait = cli._SignalsWait()
+    try:
+        for value in (limits.LimitExceeded("time limit", "ground"), ValueError("x")):
+            info = SimpleNamespace(
+                exc_type=type(value),
+                exc_value=value,
+                exc_traceback=None,
+                err_msg=None,
+                object=None,
+            )
+            sys.unraisablehook(info)
+    finally:
+        wait.remove()
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    assert told == [ValueError]
+
+
+def test_an_error_a_stop_caused_is_told_as_the_stop(tmp_path: Path) -> None:
+    """An error parmor does not expect, raised because Ctrl-C or the time limit's alarm
+    stopped a library mid-way (numpy turned the alarm into a TypeError), is told as the
+    stop; one with no stop behind it is raised (a bug's traceback is its report)."""
+    import io
+
+    from synth import cli, limits
+
+    err = io.StringIO()
+    try:
+        e = TypeError("cannot compare")
+        e.__context__ = KeyboardInterrupt()
+        assert cli._unexpected(e, err, limited=False) == 130
+        limits.configure(limits.Limits(time_s=0.001), arm=False)
+        time.sleep(0.01)
+        assert cli._unexpected(TypeError("cannot compare"), err, limited=True) == 1
+        limits.configure(limits.Limits(time_s=60), arm=False)
+        with pytest.raises(TypeError):
+            cli._unexpected(TypeError("a bug"), err, limited=True)
+    finally:
+        limits.configure(limits.Limits(), arm=False)
+    assert err.getvalue().splitlines() == [
+        "parmor: interrupted",
+        "parmor: error: time limit (0.001 s, --time-limit) reached while in stage run",
+    ]
+
+
+def test_the_program_ends_at_once_when_its_shutdown_is_not_safe(tmp_path: Path) -> None:
+    """A program that ends with an error while a thread still runs (simulations the time
+    limit left) ends at once with its code, its streams flushed and its atexit functions
+    run; one that ended well with no thread left shuts down as usual."""
+    code = (
+        "import atexit, sys, threading, time\n"
+        "from synth import cli\n"
+        "atexit.register(lambda: print('atexit ran', flush=True))\n"
+        "threading.Thread(target=time.sleep, args=(60,)).start()\n"
+        "sys.stdout.write('buffered ')\n"
+        "cli._end(1)\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    p = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=30
+    )
+    assert (p.returncode, p.stdout) == (1, "buffered atexit ran\n"), p.stderr
+    well = "from synth import cli\ncli._end(0)\nprint('went on')\n"
+    p = subprocess.run(
+        [sys.executable, "-c", well], env=env, capture_output=True, text=True, timeout=30
+    )
+    assert (p.returncode, p.stdout) == (0, "went on\n"), p.stderr
+
+
 @pytest.mark.parametrize("stop", [KeyboardInterrupt, "limit"])
 def test_an_interrupted_prefetch_stops_the_grounding_worker(tmp_path: Path, stop) -> None:
     """Ctrl-C or the time limit while this process imports (the worker grounding a huge
