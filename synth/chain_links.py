@@ -97,7 +97,8 @@ branch, both by Newton's method from above, or the kink between them); it grows
 continuously with ``lam``, so the chain's deflection falls continuously and ``lam`` is the
 root of ``deflection(lam) = budget``, bracketed and found to 1e-14 (:func:`_chain_areas`).
 No solver, no start, no tolerance but rounding: it agrees with the polished program to
-~1e-12 and is about ten times as fast, without cvxpy's 0.6 s import.
+~1e-12 and sizes a chain about five times as fast (1.3 against 7 ms with the stress
+floors both need: ``make bench``), without cvxpy's 0.6-1 s import.
 
 Either way the result is exact (to rounding, then made exactly feasible: see
 :func:`chain_tubes`) for the model above: tubes of given length, on any branch. It is
