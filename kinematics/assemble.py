@@ -199,7 +199,10 @@ class _Walk:
         self.root_at = tuple(self.ev(x, node, "at") for x in at)
         box = tuple(self.ev(x, node, "box") for x in kind.box)
         parts = [_trunk(kind.body, self.p.trunk_mass, box, self.root_at, _FACES[kind.faces])]
-        if kind.payload == "root":
+        # an arm (a chain of joints ending in a gripper) holds the payload wherever it stands
+        roles = {k.role for n in node.walk() if (k := self.kinds.of(n.kinds)) is not None}
+        arm = {"joint", "end_effector"} <= roles
+        if kind.payload == "root" and not arm:
             parts.append(_point(kind.body, "payload", self.p.payload, self.root_at))
         else:
             self.payload_at_effector = True

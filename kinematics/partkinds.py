@@ -11,7 +11,7 @@ A kind (``[[kind]]``):
   analysis): ``body`` (name), ``box`` (x, y, z expressions, m) centred at ``at`` (or at
   ``at_with[C]`` when a child of class C is mounted), ``faces`` (up, down or back: where
   its modules go), ``payload`` ("root": the payload rides on it; "end_effector": in the
-  gripper);
+  gripper; a serial arm's gripper holds it on any root: a mobile manipulator's);
 - ``lengths``: the named lengths it uses with their defaults (m);
 - ``joints``: its joints from where it attaches, each at the end of the previous one's
   tube (or at the previous joint): ``name``, ``kind`` (revolute, continuous, fixed),

@@ -472,3 +472,19 @@ def test_a_mobile_manipulator_is_sized_as_its_base_and_its_arm(tmp_path) -> None
     speeds = fam.speeds(t, {"speed": 0.2, "reach": 0.25}, None)
     assert speeds["left_wheel"] == pytest.approx(0.2 / t.params.wheel_radius)
     assert speeds["shoulder_pitch"] == pytest.approx(0.2 / 0.30)  # arm_L2 + arm_L3
+
+
+def test_a_mobile_manipulators_gripper_holds_the_payload(tmp_path) -> None:
+    """Where an arm is, its gripper holds the payload (the object it picks), on a chassis
+    as on an arm's base; a chassis without an arm carries it on its plate."""
+    from adron.kb import load as load_kb
+    from synth.bodyplan import plan_of as ontology_plan
+
+    f = tmp_path / "mm.kif"
+    f.write_text(MOBILE)
+    t = build(ontology_plan(load_kb([f]), "MobileManipulator", load()), TemplateParams(payload=0.4))
+    held = [b for b, ps in t.parts.items() for p in ps if p.kind == "payload" and p.mass > 0]
+    assert held == ["gripper_link"]
+    cart = build("DifferentialDriveRobot", TemplateParams(payload=0.4))
+    held = [b for b, ps in cart.parts.items() for p in ps if p.kind == "payload" and p.mass > 0]
+    assert held == ["chassis"]
