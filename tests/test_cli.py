@@ -763,9 +763,10 @@ def test_same_bytes_across_hash_seeds(argv: list[str]) -> None:
 
 
 def test_prefetched_imports_finish_before_any_fork(tmp_path, monkeypatch) -> None:
-    """The imports a full design needs run on a thread while the reasoner grounds; a fork
-    (a worker, a process pool) waits for them, so no child starts with an import half
-    done; a module that cannot be imported is left to where it is used."""
+    """The imports a full design needs are done when ``_prefetch`` returns (on the calling
+    thread: tests/test_exit_paths.py), so no later fork (a worker, a process pool) starts
+    with an import half done; a module that cannot be imported is left to where it is
+    used."""
     import os
     import sys
     import time
