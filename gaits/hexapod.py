@@ -2,7 +2,7 @@
 the quadruped): leg kinematics, gait patterns, foot trajectories and the static stability
 margin. The behaviours that use them are ``gaits.legged.LeggedController``'s.
 
-**Legs.** A leg of the ``HexapodRobot`` / ``QuadrupedRobot`` template is read off the
+**Legs.** A leg of a multiped's template (legs on a trunk) is read off the
 template's joints (:func:`legs_of`): the coxa (yaw about the trunk's z) at the mount
 ``m`` with mount yaw ``psi_m`` (the leg points outward), the femur (pitch) ``c`` further
 out, the tibia (pitch) ``f`` beyond it, and the foot ``t`` below the tibia joint at q = 0.

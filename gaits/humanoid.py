@@ -6,7 +6,7 @@ length of the leg's passive modules to scale factors of those components, so tha
 printed size gets its gait as ``A_j(t) = (a x + b) sum_i a_i sin(w_i t + phi_i)``. Here:
 
 1. **Reference gait** (:func:`reference_gait`): one stride of a periodic walk of the
-   reference humanoid (the ``HumanoidRobot`` template's defaults scaled geometrically to
+   reference humanoid (the part kinds' default biped scaled geometrically to
    femur = tibia = ``x``, as parmor sizes humanoids in proportion to their height). The
    zero-moment point (ZMP) rests under the stance ankle (laterally ``sway`` of the way)
    and moves to the next foot in double support; the centre of mass (COM) is the exact
@@ -74,14 +74,15 @@ from gaits.base import (  # noqa: F401 - CACHE_ENV: the cache folder's variable,
     Trajectory,
     cache_folder,
 )
+from kinematics.bodyplan import BodyPlan, PartNode
 from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics, rnea
 from kinematics.model import GRAVITY
 from kinematics.templates import (
-    DEFAULTS,
     FOOT_WIDTH_RATIO,
     Template,
     TemplateParams,
     build,
+    default_lengths,
 )
 
 __all__ = [
@@ -263,16 +264,26 @@ def stance_height(shape: GaitShape, leg: float, half_hip: float) -> float:
     return float(np.sqrt(reach * reach - lateral * lateral))
 
 
+def _reference_plan() -> BodyPlan:
+    """The synthetic locomotion's reference humanoid (the paper's Fig. 21): an upright
+    torso, two biped legs, two arms with grippers, as the part kinds build them (not a
+    robot type of the ontology: the gait method's own model)."""
+    arm = PartNode("HumanoidArm", children=(PartNode("RoboticGripper"),))
+    legs = (PartNode("BipedLeg"),) * 2
+    return BodyPlan("ReferenceHumanoid", PartNode("HumanoidTorso", children=(*legs, arm, arm)))
+
+
 @cache
 def reference_template(size: float) -> Template:
-    """The reference humanoid of leg module length ``size`` m: the template's default
+    """The reference humanoid of leg module length ``size`` m: the part kinds' default
     humanoid scaled geometrically (every length times ``size / REFERENCE_SIZE``, as parmor
     sizes humanoids in proportion to their height), femur = tibia = ``size``. Built once
     per size (a template is immutable; the conversion maps ask for each size per ratio)."""
+    plan = _reference_plan()
     k = size / REFERENCE_SIZE
-    lengths = {name: k * v for name, v in DEFAULTS["HumanoidRobot"].items()}
+    lengths = {name: k * v for name, v in default_lengths(plan).items()}
     lengths.update(femur=size, tibia=size)
-    return build("HumanoidRobot", TemplateParams(lengths=lengths))
+    return build(plan, TemplateParams(lengths=lengths))
 
 
 def _lipm_periodic(p: np.ndarray, period: float, zc: float) -> np.ndarray:

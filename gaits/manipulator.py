@@ -123,17 +123,26 @@ _PEAK_SPEED = 1.875
 _PEAK_ACCEL = 10.0 / math.sqrt(3.0)
 _TOOL = "tool_roll_link"
 _GRIPPER = "gripper"
-_ARMS = {
-    "Manipulator3DOF": ("base_yaw", "shoulder_pitch", "elbow_pitch"),
-    "Manipulator6DOF": (
-        "base_yaw",
-        "shoulder_pitch",
-        "elbow_pitch",
-        "wrist_roll",
-        "wrist_pitch",
-        "tool_roll",
-    ),
-}
+#: The serial chains the closed forms are written for, by joint count: the part kinds'
+#: ``[serial]`` rows of 3 (yaw, pitch, pitch) and 6 joints (a roll-pitch-roll wrist added).
+_CLOSED_FORMS = (3, 6)
+
+
+@lru_cache(maxsize=1)
+def _serial_rows() -> dict[int, tuple[tuple[str, float, float], ...]]:
+    """(joint, lower, upper rad) of the [serial] rows the closed forms serve."""
+    from kinematics.partkinds import evaluate, load
+
+    rows = load().serial
+    return {
+        n: tuple((r[0], evaluate(r[2], {}), evaluate(r[3], {})) for r in rows[n])
+        for n in _CLOSED_FORMS
+    }
+
+
+def _chain(n: int) -> tuple[str, ...]:
+    """The joint names of the closed forms' chain of ``n`` joints."""
+    return tuple(name for name, _, _ in _serial_rows()[n])
 
 
 # --- profiles ------------------------------------------------------------------------------------
@@ -174,7 +183,7 @@ def ik_3dof(
     limits: Mapping[str, tuple[float, float]] | None = None,
 ) -> np.ndarray:
     """Joint angles (base_yaw, shoulder_pitch, elbow_pitch) rad that put the forearm tip of a
-    Manipulator3DOF at ``position`` (3,) m in the base frame, in closed form.
+    3-joint serial arm at ``position`` (3,) m in the base frame, in closed form.
 
     ``lengths``: L1, L2, L3 m. ``elbow``: "up" (elbow_pitch >= 0) or "down" (<= 0).
     ``yaw``: the base yaw kept for a target on the base axis (where any yaw works).
@@ -207,19 +216,14 @@ def ik_3dof(
     # planar 2R arm in (r, down): r = L2 c2 + L3 c23, down = L2 s2 + L3 s23
     q2 = math.atan2(down, r) - math.atan2(L3 * math.sin(q3), L2 + L3 * math.cos(q3))
     q = np.array([base, _wrap(q2), q3])
-    _check_limits(_ARMS["Manipulator3DOF"], q, lim)
+    _check_limits(_chain(3), q, lim)
     return q
 
 
-@lru_cache(maxsize=1)
-def _template_limits() -> tuple[tuple[str, float, float], ...]:
-    m = build("Manipulator6DOF").model
-    return tuple((j.name, j.lower, j.upper) for j in m.joints if j.movable)
-
-
 def _default_limits() -> dict[str, tuple[float, float]]:
-    """The templates' joint limits (the 6-DOF arm's include the 3-DOF arm's)."""
-    return {n: (lo, hi) for n, lo, hi in _template_limits()}
+    """The part kinds' joint limits of the closed forms' chains (the 6-joint chain's
+    include the 3-joint chain's)."""
+    return {n: (lo, hi) for n, lo, hi in _serial_rows()[6]}
 
 
 def ik_6dof(
@@ -231,7 +235,7 @@ def ik_6dof(
     limits: Mapping[str, tuple[float, float]] | None = None,
 ) -> np.ndarray:
     """Joint angles (base_yaw, shoulder_pitch, elbow_pitch, wrist_roll, wrist_pitch,
-    tool_roll) rad of a Manipulator6DOF whose gripper is at ``position`` (3,) m with the tool
+    tool_roll) rad of a 6-joint serial arm whose gripper is at ``position`` (3,) m with the tool
     frame ``rotation`` (3, 3) (base frame), in closed form (spherical-wrist decoupling).
 
     The wrist centre is ``position - L4 * rotation[:, 0]`` (the tool's x axis points from
@@ -267,7 +271,7 @@ def ik_6dof(
         a = float(ref[3])
         s = math.atan2(M[2, 1], M[1, 1])
         wrists = [(a, b, _wrap(s - a) if b < 1.0 else _wrap(a - s))]
-    names = _ARMS["Manipulator6DOF"]
+    names = _chain(6)
     best, err = None, None
     for w in wrists:
         q = np.concatenate([arm, w])
@@ -416,7 +420,7 @@ class _Plan:
 
 
 class ManipulatorController(Controller):
-    """The behaviours of a Manipulator3DOF or Manipulator6DOF design.
+    """The behaviours of a serial arm of 3 or 6 joints (the closed forms' chains).
 
     ``base_position`` (3,) m: where the base frame sits in the world (the MJCF's root body
     position; the floor is the world plane z = 0). ``model``: a kinematics Model with the
@@ -445,11 +449,12 @@ class ManipulatorController(Controller):
     ) -> None:
         super().__init__(geometry)
         chain = tuple(n for n in self.template.model.q_names if n != _GRIPPER)
-        if chain not in _ARMS.values():
+        forms = [_chain(n) for n in _CLOSED_FORMS]
+        if chain not in forms:
             raise ValueError(
                 f"ManipulatorController drives serial arms of "
-                f"{' or '.join(str(len(c)) for c in _ARMS.values())} joints "
-                f"({'; '.join(', '.join(c) for c in _ARMS.values())}), not {geometry.template}'s "
+                f"{' or '.join(str(len(c)) for c in forms)} joints "
+                f"({'; '.join(', '.join(c) for c in forms)}), not {geometry.template}'s "
                 f"{len(chain)} ({', '.join(chain)})"
             )
         if not 0 < speed_margin <= 1:
@@ -458,7 +463,7 @@ class ManipulatorController(Controller):
             raise ValueError(f"max_acceleration must be > 0, got {max_acceleration}")
         if elbow not in ("up", "down"):
             raise ValueError(f"elbow: expected 'up' or 'down', got {elbow!r}")
-        self.six = chain == _ARMS["Manipulator6DOF"]
+        self.six = chain == _chain(6)
         self.arm = chain
         self.lengths = dict(self.template.lengths)
         self.base_position = np.array(base_position, dtype=float)

@@ -26,52 +26,24 @@ a square dovetail face plate at each end and a fillet between each plate and the
 ``Template.parts`` keeps every body's parts, labelled, with their placement and
 dimensions (:class:`LabelledPart`), so that exporters can rebuild each body from them.
 
-What the shipped ontology's types assemble to (documentation of the result; length names
-and defaults in ``DEFAULTS``):
+What the part kinds (``kinematics/partkinds.toml``, where every axis, limit and mount is
+data) give, by structure:
 
-- ``Manipulator3DOF`` (Fig. 16): ``base_yaw`` (z) at the base top, a vertical column
-  ``L1``; ``shoulder_pitch`` (y), upper arm ``L2`` along +x; ``elbow_pitch`` (y), forearm
-  ``L3`` along +x; ``gripper`` (z) at the forearm tip, holding gripper and payload at its
-  origin. Zero pose: arm stretched horizontally along +x, gripper at (L2 + L3, 0, L1).
-  Limits: base_yaw +-pi, shoulder_pitch +-pi/2, elbow_pitch +-5pi/6, gripper [0, pi/2].
-- ``Manipulator6DOF`` (Fig. 31): as the 3-DOF arm, then ``wrist_roll`` (x) at the forearm
-  tip, ``wrist_pitch`` (y) at the same point with the wrist tube ``L4`` along +x, and
-  ``tool_roll`` (x) at the wrist tip (a roll-pitch-roll wrist whose axes meet at the
-  wrist centre); ``gripper`` (z) there. Zero pose: stretched along +x, gripper at
-  (L2 + L3 + L4, 0, L1). Limits: rolls +-pi, wrist_pitch +-pi/2, others as above.
-- ``HexapodRobot`` (Fig. 18, 19) / ``QuadrupedRobot``: a trunk plate ``La1`` (x, between
-  the front and rear leg mounts) by ``La2`` (y, between the left and right mounts). Legs
-  ``lf lm lh rf rm rh`` (left/right, front/middle/hind; the quadruped has no middle
-  pair) are mounted at (+-La1/2 or 0, +-La2/2, 0) pointing straight outward (leg frame x
-  = outward). Per leg ``X``: ``X_coxa`` (z, group leg_coxa) with the coxa tube along +x;
-  ``X_femur`` (y, group leg_femur) at the coxa tip with the femur tube along +x;
-  ``X_tibia`` (y, group leg_tibia) at the femur tip with the tibia tube along -z and the
-  foot at its end. Zero pose: standing, femur horizontal and tibia vertical, feet at
-  z = -tibia. Limits: coxa +-pi/3, femur +-pi/2, tibia +-2pi/3.
-- ``HumanoidRobot`` (Fig. 21): trunk frame at the pelvis centre, trunk box of height
-  ``trunk_height``. Legs ``l``/``r`` at y = +-hip_width/2: ``X_hip_yaw`` (z), ``X_hip_roll``
-  (x), ``X_hip_pitch`` (y, femur tube along -z), ``X_knee_pitch`` (y, tibia tube along -z),
-  ``X_ankle_pitch`` (y), ``X_ankle_roll`` (x, the foot plate of length ``foot``; sole
-  ``actuator_size[2] / 2`` below the ankle). Arms at (0, +-shoulder_width/2,
-  trunk_height): ``X_shoulder_pitch`` (y, upper arm along -z), ``X_elbow_pitch`` (y,
-  forearm along -z), ``X_gripper`` (x) at the forearm tip. 18 actuated joints. Zero pose:
-  upright, arms hanging. Limits: hip_yaw, hip_roll, ankle_roll +-pi/4; hip_pitch +-pi/2;
-  knee_pitch [0, 5pi/6]; ankle_pitch +-pi/3; shoulder_pitch +-pi; elbow_pitch [-5pi/6, 0];
-  gripper [0, pi/2].
-- ``SnakeRobot`` (section 4.3.2): ``params.modules`` = M modules from a fixed base body.
-  Module i (1-based) is ``joint_i`` with body ``module_i``: the actuator and a bracket tube
-  of length ``module`` along +x; odd modules pitch (y, vertical modules), even ones yaw
-  (z, horizontal modules). Zero pose: straight along +x. Limits +-pi/2.
-- ``DifferentialDriveRobot`` (section 4.3.1): the chassis frame's origin is the axle centre
-  (ROS's base_link), at the wheel axle height; the chassis plate ``L1`` (x) by ``L2`` (y)
-  and the payload are centred at (-L1/4, 0, 0). ``left_wheel``/``right_wheel``
-  (continuous, y, group wheel) at (0, +-L2/2, 0); a ball caster (fixed joint ``caster``)
-  at (-3 L1/4, 0, -wheel_radius), touching the ground at its origin. Ground at
-  z = -wheel_radius.
-- ``SkidSteerRobot``: the chassis plate centred on the origin, with ``front_left_wheel``,
-  ``front_right_wheel``, ``rear_left_wheel``, ``rear_right_wheel`` at (+-L1/2, +-L2/2, 0).
-- Wheeled robots: a wheel's body is the wheel alone; its actuator module is on the
-  chassis, beside the wheel on the inner side (see ``_servos_on_chassis``).
+- a serial arm: the base plate under ``base_yaw`` (z); a column ``L1`` up, then links
+  ``L2`` ... along +x after each pitch joint; roll joints sit at the end of the link before
+  them; ``gripper`` at the chain's tip, holding the payload. Zero pose: stretched along +x;
+- legs on a trunk plate ``La1`` (x, between the front and rear mounts) by ``La2`` (y):
+  ``lf lm lh rf rm rh`` along both sides (an odd count: ``leg1`` ... around it), each
+  ``X_coxa`` (z), ``X_femur`` and ``X_tibia`` (y), the tibia along -z to a point foot.
+  Zero pose: standing, femur horizontal, tibia vertical;
+- a biped torso (trunk frame at the pelvis): legs ``l``/``r`` of six joints ending in a
+  foot plate, arms of two pitch joints and a gripper at its shoulders;
+- a module chain: ``joint_i`` with body ``module_i``, pitch and yaw alternating, from a
+  head box;
+- wheels on a chassis (frame origin at the wheels' centre, ROS's base_link, at axle
+  height): wheels in axles (``left_wheel`` ... or ``front_left_wheel`` ...), a trailing
+  ball caster ``caster`` at ground level; each wheel's servo case is on the chassis,
+  beside its wheel (``_servos_on_chassis``).
 """
 
 from __future__ import annotations

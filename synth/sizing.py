@@ -309,7 +309,7 @@ class Family(ABC):
 
 
 class Manipulators(Family):
-    """Manipulator3DOF / Manipulator6DOF: links from the reach; worst case stretched
+    """A serial arm on a fixed base (structure serial_arm): links from the reach; worst case stretched
     horizontally at full reach with the payload, every joint at the required speed and the
     catalog's maximum joint acceleration."""
 
@@ -375,7 +375,7 @@ class Manipulators(Family):
 
 
 class Multipeds(Family):
-    """HexapodRobot / QuadrupedRobot: legs from the obstacle height h (the foot lifts
+    """Legs on a trunk (structure multiped): legs from the obstacle height h (the foot lifts
     h + STEP_MARGIN with the femur at 45 degrees; the trunk clears h standing); body links
     La1, La2 so that neighbouring legs' reachable strides do not overlap; worst case on the
     minimum support (hexapod: a tripod; quadruped: the two legs of a trot) carrying the
@@ -427,7 +427,7 @@ class Multipeds(Family):
 
 
 class Humanoid(Family):
-    """HumanoidRobot: limb lengths in proportion to the standing height, within the leg
+    """Two legs and two arms on an upright torso (structure biped): limb lengths in proportion to the standing height, within the leg
     module lengths whose gaits the conversion maps give (``gaits.humanoid``); worst cases
     on one foot in the walking gait's stance (crouched, the pelvis swayed over the stance
     ankle), the ground force under the centre of mass and at ``ANKLE_COP_REACH`` of the
@@ -620,7 +620,7 @@ class Humanoid(Family):
 
 
 class Snake(Family):
-    """SnakeRobot: M from the ontology (the conceptual design); worst case lifting the
+    """A chain of modules (structure module_chain): M from the ontology (the conceptual design); worst case lifting the
     longest unsupported segment of the gaits the robot lists (the largest of the ontology's
     ``liftedModuleShare`` over them), straight and horizontal, accelerating, its free end
     carrying ``HEAD_SHARE`` of the head (the base: main module, battery, sensors and the
@@ -658,7 +658,7 @@ class Snake(Family):
 
 
 class Wheeled(Family):
-    """DifferentialDriveRobot / SkidSteerRobot: chassis L1 x L2 from the load area
+    """Wheels on a chassis (structure wheeled): chassis L1 x L2 from the load area
     (aspect 4:3); the wheel radius is the smallest with which some catalog
     continuous-rotation servo both holds the wheel's share of the traction force and turns
     fast enough under it (its speed falls linearly with torque) for the travel speed; worst
