@@ -309,7 +309,8 @@ class Family(ABC):
 
 
 class Manipulators(Family):
-    """A serial arm on a fixed base (structure serial_arm): links from the reach; worst case stretched
+    """A serial arm on a fixed base (structure serial_arm): links from the reach; worst
+    case stretched
     horizontally at full reach with the payload, every joint at the required speed and the
     catalog's maximum joint acceleration."""
 
@@ -427,7 +428,8 @@ class Multipeds(Family):
 
 
 class Humanoid(Family):
-    """Two legs and two arms on an upright torso (structure biped): limb lengths in proportion to the standing height, within the leg
+    """Two legs and two arms on an upright torso (structure biped): limb lengths in
+    proportion to the standing height, within the leg
     module lengths whose gaits the conversion maps give (``gaits.humanoid``); worst cases
     on one foot in the walking gait's stance (crouched, the pelvis swayed over the stance
     ankle), the ground force under the centre of mass and at ``ANKLE_COP_REACH`` of the
@@ -620,7 +622,8 @@ class Humanoid(Family):
 
 
 class Snake(Family):
-    """A chain of modules (structure module_chain): M from the ontology (the conceptual design); worst case lifting the
+    """A chain of modules (structure module_chain): M from the ontology (the conceptual
+    design); worst case lifting the
     longest unsupported segment of the gaits the robot lists (the largest of the ontology's
     ``liftedModuleShare`` over them), straight and horizontal, accelerating, its free end
     carrying ``HEAD_SHARE`` of the head (the base: main module, battery, sensors and the
