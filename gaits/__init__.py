@@ -26,10 +26,10 @@ CONTROLLERS: dict[str, tuple[str, str]] = {
 def structure(geometry: DesignGeometry) -> str:
     """The structure of a design (``kinematics.assemble.structure_of`` of its body plan)."""
     from kinematics.assemble import structure_of
-    from kinematics.partkinds import load
-    from kinematics.templates import PART_DATA, plan_of
+    from kinematics.partkinds import in_use
+    from kinematics.templates import plan_of
 
-    return structure_of(plan_of(geometry.template), PART_DATA[0] or load())
+    return structure_of(plan_of(geometry.template), in_use())
 
 
 def controller_for(geometry: DesignGeometry, **options: object) -> Controller:

@@ -130,27 +130,21 @@ def length_defaults(plan: BodyPlan, kinds: PartKinds) -> dict[str, float]:
     ``defaultLength`` values (``plan.lengths``) win."""
     out: dict[str, float] = {}
 
-    def visit(node: PartNode, chain_links: list, prefix: str) -> None:
+    def visit(node: PartNode) -> None:
         kind = _kind(kinds, node)
         for k, v in kind.lengths.items():
             out.setdefault(k, v)
         for j in kind.joints:
             if j.tube_length and j.tube_length not in out:
                 out[j.tube_length] = kind.lengths.get(j.tube_length, 0.0)
-        if kind.link:
-            chain_links[0] += 1
-            k = chain_links[0]
-            name = f"{prefix or kind.link.get('names', 'L')}{k}"
-            pick = "first" if k == 1 else "rest"
-            out.setdefault(name, kinds.serial_lengths.get(pick, 0.1))
-        for c, m in _ordered_children(node, kind, kinds):
-            if _kind(kinds, c).role in _CHAIN:
-                start = m is not None and kind.role not in _CHAIN
-                visit(c, [0] if start else chain_links, (m.links if start else prefix))
-            else:
-                visit(c, [0], "")
+        for c, _ in _ordered_children(node, kind, kinds):
+            visit(c)
 
-    visit(plan.root, [0], "")
+    visit(plan.root)
+    for chain in serial_links(plan, kinds):  # a serial arm's links, after the parts'
+        for k, name in enumerate(chain):
+            pick = "first" if k == 0 else "rest"
+            out.setdefault(name, kinds.serial_lengths.get(pick, 0.1))
     for k in out:
         if k in plan.lengths:
             out[k] = float(plan.lengths[k])
@@ -218,7 +212,7 @@ class _Walk:
         ordered = _ordered_children(node, kind, self.kinds)
         chain = [c for c, _ in ordered if _kind(self.kinds, c).role in _CHAIN]
         others = [(c, m) for c, m in ordered if c not in chain]
-        jobs: list[tuple[int, int, PartNode, _Tip, int]] = []  # (side key, order, node, tip, index)
+        jobs: list[tuple[int, int, PartNode, _Tip]] = []  # (side, order, node, tip)
         by_mount: dict[int, list[PartNode]] = {}
         mounts: dict[int, Mount | None] = {}
         for c, m in others:
@@ -233,11 +227,11 @@ class _Walk:
             else:
                 places = [(0, tip.prefix, tip.frame) for _ in group]
             for c, (side, prefix, frame) in zip(group, places, strict=True):
-                jobs.append((side, order, c, _Tip(tip.rec, frame, prefix, tip.forward), 0))
+                jobs.append((side, order, c, _Tip(tip.rec, frame, prefix, tip.forward)))
                 order += 1
         if kind.order == "side":
             jobs.sort(key=lambda j: (-j[0], j[1]))
-        for _, _, c, t, _ in jobs:
+        for _, _, c, t in jobs:
             self.part(c, t)
         if chain:
             m = next((m for c, m in ordered if c is chain[0]), None)
@@ -288,10 +282,7 @@ class _Walk:
                 for side in (1, -1):
                     name = "left" if side > 0 else "right"
                     prefix = f"{words[i]}_{name}" if words[i] else name
-                    xyz = (
-                        (fx * span / 2, side * track / 2, 0) if a > 1 else (0, side * track / 2, 0)
-                    )
-                    out.append((side, prefix, transform(xyz)))
+                    out.append((side, prefix, transform((fx * span / 2, side * track / 2, 0))))
         elif m.layout == "trailing":
             rear = (self.root_at[0] - span / 2, 0, -float(self.p.wheel_radius))
             for i in range(n):
@@ -402,12 +393,7 @@ class _Walk:
             if not nxt:
                 break
             node = nxt[0]
-        joints = [
-            n
-            for n in chain
-            if _kind(self.kinds, n).role == "joint"
-            or (_kind(self.kinds, n).joints and not _kind(self.kinds, n).link)
-        ]
+        joints = [n for n in chain if not _kind(self.kinds, n).link]
         ext = [n for n in joints if any(k in self.plan.extensible for k in n.kinds)]
         if ext:
             m = self.p.modules
@@ -538,8 +524,6 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
                 )
             )
             casters.append(r.body)
-        if r.end == "wheel" and not (math.isfinite(p.wheel_radius) and p.wheel_radius > 0):
-            raise ValueError(f"wheel_radius must be positive, got {p.wheel_radius}")
         b.add(
             r.name,
             parent,

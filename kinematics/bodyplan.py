@@ -8,11 +8,11 @@ bundle can be rebuilt without the ontology that made it.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
-__all__ = ["BodyPlan", "PartNode"]
+__all__ = ["PLAN_SOURCE", "BodyPlan", "PartNode"]
 
 
 @dataclass(frozen=True)
@@ -112,3 +112,10 @@ class BodyPlan:
     def key(self) -> str:
         """A text that tells plans apart (the template cache's key)."""
         return repr(self.to_dict())
+
+
+#: Where a robot type's body plan comes from when none is registered in this process
+#: (``kinematics.templates.plan_of``): set by ``synth.bodyplan.install`` to the shipped
+#: ontology's; kept here, in a module that imports nothing heavy, so that installing it
+#: costs nothing on the command line's start-up path.
+PLAN_SOURCE: list[Callable[[str], BodyPlan | None]] = []

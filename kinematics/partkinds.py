@@ -55,7 +55,16 @@ from importlib import resources
 from pathlib import Path
 from types import MappingProxyType
 
-__all__ = ["PartKind", "PartKindError", "PartKinds", "evaluate", "load", "shipped_text"]
+__all__ = [
+    "PartKind",
+    "PartKindError",
+    "PartKinds",
+    "evaluate",
+    "in_use",
+    "load",
+    "shipped_text",
+    "use",
+]
 
 AXES = {
     "x": (1.0, 0.0, 0.0),
@@ -235,6 +244,20 @@ def load(extra: Sequence[str | Path] = ()) -> PartKinds:
         while len(_CACHE) > 8:
             _CACHE.pop(next(iter(_CACHE)))
     return _CACHE[key]
+
+
+#: The part kinds this process assembles with (None: the shipped ones): ``use`` sets it.
+_IN_USE: list[PartKinds | None] = [None]
+
+
+def use(kinds: PartKinds | None) -> None:
+    """Assemble with ``kinds`` from now on (None: the shipped ones)."""
+    _IN_USE[0] = kinds
+
+
+def in_use() -> PartKinds:
+    """The part kinds this process assembles with (``use``; the shipped ones)."""
+    return _IN_USE[0] or load()
 
 
 def _parse(sources: Sequence[tuple[str, str]]) -> PartKinds:

@@ -48,7 +48,7 @@ data) give, by structure:
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from math import isfinite, pi
 from types import MappingProxyType
@@ -81,7 +81,6 @@ __all__ = [
     "default_lengths",
     "plan_of",
     "register_plan",
-    "use_part_kinds",
     "dovetail_volumes",
 ]
 
@@ -120,9 +119,6 @@ _BACK = np.column_stack([(0.0, 1.0, 0.0), (0.0, 0.0, -1.0), (-1.0, 0.0, 0.0)])
 #: Body plans known to this process, by robot type (``register_plan``): the ontology's
 #: types as ``synth`` reads them, and a bundle's own as its record keeps it.
 PLANS: dict[str, BodyPlan] = {}
-#: Where a plan not registered yet comes from (set by ``synth.bodyplan``: the shipped
-#: ontology's types), or None.
-PLAN_SOURCE: Callable[[str], BodyPlan | None] | None = None
 
 
 def register_plan(plan: BodyPlan) -> BodyPlan:
@@ -132,11 +128,13 @@ def register_plan(plan: BodyPlan) -> BodyPlan:
 
 
 def plan_of(robot_type: str) -> BodyPlan:
-    """The body plan of ``robot_type``: registered, or from ``PLAN_SOURCE``; ValueError
-    when there is none."""
+    """The body plan of ``robot_type``: registered, or from
+    ``kinematics.bodyplan.PLAN_SOURCE``; ValueError when there is none."""
+    from kinematics.bodyplan import PLAN_SOURCE
+
     plan = PLANS.get(robot_type)
-    if plan is None and PLAN_SOURCE is not None:
-        plan = PLAN_SOURCE(robot_type)
+    if plan is None and PLAN_SOURCE:
+        plan = PLAN_SOURCE[0](robot_type)
         if plan is not None:
             register_plan(plan)
     if plan is None:
@@ -399,10 +397,10 @@ class Template:
 def default_lengths(robot_type: str | BodyPlan) -> dict[str, float]:
     """The length names of a robot type (or body plan) with their default values, m."""
     from kinematics.assemble import length_defaults
-    from kinematics.partkinds import load
+    from kinematics.partkinds import in_use
 
     plan = robot_type if isinstance(robot_type, BodyPlan) else plan_of(robot_type)
-    return length_defaults(plan, PART_DATA[0] or load())
+    return length_defaults(plan, in_use())
 
 
 # --- building blocks ---------------------------------------------------------------------------
@@ -668,21 +666,12 @@ def check_params(
     return lengths
 
 
-#: Templates built last, newest last: (plan key, repr of the params, repr of the
+#: Templates built last, newest last: ((plan key, part kinds), repr of the params, repr of the
 #: template's lengths, template). The structure generator builds the same template several
 #: times an iteration (for the sizing update, the analysis, the record).
 _BUILT: list[tuple[str, str, str, Template]] = []
 #: How many recent templates ``build`` keeps.
 BUILD_CACHE_SIZE = 8
-#: The part kinds ``build`` assembles with (None: the shipped ones); ``use_part_kinds`` sets it.
-PART_DATA: list = [None]
-
-
-def use_part_kinds(kinds) -> None:
-    """Assemble with ``kinds`` (``kinematics.partkinds.PartKinds``; None: the shipped)."""
-    if PART_DATA[0] is not kinds:
-        PART_DATA[0] = kinds
-        _BUILT.clear()
 
 
 def build(robot_type: str | BodyPlan, params: TemplateParams | None = None) -> Template:
@@ -700,17 +689,18 @@ def build(robot_type: str | BodyPlan, params: TemplateParams | None = None) -> T
     parameters or lengths in place.
     """
     from kinematics.assemble import assemble
-    from kinematics.partkinds import load
+    from kinematics.partkinds import in_use
 
     plan = robot_type if isinstance(robot_type, BodyPlan) else plan_of(robot_type)
     p = params if params is not None else TemplateParams()
+    kinds = in_use()
     key = repr(p)
-    pk = plan.key()
+    pk = (plan.key(), id(kinds))  # the part kinds are loaded once per set of files
     for k, (rt, ck, lk, t) in enumerate(_BUILT):
         if rt == pk and ck == key and repr(t.params) == key and repr(t.lengths) == lk:
             _BUILT.append(_BUILT.pop(k))
             return t
-    t = assemble(plan, p, PART_DATA[0] or load())
+    t = assemble(plan, p, kinds)
     _BUILT.append((pk, key, repr(t.lengths), t))
     del _BUILT[:-BUILD_CACHE_SIZE]
     return t

@@ -280,7 +280,7 @@ def _default_lengths(kb: KnowledgeBase, lineage: Sequence[str]) -> dict[str, flo
 
 def shipped_plan(robot_type: str) -> BodyPlan | None:
     """The body plan of a class of the shipped ontology (None for a class that is no robot
-    there): ``kinematics.templates.PLAN_SOURCE`` once ``install`` ran."""
+    there): ``kinematics.bodyplan.PLAN_SOURCE`` once ``install`` ran."""
     from adron.kb import load
     from kinematics.partkinds import load as load_kinds
 
@@ -291,26 +291,20 @@ def shipped_plan(robot_type: str) -> BodyPlan | None:
 
 
 def install() -> None:
-    """Let ``kinematics.templates.build`` find the shipped ontology's robot types by name."""
-    import kinematics.templates as templates
+    """Let ``kinematics.templates.build`` find the shipped ontology's robot types by name
+    (``kinematics.bodyplan.PLAN_SOURCE``; nothing heavy is imported)."""
+    from kinematics.bodyplan import PLAN_SOURCE
 
-    if templates.PLAN_SOURCE is None:
-        templates.PLAN_SOURCE = shipped_plan
-
-
-def current_kinds() -> PartKinds:
-    """The part kinds in use (``kinematics.templates.use_part_kinds``; the shipped ones)."""
-    import kinematics.templates as templates
-    from kinematics.partkinds import load as load_kinds
-
-    return templates.PART_DATA[0] or load_kinds()
+    if not PLAN_SOURCE:
+        PLAN_SOURCE.append(shipped_plan)
 
 
 def structure_of_type(kb: KnowledgeBase, robot_type: str) -> tuple[BodyPlan, str]:
     """(body plan, structure) of ``robot_type`` with the part kinds in use."""
     from kinematics.assemble import structure_of
+    from kinematics.partkinds import in_use
 
-    kinds = current_kinds()
+    kinds = in_use()
     plan = plan_of(kb, robot_type, kinds)
     return plan, structure_of(plan, kinds)
 
@@ -331,3 +325,18 @@ def parameter_defaults(kb: KnowledgeBase, robot_type: str) -> dict[str, float | 
 
 
 install()
+
+
+def arm_joints(kb: KnowledgeBase, robot_type: str) -> int | None:
+    """The joints of ``robot_type``'s serial arm (its body plan's parts of role "joint"),
+    None when it is no serial arm on a fixed base or its plan cannot be made."""
+    from kinematics.partkinds import in_use
+
+    try:
+        plan, structure = structure_of_type(kb, robot_type)
+    except InputError:
+        return None
+    if structure != "serial_arm":
+        return None
+    kinds = in_use()
+    return sum(1 for p in plan.root.walk() if (k := kinds.of(p.kinds)) and k.role == "joint")

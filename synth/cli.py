@@ -538,12 +538,11 @@ def use_parts(files) -> None:
     """Assemble with the shipped part kinds and ``files`` (``--parts``); InputError (exit
     2) naming the file and the key of a part kind that cannot be used."""
     from adron.errors import InputError
-    from kinematics.partkinds import PartKindError
+    from kinematics.partkinds import PartKindError, use
     from kinematics.partkinds import load as load_kinds
-    from kinematics.templates import use_part_kinds
 
     try:
-        use_part_kinds(load_kinds(files) if files else None)
+        use(load_kinds(files) if files else None)
     except PartKindError as e:
         raise InputError(str(e)) from None
 
@@ -557,22 +556,15 @@ def _with_composed_arm(kb, args: argparse.Namespace):
     if not given:
         return kb
     from adron.kb import load
-    from synth.bodyplan import current_kinds, structure_of_type
+    from kinematics.partkinds import in_use
+    from synth.bodyplan import arm_joints
     from synth.compose import parse_dof, serial_arm_kif
 
     n = parse_dof(given[-1])
-    for args_ in kb.translation.relation("instance"):
-        if len(args_) == 2 and args_[1] == "BaseConfiguration":
-            try:
-                plan, structure = structure_of_type(kb, args_[0])
-            except InputError:
-                continue
-            joints = sum(
-                1 for p in plan.root.walk() if "PositionServomotor" in p.kinds
-            )
-            if structure == "serial_arm" and joints == n:
-                return kb
-    text = serial_arm_kif(n, current_kinds())
+    bases = [a[0] for a in kb.translation.relation("instance") if a[1:] == ("BaseConfiguration",)]
+    if any(arm_joints(kb, t) == n for t in bases):
+        return kb
+    text = serial_arm_kif(n, in_use())
     return load(args.ontology, texts=[(f"<parmor: arm composed for --param dof={n}>", text)])
 
 

@@ -164,19 +164,10 @@ class Designer:
         """The candidates that are serial arms of ``--param dof`` joints (all without it)."""
         if "dof" not in physical:
             return tuple(cands)
-        from synth.bodyplan import structure_of_type
+        from synth.bodyplan import arm_joints
 
         n = int(physical["dof"])
-        out = []
-        for c in cands:
-            if c.dof != n:
-                continue
-            try:
-                if structure_of_type(self.kb, c.robot_type)[1] == "serial_arm":
-                    out.append(c)
-            except InputError:
-                continue
-        return tuple(out)
+        return tuple(c for c in cands if arm_joints(self.kb, c.robot_type) == n)
 
     def within_limits(
         self, cands: Sequence[Candidate], physical: Mapping[str, float]

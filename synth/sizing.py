@@ -212,11 +212,11 @@ def alternate_feet(tmpl: Template) -> list[str]:
 def _arm_links(tmpl_or_type) -> list[str]:
     """The length names of a design's serial arm's printed links, column first."""
     from kinematics.assemble import serial_links
-    from kinematics.partkinds import load
-    from kinematics.templates import PART_DATA, plan_of
+    from kinematics.partkinds import in_use
+    from kinematics.templates import plan_of
 
     plan = tmpl_or_type.plan if isinstance(tmpl_or_type, Template) else plan_of(tmpl_or_type)
-    chains = serial_links(plan, PART_DATA[0] or load())
+    chains = serial_links(plan, in_use())
     return chains[0] if chains else []
 
 

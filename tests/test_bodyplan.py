@@ -323,15 +323,15 @@ def test_a_users_part_kind_replaces_the_shipped_one(tmp_path, cli) -> None:
     )
     f = tmp_path / "legs.toml"
     f.write_text(mine)
-    from kinematics.templates import use_part_kinds
+    from kinematics.partkinds import use
 
     try:
-        use_part_kinds(load([f]))
+        use(load([f]))
         t = build("QuadrupedRobot")
         coxa = t.model.joints[t.model.joint("lf_coxa")]
         assert coxa.upper == pytest.approx(np.pi / 6)
     finally:
-        use_part_kinds(None)
+        use(None)
     t = build("QuadrupedRobot")
     assert t.model.joints[t.model.joint("lf_coxa")].upper == pytest.approx(np.pi / 3)
 
