@@ -200,10 +200,11 @@ class PartKind:
 @dataclass(frozen=True)
 class PartKinds:
     """Every known part kind by class, the serial arms' joint table (N -> rows of (name,
-    axis, limit, limit)), the serial arms' default link lengths and the constants."""
+    axis, limit, limit, whether a printed link follows the joint in an arm composed for N
+    joints)), the serial arms' default link lengths and the constants."""
 
     kinds: Mapping[str, PartKind]
-    serial: Mapping[int, tuple[tuple[str, str, str, str], ...]]
+    serial: Mapping[int, tuple[tuple[str, str, str, str, bool], ...]]
     serial_lengths: Mapping[str, float]
     constants: Mapping[str, float]
     sources: tuple[str, ...] = ()
@@ -512,14 +513,17 @@ class _Reader:
             rows = []
             for i, row in enumerate(v):
                 rk = f"serial.{k}[{i}]"
-                if not isinstance(row, list) or len(row) != 4:
-                    self.fail(rk, "must be [name, axis, lower, upper]")
+                if not isinstance(row, list) or len(row) not in (4, 5):
+                    self.fail(rk, 'must be [name, axis, lower, upper] or [..., "link"]')
+                if len(row) == 5 and row[4] != "link":
+                    self.fail(rk, f'the fifth item may only be "link", got {row[4]!r}')
                 rows.append(
                     (
                         self.text(rk, row[0]),
                         self.word(rk, row[1], tuple(AXES)),
                         self.expr(rk, row[2]),
                         self.expr(rk, row[3]),
+                        len(row) == 5,
                     )
                 )
             names = [r[0] for r in rows]

@@ -8,9 +8,10 @@ ending in a ``RoboticGripper``) and joins the knowledge base as a generated sour
 that the reasoner works out its abilities like any other type's: with N >= 3 joints it
 positions what it holds, with N >= 6 it also orients it (the ontology's
 ``requiredPartCount`` of positioning and orienting), and a gripper grasps. Its joints are
-the part kinds' ``[serial]`` row for N (names, axes, limits); a printed link follows the
-first joint (the column) and every pitch joint, as in the paper's 3- and 6-joint arms (a
-roll joint sits at the end of the link before it). When the ontology already has a base
+the part kinds' ``[serial]`` row for N (names, axes, limits), with a printed link after
+each joint the row marks "link" (the shipped rows: after the column's joint and every
+pitch joint, as in the paper's 3- and 6-joint arms; a roll joint sits at the end of the
+link before it). When the ontology already has a base
 configuration that is a serial arm of N joints (the shipped 3- and 6-joint arms), nothing
 is composed: ``dof`` then picks that arm.
 """
@@ -56,11 +57,11 @@ def serial_arm_kif(n: int, kinds: PartKinds) -> str:
         )
     name = arm_type_name(n)
     servos = [f"?S{i}" for i in range(1, n + 1)]
-    links = [f"?K{i}" for i, row in enumerate(rows, 1) if i == 1 or row[1] == "y"]
+    links = [f"?K{i}" for i, row in enumerate(rows, 1) if row[4]]
     chain = ["?BASE"]
     for i, row in enumerate(rows, 1):
         chain.append(f"?S{i}")
-        if i == 1 or row[1] == "y":
+        if row[4]:
             chain.append(f"?K{i}")
     chain.append("?GRIP")
     joints = ", ".join(r[0] for r in rows)

@@ -346,6 +346,7 @@ def test_a_users_part_kind_replaces_the_shipped_one(tmp_path, cli) -> None:
         ('[[kind]]\nclass = "X"\ncolour = 1\n', "kind[0].colour"),
         ('[[kind]]\nclass = "X"\nroot = true\n', "needs a 'body' name and a 'box'"),
         ('[serial]\n3 = [["a", "z", "-pi", "pi"]]\n', "serial.3"),
+        ('[serial]\n1 = [["a", "z", "-pi", "pi", "tube"]]\n', "serial.1[0]"),
         (
             '[[kind]]\nclass = "X"\njoints = [{ name = "a", limits = ["import os", 1] }]\n',
             "limits[0]",
