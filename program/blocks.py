@@ -114,10 +114,34 @@ def _value(x: object) -> object:
     return float(x)  # type: ignore[arg-type]
 
 
+#: How the page shows a unit to a novice: the API's unit -> (the unit written out, the
+#: factor from the API's value to the shown one, the step the field rounds to; None: as
+#: typed). Angles are shown in degrees, as every block language for children (Scratch,
+#: Bitbloq, Open Roberta) does; the program, its Python text and the API stay in SI
+#: units (the page converts both ways). Units not listed are shown as they are.
+DISPLAY_UNITS: dict[str, tuple[str, float, float | None]] = {
+    "rad": ("degrees", 180.0 / math.pi, 0.1),
+    "rad/s": ("degrees per second", 180.0 / math.pi, 0.1),
+    "m": ("metres", 1.0, None),
+    "m/s": ("metres per second", 1.0, None),
+    "s": ("seconds", 1.0, None),
+    "Hz": ("times per second", 1.0, None),
+    "kg": ("kilograms", 1.0, None),
+}
+
+
+def display(unit: str) -> dict:
+    """How the page shows a parameter of ``unit`` (:data:`DISPLAY_UNITS`): ``unit``
+    written out, ``scale`` (shown = value x scale) and ``step`` (None: any)."""
+    written, scale, step = DISPLAY_UNITS.get(unit, (unit, 1.0, None))
+    return {"unit": written, "scale": scale, "step": step}
+
+
 def toolbox(controller: Controller, abilities: Sequence[str]) -> list[dict]:
     """One entry per behaviour a program may call (name order; the listed ones and the
     sensing ones, :func:`program.session.program_behaviors`): name, doc, and its
-    parameters (name, kind, default, unit, low, high, choices, doc). Depends only on the
+    parameters (name, kind, default, unit, low, high, choices, doc, and how the page shows
+    them: :func:`display`). Depends only on the
     controller's behaviour descriptions, so two designs whose controllers describe their
     behaviours alike get identical toolboxes."""
     from program.session import program_behaviors
@@ -138,6 +162,7 @@ def toolbox(controller: Controller, abilities: Sequence[str]) -> list[dict]:
                         "high": _limit(p.high),
                         "choices": list(p.choices),
                         "doc": p.doc,
+                        "display": display(p.unit),
                     }
                     for p in spec.params
                 ],

@@ -50,10 +50,10 @@ CHROMIUM_ARGS = [
 DESIGNS = {
     "hexapod": (
         ["rough-terrain-walking"],
-        (("walking", {"steps": 1}), 2, ("turning", {"angle": 0.5})),
+        (("walking", {"steps": 1}), 2, ("turning", {"angle": 30})),  # degrees in the page
     ),
     "snake": (["sidewinding"], (("sidewinding", {"cycles": 2}), 2, ("rolling", {"cycles": 3}))),
-    "cart": (["driving"], (("driving", {"seconds": 1.5}), 2, ("turning", {"angle": 1.5}))),
+    "cart": (["driving"], (("driving", {"seconds": 1.5}), 2, ("turning", {"angle": 90}))),
     "arm": (
         ["pick-and-place", "--param", "object_shape=cylinder"],
         (("positioning", {"z": 0.1}), 2, ("pick-and-place", {})),
@@ -451,7 +451,12 @@ def test_bad_programs_get_errors_in_the_page_and_the_server_keeps_serving(
             block,
         )
         assert warned  # the page marks the field before the server refuses it
+        # Run refuses it in the page: nothing is sent
         reply = run_in_page(page)
+        assert reply["error"].startswith("not sent: driving: v 99 is outside"), reply
+        # and the server refuses it too when it is sent anyway
+        program = page.evaluate("JSON.stringify(parmor.programJson())")
+        reply = run_in_page(page, program)
         assert reply["error"].startswith("program[0].params.v"), reply
         assert "99" in reply["error"]
         assert server.proc.poll() is None

@@ -43,11 +43,42 @@
     return Number.isInteger(x) ? String(x) : String(Number(x.toPrecision(4)));
   }
 
+  // --- units as a novice reads them (program.blocks.DISPLAY_UNITS) -----------------------
+  // A parameter's field shows value x display.scale in display.unit (angles in degrees);
+  // the program, its Python text and the server keep the API's units.
+
+  function disp(p) {
+    return p.display || { unit: p.unit, scale: 1, step: null };
+  }
+
+  /** The value shown for ``x`` in the API's unit (rounded to the field's step). */
+  function shown(p, x) {
+    const d = disp(p);
+    const v = x * d.scale;
+    return d.step ? Math.round(v / d.step) * d.step : v;
+  }
+
+  /** A limit as shown (not rounded: a shown value is judged against it). */
+  function shownLimit(p, x) {
+    return x === null ? null : x * disp(p).scale;
+  }
+
+  /** The API's value of a shown one; a value on a limit up to rounding is the limit. */
+  function fromShown(p, v) {
+    const d = disp(p);
+    let x = d.scale === 1 ? v : v / d.scale;
+    const tol = 1e-9 * Math.max(1, Math.abs(x));
+    if (p.low !== null && x < p.low && p.low - x <= tol) x = p.low;
+    if (p.high !== null && x > p.high && x - p.high <= tol) x = p.high;
+    return x;
+  }
+
   function rangeText(p) {
     if (p.kind === 'choice') return '';
-    const lo = p.low === null ? '-inf' : short(p.low);
-    const hi = p.high === null ? 'inf' : short(p.high);
-    return (p.unit ? p.unit + ' ' : '') + '[' + lo + ', ' + hi + ']';
+    const lo = p.low === null ? '-inf' : short(shownLimit(p, p.low));
+    const hi = p.high === null ? 'inf' : short(shownLimit(p, p.high));
+    const unit = disp(p).unit;
+    return (unit ? unit + ' ' : '') + '[' + lo + ', ' + hi + ']';
   }
 
   // --- the blocks ----------------------------------------------------------------------
@@ -75,9 +106,9 @@
             row.appendField(new Blockly.FieldDropdown(p.choices.map((c) => [c, c])), p.name);
             this.setFieldValue(p.default, p.name);
           } else {
-            const precision = p.kind === 'int' ? 1 : undefined;
+            const precision = p.kind === 'int' ? 1 : disp(p).step || undefined;
             row.appendField(
-              new Blockly.FieldNumber(p.default, undefined, undefined, precision),
+              new Blockly.FieldNumber(shown(p, p.default), undefined, undefined, precision),
               p.name,
             );
             row.appendField(rangeText(p));
@@ -147,13 +178,19 @@
     return Number(block.getFieldValue(name));
   }
 
+  /** A behaviour block's parameter in the API's unit (a choice as it is). */
+  function paramValue(block, p) {
+    if (p.kind === 'choice') return block.getFieldValue(p.name);
+    return fromShown(p, numberField(block, p.name));
+  }
+
   function statementJson(block) {
     const type = block.type;
     if (type.startsWith(DO)) {
       const spec = behaviours[type.slice(DO.length)];
       const params = {};
       for (const p of spec.params) {
-        params[p.name] = p.kind === 'choice' ? block.getFieldValue(p.name) : numberField(block, p.name);
+        params[p.name] = paramValue(block, p);
       }
       return { do: spec.name, params };
     }
@@ -198,7 +235,7 @@
   for (const spec of config.toolbox) {
     python.forBlock[DO + spec.name] = function (block) {
       const args = spec.params.map((p) => {
-        const v = p.kind === 'choice' ? block.getFieldValue(p.name) : numberField(block, p.name);
+        const v = paramValue(block, p);
         return ', ' + p.name + '=' + pyValue(v);
       });
       return 'robot.do(' + JSON.stringify(spec.name) + args.join('') + ')\n';
@@ -264,19 +301,35 @@
     return python.blockToCode(start, true);
   }
 
-  /** Warn on fields beyond their limits (the server refuses them too). */
+  /** The fields of a behaviour block beyond their limits, as messages. */
+  function outOfRange(block) {
+    const spec = behaviours[block.type.slice(DO.length)];
+    const bad = [];
+    for (const p of spec.params) {
+      if (p.kind === 'choice') continue;
+      const x = paramValue(block, p);
+      if ((p.low !== null && x < p.low) || (p.high !== null && x > p.high)) {
+        bad.push(spec.name + ': ' + p.name + ' ' + short(numberField(block, p.name)) +
+          ' is outside ' + rangeText(p));
+      }
+    }
+    return bad;
+  }
+
+  /** Every out-of-range field of the program's enabled blocks (what Run refuses). */
+  function programOutOfRange() {
+    const bad = [];
+    for (const block of start.getDescendants(false)) {
+      if (block.type.startsWith(DO) && block.isEnabled()) bad.push(...outOfRange(block));
+    }
+    return bad;
+  }
+
+  /** Warn on fields beyond their limits (Run refuses them, and so does the server). */
   function checkLimits() {
     for (const block of workspace.getAllBlocks(false)) {
       if (!block.type.startsWith(DO)) continue;
-      const spec = behaviours[block.type.slice(DO.length)];
-      const bad = [];
-      for (const p of spec.params) {
-        if (p.kind === 'choice') continue;
-        const v = numberField(block, p.name);
-        if ((p.low !== null && v < p.low) || (p.high !== null && v > p.high)) {
-          bad.push(p.name + ' ' + short(v) + ' is outside ' + rangeText(p));
-        }
-      }
+      const bad = outOfRange(block);
       block.setWarningText(bad.length ? bad.join('\n') : null);
     }
   }
@@ -314,6 +367,16 @@
 
   /** Post a program (an object, or a raw request body) and show the reply. */
   async function run(program) {
+    if (program === undefined) {
+      // the blocks' program: a value beyond its range is refused here, before it is sent
+      const bad = programOutOfRange();
+      if (bad.length) {
+        state.error = 'not sent: ' + bad.join('; ');
+        setStatus('error: ' + state.error, 'error');
+        state.runs += 1;
+        return { error: state.error };
+      }
+    }
     const text = typeof program === 'string' ? program : JSON.stringify(program || programJson());
     state.busy = true;
     runButton.disabled = true;
