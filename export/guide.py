@@ -158,7 +158,13 @@ def guide_markdown(
         "|---|---|---|---|---|---|",
     ]
     for p in sorted(printed, key=lambda p: p.name):
-        if p.fits_bed:
+        if p.joints:
+            printer = f"{_md(p.printer)}: in {len(p.pieces)} pieces (below)"
+        elif p.pieces:
+            printer = f"{_md(p.printer)}: turned, `print/{p.pieces[0].name}.stl`"
+        elif p.fits_bed and p.printer:  # the user's printer (--bed): it fits as it lies
+            printer = _md(p.printer)
+        elif p.fits_bed:
             printer = "the catalog's"
         elif p.printer in ("", "split"):
             printer = "**none of the catalog's: split it**"
@@ -169,6 +175,7 @@ def guide_markdown(
             f"| `meshes/{p.name}.stl` | {p.count} | {p.mass_kg * 1000:.1f} | "
             f"{p.print_time_s / 60:.0f} | {printer} | {pic} |"
         )
+    lines += _piece_lines(printed)
     lines += ["", "## Assemble", ""]
     lines += assembly_steps(r, asm)
     lines += [
@@ -179,3 +186,32 @@ def guide_markdown(
         "",
     ]
     return "\n".join(lines)
+
+
+def _piece_lines(printed) -> list[str]:
+    """The pieces of the parts split for the user's bed (``--bed``, ``export.split``) and
+    where they join; none without split parts."""
+    split = [p for p in sorted(printed, key=lambda p: p.name) if p.joints]
+    if not split:
+        return []
+    c = split[0].joints[0].clearance_m * 1000
+    lines = [
+        "",
+        "### Pieces",
+        "",
+        f"A part too big for the bed ({_md(split[0].printer)}) is printed in pieces "
+        "(`print/<piece>.stl` and `.3mf`, each lying as it prints). Two pieces join by a "
+        "dovetail: the tongue of the first slides into the slot of the second along the "
+        f"axis named, with {c:g} mm clearance on every side (glue it if it is loose). "
+        "Positions are in the part's STL (`meshes/<part>.stl`, mm).",
+        "",
+        "| part | piece | joins | where | slides along |",
+        "|---|---|---|---|---|",
+    ]
+    for p in split:
+        for j in p.joints:
+            lines.append(
+                f"| `{p.name}` | `{j.low}` | `{j.high}` | {j.axis} = {j.at_m * 1000:.1f} mm | "
+                f"{j.slide} |"
+            )
+    return lines
