@@ -307,6 +307,13 @@ def test_every_printed_piece_slices_on_the_bundles_180_mm_profile(on_180) -> Non
     for label, r in results:
         assert r.bed == (180.0, 180.0), label
         assert r.time_s > 0 and r.filament_mm3 > 0 and r.on_bed, (label, r.extrusion_box)
+    # a piece's own project: its copies on the same bed
+    from export.slicer import slice_3mf
+
+    files = on_180["hexapod"]
+    piece = next(f for f in _printed_files(files) if f.startswith("print/"))
+    r = slice_3mf(files[piece.removesuffix(".stl") + ".3mf"], exe)
+    assert r.bed == (180.0, 180.0) and r.on_bed and r.filament_mm3 > 0, piece
 
 
 def test_a_piece_off_the_bed_fails_the_slice_check(on_180) -> None:
