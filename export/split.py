@@ -103,9 +103,13 @@ def parse_bed(text: str) -> tuple[float, float, float] | None:
         try:
             v = float(raw)
         except ValueError:
-            raise ValueError(f"{text!r}: {raw!r} is not a number (expected WxDxH, e.g. 180x180x180mm)") from None
+            raise ValueError(
+                f"{text!r}: {raw!r} is not a number (expected WxDxH, e.g. 180x180x180mm)"
+            ) from None
         if not math.isfinite(v) or v <= 0:
-            raise ValueError(f"{text!r}: {raw!r} must be a positive length (expected WxDxH, e.g. 180x180x180mm)")
+            raise ValueError(
+                f"{text!r}: {raw!r} must be a positive length (expected WxDxH, e.g. 180x180x180mm)"
+            )
         out.append(v * unit)
     small = [v for v in out if v * MM <= MIN_BED_MM]
     if small:
@@ -314,7 +318,18 @@ def _build(part, lo: np.ndarray, hi: np.ndarray, n: Sequence[int], clearance: fl
             # over the section along the slide, past it but not into the next cells
             span = (max(slo[slide] - 1.0, a[slide]), min(shi[slide] + 1.0, b[slide]))
             cuts.append(
-                _Cut(axis, at, c, high, slide, across, (slo[across] + shi[across]) / 2, neck, depth, span)
+                _Cut(
+                    axis,
+                    at,
+                    c,
+                    high,
+                    slide,
+                    across,
+                    (slo[across] + shi[across]) / 2,
+                    neck,
+                    depth,
+                    span,
+                )
             )
     pieces = []
     for c in cells:
@@ -384,15 +399,19 @@ def split_part(
         for d in order:
             m = list(n)
             m[d] += 1
-            if ext[d] / m[d] >= MIN_PIECE_MM and math.prod(m) <= MAX_PIECES and tuple(m) not in tried:
+            if (
+                ext[d] / m[d] >= MIN_PIECE_MM
+                and math.prod(m) <= MAX_PIECES
+                and tuple(m) not in tried
+            ):
                 n = m
                 break
         else:
             size = " x ".join(f"{x:.0f}" for x in ext)
             raise InputError(
-                f"--bed {bed_label(bed)}: the printed part '{name}' ({size} mm) does not fit it "
-                f"in pieces of at least {MIN_PIECE_MM:g} mm (at most {MAX_PIECES}); "
-                "choose a larger printer"
+                f"--bed {bed_label(bed)}: the printed part '{name}' ({size} mm) cannot be cut "
+                f"into pieces that fit it (pieces of at least {MIN_PIECE_MM:g} mm, at most "
+                f"{MAX_PIECES}, each cut holding a dovetail); choose a larger printer"
             )
 
 
@@ -433,11 +452,17 @@ def reassembly_problems(
                 continue
             gap = a.min_gap(b, 2 * c + 1.0)
             if gap < c - tol_mm:
-                out.append(f"pieces {i + 1} and {j + 1} are {gap:.4g} mm apart, less than the {c:g} mm clearance")
+                out.append(
+                    f"pieces {i + 1} and {j + 1} are {gap:.4g} mm apart, less than the "
+                    f"{c:g} mm clearance"
+                )
     for low, high, *_ in joints:
         gap = S[low].min_gap(S[high], 2 * c + 1.0)
         if gap > c + tol_mm:
-            out.append(f"pieces {low + 1} and {high + 1} join {gap:.4g} mm apart, more than the {c:g} mm clearance")
+            out.append(
+                f"pieces {low + 1} and {high + 1} join {gap:.4g} mm apart, more than the "
+                f"{c:g} mm clearance"
+            )
     missing = P.volume() - sum(s.volume() for s in S)
     faces = (sum(s.surface_area() for s in S) - P.surface_area()) / 2
     if missing > 1.1 * c * faces + vol_tol:
@@ -480,7 +505,9 @@ def fit_assembly(asm: Assembly, bed: Bed, clearance: float, density: float) -> A
             continue
         if placed is not None:
             printed.append(
-                replace(p, fits_bed=True, printer=bed.label, pieces=(_piece(p.name, placed, density),))
+                replace(
+                    p, fits_bed=True, printer=bed.label, pieces=(_piece(p.name, placed, density),)
+                )
             )
             continue
         s = split_part(mesh, bed.size_m, clearance, p.name)
