@@ -128,9 +128,10 @@ def _parts() -> dict[str, Mesh]:
 def test_split_parts_fit_every_bed_and_reassemble_with_exactly_the_clearance() -> None:
     """The property over a grid: plates 150-400 x 60-200 mm, wheels, a 200 mm link and a
     bar, on 120, 180 and 220 mm cubes and two beds of unequal sides. Every part either
-    fits (as it lies or turned) or is split; every piece fits the bed and the pieces reassemble the part: no overlap, none
-    outside it, the clearance between every two, nothing else missing; the pieces weigh the
-    part less under 1 %. Prints the pass rate."""
+    fits (as it lies or turned) or is split; every piece fits the bed and the pieces
+    reassemble the part: no overlap, none outside it, the clearance between every two,
+    nothing else missing; the pieces weigh the part less under 1 %. Prints the pass
+    rate."""
     cases = passed = split_count = 0
     failures = []
     for bed_mm in (120, 180, 220, (250, 210, 210), (200, 120, 100)):
