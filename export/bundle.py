@@ -32,8 +32,9 @@ _SAFE_STEM = re.compile(r"[a-z0-9_]+")
 
 
 def picture_files(asm: Assembly, title: str) -> dict[str, bytes]:
-    """``pictures/robot.png`` (the robot at its zero pose) and ``pictures/<part>.png`` (each
-    printed part as it lies on the bed)."""
+    """``pictures/robot.png`` (the robot at its zero pose), ``pictures/<part>.png`` (each
+    printed part as it lies on the bed) and ``pictures/<part>_pieces.png`` (a part split
+    for the user's bed: its pieces drawn apart)."""
     from export.assembly import PRINTED_RGBA
     from export.meshes import read_stl
     from export.render import assembly_png, mesh_png
@@ -46,6 +47,14 @@ def picture_files(asm: Assembly, title: str) -> dict[str, bytes]:
         vertices[f"{p.name}.stl"] = (v, f)
         out[f"pictures/{p.name}.png"] = mesh_png(v, f, PRINTED_RGBA, f"{p.name} (as printed)")
     out["pictures/robot.png"] = assembly_png(asm, vertices, title)
+    for p in asm.printed:
+        if p.joints:  # split for the user's bed: its pieces drawn apart
+            from export.render import pieces_png
+
+            parts = [read_stl(x.in_part) for x in p.pieces]
+            out[f"pictures/{p.name}_pieces.png"] = pieces_png(
+                [(v / 1000.0, f) for v, f in parts], f"{p.name}: {len(parts)} pieces"
+            )
     return out
 
 

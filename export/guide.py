@@ -175,7 +175,7 @@ def guide_markdown(
             f"| `meshes/{p.name}.stl` | {p.count} | {p.mass_kg * 1000:.1f} | "
             f"{p.print_time_s / 60:.0f} | {printer} | {pic} |"
         )
-    lines += _piece_lines(printed)
+    lines += _piece_lines(printed, pictures)
     lines += ["", "## Assemble", ""]
     lines += assembly_steps(r, asm)
     lines += [
@@ -188,7 +188,7 @@ def guide_markdown(
     return "\n".join(lines)
 
 
-def _piece_lines(printed) -> list[str]:
+def _piece_lines(printed, pictures: bool = True) -> list[str]:
     """The pieces of the parts split for the user's bed (``--bed``, ``export.split``) and
     where they join; none without split parts."""
     split = [p for p in sorted(printed, key=lambda p: p.name) if p.joints]
@@ -214,4 +214,7 @@ def _piece_lines(printed) -> list[str]:
                 f"| `{p.name}` | `{j.low}` | `{j.high}` | {j.axis} = {j.at_m * 1000:.1f} mm | "
                 f"{j.slide} |"
             )
+    if pictures:
+        lines.append("")
+        lines += [f"![{p.name}: its pieces](pictures/{p.name}_pieces.png)" for p in split]
     return lines

@@ -89,6 +89,7 @@ class PrintPiece:
     print_time_s: float
     filament_m3: float
     overhang_m2: float
+    in_part: bytes = b""  # a piece's STL where it sits in the part (its meshes/ STL's frame)
 
 
 @dataclass(frozen=True)

@@ -476,7 +476,7 @@ def reassembly_problems(
 # --- the assembly on the user's bed -------------------------------------------------------
 
 
-def _piece(name: str, mesh: Mesh, density: float) -> PrintPiece:
+def _piece(name: str, mesh: Mesh, density: float, in_part: Mesh | None = None) -> PrintPiece:
     time, filament = estimate(meshes.print_features(mesh))
     return PrintPiece(
         name,
@@ -487,6 +487,7 @@ def _piece(name: str, mesh: Mesh, density: float) -> PrintPiece:
         time,
         filament,
         meshes.orientation_figures(mesh, np.eye(3))[0],
+        b"" if in_part is None else meshes.stl_bytes(in_part),
     )
 
 
@@ -512,7 +513,9 @@ def fit_assembly(asm: Assembly, bed: Bed, clearance: float, density: float) -> A
             continue
         s = split_part(mesh, bed.size_m, clearance, p.name)
         names = [f"{p.name}_piece{k + 1}" for k in range(len(s.pieces))]
-        pieces = tuple(_piece(nm, m, density) for nm, m in zip(names, s.placed, strict=True))
+        pieces = tuple(
+            _piece(nm, m, density, q) for nm, m, q in zip(names, s.placed, s.pieces, strict=True)
+        )
         joints = tuple(
             PieceJoint(names[a], names[b], axis, at, slide, clearance)
             for a, b, axis, at, slide in s.joints

@@ -284,6 +284,9 @@ def test_bundles_on_a_180_mm_bed_list_pieces_and_keep_the_models_mass(on_180) ->
             assert 0.99 * float(whole["unit_mass_kg"]) < mass < float(whole["unit_mass_kg"])
             assert any(r["type"] == "joint" and r["name"].startswith(part) for r in rows)
             assert f"`{part}_piece1`" in text["README.md"] and "### Pieces" in text["README.md"]
+            assert f"pictures/{part}_pieces.png" in files and files[
+                f"pictures/{part}_pieces.png"
+            ].startswith(b"\x89PNG")
     assert split_any  # the hexapod's 313 mm trunk plate at least
 
 
