@@ -48,6 +48,7 @@ __all__ = [
     "Split",
     "bed_label",
     "fit_assembly",
+    "gap_mass",
     "parse_bed",
     "place",
     "reassembly_problems",
@@ -70,6 +71,8 @@ TONGUE_MAX_MM = 20.0
 TONGUE_DEPTH = 0.6
 TONGUE_DEPTH_SHARE = 0.3
 FLANK_DEG = 15.0
+#: mm^3: a tongue holds at least this much of the part (not one in a hole of its section).
+MIN_TONGUE_MM3 = 1.0
 #: A part is turned onto another face only if it then stands no taller than this times
 #: its footprint's narrower side (a plate on its edge is split instead).
 MAX_ASPECT = 2.0
@@ -271,7 +274,8 @@ def _cells(lo: np.ndarray, hi: np.ndarray, n: Sequence[int]) -> list[np.ndarray]
 def _build(part, lo: np.ndarray, hi: np.ndarray, n: Sequence[int], clearance: float):
     """The pieces (manifolds, mm, non-empty cells in index order, with their cell) and the
     cuts of the grid ``n`` over the part ``part``; None when the grid cannot be joined (a
-    cell with no material at a cut, or a piece in several bits)."""
+    section with no room for a tongue, a tongue in a hole of its section, a cell with no
+    material at a cut, or a piece in several bits)."""
     grid = _cells(lo, hi, n)
     ext = hi - lo
     pad = 1.0 + clearance
@@ -331,6 +335,9 @@ def _build(part, lo: np.ndarray, hi: np.ndarray, n: Sequence[int], clearance: fl
                     span,
                 )
             )
+    for cut in cuts:  # a tongue in a hole of the section joins nothing
+        if (part ^ _prism(cut, 0.0)).volume() < MIN_TONGUE_MM3:
+            return None
     pieces = []
     for c in cells:
         a, b = bounds(c)

@@ -152,6 +152,7 @@ def test_split_parts_fit_every_bed_and_reassemble_with_exactly_the_clearance() -
                 for p, q in zip(s.pieces, s.placed, strict=True)
             )
             lost = (mesh.volume - sum(p.volume for p in s.pieces)) / mesh.volume
+            problems += _tongueless(s)
             if problems or not fit or not same or not (0 < lost < 0.01):
                 failures.append((name, bed_mm, problems, fit, lost))
             else:
@@ -159,6 +160,38 @@ def test_split_parts_fit_every_bed_and_reassemble_with_exactly_the_clearance() -
     print(f"\nsplit grid: {passed}/{cases} parts printable on their bed ({split_count} split)")
     assert failures == [] and passed == cases
     assert split_count >= 25
+
+
+def _tongueless(s: split.Split) -> list[str]:
+    """The joints of ``s`` whose low piece has no tongue past the cut (over 1 mm)."""
+    out = []
+    for low, high, axis, at, _ in s.joints:
+        k = "xyz".index(axis)
+        if np.asarray(s.pieces[low].vertices)[:, k].max() < at + 0.001:
+            out.append(f"pieces {low + 1} and {high + 1}: no tongue across {axis} = {at}")
+    return out
+
+
+def _frame(lx: float, ly: float, rail: float, thickness: float) -> Mesh:
+    """A rectangular frame: a plate with a window, ``rail`` m wide all round."""
+    import manifold3d as mf
+
+    outer = mf.Manifold.cube((lx, ly, thickness), center=True)
+    window = mf.Manifold.cube((lx - 2 * rail, ly - 2 * rail, 2 * thickness), center=True)
+    return meshes._to_mesh(outer - window)
+
+
+def test_a_tongue_is_never_put_in_a_hole_of_the_section() -> None:
+    """A frame cut across its middle has a window where the section's middle is: that grid
+    is refused (built to fail), and the split found instead gives every joint a tongue of
+    material."""
+    frame = _frame(0.3, 0.1, 0.012, 0.004)
+    part = split._manifold(frame)
+    lo, hi = (np.asarray(x, dtype=float) for x in split._bbox(part))
+    assert split._build(part, lo, hi, (2, 1, 1), C * 1000) is None
+    s = split.split_part(frame, _cube(180), C, "frame")
+    assert len(s.pieces) >= 4 and _tongueless(s) == []
+    assert split.reassembly_problems(frame, s.pieces, s.joints, C) == []
 
 
 def test_the_reassembly_check_catches_bad_pieces() -> None:
