@@ -153,6 +153,18 @@ def guide_markdown(
         "`print/prusaslicer.ini` holds the settings the figures are for, on the bed of the "
         "largest printer a part needs; `print/<part>.3mf` is each part on its own printer's "
         "bed).",
+    ]
+    yours = next((p.printer for p in printed if p.fits_bed and p.printer), None)
+    if yours is not None:  # --bed: every part on the user's printer
+        lines[-1] = (
+            f"Everything prints on your printer ({_md(yours)}): `print/prusaslicer.ini` and "
+            "every `print/*.3mf` have its bed. Open `print/<part>.3mf` (a split part: "
+            "`print/<piece>.3mf`) in PrusaSlicer: its copies with its settings (solid, 0.2 mm layers, supports only where it overhangs); a "
+            "project named `x1 of 2` is printed twice. Or slice the STL files as they are "
+            "(millimetres, each lying in its printing orientation: `meshes/<part>.stl` where "
+            "it fits as it lies, else `print/<part>.stl` or `print/<piece>.stl`)."
+        )
+    lines += [
         "",
         "| part | count | mass (g) | print time (min) | printer | picture |",
         "|---|---|---|---|---|---|",
