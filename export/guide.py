@@ -159,8 +159,9 @@ def guide_markdown(
         lines[-1] = (
             f"Everything prints on your printer ({_md(yours)}): `print/prusaslicer.ini` and "
             "every `print/*.3mf` have its bed. Open `print/<part>.3mf` (a split part: "
-            "`print/<piece>.3mf`) in PrusaSlicer: its copies with its settings (solid, 0.2 mm layers, supports only where it overhangs); a "
-            "project named `x1 of 2` is printed twice. Or slice the STL files as they are "
+            "`print/<piece>.3mf`) in PrusaSlicer: its copies with its settings (solid, "
+            "0.2 mm layers, supports only where it overhangs); a project named `x1 of 2` "
+            "is printed twice. Or slice the STL files as they are "
             "(millimetres, each lying in its printing orientation: `meshes/<part>.stl` where "
             "it fits as it lies, else `print/<part>.stl` or `print/<piece>.stl`)."
         )
