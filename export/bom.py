@@ -28,8 +28,8 @@ COLUMNS = (
     "file",
 )
 
-#: BOM row types, in the order they are listed.
-TYPES = ("module", "printed", "bought")
+#: BOM row types, in the order they are listed (pieces and joints under their printed part).
+TYPES = ("module", "printed", "piece", "joint", "bought")
 
 
 def _num(x: float) -> str:
@@ -88,9 +88,54 @@ def bom_rows(asm: Assembly) -> list[dict]:
         }
         for p in sorted(asm.printed, key=lambda p: p.name)
     ]
+    printed = [r for row in printed for r in (row, *_piece_rows(asm, row["name"]))]
     modules = [r for r in rows if r["type"] == "module"]
     bought = [r for r in rows if r["type"] == "bought"]
     return [*modules, *printed, *bought]
+
+
+def _piece_rows(asm: Assembly, name: str) -> list[dict]:
+    """The rows under a printed part made to fit the user's bed (``export.split``): its
+    pieces (or the part turned: ``print/<part>.stl``), then the joints between them. Not in
+    the totals: the part's row counts their print time and filament, and its mass is the
+    models' (the pieces' less the clearance gaps: ``export.split.gap_mass``)."""
+    p = next(p for p in asm.printed if p.name == name)
+    rows = [
+        {
+            "type": "piece",
+            "name": x.name,
+            "kind": p.kind if p.joints else f"{p.kind} (turned)",
+            "count": p.count,
+            "unit_cost": None,
+            "unit_mass_kg": x.mass_kg,
+            "unit_volume_m3": x.volume_m3,
+            "unit_print_time_s": x.print_time_s,
+            "unit_filament_m3": x.filament_m3,
+            "fits_bed": True,
+            "printer": p.printer,
+            "file": f"print/{x.name}.stl",
+        }
+        for x in p.pieces
+    ]
+    rows += [
+        {
+            "type": "joint",
+            "name": f"{j.low} + {j.high}",
+            "kind": f"{j.kind} across {j.axis} = {j.at_m * 1000:.1f} mm, slides along "
+            f"{j.slide}, {j.fasteners or 'no fastener'}",
+            "count": p.count,
+            "unit_cost": None,
+            "unit_mass_kg": 0.0,
+            "unit_volume_m3": None,
+            "unit_print_time_s": None,
+            "unit_filament_m3": None,
+            "fits_bed": None,
+            "printer": "",
+            "file": "",
+        }
+        for j in p.joints
+    ]
+    return rows
 
 
 def bom_csv(asm: Assembly) -> str:
@@ -99,7 +144,9 @@ def bom_csv(asm: Assembly) -> str:
     ``printer`` names the catalog's larger printer that takes a printed part too big for the
     catalog's ``printer_bed`` (its skirt included); empty: the catalog's printer. ``fits_bed``
     says whether the part fits the bed of that printer: "NO" only for a part no catalog
-    printer holds (``printer`` "split": it must be split).
+    printer holds (``printer`` "split": it must be split). On the user's bed (``--bed``)
+    ``printer`` is that bed and a part too big for it as it lies is followed by its
+    ``piece`` rows (``print/<piece>.stl``) and ``joint`` rows, outside the totals.
     Masses kg, volumes m^3, times s, costs in the catalog currency (printed parts: none).
     """
     out = io.StringIO()
@@ -126,6 +173,8 @@ def bom_csv(asm: Assembly) -> str:
                 r["file"],
             ]
         )
+        if r["type"] in ("piece", "joint"):  # under their part, which counts them
+            continue
         n += k
         mass += r["unit_mass_kg"] * k
         cost += (r["unit_cost"] or 0.0) * k

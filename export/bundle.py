@@ -25,14 +25,16 @@ from adron.errors import ExportError, InputError
 if TYPE_CHECKING:
     from adron.catalog import Catalog
     from export.model3d import Assembly
+    from export.split import Bed
     from synth.structure import Structure
 
 _SAFE_STEM = re.compile(r"[a-z0-9_]+")
 
 
 def picture_files(asm: Assembly, title: str) -> dict[str, bytes]:
-    """``pictures/robot.png`` (the robot at its zero pose) and ``pictures/<part>.png`` (each
-    printed part as it lies on the bed)."""
+    """``pictures/robot.png`` (the robot at its zero pose), ``pictures/<part>.png`` (each
+    printed part as it lies on the bed) and ``pictures/<part>_pieces.png`` (a part split
+    for the user's bed: its pieces drawn apart)."""
     from export.assembly import PRINTED_RGBA
     from export.meshes import read_stl
     from export.render import assembly_png, mesh_png
@@ -45,6 +47,14 @@ def picture_files(asm: Assembly, title: str) -> dict[str, bytes]:
         vertices[f"{p.name}.stl"] = (v, f)
         out[f"pictures/{p.name}.png"] = mesh_png(v, f, PRINTED_RGBA, f"{p.name} (as printed)")
     out["pictures/robot.png"] = assembly_png(asm, vertices, title)
+    for p in asm.printed:
+        if p.joints:  # split for the user's bed: its pieces drawn apart
+            from export.render import pieces_png
+
+            parts = [read_stl(x.in_part) for x in p.pieces]
+            out[f"pictures/{p.name}_pieces.png"] = pieces_png(
+                [(v / 1000.0, f) for v, f in parts], f"{p.name}: {len(parts)} pieces"
+            )
     return out
 
 
@@ -83,12 +93,14 @@ def bundle_files(
     with_payload: bool = False,
     pictures: bool = True,
     simulated_only: bool = False,
+    bed: Bed | None = None,
 ) -> dict[str, str | bytes]:
     """Every file of the bundle of a sized design: design.json, robot.urdf, robot.xml,
     meshes/*.stl, bom.csv and README.md (relative name -> content). The models carry the
     payload only ``with_payload``; design.json says where it is (``payload``).
     ``simulated_only``: just what a simulation reads (design.json, robot.xml, meshes), for
-    the verification's own bundle."""
+    the verification's own bundle. ``bed``: the user's printer (``--bed``): every printed
+    part is made to fit it, turned or split (``export.split``; ``print/<piece>.stl``)."""
     from export.bom import bom_csv
     from export.guide import guide_markdown
     from export.mjcf import mjcf_string
@@ -107,6 +119,15 @@ def bundle_files(
             "robot.xml": mjcf_string(asm, with_payload=with_payload),
             **{f"meshes/{p.name}.stl": p.stl for p in asm.printed},
         }
+    if bed is not None:
+        from export.split import fit_assembly
+
+        asm = fit_assembly(
+            asm,
+            bed,
+            catalog.passive.print_clearance_m,
+            catalog.material.density_kg_m3,
+        )
     files: dict[str, str | bytes] = {
         "design.json": to_json(record),
         "robot.urdf": urdf_string(asm, with_payload=with_payload),
@@ -114,14 +135,16 @@ def bundle_files(
         "bom.csv": bom_csv(asm),
         "README.md": guide_markdown(record, asm, documentation, pictures),
         "print/prusaslicer.ini": prusa_config(
-            [b * 1000 for b in ini_bed(asm, catalog)], catalog.material.density_kg_m3 / 1000
+            [b * 1000 for b in (bed.size_m if bed else ini_bed(asm, catalog))],
+            catalog.material.density_kg_m3 / 1000,
         ),
     }
     if pictures:
         files |= picture_files(asm, record["robot_type"])
     for p in asm.printed:
         files[f"meshes/{p.name}.stl"] = p.stl
-    files |= print_projects(asm, catalog)
+        files |= {f"print/{x.name}.stl": x.stl for x in p.pieces}
+    files |= print_projects(asm, catalog, bed)
     for name, t in trajectories.items():
         files[f"trajectories/{name}.csv"] = t.csv()
     return files
@@ -137,14 +160,23 @@ def ini_bed(asm: Assembly, catalog: Catalog) -> tuple[float, float, float]:
     return max(beds, key=lambda b: (b[0] * b[1], b))
 
 
-def print_projects(asm: Assembly, catalog: Catalog) -> dict[str, bytes]:
+def print_projects(asm: Assembly, catalog: Catalog, bed: Bed | None = None) -> dict[str, bytes]:
     """``print/<part>.3mf``: a PrusaSlicer project of each printed part on the bed of the
     printer the BOM names for it (none for a part no catalog printer holds), supports on
-    only for a part with overhangs as it lies (``export.threemf``)."""
+    only for a part with overhangs as it lies (``export.threemf``). On the user's ``bed``:
+    a project of each part, or of each of its pieces (``print/<piece>.3mf``), on that bed."""
     from export.threemf import part_3mf
 
     density = catalog.material.density_kg_m3 / 1000
     out: dict[str, bytes] = {}
+    if bed is not None:
+        size = [b * 1000 for b in bed.size_m]
+        for p in asm.printed:
+            for x in p.pieces or (p,):
+                out[f"print/{x.name}.3mf"] = part_3mf(
+                    x.name, x.stl, p.count, size, density, x.overhang_m2 > 0
+                )
+        return out
     for p in asm.printed:
         bed_m = catalog.printer_bed(p.printer)  # "" when it fits the catalog's printer
         if bed_m is None:

@@ -153,12 +153,31 @@ def guide_markdown(
         "`print/prusaslicer.ini` holds the settings the figures are for, on the bed of the "
         "largest printer a part needs; `print/<part>.3mf` is each part on its own printer's "
         "bed).",
+    ]
+    yours = next((p.printer for p in printed if p.fits_bed and p.printer), None)
+    if yours is not None:  # --bed: every part on the user's printer
+        lines[-1] = (
+            f"Everything prints on your printer ({_md(yours)}): `print/prusaslicer.ini` and "
+            "every `print/*.3mf` have its bed. Open `print/<part>.3mf` (a split part: "
+            "`print/<piece>.3mf`) in PrusaSlicer: its copies with its settings (solid, "
+            "0.2 mm layers, supports only where it overhangs); a project named `x1 of 2` "
+            "is printed twice. Or slice the STL files as they are "
+            "(millimetres, each lying in its printing orientation: `meshes/<part>.stl` where "
+            "it fits as it lies, else `print/<part>.stl` or `print/<piece>.stl`)."
+        )
+    lines += [
         "",
         "| part | count | mass (g) | print time (min) | printer | picture |",
         "|---|---|---|---|---|---|",
     ]
     for p in sorted(printed, key=lambda p: p.name):
-        if p.fits_bed:
+        if p.joints:
+            printer = f"{_md(p.printer)}: in {len(p.pieces)} pieces (below)"
+        elif p.pieces:
+            printer = f"{_md(p.printer)}: turned, `print/{p.pieces[0].name}.stl`"
+        elif p.fits_bed and p.printer:  # the user's printer (--bed): it fits as it lies
+            printer = _md(p.printer)
+        elif p.fits_bed:
             printer = "the catalog's"
         elif p.printer in ("", "split"):
             printer = "**none of the catalog's: split it**"
@@ -169,6 +188,7 @@ def guide_markdown(
             f"| `meshes/{p.name}.stl` | {p.count} | {p.mass_kg * 1000:.1f} | "
             f"{p.print_time_s / 60:.0f} | {printer} | {pic} |"
         )
+    lines += _piece_lines(printed, pictures)
     lines += ["", "## Assemble", ""]
     lines += assembly_steps(r, asm)
     lines += [
@@ -179,3 +199,35 @@ def guide_markdown(
         "",
     ]
     return "\n".join(lines)
+
+
+def _piece_lines(printed, pictures: bool = True) -> list[str]:
+    """The pieces of the parts split for the user's bed (``--bed``, ``export.split``) and
+    where they join; none without split parts."""
+    split = [p for p in sorted(printed, key=lambda p: p.name) if p.joints]
+    if not split:
+        return []
+    c = split[0].joints[0].clearance_m * 1000
+    lines = [
+        "",
+        "### Pieces",
+        "",
+        f"A part too big for the bed ({_md(split[0].printer)}) is printed in pieces "
+        "(`print/<piece>.stl` and `.3mf`, each lying as it prints). Two pieces join by a "
+        "dovetail: the tongue of the first slides into the slot of the second along the "
+        f"axis named, with {c:g} mm clearance on every side (glue it if it is loose). "
+        "Positions are in the part's STL (`meshes/<part>.stl`, mm).",
+        "",
+        "| part | piece | joins | where | slides along |",
+        "|---|---|---|---|---|",
+    ]
+    for p in split:
+        for j in p.joints:
+            lines.append(
+                f"| `{p.name}` | `{j.low}` | `{j.high}` | {j.axis} = {j.at_m * 1000:.1f} mm | "
+                f"{j.slide} |"
+            )
+    if pictures:
+        lines.append("")
+        lines += [f"![{p.name}: its pieces](pictures/{p.name}_pieces.png)" for p in split]
+    return lines

@@ -54,6 +54,7 @@ __all__ = [
     "orientation_figures",
     "plate_mesh",
     "print_orientation",
+    "ranked_orientations",
     "print_features",
     "stl_bytes",
     "support_measure",
@@ -336,27 +337,37 @@ def print_orientation(mesh: Mesh) -> np.ndarray:
     area times their height), then the least overhang area (``orientation_figures``,
     rounded to 1 mm^2), then the largest area on the bed; lowest point on z = 0, bounding
     box centred on the z axis."""
-    normals = [np.array(x, dtype=float) for x in np.vstack([np.eye(3), -np.eye(3)])]
-    if len(mesh.facets):
-        areas = np.asarray(mesh.facets_area, dtype=float)
-        keep = np.flatnonzero(areas >= MIN_FACE_SHARE * areas.max())
-        for i in keep[np.argsort(-areas[keep], kind="stable")][:24]:
-            normals.append(np.asarray(mesh.facets_normal[i], dtype=float))
-    best = None
-    for k, n in enumerate(normals):
-        R = _down(n)
-        overhang, bed = orientation_figures(mesh, R)
-        support = _support(np.asarray(mesh.vertices, dtype=float) @ R.T, mesh.faces)
-        key = (round(support * 1e9), round(overhang * 1e6), -round(bed * 1e6), k)
-        if best is None or key < best[0]:
-            best = (key, R)
-    R = best[1]
+    R = ranked_orientations(mesh)[0]
     v = np.asarray(mesh.vertices, dtype=float) @ R.T
     lo, hi = v.min(axis=0), v.max(axis=0)
     T = np.eye(4)
     T[:3, :3] = R
     T[:3, 3] = (-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2])
     return T
+
+
+def ranked_orientations(mesh: Mesh) -> list[np.ndarray]:
+    """The rotations (3,3) :func:`print_orientation` chooses from, best first (its
+    ranking): one per candidate face down, a rotation already tried left out."""
+    normals = [np.array(x, dtype=float) for x in np.vstack([np.eye(3), -np.eye(3)])]
+    if len(mesh.facets):
+        areas = np.asarray(mesh.facets_area, dtype=float)
+        keep = np.flatnonzero(areas >= MIN_FACE_SHARE * areas.max())
+        for i in keep[np.argsort(-areas[keep], kind="stable")][:24]:
+            normals.append(np.asarray(mesh.facets_normal[i], dtype=float))
+    ranked = []
+    for k, n in enumerate(normals):
+        R = _down(n)
+        overhang, bed = orientation_figures(mesh, R)
+        support = _support(np.asarray(mesh.vertices, dtype=float) @ R.T, mesh.faces)
+        key = (round(support * 1e9), round(overhang * 1e6), -round(bed * 1e6), k)
+        ranked.append((key, R))
+    ranked.sort(key=lambda kr: kr[0])
+    out: list[np.ndarray] = []
+    for _, R in ranked:
+        if not any(np.allclose(R, Q, atol=1e-9) for Q in out):
+            out.append(R)
+    return out
 
 
 def support_measure(mesh: Mesh) -> float:

@@ -77,6 +77,38 @@ class JointSpec:
 
 
 @dataclass(frozen=True)
+class PrintPiece:
+    """What is printed of a part too big for the user's bed (``export.split``): one piece
+    of it, or the whole part turned to fit; its STL lies on that bed as it prints."""
+
+    name: str  # safe file stem: <part>_piece<k>, or the part's own name when turned whole
+    stl: bytes
+    volume_m3: float
+    mass_kg: float
+    extents_m: tuple[float, float, float]
+    print_time_s: float
+    filament_m3: float
+    overhang_m2: float
+    in_part: bytes = b""  # a piece's STL where it sits in the part (its meshes/ STL's frame)
+
+
+@dataclass(frozen=True)
+class PieceJoint:
+    """Where two pieces of a split part join: a dovetail across the part's print-frame
+    ``axis`` ("x", "y" or "z") at ``at_m`` (m, in the part's STL), its tongue on ``low``
+    (sliding into ``high`` along ``slide``) with ``clearance_m`` on every side."""
+
+    low: str
+    high: str
+    axis: str
+    at_m: float
+    slide: str
+    clearance_m: float
+    kind: str = "dovetail"
+    fasteners: str = ""  # none for a dovetail
+
+
+@dataclass(frozen=True)
 class PrintedPart:
     """A printed part design: its mesh (binary STL) and what the BOM needs."""
 
@@ -93,6 +125,10 @@ class PrintedPart:
     overhang_m2: float = 0.0  # area printed over nothing (needs support) as oriented
     printer: str = ""  # "": the catalog's printer_bed; else the larger printer that fits it
     filament_m3: float = 0.0  # estimated filament, supports included (0: not estimated)
+    #: on a user's bed (``--bed``): what is printed in its place when it does not fit as it
+    #: lies (``export.split``): the part turned (one piece of its own name) or its pieces
+    pieces: tuple[PrintPiece, ...] = ()
+    joints: tuple[PieceJoint, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ import numpy as np
 
 from export.model3d import Assembly, Geometry
 
-__all__ = ["assembly_png", "mesh_png", "triangles_of"]
+__all__ = ["assembly_png", "mesh_png", "pieces_png", "triangles_of"]
 
 #: Picture size (inches) and resolution (dots per inch): 480 x 480 pixels.
 SIZE_IN = 4.0
@@ -108,4 +108,28 @@ def assembly_png(
                 continue
             tri = triangles_of(g, mesh_vertices)
             items.append((tri @ T[:3, :3].T + T[:3, 3], g.rgba))
+    return _png(items, title)
+
+
+#: Colours of a split part's pieces in turn (printed orange, then blue, green, grey).
+PIECE_RGBA = (
+    (0.95, 0.55, 0.15, 1.0),
+    (0.25, 0.5, 0.85, 1.0),
+    (0.35, 0.7, 0.35, 1.0),
+    (0.6, 0.6, 0.62, 1.0),
+)
+#: An exploded view moves each piece away from the part's centre by this share of its
+#: distance from it.
+EXPLODE = 0.12
+
+
+def pieces_png(pieces: Sequence[tuple[np.ndarray, np.ndarray]], title: str) -> bytes:
+    """PNG of a split part's pieces (vertices m and faces of each, where it sits in the
+    part) drawn apart (``EXPLODE``), each in a colour of its own: where they join."""
+    tris = [np.asarray(v, dtype=float)[np.asarray(f, dtype=np.int64)] for v, f in pieces]
+    centre = np.concatenate([t.reshape(-1, 3) for t in tris]).mean(axis=0)
+    items = []
+    for k, tri in enumerate(tris):
+        shift = EXPLODE * (tri.reshape(-1, 3).mean(axis=0) - centre)
+        items.append((tri + shift, PIECE_RGBA[k % len(PIECE_RGBA)]))
     return _png(items, title)

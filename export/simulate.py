@@ -425,8 +425,9 @@ def simulate(
     observe_every: float | None = None,
 ) -> SimResult:
     """Run ``traj`` on ``model`` (a mujoco.MjModel) for ``seconds`` (default: the
-    trajectory's duration; the trajectory holds its last value after its end), measure what
-    the robot did and judge it against what ``traj.info`` promises
+    trajectory's duration; past its end the robot holds its final commanded state: its
+    servos the last pose, its wheels stopped), measure what the robot did (the tracking
+    error over the plan's time) and judge it against what ``traj.info`` promises
     (:func:`export.verdict.judge`; ``SimResult.verdict`` lists the failed criteria).
 
     ``data``: a ``mujoco.MjData`` to continue from (a program chaining behaviours): the
@@ -499,13 +500,16 @@ def simulate(
     for start_step in range(0, steps, block):
         n = min(block, steps - start_step)
         grid = (start_step + np.arange(n)) * dt
-        # the references at every step (held at the trajectory's ends)
+        # the references at every step; past the plan's end the robot holds its final
+        # commanded state: the last pose, its wheels stopped
         ref = np.empty((n, len(columns)))
         ctrl = np.tile(held, (n, 1))
+        past = grid >= traj.times[-1]
         for c, (k, a, velocity) in enumerate(columns):
             ref[:, c] = np.interp(grid, traj.times, traj.positions[:, k])
             if velocity:
                 ctrl[:, a] = np.interp(grid, traj.times, traj.velocities[:, k])
+                ctrl[past, a] = 0.0
             else:
                 ctrl[:, a] = ref[:, c]
 
@@ -608,7 +612,7 @@ def simulate(
             result.drift_m = result.distance_m
     command = info.get("command")
     if command is not None and free:
-        result.tracking_error = _tracking_error(result, command)
+        result.tracking_error = _tracking_error(result, command, traj.duration)
     target = info.get("target")
     if target is not None and end_effector is not None:
         # where the gripper let go (info "placed_at_s"), else where it ends
@@ -634,11 +638,16 @@ def simulate(
 TRACK_SCALE = 0.1  # m: turns a yaw-rate error into a speed error (half a track width)
 
 
-def _tracking_error(result: SimResult, command) -> float:
-    """Relative error of the achieved mean (v, w) over the second half of the run:
+def _tracking_error(result: SimResult, command, until: float = math.inf) -> float:
+    """Relative error of the achieved mean (v, w) over the second half of the run, up to
+    the plan's end ``until`` s (after it the robot holds still):
     |(v - v_cmd, b (w - w_cmd))| / |(v_cmd, b w_cmd)| with b = TRACK_SCALE."""
     v_cmd, w_cmd = command
     t, root = result.series["t"], result.series["root"]
+    planned = t <= until + 1e-9
+    t, root = t[planned], root[planned]
+    if len(t) < 2:
+        return float("inf")
     half = t >= t[-1] / 2
     if half.sum() < 2:
         return float("inf")

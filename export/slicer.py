@@ -32,6 +32,7 @@ __all__ = [
     "prusa_slicer",
     "slice_3mf",
     "slice_stl",
+    "slice_with_ini",
 ]
 
 #: mm: layer height (and first layer height) of every part.
@@ -188,6 +189,17 @@ def slice_stl(
     config = prusa_config(bed, density_g_cm3)
     centre = f"{bed[0] / 2:g},{bed[1] / 2:g}"
     return _slice("part.stl", stl, ["--load", "print.ini", "--center", centre], config, exe)
+
+
+def slice_with_ini(stl: bytes, ini: str, exe: str | None = None) -> SliceResult:
+    """Slice one part (binary STL, mm, as it lies) with the PrusaSlicer config text ``ini``
+    (a bundle's ``print/prusaslicer.ini``), centred on the bed that config names."""
+    m = re.search(r"^bed_shape = (.+)$", ini, re.M)
+    if m is None:
+        raise ValueError("the print settings name no bed_shape")
+    corners = [tuple(float(v) for v in c.split("x")) for c in m.group(1).split(",")]
+    centre = f"{max(c[0] for c in corners) / 2:g},{max(c[1] for c in corners) / 2:g}"
+    return _slice("part.stl", stl, ["--load", "print.ini", "--center", centre], ini, exe)
 
 
 def slice_3mf(project: bytes, exe: str | None = None) -> SliceResult:

@@ -248,6 +248,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--force", action="store_true", help="replace DIR if it is not empty")
     p.add_argument(
+        "--bed",
+        metavar="WxDxH|PRINTER",
+        help="your printer: its build volume (e.g. 180x180x180mm) or a printer of the "
+        "catalog by name; a printed part too big for it is turned or split into pieces "
+        "joined by dovetails (print/<piece>.stl and .3mf)",
+    )
+    p.add_argument(
         "--with-payload",
         action="store_true",
         help="robot.urdf and robot.xml carry the payload (by default they are the robot "
@@ -739,6 +746,7 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     req = _request(args)
     designer = _designer(args, err, req)
     opts = _options(args)
+    bed = _bed(args.bed, args.catalog, designer) if args.bed is not None else None
     interactive = not args.no_input and sys.stdin.isatty()
     while interactive:
         d = designer.step(req)
@@ -749,6 +757,10 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         req = req.answer(q.ability, _ask(q, err))
     with stage("structure/simulate"):
         result = run(designer, req, opts)
+    if bed is not None:
+        from dataclasses import replace
+
+        result = replace(result, bed=bed)
     d = result.design
     if result.note and not opts.conceptual:
         err.write(f"parmor: note: {result.note}\n")
@@ -781,6 +793,30 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.out:
         err.write(f"parmor: wrote {args.out}: {', '.join(sorted(files))}\n")
     return 0
+
+
+def _bed(text: str, catalog: str | None, designer):
+    """The user's printer of ``--bed``: a size ``WxDxH`` or a catalog printer's model
+    (``export.split.Bed``); InputError naming the value otherwise."""
+    from export.split import Bed, bed_label, parse_bed
+
+    try:
+        size = parse_bed(text)
+    except ValueError as e:
+        raise InputError(f"--bed {e}") from None
+    if size is not None:
+        return Bed(bed_label(size), size)
+    from synth.pipeline import load_checked_catalog
+
+    cat = load_checked_catalog(catalog, designer)
+    for p in cat.printers:
+        if p.model.casefold() == text.strip().casefold():
+            return Bed(p.model, p.bed_m)
+    names = ", ".join(repr(p.model) for p in cat.printers) or "none"
+    raise InputError(
+        f"--bed {text!r}: neither a build volume WxDxH (e.g. 180x180x180mm) nor a printer "
+        f"of the catalog ({names})"
+    )
 
 
 def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:

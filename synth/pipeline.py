@@ -90,6 +90,7 @@ class Outcome:
     bundle: dict[str, str | bytes] | None = None  # the files the verification simulated
     with_payload: bool = False  # the bundle's models carry the payload (--with-payload)
     calibration: dict[str, float] | None = None  # measured on a run (synth.verify)
+    bed: object = None  # the user's printer (export.split.Bed, --bed): parts made to fit it
 
     @property
     def status(self) -> str:
@@ -126,6 +127,7 @@ class Outcome:
             with_payload=self.with_payload or simulating,
             pictures=not simulating,
             simulated_only=simulating,
+            bed=None if simulating else self.bed,
         )
 
     def record(self, designer: Designer) -> dict:

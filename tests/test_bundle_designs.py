@@ -103,7 +103,8 @@ def bom_disagreements(files: dict) -> list[str]:
     import xml.etree.ElementTree as ET
 
     rows = list(csv.DictReader(io.StringIO(files["bom.csv"])))
-    parts = [r for r in rows if r["type"] != "total"]
+    # a part's pieces and joints (--bed) are listed under it, outside the totals
+    parts = [r for r in rows if r["type"] not in ("total", "piece", "joint")]
     names = {r["name"] for r in parts}
     files_listed = {r["file"] for r in parts if r["type"] == "printed"}
     kinds = {r["kind"] for r in parts}

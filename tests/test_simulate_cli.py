@@ -110,3 +110,30 @@ def test_a_bundle_is_simulated_carrying_its_payload(cart, tmp_path) -> None:
     assert carrying_payload(xml, {"payload": {**pay, "in_models": True}}) == xml
     with pytest.raises(ValueError, match="not in robot.xml"):
         carrying_payload(xml, {"payload": {**pay, "held_by": [{**pay["held_by"][0], "body": "x"}]}})
+
+
+def test_a_run_past_the_plan_holds_still_and_is_judged_on_the_plan(cli, cart, tmp_path) -> None:
+    """``--seconds`` past a behaviour's end: the robot holds its final commanded state
+    (the wheels stop) and is judged on the plan it ran (issue 24 item 3: a 5 s drive run
+    for 10 s went on to 1.78 m of 0.87 m planned and failed)."""
+    runs = {}
+    for seconds in ("10", "20"):
+        r = cli("simulate", str(cart), "--behavior", "driving", "--seconds", seconds, "--json")
+        assert r.code == 0, r.err
+        runs[seconds] = d = json.loads(r.out)
+        assert d["verdict"] == "ok" and d["complete"] is True and d["seconds"] == float(seconds)
+        assert 0.95 <= d["distance_m"] / d["planned_distance_m"] <= 1.05
+        assert d["tracking_error"] < 0.1  # over the plan's time, not the hold
+    # stopped: ten more seconds move it by less than a millimetre
+    assert abs(runs["20"]["distance_m"] - runs["10"]["distance_m"]) < 1e-3
+    # built to fail: a cart that cannot drive its plan still fails when run past it
+    import re
+    import shutil
+
+    weak = tmp_path / "weak"
+    shutil.copytree(cart, weak)
+    xml = (weak / "robot.xml").read_text(encoding="utf-8")
+    xml = re.sub(r'forcerange="[^"]*"', 'forcerange="-0.001 0.001"', xml)
+    (weak / "robot.xml").write_text(xml, encoding="utf-8")
+    r = cli("simulate", str(weak), "--behavior", "driving", "--seconds", "10", "--json")
+    assert r.code == 1 and "distance" in json.loads(r.out)["verdict"]
