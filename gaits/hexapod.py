@@ -26,7 +26,13 @@ side a back-to-front wave, the other side half a cycle later, duty 1 - 1/rows = 
 ``wave`` (one leg at a time, duty 1 - 1/legs = 5/6) and, for the quadruped, ``crawl`` (one
 leg at a time, hind then front leg of a side, the other side half a cycle later, duty
 ``CRAWL_DUTY`` = 5/6 >= 3/4, so that a four-foot phase separates the sides and the trunk
-can sway across).
+can sway across). Other counts (a pentapod, a heptapod, an octopod...) have gaits named by
+the feet they keep standing, spread around the trunk (:func:`_spread_phases`): the
+``tripod`` (3), the ``tetrapod`` (4) and, for an odd count, the ``ripple`` (all but two),
+besides the wave (and an even count's side-wave ripple): one leg lifts every ``1/n`` of a
+cycle, each a fixed number of legs around the trunk from the one before, so that the
+standing feet always surround the trunk's centre (duty ``k/n`` for ``k`` standing; two
+groups of alternate legs, duty 1/2, when ``k`` is half the legs).
 
 **Feet** (:func:`plan_gait`) stand on world footholds in stance, so each moves backward in
 a straight line at the body's speed relative to the trunk; in swing a foot lifts (a
@@ -565,7 +571,9 @@ def gait_pattern(
     first; wave: one leg at a time, the first group then the second, duty 1 - 1/legs;
     crawl (quadruped): as ripple with duty ``CRAWL_DUTY``, so that the two swings of a
     group follow each other and four-foot phases separate the groups; ``duty`` (crawl
-    only) a shorter one, at least ``MIN_CRAWL_DUTY``. ValueError for a gait the legs cannot
+    only) a shorter one, at least ``MIN_CRAWL_DUTY``. For counts other than 4 and 6 the
+    tripod, the tetrapod and an odd count's ripple keep 3, 4 and all but two feet standing,
+    spread around the trunk (:func:`_spread_phases`). ValueError for a gait the legs cannot
     do.
     """
     n = len(legs)
@@ -576,7 +584,8 @@ def gait_pattern(
         )
     if duty is not None and (name != "crawl" or not MIN_CRAWL_DUTY <= duty <= CRAWL_DUTY):
         raise ValueError(f"duty: only a crawl takes one, in [{MIN_CRAWL_DUTY:g}, {CRAWL_DUTY:.4g}]")
-    if n not in _GaitsByLegs._KNOWN and (name in STANCE_NAMES.values() or n % 2 and name == "ripple"):
+    spread = name in STANCE_NAMES.values() or (name == "ripple" and n % 2 == 1)
+    if spread and n not in _GaitsByLegs._KNOWN:
         return GaitPattern(name, *_spread_phases(legs, _stance_count(name, n), direction))
     left, right = _ranked(
         legs, 0.0 if name == "tripod" else direction, 0.0 if name == "tripod" else turn
