@@ -20,9 +20,10 @@ slowed down when a joint would exceed ``SPEED_MARGIN`` of its actuator's no-load
 explicit speed that needs faster joints raises ValueError with the largest feasible one.
 
 **Running** is not a run (no flight phase: the servos are too slow for one) but the
-fastest statically stable travel: the gait of ``RUN_GAITS`` (the fewest feet on the
-ground that keeps the centre of mass over its support: the hexapod's tripod, the
-quadruped's crawl at its shortest duty) at ``RUN_SPEED_FACTOR`` times the walking speed,
+fastest statically stable travel: the gait of ``run_gait`` (the fewest feet on the
+ground that keeps the centre of mass over its support: the tripod of any count that has
+one, the quadruped's crawl at its shortest duty; the count's other gaits, shortest duty
+first, when it finds no stable plan) at ``RUN_SPEED_FACTOR`` times the walking speed,
 slowed down to the actuators' speeds like walking.
 
 **Masses**: the stability margins use the sized template with the design's masses when
@@ -131,7 +132,8 @@ class DirectionParameter(Parameter):
 
 
 class LeggedController(Controller):
-    """Behaviours of a hexapod or quadruped design (see the module docstring).
+    """Behaviours of a multiped design (legs on a trunk: a hexapod, a quadruped, any
+    count of at least four legs; see the module docstring).
 
     - ``walking(gait, steps, seconds, direction, speed, stride, step_height)``: walk
       ``steps`` gait cycles (every leg steps once a cycle), or about ``seconds`` s when
