@@ -15,7 +15,7 @@ fixed base), ``max_torque_ratio`` (largest
 ``info["placed_at_s"]``, else at the end), ``support_margin_m`` (a behaviour that
 promises a smallest static stability margin, ``info["min_stability_margin_m"]``: the
 smallest measured one at the sampled states, :func:`support_margin_of`; None when an
-instant had no contact).
+instant had no contact; absent when not measured).
 
 How a run is made (no Python per physics step):
 
@@ -100,7 +100,7 @@ class SimResult:
         def r(x):
             return None if x is None else float(f"{x:.6g}")
 
-        return {
+        out = {
             "behavior": self.behavior,
             "seconds": r(self.seconds),
             "verdict": "ok" if self.ok else list(self.verdict),
@@ -116,11 +116,6 @@ class SimResult:
             "fell_at_s": r(self.fell_at_s),
             "min_height_ratio": r(self.min_height_ratio),
             "max_tilt_rad": r(self.max_tilt_rad),
-            "support_margin_m": (
-                r(self.support_margin_m)
-                if self.support_margin_m is not None and math.isfinite(self.support_margin_m)
-                else None  # not measured, or an instant with no contact: no support
-            ),
             "max_torque_ratio": r(self.max_torque_ratio),
             "demand_ratio_max": r(self.demand_ratio_max),
             "saturated_fraction": r(self.saturated_fraction),
@@ -129,6 +124,10 @@ class SimResult:
             "placing_error_m": r(self.placing_error_m),
             "orientation_error_rad": r(self.orientation_error_rad),
         }
+        if self.support_margin_m is not None:  # measured (None then: no contact, no support)
+            m = self.support_margin_m
+            out["support_margin_m"] = r(m) if math.isfinite(m) else None
+        return out
 
 
 def load_bundle_model(folder: str | Path):

@@ -209,3 +209,33 @@ def test_the_studies_cover_every_count_with_at_least_30_requests() -> None:
         counts |= {q["name"] for q in requests}
     assert total >= 30
     assert counts == {f"walker{n}" for n in WORDS}
+
+
+@pytest.mark.parametrize("n", [5, 7, 8])
+def test_the_spread_gaits_walk_every_way_in_mujoco(cli, tmp_path, n) -> None:
+    """Each gait spread around the trunk (tripod, tetrapod) keeps every verdict walking
+    forward, backward, sideways and at an angle (three cycles), and turning both ways."""
+    from export.verify import controller_for_model, figures, load_bundle, run_behavior
+
+    src = tmp_path / f"walker{n}.kif"
+    src.write_text(_kif(n))
+    out = tmp_path / "bundle"
+    extra = ["--catalog", "dynamixel"] if n == 8 else []
+    r = cli(
+        "design", f"{WORDS[n]}-leg-walking", "--ontology", str(src), "--no-input",
+        "--no-verify", "--out", str(out), *extra,
+    )  # fmt: skip
+    assert r.code == 0, r.err
+    record, model = load_bundle(out)
+    c = controller_for_model(record, model)
+    spread = [g for g in c.gaits if g in STANCE_NAMES.values()]
+    assert spread
+    for gait in spread:
+        for direction in ("forward", "backward", "left", 0.7):
+            params = {"gait": gait, "direction": direction, "steps": 3}
+            traj, result = run_behavior(model, c, "walking", params)
+            fig = figures(traj, result)
+            assert fig["verdict"] == "ok", (gait, direction, fig)
+        for angle in (2.0, -1.0):
+            traj, result = run_behavior(model, c, "turning", {"gait": gait, "angle": angle})
+            assert result.verdict == [], (gait, angle, result.to_dict())
