@@ -199,8 +199,10 @@ def explain(fig: Mapping[str, object], failed: list[str]) -> str:
         ),
         "drift": lambda: f"drifted {f('drift_m')} m",
         "stability": lambda: (
-            f"support_margin {f('support_margin_m', 1000)} mm < {SUPPORT_MARGIN * 1000:g}: the "
-            "centre of mass left the feet's support polygon"
+            "an instant without contact with the ground"
+            if fig.get("support_margin_m") is None
+            else f"support_margin {f('support_margin_m', 1000)} mm < {SUPPORT_MARGIN * 1000:g}:"
+            " the centre of mass left the feet's support polygon"
         ),
         "placing": lambda: f"placing error {f('placing_error_m', 1000)} mm > {PLACING * 1000:g}",
         "orientation": lambda: (

@@ -177,6 +177,10 @@ def test_a_statically_unstable_gait_fails_only_the_stability_verdict(cli, tmp_pa
     result = simulate(model, bad)
     assert result.verdict == ["stability"], result.to_dict()
     assert result.support_margin_m < 0 and not result.fell
+    from export.verdict import explain
+
+    why = explain(result.to_dict(), result.verdict)
+    assert "left the feet's support polygon" in why and "-" in why
 
 
 def test_no_contact_is_no_support() -> None:
