@@ -12,7 +12,10 @@ fixed base), ``max_torque_ratio`` (largest
 |actuator force| / stall torque), ``tracking_error`` (driving: relative error of the mean
 (v, w) over the second half against the commanded ones), ``placing_error_m``
 (manipulators: distance of the gripper from the trajectory's ``target`` when it let go,
-``info["placed_at_s"]``, else at the end).
+``info["placed_at_s"]``, else at the end), ``support_margin_m`` (a behaviour that
+promises a smallest static stability margin, ``info["min_stability_margin_m"]``: the
+smallest measured one at the sampled states, :func:`support_margin_of`; None when an
+instant had no contact; absent when not measured).
 
 How a run is made (no Python per physics step):
 
@@ -83,6 +86,7 @@ class SimResult:
     drift_m: float | None = None
     min_height_ratio: float | None = None
     max_tilt_rad: float | None = None
+    support_margin_m: float | None = None
     saturated_joints: dict[str, float] = field(default_factory=dict)  # actuator -> share
     verdict: list[str] = field(default_factory=list)
     complete: bool = True  # ran to the behaviour's end: its promise was judged too
@@ -96,7 +100,7 @@ class SimResult:
         def r(x):
             return None if x is None else float(f"{x:.6g}")
 
-        return {
+        out = {
             "behavior": self.behavior,
             "seconds": r(self.seconds),
             "verdict": "ok" if self.ok else list(self.verdict),
@@ -120,6 +124,10 @@ class SimResult:
             "placing_error_m": r(self.placing_error_m),
             "orientation_error_rad": r(self.orientation_error_rad),
         }
+        if self.support_margin_m is not None:  # measured (None then: no contact, no support)
+            m = self.support_margin_m
+            out["support_margin_m"] = r(m) if math.isfinite(m) else None
+        return out
 
 
 def load_bundle_model(folder: str | Path):
@@ -257,6 +265,24 @@ def _tilt(quat: np.ndarray) -> float:
     w, x, y, z = quat
     up = 1 - 2 * (x * x + y * y)  # z component of the body's z axis
     return math.acos(max(-1.0, min(1.0, up)))
+
+
+def support_margin_of(model, data) -> float:
+    """The measured static stability margin m of ``data`` (contacts and centres of mass
+    computed, as after ``mj_forward``): the signed distance of the robot's centre of mass
+    (the root's subtree) over the ground to the nearest edge of the convex hull of the
+    robot's contacts with the world (``gaits.hexapod.support_margin``; negative outside,
+    minus infinity with no contact)."""
+    from gaits.hexapod import support_margin
+
+    n = data.ncon
+    if n == 0:
+        return -math.inf
+    world = model.geom_bodyid[data.contact.geom[:n]] == 0
+    touch = world[:, 0] != world[:, 1]
+    if not touch.any():
+        return -math.inf
+    return support_margin(data.contact.pos[:n][touch, :2], data.subtree_com[1, :2])
 
 
 def _rotation_angle(a: np.ndarray, b: np.ndarray) -> float:
@@ -488,6 +514,10 @@ def simulate(
     if sample[-1] != steps - 1:  # (np.unique would import numpy.ma: 20-50 ms of start-up)
         sample = np.append(sample, steps - 1)
     judge_fall = free and can_fall
+    # a behaviour that promises a static stability margin has it measured at the samples
+    support = None
+    if free and traj.info.get("min_stability_margin_m") is not None:
+        support, support_min = mujoco.MjData(model), math.inf
     fell_at = min_height = max_tilt = None
     ratio = demand = 0.0
     saturated_steps = 0
@@ -554,6 +584,11 @@ def simulate(
             placed_where = pose.xpos[eid].copy()
             placed_rot = pose.xmat[eid].reshape(3, 3).copy()
         rows = sample[(sample >= start_step) & (sample < start_step + n)] - start_step
+        if support is not None:
+            for i in rows:
+                mujoco.mj_setState(model, support, states[i], full)
+                mujoco.mj_forward(model, support)
+                support_min = min(support_min, support_margin_of(model, support))
         series["t"].append(grid[rows])
         series["root"].append(qpos_after[rows, :7] if free else np.zeros((len(rows), 7)))
         series["q"].append(qpos_after[np.ix_(rows, qadr)])
@@ -582,6 +617,7 @@ def simulate(
         },
         min_height_ratio=min_height,
         max_tilt_rad=max_tilt,
+        support_margin_m=None if support is None else support_min,
         series={k: np.concatenate(v) for k, v in series.items()},
     )
     info = traj.info

@@ -12,6 +12,12 @@ Criteria (names as they appear in ``verdict``):
   or tilted past ``COLLAPSE_TILT`` at any sample (robots that stand on feet or wheels).
 - ``saturated``: more than ``MAX_SATURATED_FRACTION`` of the samples had an actuator at its
   torque limit.
+- ``stability``: a behaviour that promises static stability (a smallest planned margin,
+  ``min_stability_margin_m``: the multipeds' gaits; the humanoid's pendulum gait promises
+  none) let the robot's centre of mass leave the support polygon of its
+  contacts with the ground by more than ``SUPPORT_MARGIN`` at a sampled instant, or had
+  no contact (``support_margin_m``, measured in MuJoCo, see
+  :func:`export.simulate.support_margin_of`).
 - ``unplanned``: a free-moving robot's behaviour that does not say what it promises.
 - ``distance``, ``heading``: straight travel covered ``STRAIGHT_DISTANCE`` x the planned
   distance along the planned direction, and kept its heading within ``STRAIGHT_HEADING``.
@@ -41,6 +47,7 @@ COLLAPSE_HEIGHT = 0.70  # of the standing height
 COLLAPSE_TILT = math.radians(45)
 SATURATION_LEVEL = 0.999  # |force| / limit at which an actuator counts as saturated
 MAX_SATURATED_FRACTION = 0.05
+SUPPORT_MARGIN = 0.0  # m: the measured static stability margin may not go below this
 STRAIGHT_DISTANCE = (0.8, 1.25)  # x planned distance
 STRAIGHT_HEADING = math.radians(15)
 POSE_FRACTION = 0.10  # of the path length (arcs) or of the body length (turns)
@@ -82,6 +89,10 @@ def judge(fig: Mapping[str, object], info: Mapping[str, object], free: bool) -> 
         failed.append("fell")
     if float(fig.get("saturated_fraction") or 0.0) > MAX_SATURATED_FRACTION:
         failed.append("saturated")
+    if free and info.get("min_stability_margin_m") is not None:
+        measured = fig.get("support_margin_m")
+        if measured is None or float(measured) < SUPPORT_MARGIN:  # type: ignore[arg-type]
+            failed.append("stability")
     motion = info.get("motion")
     if motion is None:
         if free:
@@ -187,6 +198,12 @@ def explain(fig: Mapping[str, object], failed: list[str]) -> str:
             f"{f('seconds')} s (too slow)"
         ),
         "drift": lambda: f"drifted {f('drift_m')} m",
+        "stability": lambda: (
+            "an instant without contact with the ground"
+            if fig.get("support_margin_m") is None
+            else f"support_margin {f('support_margin_m', 1000)} mm < {SUPPORT_MARGIN * 1000:g}:"
+            " the centre of mass left the feet's support polygon"
+        ),
         "placing": lambda: f"placing error {f('placing_error_m', 1000)} mm > {PLACING * 1000:g}",
         "orientation": lambda: (
             f"orientation error {f('orientation_error_rad', deg)} deg > {ORIENTATION * deg:g}"

@@ -26,7 +26,13 @@ side a back-to-front wave, the other side half a cycle later, duty 1 - 1/rows = 
 ``wave`` (one leg at a time, duty 1 - 1/legs = 5/6) and, for the quadruped, ``crawl`` (one
 leg at a time, hind then front leg of a side, the other side half a cycle later, duty
 ``CRAWL_DUTY`` = 5/6 >= 3/4, so that a four-foot phase separates the sides and the trunk
-can sway across).
+can sway across). Other counts (a pentapod, a heptapod, an octopod...) have gaits named by
+the feet they keep standing, spread around the trunk (:func:`_spread_phases`): the
+``tripod`` (3), the ``tetrapod`` (4) and, for an odd count, the ``ripple`` (all but two),
+besides the wave (and an even count's side-wave ripple): one leg lifts every ``1/n`` of a
+cycle, each a fixed number of legs around the trunk from the one before, so that the
+standing feet always surround the trunk's centre (duty ``k/n`` for ``k`` standing; two
+groups of alternate legs, duty 1/2, when ``k`` is half the legs).
 
 **Feet** (:func:`plan_gait`) stand on world footholds in stance, so each moves backward in
 a straight line at the body's speed relative to the trunk; in swing a foot lifts (a
@@ -424,10 +430,11 @@ class GaitPattern:
 
 
 class _GaitsByLegs(Mapping[int, tuple[str, ...]]):
-    """Gaits by leg count: a hexapod's tripod, ripple and wave, a quadruped's crawl, and
-    for any other count of at least four legs (a pentapod, an octopod) the wave, one leg
-    at a time (statically stable for any count: ``1 - 1/n`` of the legs stand), with the
-    ripple for even counts (each side a trailing-to-leading wave)."""
+    """Gaits by leg count, the first walking's: a hexapod's tripod, ripple and wave, a
+    quadruped's crawl, and for any other count of at least five legs the gaits of
+    :func:`_spread_gaits` (a pentapod's and a heptapod's tripod, an octopod's tetrapod
+    first) and the wave (one leg at a time, statically stable for any count: ``1 - 1/n``
+    of the legs stand)."""
 
     _KNOWN = {6: ("tripod", "ripple", "wave"), 4: ("crawl",)}
 
@@ -435,7 +442,7 @@ class _GaitsByLegs(Mapping[int, tuple[str, ...]]):
         if n in self._KNOWN:
             return self._KNOWN[n]
         if isinstance(n, int) and n >= 5:
-            return ("ripple", "wave") if n % 2 == 0 else ("wave",)
+            return (*_spread_gaits(n), "wave")
         raise KeyError(n)
 
     def __iter__(self):
@@ -443,6 +450,76 @@ class _GaitsByLegs(Mapping[int, tuple[str, ...]]):
 
     def __len__(self) -> int:
         return len(self._KNOWN)
+
+
+#: Gaits named by the feet they keep on the ground (:func:`_spread_gaits`).
+STANCE_NAMES = {3: "tripod", 4: "tetrapod"}
+
+
+def _spread_gaits(n: int) -> tuple[str, ...]:
+    """The gaits of ``n`` (>= 5, not 6) legs besides the wave, by the feet that stand at
+    a time (:func:`_spread_phases`): the tripod (3), the tetrapod (4, when that leaves at
+    least two legs to swing) and the ripple (``n - 2``, two legs swing at once; for an
+    even count each side's wave, see :func:`gait_pattern`) when it is neither; the fewest
+    feet first, but for an even count the gait of two groups of alternate legs (half the
+    feet standing, duty 1/2) when it is named. A pentapod has the tripod, a heptapod the
+    tripod, tetrapod and ripple, an octopod the tetrapod, tripod and ripple."""
+    out = [STANCE_NAMES[k] for k in sorted(STANCE_NAMES) if k <= n - 2]
+    if n - 2 not in STANCE_NAMES:
+        out.append("ripple")
+    if n % 2 == 0 and n // 2 in STANCE_NAMES:  # two groups of alternate legs first
+        out.insert(0, out.pop(out.index(STANCE_NAMES[n // 2])))
+    return tuple(out)
+
+
+def _stance_count(name: str, n: int) -> int:
+    """Feet on the ground at a time in the gait ``name`` of ``n`` legs spread around the
+    trunk (the ripple: all but two; the wave: all but one)."""
+    for k, v in STANCE_NAMES.items():
+        if v == name:
+            return k
+    return n - 2 if name == "ripple" else n - 1
+
+
+def _ring(legs: Sequence[Leg]) -> list[Leg]:
+    """The legs counter-clockwise around the centre of their mounts."""
+    c = np.mean([leg.mount[:2] for leg in legs], axis=0)
+
+    def angle(leg: Leg) -> float:
+        d = leg.mount[:2] - c
+        return round(math.atan2(float(d[1]), float(d[0])) % (2 * math.pi), 9)
+
+    return sorted(legs, key=lambda g: (angle(g), g.name))
+
+
+def _spread_phases(legs: Sequence[Leg], k: int, direction: float) -> tuple[float, dict[str, float]]:
+    """(duty, lift-off phases) of a gait of ``legs`` that keeps ``k`` feet on the ground,
+    spread around the trunk.
+
+    Half the legs (``k = n/2``): two groups of alternate legs around the trunk, duty 1/2
+    (the octopod's tetrapod). Otherwise one leg lifts every ``1/n`` of a cycle and swings
+    for ``(n - k)/n`` of it (duty ``k/n``), each lift ``j`` legs around the trunk from the
+    one before, ``j`` coprime with ``n`` and such that the ``k`` standing legs (``k``
+    consecutive lifts apart) leave the smallest largest gap around the trunk (the
+    pentapod's tripod: every other leg, a five-pointed star, three feet always standing
+    on a triangle around the trunk's centre); the first lift is the trailing leg in the
+    direction of travel, the sense the one whose next lift is further forward."""
+    ring = _ring(legs)
+    n = len(ring)
+    if 2 * k == n:
+        return 0.5, {leg.name: (i % 2) / 2 for i, leg in enumerate(ring)}
+
+    def widest(j: int) -> int:  # the largest gap around the ring between standing legs
+        at = sorted(p * j % n for p in range(k))
+        return max(b - a for a, b in zip(at, [*at[1:], at[0] + n], strict=True))
+
+    j = min((j for j in range(1, n // 2 + 1) if math.gcd(j, n) == 1), key=lambda j: (widest(j), j))
+    u = np.array([math.cos(direction), math.sin(direction)])
+    along = [float(leg.mount[:2] @ u) for leg in ring]
+    start = min(range(n), key=lambda i: (round(along[i], 9), ring[i].name))
+    if along[(start - j) % n] > along[(start + j) % n] + 1e-9:
+        j = n - j
+    return k / n, {ring[(start + p * j) % n].name: p / n for p in range(n)}
 
 
 #: Gaits by leg count.
@@ -494,7 +571,9 @@ def gait_pattern(
     first; wave: one leg at a time, the first group then the second, duty 1 - 1/legs;
     crawl (quadruped): as ripple with duty ``CRAWL_DUTY``, so that the two swings of a
     group follow each other and four-foot phases separate the groups; ``duty`` (crawl
-    only) a shorter one, at least ``MIN_CRAWL_DUTY``. ValueError for a gait the legs cannot
+    only) a shorter one, at least ``MIN_CRAWL_DUTY``. For counts other than 4 and 6 the
+    tripod, the tetrapod and an odd count's ripple keep 3, 4 and all but two feet standing,
+    spread around the trunk (:func:`_spread_phases`). ValueError for a gait the legs cannot
     do.
     """
     n = len(legs)
@@ -505,6 +584,9 @@ def gait_pattern(
         )
     if duty is not None and (name != "crawl" or not MIN_CRAWL_DUTY <= duty <= CRAWL_DUTY):
         raise ValueError(f"duty: only a crawl takes one, in [{MIN_CRAWL_DUTY:g}, {CRAWL_DUTY:.4g}]")
+    spread = name in STANCE_NAMES.values() or (name == "ripple" and n % 2 == 1)
+    if spread and n not in _GaitsByLegs._KNOWN:
+        return GaitPattern(name, *_spread_phases(legs, _stance_count(name, n), direction))
     left, right = _ranked(
         legs, 0.0 if name == "tripod" else direction, 0.0 if name == "tripod" else turn
     )

@@ -20,9 +20,10 @@ slowed down when a joint would exceed ``SPEED_MARGIN`` of its actuator's no-load
 explicit speed that needs faster joints raises ValueError with the largest feasible one.
 
 **Running** is not a run (no flight phase: the servos are too slow for one) but the
-fastest statically stable travel: the gait of ``RUN_GAITS`` (the fewest feet on the
-ground that keeps the centre of mass over its support: the hexapod's tripod, the
-quadruped's crawl at its shortest duty) at ``RUN_SPEED_FACTOR`` times the walking speed,
+fastest statically stable travel: the gait of ``run_gait`` (the fewest feet on the
+ground that keeps the centre of mass over its support: the tripod of any count that has
+one, the quadruped's crawl at its shortest duty; the count's other gaits, shortest duty
+first, when it finds no stable plan) at ``RUN_SPEED_FACTOR`` times the walking speed,
 slowed down to the actuators' speeds like walking.
 
 **Masses**: the stability margins use the sized template with the design's masses when
@@ -89,9 +90,14 @@ RUN_GAITS: dict[int, tuple[str, float | None]] = {
 
 
 def run_gait(legs: int) -> tuple[str, float | None]:
-    """Running's gait for ``legs`` legs: ``RUN_GAITS``, else the first gait of the count
-    (``GAITS``) with its own duty."""
-    return RUN_GAITS.get(legs) or (GAITS[legs][0], None)
+    """Running's gait for ``legs`` legs: ``RUN_GAITS``, else the count's tripod (three
+    feet standing, the fewest that hold the centre of mass over a support polygon: the
+    longest swings, so the fastest travel the actuators allow) or, without one, its first
+    gait (``GAITS``), with its own duty."""
+    if legs in RUN_GAITS:
+        return RUN_GAITS[legs]
+    gaits = GAITS[legs]
+    return ("tripod" if "tripod" in gaits else gaits[0], None)
 
 
 #: Duties tried for running, from the shortest to the gait's own.
@@ -126,7 +132,8 @@ class DirectionParameter(Parameter):
 
 
 class LeggedController(Controller):
-    """Behaviours of a hexapod or quadruped design (see the module docstring).
+    """Behaviours of a multiped design (legs on a trunk: a hexapod, a quadruped, any
+    count of at least four legs; see the module docstring).
 
     - ``walking(gait, steps, seconds, direction, speed, stride, step_height)``: walk
       ``steps`` gait cycles (every leg steps once a cycle), or about ``seconds`` s when
@@ -320,16 +327,27 @@ class LeggedController(Controller):
             gait, duty = run_gait(len(self.legs))
             own = gait_pattern(gait, self.legs).duty
             # the shortest duty first; longer ones (up to the gait's own) when a design's
-            # trunk cannot sway far enough for it
+            # trunk cannot sway far enough for it; then, when the gait finds no stable
+            # plan, the count's other gaits from the shortest duty
             duties = [None] if duty is None else list(np.linspace(duty, own, RUN_DUTY_STEPS))
-            for k, d in enumerate(duties):
+            tries = [(gait, d) for d in duties]
+            others = sorted(
+                (g for g in self.gaits if g != gait),
+                key=lambda g: (gait_pattern(g, self.legs).duty, self.gaits.index(g)),
+            )
+            tries += [(g, None) for g in others]
+            first: ValueError | None = None
+            for g, d in tries:
                 try:
                     return self._walking(
-                        name, {**params, "gait": gait}, step, d, RUN_SPEED_FACTOR * self.speed
+                        name, {**params, "gait": g}, step, d, RUN_SPEED_FACTOR * self.speed
                     )
-                except ValueError:
-                    if k == len(duties) - 1:
-                        raise
+                except ValueError as e:
+                    if g != gait:
+                        continue
+                    first = e  # the running gait's own reason (its longest duty's)
+            assert first is not None
+            raise first
         return self._walking(name, params, step)
 
     # -- planning ------------------------------------------------------------------------------

@@ -148,6 +148,27 @@ def _fig(**kw):
             {"motion": "orient", "orientation_rpy": (0, 0, 0)},
             ["orientation"],
         ),
+        # static stability: a promised smallest margin, judged on the measured one
+        (
+            _fig(distance_m=1.0, planned_distance_m=1.0, support_margin_m=0.004),
+            {"motion": "straight", "min_stability_margin_m": 0.02},
+            [],
+        ),
+        (
+            _fig(distance_m=1.0, planned_distance_m=1.0, support_margin_m=-0.001),
+            {"motion": "straight", "min_stability_margin_m": 0.02},
+            ["stability"],
+        ),
+        (  # nothing measured is no support
+            _fig(distance_m=1.0, planned_distance_m=1.0),
+            {"motion": "straight", "min_stability_margin_m": 0.02},
+            ["stability"],
+        ),
+        (  # no promise (the humanoid's pendulum gait): not judged
+            _fig(distance_m=1.0, planned_distance_m=1.0, support_margin_m=-0.01),
+            {"motion": "straight"},
+            [],
+        ),
         # falling and saturating fail whatever the motion
         (_fig(fell=True, placing_error_m=0.0), {"motion": "place"}, ["fell"]),
         (_fig(saturated_fraction=0.051, placing_error_m=0.0), {"motion": "place"}, ["saturated"]),
