@@ -240,6 +240,12 @@ def build_parser() -> argparse.ArgumentParser:
         "says it was not simulated)",
     )
     p.add_argument(
+        "--allow-unverified",
+        action="store_true",
+        help="accept a demanded ability that no behaviour serves, so none can be simulated "
+        "(refused otherwise, exit 1); the record and the bundle's README say so",
+    )
+    p.add_argument(
         "--out",
         metavar="DIR",
         help="write the bundle into the folder DIR: "
@@ -724,6 +730,7 @@ def _options(args: argparse.Namespace):
         parse_objective(args.objective),
         verify=not getattr(args, "no_verify", False),
         with_payload=getattr(args, "with_payload", False),
+        allow_unverified=getattr(args, "allow_unverified", False),
     )
 
 
@@ -776,7 +783,8 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         )
         return AnswerNeeded.exit_code
     if d.status == "unsatisfiable":
-        err.write(f"parmor: no robot can meet the request: {' + '.join(d.conflict)}\n")
+        why = f" ({d.note})" if d.note else ""
+        err.write(f"parmor: no robot can meet the request: {' + '.join(d.conflict)}{why}\n")
         return 1
     if args.out:
         err.write(f"parmor: wrote {args.out}: {', '.join(sorted(files))}\n")
