@@ -170,8 +170,10 @@ def served_abilities(record: Mapping, controller) -> dict[str, str | None]:
     from program.sensing import simulated_abilities
 
     offered = {spec.realises for spec in controller.behaviors.values()}
-    offered |= set(simulated_abilities(record, controller.behaviors))
     ancestors = record.get("ability_ancestors") or {}
+    # the sensing loops: those of the simulated sensing abilities with no simulated ancestor
+    sensed = set(simulated_abilities(record, controller.behaviors))
+    offered |= {a for a in sensed if not sensed.intersection(ancestors.get(a, ()))}
     names = {*record.get("abilities", ()), *(record.get("needed") or ())}
     return {a: serving(a, ancestors, offered) for a in sorted(names)}
 
@@ -195,14 +197,13 @@ def _unserved(designer: Designer, outcome: Outcome) -> dict[str, tuple[tuple[str
     record = design_record(outcome.design, designer.short, outcome.structure)
     controller = controller_for(DesignGeometry.from_record(record))
     served = served_abilities(record, controller)
-    offered = sorted({s for s in served.values() if s} | {
-        spec.realises for spec in controller.behaviors.values()
-    })
+    offered = sorted(
+        {s for s in served.values() if s}
+        | {spec.realises for spec in controller.behaviors.values()}
+    )
     ancestors = record.get("ability_ancestors") or {}
     return {
-        a: ((a, *ancestors.get(a, ())), offered)
-        for a in demanded(record)
-        if served.get(a) is None
+        a: ((a, *ancestors.get(a, ())), offered) for a in demanded(record) if served.get(a) is None
     }
 
 
@@ -211,7 +212,9 @@ def unserved_message(robot: str, unserved: Mapping[str, tuple[tuple[str, ...], l
     each with what would serve it."""
     parts = []
     for a, (would, offered) in sorted(unserved.items()):
-        kinds = f", or for an ability it is a kind of ({', '.join(would[1:])})," if would[1:] else ""
+        kinds = (
+            f", or for an ability it is a kind of ({', '.join(would[1:])})," if would[1:] else ""
+        )
         parts.append(
             f"{a} is demanded but no behaviour serves it, so it cannot be simulated "
             f"({robot}'s behaviours are for {', '.join(offered) or 'nothing'}); "
