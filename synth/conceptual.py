@@ -133,6 +133,25 @@ def query_for(kb: KnowledgeBase, req: Request) -> Query:
     return Query(requests, tuple(sorted(answers.items())), tuple(sorted(params.values())))
 
 
+def ability_ancestors(kb: KnowledgeBase, abilities: Sequence[str]) -> dict[str, tuple[str, ...]]:
+    """Each of ``abilities`` (short names) that has ability classes above it in the
+    ontology's taxonomy -> their short names, nearest first (``synth.bodyplan.ancestors``:
+    breadth first; classes that are no ability are passed through, not named): which
+    behaviours serve an ability with none of its own (``gaits.base.serving``)."""
+    from synth.bodyplan import ancestors
+
+    out: dict[str, tuple[str, ...]] = {}
+    for name in sorted(set(abilities)):
+        a = kb.ability(name)
+        if a is None:
+            continue
+        up = [kb.ability_of_kif(c) for c in ancestors(kb, a.kif)[1:]]
+        named = tuple(x.name for x in up if x is not None)
+        if named:
+            out[name] = named
+    return out
+
+
 def limit_note(over: Sequence[tuple[str, int, int | None]], bus: str | None = None) -> str:
     """``"Octopod has 26 active modules, over the limit of 24 on the I2C bus"``: why the
     robots ``over`` (``Designer.over_limit``) are no candidates; ``bus`` says where the
@@ -213,21 +232,8 @@ class Designer:
         return tuple(req.abilities) + tuple(f"{n}={v}" for n, v in req.params if n in names)
 
     def ability_ancestors(self, abilities: Sequence[str]) -> dict[str, tuple[str, ...]]:
-        """Each of ``abilities`` (short names) that has ability classes above it in the
-        ontology's taxonomy -> their short names, nearest first (``synth.bodyplan.ancestors``:
-        breadth first; classes that are no ability are passed through, not named)."""
-        from synth.bodyplan import ancestors
-
-        out: dict[str, tuple[str, ...]] = {}
-        for name in sorted(set(abilities)):
-            a = self.kb.ability(name)
-            if a is None:
-                continue
-            up = [self.kb.ability_of_kif(c) for c in ancestors(self.kb, a.kif)[1:]]
-            named = tuple(x.name for x in up if x is not None)
-            if named:
-                out[name] = named
-        return out
+        """:func:`ability_ancestors` in this designer's knowledge base."""
+        return ability_ancestors(self.kb, abilities)
 
     def over_limit(self, req: Request) -> tuple[tuple[str, int, int | None], ...]:
         """The robots that meet ``req`` but carry more active modules than their limit (the

@@ -359,3 +359,20 @@ def test_a_sweep_accepts_only_designs_with_a_structure(designer, monkeypatch) ->
     monkeypatch.setattr(synth.pipeline, "run", real)
     res = synth.sweep.design_one(req, designer, StructureOptions(verify=False), False)
     assert res["status"] == "accepted" and res["mass_kg"]
+
+
+def test_the_sizing_plans_the_behaviours_that_serve_a_subclass(grid_designer) -> None:
+    """The behaviour loads a design is sized for come from the same serving: a design whose
+    only walking ability were the subclass is still sized for walking."""
+    import dataclasses
+
+    from synth.behaviour_loads import behaviour_trajectories
+
+    rec, _, _ = _sized(grid_designer, Request(("very-heavy-walking",)))
+    geometry = DesignGeometry.from_record(rec)
+    only = dataclasses.replace(geometry, abilities=("very-heavy-walking",))
+    trajs, _ = behaviour_trajectories(only)
+    assert {"walking", "turning"} <= set(trajs)
+    # built to fail: without the ancestry nothing serves it, so nothing is planned
+    bare = dataclasses.replace(only, ancestors={})
+    assert behaviour_trajectories(bare)[0] == {}
