@@ -168,6 +168,7 @@ class Designer:
     def __init__(self, kb: KnowledgeBase, reasoner: Reasoner) -> None:
         self.kb = kb
         self.reasoner = reasoner
+        self._unlimited: Reasoner | None = None  # the reasoner without a module limit
 
     # -- names ------------------------------------------------------------------------
     def short(self, kif: str) -> str:
@@ -240,7 +241,9 @@ class Designer:
         catalog bus's, else the ontology's ``activeModuleLimit``) allows: (type, active
         modules, limit), fewest modules first. The reasoner excludes them; one without the
         limit finds them, and each one's limit is read as ``parmor explain`` reads it."""
-        sol = self.reasoner.unlimited().solve(self.query(req))
+        if self._unlimited is None:  # grounded once, on the first refusal
+            self._unlimited = self.reasoner.unlimited()
+        sol = self._unlimited.solve(self.query(req))
         out = []
         for c in sol.candidates:
             limit = self.describe(c.robot_type).module_limit

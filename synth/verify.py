@@ -349,12 +349,11 @@ def _verified(
     dropped: dict[str, str] = {}
     failure = None
     for r in failing:
-        why = f"{r['behavior']} failed in simulation: {explain(r, r['verdict'])}"
         mine = {r["ability"]} | {a for a, s in served.items() if s == r["ability"]}
+        through = sorted(mine & needed) if r["ability"] not in needed else []
+        serving = f" (serving {', '.join(through)})" if through else ""  # which demand
+        why = f"{r['behavior']}{serving} failed in simulation: {explain(r, r['verdict'])}"
         if mine & needed:
-            through = sorted(mine & needed - {r["ability"]})
-            if through and r["ability"] not in needed:  # say which demand it serves
-                why = f"{r['behavior']} (serving {', '.join(through)}) " + why.split(" ", 1)[1]
             failure = failure or why
         else:
             for a in sorted(mine):
