@@ -878,7 +878,14 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         listed = f"{len(shown)} of {len(cands)}" if len(shown) < len(cands) else f"{len(cands)}"
         out.write(f"{listed} candidate(s)\n")
     if not cands:
-        err.write(f"parmor: no robot can meet the request: {' + '.join(conflict)}\n")
+        why = ""
+        limited = designer.over_limit(req) if not sol.candidates else ()
+        if limited:  # robots the module limit alone excludes: name them and the bus
+            from synth.conceptual import limit_note
+            from synth.pipeline import limit_source
+
+            why = f" ({limit_note(limited, limit_source(opts))})"
+        err.write(f"parmor: no robot can meet the request: {' + '.join(conflict)}{why}\n")
         return 1
     return 0
 

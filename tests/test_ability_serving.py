@@ -325,6 +325,15 @@ def test_a_refusal_by_the_module_limit_names_count_limit_and_bus(cli, tmp_path) 
     assert json.loads(r.out)["robot_type"] == "Octopod"
 
 
+def test_enumerate_names_the_limit_too(cli, tmp_path) -> None:
+    src = tmp_path / "octopod.kif"
+    src.write_text(legged_kif("Octopod", 8, "fault-tolerant-walking"), encoding="utf-8")
+    r = cli("enumerate", "fault-tolerant-walking", "--ontology", str(src))
+    assert r.code == 1 and "Octopod has 26 active modules, over the limit of 24" in r.err
+    r = cli("enumerate", "rolling", "grasping")  # a conflict: no robot to name
+    assert r.code == 1 and r.err == "parmor: no robot can meet the request: rolling + grasping\n"
+
+
 def test_a_small_bus_names_itself(cli, tmp_path) -> None:
     r = cli(
         "design", "rough-terrain-walking", "--no-input", "--conceptual",
