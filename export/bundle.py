@@ -225,8 +225,9 @@ def assembly_of(structure: Structure, catalog: Catalog, record: dict):
 
 def trajectory_files(record: dict) -> dict[str, str]:
     """``trajectories/<behaviour>.csv``: each behaviour of the design's controller that
-    realises one of its abilities (``turning`` of a walking robot too; aliases left out),
-    with default parameters (joint angles over time)."""
+    serves one of its abilities (``turning`` of a walking robot too, ``walking`` of a KIF
+    ``heavy-walking`` under it: the record's ``ability_ancestors``; aliases left out), with
+    default parameters (joint angles over time)."""
     return {f"trajectories/{n}.csv": t.csv() for n, t in _trajectories(record).items()}
 
 

@@ -99,6 +99,20 @@ def assembly_steps(record: dict, asm: Assembly) -> list[str]:
     return out
 
 
+def _unsimulated(record: dict) -> list[str]:
+    """The README's warning for demanded abilities accepted unsimulated (--allow-unverified;
+    the record's ``verified.accepted_unsimulated``), or nothing."""
+    names = (record.get("verified") or {}).get("accepted_unsimulated") or []
+    if not names:
+        return []
+    return [
+        f"**Not simulated: {_md(', '.join(names))}.** No behaviour serves "
+        f"{'it' if len(names) == 1 else 'them'}, so nothing checked that the robot can do "
+        f"{'it' if len(names) == 1 else 'them'}; the design was accepted with "
+        "`--allow-unverified`."
+    ]
+
+
 def guide_markdown(
     record: dict, asm: Assembly, documentation: str = "", pictures: bool = False
 ) -> str:
@@ -131,6 +145,7 @@ def guide_markdown(
     lines += [
         f"Requested abilities: {_md(asked)}.",
         f"It can: {_md(', '.join(r['abilities']))}.",
+        *_unsimulated(r),
         f"The robot weighs {asm.total_mass - (load if payload.get('in_models') else 0.0):.3f} kg "
         f"(every part in bom.csv), modules cost {r['cost']:.2f}, {r['dof']} degrees of "
         f"freedom, {r['active_modules']} active modules on the {_md(bus['name'])} bus "

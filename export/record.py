@@ -203,7 +203,15 @@ def design_record(d: Design, short: Short, structure: Structure | None = None) -
         "module_limit": c.module_limit if c else None,
         "dof": c.dof if c else None,
         "abilities": sorted(short(a) for a in c.abilities) if c else [],
+        # which behaviours serve an ability with none of its own: its nearest ancestor's
+        # (gaits.base.serving), so that a bundle needs no ontology
+        "ability_ancestors": {a: list(up) for a, up in d.ancestors},
     }
+    if d.over_limit:
+        rec["over_limit"] = [
+            {"robot_type": t, "active_modules": n, "module_limit": limit}
+            for t, n, limit in d.over_limit
+        ]
     if structure is not None:
         srec = structure_record(structure)
         rec["modules"] = srec.pop("modules")
@@ -309,6 +317,11 @@ def verification_text(verified: dict | None, indent: str = "  ") -> str:
         out.append(
             f"{indent}  not simulated (no behaviour): {', '.join(verified['not_simulated'])}"
         )
+    if verified.get("accepted_unsimulated"):
+        out.append(
+            f"{indent}  accepted unsimulated (--allow-unverified): "
+            f"{', '.join(verified['accepted_unsimulated'])}"
+        )
     return "\n".join(out) + "\n"
 
 
@@ -325,6 +338,8 @@ def design_text(d: Design, short: Short, structure: Structure | None = None) -> 
             if len(d.conflict) > 1
             else f"No robot can meet the request: {what}."
         )
+        if d.note:
+            out.append(f"  note:       {d.note}")
         return "\n".join(out) + "\n"
     if d.status == "ambiguous":
         out.append("Candidates: " + ", ".join(c.robot_type for c in d.candidates))

@@ -17,7 +17,7 @@ import io
 import os
 from abc import ABC, abstractmethod
 from collections import OrderedDict
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO
@@ -150,9 +150,11 @@ class BehaviorSpec:
     """A behaviour a controller offers: the ability it realises and its parameters.
 
     ``ability`` is the ability short name the behaviour realises or belongs to (None: its
-    own name); e.g. a legged robot's ``turning`` belongs to ``walking``. A design lists and
-    verifies exactly the behaviours whose ability it has. ``alias_of`` names the behaviour
-    this one repeats under another name (not verified twice)."""
+    own name); e.g. a legged robot's ``turning`` belongs to ``walking``. A behaviour serves
+    its ability and every subclass of it in the ontology's action taxonomy (:func:`serving`):
+    a design lists and verifies the behaviours of the abilities that serve its own.
+    ``alias_of`` names the behaviour this one repeats under another name (not verified
+    twice)."""
 
     name: str
     doc: str
@@ -178,6 +180,20 @@ class BehaviorSpec:
         }
 
 
+def serving(
+    ability: str, ancestors: Mapping[str, Sequence[str]], offered: Collection[str]
+) -> str | None:
+    """The ability whose behaviours serve ``ability``: itself when it is ``offered``, else
+    the nearest of its ``ancestors`` (ability -> the abilities it is a subclass of, nearest
+    first: the design record's ``ability_ancestors``) that is; None when none is (no
+    behaviour serves it). E.g. a KIF ``heavy-walking`` under ``walking`` is served by the
+    walking behaviours."""
+    for a in (ability, *ancestors.get(ability, ())):
+        if a in offered:
+            return a
+    return None
+
+
 @dataclass(frozen=True)
 class DesignGeometry:
     """What a controller needs of a sized design, read from its record (design.json)."""
@@ -196,6 +212,10 @@ class DesignGeometry:
     #: record's ``calibration``, e.g. a skid-steer's ``effective_track_m``): see
     #: :meth:`Controller.calibrate`
     calibration: Mapping[str, float] = field(default_factory=dict)
+    #: ability -> the abilities it is a subclass of, nearest first (the record's
+    #: ``ability_ancestors``, from the ontology's action taxonomy): which behaviours serve
+    #: an ability that has none of its own (:func:`serving`); gaits read no ontology
+    ancestors: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
 
     @classmethod
     def from_record(cls, record: Mapping) -> DesignGeometry:
@@ -225,6 +245,10 @@ class DesignGeometry:
                 for j in record.get("joints", [])
             },
             calibration={k: float(v) for k, v in (record.get("calibration") or {}).items()},
+            ancestors={
+                str(k): tuple(str(a) for a in v)
+                for k, v in (record.get("ability_ancestors") or {}).items()
+            },
         )
 
     def build(self) -> Template:
@@ -430,10 +454,18 @@ class Controller(ABC):
         free base's position and quaternion). Empty by default."""
         return {}
 
+    def serving(self, ability: str) -> str | None:
+        """The ability whose behaviours serve ``ability`` (:func:`serving` over the
+        design's ``ancestors``): itself, its nearest ancestor that a behaviour realises, or
+        None."""
+        offered = {spec.realises for spec in self.behaviors.values()}
+        return serving(ability, self.geometry.ancestors, offered)
+
     def listed(self, abilities: Sequence[str]) -> list[str]:
-        """The behaviours that realise one of ``abilities`` (aliases left out), by name:
-        what a design with those abilities lists, bundles and verifies."""
-        have = set(abilities)
+        """The behaviours that serve one of ``abilities`` (realise it or the nearest
+        ancestor ability that has behaviours; aliases left out), by name: what a design
+        with those abilities lists, bundles and verifies."""
+        have = {s for a in abilities if (s := self.serving(a)) is not None}
         return sorted(
             name
             for name, spec in self.behaviors.items()
@@ -441,8 +473,8 @@ class Controller(ABC):
         )
 
     def unbehaved(self, abilities: Sequence[str]) -> list[str]:
-        """The abilities among ``abilities`` that no behaviour realises, sorted."""
-        return sorted(set(abilities) - {spec.realises for spec in self.behaviors.values()})
+        """The abilities among ``abilities`` that no behaviour serves, sorted."""
+        return sorted(a for a in set(abilities) if self.serving(a) is None)
 
     def movable_joints(self) -> tuple[str, ...]:
         m = self.template.model

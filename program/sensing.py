@@ -509,5 +509,11 @@ def verify_sensing(files: Mapping[str, str | bytes]) -> list[dict]:
 
 def simulated_abilities(record: Mapping, behaviors: Mapping[str, BehaviorSpec]) -> list[str]:
     """The sensing abilities of ``record`` that this module simulates for a controller
-    with these ``behaviors``."""
-    return sorted(sensing_behaviors(behaviors, tuple(record.get("abilities", ()))))
+    with these ``behaviors``, and the abilities they serve: those whose nearest ancestor
+    with a sensing loop is one (the record's ``ability_ancestors``, ``gaits.base.serving``)."""
+    from gaits.base import serving
+
+    abilities = tuple(record.get("abilities", ()))
+    sensed = sensing_behaviors(behaviors, abilities)
+    ancestors = record.get("ability_ancestors") or {}
+    return sorted(a for a in abilities if serving(a, ancestors, sensed) is not None)

@@ -150,10 +150,12 @@ def design_geometry(
     params: Mapping[str, float],
     abilities: Sequence[str],
     joint_speed: Mapping[str, float],
+    ancestors: Mapping[str, tuple[str, ...]] | None = None,
 ):
     """The ``gaits.base.DesignGeometry`` that ``DesignGeometry.from_record`` will read from
     this design's record (SI units; values rounded as the record rounds them;
-    ``wheel_radius`` None for a design without wheels)."""
+    ``wheel_radius`` None for a design without wheels; ``ancestors`` its abilities'
+    ancestor abilities, the record's ``ability_ancestors``)."""
     from gaits.base import DesignGeometry
 
     return DesignGeometry(
@@ -165,6 +167,7 @@ def design_geometry(
         params={k: _rounded(v) for k, v in sorted(params.items())},
         abilities=tuple(sorted(abilities)),
         joint_speed={k: _rounded(v) for k, v in sorted(joint_speed.items())},
+        ancestors=dict(sorted((ancestors or {}).items())),
     )
 
 
@@ -178,6 +181,7 @@ def _key(geometry) -> tuple:
         tuple(sorted(geometry.params.items())),
         tuple(geometry.abilities),
         tuple(sorted(geometry.joint_speed.items())),
+        tuple(sorted(geometry.ancestors.items())),
     )
 
 

@@ -240,6 +240,12 @@ def build_parser() -> argparse.ArgumentParser:
         "says it was not simulated)",
     )
     p.add_argument(
+        "--allow-unverified",
+        action="store_true",
+        help="accept a demanded ability that no behaviour serves, so none can be simulated "
+        "(refused otherwise, exit 1); the record and the bundle's README say so",
+    )
+    p.add_argument(
         "--out",
         metavar="DIR",
         help="write the bundle into the folder DIR: "
@@ -731,6 +737,7 @@ def _options(args: argparse.Namespace):
         parse_objective(args.objective),
         verify=not getattr(args, "no_verify", False),
         with_payload=getattr(args, "with_payload", False),
+        allow_unverified=getattr(args, "allow_unverified", False),
     )
 
 
@@ -788,7 +795,8 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         )
         return AnswerNeeded.exit_code
     if d.status == "unsatisfiable":
-        err.write(f"parmor: no robot can meet the request: {' + '.join(d.conflict)}\n")
+        why = f" ({d.note})" if d.note else ""
+        err.write(f"parmor: no robot can meet the request: {' + '.join(d.conflict)}{why}\n")
         return 1
     if args.out:
         err.write(f"parmor: wrote {args.out}: {', '.join(sorted(files))}\n")
@@ -906,7 +914,14 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         listed = f"{len(shown)} of {len(cands)}" if len(shown) < len(cands) else f"{len(cands)}"
         out.write(f"{listed} candidate(s)\n")
     if not cands:
-        err.write(f"parmor: no robot can meet the request: {' + '.join(conflict)}\n")
+        why = ""
+        limited = designer.over_limit(req) if not sol.candidates else ()
+        if limited:  # robots the module limit alone excludes: name them and the bus
+            from synth.conceptual import limit_note
+            from synth.pipeline import limit_source
+
+            why = f" ({limit_note(limited, limit_source(opts))})"
+        err.write(f"parmor: no robot can meet the request: {' + '.join(conflict)}{why}\n")
         return 1
     return 0
 

@@ -57,6 +57,13 @@ class Design:
     questions: tuple[Question, ...] = ()
     conflict: tuple[str, ...] = ()
     needed: tuple[str, ...] = ()
+    #: ability -> the abilities it is a subclass of, nearest first (short names), for the
+    #: chosen robot's abilities and the needed ones that have any: which behaviours serve
+    #: an ability (``gaits.base.serving``), written into the record for the bundle
+    ancestors: tuple[tuple[str, tuple[str, ...]], ...] = ()
+    #: the robots that would meet an unsatisfiable request but for their active module
+    #: limit: (robot type, its active modules, its limit)
+    over_limit: tuple[tuple[str, int, int | None], ...] = ()
 
 
 def suggest(word: str, options: Sequence[str]) -> str:
@@ -126,12 +133,42 @@ def query_for(kb: KnowledgeBase, req: Request) -> Query:
     return Query(requests, tuple(sorted(answers.items())), tuple(sorted(params.values())))
 
 
+def ability_ancestors(kb: KnowledgeBase, abilities: Sequence[str]) -> dict[str, tuple[str, ...]]:
+    """Each of ``abilities`` (short names) that has ability classes above it in the
+    ontology's taxonomy -> their short names, nearest first (``synth.bodyplan.ancestors``:
+    breadth first; classes that are no ability are passed through, not named): which
+    behaviours serve an ability with none of its own (``gaits.base.serving``)."""
+    from synth.bodyplan import ancestors
+
+    out: dict[str, tuple[str, ...]] = {}
+    for name in sorted(set(abilities)):
+        a = kb.ability(name)
+        if a is None:
+            continue
+        up = [kb.ability_of_kif(c) for c in ancestors(kb, a.kif)[1:]]
+        named = tuple(x.name for x in up if x is not None)
+        if named:
+            out[name] = named
+    return out
+
+
+def limit_note(over: Sequence[tuple[str, int, int | None]], bus: str | None = None) -> str:
+    """``"Octopod has 26 active modules, over the limit of 24 on the I2C bus"``: why the
+    robots ``over`` (``Designer.over_limit``) are no candidates; ``bus`` says where the
+    limit comes from (``pipeline.limit_source``; None: not known here)."""
+    where = f" {bus}" if bus else ""
+    return "; ".join(
+        f"{t} has {n} active modules, over the limit of {limit}{where}" for t, n, limit in over
+    )
+
+
 class Designer:
     """Runs the procedure on one grounded knowledge base; queries re-use the grounding."""
 
     def __init__(self, kb: KnowledgeBase, reasoner: Reasoner) -> None:
         self.kb = kb
         self.reasoner = reasoner
+        self._unlimited: Reasoner | None = None  # the reasoner without a module limit
 
     # -- names ------------------------------------------------------------------------
     def short(self, kif: str) -> str:
@@ -195,9 +232,41 @@ class Designer:
         names = {phrase.split(" above ")[0] for phrases in over.values() for phrase in phrases}
         return tuple(req.abilities) + tuple(f"{n}={v}" for n, v in req.params if n in names)
 
+    def ability_ancestors(self, abilities: Sequence[str]) -> dict[str, tuple[str, ...]]:
+        """:func:`ability_ancestors` in this designer's knowledge base."""
+        return ability_ancestors(self.kb, abilities)
+
+    def over_limit(self, req: Request) -> tuple[tuple[str, int, int | None], ...]:
+        """The robots that meet ``req`` but carry more active modules than their limit (the
+        catalog bus's, else the ontology's ``activeModuleLimit``) allows: (type, active
+        modules, limit), fewest modules first. The reasoner excludes them; one without the
+        limit finds them, and each one's limit is read as ``parmor explain`` reads it."""
+        if self._unlimited is None:  # grounded once, on the first refusal
+            self._unlimited = self.reasoner.unlimited()
+        sol = self._unlimited.solve(self.query(req))
+        out = []
+        for c in sol.candidates:
+            limit = self.describe(c.robot_type).module_limit
+            if limit is not None and c.active_total > limit:
+                out.append((c.robot_type, c.active_total, limit))
+        return tuple(out)
+
     # -- the procedure ----------------------------------------------------------------
     def step(self, req: Request) -> Design:
-        """Solve ``req``: designed, ambiguous (with the next question) or unsatisfiable."""
+        """Solve ``req``: designed, ambiguous (with the next question) or unsatisfiable.
+        A designed robot's record carries its abilities' ancestors (``ancestors``); an
+        unsatisfiable request names the robots its module limit alone excludes."""
+        d = self._step(req)
+        if d.chosen is not None:
+            names = [self.short(a) for a in d.chosen.abilities] + list(d.needed)
+            return replace(d, ancestors=tuple(self.ability_ancestors(names).items()))
+        if d.status == "unsatisfiable" and d.note is None:
+            over = self.over_limit(req)
+            if over:
+                return replace(d, over_limit=over, note=limit_note(over))
+        return d
+
+    def _step(self, req: Request) -> Design:
         q = self.query(req)
         physical = self.structural(req)
         sol = self.reasoner.solve(q)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import functools
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 from adron.errors import InfeasibleError, InputError
@@ -30,6 +30,9 @@ class StructureOptions:
     objective: tuple[str, ...] = ("mass", "cost")
     verify: bool = True
     with_payload: bool = False  # robot.urdf / robot.xml carry the payload (--with-payload)
+    #: accept a demanded ability that no behaviour serves, unsimulated (--allow-unverified;
+    #: otherwise the verification refuses it: ``synth.verify``)
+    allow_unverified: bool = False
 
 
 def parse_objective(text: str) -> tuple[str, ...]:
@@ -47,6 +50,17 @@ def bus_limit(path: str | None, conceptual: bool = False) -> int | None:
     if conceptual and not path:
         return None
     return _catalog(path, _stamp(path)).bus.module_limit
+
+
+def limit_source(opts: StructureOptions) -> str:
+    """Where the active module limit of a request with ``opts`` comes from, as a refusal
+    names it: the catalog's bus (``on the I2C bus (catalog 'ParMoR reference modules')``),
+    or the ontology's ``activeModuleLimit`` for a conceptual design without a catalog
+    (``bus_limit``)."""
+    if bus_limit(opts.catalog, opts.conceptual) is None:
+        return "set by the ontology (activeModuleLimit)"
+    cat = _catalog(opts.catalog, _stamp(opts.catalog))
+    return f"on the {cat.bus.name} bus (catalog {cat.name!r})"
 
 
 def _stamp(path: str | None) -> tuple[int, int] | None:
@@ -155,6 +169,15 @@ class Outcome:
                     *rec.get("notes", []),
                     *(f"dropped {a}: {why}" for a, why in sorted(v.dropped.items())),
                 ]
+            if v.accepted_unsimulated:
+                rec["notes"] = [
+                    *rec.get("notes", []),
+                    *(
+                        f"{a} is not simulated: no behaviour serves it (accepted with "
+                        "--allow-unverified)"
+                        for a in v.accepted_unsimulated
+                    ),
+                ]
         elif self.verify_skipped:
             rec["verified"] = {"simulated": False, "note": "not simulated (--no-verify)"}
         if self.infeasible:
@@ -166,6 +189,10 @@ class Outcome:
 def run(designer: Designer, req: Request, opts: StructureOptions) -> Outcome:
     """The conceptual step of ``req`` and, for a designed robot, its structure."""
     d = designer.step(req)
+    if d.over_limit:  # name the bus whose limit it is
+        from synth.conceptual import limit_note
+
+        d = replace(d, note=limit_note(d.over_limit, limit_source(opts)))
     if d.status != "designed":
         return Outcome(d)
     if opts.conceptual:

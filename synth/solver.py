@@ -1130,6 +1130,11 @@ class Reasoner:
             self.kb, self._rules, self._allow_scripts, focus=robot_type, bus_limit=self._bus_limit
         )
 
+    def unlimited(self) -> Reasoner:
+        """A reasoner over the same program with no active module limit (a bus of 2^30):
+        which robots a request's refusal owes to the limit alone."""
+        return Reasoner(self.kb, self._rules, self._allow_scripts, bus_limit=2**30)
+
     def _on(self, query: Query) -> set[str]:
         text = self._texts(query)
         missing = text - self._externals

@@ -65,6 +65,7 @@ from synth.assign import (
 )
 from synth.behaviour_loads import BehaviourCase, analyse
 from synth.chain_links import Chain, ChainLink, chain_tubes, serial_chains
+from synth.conceptual import ability_ancestors
 from synth.links import (
     Tube,
     TubeLimits,
@@ -412,6 +413,8 @@ class StructureDesigner:
         self.abilities = tuple(
             sorted((a.name if (a := kb.ability_of_kif(k)) else k) for k in candidate.abilities)
         )
+        # which behaviours serve them (the record's ability_ancestors)
+        self.ancestors = ability_ancestors(kb, self.abilities)
         #: the actuators (joint -> model) the behaviours are planned with (their speeds)
         self.actuator_sets: list[dict[str, str]] = []
         self.behaviour_notes: tuple[str, ...] = ()
@@ -520,6 +523,7 @@ class StructureDesigner:
             self.plan_values or self.values,
             self.abilities,
             speeds,
+            self.ancestors,
         )
 
     def _behaviour_cases(

@@ -291,7 +291,11 @@ def design_one(q: dict, designer, sopts, simulate: bool) -> dict:
         res["robot_type"] = d.chosen.robot_type if d.chosen else None
         res["abilities"] = list(rec.get("abilities") or [])
         res["mass_kg"] = rec.get("mass_kg")
-        if outcome.status == "designed":
+        if outcome.status == "designed" and outcome.structure is None:
+            # stayed conceptual: nothing was sized (or simulated), so nothing is accepted
+            res["status"] = "refused"
+            res["reason"] = "no structure: " + (outcome.note or "the design was not sized")
+        elif outcome.status == "designed":
             res["status"] = "accepted"
             res["reason"] = "; ".join(n for n in (d.note, outcome.note) if n)
         elif outcome.status == "ambiguous":

@@ -66,11 +66,13 @@ class Verification:
     rounds: int
     strengthened: dict[str, float]
     dropped: dict[str, str]
-    unsimulated: tuple[str, ...]  # abilities no behaviour simulates (sensing modules)
+    unsimulated: tuple[str, ...]  # abilities no behaviour serves (so none simulated)
     failure: str | None = None
+    #: demanded abilities that no behaviour serves, accepted with --allow-unverified
+    accepted_unsimulated: tuple[str, ...] = ()
 
     def record(self) -> dict:
-        return {
+        out = {
             "simulated": True,
             "rounds": self.rounds,
             "strengthened": {k: round(v, 6) for k, v in sorted(self.strengthened.items())},
@@ -78,6 +80,9 @@ class Verification:
             "not_simulated": list(self.unsimulated),
             "behaviors": list(self.behaviors),
         }
+        if self.accepted_unsimulated:
+            out["accepted_unsimulated"] = list(self.accepted_unsimulated)
+        return out
 
 
 def _floors(results: list[dict], record: dict) -> dict[str, float]:
@@ -123,7 +128,14 @@ def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Ou
     missing = _no_controller(designer, outcome)
     if missing is not None:
         return replace(outcome, infeasible=missing)
+    unserved = _unserved(designer, outcome)
+    if unserved and not opts.allow_unverified:
+        robot = outcome.design.chosen.robot_type if outcome.design.chosen else "the design"
+        return replace(outcome, infeasible=unserved_message(robot, unserved))
     out = _verified(designer, params, opts, outcome)
+    if unserved and out.verification is not None:
+        accepted = tuple(sorted(unserved))
+        out = replace(out, verification=replace(out.verification, accepted_unsimulated=accepted))
     if out.infeasible is None:
         return out
     hint = best_value(designer, params, opts, outcome)
@@ -147,6 +159,72 @@ def _no_controller(designer: Designer, outcome: Outcome) -> str | None:
             "design it with --no-verify for the sized bundle, unverified"
         )
     return None
+
+
+def served_abilities(record: Mapping, controller) -> dict[str, str | None]:
+    """Each ability of the design ``record`` (its ``abilities`` and ``needed``) -> the
+    ability whose simulated behaviour serves it (``gaits.base.serving`` over the record's
+    ``ability_ancestors``): a behaviour of ``controller``, or a sensing loop that
+    :mod:`program.sensing` simulates for it; None when nothing does."""
+    from gaits.base import serving
+    from program.sensing import simulated_abilities
+
+    offered = {spec.realises for spec in controller.behaviors.values()}
+    ancestors = record.get("ability_ancestors") or {}
+    # the sensing loops: those of the simulated sensing abilities with no simulated ancestor
+    sensed = set(simulated_abilities(record, controller.behaviors))
+    offered |= {a for a in sensed if not sensed.intersection(ancestors.get(a, ()))}
+    names = {*record.get("abilities", ()), *(record.get("needed") or ())}
+    return {a: serving(a, ancestors, offered) for a in sorted(names)}
+
+
+def demanded(record: Mapping) -> list[str]:
+    """The abilities a design must be able to do, so each must be simulated: the request's
+    ``needed`` ones (its abilities, the answers yes, and what the ontology's
+    ``requiredAbility`` rules add, e.g. orienting for an oval object); an ability the
+    chosen robot only has besides (a bonus) is not demanded."""
+    return sorted(set(record.get("needed") or record.get("request", {}).get("abilities", ())))
+
+
+def _unserved(designer: Designer, outcome: Outcome) -> dict[str, tuple[tuple[str, ...], list]]:
+    """The demanded abilities of ``outcome`` (:func:`demanded`) that no behaviour serves ->
+    (what would serve them: the ability and its ancestor abilities, the abilities that the
+    design's behaviours serve)."""
+    from export.record import design_record
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    record = design_record(outcome.design, designer.short, outcome.structure)
+    controller = controller_for(DesignGeometry.from_record(record))
+    served = served_abilities(record, controller)
+    offered = sorted(
+        {s for s in served.values() if s}
+        | {spec.realises for spec in controller.behaviors.values()}
+    )
+    ancestors = record.get("ability_ancestors") or {}
+    return {
+        a: ((a, *ancestors.get(a, ())), offered) for a in demanded(record) if served.get(a) is None
+    }
+
+
+def unserved_message(robot: str, unserved: Mapping[str, tuple[tuple[str, ...], list]]) -> str:
+    """Why the design of ``robot`` is refused: the demanded abilities no behaviour serves,
+    each with what would serve it."""
+    parts = []
+    for a, (would, offered) in sorted(unserved.items()):
+        kinds = (
+            f", or for an ability it is a kind of ({', '.join(would[1:])})," if would[1:] else ""
+        )
+        parts.append(
+            f"{a} is demanded but no behaviour serves it, so it cannot be simulated "
+            f"({robot}'s behaviours are for {', '.join(offered) or 'nothing'}); "
+            f"a behaviour for {a}{kinds} would serve it"
+        )
+    return "; ".join(parts) + (
+        "; design with --allow-unverified to accept it unsimulated"
+        if len(parts) == 1
+        else "; design with --allow-unverified to accept them unsimulated"
+    )
 
 
 def best_value(
@@ -226,7 +304,7 @@ def _verified(
     from export.verify import verify_files
     from gaits import controller_for
     from gaits.base import DesignGeometry
-    from program.sensing import simulated_abilities, verify_sensing
+    from program.sensing import verify_sensing
     from synth.structure import StructureDesigner
 
     floors: dict[str, float] = {}
@@ -261,21 +339,25 @@ def _verified(
         except InfeasibleError:
             break  # no stronger actuator: the failure below stands
         outcome = replace(outcome, structure=structure, calibration=None)
-    # which abilities no behaviour simulates: the controller alone tells (no model needed)
+    # which abilities no behaviour serves: the controller alone tells (no model needed)
     controller = controller_for(DesignGeometry.from_record(record))
-    sensed = set(simulated_abilities(record, controller.behaviors))
-    unsimulated = tuple(
-        a for a in controller.unbehaved(record.get("abilities", ())) if a not in sensed
-    )
+    served = served_abilities(record, controller)
+    unsimulated = tuple(a for a in record.get("abilities", ()) if served.get(a) is None)
     needed = set(record.get("needed") or record.get("abilities", ()))
+    # a behaviour fails the request when it serves a demanded ability (walking serves a
+    # demanded heavy-walking); else the abilities it serves are dropped
     dropped: dict[str, str] = {}
     failure = None
     for r in failing:
-        why = f"{r['behavior']} failed in simulation: {explain(r, r['verdict'])}"
-        if r["ability"] in needed:
+        mine = {r["ability"]} | {a for a, s in served.items() if s == r["ability"]}
+        through = sorted(mine & needed) if r["ability"] not in needed else []
+        serving = f" (serving {', '.join(through)})" if through else ""  # which demand
+        why = f"{r['behavior']}{serving} failed in simulation: {explain(r, r['verdict'])}"
+        if mine & needed:
             failure = failure or why
         else:
-            dropped.setdefault(r["ability"], why)
+            for a in sorted(mine):
+                dropped.setdefault(a, why)
     v = Verification(
         tuple(results),
         rounds,

@@ -117,7 +117,8 @@ def test_sensing_needs_a_steerable_behaviour() -> None:
 
 def test_design_verifies_sensing_abilities_where_it_can(cli) -> None:
     """A wheeled design's sensing abilities are simulated and recorded like its behaviours;
-    a hexapod's cannot be steered by a turn rate and stay ``not_simulated``."""
+    a legged design's that no sensing loop serves are refused when demanded, and stay
+    ``not_simulated`` with --allow-unverified."""
     import json
 
     r = cli("design", "driving", "line-tracking", "--json")
@@ -127,16 +128,27 @@ def test_design_verifies_sensing_abilities_where_it_can(cli) -> None:
     assert line["verdict"] == "ok" and line["ability"] == "line-tracking"
     assert line["line_progress_m"] >= 0.9 * line["planned_distance_m"]
     assert "line-tracking" not in v["not_simulated"]
-    r = cli(
-        "design",
-        "walking",
-        "line-tracking",
-        "--answer",
-        "grasping=no",
-        "--answer",
-        "rough-terrain-walking=no",
-        "--json",
-    )
+    # a legged design: where no sensing loop serves its demanded line-tracking (computed,
+    # as the verification computes it), it is refused unless --allow-unverified
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    legged = ("walking", "line-tracking", "--answer", "grasping=no")
+    legged += ("--answer", "rough-terrain-walking=no", "--json")
+    r = cli("design", *legged, "--no-verify")
+    assert r.code == 0, r.err
+    rec = json.loads(r.out)
+    controller = controller_for(DesignGeometry.from_record(rec))
+    simulated = "line-tracking" in sensing.simulated_abilities(rec, controller.behaviors)
+    r = cli("design", *legged)
+    if simulated:
+        assert r.code == 0, r.err
+        assert "line-tracking" not in json.loads(r.out)["verified"]["not_simulated"]
+        return
+    assert r.code == 1
+    assert "line-tracking is demanded but no behaviour serves it" in r.err, r.err
+    r = cli("design", *legged, "--allow-unverified")
     assert r.code == 0, r.err
     rec = json.loads(r.out)
     assert rec["verified"]["not_simulated"] == ["line-tracking"], rec["robot_type"]
+    assert rec["verified"]["accepted_unsimulated"] == ["line-tracking"]
