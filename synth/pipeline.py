@@ -30,6 +30,7 @@ class StructureOptions:
     objective: tuple[str, ...] = ("mass", "cost")
     verify: bool = True
     with_payload: bool = False  # robot.urdf / robot.xml carry the payload (--with-payload)
+    robustness: int = 0  # perturbed runs per behaviour (--robustness K; synth.robust)
 
 
 def parse_objective(text: str) -> tuple[str, ...]:

@@ -68,6 +68,7 @@ class Verification:
     dropped: dict[str, str]
     unsimulated: tuple[str, ...]  # abilities no behaviour simulates (sensing modules)
     failure: str | None = None
+    robust: dict | None = None  # the perturbed runs (synth.robust), None when not run
 
     def record(self) -> dict:
         return {
@@ -77,7 +78,7 @@ class Verification:
             "dropped": dict(sorted(self.dropped.items())),
             "not_simulated": list(self.unsimulated),
             "behaviors": list(self.behaviors),
-        }
+        } | ({"robust": self.robust} if self.robust is not None else {})
 
 
 def _floors(results: list[dict], record: dict) -> dict[str, float]:
@@ -227,6 +228,7 @@ def _verified(
     from gaits import controller_for
     from gaits.base import DesignGeometry
     from program.sensing import simulated_abilities, verify_sensing
+    from synth.robust import failing_runs, not_robust, robust_check
     from synth.structure import StructureDesigner
 
     floors: dict[str, float] = {}
@@ -242,9 +244,11 @@ def _verified(
         # the behaviours' trajectories, then the sensing abilities' closed loops
         results = verify_files(files) + verify_sensing(files)
         failing = [r for r in results if r["verdict"] != "ok"]
-        more = _floors(results, record)
+        # nominally passed: under the perturbations of synth.robust (--robustness K)
+        robust = None if failing else robust_check(designer, outcome, opts.robustness)
+        more = _floors(results + failing_runs(robust), record)
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
-        if not failing or not new or rounds >= MAX_ROUNDS:
+        if not (failing or not_robust(robust)) or not new or rounds >= MAX_ROUNDS:
             break
         floors |= new
         sizer = StructureDesigner(
@@ -276,6 +280,11 @@ def _verified(
             failure = failure or why
         else:
             dropped.setdefault(r["ability"], why)
+    for ability, why in not_robust(robust):
+        if ability in needed:
+            failure = failure or why
+        else:
+            dropped.setdefault(ability, why)
     v = Verification(
         tuple(results),
         rounds,
@@ -283,6 +292,7 @@ def _verified(
         dropped,
         unsimulated,
         failure,
+        robust,
     )
     out = replace(outcome, verification=v, bundle=files)
     if failure is not None:
