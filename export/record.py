@@ -368,7 +368,6 @@ def robust_markdown(verified: dict | None) -> list[str]:
             if w is not None:
                 unit_text = f" {unit}" if unit else ""
                 worst.append(f"{label} {w['value'] * scale:.3g}{unit_text} ({w['seed']})")
-                )
         v = nominal.get(b["behavior"], "ok")
         lines.append(
             f"| {b['behavior']} | {'ok' if v == 'ok' else 'failed'} | {b['passed']} of "
