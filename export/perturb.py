@@ -135,9 +135,9 @@ def _resolve(raw: Mapping[str, Any], source: str) -> dict[str, Any]:
         servos[model] = {"gears": entry["gears"], "deadband_share": dead / span_s}
     if "default" not in servos:
         raise InputError(f"{source}: missing key servo.default")
-    stream = get("perturbation", "stream")
+    stream = get("draw", "stream")
     if isinstance(stream, bool) or not isinstance(stream, int) or stream < 0:
-        raise InputError(f"{source}: perturbation.stream: expected a non-negative integer")
+        raise InputError(f"{source}: draw.stream: expected a non-negative integer")
     return {
         "stream": stream,
         "mass_spread": ratio("mass", "spread", 0.0, 0.9),
@@ -168,7 +168,7 @@ def _resolve(raw: Mapping[str, Any], source: str) -> dict[str, Any]:
         },
         "gears": gears,
         "servos": servos,
-        "compliance_scale": ratio("compliance", "scale", 0.0, 100.0),
+        "compliance_scale": ratio("compliance", "scale", 0.0, 1e6),
         "share": ratio("acceptance", "share", 0.0, 1.0),
         "default_k": int(ratio("acceptance", "default_k", 0, 1000)),
     }
@@ -198,8 +198,10 @@ def design_table(
 ) -> dict[str, Any]:
     """The perturbation table of one design (module docstring): the ranges resolved for the
     bodies and servos of its MJCF text ``xml``, its record and its ``catalog`` (the
-    material's modulus, the battery's voltage, each servo's travel)."""
-    r = ranges(overrides, getattr(catalog, "source", "catalog"))
+    material's modulus, the battery's voltage, each servo's travel), with the catalog's
+    ``[perturbation]`` table and then ``overrides`` over the shipped ranges."""
+    own = json.loads(catalog.perturbation) if getattr(catalog, "perturbation", "") else {}
+    r = ranges(_merge(own, overrides or {}), getattr(catalog, "source", "catalog"))
     root = ET.fromstring(xml)
     acts = {a.model: a for a in catalog.actuators}
     joints = {j["name"]: j for j in record.get("joints", ())}
@@ -370,8 +372,8 @@ def perturbed_xml(
         children = list(body)
         for joint in children:
             name = joint.get("name")
-            if joint.tag != "joint" or name not in p["play_rad"]:
-                continue
+            if joint.tag != "joint" or not p["play_rad"].get(name):
+                continue  # no play: no hinge
             half = p["play_rad"][name] / 2
             attrs = {
                 "name": name + PLAY_SUFFIX,
