@@ -274,8 +274,8 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="K",
         help="also run every behaviour under K seeded perturbations (masses, floor friction "
         "and slope, servo play, bus latency, battery at cut-off, link compliance; "
-        "export/perturb.toml) and accept the design only when each passes in 7 of 8 of "
-        "them; --robustness alone: K = 8; default 0 (off)",
+        "export/perturb.toml) and accept the design only when each passes in all of them "
+        "(the share in that file); --robustness alone: K = 8; default 0 (off)",
     )
     p.add_argument(
         "--with-payload",
