@@ -35,7 +35,6 @@ text, then compiled as any bundle model):
 
 from __future__ import annotations
 
-import copy
 import json
 import math
 import tomllib
@@ -75,11 +74,21 @@ def ranges(overrides: Mapping[str, Any] | None = None, where: str = "catalog") -
     raw = tomllib.loads(text)
     source = TABLE_FILE
     if overrides:
-        for key in overrides:
+        for key, value in overrides.items():
             if key not in raw:
                 raise InputError(
                     f"{where}: [perturbation] unknown key {key!r} (one of {', '.join(sorted(raw))})"
                 )
+            if not isinstance(value, Mapping):
+                raise InputError(f"{where}: [perturbation] {key}: expected a table")
+            if key in ("servo", "gears"):
+                continue  # actuator models and gear materials of the user's own
+            for sub in value:
+                if sub not in raw[key]:
+                    raise InputError(
+                        f"{where}: [perturbation] unknown key {key}.{sub} "
+                        f"(one of {', '.join(sorted(raw[key]))})"
+                    )
         raw = _merge(raw, overrides)
         source = f"{where}: [perturbation]"
     return _resolve(raw, source)
@@ -340,7 +349,7 @@ def perturbed_xml(
 ) -> str:
     """The MJCF text ``xml`` with perturbation ``p`` of ``table`` applied (module docstring;
     ``play``: add the servos' play hinges)."""
-    root = ET.fromstring(copy.copy(xml))
+    root = ET.fromstring(xml)
     option = root.find("option")
     if option is None:
         option = ET.SubElement(root, "option")
