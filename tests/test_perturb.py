@@ -373,3 +373,95 @@ def test_a_bad_perturbation_table_in_the_catalog_is_exit_2(kif, tmp_path: Path, 
     assert r.code == 2, r.err
     assert "[perturbation]: floor.max_slope" in r.err and "Traceback" not in r.err
     assert not out.exists()
+
+
+# --- the design loop's use of the perturbed runs (synth/robust.py), the runs faked --------
+
+
+def _robust(behaviors: list[tuple[str, str, list[dict]]]) -> dict:
+    """A verify_robust answer: (behaviour, ability, each run's figures) -> its record."""
+    out = []
+    for name, ability, runs in behaviors:
+        failed = [r for r in runs if r["verdict"] != "ok"]
+        out.append(
+            {
+                "behavior": name,
+                "ability": ability,
+                "passed": len(runs) - len(failed),
+                "runs": len(runs),
+                "robust": not failed,
+                "worst": {},
+                "failures": [
+                    {
+                        "seed": r["seed"],
+                        "verdict": r["verdict"],
+                        "why": ", ".join(r["verdict"]),
+                        "perturbation": f"seed {r['seed']} (...)",
+                    }
+                    for r in failed
+                ],
+                "figures": runs,
+            }
+        )
+    return {"k": 2, "required": 2, "share": 1.0, "perturbations": [], "behaviors": out}
+
+
+def _run(seed: int, verdict="ok", **kw) -> dict:
+    return {"seed": seed, "verdict": verdict, "saturated_fraction": 0.0} | kw
+
+
+def test_a_saturated_perturbed_run_gets_a_stronger_actuator(kif, parts, cli, monkeypatch):
+    """The sizing loop strengthens a joint that saturated in a perturbed run, as it does
+    for a nominal one, and verifies again."""
+    import export.verify
+
+    joint = next(j["name"] for j in parts[1]["joints"] if j["group"] != "gripper")
+    answers = [
+        _robust(
+            [
+                (
+                    "pick-and-place",
+                    "pick-and-place",
+                    [
+                        _run(
+                            1, ["saturated"], saturated_fraction=0.3, saturated_joints={joint: 0.3}
+                        ),
+                        _run(2),
+                    ],
+                )
+            ]
+        ),  # fmt: skip
+        _robust([("pick-and-place", "pick-and-place", [_run(1), _run(2)])]),
+    ]
+    calls = []
+
+    def fake(files, k, table, behaviors=None):
+        calls.append(k)
+        return answers[min(len(calls), len(answers)) - 1]
+
+    monkeypatch.setattr(export.verify, "verify_robust", fake)
+    r = cli("design", *REQUEST, "--ontology", str(kif), "--robustness", "2", "--json")
+    assert r.code == 0, r.err
+    rec = json.loads(r.out)
+    assert calls == [2, 2] and rec["verified"]["rounds"] == 2
+    assert set(rec["verified"]["strengthened"]) == {joint}
+    assert rec["verified"]["robust"]["behaviors"][0]["passed"] == 2
+
+
+def test_a_bonus_ability_not_robust_is_dropped(kif, cli, monkeypatch):
+    import export.verify
+
+    answer = _robust(
+        [
+            ("pick-and-place", "pick-and-place", [_run(1), _run(2)]),
+            ("positioning", "positioning", [_run(1), _run(2, ["placing"])]),
+        ]
+    )
+    monkeypatch.setattr(export.verify, "verify_robust", lambda *a, **kw: answer)
+    r = cli("design", *REQUEST, "--ontology", str(kif), "--robustness", "2", "--json")
+    assert r.code == 0, r.err
+    rec = json.loads(r.out)
+    assert "positioning" not in rec["abilities"] and "pick-and-place" in rec["abilities"]
+    assert "dropped positioning: positioning is not robust: passed 1 of 2 perturbed runs" in (
+        " ".join(rec["notes"])
+    )
