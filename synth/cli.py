@@ -780,6 +780,8 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from synth.limits import stage
     from synth.pipeline import run
 
+    if args.no_verify and args.robustness:
+        raise InputError("--robustness runs the verification under perturbations: drop --no-verify")
     if args.out is not None:
         from export.bundle import check_out
 

@@ -346,6 +346,7 @@ def test_design_records_a_robust_design_byte_for_byte(kif, tmp_path: Path, cli) 
         (("design", "driving", "--robustness", "-1"), "--robustness: '-1': expected a number"),
         (("design", "driving", "--robustness", "abc"), "'abc': expected a whole number"),
         (("design", "driving", "--robustness", "65"), "from 0 to 64"),
+        (("design", "driving", "--robustness", "--no-verify"), "drop --no-verify"),
     ],
 )
 def test_bad_robustness_is_exit_2(cli, argv, message) -> None:
