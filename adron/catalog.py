@@ -15,6 +15,7 @@ its ATtiny85 board and its printed housing with dovetail faces (see catalog.toml
 from __future__ import annotations
 
 import difflib
+import json
 import math
 import re
 from collections.abc import Collection, Iterable
@@ -258,6 +259,9 @@ class Catalog:
     sha256: str = ""
     #: the shipped catalog's name ("default", "dynamixel"), or "" for a user's file
     shipped: str = ""
+    #: the catalog's [perturbation] table as JSON text ("" when it has none): overrides of
+    #: export/perturb.toml's ranges, read and checked by export.perturb
+    perturbation: str = ""
 
     def printer_bed(self, printer: str) -> Size | None:
         """The build volume (x, y, z) m of ``printer``: "" is the catalog's own printer
@@ -391,6 +395,7 @@ _TOP_KEYS = (
     "material",
     "design",
     "bus",
+    "perturbation",
 )
 _BUS_KEYS = ("name", "protocol", "first_address", "last_address")
 _BUS_OPTIONAL = ("device_limit", "address_word", "address_format")
@@ -1011,6 +1016,17 @@ def _cached_catalog(path: Path | None) -> Catalog | None:
     return cat if isinstance(cat, Catalog) else None
 
 
+def _perturbation(doc: dict[str, Any], source: str) -> str:
+    """The [perturbation] table as JSON text ("" without one); its keys and values are
+    export.perturb's to check (``ranges``)."""
+    if "perturbation" not in doc:
+        return ""
+    table = doc["perturbation"]
+    if not isinstance(table, dict):
+        raise InputError(f"{source}: perturbation: expected a table, got {_kind(table)}")
+    return json.dumps(table, sort_keys=True)
+
+
 def _build(doc: dict[str, Any], source: str) -> Catalog:
     """The validated catalog of a (merged) TOML document."""
     name, currency, version = _header(_section(doc, "catalog", source))
@@ -1071,6 +1087,7 @@ def _build(doc: dict[str, Any], source: str) -> Catalog:
         tyre=tyre,
         printers=tuple(printers),
         bus=bus,
+        perturbation=_perturbation(doc, source),
     )
     for cls, what in ((MAIN_CLASS, "the main module"), (BATTERY_CLASS, "a battery")):
         if not catalog.modules_of(cls):

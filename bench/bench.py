@@ -24,6 +24,7 @@ from bench_onto import bench_onto  # noqa: E402
 from bench_parse import bench_parse  # noqa: E402
 from bench_ray import bench_ray  # noqa: E402
 from bench_rnea import bench_rnea  # noqa: E402
+from bench_robust import bench_robust  # noqa: E402
 from bench_sim import bench_sim  # noqa: E402
 from bench_simspeed import bench_simspeed  # noqa: E402
 from bench_sizing import bench_sizing  # noqa: E402
@@ -194,6 +195,7 @@ def main() -> int:
         bench_process(),
         bench_startup(),
         bench_verified(),
+        bench_robust(),
         bench_ray(),
     ]
     for lines in sections:

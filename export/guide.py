@@ -4,6 +4,7 @@ order and bus addresses) and which file to open with what. Pure: returns the tex
 from __future__ import annotations
 
 from export.model3d import Assembly
+from export.record import robust_markdown
 
 FILES = (
     (
@@ -206,6 +207,9 @@ def guide_markdown(
     lines += _piece_lines(printed, pictures)
     lines += ["", "## Assemble", ""]
     lines += assembly_steps(r, asm)
+    robust = robust_markdown(r.get("verified"))
+    if robust:
+        lines += ["", *robust]
     lines += [
         "",
         "Made by parmor from the ADROn ontology. Parameters: "

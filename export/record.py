@@ -322,7 +322,82 @@ def verification_text(verified: dict | None, indent: str = "  ") -> str:
             f"{indent}  accepted unsimulated (--allow-unverified): "
             f"{', '.join(verified['accepted_unsimulated'])}"
         )
+    robust = verified.get("robust")
+    if robust:
+        out.append(
+            f"{indent}robust:     {robust['k']} perturbed runs per behaviour, each must pass "
+            f"{robust['required']} (parmor simulate DIR --behavior NAME --perturb SEED)"
+        )
+        for b in robust["behaviors"]:
+            verdict = "ok" if b["robust"] else "FAILED"
+            line = f"{indent}  {b['behavior']:<22} {verdict:<8} passed {b['passed']} of {b['runs']}"
+            seeds = ", ".join(str(f["seed"]) for f in b["failures"])
+            if seeds:
+                line += f"; failed at seed {seeds}"
+            out.append(line)
     return "\n".join(out) + "\n"
+
+
+#: The worst figures of a robust verification the bundle's README shows (key -> label,
+#: scale, unit), where a behaviour has them.
+ROBUST_SHOWN = (
+    ("saturated_fraction", "saturated", 100, "%"),
+    ("max_torque_ratio", "torque / stall", 1, ""),
+    ("min_height_ratio", "lowest height", 1, "x standing"),
+    ("max_tilt_rad", "tilt", 180 / math.pi, "deg"),
+    ("distance_ratio", "distance", 1, "x planned"),
+    ("heading_error_rad", "heading error", 180 / math.pi, "deg"),
+    ("final_pose_error_m", "pose error", 1000, "mm"),
+    ("drift_m", "drift", 1000, "mm"),
+    ("placing_error_m", "placing error", 1000, "mm"),
+    ("orientation_error_rad", "orientation error", 180 / math.pi, "deg"),
+)
+
+
+def robust_markdown(verified: dict | None) -> list[str]:
+    """The bundle README's section on a robust verification (``parmor design --robustness
+    K``): per behaviour the nominal verdict, passed k of K, each worst figure with the seed
+    that gave it, and the perturbations drawn. Empty without robust runs."""
+    robust = verified.get("robust") if verified else None
+    if not robust:
+        return []
+    nominal = {b["behavior"]: b["verdict"] for b in verified.get("behaviors", ())}
+    lines = ["## Verified in simulation", ""]
+    lines += [
+        f"Every behaviour ran in MuJoCo on `robot.xml` (default parameters) on the nominal "
+        f"model and under {robust['k']} seeded perturbations (masses, floor friction and "
+        f"slope, servo backlash and dead band, bus latency, battery at its low cut-off, "
+        f"link compliance: `design.json` `verified.robust.table`); a behaviour must pass "
+        f"{robust['required']} of them. Replay one: `parmor simulate . --behavior NAME "
+        f"--perturb SEED`.",
+        "",
+        "| behaviour | nominal | perturbed: passed | worst figures (seed) |",
+        "|---|---|---|---|",
+    ]
+    for b in robust["behaviors"]:
+        worst = []
+        for key, label, scale, unit in ROBUST_SHOWN:
+            w = b["worst"].get(key)
+            if w is not None:
+                unit_text = f" {unit}" if unit else ""
+                worst.append(f"{label} {w['value'] * scale:.3g}{unit_text} ({w['seed']})")
+        v = nominal.get(b["behavior"], "ok")
+        lines.append(
+            f"| {b['behavior']} | {'ok' if v == 'ok' else 'failed'} | {b['passed']} of "
+            f"{b['runs']}{'' if b['robust'] else ' (not robust)'} | {'; '.join(worst)} |"
+        )
+    lines += [
+        "",
+        "| seed | friction | slope (deg) | latency (ms) | battery | masses | play (deg) |",
+    ]
+    lines.append("|---|---|---|---|---|---|---|")
+    for p in robust["perturbations"]:
+        lines.append(
+            f"| {p['seed']} | x{p['friction_scale']:g} | {p['slope_deg']:g} | "
+            f"{p['latency_ms']:g} | x{p['battery_scale']:g} | x{p['mass_scale'][0]:g}-"
+            f"{p['mass_scale'][1]:g} | {p['max_play_deg']:g} |"
+        )
+    return [*lines, ""]
 
 
 def design_text(d: Design, short: Short, structure: Structure | None = None) -> str:

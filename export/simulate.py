@@ -449,6 +449,8 @@ def simulate(
     data=None,
     observe: Callable[[float, object], None] | None = None,
     observe_every: float | None = None,
+    latency_s: float = 0.0,
+    command_period_s: float = 0.0,
 ) -> SimResult:
     """Run ``traj`` on ``model`` (a mujoco.MjModel) for ``seconds`` (default: the
     trajectory's duration; past its end the robot holds its final commanded state: its
@@ -461,7 +463,10 @@ def simulate(
     direction), given for a start at yaw 0, is turned by the yaw the robot starts with.
     ``observe(t, data)`` is called every ``observe_every`` s (rounded to whole physics
     steps; default: after every step) and after the last step, ``t`` s since this run
-    began. ``progress(fraction)`` is called every :data:`CHUNK_STEPS` steps."""
+    began. ``progress(fraction)`` is called every :data:`CHUNK_STEPS` steps.
+
+    ``latency_s``, ``command_period_s`` (a perturbed run, :mod:`export.perturb`): the
+    servos get the references of ``latency_s`` earlier, held for each command period."""
     import mujoco
 
     from export.verdict import COLLAPSE_HEIGHT, COLLAPSE_TILT, SATURATION_LEVEL, judge
@@ -534,12 +539,17 @@ def simulate(
         # commanded state: the last pose, its wheels stopped
         ref = np.empty((n, len(columns)))
         ctrl = np.tile(held, (n, 1))
-        past = grid >= traj.times[-1]
+        sent = grid - latency_s  # when the command a servo acts on was sent
+        if command_period_s > 0:
+            sent = np.floor(sent / command_period_s + 1e-9) * command_period_s
+        past = sent >= traj.times[-1]
         for c, (k, a, velocity) in enumerate(columns):
             ref[:, c] = np.interp(grid, traj.times, traj.positions[:, k])
             if velocity:
-                ctrl[:, a] = np.interp(grid, traj.times, traj.velocities[:, k])
+                ctrl[:, a] = np.interp(sent, traj.times, traj.velocities[:, k])
                 ctrl[past, a] = 0.0
+            elif latency_s or command_period_s:
+                ctrl[:, a] = np.interp(sent, traj.times, traj.positions[:, k])
             else:
                 ctrl[:, a] = ref[:, c]
 

@@ -154,9 +154,11 @@ def _simulate(
     traj: Trajectory,
     seconds: float | None = None,
     progress: Callable[[float], None] | None = None,
+    perturbation: Mapping | None = None,
 ) -> SimResult:
     """``traj`` of ``controller`` run on ``model`` and judged (``export.simulate.simulate``
-    told whether the robot can fall and where its gripper is)."""
+    told whether the robot can fall and where its gripper is; for a ``perturbation`` of
+    :mod:`export.perturb`, its command latency and control period)."""
     from export.simulate import simulate
 
     tmpl = controller.template
@@ -170,6 +172,8 @@ def _simulate(
         can_fall=bool(tmpl.feet or tmpl.wheels),
         end_effector=str(body) if body is not None else None,
         progress=progress,
+        latency_s=float(perturbation["latency_s"]) if perturbation else 0.0,
+        command_period_s=float(perturbation["control_period_s"]) if perturbation else 0.0,
     )
 
 
@@ -262,3 +266,230 @@ def verify_bundle(folder: str | Path, behaviors: Sequence[str] | None = None) ->
     """:func:`verify_model` on a bundle folder written by ``parmor design --out``."""
     record, model = load_bundle(folder)
     return verify_model(record, model, behaviors)
+
+
+# --- robust verification: the behaviours under seeded perturbations (export.perturb) -------
+
+#: Figures of a run whose worst value over the perturbed runs a record keeps: key -> "max"
+#: (larger is worse) or "min"; ``distance_ratio`` (distance / planned, worst: farthest from
+#: 1) and ``heading_error_rad`` (|heading - planned|) are derived (:func:`_criteria`).
+WORST = {
+    "saturated_fraction": "max",
+    "demand_ratio_max": "max",
+    "max_torque_ratio": "max",
+    "min_height_ratio": "min",
+    "max_tilt_rad": "max",
+    "distance_ratio": "dev",
+    "heading_error_rad": "max",
+    "final_pose_error_m": "max",
+    "drift_m": "max",
+    "tracking_error": "max",
+    "placing_error_m": "max",
+    "orientation_error_rad": "max",
+    "line_lost_s": "max",
+    "line_progress_m": "min",
+    "obstacle_contact_s": "max",
+}
+
+
+def _criteria(fig: Mapping) -> dict[str, float]:
+    """The :data:`WORST` figures of one run (those it has)."""
+    out = {k: float(fig[k]) for k in WORST if fig.get(k) is not None}
+    planned = fig.get("planned_distance_m")
+    if planned and fig.get("distance_m") is not None:
+        out["distance_ratio"] = float(fig["distance_m"]) / float(planned)
+    if fig.get("planned_heading_rad") is not None and fig.get("heading_rad") is not None:
+        out["heading_error_rad"] = abs(
+            float(fig["heading_rad"]) - float(fig["planned_heading_rad"])
+        )
+    return out
+
+
+def _worse(kind: str, a: float, b: float) -> bool:
+    """Is ``a`` worse than ``b`` for a figure of kind ``kind`` (:data:`WORST`)?"""
+    if kind == "min":
+        return a < b
+    if kind == "dev":
+        return abs(a - 1.0) > abs(b - 1.0)
+    return a > b
+
+
+def required_passes(k: int, share: float) -> int:
+    """Perturbed runs of K a behaviour must pass: ceil(share x K) (at least 1 when K > 0)."""
+    import math
+
+    return min(k, max(1 if k else 0, math.ceil(share * k - 1e-9)))
+
+
+def bundle_parts(files: Mapping[str, str | bytes]) -> tuple[dict, str, dict[str, bytes]]:
+    """(record, robot.xml text carrying the payload as ``export.simulate`` loads it, mesh
+    file name -> bytes) of a bundle held in memory."""
+    from export.simulate import carrying_payload, check_agrees
+
+    def text(v: str | bytes) -> str:
+        return v.decode("utf-8") if isinstance(v, bytes) else v
+
+    record = readers.parse_json(text(files["design.json"]), "design.json")
+    xml = text(files["robot.xml"])
+    check_agrees(xml, record)
+    xml = carrying_payload(xml, record)
+    meshes = {
+        Path(k).name: (v.encode() if isinstance(v, str) else v)
+        for k, v in sorted(files.items())
+        if k.endswith(".stl")
+    }
+    return record, xml, meshes
+
+
+def folder_files(folder: str | Path) -> dict[str, bytes]:
+    """design.json, robot.xml and meshes/*.stl of a bundle folder (what a run reads)."""
+    folder = Path(folder)
+    files = {f"meshes/{p.name}": p.read_bytes() for p in sorted((folder / "meshes").glob("*.stl"))}
+    for name in ("design.json", "robot.xml"):
+        files[name] = (folder / name).read_bytes()
+    return files
+
+
+def recorded_table(record: Mapping) -> dict:
+    """The perturbation table a design was verified with (``verified.robust.table``);
+    InputError when the record has none (designed with --robustness 0 or --no-verify)."""
+    robust = (record.get("verified") or {}).get("robust") if isinstance(record, Mapping) else None
+    table = robust.get("table") if isinstance(robust, Mapping) else None
+    if not isinstance(table, Mapping):
+        raise InputError(
+            "design.json: verified.robust.table is missing: the design was not verified under "
+            "perturbation (design it with 'parmor design ... --robustness K --out DIR')"
+        )
+    return dict(table)
+
+
+def run_perturbed(
+    files: Mapping[str, str | bytes],
+    name: str,
+    seed: int,
+    params: Mapping[str, object] | None = None,
+    seconds: float | None = None,
+    table: Mapping | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> tuple[Trajectory, SimResult, dict]:
+    """Behaviour ``name`` of a bundle run under its perturbation ``seed`` (the record's
+    table unless ``table`` is given): (trajectory, judged result, the perturbation). The
+    controller and its plan are the nominal model's (what the robot's program knows); the
+    robot it drives is perturbed."""
+    from export.mjcf import load_mjcf
+    from export.perturb import draw, perturbed_model
+
+    record, xml, meshes = bundle_parts(files)
+    table = recorded_table(record) if table is None else table
+    try:
+        p = draw(table, seed)
+        model = perturbed_model(xml, meshes, table, p)
+    except (KeyError, TypeError, ValueError) as e:
+        raise InputError(f"design.json: verified.robust.table: cannot be applied: {e}") from None
+    controller = controller_for_model(record, load_mjcf(xml, meshes))
+    traj = controller.run(name, **dict(params or {}))
+    return traj, _simulate(model, controller, traj, seconds, progress, p), p
+
+
+def verify_robust(
+    files: Mapping[str, str | bytes],
+    k: int,
+    table: Mapping,
+    behaviors: Sequence[str] | None = None,
+) -> dict:
+    """Every listed behaviour of a bundle (default parameters) run under the perturbations
+    1..``k`` of ``table`` (:mod:`export.perturb`) and judged: the record's
+    ``verified.robust``. A behaviour is robust when it passes at least
+    :func:`required_passes` of its runs.
+
+    The plans are the nominal model's, made once; behaviours with the same plan are run
+    once per perturbation (as :func:`verify_model`); the K x runs go on
+    ``VERIFY_THREADS`` threads (MuJoCo steps without Python's lock). The results do not
+    depend on the threads."""
+    import dataclasses
+    from concurrent.futures import ThreadPoolExecutor
+
+    from export.mjcf import load_mjcf
+    from export.perturb import describe, draw, perturbed_model, summary
+    from export.verdict import explain
+
+    record, xml, meshes = bundle_parts(files)
+    controller = controller_for_model(record, load_mjcf(xml, meshes))
+    names = controller.listed(record.get("abilities", ())) if behaviors is None else list(behaviors)
+    trajs = [controller.run(n) for n in names]
+    same: dict[bytes, int] = {}
+    first = [same.setdefault(_plan_digest(t), i) for i, t in enumerate(trajs)]
+    runs = sorted(set(first))
+    seeds = list(range(1, k + 1))
+    perturbations = {s: draw(table, s) for s in seeds}
+    models = {s: perturbed_model(xml, meshes, table, perturbations[s]) for s in seeds}
+    jobs = [(s, r) for s in seeds for r in runs]
+
+    def one(job: tuple[int, int]) -> SimResult:
+        s, r = job
+        return _simulate(models[s], controller, trajs[r], None, None, perturbations[s])
+
+    threads = min(VERIFY_THREADS, len(jobs), os.cpu_count() or 1)
+    if threads > 1:
+        with ThreadPoolExecutor(threads) as pool:
+            done = dict(zip(jobs, pool.map(one, jobs), strict=True))
+    else:
+        done = {job: one(job) for job in jobs}
+    need = required_passes(k, float(table["share"]))
+    out = []
+    for i, n in enumerate(names):
+        figs = []
+        for s in seeds:
+            result = dataclasses.replace(done[(s, first[i])], behavior=trajs[i].behavior)
+            figs.append({"seed": s} | figures(trajs[i], result))
+        worst: dict[str, dict] = {}
+        for fig in figs:
+            for key, value in _criteria(fig).items():
+                w = worst.get(key)
+                if w is None or _worse(WORST[key], value, w["value"]):
+                    worst[key] = {"value": float(f"{value:.6g}"), "seed": fig["seed"]}
+        failed = [f for f in figs if f["verdict"] != "ok"]
+        passed = len(figs) - len(failed)
+        entry = {
+            "behavior": n,
+            "ability": controller.behaviors[n].realises,
+            "passed": passed,
+            "runs": len(figs),
+            "robust": passed >= need,
+            "worst": dict(sorted(worst.items())),
+            "failures": [
+                {
+                    "seed": f["seed"],
+                    "verdict": f["verdict"],
+                    "why": explain(f, f["verdict"]),
+                    "perturbation": describe(perturbations[f["seed"]]),
+                }
+                for f in failed
+            ],
+            "figures": figs,
+        }
+        out.append(entry)
+    return {
+        "k": k,
+        "required": need,
+        "share": float(table["share"]),
+        "perturbations": [summary(perturbations[s]) for s in seeds],
+        "behaviors": out,
+        "table": dict(table),
+    }
+
+
+def robust_failure(robust: Mapping) -> dict[str, str]:
+    """Behaviour -> why it is not robust (``verify_robust``'s record): passed k of K, the
+    perturbation that broke it worst (most criteria failed, then the lowest seed) and its
+    figures against the thresholds."""
+    out = {}
+    for b in robust.get("behaviors", ()):
+        if b["robust"]:
+            continue
+        worst = max(b["failures"], key=lambda f: (len(f["verdict"]), -f["seed"]))
+        out[b["behavior"]] = (
+            f"{b['behavior']} is not robust: passed {b['passed']} of {b['runs']} perturbed runs "
+            f"(needs {robust['required']}); {worst['perturbation']} broke it: {worst['why']}"
+        )
+    return out

@@ -173,6 +173,24 @@ def _limit_value(kind: type):
     return parse
 
 
+#: Most perturbed runs per behaviour ``--robustness`` takes; a seed's largest value.
+MAX_ROBUSTNESS = 64
+MAX_SEED = 2**31 - 1
+
+
+def _whole(name: str, high: int):
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number") from None
+        if not 0 <= v <= high:
+            raise argparse.ArgumentTypeError(f"{text!r}: expected {name} from 0 to {high}")
+        return v
+
+    return parse
+
+
 def _request_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "abilities",
@@ -259,6 +277,18 @@ def build_parser() -> argparse.ArgumentParser:
         help="your printer: its build volume (e.g. 180x180x180mm) or a printer of the "
         "catalog by name; a printed part too big for it is turned or split into pieces "
         "joined by dovetails (print/<piece>.stl and .3mf)",
+    )
+    p.add_argument(
+        "--robustness",
+        type=_whole("a number of runs", MAX_ROBUSTNESS),
+        nargs="?",
+        const=-1,
+        default=0,
+        metavar="K",
+        help="also run every behaviour under K seeded perturbations (masses, floor friction "
+        "and slope, servo play, bus latency, battery at cut-off, link compliance; "
+        "export/perturb.toml) and accept the design only when each passes in all of them "
+        "(the share in that file); --robustness alone: K = 8; default 0 (off)",
     )
     p.add_argument(
         "--with-payload",
@@ -360,6 +390,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="a behaviour parameter, e.g. --set v=0.2 (repeatable)",
     )
     p.add_argument("--gait", metavar="NAME", help="shortcut for --set gait=NAME")
+    p.add_argument(
+        "--perturb",
+        type=_whole("a seed", MAX_SEED),
+        metavar="SEED",
+        help="run the robot under perturbation SEED of the table it was verified with "
+        "(design.json verified.robust; seeds 1..K are the verification's runs)",
+    )
     p.add_argument("--plot", action="store_true", help="write PNG plots of the run into DIR/plots/")
     _json_option(p)
     _limit_options(p, size=False, memory="of this process")
@@ -738,7 +775,18 @@ def _options(args: argparse.Namespace):
         verify=not getattr(args, "no_verify", False),
         with_payload=getattr(args, "with_payload", False),
         allow_unverified=getattr(args, "allow_unverified", False),
+        robustness=_robustness(getattr(args, "robustness", 0)),
     )
+
+
+def _robustness(k: int) -> int:
+    """``--robustness``'s K: -1 (the option alone) is the table's default
+    (``export/perturb.toml``, ``[acceptance] default_k``)."""
+    if k >= 0:
+        return k
+    from export.perturb import ranges
+
+    return int(ranges()["default_k"])
 
 
 def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -746,6 +794,8 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from synth.limits import stage
     from synth.pipeline import run
 
+    if args.no_verify and args.robustness:
+        raise InputError("--robustness runs the verification under perturbations: drop --no-verify")
     if args.out is not None:
         from export.bundle import check_out
 
@@ -1235,14 +1285,29 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                 step(int(fraction * 100) + 1, f"simulating {args.behavior}")
 
         with stage("simulate"):
-            traj, result = run_behavior(
-                model, controller, args.behavior, params, args.seconds, progress
-            )
+            if args.perturb is None:
+                traj, result = run_behavior(
+                    model, controller, args.behavior, params, args.seconds, progress
+                )
+            else:
+                from export.perturb import summary
+                from export.verify import folder_files, run_perturbed
+
+                traj, result, drawn = run_perturbed(
+                    folder_files(folder),
+                    args.behavior,
+                    args.perturb,
+                    params,
+                    args.seconds,
+                    progress=progress,
+                )
     except (ValueError, KeyError) as e:
         raise InputError(e.args[0] if isinstance(e, KeyError) and e.args else str(e)) from None
     if progress is not None:
         step(None, "")
     rec = figures(traj, result)
+    if args.perturb is not None:
+        rec["perturbation"] = summary(drawn)
     if args.plot:
         from export.plots import write_plots
 

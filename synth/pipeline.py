@@ -33,6 +33,7 @@ class StructureOptions:
     #: accept a demanded ability that no behaviour serves, unsimulated (--allow-unverified;
     #: otherwise the verification refuses it: ``synth.verify``)
     allow_unverified: bool = False
+    robustness: int = 0  # perturbed runs per behaviour (--robustness K; synth.robust)
 
 
 def parse_objective(text: str) -> tuple[str, ...]:

@@ -70,6 +70,7 @@ class Verification:
     failure: str | None = None
     #: demanded abilities that no behaviour serves, accepted with --allow-unverified
     accepted_unsimulated: tuple[str, ...] = ()
+    robust: dict | None = None  # the perturbed runs (synth.robust), None when not run
 
     def record(self) -> dict:
         out = {
@@ -82,6 +83,8 @@ class Verification:
         }
         if self.accepted_unsimulated:
             out["accepted_unsimulated"] = list(self.accepted_unsimulated)
+        if self.robust is not None:
+            out["robust"] = self.robust
         return out
 
 
@@ -305,6 +308,7 @@ def _verified(
     from gaits import controller_for
     from gaits.base import DesignGeometry
     from program.sensing import verify_sensing
+    from synth.robust import failing_runs, not_robust, robust_check
     from synth.structure import StructureDesigner
 
     floors: dict[str, float] = {}
@@ -320,9 +324,11 @@ def _verified(
         # the behaviours' trajectories, then the sensing abilities' closed loops
         results = verify_files(files) + verify_sensing(files)
         failing = [r for r in results if r["verdict"] != "ok"]
-        more = _floors(results, record)
+        # nominally passed: under the perturbations of synth.robust (--robustness K)
+        robust = None if failing else robust_check(designer, outcome, opts.robustness)
+        more = _floors(results + failing_runs(robust), record)
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
-        if not failing or not new or rounds >= MAX_ROUNDS:
+        if not (failing or not_robust(robust)) or not new or rounds >= MAX_ROUNDS:
             break
         floors |= new
         sizer = StructureDesigner(
@@ -358,6 +364,13 @@ def _verified(
         else:
             for a in sorted(mine):
                 dropped.setdefault(a, why)
+    for ability, why in not_robust(robust):
+        mine = {ability} | {a for a, s in served.items() if s == ability}
+        if mine & needed:
+            failure = failure or why
+        else:
+            for a in sorted(mine):
+                dropped.setdefault(a, why)
     v = Verification(
         tuple(results),
         rounds,
@@ -365,6 +378,7 @@ def _verified(
         dropped,
         unsimulated,
         failure,
+        robust=robust,
     )
     out = replace(outcome, verification=v, bundle=files)
     if failure is not None:

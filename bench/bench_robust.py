@@ -1,0 +1,64 @@
+"""Robust verification's cost: each base configuration's default design verified on its
+nominal model (``export.verify.verify_files``, what ``parmor design`` simulates) and under
+K = 8 perturbations (``export.verify.verify_robust``; target: at most 2.5 x the nominal
+verification's time). Wall time and the process's CPU time (all threads) of each, best
+of ``runs``; on a machine other processes load, the CPU ratio is the steadier figure."""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+for p in (REPO, REPO / "bench"):
+    if str(p) not in sys.path:
+        sys.path.insert(0, str(p))
+
+#: The issue's budget: robust verification (K = 8) / nominal verification.
+TARGET = 2.5
+
+
+def _timed(fn, runs: int) -> tuple[float, float, object]:
+    """(best wall s, best CPU s, last result) of ``runs`` calls."""
+    walls, cpus, out = [], [], None
+    for _ in range(runs):
+        w, c = time.perf_counter(), time.process_time()
+        out = fn()
+        walls.append(time.perf_counter() - w)
+        cpus.append(time.process_time() - c)
+    return min(walls), min(cpus), out
+
+
+def bench_robust(k: int = 8, runs: int = 2) -> list[str]:
+    from bench_sim import default_bundles
+
+    from adron.catalog import load_catalog
+    from export.perturb import design_table
+    from export.verify import bundle_parts, folder_files, verify_files, verify_robust
+
+    catalog = load_catalog()
+    lines = [
+        f"Robust verification, K = {k} perturbed runs per behaviour vs the nominal "
+        f"verification (target <= {TARGET:g} x), best of {runs}"
+    ]
+    with tempfile.TemporaryDirectory() as tmp:
+        for robot_type, _, folder, _, _ in default_bundles(Path(tmp)):
+            files = folder_files(folder)
+            record, xml, _ = bundle_parts(files)
+            table = design_table(record, xml, catalog)
+            wn, cn, _ = _timed(lambda f=files: verify_files(f), runs)
+            wr, cr, robust = _timed(lambda f=files, t=table: verify_robust(f, k, t), runs)
+            passed = sum(b["passed"] for b in robust["behaviors"])
+            total = sum(b["runs"] for b in robust["behaviors"])
+            lines.append(
+                f"  {'ok  ' if wr / wn <= TARGET else 'MISS'} {robot_type:<24} nominal "
+                f"{wn:6.2f} s, robust {wr:6.2f} s: {wr / wn:5.2f} x wall, {cr / cn:5.2f} x CPU "
+                f"(runs passed {passed} of {total})"
+            )
+    return lines
+
+
+if __name__ == "__main__":
+    print("\n".join(bench_robust()))
