@@ -306,7 +306,7 @@ class Segment:
 
 
 #: Kinds of :class:`LabelledPart`.
-PART_KINDS = ("actuator", "link", "trunk", "foot", "gripper", "payload", "wheel", "caster")
+PART_KINDS = ("actuator", "link", "trunk", "foot", "gripper", "payload", "wheel", "caster", "bearing")
 
 
 @dataclass(frozen=True, eq=False)
