@@ -41,6 +41,7 @@ from kinematics.templates import (
     LabelledPart,
     Template,
     TemplateParams,
+    _bearing_on_parent,
     _Builder,
     _frozen,
     _gripper_parts,
@@ -555,6 +556,9 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
             moved.setdefault(parent, []).append(r.body)
     for parent, bodies in moved.items():
         _servos_on_chassis(b, parent, tuple(bodies))
+    for r in recs:
+        if r.passive:
+            _bearing_on_parent(b, r.body)
     model = b.model()
     tubes = sorted({s.length_name for s in b.segments})
     unknown = sorted(set(p.tubes) - set(tubes))

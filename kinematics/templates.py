@@ -174,7 +174,8 @@ class TemplateParams:
     battery); ``modules``: the snake's M. ``gripper_mass``: kg of a gripper's ``fingers``
     jaws together (each a plate of ``finger_size`` m); ``caster_mass`` kg and
     ``caster_radius`` m: the ball caster; ``bearing_mass`` kg: the bearing hub of a passive
-    joint (a free wheel's), in place of an actuator. The structure generator passes the catalog's
+    joint (a free wheel's), in place of an actuator, on the joint's parent (the axle's
+    side). The structure generator passes the catalog's
     figures (kinematics imports nothing of parmor's); the defaults serve a template built
     alone.
 
@@ -331,7 +332,9 @@ class LabelledPart:
       along the jaw (away from the joint), z across the gap between the jaws;
     - "payload": () a point mass at the frame origin;
     - "wheel": (radius, width) disc centred on the frame origin, its axis the frame's z;
-    - "caster": (radius,) ball centred on the frame origin.
+    - "caster": (radius,) ball centred on the frame origin;
+    - "bearing": (radius, width) the hub of a passive joint, on the joint's parent at the
+      joint's origin, its frame the joint's.
     """
 
     label: str
@@ -642,6 +645,30 @@ def _servos_on_chassis(b: _Builder, chassis: str, wheels: tuple[str, ...]) -> No
     k = b.index(chassis)
     b.parts[chassis] = (*b.parts[chassis], *moved)
     b.bodies[k] = Body.from_parts(chassis, [lp.part for lp in b.parts[chassis]])
+
+
+def _bearing_on_parent(b: _Builder, body: str) -> None:
+    """Move the bearing hub of passive joint's ``body`` to its parent: the hub's axle is
+    fixed to the parent (a chassis, a steering fork) and the wheel turns on it."""
+    i = b.index(body)
+    joint = next(j for j in b.joints if j.child == i)
+    hub = next(lp for lp in b.parts[body] if lp.kind == "bearing")
+    rest = tuple(lp for lp in b.parts[body] if lp is not hub)
+    b.parts[body] = rest
+    b.bodies[i] = Body.from_parts(body, [lp.part for lp in rest])
+    R, p = joint.origin[:3, :3], joint.origin[:3, 3]
+    moved = LabelledPart(
+        hub.label,
+        "bearing",
+        hub.mass,
+        R @ hub.com + p,
+        R @ hub.inertia @ R.T,
+        joint.origin @ hub.placement,
+        hub.dims,
+    )
+    parent = b.bodies[joint.parent].name
+    b.parts[parent] = (*b.parts[parent], moved)
+    b.bodies[joint.parent] = Body.from_parts(parent, [lp.part for lp in b.parts[parent]])
 
 
 # --- checking and the entry point ----------------------------------------------------------------
