@@ -299,7 +299,8 @@ class SteeredController(Controller):
       then reach the speed ``v`` m/s with a minimum-jerk ramp of ``ramp`` s and hold it
       until ``seconds`` after the steering; the wheels keep the speed after the end (run
       ``driving`` with v = 0 to stop). ``|w| <= k_max |v|``; motion ``"straight"`` or
-      ``"arc"``, ``info["command"] = (v, w)``.
+      ``"arc"``, ``info["command"] = (v, w)``. With ``ramp = 0`` (a closed loop's short
+      periods) the steering angles and wheel speeds are commanded at once.
     - ``turning(angle, points, seconds)``: change the heading by ``angle`` rad with
       ``points`` arcs at ``LOCK_FRACTION`` of the steering limit, forward and back in
       turn, starting and ending at rest with the steering straight; motion ``"arc"``.
@@ -358,8 +359,12 @@ class SteeredController(Controller):
                         low=-w_top,
                         high=w_top,
                     ),
-                    Parameter("seconds", "float", 5.0, "duration of the drive", "s", 0.05, 3600),
-                    Parameter("ramp", "float", RAMP, "minimum-jerk ramp-up time", "s", 0.0, 60),
+                    Parameter(
+                        "seconds", "float", 5.0, "duration of the drive", "s", low=0.05, high=3600
+                    ),
+                    Parameter(
+                        "ramp", "float", RAMP, "minimum-jerk ramp-up time", "s", low=0.0, high=60
+                    ),
                 ),
                 ability="steered-driving",
             ),
@@ -496,7 +501,9 @@ class SteeredController(Controller):
             raise ValueError(f"ramp ({ramp} s) is longer than the drive ({seconds} s)")
         straight = dict.fromkeys(self.steer_joints, 0.0)
         pieces = []
-        steer = self._steer_move(straight, self.steer.angles(k))
+        # without a ramp (a closed loop's short periods, program.sensing) the steering is
+        # commanded at once: the servo turns to it from wherever the last period left it
+        steer = self._steer_move(straight, self.steer.angles(k)) if ramp > 0 else None
         if steer is not None:
             pieces.append(steer)
         t = _grid(seconds)
