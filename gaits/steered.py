@@ -246,9 +246,7 @@ class SteerGeometry:
     def angles(self, k: float) -> dict[str, float]:
         """Steering joint -> its angle rad on an arc of curvature ``k`` 1/m."""
         return {
-            w.steer: math.atan2(k * (w.x - self.x_ref), 1 - k * w.y)
-            for w in self.wheels
-            if w.steer
+            w.steer: math.atan2(k * (w.x - self.x_ref), 1 - k * w.y) for w in self.wheels if w.steer
         }
 
     def rolling(self, k: float) -> dict[str, float]:
@@ -353,8 +351,7 @@ class SteeredController(Controller):
                         "w",
                         "float",
                         0.0,
-                        f"yaw rate, counter-clockwise positive (|w| <= {self.steer.k_max:.3g}"
-                        " |v|)",
+                        f"yaw rate, counter-clockwise positive (|w| <= {self.steer.k_max:.3g} |v|)",
                         "rad/s",
                         low=-w_top,
                         high=w_top,
@@ -414,7 +411,9 @@ class SteeredController(Controller):
                 float(params["ramp"]),
             )
         return self._turning(
-            float(params["angle"]), int(params["points"]), float(params["seconds"])  # type: ignore[arg-type]
+            float(params["angle"]),
+            int(params["points"]),
+            float(params["seconds"]),  # type: ignore[arg-type]
         )
 
     # -- building blocks ------------------------------------------------------------------

@@ -34,9 +34,10 @@ A kind (``[[kind]]``):
   the part on the ellipse span x track), pair (left and right at ``at``, y mirrored),
   axle (wheels in axles over ``span``, ``track`` apart), trailing (behind the plate at
   ground level), front (one wheel on the middle line or a pair ``track`` apart at the
-  plate's front edge, ``span`` its length: steered wheels), serial (a chain of joints and links starting at ``at`` on a root part,
-  its printed links named ``links`` 1, 2 ... instead of L1, L2 ...: an arm on a chassis
-  whose own lengths are L1 and L2) or tip (at the end of the part's chain);
+  plate's front edge, ``span`` its length: steered wheels), serial (a chain of joints
+  and links starting at ``at`` on a root part, its printed links named ``links`` 1, 2
+  ... instead of L1, L2 ...: an arm on a chassis whose own lengths are L1 and L2) or tip
+  (at the end of the part's chain);
 - ``naming = "index"``: joints and bodies of a chain of such parts are numbered
   (``joint_1``, ``module_1``);
 - ``order = "side"``: children of pair mounts are joined side by side (left leg, left

@@ -62,8 +62,8 @@ from kinematics.spatial import (
     box_inertia,
     link_part_mass_properties,
     point_inertia,
-    sphere_inertia,
     rot_x,
+    sphere_inertia,
     transform,
     transform_from,
     tube_inertia,
@@ -307,7 +307,17 @@ class Segment:
 
 
 #: Kinds of :class:`LabelledPart`.
-PART_KINDS = ("actuator", "link", "trunk", "foot", "gripper", "payload", "wheel", "caster", "bearing")
+PART_KINDS = (
+    "actuator",
+    "link",
+    "trunk",
+    "foot",
+    "gripper",
+    "payload",
+    "wheel",
+    "caster",
+    "bearing",
+)
 
 
 @dataclass(frozen=True, eq=False)

@@ -860,9 +860,7 @@ class Steered(Wheeled):
 
         loads = wheel_loads(tmpl, mass * catalog.design.gravity_m_s2)
         lever = catalog.passive.wheel_width_m / 2
-        return {
-            j: TYRE_FRICTION * loads[w] * lever for j, w in self.steering_wheels(tmpl).items()
-        }
+        return {j: TYRE_FRICTION * loads[w] * lever for j, w in self.steering_wheels(tmpl).items()}
 
     @staticmethod
     def steering_wheels(tmpl: Template) -> dict[str, str]:

@@ -26,7 +26,7 @@ from tests.conftest import need
 CART = """
 (subclass SteeredCart SteeredRobot)
 (instance SteeredCart BaseConfiguration)
-(documentation SteeredCart EnglishLanguage "A steered free wheel in front, two driven wheels behind.")
+(documentation SteeredCart EnglishLanguage "A steered free wheel in front, two driven behind.")
 (subclass RobotCartDriving RobotSteeredDriving)
 (abilityName RobotCartDriving "cart-driving")
 (abilityVerb RobotCartDriving "drive as a cart")
@@ -44,7 +44,7 @@ CART = """
 FWD = """
 (subclass FrontDriveCar SteeredRobot)
 (instance FrontDriveCar BaseConfiguration)
-(documentation FrontDriveCar EnglishLanguage "Two steered driven wheels in front, two free wheels behind.")
+(documentation FrontDriveCar EnglishLanguage "Two steered driven wheels, two free ones.")
 (subclass RobotFrontDriving RobotSteeredDriving)
 (abilityName RobotFrontDriving "front-driving")
 (abilityVerb RobotFrontDriving "drive on its front wheels")
@@ -161,7 +161,9 @@ def test_the_shipped_steered_types_explain_their_abilities(cli) -> None:
     ("params", "rtype", "steer", "free"),
     [([], "TricycleRobot", 1, 2), (["--param", "payload=0.5kg"], "CarRobot", 2, 2)],
 )
-def test_the_shipped_steered_types_are_sized_and_exported(cli, tmp_path, params, rtype, steer, free):
+def test_the_shipped_steered_types_are_sized_and_exported(
+    cli, tmp_path, params, rtype, steer, free
+):
     out = tmp_path / "b"
     r = cli("design", "steered-driving", "--no-input", "--no-verify", "--out", str(out), *params)
     assert r.code == 0, r.err
@@ -190,7 +192,9 @@ def _controller(folder: Path):
     from gaits import controller_for
     from gaits.base import DesignGeometry
 
-    return controller_for(DesignGeometry.from_record(json.loads((folder / "design.json").read_text())))
+    return controller_for(
+        DesignGeometry.from_record(json.loads((folder / "design.json").read_text()))
+    )
 
 
 @pytest.mark.parametrize("case", sorted(TYPES))
@@ -254,7 +258,9 @@ def test_an_arc_tighter_than_the_steering_is_refused(bundles, cli) -> None:
 
 
 def test_a_turn_in_place_is_refused(bundles, cli) -> None:
-    r = cli("simulate", str(bundles["cart"]), "--behavior", "driving", "--set", "v=0", "--set", "w=0.3")
+    r = cli(
+        "simulate", str(bundles["cart"]), "--behavior", "driving", "--set", "v=0", "--set", "w=0.3"
+    )
     assert r.code == 2 and "cannot turn in place" in r.err, r.err
 
 
@@ -263,7 +269,8 @@ def test_a_turn_in_place_is_refused(bundles, cli) -> None:
     [
         (
             '[[kind]]\nclass = "FreeWheel"\nrole = "wheel"\nend = "wheel"\njoints = [{ name = "w", '
-            'kind = "continuous", axis = "y", passive = true, module = "ContinuousRotationServomotor" }]',
+            'kind = "continuous", axis = "y", passive = true, '
+            'module = "ContinuousRotationServomotor" }]',
             "kind[0].joints[0].module",
         ),
         (
@@ -307,11 +314,9 @@ def test_a_passive_free_wheel_of_a_users_file_is_designed(tmp_path, cli) -> None
 # --- verification over a grid -------------------------------------------------------------------
 
 #: (behaviour, parameters as fractions: v of the top speed, w of k_max |v|)
-GRID = [
-    ("driving", {"v": v, "k": k})
-    for v in (0.25, 0.5, -0.3)
-    for k in (0.0, 0.5, 0.9, -0.7)
-] + [("turning", {"angle": a, "points": p}) for a in (math.pi / 2, -math.pi) for p in (1, 3)]
+GRID = [("driving", {"v": v, "k": k}) for v in (0.25, 0.5, -0.3) for k in (0.0, 0.5, 0.9, -0.7)] + [
+    ("turning", {"angle": a, "points": p}) for a in (math.pi / 2, -math.pi) for p in (1, 3)
+]
 
 
 def test_steered_behaviours_pass_in_mujoco_over_a_grid(bundles, cli) -> None:
@@ -335,4 +340,12 @@ def test_steered_behaviours_pass_in_mujoco_over_a_grid(bundles, cli) -> None:
     assert not failed, failed
 
 
-
+def test_a_steered_robot_avoids_an_obstacle_by_arcs(cli) -> None:
+    """It cannot turn in place: the avoiding loop turns on its tightest arc from further
+    off (program.sensing); verified in MuJoCo."""
+    r = cli("design", "steered-driving", "obstacle-avoidance", "--no-input", "--json")
+    assert r.code == 0, r.err
+    rec = json.loads(r.out)
+    runs = {b["behavior"]: b for b in rec["verified"]["behaviors"]}
+    avoid = runs["obstacle-avoidance"]
+    assert avoid["verdict"] == "ok" and avoid["obstacle_contact_s"] == 0, avoid
