@@ -304,6 +304,9 @@ class SteeredController(Controller):
       turn, starting and ending at rest with the steering straight; motion ``"arc"``.
     """
 
+    #: plans read the geometry, the radius and the servos' speeds, not the masses
+    PLAN_IGNORES = frozenset({"mass_kg", "joint_torque", "calibration"})
+
     def __init__(self, geometry: DesignGeometry) -> None:
         super().__init__(geometry)
         self.steer = SteerGeometry.from_template(self.template, geometry.joint_speed)
@@ -410,11 +413,9 @@ class SteeredController(Controller):
                 float(params["seconds"]),
                 float(params["ramp"]),
             )
-        return self._turning(
-            float(params["angle"]),
-            int(params["points"]),
-            float(params["seconds"]),  # type: ignore[arg-type]
-        )
+        points = params["points"]
+        assert isinstance(points, int)
+        return self._turning(float(params["angle"]), points, float(params["seconds"]))
 
     # -- building blocks ------------------------------------------------------------------
     def _steer_move(self, start: Mapping[str, float], end: Mapping[str, float]):

@@ -406,10 +406,10 @@ class Template:
 
     @property
     def groups(self) -> dict[str, tuple[str, ...]]:
-        """Joint names of each actuator group, in joint order."""
+        """Joint names of each actuator group, in joint order (passive joints have none)."""
         out: dict[str, list[str]] = {}
         for j in self.model.joints:
-            if j.movable:
+            if j.movable and j.name not in self.passive:
                 out.setdefault(j.group, []).append(j.name)
         return {g: tuple(names) for g, names in out.items()}
 
