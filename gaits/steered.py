@@ -30,6 +30,18 @@ manoeuvre of ``points`` arcs at full lock, forward and back in turn (reversing w
 steering the other way turns the same way), each turning ``angle / points``: a
 three-point turn needs about a third of the room of one arc.
 
+Calibration. Simulated, a steered robot keeps to the commanded arc (its yaw rate over its
+speed is the commanded curvature within 1 %) but goes slower than commanded, the more the
+tighter the arc: its driven wheels' servos slow down under the load of the turn (the
+tyres' scrub about the vertical as the chassis yaws, their creep) as a DC motor's line
+says. Measured on the shipped tricycle: 0.98 of the speed straight, 0.96, 0.92 and 0.885 at
+0.3, 0.6 and 0.9 of the steering limit. As a skid-steer's effective track is, this is
+measured on the design (:meth:`SteeredController.calibration_probes`: ``driving``
+straight and on the turning arc both ways; :meth:`calibrate`: the speed of the reference
+point over the commanded one on each) and kept in the design record (``calibration``:
+``speed_ratio`` straight, ``speed_ratio_turn`` at ``probe_curvature`` 1/m); the wheels are
+then commanded ``1 / ratio(k)`` faster, the ratio linear in ``|k|`` between the two.
+
 Every motion starts and ends at rest: the steering turns first (a minimum-jerk move of
 each steering joint at ``STEER_SPEED_FRACTION`` of its servo's speed) with the wheels
 still, then the wheels roll (a minimum-jerk ramp); ``info["planned_pose"]`` is P's
@@ -76,6 +88,14 @@ LOCK_FRACTION = 0.9
 TURN_SPEED_FRACTION = 0.5
 #: Default minimum-jerk ramp of ``driving``, s.
 RAMP = 0.5
+#: Calibration runs (:meth:`SteeredController.calibration_probes`): ``driving`` on the
+#: turning arc (``LOCK_FRACTION`` of the limit) both ways at this fraction of the top
+#: speed, holding it this long after the ramp, measured from this long after the ramp.
+PROBE_SPEED_FRACTION = 0.25
+PROBE_SECONDS = 2.0
+PROBE_SETTLE = 0.5
+#: A measured speed ratio outside this range is no calibration (something else went wrong).
+SPEED_RATIO_RANGE = (0.7, 1.3)
 
 
 def steering_joints(template: Template) -> tuple[tuple[str, str], ...]:
@@ -304,21 +324,35 @@ class SteeredController(Controller):
       turn, starting and ending at rest with the steering straight; motion ``"arc"``.
     """
 
-    #: plans read the geometry, the radius and the servos' speeds, not the masses
-    PLAN_IGNORES = frozenset({"mass_kg", "joint_torque", "calibration"})
+    #: plans read the geometry, the servos' speeds and the calibration, not the masses
+    PLAN_IGNORES = frozenset({"mass_kg", "joint_torque"})
 
     def __init__(self, geometry: DesignGeometry) -> None:
         super().__init__(geometry)
         self.steer = SteerGeometry.from_template(self.template, geometry.joint_speed)
+        #: the measured speed over the commanded one straight and at ``k_probe`` (the
+        #: calibration; 1 without one)
+        cal = geometry.calibration
+        self.ratio0 = float(cal.get("speed_ratio", 1.0))
+        self.ratio1 = float(cal.get("speed_ratio_turn", self.ratio0))
+        self.k_probe = float(cal.get("probe_curvature", 0.0))
         g = self.steer
         self.steer_joints = tuple(w.steer for w in g.wheels if w.steer)
         self.wheel_joints = tuple(w.joint for w in g.wheels if w.driven)
         self.joints = (*self.steer_joints, *self.wheel_joints)
 
+    def ratio(self, k: float) -> float:
+        """The speed the robot makes over the commanded one on an arc of curvature ``k``
+        (the calibration's, linear in |k|; 1 without one)."""
+        if self.k_probe <= 0:
+            return self.ratio0
+        return self.ratio0 + (self.ratio1 - self.ratio0) * abs(k) / self.k_probe
+
     @property
     def v_max(self) -> float:
-        """Top straight speed m/s of the reference point (the slowest driven wheel's)."""
-        return self.steer.max_speed * self.steer.radius
+        """Top straight speed m/s of the reference point (the slowest driven wheel's; its
+        commands compensate the calibration's ratio)."""
+        return self.steer.max_speed * self.steer.radius * min(1.0, self.ratio(0.0))
 
     @property
     def body_length(self) -> float:
@@ -329,7 +363,7 @@ class SteeredController(Controller):
     def _top_speed(self, k: float) -> float:
         """The largest |v| m/s on an arc of curvature ``k`` within the wheels' speed."""
         fastest = max(self.steer.rolling(k).values())
-        return self.steer.max_speed / fastest
+        return self.steer.max_speed / fastest * min(1.0, self.ratio(k))
 
     @property
     def behaviors(self) -> Mapping[str, BehaviorSpec]:
@@ -417,6 +451,50 @@ class SteeredController(Controller):
         assert isinstance(points, int)
         return self._turning(float(params["angle"]), points, float(params["seconds"]))
 
+    def calibration_probes(self) -> list[tuple[str, dict[str, object]]]:
+        """``driving`` straight and on the turning arc (``LOCK_FRACTION`` of the limit)
+        left and right, at ``PROBE_SPEED_FRACTION`` of the top speed, ``PROBE_SECONDS``
+        after the ramp."""
+        v = round(PROBE_SPEED_FRACTION * self.v_max, 4)
+        w = round(LOCK_FRACTION * self.steer.k_max * v, 4)
+        return [
+            ("driving", {"v": v, "w": sense * w, "seconds": PROBE_SECONDS + RAMP})
+            for sense in (0.0, 1.0, -1.0)
+        ]
+
+    def calibrate(self, runs) -> dict:
+        """From the probe runs: the speed of the reference point (the root's origin)
+        measured over the steady part of each (after its steering, its ramp and
+        ``PROBE_SETTLE`` s) over the commanded one: ``speed_ratio`` straight,
+        ``speed_ratio_turn`` the arcs' mean at ``probe_curvature``. Empty when a run is
+        too short or a ratio is out of ``SPEED_RATIO_RANGE``."""
+        straight, turns, k_probe = [], [], 0.0
+        for traj, series in runs:
+            t = np.asarray(series["t"])
+            info = traj.info
+            start = float(info["steer_s"]) + float(info["ramp_s"]) + PROBE_SETTLE  # type: ignore[arg-type]
+            steady = t >= start
+            v, w = (float(x) for x in info["command"])  # type: ignore[union-attr]
+            if steady.sum() < 3 or v == 0:
+                return {}
+            xy = np.asarray(series["root"])[:, :2]
+            speed = np.hypot(*np.gradient(xy, t, axis=0).T)
+            ratio = float(np.mean(speed[steady])) / abs(v)
+            if not SPEED_RATIO_RANGE[0] <= ratio <= SPEED_RATIO_RANGE[1]:
+                return {}
+            if w == 0:
+                straight.append(ratio)
+            else:
+                turns.append(ratio)
+                k_probe = abs(w / v)
+        if not straight or not turns:
+            return {}
+        return {
+            "speed_ratio": round(float(np.mean(straight)), 4),
+            "speed_ratio_turn": round(float(np.mean(turns)), 4),
+            "probe_curvature": round(k_probe, 4),
+        }
+
     # -- building blocks ------------------------------------------------------------------
     def _steer_move(self, start: Mapping[str, float], end: Mapping[str, float]):
         """(t, steering angles (n, ns), wheel speeds (n, nw)) of a steering move at rest
@@ -435,9 +513,10 @@ class SteeredController(Controller):
         return t, angles, np.zeros((len(t), len(self.wheel_joints)))
 
     def _roll(self, k: float, speed: np.ndarray) -> np.ndarray:
-        """Driven wheels' forward speeds (n, nw) rad/s for the reference point's ``speed``
-        (n,) m/s on an arc of curvature ``k``."""
-        per = self.steer.rolling(k)
+        """Driven wheels' forward speed commands (n, nw) rad/s for the reference point's
+        ``speed`` (n,) m/s on an arc of curvature ``k``: the rolling speeds over the
+        calibration's ratio."""
+        per = {j: x / self.ratio(k) for j, x in self.steer.rolling(k).items()}
         return np.column_stack([speed * per[j] for j in self.wheel_joints])
 
     def _check_speeds(self, wheels: np.ndarray, what: str) -> None:
