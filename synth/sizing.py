@@ -675,6 +675,8 @@ class Wheeled(Family):
     #: Ground clearance under a wheel servo's case, m: floor bumps, thresholds and cable
     #: covers of an indoor floor (about 1 cm) pass under it, and only the wheels touch.
     GROUND_CLEARANCE = 0.01
+    #: The other load case a refusal names.
+    ALSO_LOADED = ", or turning in place"
 
     def size(self, robot_type, p, catalog):
         area = p["load_area"]
@@ -746,7 +748,7 @@ class Wheeled(Family):
                 "no catalog wheel servo drives a printable wheel clearing its servo "
                 f"({r_min * 1000:.0f}-{r_max * 1000:.0f} mm) at {p['speed']:.2f} m/s while "
                 f"pushing {force:.2f} N "
-                f"(climbing a {math.degrees(p['slope']):.0f} deg slope, or turning in place); "
+                f"(climbing a {math.degrees(p['slope']):.0f} deg slope{self.ALSO_LOADED}); "
                 "ask for less speed, payload or slope"
             )
         return best
@@ -843,6 +845,7 @@ class Steered(Wheeled):
 
     #: Time to steer from straight to full lock, s.
     STEER_TIME = 0.5
+    ALSO_LOADED = ""  # it never turns in place
 
     @staticmethod
     def steering(tmpl: Template) -> list[str]:
