@@ -492,8 +492,8 @@ class _Builder:
         )
 
     def bearing(self, joint: str) -> LabelledPart:
-        """The bearing hub of a passive joint: ``bearing_mass`` at the joint, a solid
-        cylinder of radius WHEEL_BORE x 3 along the joint's axis (its inertia is negligible)."""
+        """The bearing hub of a passive joint: ``bearing_mass`` at the joint, the inertia of
+        a ball of radius 3 x WHEEL_BORE (the bearings' size; it is negligible)."""
         m = float(self.p.bearing_mass)
         r = 3 * WHEEL_BORE
         return LabelledPart(
