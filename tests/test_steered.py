@@ -349,3 +349,44 @@ def test_a_steered_robot_avoids_an_obstacle_by_arcs(cli) -> None:
     runs = {b["behavior"]: b for b in rec["verified"]["behaviors"]}
     avoid = runs["obstacle-avoidance"]
     assert avoid["verdict"] == "ok" and avoid["obstacle_contact_s"] == 0, avoid
+
+
+def _series(traj, speed_scale: float) -> dict:
+    """A made-up run of ``traj``: the root moving along its commanded arc at
+    ``speed_scale`` of the commanded speed once it drives (after its steering)."""
+    v, w = traj.info["command"]
+    t = traj.times
+    start = traj.info["steer_s"]
+    s = np.clip(t - start, 0.0, None) * abs(v) * speed_scale
+    k = w / v
+    yaw = k * s
+    x = np.sin(yaw) / k if k else s
+    y = (1 - np.cos(yaw)) / k if k else 0 * s
+    quat = np.column_stack([np.cos(yaw / 2), 0 * s, 0 * s, np.sin(yaw / 2)])
+    return {"t": t, "root": np.column_stack([x, y, 0 * s, quat])}
+
+
+def test_the_calibration_measures_the_speed_made(bundles) -> None:
+    c = _controller(bundles["cart"])
+    probes = c.calibration_probes()
+    assert [p["w"] == 0 for _, p in probes] == [True, False, False]
+    trajs = [c.run(name, **params) for name, params in probes]
+    cal = c.calibrate([(tr, _series(tr, 0.9)) for tr in trajs])
+    assert cal["speed_ratio"] == pytest.approx(0.9, abs=2e-3)
+    assert cal["speed_ratio_turn"] == pytest.approx(0.9, abs=2e-3)
+    # cases built to fail: a robot that stood still, or raced off, is no calibration
+    assert c.calibrate([(tr, _series(tr, 0.0)) for tr in trajs]) == {}
+    assert c.calibrate([(tr, _series(tr, 2.0)) for tr in trajs]) == {}
+    # a calibrated controller commands its wheels faster by the ratio
+    from dataclasses import replace
+
+    from gaits.steered import SteeredController
+
+    cal = {"speed_ratio": 0.9, "speed_ratio_turn": 0.8, "probe_curvature": 1.0}
+    slow = SteeredController(replace(c.geometry, calibration=cal))
+    bare = SteeredController(replace(c.geometry, calibration={}))
+    v = 0.1
+    plain = bare.run("driving", v=v, w=0.5 * v, ramp=0.0, seconds=1.0)
+    fast = slow.run("driving", v=v, w=0.5 * v, ramp=0.0, seconds=1.0)
+    n = len(c.steer_joints)
+    assert np.allclose(fast.velocities[:, n:], plain.velocities[:, n:] / 0.85)
