@@ -31,7 +31,8 @@ parts (``Template.parts``), with the real parts in place of the template's stand
   points to (up; down under a manipulator's base; behind a humanoid's trunk);
 - a gripper's jaws are the catalog's FingerModule (printed plates of its size, placed where
   the template puts each jaw); a ball caster is the catalog's bought CasterModule (a sphere
-  of its mass); a wheel is a printed rim inside the catalog's tyre (bought);
+  of its mass); a wheel is a printed rim inside the catalog's tyre (bought); a passive
+  joint's bearing hub (a free wheel's) is the catalog's bought BearingModule;
 - the payload is not part of the robot: ``build_assembly`` keeps it aside
   (``Assembly.payload``: where the template puts it) and :func:`with_payload` adds it to
   its body for a model that carries it (the verification's, or ``--with-payload``).
@@ -308,6 +309,16 @@ def _caster(b: _Builder, lp: LabelledPart) -> PartUse:
     return PartUse(name, "bought", lp.mass, com, inertia, geom, "CasterModule", cost)
 
 
+def _bearing(b: _Builder, lp: LabelledPart) -> PartUse:
+    """The bearing hub of a passive joint (a free wheel's): the catalog's bought
+    BearingModule, of the template's mass (which the structure took from the catalog),
+    inside the wheel's rim (no shape of its own)."""
+    hubs = [q for q in b.catalog.parts if q.ontology_class == "BearingModule"]
+    name, cost = (hubs[0].model, hubs[0].cost) if hubs else ("bearing hub", 0.0)
+    com, inertia = lp.com.copy(), lp.inertia.copy()
+    return PartUse(name, "bought", lp.mass, com, inertia, None, "BearingModule", cost)
+
+
 def _trunk_modules(b: _Builder) -> list[Module]:
     """The catalog modules of the root body: the structure's modules that are not joint
     actuators (main module, battery, sensors), one entry per unit, in the record's order."""
@@ -413,6 +424,8 @@ def _part_uses(
         return [_jaw(b, lp)]
     if lp.kind == "caster":
         return [_caster(b, lp)]
+    if lp.kind == "bearing":
+        return [_bearing(b, lp)]
     raise ExportError(f"body '{body}': no exporter for a part of kind '{lp.kind}'")
 
 
@@ -526,6 +539,7 @@ def build_assembly(
                 a.stall_torque_Nm if a is not None and j.movable else 0.0,
                 a.no_load_speed_rad_s if a is not None and j.movable else 0.0,
                 a.model if a is not None and j.movable else "",
+                j.name in tmpl.passive,
             )
         )
 

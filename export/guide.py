@@ -58,7 +58,8 @@ def assembly_steps(record: dict, asm: Assembly) -> list[str]:
     """The numbered assembly sequence (Markdown lines): the root body's printed plate and
     its modules, then every joint from the root outwards (the assembly's tree order): its
     servo module (with its bus address) onto the part before it, then the printed and
-    bought parts of the body it turns."""
+    bought parts of the body it turns; a passive joint's body goes onto the bearing hub of
+    the part before it."""
     bus = _bus(record)
     addresses = {j["name"]: j.get("bus_address", "") for j in record.get("joints", ())}
     word = bus["address_word"]
@@ -89,6 +90,13 @@ def assembly_steps(record: dict, asm: Assembly) -> list[str]:
             if parts:
                 out.append(f"{step}. On `{_md(j.parent)}`, fixed: {parts}.")
                 step += 1
+            continue
+        if j.passive:  # no servo: the body turns on the bearing hub of the part before it
+            out.append(
+                f"{step}. Joint `{_md(j.name)}` turns freely (no servo): onto the bearing hub "
+                f"on `{_md(j.parent)}`: {parts or 'the next joint'}."
+            )
+            step += 1
             continue
         addr = addresses.get(j.name, "")
         out.append(

@@ -39,7 +39,9 @@ Choices, all in one place:
   ``<velocity>`` servo per continuous joint (wheels) with ``kv = effort / velocity``, which
   with ``ctrlrange = +-velocity`` is exactly the DC motor line (stall torque at rest, zero
   torque at the no-load speed; ``kv = effort / 1 rad/s`` when no speed is given), and
-  ``forcerange = +-effort``. Every revolute and continuous joint must have ``effort > 0``.
+  ``forcerange = +-effort``. Every revolute and continuous joint must have ``effort > 0``
+  but a passive one (a free wheel's, ``JointSpec.passive``): a hinge with no actuator and
+  its bearing's small damping (``export.urdf.PASSIVE_DAMPING``).
 - **Joint dynamics**: ``armature = (effort / 0.05 rad) * (4 dt)^2``, the gear-reflected
   rotor inertia the catalog does not give, of the order of a hobby servo's (1e-4..1e-3 kg
   m^2); it keeps each position loop's natural frequency at most ``1 / (4 dt)`` = 125 rad/s,
@@ -364,7 +366,12 @@ def mjcf_string(assembly: Assembly, mesh_dir: str = "meshes", with_payload: bool
     for j in assembly.joints:
         el = ET.SubElement(elements[j.parent], "body", name=j.child)
         _pose(el, j.origin)
-        if j.kind != "fixed":
+        if j.passive:
+            axis = numbers(unit_axis(j.axis, j.name), SNAP)
+            ET.SubElement(el, "joint", name=j.name, type="hinge", axis=axis).set(
+                "damping", number(joint_damping(j))
+            )
+        elif j.kind != "fixed":
             actuators.append(_servo(el, j, _subtree_inertia(assembly, bodies, frames, j)))
         _body_content(el, bodies[j.child], _geom_class(assembly, j.child), meshes)
         elements[j.child] = el

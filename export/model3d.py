@@ -74,6 +74,7 @@ class JointSpec:
     effort: float = 0.0  # N m: the actuator's stall torque
     velocity: float = 0.0  # rad/s: the actuator's no-load speed
     actuator: str = ""  # catalog model
+    passive: bool = False  # turns freely on a bearing (a free wheel): no actuator
 
 
 @dataclass(frozen=True)

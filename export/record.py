@@ -116,6 +116,8 @@ def structure_record(s: Structure) -> dict:
             }
             for j in s.joints
         ],
+        # the joints no actuator drives (a free wheel's): only where the design has some
+        **({"passive_joints": list(s.template.passive)} if s.template.passive else {}),
         "modules": [
             {
                 "kind": m.kind,

@@ -166,6 +166,9 @@ def check_agrees(xml: str, record: object) -> None:
     if not isinstance(joints, list):
         return
     named = {j.get("name") for j in joints if isinstance(j, Mapping)}
+    passive = record.get("passive_joints")  # hinges no actuator drives (free wheels)
+    if isinstance(passive, list):
+        named |= {n for n in passive if isinstance(n, str)}
     modelled = {j.get("name") for j in root.iter("joint") if j.get("type", "hinge") != "free"}
     if named != modelled:
 

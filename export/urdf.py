@@ -48,6 +48,9 @@ JOINT_KINDS = ("revolute", "continuous", "fixed")
 #: m per STL unit: the STL files are in millimetres, as every slicer expects.
 MESH_SCALE = 0.001
 GEOMETRY_KINDS = ("mesh", "box", "cylinder", "sphere")
+#: N m s/rad: the viscous friction of a passive joint's bearing hub (a free wheel's two
+#: small ball bearings, greased: of the order of 1e-4), in both models.
+PASSIVE_DAMPING = 1e-4
 
 
 # --- shared helpers ------------------------------------------------------------------------
@@ -130,8 +133,11 @@ def rpy_from_matrix(R: np.ndarray) -> np.ndarray:
 def joint_damping(j: JointSpec) -> float:
     """N m s/rad: the passive damping of joint ``j`` in both models, the servo motor's
     back-EMF ``effort / velocity`` of a position servo (a revolute joint with a speed); 0
-    for wheels (their velocity servo is the motor line) and fixed joints. Neither model has
-    dry friction (URDF ``friction`` 0, MJCF no ``frictionloss``)."""
+    for wheels (their velocity servo is the motor line) and fixed joints; a passive joint's
+    bearing: ``PASSIVE_DAMPING``. Neither model has dry friction (URDF ``friction`` 0, MJCF
+    no ``frictionloss``)."""
+    if j.passive:
+        return PASSIVE_DAMPING
     if j.kind != "revolute" or not (math.isfinite(j.velocity) and j.velocity > 0):
         return 0.0
     return float(j.effort / j.velocity)
@@ -285,7 +291,7 @@ def _joint(j: JointSpec, y) -> yourdfpy.Joint:
             lower=float(j.lower),
             upper=float(j.upper),
         )
-    elif j.kind == "continuous":
+    elif j.kind == "continuous" and not j.passive:  # a passive joint: no actuator, no limit
         limit = y.Limit(effort=float(j.effort), velocity=float(j.velocity), lower=None, upper=None)
     return y.Joint(
         name=j.name,

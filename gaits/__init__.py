@@ -16,6 +16,7 @@ from gaits.base import Controller, DesignGeometry, _plain
 #: structure -> (module, controller class)
 CONTROLLERS: dict[str, tuple[str, str]] = {
     "wheeled": ("gaits.wheeled", "WheeledController"),
+    "steered": ("gaits.steered", "SteeredController"),
     "module_chain": ("gaits.snake", "SnakeController"),
     "serial_arm": ("gaits.manipulator", "ManipulatorController"),
     "multiped": ("gaits.legged", "LeggedController"),

@@ -41,6 +41,7 @@ from kinematics.templates import (
     LabelledPart,
     Template,
     TemplateParams,
+    _bearing_on_parent,
     _Builder,
     _frozen,
     _gripper_parts,
@@ -85,6 +86,7 @@ class _Rec:
     forward: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
     on_parent: bool = False
     module: str = ""
+    passive: bool = False
 
 
 @dataclass
@@ -283,6 +285,19 @@ class _Walk:
                     name = "left" if side > 0 else "right"
                     prefix = f"{words[i]}_{name}" if words[i] else name
                     out.append((side, prefix, transform((fx * span / 2, side * track / 2, 0))))
+        elif m.layout == "front":
+            if n > 2:
+                raise AssemblyError(
+                    f"part {group[0].kind}{_where(group[0])}: a front layout takes one wheel "
+                    f"or a pair, got {n}"
+                )
+            x = self.root_at[0] + span / 2
+            if n == 1:
+                out.append((0, "front", transform((x, 0, 0))))
+            else:
+                for side in (1, -1):
+                    name = "left" if side > 0 else "right"
+                    out.append((side, f"front_{name}", transform((x, side * track / 2, 0))))
         elif m.layout == "trailing":
             rear = (self.root_at[0] - span / 2, 0, -float(self.p.wheel_radius))
             for i in range(n):
@@ -366,6 +381,7 @@ class _Walk:
             end=kind.end if j is kind.joints[-1] else "",
             forward=forward,
             on_parent=j.actuator_on_parent,
+            passive=j.passive,
         )
         rec.module = j.module
         self.recs.append(rec)
@@ -532,13 +548,17 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
             parts,
             axis=tuple(r.axis),
             limits=r.limits,
-            group=r.group if r.kind != "fixed" else "",
+            group=r.group if r.kind != "fixed" and not r.passive else "",
             body=r.body,
+            passive=r.passive,
         )
         if r.on_parent:
             moved.setdefault(parent, []).append(r.body)
     for parent, bodies in moved.items():
         _servos_on_chassis(b, parent, tuple(bodies))
+    for r in recs:
+        if r.passive:
+            _bearing_on_parent(b, r.body)
     model = b.model()
     tubes = sorted({s.length_name for s in b.segments})
     unknown = sorted(set(p.tubes) - set(tubes))
@@ -547,7 +567,8 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
             f"{plan.robot_type} has no tube {', '.join(unknown)}; "
             f"tubes: {', '.join(tubes) or 'none'}"
         )
-    groups = {j.group for j in model.joints if j.movable}
+    passive = tuple(r.name for r in recs if r.passive)
+    groups = {j.group for j in model.joints if j.movable and j.name not in passive}
     unknown = sorted(set(p.actuator_mass) - groups)
     if unknown:
         raise ValueError(
@@ -572,25 +593,40 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
         parts=MappingProxyType(dict(b.parts)),
         modules=MappingProxyType({k: v for k, v in modules.items() if v}),
         plan=plan,
+        passive=passive,
     )
 
 
 #: The structures a body plan can have (what sizing and controllers are chosen by).
-STRUCTURES = ("serial_arm", "multiped", "biped", "module_chain", "wheeled", "mobile_manipulator")
+STRUCTURES = (
+    "serial_arm",
+    "multiped",
+    "biped",
+    "module_chain",
+    "wheeled",
+    "steered",
+    "mobile_manipulator",
+)
 
 
 def structure_of(plan: BodyPlan, kinds: PartKinds) -> str:
     """What a body plan is, by the roles of its parts (never by its type's name): wheels
-    on a chassis ("wheeled"), three or more legs ("multiped"), two legs ("biped"), a chain
+    on a chassis ("wheeled"; "steered" when a wheel part turns on a joint that is no
+    wheel's: a steering joint), three or more legs ("multiped"), two legs ("biped"), a chain
     of modules ("module_chain"), a chain of joints ending in an end effector on a fixed
     base ("serial_arm"), both a chain ending in an end effector and wheels
     ("mobile_manipulator"); "" for none of these."""
-    roles = [(_kind(kinds, n).role if kinds.of(n.kinds) else "") for n in plan.root.walk()]
+    found = [kinds.of(n.kinds) for n in plan.root.walk()]
+    roles = [(k.role if k is not None else "") for k in found]
     legs = roles.count("leg")
     if "wheel" in roles and "joint" in roles and "end_effector" in roles:
         return "mobile_manipulator"
     if "wheel" in roles:
-        return "wheeled"
+        steered = any(
+            k is not None and k.role == "wheel" and any(j.kind == "revolute" for j in k.joints)
+            for k in found
+        )
+        return "steered" if steered else "wheeled"
     if legs >= 3:
         return "multiped"
     if legs == 2:

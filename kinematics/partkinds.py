@@ -19,7 +19,9 @@ A kind (``[[kind]]``):
   along a chain of such parts), ``limits`` (expressions, rad), ``group`` (actuator group,
   default the name), ``module`` (the catalog class that drives it, default
   PositionServomotor; ContinuousRotationServomotor for a continuous joint),
-  ``actuator_on_parent`` (the servo's case sits on the parent body: a wheel's), ``tube``
+  ``actuator_on_parent`` (the servo's case sits on the parent body: a wheel's beside it,
+  a steering joint's above it), ``passive = true`` (the joint turns freely on a bearing:
+  no actuator, no ``module``, ``group`` or ``actuator_on_parent``; a free wheel), ``tube``
   (``length`` name, ``along`` direction in the joint frame), ``body`` (body name, default
   ``<joint>_link``); ``name = "serial"``: one joint of a serial arm, named from
   ``[serial]``;
@@ -31,9 +33,11 @@ A kind (``[[kind]]``):
   along both sides over ``span``, ``track`` apart; odd counts: radial), radial (around
   the part on the ellipse span x track), pair (left and right at ``at``, y mirrored),
   axle (wheels in axles over ``span``, ``track`` apart), trailing (behind the plate at
-  ground level), serial (a chain of joints and links starting at ``at`` on a root part,
-  its printed links named ``links`` 1, 2 ... instead of L1, L2 ...: an arm on a chassis
-  whose own lengths are L1 and L2) or tip (at the end of the part's chain);
+  ground level), front (one wheel on the middle line or a pair ``track`` apart at the
+  plate's front edge, ``span`` its length: steered wheels), serial (a chain of joints
+  and links starting at ``at`` on a root part, its printed links named ``links`` 1, 2
+  ... instead of L1, L2 ...: an arm on a chassis whose own lengths are L1 and L2) or tip
+  (at the end of the part's chain);
 - ``naming = "index"``: joints and bodies of a chain of such parts are numbered
   (``joint_1``, ``module_1``);
 - ``order = "side"``: children of pair mounts are joined side by side (left leg, left
@@ -76,7 +80,7 @@ AXES = {
 }
 JOINT_KINDS = ("revolute", "continuous", "fixed")
 ENDS = ("point_foot", "foot_plate", "gripper", "wheel", "caster")
-LAYOUTS = ("bilateral", "radial", "pair", "axle", "trailing", "serial", "tip")
+LAYOUTS = ("bilateral", "radial", "pair", "axle", "trailing", "front", "serial", "tip")
 ROLES = ("leg", "arm", "end_effector", "wheel", "caster", "module", "joint", "link", "")
 FACES = ("up", "down", "back")
 PAYLOAD = ("root", "end_effector")
@@ -161,6 +165,7 @@ class JointSpec:
     tube_length: str = ""
     tube_along: str = "x"
     body: str = ""
+    passive: bool = False
 
 
 @dataclass(frozen=True)
@@ -442,6 +447,7 @@ class _Reader:
             "actuator_on_parent",
             "tube",
             "body",
+            "passive",
         }
         self.only(key, d, allowed)
         name = self.text(f"{key}.name", d.get("name"))
@@ -458,7 +464,22 @@ class _Reader:
         aop = d.get("actuator_on_parent", False)
         if not isinstance(aop, bool):
             self.fail(f"{key}.actuator_on_parent", "must be true or false")
-        default_module = "ContinuousRotationServomotor" if kind == "continuous" else ""
+        passive = d.get("passive", False)
+        if not isinstance(passive, bool):
+            self.fail(f"{key}.passive", "must be true or false")
+        if passive and kind == "fixed":
+            self.fail(f"{key}.passive", "a fixed joint does not move: it cannot be passive")
+        if passive:
+            given = [k for k in ("module", "group", "actuator_on_parent") if k in d]
+            if given:
+                self.fail(
+                    f"{key}.{given[0]}",
+                    f"joint {name!r} is passive (it turns freely on a bearing, no actuator "
+                    f"drives it): it takes no {given[0]!r}",
+                )
+        default_module = (
+            "ContinuousRotationServomotor" if kind == "continuous" and not passive else ""
+        )
         return JointSpec(
             name=name,
             kind=kind,
@@ -473,6 +494,7 @@ class _Reader:
             if tube
             else "x",
             body=str(d.get("body", "")),
+            passive=passive,
         )
 
     def mount(self, key: str, d) -> Mount:
@@ -485,8 +507,8 @@ class _Reader:
         track = str(self.expr(f"{key}.track", d["track"])) if "track" in d else ""
         if layout in ("bilateral", "radial", "axle") and not (span and track):
             self.fail(key, f"layout {layout} needs 'span' and 'track'")
-        if layout == "trailing" and not span:
-            self.fail(key, "layout trailing needs 'span'")
+        if layout in ("trailing", "front") and not span:
+            self.fail(key, f"layout {layout} needs 'span'")
         return Mount(
             child=self.text(f"{key}.child", d.get("child")),
             layout=layout,

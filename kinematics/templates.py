@@ -63,6 +63,7 @@ from kinematics.spatial import (
     link_part_mass_properties,
     point_inertia,
     rot_x,
+    sphere_inertia,
     transform,
     transform_from,
     tube_inertia,
@@ -109,6 +110,8 @@ DOVETAIL_FLANK = pi / 4
 #: Hub bore radius of a printed wheel, m: the clearance hole of an M3 servo-horn screw.
 WHEEL_BORE = 0.0017
 CASTER_RADIUS = 0.01  # m, the ball's radius when the params name none
+#: Gap between a steered wheel's top and its steering servo's case over it, m.
+STEER_CLEARANCE = 0.005
 
 #: Trunk part frames (columns: the part's x, y, z in the body frame): modules go up, down
 #: (under a manipulator's base) or to the back (a humanoid's trunk, part x along y).
@@ -170,7 +173,9 @@ class TemplateParams:
     at the trunk otherwise; ``trunk_mass``: kg of the root body (plate, main module,
     battery); ``modules``: the snake's M. ``gripper_mass``: kg of a gripper's ``fingers``
     jaws together (each a plate of ``finger_size`` m); ``caster_mass`` kg and
-    ``caster_radius`` m: the ball caster. The structure generator passes the catalog's
+    ``caster_radius`` m: the ball caster; ``bearing_mass`` kg: the bearing hub of a passive
+    joint (a free wheel's), in place of an actuator, on the joint's parent (the axle's
+    side). The structure generator passes the catalog's
     figures (kinematics imports nothing of parmor's); the defaults serve a template built
     alone.
 
@@ -198,6 +203,7 @@ class TemplateParams:
     wheel_mass: float = 0.03
     caster_mass: float = 0.02
     caster_radius: float = CASTER_RADIUS
+    bearing_mass: float = 0.006
     face_side: float = 0.0
     face_thickness: float = 0.0
     fillet: float = 0.0
@@ -301,7 +307,17 @@ class Segment:
 
 
 #: Kinds of :class:`LabelledPart`.
-PART_KINDS = ("actuator", "link", "trunk", "foot", "gripper", "payload", "wheel", "caster")
+PART_KINDS = (
+    "actuator",
+    "link",
+    "trunk",
+    "foot",
+    "gripper",
+    "payload",
+    "wheel",
+    "caster",
+    "bearing",
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -326,7 +342,9 @@ class LabelledPart:
       along the jaw (away from the joint), z across the gap between the jaws;
     - "payload": () a point mass at the frame origin;
     - "wheel": (radius, width) disc centred on the frame origin, its axis the frame's z;
-    - "caster": (radius,) ball centred on the frame origin.
+    - "caster": (radius,) ball centred on the frame origin;
+    - "bearing": (radius, width) the hub of a passive joint, on the joint's parent at the
+      joint's origin, its frame the joint's.
     """
 
     label: str
@@ -383,13 +401,15 @@ class Template:
     modules: Mapping[str, str] = field(default_factory=dict)
     #: the body plan it was assembled from
     plan: BodyPlan | None = None
+    #: movable joints that no actuator drives (a free wheel's: it turns on a bearing)
+    passive: tuple[str, ...] = ()
 
     @property
     def groups(self) -> dict[str, tuple[str, ...]]:
-        """Joint names of each actuator group, in joint order."""
+        """Joint names of each actuator group, in joint order (passive joints have none)."""
         out: dict[str, list[str]] = {}
         for j in self.model.joints:
-            if j.movable:
+            if j.movable and j.name not in self.passive:
                 out.setdefault(j.group, []).append(j.name)
         return {g: tuple(names) for g, names in out.items()}
 
@@ -437,10 +457,14 @@ class _Builder:
         limits: tuple[float, float] = (-pi, pi),
         group: str = "",
         body: str | None = None,
+        passive: bool = False,
     ) -> str:
-        """Add joint ``joint`` and its body (default ``joint + "_link"``); the body's name."""
+        """Add joint ``joint`` and its body (default ``joint + "_link"``); the body's name.
+        A movable joint's body carries its actuator, a ``passive`` one's a bearing hub."""
         name = body or f"{joint}_link"
-        if kind != "fixed":
+        if passive:
+            parts = [self.bearing(joint), *parts]
+        elif kind != "fixed":
             parts = [self.actuator(group, joint), *parts]
         i = len(self.bodies)
         self.bodies.append(Body.from_parts(name, [lp.part for lp in parts]))
@@ -465,6 +489,15 @@ class _Builder:
         size = tuple(self.p.actuator_size)
         return LabelledPart(
             joint, "actuator", m, np.zeros(3), box_inertia(m, size), np.eye(4), size
+        )
+
+    def bearing(self, joint: str) -> LabelledPart:
+        """The bearing hub of a passive joint: ``bearing_mass`` at the joint, the inertia of
+        a ball of radius 3 x WHEEL_BORE (the bearings' size; it is negligible)."""
+        m = float(self.p.bearing_mass)
+        r = 3 * WHEEL_BORE
+        return LabelledPart(
+            joint, "bearing", m, np.zeros(3), sphere_inertia(m, r), np.eye(4), (r, WHEEL_WIDTH)
         )
 
     def tube(
@@ -590,7 +623,10 @@ def _servos_on_chassis(b: _Builder, chassis: str, wheels: tuple[str, ...]) -> No
     """Move each wheel's actuator module from the wheel's body to the chassis: the servo's
     case is fixed to the chassis and only its shaft turns with the wheel, so nothing but
     the wheel turns or touches the ground. The case sits beside the wheel on the inner
-    side, its frame's z (the shaft) along the axle, centred on the axle's height."""
+    side (a wheel on the middle line: on its right), its frame's z (the shaft) along the
+    axle, centred on the axle's height. A steering joint's (a joint about the vertical)
+    sits over the wheel, its shaft down along the steering axis, the case's bottom
+    ``STEER_CLEARANCE`` above the wheel's top."""
     moved: list[LabelledPart] = []
     for body in wheels:
         i = b.index(body)
@@ -601,9 +637,15 @@ def _servos_on_chassis(b: _Builder, chassis: str, wheels: tuple[str, ...]) -> No
         b.bodies[i] = Body.from_parts(body, [lp.part for lp in rest])
         pos = joint.origin[:3, 3]
         size = act.dims
-        inboard = -np.sign(pos[1]) * (WHEEL_WIDTH / 2 + size[2] / 2)
-        R = joint.origin[:3, :3] @ rot_x(-pi / 2)  # part z along the wheel's axle
-        centre = pos + np.array([0.0, inboard, 0.0])
+        axis = joint.origin[:3, :3] @ joint.axis
+        if abs(abs(axis[2]) - 1.0) < 1e-9:  # a steering joint: over the wheel
+            R = joint.origin[:3, :3]
+            lift = b.p.wheel_radius + STEER_CLEARANCE + size[2] / 2
+            centre = pos + np.array([0.0, 0.0, lift])
+        else:
+            inboard = -(np.sign(pos[1]) or 1.0) * (WHEEL_WIDTH / 2 + size[2] / 2)
+            R = joint.origin[:3, :3] @ rot_x(-pi / 2)  # part z along the wheel's axle
+            centre = pos + np.array([0.0, inboard, 0.0])
         inertia = R @ box_inertia(act.mass, size) @ R.T
         moved.append(
             LabelledPart(
@@ -613,6 +655,30 @@ def _servos_on_chassis(b: _Builder, chassis: str, wheels: tuple[str, ...]) -> No
     k = b.index(chassis)
     b.parts[chassis] = (*b.parts[chassis], *moved)
     b.bodies[k] = Body.from_parts(chassis, [lp.part for lp in b.parts[chassis]])
+
+
+def _bearing_on_parent(b: _Builder, body: str) -> None:
+    """Move the bearing hub of passive joint's ``body`` to its parent: the hub's axle is
+    fixed to the parent (a chassis, a steering fork) and the wheel turns on it."""
+    i = b.index(body)
+    joint = next(j for j in b.joints if j.child == i)
+    hub = next(lp for lp in b.parts[body] if lp.kind == "bearing")
+    rest = tuple(lp for lp in b.parts[body] if lp is not hub)
+    b.parts[body] = rest
+    b.bodies[i] = Body.from_parts(body, [lp.part for lp in rest])
+    R, p = joint.origin[:3, :3], joint.origin[:3, 3]
+    moved = LabelledPart(
+        hub.label,
+        "bearing",
+        hub.mass,
+        R @ hub.com + p,
+        R @ hub.inertia @ R.T,
+        joint.origin @ hub.placement,
+        hub.dims,
+    )
+    parent = b.bodies[joint.parent].name
+    b.parts[parent] = (*b.parts[parent], moved)
+    b.bodies[joint.parent] = Body.from_parts(parent, [lp.part for lp in b.parts[parent]])
 
 
 # --- checking and the entry point ----------------------------------------------------------------
@@ -648,7 +714,15 @@ def check_params(
         _nonneg(name, x)
         if x == 0:
             raise ValueError(f"{name} must be positive")
-    for name in ("payload", "trunk_mass", "foot_mass", "gripper_mass", "wheel_mass", "caster_mass"):
+    for name in (
+        "payload",
+        "trunk_mass",
+        "foot_mass",
+        "gripper_mass",
+        "wheel_mass",
+        "caster_mass",
+        "bearing_mass",
+    ):
         _nonneg(name, getattr(p, name))
     for name in ("face_side", "face_thickness", "fillet", "caster_radius"):
         _nonneg(name, getattr(p, name))

@@ -298,12 +298,16 @@ def run(session: Session, name: str, params: Mapping[str, object]) -> tuple[dict
 
 class _Driver:
     """Runs the steerable behaviour one control period at a time: forward while turning
-    (``go``, curvature rad/m) or turning in place (``spin``) at rates that fit the drive.
+    (``go``, curvature rad/m) or turning in place (``spin``) at rates that fit the drive
+    (a drive that cannot turn in place, steered wheels, spins on its tightest arc).
     ``speed`` m/s: its forward speed."""
 
     def __init__(self, session: Session, steer: Steering, speed: float) -> None:
         self.session, self.steer = session, steer
         self.period = 1.0 / CONTROL_HZ
+        #: the tightest curvature 1/m the drive takes (None: any the wheels' speed allows;
+        #: a steered drive's is its steering limit, found by ``fit``)
+        self.k_cap: float | None = None
         self.speed = self.fit(speed, 0.0)[0]
         self.w_spin = 0.0
 
@@ -321,14 +325,32 @@ class _Driver:
         return np.array([dx, dy]) / math.hypot(dx, dy)
 
     def fit(self, v: float, w: float) -> tuple[float, float]:
-        """(v, w) scaled down together until the behaviour accepts them."""
+        """(v, w) scaled down together until the behaviour accepts them; a curve that no
+        speed takes (a steered drive's, tighter than its steering allows) is opened to the
+        tightest it takes at ``v`` (``k_cap``, remembered)."""
+        if self.k_cap is not None and abs(w) > self.k_cap * abs(v):
+            w = math.copysign(self.k_cap * abs(v), w)
+        v0, w0 = v, w
         for _ in range(40):
             try:
                 self._plan(v, w)
                 return v, w
             except ValueError:
                 v, w = 0.9 * v, 0.9 * w
-        return 0.0, 0.0
+        if v0 == 0 or w0 == 0:
+            return 0.0, 0.0
+        low, high = 0.0, abs(w0)  # the largest |w| planned at v0
+        for _ in range(30):
+            mid = (low + high) / 2
+            try:
+                self._plan(v0, math.copysign(mid, w0))
+                low = mid
+            except ValueError:
+                high = mid
+        if low == 0:
+            return 0.0, 0.0
+        self.k_cap = low / abs(v0)
+        return v0, math.copysign(low, w0)
 
     def step(self, v: float, w: float) -> None:
         """One control period at (v, w), both scaled down if the wheels cannot."""
@@ -342,7 +364,18 @@ class _Driver:
         self.step(self.speed, curvature * self.speed)
 
     def spin(self, sense: float) -> None:
+        if self.w_spin == 0 and self.k_cap is not None:  # no turn in place: the tightest arc
+            self.step(self.speed, sense * self.k_cap * self.speed)
+            return
         self.step(0.0, sense * self.w_spin)
+
+    def tightest(self) -> float:
+        """The radius m of the tightest arc at the forward speed when the drive cannot turn
+        in place (it turns by arcs, a steered drive), else 0."""
+        if self.fit(0.0, 1.0)[1] != 0:
+            return 0.0
+        self.fit(self.speed, 1e3 * self.speed)  # finds k_cap
+        return 1.0 / self.k_cap if self.k_cap else 0.0
 
 
 def _line(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[dict, dict]:
@@ -414,6 +447,8 @@ def _avoid(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple
     ahead = 2 * mover.speed / CONTROL_HZ  # what it covers before it reacts
     mover.w_spin = mover.fit(0.0, 2 * mover.speed / max(corner, 0.05))[1]
     safe = corner - rig.front + CLEARANCE_M + ahead
+    if mover.w_spin == 0:  # it turns by arcs (steered wheels): it swerves from further off
+        safe += mover.tightest()
     heading0 = rig.heading()
     fwd = np.array([math.cos(heading0), math.sin(heading0)])
     origin = rig.world(rig.ranger)[:2]

@@ -12,10 +12,10 @@ section" (``deflection``, ``slope``).
 | reach | length | serial_arm | 0.25 m | 5 cm-2 m |
 | speed | speed | all but module_chain | m/s: arm 0.2 (tip), legs 0.05, wheels 0.3 | 1 mm/s-10 m/s |
 | obstacle_height | length | multiped | 0.03 m | 1 mm-1 m |
-| load_area | area | wheeled | 0.03 m^2 (300 cm^2) | 25 cm^2-1 m^2 |
+| load_area | area | wheeled, steered | 0.03 m^2 (300 cm^2) | 25 cm^2-1 m^2 |
 | height | length | biped | 0.40 m | 5 cm-2 m |
 | deflection | length | every structure | catalog max_tip_deflection | 0.01 mm-10 cm |
-| slope | angle | wheeled | catalog max_slope | 0-45 deg |
+| slope | angle | wheeled, steered | catalog max_slope | 0-45 deg |
 | (mobile_manipulator) | | payload, reach, speed, load_area, deflection, slope | | |
 | dof | count | serial_arm (composes the arm, synth/compose.py) | the arm's own | 3-7 |
 
@@ -36,7 +36,7 @@ from adron.errors import InputError
 # ``(defaultParameter TYPE "name" "quantity")`` (the nearest class's wins).
 MANIPULATORS = ("serial_arm",)
 LEGGED = ("multiped",)
-WHEELED = ("wheeled",)
+WHEELED = ("wheeled", "steered")
 #: a serial arm on a wheeled base takes the parameters of both
 MOBILE = ("mobile_manipulator",)
 ALL = (*MANIPULATORS, *LEGGED, "biped", "module_chain", *WHEELED, *MOBILE)

@@ -128,8 +128,10 @@ def _joint_q(tmpl: Template, values: Mapping[str, float]) -> np.ndarray:
 
 
 def _movable(tmpl: Template) -> list[str]:
+    """The joints an actuator moves: the movable ones but the passive (a free wheel's)."""
     m = tmpl.model
-    return [j.name for j in m.joints if m.q_index[m.joint(j.name)] >= 0]
+    passive = set(tmpl.passive)
+    return [j.name for j in m.joints if m.q_index[m.joint(j.name)] >= 0 and j.name not in passive]
 
 
 def _accel_cases(
@@ -673,6 +675,8 @@ class Wheeled(Family):
     #: Ground clearance under a wheel servo's case, m: floor bumps, thresholds and cable
     #: covers of an indoor floor (about 1 cm) pass under it, and only the wheels touch.
     GROUND_CLEARANCE = 0.01
+    #: The other load case a refusal names.
+    ALSO_LOADED = ", or turning in place"
 
     def size(self, robot_type, p, catalog):
         area = p["load_area"]
@@ -694,11 +698,12 @@ class Wheeled(Family):
         wheel_mass = lambda r: math.pi * r * r * width * rho  # noqa: E731 (solid printed disc)
         rest = tmpl.model.total_mass - n * wheel_mass(tmpl.params.wheel_radius)
         r = sizing.wheel_radius
+        driven = len(self.driven(tmpl))
         for _ in range(50):  # the wheels' own mass depends on their radius: a fixed point
             mass = rest + n * wheel_mass(r)
             new = self._radius(
                 [
-                    (self.traction(mass, p, catalog) / n, p["speed"]),
+                    (self.traction(mass, p, catalog) / driven, p["speed"]),
                     (self.turning_drag(tmpl, mass, catalog), TURN_SPEED_FRACTION * p["speed"]),
                 ],
                 p,
@@ -743,7 +748,7 @@ class Wheeled(Family):
                 "no catalog wheel servo drives a printable wheel clearing its servo "
                 f"({r_min * 1000:.0f}-{r_max * 1000:.0f} mm) at {p['speed']:.2f} m/s while "
                 f"pushing {force:.2f} N "
-                f"(climbing a {math.degrees(p['slope']):.0f} deg slope, or turning in place); "
+                f"(climbing a {math.degrees(p['slope']):.0f} deg slope{self.ALSO_LOADED}); "
                 "ask for less speed, payload or slope"
             )
         return best
@@ -767,11 +772,13 @@ class Wheeled(Family):
         fext = np.zeros((len(m.bodies), 6))
         r = tmpl.params.wheel_radius
         T = forward_kinematics(m, q)
+        driven = self.driven(tmpl)
         for w in wheels:
             # the ground pushes each driven wheel forward (and up) at its contact point
             b = m.body(w)
             contact = T[b, :3, 3] + np.array([0.0, 0.0, -r])
-            force = (traction / len(wheels), 0.0, mass * g / (len(wheels) + len(tmpl.casters)))
+            push = traction / len(driven) if w in driven else 0.0
+            force = (push, 0.0, mass * g / (len(wheels) + len(tmpl.casters)))
             fext[b] += external_force_at(m, q, b, contact, force)
         v = np.full(m.nv, p["speed"] / r)
         a = np.full(m.nv, accel / r)
@@ -786,6 +793,13 @@ class Wheeled(Family):
 
     def speeds(self, tmpl, p, sizing):
         return dict.fromkeys(self.movable(tmpl), p["speed"] / tmpl.params.wheel_radius)
+
+    @staticmethod
+    def driven(tmpl: Template) -> list[str]:
+        """The wheel bodies an actuator turns (a free wheel's joint is passive)."""
+        m = tmpl.model
+        passive = set(tmpl.passive)
+        return [w for w in tmpl.wheels if m.joints[m.body(w)].name not in passive]
 
     @staticmethod
     def turning_drag(tmpl: Template, mass: float, catalog: Catalog) -> float:
@@ -812,6 +826,82 @@ class Wheeled(Family):
         r = tmpl.params.wheel_radius
         speed = TURN_SPEED_FRACTION * p["speed"] / r
         return {j: (float(drag * r), float(speed), "turning in place") for j in self.movable(tmpl)}
+
+
+class Steered(Wheeled):
+    """Wheels on a chassis, some of them steered (structure steered): sized as ``Wheeled``
+    (chassis, wheel radius, the traction of climbing while accelerating) but for three
+    things. Only the traction wheels push (a free wheel turns on its bearing and carries
+    its share of the weight). The robot turns by rolling along arcs, so its wheels never
+    drag sideways (no turning drag). And each steering joint turns its wheel about the
+    vertical through the wheel's centre, twisting the tyre's contact on the floor: at
+    rest (the worst case, steering before driving off) a Coulomb moment ``mu N l``, N the
+    wheel's share of the weight (the lever rule between the front and rear wheels about
+    the centre of mass), mu the tyre's friction (TYRE_FRICTION) and l the contact's lever
+    about the steering axis: half the tyre's width (a narrow tyre's contact patch is
+    about as long as it is wide, its radius half the width; MuJoCo touches the tyre at its
+    two edges, +-width / 2, the same lever). The steering servo holds it while it turns
+    the wheel lock to lock in STEER_TIME (the speed ``|limit| / STEER_TIME`` rad/s)."""
+
+    #: Time to steer from straight to full lock, s.
+    STEER_TIME = 0.5
+    ALSO_LOADED = ""  # it never turns in place
+
+    @staticmethod
+    def steering(tmpl: Template) -> list[str]:
+        """The steering joints (``gaits.steered.steering_joints``)."""
+        from gaits.steered import steering_joints
+
+        return [j for j, _ in steering_joints(tmpl)]
+
+    def turning_drag(self, tmpl, mass, catalog):  # rolls along arcs, never scrubs sideways
+        return 0.0
+
+    def scrub_torque(self, tmpl: Template, mass: float, catalog: Catalog) -> dict[str, float]:
+        """The scrub moment N m on each steering joint at rest (see the class docstring)."""
+        from gaits.steered import wheel_loads
+
+        loads = wheel_loads(tmpl, mass * catalog.design.gravity_m_s2)
+        lever = catalog.passive.wheel_width_m / 2
+        return {j: TYRE_FRICTION * loads[w] * lever for j, w in self.steering_wheels(tmpl).items()}
+
+    @staticmethod
+    def steering_wheels(tmpl: Template) -> dict[str, str]:
+        """Steering joint -> the wheel body it steers."""
+        from gaits.steered import steering_joints
+
+        return dict(steering_joints(tmpl))
+
+    def steer_speed(self, tmpl: Template, joint: str) -> float:
+        """The speed (rad/s) that steers ``joint`` lock to lock in STEER_TIME."""
+        j = tmpl.model.joints[tmpl.model.joint(joint)]
+        return max(abs(j.lower), abs(j.upper)) / self.STEER_TIME
+
+    def load_cases(self, tmpl, p, catalog):
+        cases = super().load_cases(tmpl, p, catalog)
+        m = tmpl.model
+        for k in self.steering(tmpl):  # the steering stands still while climbing
+            i = m.q_index[m.joint(k)]
+            for c in cases:
+                c.v[i] = c.a[i] = 0.0
+        return cases
+
+    def speeds(self, tmpl, p, sizing):
+        out = super().speeds(tmpl, p, sizing)
+        for k in self.steering(tmpl):
+            out[k] = self.steer_speed(tmpl, k)
+        return out
+
+    def holds(self, tmpl, p, catalog):
+        out = super().holds(tmpl, p, catalog)
+        for k, tau in self.scrub_torque(tmpl, tmpl.model.total_mass, catalog).items():
+            out[k] = (float(tau), float(self.steer_speed(tmpl, k)), "steering at rest")
+        return out
+
+    def behaviour_cases(self, tmpl, geometry):
+        # the hand cases bound a steered robot's behaviours: it drives along arcs at most
+        # at the travel speed (traction) and steers at most at the steering speed (scrub)
+        return [], ()
 
 
 class MobileManipulator(Family):
@@ -857,5 +947,6 @@ FAMILIES: dict[str, Family] = {
     "biped": Humanoid(),
     "module_chain": Snake(),
     "wheeled": Wheeled(),
+    "steered": Steered(),
     "mobile_manipulator": MobileManipulator(),
 }

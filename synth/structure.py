@@ -190,11 +190,12 @@ def module_class(tmpl: Template, joint: str) -> str:
 
 
 def _slots(tmpl: Template) -> list[JointSlot]:
+    """The joints to give actuators: the movable ones but the passive (a free wheel's)."""
     m = tmpl.model
     return [
         JointSlot(j.name, j.group, module_class(tmpl, j.name))
         for j in m.joints
-        if m.q_index[m.joint(j.name)] >= 0
+        if m.q_index[m.joint(j.name)] >= 0 and j.name not in tmpl.passive
     ]
 
 
@@ -490,6 +491,8 @@ class StructureDesigner:
         if "CasterModule" in classes:
             ball = cat.part_of("CasterModule")
             extra |= {"caster_mass": ball.mass_kg, "caster_radius": ball.size_m[0] / 2}
+        if "BearingModule" in classes:  # the hub of a passive joint (a free wheel's)
+            extra |= {"bearing_mass": cat.part_of("BearingModule").mass_kg}
         sizes = [a.size_m for a in cat.actuators]
         return TemplateParams(
             lengths=sizing.lengths,

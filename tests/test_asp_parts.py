@@ -335,20 +335,24 @@ SHIPPED = {
     "driving": ["DifferentialDriveRobot", "SkidSteerRobot"],
     "grasping": ["HumanoidRobot", "Manipulator3DOF", "Manipulator6DOF"],
     "line-tracking": [
+        "CarRobot",
         "DifferentialDriveRobot",
         "HexapodRobot",
         "HumanoidRobot",
         "QuadrupedRobot",
         "SkidSteerRobot",
         "SnakeRobot",
+        "TricycleRobot",
     ],
     "obstacle-avoidance": [
+        "CarRobot",
         "DifferentialDriveRobot",
         "HexapodRobot",
         "HumanoidRobot",
         "QuadrupedRobot",
         "SkidSteerRobot",
         "SnakeRobot",
+        "TricycleRobot",
     ],
     "orienting": ["Manipulator6DOF"],
     "pick-and-place": ["Manipulator3DOF", "Manipulator6DOF"],
@@ -359,9 +363,11 @@ SHIPPED = {
     "rough-terrain-walking": ["HexapodRobot"],
     "running": ["HexapodRobot", "HumanoidRobot", "QuadrupedRobot"],
     "sidewinding": ["SnakeRobot"],
+    "steered-driving": ["CarRobot", "TricycleRobot"],  # the two steered types' own ability
     "walking": ["HexapodRobot", "HumanoidRobot", "QuadrupedRobot"],
 }
 DECLARED = {
+    "CarRobot": ("RobotSteeredDriving",),
     "DifferentialDriveRobot": ("RobotDriving",),
     "HexapodRobot": ("RobotRoughTerrainWalking", "RobotRunning", "RobotWalking"),
     "HumanoidRobot": ("RobotGrasping", "RobotRunning", "RobotWalking"),
@@ -375,6 +381,7 @@ DECLARED = {
     "QuadrupedRobot": ("RobotRunning", "RobotWalking"),
     "SkidSteerRobot": ("RobotDriving",),
     "SnakeRobot": ("RobotLateralRolling",),
+    "TricycleRobot": ("RobotSteeredDriving",),
 }
 
 

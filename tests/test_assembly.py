@@ -22,6 +22,7 @@ import trimesh
 from export import meshes
 from export.assembly import build_assembly, with_payload
 from export.slicer import estimate
+from gaits.steered import steering_joints
 from kinematics.spatial import box_inertia, combine_parts, sphere_inertia
 from kinematics.templates import DEFAULTS, PART_KINDS, TemplateParams, build
 from synth.solver import Query
@@ -60,12 +61,18 @@ def test_bodies_are_their_labelled_parts(robot_type: str, faces: bool) -> None:
             np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
             assert np.linalg.det(R) == pytest.approx(1.0)
         actuators = [lp for lp in parts if lp.kind == "actuator"]
-        # a wheel's servo is on the chassis (its parent); other joints' on their own body
-        wheel_servos = [j.name for j in m.joints if j.kind == "continuous" and j.parent == i]
-        if m.joints[i].movable and m.joints[i].kind != "continuous":
-            assert [lp.label for lp in actuators] == [m.joints[i].name]
-        else:
-            assert [lp.label for lp in actuators] == wheel_servos
+        # a wheel's servo is on its parent (the chassis, a steering hub), a steering joint's
+        # too (over the wheel); a passive joint has none; other joints' on their own body
+        steering = {j for j, _ in steering_joints(t)}
+
+        def on_parent(j, steering=steering) -> bool:
+            return (j.kind == "continuous" and j.name not in t.passive) or j.name in steering
+
+        own = m.joints[i]
+        alone = own.movable and not on_parent(own) and own.name not in t.passive
+        mine = [own.name] if alone else []
+        held = [j.name for j in m.joints if on_parent(j) and j.parent == i]
+        assert [lp.label for lp in actuators] == mine + held
     links = {lp.label: (name, lp) for name, ps in t.parts.items() for lp in ps if lp.kind == "link"}
     assert sorted(links) == sorted(s.name for s in t.segments)
     for s in t.segments:
@@ -174,6 +181,11 @@ def _recomputed(part, printed: dict, catalog, template) -> tuple[float, np.ndarr
         assert g.size[0] == pytest.approx(ball.size_m[0] / 2)
         m = ball.mass_kg
         inertia, c = sphere_inertia(m, g.size[0]), np.zeros(3)
+    elif part.source == "bought" and part.kind == "BearingModule":  # a free wheel's hub
+        hub = catalog.part_of("BearingModule")
+        assert part.name == hub.model and g is None
+        assert part.mass == pytest.approx(hub.mass_kg, rel=1e-12)
+        return part.mass, part.com, part.inertia
     elif part.source == "bought":  # a tyre: a ring around the wheel's axle (its z)
         assert part.kind == "Tyre" and g is None
         r, w = template.params.wheel_radius, catalog.passive.wheel_width_m
@@ -314,14 +326,21 @@ def test_joints_carry_the_chosen_actuators(assemblies, faced, catalog) -> None:
             spec = specs[jd.name]
             assert spec.effort == a.stall_torque_Nm and spec.velocity == a.no_load_speed_rad_s
             assert spec.actuator == jd.actuator
-            if spec.kind == "continuous":  # a wheel's servo: on the chassis, beside the wheel
+            steering = {j for j, _ in steering_joints(s.template)}
+            if spec.kind == "continuous" or spec.name in steering:
+                # a wheel's servo: on the chassis (or a steering hub) beside the wheel; a
+                # steering joint's: on the chassis over the wheel
                 axis = spec.origin[:3, :3] @ spec.axis
                 boxes = [u for u in asm.body(spec.parent).parts if u.name == jd.actuator]
                 box = min(
                     boxes,
                     key=lambda u: np.linalg.norm(u.geometry.origin[:3, 3] - spec.origin[:3, 3]),
                 )
-                assert not any(u.source == "module" for u in asm.body(spec.child).parts)
+                held = [  # servos of the joints that sit on the child (a steered wheel's)
+                    k for k in asm.joints if k.parent == spec.child and k.actuator
+                ]
+                modules = [u for u in asm.body(spec.child).parts if u.source == "module"]
+                assert len(modules) == len(held)
             else:
                 axis = spec.axis
                 box = next(u for u in asm.body(spec.child).parts if u.source == "module")

@@ -292,6 +292,8 @@ def test_the_shipped_types_assemble_from_their_ontology_body_plans() -> None:
         "SnakeRobot": ("SnakeHead", "module_chain", 3),
         "DifferentialDriveRobot": ("RobotChassis", "wheeled", 2),
         "SkidSteerRobot": ("RobotChassis", "wheeled", 4),
+        "CarRobot": ("RobotChassis", "steered", 6),  # 2 steering, 2 driven, 2 free wheels
+        "TricycleRobot": ("RobotChassis", "steered", 4),  # 1 steering, 1 driven, 2 free
     }
     assert set(expect) == set(TEMPLATES)
     for rtype, (root, structure, movable) in expect.items():

@@ -18,6 +18,7 @@ import pytest
 
 from export.mjcf import SERVO_BAND, load_mjcf, mjcf_string, principal_inertia, quat_from_matrix
 from export.model3d import Assembly
+from export.urdf import PASSIVE_DAMPING
 from tests.test_urdf import (
     HAND_BUILT,
     REPO,
@@ -49,7 +50,8 @@ def rotation(quat) -> np.ndarray:
 
 
 def movable(assembly: Assembly):
-    return [j for j in assembly.joints if j.kind != "fixed"]
+    """The joints a servo drives (a free wheel's passive joint has none)."""
+    return [j for j in assembly.joints if j.kind != "fixed" and not j.passive]
 
 
 def check_model(assembly: Assembly, model) -> None:
@@ -83,7 +85,13 @@ def check_model(assembly: Assembly, model) -> None:
     moving = movable(assembly)
     assert model.nu == len(moving)
     hinges = model.njnt - len(free)
-    assert hinges == len(moving)
+    passive = [j for j in assembly.joints if j.passive]
+    assert hinges == len(moving) + len(passive)
+    for j in passive:  # a hinge with its bearing's damping, no actuator
+        k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j.name)
+        assert model.jnt_type[k] == mujoco.mjtJoint.mjJNT_HINGE
+        assert model.dof_damping[model.jnt_dofadr[k]] == PASSIVE_DAMPING
+        assert mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, j.name) == -1
     for j in moving:
         k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j.name)
         a = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, j.name)

@@ -75,10 +75,13 @@ def test_templates_agree_with_the_ontology(designer, ancestors, base_configurati
         t = build(robot_type, params)
         where = f"{robot_type}: "
         actuators = count(modules, ancestors, "ActuatorModule")
-        assert t.model.nv == actuators, where + "movable joints != actuator modules"
+        # a passive joint (a free wheel's) turns on a bearing hub, not an actuator
+        assert t.model.nv - len(t.passive) == actuators, where + "movable joints != actuators"
+        assert len(t.passive) == count(passive, ancestors, "BearingModule"), where + "hubs"
         assert t.legs == count(parts, ancestors, "RobotLeg"), where + "legs"
         assert len(t.feet) == len(t.foot_points) == count(passive, ancestors, "FootModule")
-        assert len(t.wheels) == count(parts, ancestors, "DriveWheel"), where + "drive wheels"
+        rolling = count(parts, ancestors, "Wheel") - count(parts, ancestors, "CasterWheel")
+        assert len(t.wheels) == rolling, where + "wheels"
         assert len(t.casters) == count(parts, ancestors, "CasterWheel"), where + "casters"
         grippers = count(parts, ancestors, "RoboticGripper")
         assert len(t.end_effectors) == grippers, where + "grippers"
@@ -86,7 +89,9 @@ def test_templates_agree_with_the_ontology(designer, ancestors, base_configurati
         assert t.arms == (count(parts, ancestors, "RobotArm") or grippers), where + "arms"
         gripper_joints = t.groups.get("gripper", ())
         assert len(gripper_joints) == count(modules, ancestors, "EndEffectorActuator")
-        wheel_joints = [j for j in t.model.joints if j.kind == "continuous"]
+        wheel_joints = [
+            j for j in t.model.joints if j.kind == "continuous" and j.name not in t.passive
+        ]
         assert len(wheel_joints) == count(modules, ancestors, "ContinuousRotationServomotor")
         tubes = count(passive, ancestors, "LinkModule")
         tubes += count(passive, ancestors, "SnakeBracketModule")
@@ -116,8 +121,11 @@ PARAMS = TemplateParams(
 
 def expected_mass(t: Template, p: TemplateParams) -> float:
     actuators = sum(
-        p.actuator_mass.get(j.group, DEFAULT_ACTUATOR_MASS) for j in t.model.joints if j.movable
+        p.actuator_mass.get(j.group, DEFAULT_ACTUATOR_MASS)
+        for j in t.model.joints
+        if j.movable and j.name not in t.passive
     )
+    actuators += len(t.passive) * p.bearing_mass  # a free wheel's hub
     tubes = sum(tube_mass(p.density, s.length, s.r_outer, s.r_inner) for s in t.segments)
     ends = (
         len(t.feet) * p.foot_mass
@@ -171,7 +179,7 @@ def test_joints_limits_groups_and_zero_pose(robot_type: str) -> None:
         assert j.effort == 0.0 and j.velocity == 0.0
         if j.name != "root" and robot_type != "SnakeRobot":
             assert m.bodies[j.child].name == f"{j.name}_link"
-        if j.movable:
+        if j.movable and j.name not in t.passive:  # a passive joint has no actuator
             assert j.group, f"{j.name} has no group"
     # joints of one group on alike limbs (none above another, unlike a snake's chain) are
     # alike: the same gravity torque in the zero pose

@@ -23,6 +23,7 @@ import pytest
 from export.model3d import Assembly, BodySpec, Geometry, JointSpec, PartUse, PrintedPart
 from export.urdf import (
     MUJOCO_COMPILER,
+    PASSIVE_DAMPING,
     number,
     robot_xml,
     rpy_from_matrix,
@@ -372,6 +373,9 @@ def check_loaded(assembly: Assembly, path: Path) -> None:
         if j.kind == "fixed":
             continue
         assert close(u.axis, j.axis / np.linalg.norm(j.axis))
+        if j.passive:  # a free wheel: no actuator, no limit, its bearing's damping
+            assert u.limit is None and close(u.dynamics.damping, PASSIVE_DAMPING)
+            continue
         assert close(u.limit.effort, j.effort) and close(u.limit.velocity, j.velocity)
         if j.kind == "revolute":
             assert close([u.limit.lower, u.limit.upper], [j.lower, j.upper])
