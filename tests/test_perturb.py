@@ -455,14 +455,14 @@ def test_a_bonus_ability_not_robust_is_dropped(kif, cli, monkeypatch):
     answer = _robust(
         [
             ("pick-and-place", "pick-and-place", [_run(1), _run(2)]),
-            ("positioning", "positioning", [_run(1), _run(2, ["placing"])]),
+            ("grasping", "grasping", [_run(1), _run(2, ["placing"])]),
         ]
     )
     monkeypatch.setattr(export.verify, "verify_robust", lambda *a, **kw: answer)
     r = cli("design", *REQUEST, "--ontology", str(kif), "--robustness", "2", "--json")
     assert r.code == 0, r.err
     rec = json.loads(r.out)
-    assert "positioning" not in rec["abilities"] and "pick-and-place" in rec["abilities"]
-    assert "dropped positioning: positioning is not robust: passed 1 of 2 perturbed runs" in (
+    assert "grasping" not in rec["abilities"] and "pick-and-place" in rec["abilities"]
+    assert "dropped grasping: grasping is not robust: passed 1 of 2 perturbed runs" in (
         " ".join(rec["notes"])
     )
