@@ -122,8 +122,10 @@ FLOOR_CLEARANCE = 0.04
 #: 400 points or more): a bigger one means the IK switched branch.
 MAX_STEP = 0.1
 #: Iterations the numerical IK spends per sample of a Cartesian line on its secondary and
-#: tertiary tasks once the gripper is on the line (each sample starts from the last).
-LINE_REFINE = 3
+#: tertiary tasks once the gripper is on the line (each sample starts from the last, and
+#: the steps that bring it there carry them: 0 keeps the line's first sample where the
+#: segment before ended).
+LINE_REFINE = 0
 #: Peak |s'| and |s''| of the minimum-jerk profile s(tau) on [0, 1].
 _PEAK_SPEED = 1.875
 _PEAK_ACCEL = 10.0 / math.sqrt(3.0)
