@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -73,6 +73,16 @@ def _rot(axis: np.ndarray, angle: float) -> np.ndarray:
     )
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross products of (..., 3) arrays (numpy's cross is slow on small arrays)."""
+    a, b = np.broadcast_arrays(a, b)
+    out = np.empty(a.shape)
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
 def rotation_error(R: np.ndarray, Rd: np.ndarray) -> np.ndarray:
     """Rotation vector (3,) rad, world axes, that turns ``R`` into ``Rd``."""
     E = Rd @ R.T
@@ -110,6 +120,7 @@ class SerialChain:
     tool_offset: np.ndarray
     #: per body on the path, root first: (origin (4, 4), axis (3,) or None, arm index or -1)
     steps: tuple[tuple[np.ndarray, np.ndarray | None, int], ...]
+    _cache: dict = field(default_factory=dict, repr=False)
 
     @property
     def n(self) -> int:
@@ -144,11 +155,18 @@ class SerialChain:
         world axes; end point; tool rotation) at ``q``."""
         p, R, axes, origins = self.frames(q)
         J = np.zeros((6, self.n))
-        J[:3] = np.cross(axes, p - origins).T
+        J[:3] = _cross(axes, p - origins).T
         J[3:] = axes.T
         return J, p, R
 
     def shoulder(self) -> tuple[np.ndarray, float]:
+        """Cached :meth:`_shoulder`."""
+        got = self._cache.get("shoulder")
+        if got is None:
+            got = self._cache["shoulder"] = self._shoulder()
+        return got[0].copy(), got[1]
+
+    def _shoulder(self) -> tuple[np.ndarray, float]:
         """(a point fixed in the root frame whatever q, the farthest the end point can be
         from it m): the deepest joint origin that lies on the axes of all the joints
         before it (a serial arm's shoulder, on its base's vertical axis), and the sum of
@@ -307,14 +325,14 @@ def _descend(
         J1, e1 = np.vstack(rows), np.concatenate(errs)
         if pointing is not None:
             a = R @ chain.tool_axis
-            c = np.cross(a, pointing)
+            c = _cross(a, pointing)
             s, cos = float(np.linalg.norm(c)), float(a @ pointing)
             th = math.atan2(s, cos)
             if s > 1e-12:
                 e2 = th * c / s
             elif cos < 0:  # opposite: turn about any axis across the tool's
                 ref = np.eye(3)[int(np.argmin(np.abs(a)))]
-                perp = np.cross(a, ref)
+                perp = _cross(a, ref)
                 e2 = math.pi * perp / np.linalg.norm(perp)
             else:
                 e2 = np.zeros(3)
@@ -399,15 +417,19 @@ def solve_ik(
         )
     lo, hi = _finite_limits(chain)
     start = (lo + hi) / 2 if q0 is None else np.asarray(q0, dtype=float)
-    rng = np.random.default_rng(SEED)
-    seeds = [start] + [lo + (0.05 + 0.9 * rng.random(chain.n)) * (hi - lo) for _ in range(restarts)]
+
+    def seeds():
+        yield start
+        rng = np.random.default_rng(SEED)
+        for _ in range(restarts):
+            yield lo + (0.05 + 0.9 * rng.random(chain.n)) * (hi - lo)
 
     def dist_from_start(q: np.ndarray) -> float:
         return float(np.sum((q - start) ** 2))
 
     key = score or dist_from_start
     best, best_key, nearest = None, math.inf, math.inf
-    for k, s in enumerate(seeds):
+    for k, s in enumerate(seeds()):
         r = _descend(chain, target, Rd, d, s, tol, max_iter, refine)
         nearest = min(nearest, r.error)
         if not r.converged:
