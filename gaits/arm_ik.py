@@ -296,6 +296,7 @@ def _descend(
     tol: float,
     max_iter: int,
     refine: int,
+    gain: float,
 ) -> _Result:
     """Task-priority damped least squares from ``q`` (see the module docstring)."""
     lo, hi = chain.lower, chain.upper
@@ -350,7 +351,7 @@ def _descend(
                 d2, N2 = _pinv_step(B, e2 - (J2 * mask) @ dq)
                 dq = dq + N @ d2
                 N = N @ N2
-            dq = dq + N @ (-LIMIT_GAIN * weight * (q - mid))
+            dq = dq + N @ (-gain * weight * (q - mid))
             dq = dq * mask
             big = float(np.max(np.abs(dq)))
             if big > MAX_STEP:
@@ -382,6 +383,7 @@ def solve_ik(
     refine: int = 50,
     restarts: int = RESTARTS,
     score: Callable[[np.ndarray], float] | None = None,
+    avoid_limits: bool = True,
 ) -> np.ndarray:
     """Arm configuration (n,) rad, inside the joint limits, that puts the chain's end point
     at ``position`` (3,) m (root frame) and, if given, the tool frame at ``rotation``
@@ -393,7 +395,8 @@ def solve_ik(
     inside the limits by a generator of constant seed; of the converged solutions the one
     of least ``score`` (default: the distance from ``q0``) is returned, the first one on a
     tie. ``refine``: iterations spent on the secondary and tertiary tasks once the primary
-    one is met. ValueError, naming the target and why, when no start converges.
+    one is met. ``avoid_limits``: False drops the tertiary task (for comparison). ValueError,
+    naming the target and why, when no start converges.
     """
     target = np.asarray(position, dtype=float)
     if target.shape != (3,) or not np.all(np.isfinite(target)):
@@ -430,7 +433,8 @@ def solve_ik(
     key = score or dist_from_start
     best, best_key, nearest = None, math.inf, math.inf
     for k, s in enumerate(seeds()):
-        r = _descend(chain, target, Rd, d, s, tol, max_iter, refine)
+        gain = LIMIT_GAIN if avoid_limits else 0.0
+        r = _descend(chain, target, Rd, d, s, tol, max_iter, refine, gain)
         nearest = min(nearest, r.error)
         if not r.converged:
             continue

@@ -451,7 +451,10 @@ class ManipulatorController(Controller):
         super().__init__(geometry)
         kin = self.template.model
         if not self.template.end_effectors:
-            raise ValueError(f"ManipulatorController: {geometry.template} has no end effector")
+            raise ValueError(
+                f"ManipulatorController drives a serial arm ending in a gripper; "
+                f"{geometry.template} has no end effector"
+            )
         self.chain = serial_chain(kin, self.template.end_effectors[0])
         chain = self.chain.joints
         end_joint = kin.joints[kin.body(self.chain.end_body)].name
