@@ -16,9 +16,9 @@ fixed origins and rotations), so that an IK iteration costs one walk along the c
    middle of every joint's range, so a redundant arm stays away from its joint limits.
 
 Each step is the damped pseudo-inverse of the free joints' Jacobian (SVD, damping
-``DAMPING``), at most ``MAX_STEP`` rad per joint; a joint the step would push past a
-limit is locked at that limit and the step recomputed without it (an active set), so no
-iterate leaves the limits. Several starts are tried in a fixed order (the given
+``DAMPING``), at most ``MAX_STEP`` rad per joint, clipped to the limits; a joint on a limit
+that the step pushes further out is locked there and the step recomputed without it (an
+active set), so no iterate leaves the limits. Several starts are tried in a fixed order (the given
 configuration, then configurations drawn inside the limits by a generator seeded with a
 constant): the answer depends on nothing but the arguments (same input, same bytes).
 
@@ -356,8 +356,9 @@ def _descend(
             big = float(np.max(np.abs(dq)))
             if big > MAX_STEP:
                 dq = dq * (MAX_STEP / big)
-            new = q + dq
-            out = free & ((new < lo - 1e-12) | (new > hi + 1e-12))
+            # a joint on a limit that the step pushes further out is locked there and
+            # the step recomputed without it; one short of it stops on it (the clip)
+            out = free & (((q <= lo + 1e-12) & (dq < 0)) | ((q >= hi - 1e-12) & (dq > 0)))
             step = dq
             if not np.any(out):
                 break
@@ -432,17 +433,22 @@ def solve_ik(
 
     key = score or dist_from_start
     best, best_key, nearest = None, math.inf, math.inf
-    for k, s in enumerate(seeds()):
-        gain = LIMIT_GAIN if avoid_limits else 0.0
-        r = _descend(chain, target, Rd, d, s, tol, max_iter, refine, gain)
-        nearest = min(nearest, r.error)
-        if not r.converged:
-            continue
-        if k == 0 and score is None:
-            return r.q
-        v = key(r.q)
-        if v < best_key - 1e-12:
-            best, best_key = r.q, v
+    gain = LIMIT_GAIN if avoid_limits else 0.0
+    # the pointing is a wish: where it drives the joints into limits that keep the
+    # gripper off its target, the starts are tried again without it
+    for wish in (d, None) if d is not None else (None,):
+        for k, s in enumerate(seeds()):
+            r = _descend(chain, target, Rd, wish, s, tol, max_iter, refine, gain)
+            nearest = min(nearest, r.error)
+            if not r.converged:
+                continue
+            if k == 0 and score is None:
+                return r.q
+            v = key(r.q)
+            if v < best_key - 1e-12:
+                best, best_key = r.q, v
+        if best is not None:
+            break
     if best is None:
         what = " with the tool at the rotation asked" if Rd is not None else ""
         raise ValueError(
