@@ -196,7 +196,10 @@ class SerialChain:
         anchor, _ = self.shoulder()
         pts = [*origins, p]
         start = next(k for k, x in enumerate(pts) if np.allclose(x, anchor, atol=1e-12))
-        out = [float(np.linalg.norm(b - a)) for a, b in zip(pts[start:], pts[start + 1 :])]
+        out = [
+            float(np.linalg.norm(b - a))
+            for a, b in zip(pts[start:], pts[start + 1 :], strict=False)
+        ]
         return [x for x in out if x > 1e-9]
 
 

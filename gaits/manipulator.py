@@ -1,6 +1,16 @@
-"""Manipulators (paper section 4.3.3): inverse kinematics of the 3-DOF and 6-DOF arms and
-the ``pick-and-place``, ``grasping``, ``positioning`` (``move_to``) and ``orienting``
-behaviours.
+"""Manipulators (paper section 4.3.3): inverse kinematics of serial arms and the
+``pick-and-place``, ``grasping``, ``positioning`` (``move_to``), ``move_to_pose`` and
+``orienting`` behaviours.
+
+Any serial chain from the base to the gripper (3 to 7 joints in the part kinds, any axes)
+is served by the numerical IK of :mod:`gaits.arm_ik` (task-priority damped least squares
+with joint limits, seeded restarts); what the chain can do is read from it
+(:func:`gaits.arm_ik.chain_rank`): rank 3 places the gripper, 4 or 5 also point the tool
+down where they can (a soft secondary task: grasping from above), 6 orients the tool every
+way (``orienting``; the positioning's roll, pitch, yaw); a redundant chain's spare freedom
+keeps its joints off their limits. The closed forms below serve, as a fast path, the chains
+they fit (the part kinds' chains of 3 and 6 joints: checked on the chain's own forward
+kinematics, :meth:`ManipulatorController._closed_form`); what follows describes them.
 
 Geometry (``kinematics.templates``, Fig. 16 and 31; base frame = the template's root
 frame: z up at the top of the base plate, x forward): ``base_yaw`` turns about z at the
@@ -73,6 +83,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from gaits.arm_ik import chain_rank, rotation_error, serial_chain, solve_ik
 from gaits.base import (
     BehaviorSpec,
     Controller,
@@ -81,7 +92,6 @@ from gaits.base import (
     Trajectory,
     min_jerk,
 )
-from gaits.arm_ik import chain_rank, rotation_error, serial_chain, solve_ik
 from kinematics.dynamics import forward_kinematics, gravity_torques, jacobian, rnea
 from kinematics.model import Model
 from kinematics.spatial import matrix_from_rpy, rot_y, rot_z
@@ -421,7 +431,8 @@ class _Plan:
 
 
 class ManipulatorController(Controller):
-    """The behaviours of a serial arm of 3 or 6 joints (the closed forms' chains).
+    """The behaviours of a serial arm: every joint of the model on the chain from the base
+    to the gripper (the template's end effector), the gripper's own joint last.
 
     ``base_position`` (3,) m: where the base frame sits in the world (the MJCF's root body
     position; the floor is the world plane z = 0). ``model``: a kinematics Model with the
@@ -767,11 +778,7 @@ class ManipulatorController(Controller):
             "move_to_pose",
             "move the joints to a named pose: ready (where every behaviour starts) or home "
             "(every arm joint at 0: the arm stretched along its zero pose), gripper open",
-            (
-                Parameter(
-                    "pose", "choice", "ready", "the named pose", choices=tuple(self.poses)
-                ),
-            ),
+            (Parameter("pose", "choice", "ready", "the named pose", choices=tuple(self.poses)),),
             ability="positioning",
         )
         if self.six:

@@ -132,7 +132,9 @@ def test_what_a_chain_orients_is_read_from_it(arms) -> None:
         c = ManipulatorController(_geometry(name))
         full = ranks[n] == 6
         assert ("orienting" in c.behaviors) is full
-        assert ({"roll", "pitch", "yaw"} <= {p.name for p in c.behaviors["positioning"].params}) is full
+        assert (
+            {"roll", "pitch", "yaw"} <= {p.name for p in c.behaviors["positioning"].params}
+        ) is full
         assert c.closed == (n if n in (3, 6) else None)  # the closed forms fit their chains
     # a chain whose joints all pitch about parallel axes cannot leave its plane
     planar = _chain(arms[4])
@@ -224,7 +226,9 @@ def test_a_target_only_past_a_joint_limit_is_refused(arms) -> None:
 
 def test_an_unreachable_target_is_refused_with_the_reach(arms) -> None:
     chain = _chain(arms[5])
-    with pytest.raises(ValueError, match=r"cannot reach \(0\.6000, 0\.0000, 0\.1000\) m.*reaches 0\.4500 m"):
+    with pytest.raises(
+        ValueError, match=r"cannot reach \(0\.6000, 0\.0000, 0\.1000\) m.*reaches 0\.4500 m"
+    ):
         solve_ik(chain, (0.6, 0.0, 0.1))
     c = ManipulatorController(_geometry(arms[5]))
     with pytest.raises(ValueError, match="reaches"):
