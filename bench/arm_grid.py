@@ -60,11 +60,12 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, default=None, help="folder of the bundles")
     ap.add_argument("--quick", action="store_true", help="one payload and one reach")
+    ap.add_argument("--dof", type=int, action="append", help="only these joint counts")
     a = ap.parse_args()
     folder = a.out or Path(tempfile.mkdtemp(prefix="arm-grid-"))
     payloads, reaches = (PAYLOADS[:1], REACHES[:1]) if a.quick else (PAYLOADS, REACHES)
     cases = [
-        (d, p, r, s) for d in DOFS for p, r in itertools.product(payloads, reaches)
+        (d, p, r, s) for d in (a.dof or DOFS) for p, r in itertools.product(payloads, reaches)
         for s in SHAPES[d]
     ]  # fmt: skip
     passed = 0

@@ -188,19 +188,20 @@ class SerialChain:
         )
         return points[anchor].copy(), reach
 
-    def segments(self) -> list[float]:
-        """Lengths m between successive distinct joint origins (and the end point) from
-        the shoulder (:meth:`shoulder`) on, at q = 0."""
+    def tool_length(self) -> float:
+        """The distance m from the end point to the last joint that moves the tool axis
+        (at q = 0; joints turning about the tool axis itself, a tool roll, are passed
+        over): how far above a target a tool pointing down at it holds its wrist."""
         q0 = np.clip(np.zeros(self.n), self.lower, self.upper)
-        p, _, _, origins = self.frames(q0)
-        anchor, _ = self.shoulder()
-        pts = [*origins, p]
-        start = next(k for k, x in enumerate(pts) if np.allclose(x, anchor, atol=1e-12))
-        out = [
-            float(np.linalg.norm(b - a))
-            for a, b in zip(pts[start:], pts[start + 1 :], strict=False)
-        ]
-        return [x for x in out if x > 1e-9]
+        p, R, axes, origins = self.frames(q0)
+        t = R @ self.tool_axis
+        for a, o in zip(axes[::-1], origins[::-1], strict=True):
+            on_line = (
+                np.linalg.norm(_cross(a, t)) < 1e-9 and np.linalg.norm(_cross(o - p, t)) < 1e-9
+            )
+            if not on_line:
+                return float(np.linalg.norm(p - o))
+        return 0.0
 
 
 def serial_chain(model: Model, end_body: str) -> SerialChain:

@@ -494,9 +494,9 @@ class ManipulatorController(Controller):
         self.arm = chain
         self.lengths = dict(self.template.lengths)
         self._shoulder, self._reach = self.chain.shoulder()
-        segments = self.chain.segments()
-        #: the last link's length when the tool points (the wrist above the gripper)
-        self.tool_length = segments[-1] if self.points and segments else 0.0
+        #: how far above the gripper a tool pointing down holds the wrist (0: a chain
+        #: that cannot point its tool)
+        self.tool_length = self.chain.tool_length() if self.points else 0.0
         self.base_position = np.array(base_position, dtype=float)
         if self.base_position.shape != (3,) or not np.all(np.isfinite(self.base_position)):
             raise ValueError(f"base_position must be 3 finite numbers, got {base_position!r}")
@@ -578,7 +578,7 @@ class ManipulatorController(Controller):
         shoulder height for L2 = L3); 6 joints: forearm horizontal, tool pointing down
         (the gripper L4 under the wrist). Any other chain: the wrist 0.6 of the arm's
         reach (less the tool's length) in front of the shoulder and a quarter of it above,
-        the tool pointing down where the chain can, the elbow up (of the IK's solutions the
+        the tool pointing down as far as the chain can, the elbow up (of the IK's solutions the
         one whose lowest joint stands highest, then nearest the middle of the ranges)."""
         q = np.zeros(len(self.joints))
         q[-1] = self.upper[-1]
@@ -590,6 +590,8 @@ class ManipulatorController(Controller):
             return np.clip(q, self.lower, self.upper)
         arm = self.reach - self.tool_length
         target = self._shoulder + np.array([0.6 * arm, 0.0, 0.25 * arm - self.tool_length])
+        # a long tool: not below the floor
+        target[2] = max(target[2], FLOOR_CLEARANCE + 0.02 - float(self.base_position[2]))
         lo, hi = self.lower[:-1], self.upper[:-1]
         mid = np.where(np.isfinite(lo) & np.isfinite(hi), (lo + hi) / 2, 0.0)
         span = np.where(np.isfinite(lo) & np.isfinite(hi), hi - lo, math.inf)
@@ -598,9 +600,8 @@ class ManipulatorController(Controller):
             _, _, _, origins = self.chain.frames(x)
             return -float(origins[:, 2].min()) + 1e-3 * float(np.sum(((x - mid) / span) ** 2))
 
-        R = self.down(target) if self.six else None
-        down = (0.0, 0.0, -1.0) if self.points and R is None else None
-        q[:-1] = solve_ik(self.chain, target, R, down, mid, score=elbow_up)
+        down = (0.0, 0.0, -1.0) if self.points else None  # a wish: not the whole frame
+        q[:-1] = solve_ik(self.chain, target, None, down, mid, score=elbow_up)
         return q
 
     def gripper_position(self, q: np.ndarray) -> np.ndarray:

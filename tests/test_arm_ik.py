@@ -346,3 +346,31 @@ def test_kif_only_arms_design_verify_and_simulate(cli, tmp_path, n) -> None:
         assert fig["placing_error_m"] <= 0.005
     s = cli("simulate", str(out), "--behavior", "move_to_pose", "--set", "pose=home", "--json")
     assert s.code == 0 and json.loads(s.out)["verdict"] == "ok", s.err
+
+
+def test_a_tool_off_its_last_joint_is_measured_on_its_own_body(tmp_path_factory) -> None:
+    """Six joints with a printed link after the tool roll: the gripper sits a link away
+    from the tool body's origin. The chain still orients the tool every way (numerical
+    IK); a behaviour that promises an orientation promises the tool body's origin where
+    the gripper is on its target, and the plan puts it there. (Its default targets, the
+    tool pointing down, would need the wrist to fold past its limits: refused.)"""
+    plan = _plan(tmp_path_factory, _kif_arm(6, (1, 2, 3, 5, 6), "ToolArm6"), "ToolArm6")
+    c = ManipulatorController(_geometry(plan.robot_type), base_position=(0, 0, 0.05))
+    assert c.closed is None and c.six and np.linalg.norm(c.chain.tool_offset) > 0.1
+    with pytest.raises(ValueError, match="no configuration inside the joint limits"):
+        c.run("positioning")
+    m = c.template.model
+    ahead = {"x": 0.5, "y": 0.05, "z": 0.15, "roll": 0.2, "yaw": 0.1}  # the tool forward
+    for name, params in (
+        ("positioning", {**ahead, "pitch": 0.0}),
+        ("orienting", {**ahead, "pitch": 0.3}),
+        ("move_to_pose", {"pose": "home"}),
+    ):
+        traj = c.run(name, **params)
+        q = traj.positions[-1]
+        assert traj.info["tool_body"] == c.chain.tool_body == "tool_roll_link"
+        T = forward_kinematics(m, q)
+        at = T[m.body("tool_roll_link"), :3, 3] + c.base_position
+        np.testing.assert_allclose(at, traj.info["target"], atol=1e-6)
+        grip = T[m.body("gripper_link"), :3, 3]
+        np.testing.assert_allclose(grip, traj.info["target_base"], atol=1e-6)
