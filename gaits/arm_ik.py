@@ -52,7 +52,7 @@ MAX_STEP = 0.2
 #: Gain of the tertiary step towards the middle of the joints' ranges, per iteration.
 LIMIT_GAIN = 0.2
 #: Configurations drawn inside the limits after the given start, in this order.
-RESTARTS = 8
+RESTARTS = 16
 #: Seed of the generator that draws the restarts (a constant: the answer is reproducible).
 SEED = 20240521
 #: Singular values below this fraction of the largest count as zero (rank, null spaces).
