@@ -12,8 +12,9 @@ fixed origins and rotations), so that an IK iteration costs one walk along the c
 2. an optional *secondary* task in the primary's null space: the tool axis pointing
    along a direction (e.g. down for grasping from above), as far as the chain allows it
    (a chain of 4 pitch-and-yaw joints points down at most targets, one of 3 joints not);
-3. a *tertiary* gradient in what null space is left (a redundant chain): towards the
-   middle of every joint's range, so a redundant arm stays away from its joint limits.
+3. a *tertiary* gradient in what null space is left (a redundant chain): down the
+   limit-distance cost (:func:`limit_cost`: a joint past ``LIMIT_BAND`` of its half range
+   is pushed back towards the middle), so a redundant arm stays away from its limits.
 
 Each step is the damped pseudo-inverse of the free joints' Jacobian (SVD, damping
 ``DAMPING``), at most ``MAX_STEP`` rad per joint, clipped to the limits; a joint on a limit
@@ -40,6 +41,7 @@ from kinematics.model import Model
 __all__ = [
     "SerialChain",
     "chain_rank",
+    "limit_cost",
     "rotation_error",
     "serial_chain",
     "solve_ik",
@@ -51,6 +53,10 @@ DAMPING = 1e-3
 MAX_STEP = 0.2
 #: Gain of the tertiary step towards the middle of the joints' ranges, per iteration.
 LIMIT_GAIN = 0.2
+#: The tertiary task acts on a joint past this fraction of its half range from the middle:
+#: nearer the middle a redundant arm keeps the posture it started from (pulling every
+#: joint to the middle would turn a 7-joint arm's elbow aside for nothing).
+LIMIT_BAND = 0.85
 #: Configurations drawn inside the limits after the given start, in this order.
 RESTARTS = 16
 #: Seed of the generator that draws the restarts (a constant: the answer is reproducible).
@@ -271,6 +277,29 @@ def _finite_limits(chain: SerialChain) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
+def _excess(q: np.ndarray, mid: np.ndarray, span: np.ndarray) -> np.ndarray:
+    """How far each joint is past ``LIMIT_BAND`` of its half range from the middle (signed,
+    0 inside the band): the gradient of the limit-distance cost ``limit_cost``/2."""
+    d = q - mid
+    edge = LIMIT_BAND * span / 2
+    out = np.zeros_like(d)
+    m = np.isfinite(edge) & (np.abs(d) > edge)
+    out[m] = d[m] - np.sign(d[m]) * edge[m]
+    return out
+
+
+def limit_cost(chain: SerialChain, q: Sequence[float]) -> float:
+    """The limit-distance cost the tertiary task lowers: the sum over joints of
+    ``(pi / range)^2 * excess^2``, the excess being how far a joint is past
+    ``LIMIT_BAND`` of its half range from the middle (0 for continuous joints)."""
+    lo, hi = chain.lower, chain.upper
+    finite = np.isfinite(lo) & np.isfinite(hi)
+    mid = np.where(finite, (lo + hi) / 2, 0.0)
+    span = np.where(finite, hi - lo, math.inf)
+    x = _excess(np.asarray(q, dtype=float), mid, span)
+    return float(np.sum((math.pi / span) ** 2 * x * x))
+
+
 def _pinv_step(J: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(damped least-squares step J# e, the projector onto J's null space)."""
     n = J.shape[1]
@@ -355,7 +384,7 @@ def _descend(
                 d2, N2 = _pinv_step(B, e2 - (J2 * mask) @ dq)
                 dq = dq + N @ d2
                 N = N @ N2
-            dq = dq + N @ (-gain * weight * (q - mid))
+            dq = dq + N @ (-gain * weight * _excess(q, mid, span))
             dq = dq * mask
             big = float(np.max(np.abs(dq)))
             if big > MAX_STEP:
@@ -393,7 +422,8 @@ def solve_ik(
     """Arm configuration (n,) rad, inside the joint limits, that puts the chain's end point
     at ``position`` (3,) m (root frame) and, if given, the tool frame at ``rotation``
     (3, 3); the tool axis as near ``pointing`` (3,) as the chain allows (secondary); the
-    joints as near the middle of their ranges as what is left free allows (tertiary).
+    joints as far from their limits as what is left free allows (tertiary,
+    :func:`limit_cost`).
 
     Starts from ``q0`` (default: the middle of the ranges; its solution is returned when
     it converges and ``score`` is None), then from ``restarts`` configurations drawn
