@@ -373,3 +373,26 @@ def test_a_tool_off_its_last_joint_is_measured_on_its_own_body(tmp_path_factory)
         np.testing.assert_allclose(at, traj.info["target"], atol=1e-6)
         grip = T[m.body("gripper_link"), :3, 3]
         np.testing.assert_allclose(grip, traj.info["target_base"], atol=1e-6)
+
+
+def test_an_arm_whose_default_behaviour_cannot_be_planned_is_refused(cli, tmp_path) -> None:
+    """The six joints with a printed link after the tool roll, designed: its default grasp
+    (the tool pointing down onto the object) would need the wrist past its limits. The
+    design is refused with the behaviour, the target and why (exit 1, no traceback,
+    nothing written)."""
+    src = tmp_path / "tool6.kif"
+    src.write_text(
+        _kif_arm(6, (1, 2, 3, 5, 6), "ToolArm6")
+        + """
+(subclass RobotPositioningTool RobotPositioning)
+(abilityName RobotPositioningTool "positioning-tool")
+(abilityVerb RobotPositioningTool "position with a long tool")
+(requiredPartCount RobotPositioningTool LinkModule 5)
+"""
+    )
+    out = tmp_path / "bundle"
+    r = cli("design", "positioning-tool", "--ontology", str(src), "--no-input", "--out", str(out))
+    assert r.code == 1 and "Traceback" not in r.err, r.err
+    assert "ToolArm6: its behaviour" in r.err and "cannot be planned" in r.err
+    assert "no configuration inside the joint limits" in r.err
+    assert not out.exists()
