@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from adron import readers
-from adron.errors import ExportError, InputError
+from adron.errors import ExportError, InfeasibleError, InputError
 
 if TYPE_CHECKING:
     from adron.catalog import Catalog
@@ -245,7 +245,13 @@ def _trajectories(record: dict) -> dict:
     for name in controller.listed(record.get("abilities", ())):
         if not _SAFE_BEHAVIOR.fullmatch(name):
             raise ExportError(f"behaviour name {name!r} is not a safe file name")
-        out[name] = controller.run(name)
+        try:
+            out[name] = controller.run(name)
+        except ValueError as e:  # e.g. a default target this arm cannot reach: exit 1
+            raise InfeasibleError(
+                f"{record.get('robot_type')}: its behaviour {name!r} cannot be planned with "
+                f"its default parameters: {e}"
+            ) from None
     return out
 
 

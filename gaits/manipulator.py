@@ -1,6 +1,16 @@
-"""Manipulators (paper section 4.3.3): inverse kinematics of the 3-DOF and 6-DOF arms and
-the ``pick-and-place``, ``grasping``, ``positioning`` (``move_to``) and ``orienting``
-behaviours.
+"""Manipulators (paper section 4.3.3): inverse kinematics of serial arms and the
+``pick-and-place``, ``grasping``, ``positioning`` (``move_to``), ``move_to_pose`` and
+``orienting`` behaviours.
+
+Any serial chain from the base to the gripper (3 to 7 joints in the part kinds, any axes)
+is served by the numerical IK of :mod:`gaits.arm_ik` (task-priority damped least squares
+with joint limits, seeded restarts); what the chain can do is read from it
+(:func:`gaits.arm_ik.chain_rank`): rank 3 places the gripper, 4 or 5 also point the tool
+down where they can (a soft secondary task: grasping from above), 6 orients the tool every
+way (``orienting``; the positioning's roll, pitch, yaw); a redundant chain's spare freedom
+keeps its joints off their limits. The closed forms below serve, as a fast path, the chains
+they fit (the part kinds' chains of 3 and 6 joints: checked on the chain's own forward
+kinematics, :meth:`ManipulatorController._closed_form`); what follows describes them.
 
 Geometry (``kinematics.templates``, Fig. 16 and 31; base frame = the template's root
 frame: z up at the top of the base plate, x forward): ``base_yaw`` turns about z at the
@@ -73,6 +83,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from gaits.arm_ik import chain_rank, rotation_error, serial_chain, solve_ik
 from gaits.base import (
     BehaviorSpec,
     Controller,
@@ -98,6 +109,8 @@ __all__ = [
     "min_jerk",
     "peak_torques",
     "rpy_from_matrix",
+    "serial_chain",
+    "solve_ik",
 ]
 
 #: Trajectory sample period, s (the simulation interpolates linearly between samples).
@@ -118,11 +131,14 @@ FLOOR_CLEARANCE = 0.04
 #: Largest joint step rad between neighbouring IK samples of a Cartesian line (sampled at
 #: 400 points or more): a bigger one means the IK switched branch.
 MAX_STEP = 0.1
+#: Iterations the numerical IK spends per sample of a Cartesian line on its secondary and
+#: tertiary tasks once the gripper is on the line (each sample starts from the last, and
+#: the steps that bring it there carry them: 0 keeps the line's first sample where the
+#: segment before ended).
+LINE_REFINE = 0
 #: Peak |s'| and |s''| of the minimum-jerk profile s(tau) on [0, 1].
 _PEAK_SPEED = 1.875
 _PEAK_ACCEL = 10.0 / math.sqrt(3.0)
-_TOOL = "tool_roll_link"
-_GRIPPER = "gripper"
 #: The serial chains the closed forms are written for, by joint count: the part kinds'
 #: ``[serial]`` rows of 3 (yaw, pitch, pitch) and 6 joints (a roll-pitch-roll wrist added).
 _CLOSED_FORMS = (3, 6)
@@ -297,18 +313,7 @@ def rpy_from_matrix(R: np.ndarray) -> np.ndarray:
     return np.array([0.0, p, math.atan2(-R[0, 1], R[1, 1])])
 
 
-def _rotation_error(R: np.ndarray, Rd: np.ndarray) -> np.ndarray:
-    """Rotation vector (3,) rad, world axes, that turns ``R`` into ``Rd``."""
-    E = Rd @ R.T
-    angle = math.acos(min(1.0, max(-1.0, (np.trace(E) - 1) / 2)))
-    v = np.array([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])
-    if angle < 1e-9:
-        return v / 2
-    if math.pi - angle < 1e-6:  # half turn: the axis from the symmetric part
-        k = int(np.argmax(np.diag(E)))
-        axis = (E[:, k] + np.eye(3)[:, k]) / math.sqrt(2 * (1 + E[k, k]))
-        return angle * axis
-    return angle * v / (2 * math.sin(angle))
+_rotation_error = rotation_error
 
 
 def ik_dls(
@@ -397,6 +402,12 @@ class _Plan:
     def now(self) -> float:
         return float(self.t[-1][-1])
 
+    def at(self, t: float) -> np.ndarray:
+        """The planned configuration at time ``t`` s (the last sample at or before it)."""
+        times = np.concatenate(self.t)
+        k = int(np.searchsorted(times, t + 1e-12, side="right")) - 1
+        return np.concatenate(self.q)[max(k, 0)].copy()
+
     def add(
         self,
         name: str,
@@ -420,7 +431,8 @@ class _Plan:
 
 
 class ManipulatorController(Controller):
-    """The behaviours of a serial arm of 3 or 6 joints (the closed forms' chains).
+    """The behaviours of a serial arm: every joint of the model on the chain from the base
+    to the gripper (the template's end effector), the gripper's own joint last.
 
     ``base_position`` (3,) m: where the base frame sits in the world (the MJCF's root body
     position; the floor is the world plane z = 0). ``model``: a kinematics Model with the
@@ -448,14 +460,28 @@ class ManipulatorController(Controller):
         elbow: str = "up",
     ) -> None:
         super().__init__(geometry)
-        chain = tuple(n for n in self.template.model.q_names if n != _GRIPPER)
-        forms = [_chain(n) for n in _CLOSED_FORMS]
-        if chain not in forms:
+        kin = self.template.model
+        if not self.template.end_effectors:
             raise ValueError(
-                f"ManipulatorController drives serial arms of "
-                f"{' or '.join(str(len(c)) for c in forms)} joints "
-                f"({'; '.join(', '.join(c) for c in forms)}), not {geometry.template}'s "
-                f"{len(chain)} ({', '.join(chain)})"
+                f"ManipulatorController drives a serial arm ending in a gripper; "
+                f"{geometry.template} has no end effector"
+            )
+        self.chain = serial_chain(kin, self.template.end_effectors[0])
+        chain = self.chain.joints
+        end_joint = kin.joints[kin.body(self.chain.end_body)].name
+        if kin.q_names != (*chain, end_joint):
+            raise ValueError(
+                f"ManipulatorController drives a serial arm whose every joint is on the "
+                f"chain to its gripper; {geometry.template}'s joints are "
+                f"{', '.join(kin.q_names)}"
+            )
+        #: the rank of the chain's Jacobian: 3 places the gripper, 6 also orients the tool
+        #: every way, 4 or 5 leave some orientation freedom (the tool points down)
+        self.rank = chain_rank(self.chain)
+        if chain_rank(self.chain, position_only=True) < 3:
+            raise ValueError(
+                f"ManipulatorController: the joints {', '.join(chain)} of {geometry.template} "
+                "cannot move the gripper in three dimensions"
             )
         if not 0 < speed_margin <= 1:
             raise ValueError(f"speed_margin must be in (0, 1], got {speed_margin}")
@@ -463,23 +489,28 @@ class ManipulatorController(Controller):
             raise ValueError(f"max_acceleration must be > 0, got {max_acceleration}")
         if elbow not in ("up", "down"):
             raise ValueError(f"elbow: expected 'up' or 'down', got {elbow!r}")
-        self.six = chain == _chain(6)
+        self.six = self.rank >= 6  # the tool takes any orientation
+        self.points = self.rank > 3  # the tool can point down
         self.arm = chain
         self.lengths = dict(self.template.lengths)
+        self._shoulder, self._reach = self.chain.shoulder()
+        #: how far above the gripper a tool pointing down holds the wrist (0: a chain
+        #: that cannot point its tool)
+        self.tool_length = self.chain.tool_length() if self.points else 0.0
         self.base_position = np.array(base_position, dtype=float)
         if self.base_position.shape != (3,) or not np.all(np.isfinite(self.base_position)):
             raise ValueError(f"base_position must be 3 finite numbers, got {base_position!r}")
         self.elbow = elbow
         self.speed_margin = float(speed_margin)
         self.max_acceleration = float(max_acceleration)
-        kin = self.template.model
         self.joints = kin.q_names  # arm joints, then the gripper
-        if self.joints[:-1] != self.arm or self.joints[-1] != _GRIPPER:
-            raise ValueError(f"unexpected joints {self.joints} for {geometry.template}")
         self.lower, self.upper = kin.lower, kin.upper
         self.limits = {
             n: (lo, hi) for n, lo, hi in zip(self.joints, self.lower, self.upper, strict=True)
         }
+        #: the closed forms' joint count when they fit this chain (:meth:`_closed_form`),
+        #: else None: the numerical IK (:func:`gaits.arm_ik.solve_ik`) serves it
+        self.closed = self._closed_form()
         no_load = [geometry.joint_speed.get(j, 0.0) for j in self.joints]
         self.speed = np.array([self.speed_margin * w if w > 0 else DEFAULT_SPEED for w in no_load])
         if model is None:
@@ -501,26 +532,77 @@ class ManipulatorController(Controller):
             self.stiffness = k
         self.gravity = gravity
         self.home = self._home()
+        #: named joint-space poses (full configurations, gripper open) for move_to_pose
+        zero = np.clip(np.zeros(len(self.joints)), self.lower, self.upper)
+        zero[-1] = self.upper[-1]
+        self.poses = {"ready": self.home, "home": zero}
         self._behaviors = self._specs()
 
     # --- geometry helpers ----------------------------------------------------------------
 
     @property
     def reach(self) -> float:
-        """Horizontal reach m of the gripper from the base axis (arm stretched)."""
-        return self.lengths["L2"] + self.lengths["L3"] + self.lengths.get("L4", 0.0)
+        """Reach m of the gripper from the shoulder (the lengths between the joints after
+        it and the gripper: the arm stretched)."""
+        return self._reach
+
+    def _closed_form(self) -> int | None:
+        """The closed forms' joint count when one serves this chain: its joints are the
+        part kinds' [serial] row of that count and the closed form round-trips the
+        chain's own forward kinematics at three configurations (so a chain of the same
+        names but other link placements goes to the numerical IK)."""
+        n = len(self.arm)
+        if n not in _CLOSED_FORMS or self.arm != _chain(n):
+            return None
+        rng = np.random.default_rng(7)
+        lo, hi = self.lower[:-1], self.upper[:-1]
+        for _ in range(3):
+            q = 0.3 * (lo + rng.random(n) * (hi - lo))
+            p, R = self.chain.forward(q)
+            elbow = "up" if q[2] >= 0 else "down"
+            try:
+                if n == 6:
+                    qc = ik_6dof(self.lengths, p, R, elbow, q, self.limits)
+                else:
+                    qc = ik_3dof(self.lengths, p, elbow, float(q[0]), self.limits)
+            except (KeyError, ValueError):
+                return None
+            p2, R2 = self.chain.forward(qc)
+            if np.linalg.norm(p2 - p) > 1e-6 or (n == 6 and not np.allclose(R2, R, atol=1e-6)):
+                return None
+        return n
 
     def _home(self) -> np.ndarray:
-        """Ready pose, gripper open, clipped to the limits: upper arm raised 45 degrees and
-        forearm 45 degrees down (3-DOF: the gripper at shoulder height for L2 = L3); 6-DOF:
-        forearm horizontal, tool pointing down (the gripper L4 under the wrist)."""
+        """Ready pose, gripper open, clipped to the limits. The closed forms' chains:
+        upper arm raised 45 degrees and forearm 45 degrees down (3 joints: the gripper at
+        shoulder height for L2 = L3); 6 joints: forearm horizontal, tool pointing down
+        (the gripper L4 under the wrist). Any other chain: the wrist 0.6 of the arm's
+        reach (less the tool's length) in front of the shoulder and a quarter of it above,
+        the tool pointing down as far as the chain can, the elbow up (of the IK's solutions the
+        one whose lowest joint stands highest, then nearest the middle of the ranges)."""
         q = np.zeros(len(self.joints))
-        q[1], q[2] = -math.pi / 4, math.pi / 2
-        if self.six:
-            q[2] = math.pi / 4
-            q[4] = math.pi / 2 - (q[1] + q[2])
         q[-1] = self.upper[-1]
-        return np.clip(q, self.lower, self.upper)
+        if self.closed is not None:
+            q[1], q[2] = -math.pi / 4, math.pi / 2
+            if self.six:
+                q[2] = math.pi / 4
+                q[4] = math.pi / 2 - (q[1] + q[2])
+            return np.clip(q, self.lower, self.upper)
+        arm = self.reach - self.tool_length
+        target = self._shoulder + np.array([0.6 * arm, 0.0, 0.25 * arm - self.tool_length])
+        # a long tool: not below the floor
+        target[2] = max(target[2], FLOOR_CLEARANCE + 0.02 - float(self.base_position[2]))
+        lo, hi = self.lower[:-1], self.upper[:-1]
+        mid = np.where(np.isfinite(lo) & np.isfinite(hi), (lo + hi) / 2, 0.0)
+        span = np.where(np.isfinite(lo) & np.isfinite(hi), hi - lo, math.inf)
+
+        def elbow_up(x: np.ndarray) -> float:
+            _, _, _, origins = self.chain.frames(x)
+            return -float(origins[:, 2].min()) + 1e-3 * float(np.sum(((x - mid) / span) ** 2))
+
+        down = (0.0, 0.0, -1.0) if self.points else None  # a wish: not the whole frame
+        q[:-1] = solve_ik(self.chain, target, None, down, mid, score=elbow_up)
+        return q
 
     def gripper_position(self, q: np.ndarray) -> np.ndarray:
         """Gripper (``gripper_link`` origin) position (B?, 3) m in the base frame at q."""
@@ -528,16 +610,25 @@ class ManipulatorController(Controller):
         return T[..., self.template.model.body("gripper_link"), :3, 3]
 
     def tool_rotation(self, q: np.ndarray) -> np.ndarray:
-        """Tool frame (3, 3) in the base frame at q (6-DOF: ``tool_roll_link``)."""
+        """Tool frame (3, 3) in the base frame at q: the frame of the body the gripper
+        hangs on (``tool_roll_link`` on the 6-joint arm)."""
         m = self.template.model
-        body = _TOOL if self.six else "elbow_pitch_link"
-        return forward_kinematics(m, q)[m.body(body), :3, :3]
+        return forward_kinematics(m, q)[m.body(self.chain.tool_body), :3, :3]
 
     def down(self, position: Sequence[float]) -> np.ndarray:
-        """Tool frame pointing straight down, its y axis across the arm's plane at
-        ``position`` (so the wrist needs no roll)."""
+        """Tool frame whose tool axis (the chain's last link, x on the part kinds' arms)
+        points straight down, its y axis across the arm's plane at ``position`` (so the
+        wrist needs no roll)."""
         yaw = math.atan2(position[1], position[0]) if math.hypot(*position[:2]) > 1e-9 else 0.0
-        return rot_z(yaw) @ rot_y(math.pi / 2)
+        R = rot_z(yaw) @ rot_y(math.pi / 2)
+        a = self.chain.tool_axis
+        x = np.array([1.0, 0.0, 0.0])
+        if np.allclose(a, x):
+            return R
+        v, c = np.cross(x, a), float(x @ a)  # the turn A taking x to the tool axis
+        K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+        A = np.eye(3) + K + K @ K / (1 + c) if c > -1 + 1e-9 else np.diag([-1.0, -1.0, 1.0])
+        return R @ A.T
 
     def ik(
         self,
@@ -545,11 +636,25 @@ class ManipulatorController(Controller):
         rotation: np.ndarray | None = None,
         reference: np.ndarray | None = None,
         elbow: str | None = None,
+        refine: int = 50,
     ) -> np.ndarray:
         """Arm joint angles (nq - 1,) rad that put the gripper at ``position`` m (base frame)
-        with (6-DOF) the tool frame ``rotation`` (default: pointing down); the preferred
-        elbow branch first, then the other. ValueError when neither works."""
+        with (a chain that orients its tool every way) the tool frame ``rotation``
+        (default: pointing down). The closed forms: the preferred elbow branch first, then
+        the other. Any other chain: :func:`gaits.arm_ik.solve_ik` from ``reference`` (the
+        tool pointing down as far as the chain allows; ``refine``: iterations spent on
+        that and on keeping off the joint limits once the gripper is there). ValueError
+        when no solution is found."""
         ref = self.home[:-1] if reference is None else np.asarray(reference)
+        if self.closed is None:
+            if rotation is not None and not self.six:
+                raise ValueError(
+                    f"this arm cannot choose its tool orientation: its joints "
+                    f"({', '.join(self.arm)}) give {self.rank - 3} of its 3 degrees of freedom"
+                )
+            R = rotation if rotation is not None or not self.six else self.down(position)
+            down = (0.0, 0.0, -1.0) if self.points and R is None else None
+            return solve_ik(self.chain, position, R, down, ref, refine=refine)
         branches = (elbow,) if elbow else (self.elbow, "down" if self.elbow == "up" else "up")
         errors = []
         for e in branches:
@@ -569,12 +674,15 @@ class ManipulatorController(Controller):
     # --- behaviours ----------------------------------------------------------------------
 
     def _specs(self) -> dict[str, BehaviorSpec]:
-        L = self.lengths
-        lim = L["L1"] + self.reach
-        r0 = 0.6 * (L["L2"] + L["L3"])
-        z0 = 0.5 * L["L1"]
+        # from the chain: the shoulder's height, the reach less the tool's length
+        # (3 joints: L1, L2 + L3; 6 joints: L1, L2 + L3 with the L4 tool pointing down)
+        height = float(self._shoulder[2])
+        arm = self.reach - self.tool_length
+        lim = height + self.reach
+        r0 = 0.6 * arm
+        z0 = 0.5 * height
         side = r0 / math.sqrt(2)
-        clear = 0.15 * (L["L2"] + L["L3"])
+        clear = 0.15 * arm
 
         def xyz(prefix: str, where: str, y: float, z: float = z0) -> tuple[Parameter, ...]:
             return tuple(
@@ -667,6 +775,13 @@ class ManipulatorController(Controller):
             ability="positioning",
             alias_of="positioning",
         )
+        specs["move_to_pose"] = BehaviorSpec(
+            "move_to_pose",
+            "move the joints to a named pose: ready (where every behaviour starts) or home "
+            "(every arm joint at 0: the arm stretched along its zero pose), gripper open",
+            (Parameter("pose", "choice", "ready", "the named pose", choices=tuple(self.poses)),),
+            ability="positioning",
+        )
         if self.six:
             tilt = Parameter(
                 "pitch",
@@ -706,9 +821,18 @@ class ManipulatorController(Controller):
         return self._behaviors
 
     def _run(self, name: str, params: Mapping[str, object]) -> Trajectory:
-        P = {k: float(v) for k, v in params.items()}  # type: ignore[arg-type]
         plan = _Plan(self.home)
         info: dict[str, object] = {}
+        if name == "move_to_pose":
+            q = self.poses[str(params["pose"])].copy()
+            self._joint(plan, "move", q)
+            target = self.gripper_position(q)
+            if self.six:
+                info["orientation_rpy"] = tuple(
+                    float(a) for a in rpy_from_matrix(self.tool_rotation(q))
+                )
+            return self._finish(name, plan, info, target)
+        P = {k: float(v) for k, v in params.items()}  # type: ignore[arg-type]
         if name == "pick-and-place":
             pick = np.array([P["pick_x"], P["pick_y"], P["pick_z"]])
             place = np.array([P["place_x"], P["place_y"], P["place_z"]])
@@ -740,9 +864,21 @@ class ManipulatorController(Controller):
                 info["orientation_rpy"] = (P["roll"], P["pitch"], P["yaw"])
         else:  # pragma: no cover - run() checks the names
             raise ValueError(f"unknown behaviour {name!r}")
+        return self._finish(name, plan, info, target)
+
+    def _finish(
+        self, name: str, plan: _Plan, info: dict[str, object], target: np.ndarray
+    ) -> Trajectory:
+        """The promise (``info``) and the trajectory. A tool that orients is measured on
+        its own body: the target is then that body's origin where the plan holds the
+        gripper on ``target`` (the same point on the part kinds' arms)."""
         info["motion"] = "orient" if "orientation_rpy" in info else "place"
-        info["tool_body"] = "tool_roll_link" if self.six else "gripper_link"
-        info["target"] = tuple(float(c) for c in self.base_position + target)
+        info["tool_body"] = self.chain.tool_body if self.six else self.chain.end_body
+        measured = np.asarray(target, dtype=float)
+        if self.six and np.any(self.chain.tool_offset != 0):
+            at = plan.at(float(info.get("placed_at_s", plan.now)))
+            measured = measured - self.tool_rotation(at) @ self.chain.tool_offset
+        info["target"] = tuple(float(c) for c in self.base_position + measured)
         info["target_base"] = tuple(float(c) for c in target)
         info["base_position"] = tuple(float(c) for c in self.base_position)
         return self._trajectory(name, plan, info)
@@ -766,12 +902,17 @@ class ManipulatorController(Controller):
             )
 
     def _ik_near(
-        self, p: np.ndarray, R: np.ndarray | None, q: np.ndarray, elbow: str | None = None
+        self,
+        p: np.ndarray,
+        R: np.ndarray | None,
+        q: np.ndarray,
+        elbow: str | None = None,
+        refine: int = 50,
     ) -> np.ndarray:
         """Full configuration (arm by IK near ``q``, gripper as in ``q``)."""
         self._check_floor(p, "target")
         out = q.copy()
-        out[:-1] = self.ik(p, R, q[:-1], elbow)
+        out[:-1] = self.ik(p, R, q[:-1], elbow, refine)
         return out
 
     # --- segments ------------------------------------------------------------------------
@@ -808,7 +949,9 @@ class ManipulatorController(Controller):
         constant tool orientation; joint velocities and accelerations by differentiating
         the closed-form IK along the path (four times finer, central differences)."""
         q_start = plan.last
-        elbow = "up" if q_start[2] >= 0 else "down"
+        # closed forms: stay on the start's elbow branch; the numerical IK starts each
+        # sample from the one before (and spends few iterations keeping off the limits)
+        elbow = ("up" if q_start[2] >= 0 else "down") if self.closed is not None else None
         p0, p1 = np.asarray(p0, dtype=float), np.asarray(p1, dtype=float)
 
         def path(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -817,7 +960,7 @@ class ManipulatorController(Controller):
             q = np.empty((len(fine), len(q_start)))
             ref = q_start
             for k, sk in enumerate(s):  # on the start's elbow branch, the wrist nearest
-                q[k] = self._ik_near(p0 + sk * (p1 - p0), R, ref, elbow)
+                q[k] = self._ik_near(p0 + sk * (p1 - p0), R, ref, elbow, LINE_REFINE)
                 ref = q[k]
             jump = float(np.max(np.abs(np.diff(q, axis=0)))) if len(q) > 1 else 0.0
             if jump > MAX_STEP:

@@ -208,7 +208,12 @@ def test_manipulators_and_wheels_are_analysed_snakes_left_to_their_family(kb, ba
     sd = StructureDesigner(kb, bases["Manipulator3DOF"], catalog, {})
     sd.run()
     cases = sd._behaviour_cases(sd.analysis, sd.converged[0], sd.actuator_sets)
-    assert {c.behaviour for c in cases} == {"grasping", "pick-and-place", "positioning"}
+    assert {c.behaviour for c in cases} == {
+        "grasping",
+        "move_to_pose",
+        "pick-and-place",
+        "positioning",
+    }
     assert all(not c.fext.any() for c in cases)  # bolted down: no contact forces
     cart = build("DifferentialDriveRobot")
     kinds = [c.kind for c in bl.contacts(cart)]

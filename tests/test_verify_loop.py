@@ -52,6 +52,7 @@ def test_a_real_arm_is_verified_in_mujoco(designer):
     assert v["simulated"] and v["rounds"] == 1 and not v["dropped"]
     assert sorted(b["behavior"] for b in v["behaviors"]) == [
         "grasping",
+        "move_to_pose",
         "pick-and-place",
         "positioning",
     ]
