@@ -1,0 +1,681 @@
+"""Compositions: a design whose body plan holds a locomotion base and an arm (a mobile
+manipulator) offers the behaviours of both, and a ``pick-and-place`` that drives to the
+object, picks it, drives on and places it.
+
+The body plan is split into its sub-structures (:func:`split`): the root's children whose
+subtree is a serial chain ending in an end effector (roles ``joint``/``link``/
+``end_effector`` of the part kinds) make the arm, the rest the base. The arm becomes a body
+plan of its own, rooted at the part kind that the part kinds give for a stationary base
+of such a chain (a ``root`` kind mounting the chain's first part with the same layout,
+its links named ``L1``, ``L2`` ...), so that the arm's lengths are those a stationary arm
+of the same chain has. Each sub-structure gets the controller of its structure
+(``gaits.CONTROLLERS`` by ``kinematics.assemble.structure_of``; no type is named):
+
+- the base's on the whole design (it carries the whole robot: its load model weighs the
+  arm and the payload); its behaviours drive the wheels while the arm holds its ready
+  pose (``home``, the servos' droop compensated as in the arm's own trajectories);
+- the arm's on the arm's plan, its base frame where the arm's first joint stands on the
+  base at the start (world frame: the base's spawn position plus the mount's offset); its
+  behaviours move the arm joints while the wheels stand still.
+
+``pick-and-place`` (parameters and ``info["target"]`` in the world frame: the floor is
+z = 0, the robot starts at the origin facing +x) plans legs one after another: the base
+turns in place to face the object (``turning``) and drives straight (a minimum-jerk
+distance profile through the drive's load model, :meth:`ComposedController._drive`) until
+the object is ``standoff`` of the arm's reach ahead of the arm's first joint; the arm
+grasps it (``grasping``), goes back to its ready pose with the gripper closed (the
+reverse of ``positioning``), the base turns and drives to the place target likewise, and
+the arm puts the object down: ``positioning`` above it, then the reverse of ``grasping``
+(down onto the target, open, up and back). A target the arm reaches from where the base
+stands needs no drive. ``info["placed_at_s"]`` is when the gripper has opened on the target:
+:mod:`export.verdict` measures the gripper's distance from the world target there, on the
+outcome, so a base that slipped or drove short fails ``placing``.
+
+Tipping: every arm configuration a behaviour plans is checked with the whole robot's
+centre of mass (the template's masses with the payload in the gripper) against the support
+polygon of the wheels' and casters' contacts (:meth:`ComposedController.tip_margin`); a
+plan that brings it within ``TIP_MARGIN`` of an edge is refused, naming the margin. The
+simulation decides the rest (``fell``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from functools import cached_property
+
+import numpy as np
+
+from gaits.base import (
+    BehaviorSpec,
+    Controller,
+    DesignGeometry,
+    Parameter,
+    Trajectory,
+    min_jerk,
+)
+from kinematics.bodyplan import BodyPlan, PartNode
+from kinematics.dynamics import forward_kinematics
+
+__all__ = ["ComposedController", "split"]
+
+#: Trajectory sample period, s (the base's and the arm's own).
+SAMPLE_DT = 0.01
+#: Roles of the part kinds that make a serial arm (a chain ending in an end effector).
+ARM_ROLES = frozenset({"joint", "link", "end_effector"})
+#: Fraction of the base's top speed that a pick-and-place drive peaks at: slow enough for
+#: the drive's load model to be accurate (the arm places within millimetres of where the
+#: base was planned to stand).
+DRIVE_SPEED_FRACTION = 0.25
+#: Where the base stops: the object this fraction of the arm's reach ahead of the arm's
+#: first joint (then the nearer and farther ones tried in turn, ``STANDOFFS``).
+STANDOFF = 0.6
+STANDOFFS = (0.6, 0.5, 0.7, 0.4, 0.8, 0.3)
+#: Turns smaller than this are not made, rad.
+MIN_TURN = 1e-4
+#: Drives shorter than this are not made, m.
+MIN_DRIVE = 1e-4
+#: Smallest distance m the whole robot's centre of mass keeps from the edges of its
+#: support polygon in a planned arm configuration.
+TIP_MARGIN = 0.005
+#: Largest distance m a pick-and-place target may lie from the start.
+FIELD = 5.0
+
+
+def _role(kinds, node: PartNode) -> str:
+    k = kinds.of(node.kinds)
+    return k.role if k is not None else ""
+
+
+def _is_arm(kinds, node: PartNode) -> bool:
+    roles = {_role(kinds, n) for n in node.walk()}
+    return "end_effector" in roles and roles <= ARM_ROLES | {""}
+
+
+def split(plan: BodyPlan, kinds) -> tuple[BodyPlan, list[tuple[BodyPlan, int]]]:
+    """(the base's plan, [(an arm's plan, its index among the root's children)]) of a
+    composed body plan: the root's children whose parts are all of a serial arm's roles
+    and end in an end effector are arms, each rooted at a stationary root kind that mounts
+    its first part as the plan's root does (same layout, links without a prefix); the
+    rest is the base. ValueError when an arm has no such root kind."""
+    root = plan.root
+    rk = kinds.of(root.kinds)
+    arms: list[tuple[BodyPlan, int]] = []
+    base_children = []
+    for i, child in enumerate(root.children):
+        if not _is_arm(kinds, child):
+            base_children.append(child)
+            continue
+        layouts = {m.layout for m in (rk.mounts if rk else ()) if m.child in child.kinds}
+        stand = [
+            k
+            for k in kinds.kinds.values()
+            if k.root
+            and k.cls not in root.kinds
+            and any(
+                m.child in child.kinds and m.layout in layouts and not m.links for m in k.mounts
+            )
+        ]
+        if not stand:
+            raise ValueError(
+                f"{plan.robot_type}: no stationary root part kind mounts its arm's "
+                f"{child.kind} (a 'root' kind with a {'/'.join(sorted(layouts)) or 'serial'} "
+                "mount of it)"
+            )
+        k = sorted(stand, key=lambda k: k.cls)[0]
+        arm_root = PartNode(k.cls, (k.cls,), (child,))
+        arms.append((BodyPlan(f"{plan.robot_type}.arm{len(arms) + 1}", arm_root), i))
+    base = BodyPlan(
+        f"{plan.robot_type}.base",
+        replace(root, children=tuple(base_children)),
+        plan.lengths,
+        plan.extensible,
+    )
+    return base, arms
+
+
+class ComposedController(Controller):
+    """The behaviours of a locomotion base carrying an arm (see the module docstring).
+
+    ``base_position`` (3,) m: where the base's root stands in the world at the start (the
+    MJCF's root body position); ``stiffness``: joint -> servo stiffness N m/rad (the
+    MJCF's ``kp``), passed on to the arm's controller for its droop compensation."""
+
+    def __init__(
+        self,
+        geometry: DesignGeometry,
+        base_position: Sequence[float] = (0.0, 0.0, 0.0),
+        stiffness: Mapping[str, float] | None = None,
+    ) -> None:
+        super().__init__(geometry)
+        from gaits import CONTROLLERS, controller_for
+        from kinematics.assemble import serial_links, structure_of
+        from kinematics.partkinds import in_use
+        from kinematics.templates import build, plan_of, register_plan
+
+        kinds = in_use()
+        plan = plan_of(geometry.template)
+        base_plan, arms = split(plan, kinds)
+        if len(arms) != 1:
+            raise ValueError(
+                f"{geometry.robot_type}: a composition drives one arm on a base, "
+                f"its body plan has {len(arms)}"
+            )
+        arm_plan, _ = arms[0]
+        kind = structure_of(base_plan, kinds)
+        if kind == "mobile_manipulator" or kind not in CONTROLLERS:
+            raise ValueError(
+                f"{geometry.robot_type}: its base's structure {kind!r} has no controller"
+            )
+        arm_kind = structure_of(arm_plan, kinds)
+        if arm_kind not in CONTROLLERS or arm_kind == "mobile_manipulator":
+            raise ValueError(
+                f"{geometry.robot_type}: its arm's structure {arm_kind!r} has no controller"
+            )
+        self.base_position = np.array(base_position, dtype=float)
+        # the base's controller on the whole design: it carries the arm and the payload
+        module, name = CONTROLLERS[kind]
+        from importlib import import_module
+
+        self.base = getattr(import_module(module), name)(geometry)
+        if not hasattr(self.base, "drive"):
+            raise ValueError(
+                f"{geometry.robot_type}: its base ({kind}) has no drive to carry an arm with"
+            )
+        # the arm's lengths: the chain's links renamed as a stationary arm names them
+        register_plan(arm_plan)
+        full_links = [c for c in serial_links(plan, kinds)]
+        own_links = serial_links(arm_plan, kinds)
+        rename = {}
+        if own_links:
+            chain = next((c for c in full_links if len(c) == len(own_links[0])), None)
+            if chain is None:
+                raise ValueError(f"{geometry.robot_type}: cannot match its arm's links")
+            rename = dict(zip(chain, own_links[0], strict=True))
+        lengths = {rename[k]: v for k, v in geometry.lengths.items() if k in rename}
+        arm_geometry = replace(
+            geometry,
+            robot_type=arm_plan.robot_type,
+            template=arm_plan.robot_type,
+            lengths=lengths,
+            modules=1,
+            calibration={},
+        )
+        arm_template = build(arm_plan.robot_type, _params(arm_geometry))
+        # where the arm's first joint stands on the base (root frame) and on its own base
+        first = arm_template.model.q_names[0]
+        self.mount = _joint_origin(self.template, first) - _joint_origin(arm_template, first)
+        options: dict[str, object] = {"base_position": tuple(self.base_position + self.mount)}
+        if stiffness is not None:
+            options["stiffness"] = dict(stiffness)
+        self.arm = controller_for(arm_geometry, **options)
+        self.wheels = tuple(self.base.joints)
+        self.arm_joints = tuple(self.arm.joints)
+        self.joints = (*self.wheels, *self.arm_joints)
+        missing = set(self.joints) - set(self.template.model.q_names)
+        if missing:
+            raise ValueError(
+                f"{geometry.robot_type}: joints {sorted(missing)} are not the design's"
+            )
+        self.loaded = build(
+            geometry.template,
+            _params(geometry, float(geometry.params.get("payload", 0.0))),
+        )
+
+    # --- the pieces ------------------------------------------------------------------
+
+    def calibration_probes(self) -> list[tuple[str, dict[str, object]]]:
+        return self.base.calibration_probes()
+
+    def calibrate(self, runs):
+        return self.base.calibrate(runs)
+
+    @cached_property
+    def hold(self) -> tuple[np.ndarray, np.ndarray]:
+        """The arm's ready pose (commanded: droop compensated, as its trajectories command
+        it; planned): the first sample of its ``positioning``."""
+        t = self.arm.run("positioning")
+        return self._arm_block(t)[0], self._arm_block(t, "planned")[0]
+
+    @cached_property
+    def support(self) -> np.ndarray:
+        """(k, 2) m: the support polygon's corners (counter-clockwise, root frame): the
+        wheels' and casters' contact points under their centres."""
+        t = self.template
+        m = t.model
+        T = forward_kinematics(m, np.zeros(m.nv))
+        pts = np.array([T[m.body(b), :2, 3] for b in (*t.wheels, *t.casters)])
+        return _hull(pts)
+
+    def tip_margin(self, q_arm: np.ndarray) -> np.ndarray:
+        """(N,) m: the distance of the whole robot's centre of mass (the template's masses,
+        the payload in the gripper) inside the support polygon, the arm at ``q_arm`` (N, na)
+        rad (negative: outside, the robot tips)."""
+        m = self.loaded.model
+        q_arm = np.atleast_2d(q_arm)
+        Q = np.zeros((len(q_arm), m.nv))
+        cols = [m.q_names.index(j) for j in self.arm_joints]
+        Q[:, cols] = q_arm
+        T = forward_kinematics(m, Q)  # (N, nb, 4, 4)
+        mass = np.array([b.mass for b in m.bodies])
+        com = np.array([np.asarray(b.com, dtype=float) for b in m.bodies])
+        world = np.einsum("nbij,bj->nbi", T[:, :, :3, :3], com) + T[:, :, :3, 3]
+        c = np.einsum("b,nbi->ni", mass, world)[:, :2] / mass.sum()
+        poly = self.support
+        edges = np.roll(poly, -1, axis=0) - poly
+        normals = np.column_stack([edges[:, 1], -edges[:, 0]])
+        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+        # inward distance to each edge (counter-clockwise polygon: inward is left)
+        d = -np.einsum("ek,nek->ne", normals, c[:, None, :] - poly[None])
+        return d.min(axis=1)
+
+    def _check_tip(self, name: str, arm_positions: np.ndarray) -> float:
+        step = max(1, len(arm_positions) // 200)
+        margin = self.tip_margin(arm_positions[::step])
+        worst = float(margin.min())
+        if worst < TIP_MARGIN:
+            k = int(np.argmin(margin)) * step
+            raise ValueError(
+                f"{name}: the robot would tip: with the arm at "
+                f"({', '.join(f'{x:.3f}' for x in arm_positions[k])}) rad its centre of mass "
+                f"is {worst * 1000:.1f} mm inside its support polygon (needs "
+                f"{TIP_MARGIN * 1000:g} mm); a lighter payload, a wider base or a target "
+                "nearer the base"
+            )
+        return worst
+
+    # --- behaviours ------------------------------------------------------------------
+
+    @cached_property
+    def _behaviors(self) -> dict[str, BehaviorSpec]:
+        out = {**self.arm.behaviors, **self.base.behaviors}
+        if "pick-and-place" in out:
+            out["pick-and-place"] = self._pick_and_place_spec()
+        return out
+
+    @property
+    def behaviors(self) -> Mapping[str, BehaviorSpec]:
+        return self._behaviors
+
+    @cached_property
+    def forward(self) -> float:
+        """m: the arm's first joint ahead of the base's root (x, root frame)."""
+        return float(self.mount[0])
+
+    def _pick_and_place_spec(self) -> BehaviorSpec:
+        reach = float(self.arm.reach)
+        z = float(self.arm.behaviors["grasping"].resolve({})["z"]) + float(
+            self.arm.base_position[2]
+        )
+        clear = self.arm.behaviors["grasping"].resolve({})["clearance"]
+        ahead = self.forward + 2.0 * reach  # beyond the arm's reach from the start
+
+        def xyz(prefix: str, where: str, x: float, y: float) -> tuple[Parameter, ...]:
+            return tuple(
+                Parameter(
+                    f"{prefix}{c}",
+                    "float",
+                    round(v, 4),
+                    f"{where} {c} in the world frame (start: root at the origin, facing +x)",
+                    "m",
+                    low=0.0 if c == "z" else -FIELD,
+                    high=FIELD,
+                )
+                for c, v in (("x", x), ("y", y), ("z", z))
+            )
+
+        return BehaviorSpec(
+            "pick-and-place",
+            "drive to the object, pick it, drive to the place target and put it down "
+            "(the base turns and drives, the arm stands by; world frame)",
+            (
+                *xyz("pick_", "object", ahead, 0.0),
+                *xyz("place_", "place target", ahead + 1.5 * reach, 0.5 * reach),
+                Parameter(
+                    "clearance",
+                    "float",
+                    float(clear),
+                    "height above the object of the approach and the lift",
+                    "m",
+                    low=0.0,
+                    high=reach,
+                ),
+                Parameter(
+                    "speed",
+                    "float",
+                    round(DRIVE_SPEED_FRACTION * self.base.v_max, 4),
+                    "the base's peak speed while driving",
+                    "m/s",
+                    low=0.001,
+                    high=round(self.base.v_max, 4),
+                ),
+            ),
+        )
+
+    def _run(self, name: str, params: Mapping[str, object]) -> Trajectory:
+        if name == "pick-and-place":
+            return self._pick_and_place(params)
+        if name in self.base.behaviors:
+            t = self.base.run(name, **params)
+            n = len(t.times)
+            held, planned = self.hold
+            pos = np.hstack([self._wheel_block(t), np.tile(held, (n, 1))])
+            vel = np.hstack([self._wheel_block(t, "velocities"), np.zeros((n, len(held)))])
+            info = dict(t.info)
+            info["planned_positions"] = np.hstack([self._wheel_block(t), np.tile(planned, (n, 1))])
+            return Trajectory(name, t.times, self.joints, pos, vel, info)
+        t = self.arm.run(name, **params)
+        self._check_tip(name, self._arm_block(t, "planned"))
+        n = len(t.times)
+        still = np.zeros((n, len(self.wheels)))
+        info = dict(t.info) | {"locomotion": "wheeled", "body_length_m": self.base.body_length}
+        # the arm's own per-joint series, widened to the design's joints (wheels still)
+        for key in ("planned_positions", "accelerations"):
+            if key in info:
+                info[key] = np.hstack([still, self._arm_block(t, key)])
+        pos = np.hstack([still, self._arm_block(t)])
+        vel = np.hstack([still, self._arm_block(t, "velocities")])
+        return Trajectory(name, t.times, self.joints, pos, vel, info)
+
+    def _wheel_block(self, t: Trajectory, what: str = "positions") -> np.ndarray:
+        src = t.velocities if what == "velocities" else t.positions
+        return np.column_stack([src[:, t.joints.index(j)] for j in self.wheels])
+
+    def _arm_block(self, t: Trajectory, what: str = "positions") -> np.ndarray:
+        """The arm's columns of ``t``'s ``what``: positions, velocities,
+        planned_positions (the positions without droop compensation), accelerations
+        (differentiated where the trajectory carries none)."""
+        if what == "velocities":
+            src = t.velocities
+        elif what == "planned":
+            src = np.asarray(t.info.get("planned_positions", t.positions))
+        elif what in t.info:
+            src = np.asarray(t.info[what])
+        elif what == "accelerations":
+            src = np.gradient(t.velocities, t.times, axis=0)
+        else:
+            src = t.positions
+        return np.column_stack([src[:, t.joints.index(j)] for j in self.arm_joints])
+
+    # --- pick-and-place ------------------------------------------------------------------
+
+    def _drive(self, distance: float, speed: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(times, wheel positions, wheel velocities) of a straight drive of ``distance`` m
+        (negative: backwards) with a minimum-jerk profile peaking at ``speed`` m/s or
+        slower, starting and ending at rest; the wheels' commands are the drive's load
+        model's (``DriveGeometry.commands``). ValueError when the wheels cannot."""
+        d = self.base.drive
+        T = max(1.875 * abs(distance) / speed, 4 * SAMPLE_DT)
+        for _ in range(400):
+            t, left, right = self._drive_profile(distance, T)
+            if max(np.max(np.abs(left)), np.max(np.abs(right))) <= d.max_speed:
+                break
+            T *= 1.01
+        else:
+            raise ValueError(f"the wheels cannot drive {distance:g} m: their servos stall")
+        T = math.ceil(T / SAMPLE_DT - 1e-9) * SAMPLE_DT
+        t, left, right = self._drive_profile(distance, T)
+        d.check_commands(left, right, f"driving {distance:g} m")
+        side = {n: left for n in d.left} | {n: right for n in d.right}
+        vel = np.column_stack([d.sign[n] * side[n] for n in self.wheels])
+        return t, _integral(t, vel), vel
+
+    def _drive_profile(self, distance: float, T: float):
+        n = max(3, int(math.ceil(T / SAMPLE_DT - 1e-9)) + 1)
+        t = np.linspace(0.0, T, n)
+        _, ds, dds = min_jerk(t / T)
+        v, a = distance * ds / T, distance * dds / T**2
+        zero = np.zeros_like(t)
+        left, right = self.base.drive.commands(v, zero, a, zero)
+        return t, left, right
+
+    def _arm_frame(self, pose: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """``target`` (world, m) in the arm's base frame with the base's root at ``pose``
+        (x, y, yaw; world)."""
+        x, y, th = pose
+        c, s = math.cos(th), math.sin(th)
+        d = target[:2] - np.array([x, y]) - self.base_position[:2]
+        local = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+        return np.array(
+            [
+                local[0] - self.mount[0],
+                local[1] - self.mount[1],
+                target[2] - self.base_position[2] - self.mount[2],
+            ]
+        )
+
+    def _grasp_from(self, pose: np.ndarray, target: np.ndarray, clearance: float):
+        """The arm's ``grasping`` of ``target`` (world) with the base at ``pose``, or the
+        reason it cannot."""
+        p = self._arm_frame(pose, target)
+        try:
+            return self.arm.run("grasping", x=p[0], y=p[1], z=p[2], clearance=clearance), None
+        except ValueError as e:
+            return None, str(e)
+
+    def _go_to(
+        self, pose: np.ndarray, target: np.ndarray, clearance: float, speed: float, what: str
+    ):
+        """Legs that bring the base from ``pose`` to where the arm grasps ``target``: ([base
+        legs], the new pose, the arm's grasping there). The base does not move when the
+        arm reaches the target from ``pose``."""
+        here, why = self._grasp_from(pose, target, clearance)
+        if here is not None:
+            return [], pose, here
+        rel = target[:2] - self.base_position[:2] - pose[:2]
+        dist = float(np.hypot(*rel))
+        heading = math.atan2(rel[1], rel[0]) if dist > 1e-9 else float(pose[2])
+        turn = (heading - pose[2] + math.pi) % (2 * math.pi) - math.pi
+        reasons = []
+        for f in STANDOFFS:
+            drive = dist - (self.forward + f * float(self.arm.reach))
+            new = np.array(
+                [
+                    pose[0] + drive * math.cos(heading),
+                    pose[1] + drive * math.sin(heading),
+                    pose[2] + turn,
+                ]
+            )
+            grasp, why_not = self._grasp_from(new, target, clearance)
+            if grasp is None:
+                reasons.append(why_not)
+                continue
+            legs = []
+            if abs(turn) > MIN_TURN:
+                legs.append(("turn", turn))
+            if abs(drive) > MIN_DRIVE:
+                legs.append(("drive", drive))
+            return legs, new, grasp
+        raise ValueError(
+            f"the {what} at ({', '.join(f'{c:.4f}' for c in target)}) m (world) is out of "
+            f"reach: the arm reaches {float(self.arm.reach):.4f} m and cannot grasp it from "
+            f"where the base can stand ({why or reasons[0]})"
+        )
+
+    def _pick_and_place(self, params: Mapping[str, object]) -> Trajectory:
+        P = {k: float(v) for k, v in params.items()}  # type: ignore[arg-type]
+        pick = np.array([P["pick_x"], P["pick_y"], P["pick_z"]])
+        place = np.array([P["place_x"], P["place_y"], P["place_z"]])
+        clear, speed = P["clearance"], P["speed"]
+        pose = np.zeros(3)
+        plan = _Legs(self.wheels, self.arm_joints, *self.hold)
+        segments: list[tuple[str, float, float]] = []
+
+        def base_legs(legs: list, arm_q: np.ndarray) -> None:
+            for kind, amount in legs:
+                t0 = plan.now
+                if kind == "turn":
+                    tr = self.base.run("turning", angle=amount)
+                    wv = self._wheel_block(tr, "velocities")
+                    plan.base(tr.times, self._wheel_block(tr), wv, arm_q)
+                else:
+                    t, q, v = self._drive(amount, speed)
+                    plan.base(t, q, v, arm_q)
+                segments.append((kind, t0, plan.now))
+
+        def arm_leg(name: str, traj: Trajectory, reverse: bool = False, gripper=None) -> None:
+            q, v = self._arm_block(traj), self._arm_block(traj, "velocities")
+            qp, a = self._arm_block(traj, "planned"), self._arm_block(traj, "accelerations")
+            t = traj.times
+            if reverse:  # time reversed: velocities change sign, accelerations do not
+                t, q, v, qp, a = t[-1] - t[::-1], q[::-1], -v[::-1], qp[::-1], a[::-1]
+            if gripper is not None:
+                q, v, qp, a = q.copy(), v.copy(), qp.copy(), a.copy()
+                q[:, -1], qp[:, -1] = gripper
+                v[:, -1] = a[:, -1] = 0.0
+            self._check_tip(f"pick-and-place ({name})", qp)
+            t0 = plan.now
+            plan.arm(t, q, v, qp, a)
+            segments.append((name, t0, plan.now))
+
+        legs, pose, grasp = self._go_to(pose, pick, clear, speed, "object")
+        base_legs(legs, self.hold)
+        arm_leg("grasp", grasp)
+        closed = (
+            float(self._arm_block(grasp)[-1, -1]),
+            float(self._arm_block(grasp, "planned")[-1, -1]),
+        )
+        lifted = self._arm_frame(pose, pick) + np.array([0.0, 0.0, clear])
+        back = self.arm.run("positioning", x=lifted[0], y=lifted[1], z=lifted[2])
+        arm_leg("stow", back, reverse=True, gripper=closed)
+        carry = plan.arm_now
+        legs, pose, put = self._go_to(pose, place, clear, speed, "place target")
+        base_legs(legs, carry)
+        above = self._arm_frame(pose, place) + np.array([0.0, 0.0, clear])
+        out = self.arm.run("positioning", x=above[0], y=above[1], z=above[2])
+        arm_leg("reach", out, gripper=closed)
+        start = plan.now
+        arm_leg("put", put, reverse=True)
+        # the reverse of grasping: the gripper has opened on the target where grasping
+        # began to close it
+        close = next(s for s in put.info["segments"] if s[0] == "close")  # type: ignore[union-attr]
+        placed_at = start + put.duration - float(close[1])
+        t, pos, vel, planned, acc = plan.arrays()
+        info: dict[str, object] = {
+            "motion": "place",
+            "target": tuple(float(c) for c in place),
+            "pick": tuple(float(c) for c in pick),
+            "placed_at_s": round(placed_at, 9),
+            "tool_body": put.info.get("tool_body", "gripper_link"),
+            "segments": tuple(segments),
+            "base_end_pose": tuple(float(c) for c in pose),
+            "locomotion": "wheeled",
+            "body_length_m": self.base.body_length,
+            "min_tip_margin_m": round(
+                float(self.tip_margin(planned[:, len(self.wheels) :]).min()), 6
+            ),
+            "planned_positions": planned,
+            "accelerations": acc,
+        }
+        return Trajectory("pick-and-place", t, self.joints, pos, vel, info)
+
+
+class _Legs:
+    """Samples of a composed trajectory, the wheels' columns then the arm's: times s,
+    positions and velocities as commanded, the planned positions (no droop compensation)
+    and the accelerations."""
+
+    def __init__(
+        self, wheels: Sequence[str], arm: Sequence[str], hold: np.ndarray, planned: np.ndarray
+    ) -> None:
+        self.nw = len(wheels)
+        n = self.nw + len(hold)
+        self.t = [np.zeros(1)]
+        self.q = [np.concatenate([np.zeros(self.nw), hold])[None]]
+        self.v = [np.zeros((1, n))]
+        self.p = [np.concatenate([np.zeros(self.nw), planned])[None]]
+        self.a = [np.zeros((1, n))]
+
+    @property
+    def now(self) -> float:
+        return float(self.t[-1][-1])
+
+    @property
+    def arm_now(self) -> tuple[np.ndarray, np.ndarray]:
+        """The arm's last (commanded, planned) positions."""
+        return self.q[-1][-1, self.nw :].copy(), self.p[-1][-1, self.nw :].copy()
+
+    def _add(self, t, q, v, p, a) -> None:
+        self.t.append(self.now + t[1:])
+        for series, x in ((self.q, q), (self.v, v), (self.p, p), (self.a, a)):
+            series.append(x[1:])
+
+    def base(self, t, wq, wv, arm_q: tuple[np.ndarray, np.ndarray]) -> None:
+        """A leg of the wheels (positions from 0) with the arm held at ``arm_q``
+        (commanded, planned)."""
+        w0 = self.q[-1][-1, : self.nw]
+        n = len(t)
+        held, planned = arm_q
+        still = np.zeros((n, len(held)))
+        wa = np.gradient(wv, t, axis=0)
+        self._add(
+            t,
+            np.hstack([w0 + wq, np.tile(held, (n, 1))]),
+            np.hstack([wv, still]),
+            np.hstack([w0 + wq, np.tile(planned, (n, 1))]),
+            np.hstack([wa, still]),
+        )
+
+    def arm(self, t, aq, av, ap, aa) -> None:
+        """A leg of the arm with the wheels standing still."""
+        w0 = self.q[-1][-1, : self.nw]
+        n = len(t)
+        still = np.zeros((n, self.nw))
+        wheels = np.tile(w0, (n, 1))
+        self._add(
+            t,
+            np.hstack([wheels, aq]),
+            np.hstack([still, av]),
+            np.hstack([wheels, ap]),
+            np.hstack([still, aa]),
+        )
+
+    def arrays(self):
+        return tuple(np.concatenate(x) for x in (self.t, self.q, self.v, self.p, self.a))
+
+
+def _params(geometry: DesignGeometry, payload: float = 0.0):
+    from kinematics.templates import TemplateParams
+
+    return TemplateParams(
+        lengths=geometry.lengths,
+        modules=geometry.modules,
+        wheel_radius=geometry.wheel_radius,
+        payload=payload,
+    )
+
+
+def _joint_origin(template, joint: str) -> np.ndarray:
+    """(3,) m: where ``joint`` sits in the template's root frame at q = 0."""
+    m = template.model
+    j = m.joints[m.joint(joint)]
+    T = forward_kinematics(m, np.zeros(m.nv))
+    return (T[j.parent] @ j.origin)[:3, 3]
+
+
+def _integral(t: np.ndarray, v: np.ndarray) -> np.ndarray:
+    steps = (v[1:] + v[:-1]) / 2 * np.diff(t)[:, None]
+    return np.vstack([np.zeros((1, v.shape[1])), np.cumsum(steps, axis=0)])
+
+
+def _hull(points: np.ndarray) -> np.ndarray:
+    """Convex hull (k, 2), counter-clockwise, of ``points`` (n, 2) (monotone chain)."""
+    pts = sorted({(round(float(x), 12), round(float(y), 12)) for x, y in points})
+    if len(pts) < 3:
+        raise ValueError("the base stands on fewer than three points: no support polygon")
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower: list = []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    upper: list = []
+    for p in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1])
