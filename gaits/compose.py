@@ -79,6 +79,9 @@ MIN_DRIVE = 1e-4
 #: Smallest distance m the whole robot's centre of mass keeps from the edges of its
 #: support polygon in a planned arm configuration.
 TIP_MARGIN = 0.005
+#: The calibration's probes: ``travel`` distances m and ``turning`` angles rad.
+PROBE_DISTANCES = (0.1, 0.3)
+PROBE_ANGLES = (0.5, 1.5)
 #: Largest distance m a pick-and-place target may lie from the start.
 FIELD = 5.0
 
@@ -226,10 +229,81 @@ class ComposedController(Controller):
     # --- the pieces ------------------------------------------------------------------
 
     def calibration_probes(self) -> list[tuple[str, dict[str, object]]]:
-        return self.base.calibration_probes()
+        """The base's own probes, then ``travel`` over two distances and ``turning`` by two
+        angles at the defaults (:meth:`calibrate`)."""
+        return [*self.base.calibration_probes(), *self._probes()]
 
-    def calibrate(self, runs):
-        return self.base.calibrate(runs)
+    def _probes(self) -> list[tuple[str, dict[str, object]]]:
+        return [
+            *(("travel", {"distance": d}) for d in PROBE_DISTANCES),
+            *(("turning", {"angle": a}) for a in PROBE_ANGLES),
+        ]
+
+    def calibrate(self, runs: Sequence[tuple[Trajectory, Mapping[str, np.ndarray]]]) -> dict:
+        """The base's calibration, and how far the base really goes: ``travel_ratio``, the
+        distance travelled per distance commanded at ``travel_speed_m_s`` (least squares
+        over the probes), and ``turn_gain`` and ``turn_offset_rad``, the heading change of
+        a turn in place as ``gain x angle + offset x sign(angle)`` (least squares). MuJoCo's
+        caster and tyres resist the base with a nearly constant force that the drive's
+        load model leaves out: a slow drive falls short by a nearly constant speed, which
+        ``travel_ratio`` measures at one speed (:meth:`_travel_command` scales it to
+        others), as Mandow et al. calibrate a real base."""
+        nb = len(runs) - len(self._probes())
+        out = dict(self.base.calibrate(runs[:nb])) if nb > 0 else {}
+        num = den = 0.0
+        rows, rhs = [], []
+        speed = None
+        for traj, series in runs[nb:]:
+            root = np.asarray(series["root"])
+            if traj.behavior == "travel":
+                cmd = float(traj.info["planned_pose"][0])  # type: ignore[index]
+                got = float(root[-1, 0] - root[0, 0])
+                num, den = num + got * cmd, den + cmd * cmd
+                speed = float(traj.info["speed_m_s"])  # type: ignore[arg-type]
+            elif traj.behavior == "turning":
+                cmd = float(traj.info["heading_rad"])  # type: ignore[arg-type]
+                yaw = np.unwrap([_yaw(q) for q in root[:, 3:7]])
+                rows.append((cmd, math.copysign(1.0, cmd)))
+                rhs.append(float(yaw[-1] - yaw[0]))
+        if den > 0 and num > 0 and speed:
+            out["travel_ratio"] = round(num / den, 5)
+            out["travel_speed_m_s"] = round(speed, 6)
+        if len(rows) >= 2:
+            (gain, offset), *_ = np.linalg.lstsq(np.array(rows), np.array(rhs), rcond=None)
+            if gain > 0:
+                out["turn_gain"] = round(float(gain), 5)
+                out["turn_offset_rad"] = round(float(offset), 6)
+        return out
+
+    def _travel_command(self, distance: float, speed: float) -> float:
+        """The distance m to command for the base to travel ``distance`` m at peak
+        ``speed`` m/s: the calibrated shortfall (a constant speed deficit while moving,
+        ``(1 - travel_ratio) x`` the calibration's mean speed) taken out; ``distance``
+        without a calibration."""
+        cal = self.geometry.calibration
+        ratio, at = cal.get("travel_ratio"), cal.get("travel_speed_m_s")
+        if not ratio or not at:
+            return distance
+        # the min-jerk mean speed is peak / 1.875: the deficit d = (1 - ratio) x the
+        # calibration's mean speed, so a drive at ``speed`` covers cmd x (1 - d / mean)
+        deficit = (1.0 - float(ratio)) * float(at)
+        keep = 1.0 - deficit / speed
+        if keep <= 0.2:
+            raise ValueError(
+                f"driving at {speed:g} m/s: the base loses {deficit:.3g} m/s to its "
+                "rolling resistance (measured); drive faster"
+            )
+        return distance / keep
+
+    def _turn_command(self, angle: float) -> float:
+        """The angle rad to command for the base to turn in place by ``angle`` rad (the
+        calibrated gain and offset inverted); ``angle`` without a calibration."""
+        cal = self.geometry.calibration
+        gain, offset = cal.get("turn_gain"), cal.get("turn_offset_rad")
+        if not gain or offset is None or angle == 0:
+            return angle
+        cmd = (angle - math.copysign(float(offset), angle)) / float(gain)
+        return cmd if cmd * angle > 0 else angle
 
     @cached_property
     def hold(self) -> tuple[np.ndarray, np.ndarray]:
@@ -292,7 +366,35 @@ class ComposedController(Controller):
         out = {**self.arm.behaviors, **self.base.behaviors}
         if "pick-and-place" in out:
             out["pick-and-place"] = self._pick_and_place_spec()
+        out["travel"] = BehaviorSpec(
+            "travel",
+            "drive straight a distance and stop (minimum-jerk), the arm in its ready pose",
+            (
+                Parameter(
+                    "distance",
+                    "float",
+                    round(float(self.base.body_length) * 2, 4),
+                    "distance, negative backwards",
+                    "m",
+                    low=-FIELD,
+                    high=FIELD,
+                ),
+                self._speed_parameter(),
+            ),
+            ability="driving",
+        )
         return out
+
+    def _speed_parameter(self) -> Parameter:
+        return Parameter(
+            "speed",
+            "float",
+            round(DRIVE_SPEED_FRACTION * self.base.v_max, 4),
+            "the base's peak speed while driving",
+            "m/s",
+            low=0.001,
+            high=round(self.base.v_max, 4),
+        )
 
     @property
     def behaviors(self) -> Mapping[str, BehaviorSpec]:
@@ -341,23 +443,47 @@ class ComposedController(Controller):
                     low=0.0,
                     high=reach,
                 ),
-                Parameter(
-                    "speed",
-                    "float",
-                    round(DRIVE_SPEED_FRACTION * self.base.v_max, 4),
-                    "the base's peak speed while driving",
-                    "m/s",
-                    low=0.001,
-                    high=round(self.base.v_max, 4),
-                ),
+                self._speed_parameter(),
             ),
         )
 
     def _run(self, name: str, params: Mapping[str, object]) -> Trajectory:
         if name == "pick-and-place":
             return self._pick_and_place(params)
-        if name in self.base.behaviors:
+        if name == "travel":
+            d = float(params["distance"])  # type: ignore[arg-type]
+            held, planned = self.hold
+            plan = _Legs(self.wheels, self.arm_joints, held, planned)
+            speed = float(params["speed"])  # type: ignore[arg-type]
+            if abs(d) > 0:
+                t, q, v = self._drive(self._travel_command(d, speed), speed)
+                plan.base(t, q, v, self.hold)
+            else:
+                plan.arm(
+                    np.array([0.0, 2 * SAMPLE_DT]),
+                    *(np.tile(x, (2, 1)) for x in (held, held * 0, planned, held * 0)),
+                )
+            t, pos, vel, pl, acc = plan.arrays()
+            info = {
+                "motion": "straight" if d else "hold",
+                "planned_pose": (d, 0.0, 0.0),
+                "path_length_m": abs(d),
+                "speed_m_s": speed,
+                "direction": (math.copysign(1.0, d), 0.0),
+                "locomotion": "wheeled",
+                "body_length_m": self.base.body_length,
+                "planned_positions": pl,
+                "accelerations": acc,
+            }
+            return Trajectory(name, t, self.joints, pos, vel, info)
+        if name == "turning":  # as calibrated; the promise the angle asked
+            angle = float(params["angle"])  # type: ignore[arg-type]
+            t = self.base.run(name, **(dict(params) | {"angle": self._turn_command(angle)}))
+            info = dict(t.info) | {"heading_rad": angle, "planned_pose": (0.0, 0.0, angle)}
+            t = replace(t, info=info)
+        elif name in self.base.behaviors:
             t = self.base.run(name, **params)
+        if name in self.base.behaviors:
             n = len(t.times)
             held, planned = self.hold
             pos = np.hstack([self._wheel_block(t), np.tile(held, (n, 1))])
@@ -506,11 +632,11 @@ class ComposedController(Controller):
             for kind, amount in legs:
                 t0 = plan.now
                 if kind == "turn":
-                    tr = self.base.run("turning", angle=amount)
+                    tr = self.base.run("turning", angle=self._turn_command(amount))
                     wv = self._wheel_block(tr, "velocities")
                     plan.base(tr.times, self._wheel_block(tr), wv, arm_q)
                 else:
-                    t, q, v = self._drive(amount, speed)
+                    t, q, v = self._drive(self._travel_command(amount, speed), speed)
                     plan.base(t, q, v, arm_q)
                 segments.append((kind, t0, plan.now))
 
@@ -633,6 +759,12 @@ class _Legs:
 
     def arrays(self):
         return tuple(np.concatenate(x) for x in (self.t, self.q, self.v, self.p, self.a))
+
+
+def _yaw(quat: np.ndarray) -> float:
+    """Yaw rad of a (w, x, y, z) quaternion."""
+    w, x, y, z = (float(c) for c in quat)
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
 def _params(geometry: DesignGeometry, payload: float = 0.0):
