@@ -616,7 +616,7 @@ class ComposedController(Controller):
         raise ValueError(
             f"the {what} at ({', '.join(f'{c:.4f}' for c in target)}) m (world) is out of "
             f"reach: the arm reaches {float(self.arm.reach):.4f} m and cannot grasp it from "
-            f"where the base can stand ({why or reasons[0]})"
+            f"where the base can stand ({reasons[0] if reasons else why})"
         )
 
     def _pick_and_place(self, params: Mapping[str, object]) -> Trajectory:
