@@ -81,7 +81,12 @@ MIN_DRIVE = 1e-4
 TIP_MARGIN = 0.005
 #: The calibration's probes: ``travel`` distances m and ``turning`` angles rad.
 PROBE_DISTANCES = (0.1, 0.3)
-PROBE_ANGLES = (0.5, 1.5)
+PROBE_ANGLES = (0.25, 1.0)
+#: Shortest turn of a pick-and-place, s (see ``ComposedController._turn_seconds``).
+TURN_MIN_S = 1.0
+#: Peak joint acceleration of the arm, rad/s^2: gentler than a bolted arm's (3), so that
+#: its reaction does not turn the base on its wheels (which only hold their speed).
+ARM_ACCELERATION = 1.0
 #: Largest distance m a pick-and-place target may lie from the start.
 FIELD = 5.0
 
@@ -209,7 +214,10 @@ class ComposedController(Controller):
         # where the arm's first joint stands on the base (root frame) and on its own base
         first = arm_template.model.q_names[0]
         self.mount = _joint_origin(self.template, first) - _joint_origin(arm_template, first)
-        options: dict[str, object] = {"base_position": tuple(self.base_position + self.mount)}
+        options: dict[str, object] = {
+            "base_position": tuple(self.base_position + self.mount),
+            "max_acceleration": ARM_ACCELERATION,
+        }
         if stiffness is not None:
             options["stiffness"] = dict(stiffness)
         self.arm = controller_for(arm_geometry, **options)
@@ -236,8 +244,22 @@ class ComposedController(Controller):
     def _probes(self) -> list[tuple[str, dict[str, object]]]:
         return [
             *(("travel", {"distance": d}) for d in PROBE_DISTANCES),
-            *(("turning", {"angle": a}) for a in PROBE_ANGLES),
+            *(
+                ("turning", {"angle": a, "seconds": self._turn_seconds(a, self._default_speed)})
+                for a in PROBE_ANGLES
+            ),
         ]
+
+    @property
+    def _default_speed(self) -> float:
+        return float(self._speed_parameter().default)  # type: ignore[arg-type]
+
+    def _turn_seconds(self, angle: float, speed: float) -> float:
+        """How long a pick-and-place turn by ``angle`` rad takes: its wheels' rims peak at
+        the drive's ``speed`` m/s, and it lasts ``TURN_MIN_S`` at least (a quick small turn
+        springs back on the tyres: it ends off the heading that a gentle one reaches)."""
+        half = self.base.drive.effective_track / 2
+        return round(max(TURN_MIN_S, 1.875 * abs(angle) * half / speed), 2)
 
     def calibrate(self, runs: Sequence[tuple[Trajectory, Mapping[str, np.ndarray]]]) -> dict:
         """The base's calibration, and how far the base really goes: ``travel_ratio``, the
@@ -589,11 +611,28 @@ class ComposedController(Controller):
         here, why = self._grasp_from(pose, target, clearance)
         if here is not None:
             return [], pose, here
+        reasons = []
+        # first along the heading the base has (no turn: its odometry's weakest part), the
+        # arm's yaw reaching aside
+        c, s = math.cos(pose[2]), math.sin(pose[2])
         rel = target[:2] - self.base_position[:2] - pose[:2]
+        ahead, aside = c * rel[0] + s * rel[1], -s * rel[0] + c * rel[1]
+        aside -= float(self.mount[1])
+        for f in STANDOFFS:
+            r = f * float(self.arm.reach)
+            if abs(aside) >= r:
+                continue
+            drive = ahead - self.forward - math.sqrt(r * r - aside * aside)
+            new = np.array([pose[0] + drive * c, pose[1] + drive * s, pose[2]])
+            grasp, why_not = self._grasp_from(new, target, clearance)
+            if grasp is None:
+                reasons.append(why_not)
+                continue
+            return ([("drive", drive)] if abs(drive) > MIN_DRIVE else []), new, grasp
+        # else turn to face it, then drive
         dist = float(np.hypot(*rel))
         heading = math.atan2(rel[1], rel[0]) if dist > 1e-9 else float(pose[2])
         turn = (heading - pose[2] + math.pi) % (2 * math.pi) - math.pi
-        reasons = []
         for f in STANDOFFS:
             drive = dist - (self.forward + f * float(self.arm.reach))
             new = np.array(
@@ -632,7 +671,13 @@ class ComposedController(Controller):
             for kind, amount in legs:
                 t0 = plan.now
                 if kind == "turn":
-                    tr = self.base.run("turning", angle=self._turn_command(amount))
+                    cmd = self._turn_command(amount)
+                    try:
+                        tr = self.base.run(
+                            "turning", angle=cmd, seconds=self._turn_seconds(cmd, speed)
+                        )
+                    except ValueError:  # too quick for the wheels: their own shortest
+                        tr = self.base.run("turning", angle=cmd)
                     wv = self._wheel_block(tr, "velocities")
                     plan.base(tr.times, self._wheel_block(tr), wv, arm_q)
                 else:

@@ -60,8 +60,14 @@ DESIGNS = {
         (("positioning", {"z": 0.1}), 2, ("pick-and-place", {})),
     ),
     # KIF-only types
-    "pentapod": (KIF_DESIGNS["pentapod"], (("walking", {"steps": 1}), 2, ("turning", {"angle": 0.5}))),
-    "mobile": (KIF_DESIGNS["mobile"], (("positioning", {"z": 0.05}), 2, ("travel", {"distance": 0.3}))),
+    "pentapod": (
+        KIF_DESIGNS["pentapod"],
+        (("turning", {"angle": 0.5}), 2, ("turning", {"angle": -0.5})),
+    ),
+    "mobile": (
+        KIF_DESIGNS["mobile"],
+        (("positioning", {"z": 0.05}), 2, ("travel", {"distance": 0.3})),
+    ),
 }
 
 

@@ -122,7 +122,11 @@ def test_pick_and_place_drives_beyond_reach_and_targets_are_in_the_world_frame(v
     spec = c.behaviors["pick-and-place"].resolve({})
     traj = c.run("pick-and-place")
     kinds = [s[0] for s in traj.info["segments"]]
-    assert kinds.count("drive") == 2 and "grasp" in kinds and "put" in kinds
+    # along its heading, the arm reaching aside: no turn
+    assert kinds == ["drive", "grasp", "stow", "drive", "reach", "put"]
+    # a target farther aside than the arm reaches: the base turns to face it
+    far = c.run("pick-and-place", place_y=2 * c.arm.reach)
+    assert [s[0] for s in far.info["segments"]][3:5] == ["turn", "drive"]
     assert traj.info["target"] == (spec["place_x"], spec["place_y"], spec["place_z"])
     # the object lies beyond the arm's reach from the start
     assert spec["pick_x"] - c.forward > c.arm.reach
