@@ -212,7 +212,15 @@ def _trajectories(record: dict) -> dict:
     for name in controller.listed(record.get("abilities", ())):
         if not _SAFE_BEHAVIOR.fullmatch(name):
             raise ExportError(f"behaviour name {name!r} is not a safe file name")
-        out[name] = controller.run(name)
+        try:
+            out[name] = controller.run(name)
+        except ValueError as e:  # e.g. a pose that would tip a mobile manipulator
+            from adron.errors import InfeasibleError
+
+            raise InfeasibleError(
+                f"{record.get('robot_type')}: its behaviour {name} cannot be planned with "
+                f"its default parameters: {e}"
+            ) from None
     return out
 
 

@@ -236,3 +236,22 @@ def test_plans_are_deterministic(verified) -> None:
             b._run(name, b.behaviors[name].resolve({})),
         )
         assert ta.csv() == tb.csv()
+
+
+def test_a_design_whose_default_plan_tips_is_refused_whole(cli, tmp_path, monkeypatch) -> None:
+    """A listed behaviour that cannot be planned (here every pose "tips": the margin asked
+    is half a metre) refuses the design, exit 1, naming it; nothing is written."""
+    from collections import OrderedDict
+
+    import gaits.base
+    import gaits.compose
+
+    monkeypatch.setattr(gaits.compose, "TIP_MARGIN", 0.5)
+    monkeypatch.setattr(gaits.base, "_PLANNED", OrderedDict())  # plan again, checked
+    args = kif_args(KIF_DESIGNS["mobile"], tmp_path)
+    for extra in (["--no-verify"], []):
+        out = tmp_path / f"b{len(extra)}"
+        r = cli("design", *args, "--no-input", "--out", str(out), *extra)
+        assert r.code == 1, r.err
+        assert "cannot be planned" in r.err and "would tip" in r.err
+        assert "Traceback" not in r.err and not out.exists()
