@@ -20,16 +20,26 @@ of the same chain has. Each sub-structure gets the controller of its structure
 
 ``pick-and-place`` (parameters and ``info["target"]`` in the world frame: the floor is
 z = 0, the robot starts at the origin facing +x) plans legs one after another: the base
-turns in place to face the object (``turning``) and drives straight (a minimum-jerk
-distance profile through the drive's load model, :meth:`ComposedController._drive`) until
-the object is ``standoff`` of the arm's reach ahead of the arm's first joint; the arm
-grasps it (``grasping``), goes back to its ready pose with the gripper closed (the
-reverse of ``positioning``), the base turns and drives to the place target likewise, and
-the arm puts the object down: ``positioning`` above it, then the reverse of ``grasping``
-(down onto the target, open, up and back). A target the arm reaches from where the base
-stands needs no drive. ``info["placed_at_s"]`` is when the gripper has opened on the target:
-:mod:`export.verdict` measures the gripper's distance from the world target there, on the
-outcome, so a base that slipped or drove short fails ``placing``.
+drives straight along its heading (a minimum-jerk distance profile through the drive's
+load model, :meth:`ComposedController._drive`) until the object is ``STANDOFFS`` of the
+arm's reach from the arm's first joint, the arm's yaw reaching aside; only an object
+farther aside than that makes the base turn in place to face it first (``turning``). The
+arm grasps it (``grasping``), goes back to its ready pose with the gripper closed (the
+reverse of ``positioning``), the base drives to the place target likewise, and the arm
+puts the object down: ``positioning`` above it, then the reverse of ``grasping`` (down
+onto the target, open, up and back). A target the arm reaches from where the base stands
+needs no drive. The arm accelerates gently (``ARM_ACCELERATION``): the wheels only hold
+their speed, and a quick arm's reaction turns the base under it. ``info["placed_at_s"]``
+is when the gripper has opened on the target: :mod:`export.verdict` measures the
+gripper's distance from the world target there, on the outcome, so a base that slipped or
+drove short fails ``placing``.
+
+Calibration: the drive's load model leaves out the caster's and the tyres' rolling
+resistance, so an open-loop drive falls short (5-6 % at the default speed); the design
+measures how far its base travels and turns on probe runs (``travel`` over two distances,
+``turning`` by two angles, :meth:`ComposedController.calibrate`, kept in the record's
+``calibration``), and ``travel``, ``turning`` and ``pick-and-place`` command what reaches
+the asked distance and heading.
 
 Tipping: every arm configuration a behaviour plans is checked with the whole robot's
 centre of mass (the template's masses with the payload in the gripper) against the support
@@ -299,15 +309,14 @@ class ComposedController(Controller):
 
     def _travel_command(self, distance: float, speed: float) -> float:
         """The distance m to command for the base to travel ``distance`` m at peak
-        ``speed`` m/s: the calibrated shortfall (a constant speed deficit while moving,
-        ``(1 - travel_ratio) x`` the calibration's mean speed) taken out; ``distance``
-        without a calibration."""
+        ``speed`` m/s: the calibrated shortfall taken out, as a constant speed deficit
+        while moving (``(1 - travel_ratio) x travel_speed_m_s`` of peak speed: the same
+        fraction of the mean speed, the profile being the same); ``distance`` without a
+        calibration."""
         cal = self.geometry.calibration
         ratio, at = cal.get("travel_ratio"), cal.get("travel_speed_m_s")
         if not ratio or not at:
             return distance
-        # the min-jerk mean speed is peak / 1.875: the deficit d = (1 - ratio) x the
-        # calibration's mean speed, so a drive at ``speed`` covers cmd x (1 - d / mean)
         deficit = (1.0 - float(ratio)) * float(at)
         keep = 1.0 - deficit / speed
         if keep <= 0.2:
