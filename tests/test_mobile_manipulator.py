@@ -255,3 +255,22 @@ def test_a_design_whose_default_plan_tips_is_refused_whole(cli, tmp_path, monkey
         assert r.code == 1, r.err
         assert "cannot be planned" in r.err and "would tip" in r.err
         assert "Traceback" not in r.err and not out.exists()
+
+
+def test_a_program_picks_and_places_after_the_base_has_moved(verified) -> None:
+    """In a program the targets of a behaviour are where they would be had the robot
+    started it at the origin: after a travel and a turn they move with the robot."""
+    from program.session import run_program
+
+    program = {
+        "program": [
+            {"do": "travel", "params": {"distance": 0.2}},
+            {"do": "turning", "params": {"angle": 0.5}},
+            {"do": "pick-and-place", "params": {}},
+        ]
+    }
+    result = run_program(verified, program)
+    steps = result["steps"]
+    # placed within 5 mm of the target moved with the robot (it lies 0.2 m and more off
+    # where it would be, were it not moved)
+    assert [s["verdict"] for s in steps] == ["ok"] * 3, steps
