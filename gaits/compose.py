@@ -37,7 +37,7 @@ drove short fails ``placing``.
 Calibration: the drive's load model leaves out the caster's and the tyres' rolling
 resistance, so an open-loop drive falls short (5-6 % at the default speed); the design
 measures how far its base travels and turns on probe runs (``travel`` over two distances,
-``turning`` by two angles, :meth:`ComposedController.calibrate`, kept in the record's
+``turning`` by six angles, :meth:`ComposedController.calibrate`, kept in the record's
 ``calibration``), and ``travel``, ``turning`` and ``pick-and-place`` command what reaches
 the asked distance and heading.
 
@@ -94,7 +94,9 @@ MIN_DRIVE = 1e-4
 TIP_MARGIN = 0.0
 #: The calibration's probes: ``travel`` distances m and ``turning`` angles rad.
 PROBE_DISTANCES = (0.1, 0.3)
-PROBE_ANGLES = (0.25, 1.0)
+PROBE_ANGLES = (0.25, 0.5, 0.875, 1.5, 2.25, 3.1)
+#: The calibration's key of a turn's ratio at an angle: ``turn_ratio_at_<angle>_rad``.
+TURN_KEY = "turn_ratio_at_"
 #: Shortest turn of a pick-and-place, s (see ``ComposedController._turn_seconds``).
 TURN_MIN_S = 1.0
 #: Peak joint acceleration of the arm, rad/s^2: gentler than a bolted arm's (3), so that
@@ -277,16 +279,16 @@ class ComposedController(Controller):
     def calibrate(self, runs: Sequence[tuple[Trajectory, Mapping[str, np.ndarray]]]) -> dict:
         """The base's calibration, and how far the base really goes: ``travel_ratio``, the
         distance travelled per distance commanded at ``travel_speed_m_s`` (least squares
-        over the probes), and ``turn_gain`` and ``turn_offset_rad``, the heading change of
-        a turn in place as ``gain x angle + offset x sign(angle)`` (least squares). MuJoCo's
-        caster and tyres resist the base with a nearly constant force that the drive's
-        load model leaves out: a slow drive falls short by a nearly constant speed, which
-        ``travel_ratio`` measures at one speed (:meth:`_travel_command` scales it to
-        others), as Mandow et al. calibrate a real base."""
+        over the probes), and ``turn_ratio_at_<angle>_rad``, the heading change per angle
+        commanded of a turn in place by each probe's angle (:meth:`_turn_command`
+        interpolates them). MuJoCo's caster and tyres resist the base with a nearly
+        constant force that the drive's load model leaves out: a slow drive falls short by
+        a nearly constant speed, which ``travel_ratio`` measures at one speed
+        (:meth:`_travel_command` scales it to others), as Mandow et al. calibrate a real
+        base."""
         nb = len(runs) - len(self._probes())
         out = dict(self.base.calibrate(runs[:nb])) if nb > 0 else {}
         num = den = 0.0
-        rows, rhs = [], []
         speed = None
         for traj, series in runs[nb:]:
             root = np.asarray(series["root"])
@@ -298,16 +300,12 @@ class ComposedController(Controller):
             elif traj.behavior == "turning":
                 cmd = float(traj.info["heading_rad"])  # type: ignore[arg-type]
                 yaw = np.unwrap([_yaw(q) for q in root[:, 3:7]])
-                rows.append((cmd, math.copysign(1.0, cmd)))
-                rhs.append(float(yaw[-1] - yaw[0]))
+                ratio = float(yaw[-1] - yaw[0]) / cmd
+                if ratio > 0:
+                    out[f"{TURN_KEY}{abs(cmd):g}_rad"] = round(ratio, 5)
         if den > 0 and num > 0 and speed:
             out["travel_ratio"] = round(num / den, 5)
             out["travel_speed_m_s"] = round(speed, 6)
-        if len(rows) >= 2:
-            (gain, offset), *_ = np.linalg.lstsq(np.array(rows), np.array(rhs), rcond=None)
-            if gain > 0:
-                out["turn_gain"] = round(float(gain), 5)
-                out["turn_offset_rad"] = round(float(offset), 6)
         return out
 
     def _travel_command(self, distance: float, speed: float) -> float:
@@ -330,14 +328,22 @@ class ComposedController(Controller):
         return distance / keep
 
     def _turn_command(self, angle: float) -> float:
-        """The angle rad to command for the base to turn in place by ``angle`` rad (the
-        calibrated gain and offset inverted); ``angle`` without a calibration."""
-        cal = self.geometry.calibration
-        gain, offset = cal.get("turn_gain"), cal.get("turn_offset_rad")
-        if not gain or offset is None or angle == 0:
+        """The angle rad to command for the base to turn in place by ``angle`` rad: the
+        calibrated ratios (heading change per angle commanded) interpolated linearly in
+        the angle commanded (held beyond the probes) and inverted by fixed-point
+        iteration; ``angle`` without a calibration."""
+        table = sorted(
+            (float(k[len(TURN_KEY) : -4]), float(v))
+            for k, v in self.geometry.calibration.items()
+            if k.startswith(TURN_KEY) and k.endswith("_rad")
+        )
+        if not table or angle == 0:
             return angle
-        cmd = (angle - math.copysign(float(offset), angle)) / float(gain)
-        return cmd if cmd * angle > 0 else angle
+        at, ratio = np.array(table).T
+        cmd = angle
+        for _ in range(50):
+            cmd = angle / float(np.interp(abs(cmd), at, ratio))
+        return cmd
 
     @cached_property
     def hold(self) -> tuple[np.ndarray, np.ndarray]:

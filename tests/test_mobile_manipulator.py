@@ -86,7 +86,8 @@ def test_the_mobile_manipulator_verifies_every_ability(verified) -> None:
     assert {"driving", "turning", "travel", "grasping", "positioning", "pick-and-place"} <= names
     assert all(b["verdict"] == "ok" for b in v["behaviors"]), v["behaviors"]
     # the base's travel and turns were measured (calibration probes)
-    assert {"travel_ratio", "turn_gain", "turn_offset_rad"} <= set(rec["calibration"])
+    cal = rec["calibration"]
+    assert "travel_ratio" in cal and any(k.startswith("turn_ratio_at_") for k in cal)
 
 
 def test_simulate_json_passes_every_behaviour(cli, verified) -> None:
