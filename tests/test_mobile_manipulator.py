@@ -275,3 +275,12 @@ def test_a_program_picks_and_places_after_the_base_has_moved(verified) -> None:
     # placed within 5 mm of the target moved with the robot (it lies 0.2 m and more off
     # where it would be, were it not moved)
     assert [s["verdict"] for s in steps] == ["ok"] * 3, steps
+
+
+def test_a_target_aside_makes_the_base_turn_and_still_places_within_5_mm(verified) -> None:
+    from export.verify import run_behavior
+
+    _, model, c = _controller(verified)
+    traj, result = run_behavior(model, c, "pick-and-place", {"place_y": 2 * c.arm.reach})
+    assert "turn" in [s[0] for s in traj.info["segments"]]
+    assert result.ok, (result.verdict, result.placing_error_m)
