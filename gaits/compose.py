@@ -208,7 +208,7 @@ class ComposedController(Controller):
             )
         # the arm's lengths: the chain's links renamed as a stationary arm names them
         register_plan(arm_plan)
-        full_links = [c for c in serial_links(plan, kinds)]
+        full_links = serial_links(plan, kinds)
         own_links = serial_links(arm_plan, kinds)
         rename = {}
         if own_links:
@@ -287,7 +287,23 @@ class ComposedController(Controller):
         (:meth:`_travel_command` scales it to others), as Mandow et al. calibrate a real
         base."""
         nb = len(runs) - len(self._probes())
-        out = dict(self.base.calibrate(runs[:nb])) if nb > 0 else {}
+        # the base's own probes, seen as the base planned them: its wheels' columns
+        nw = len(self.wheels)
+        own = [
+            (
+                Trajectory(
+                    t.behavior,
+                    t.times,
+                    t.joints[:nw],
+                    t.positions[:, :nw],
+                    t.velocities[:, :nw],
+                    t.info,
+                ),
+                dict(series) | {"q": np.asarray(series["q"])[:, :nw]},
+            )
+            for t, series in runs[:nb]
+        ]
+        out = dict(self.base.calibrate(own)) if own else {}
         num = den = 0.0
         speed = None
         for traj, series in runs[nb:]:

@@ -284,3 +284,35 @@ def test_a_target_aside_makes_the_base_turn_and_still_places_within_5_mm(verifie
     traj, result = run_behavior(model, c, "pick-and-place", {"place_y": 2 * c.arm.reach})
     assert "turn" in [s[0] for s in traj.info["segments"]]
     assert result.ok, (result.verdict, result.placing_error_m)
+
+
+def test_a_skid_steer_base_is_calibrated_as_its_own_controller_would(cli, tmp_path) -> None:
+    """Four drive wheels and no caster: the base's own probes (a skid-steer's effective
+    track) are measured on its wheels' columns, then the composition's."""
+    from synth.verify import calibrate
+
+    kif = MOBILE.replace("(instance ?CASTER CasterWheel)", "(instance ?CASTER DriveWheel)")
+    kif = kif.replace(
+        "(instance ?RIGHT DriveWheel)", "(instance ?RIGHT DriveWheel) (instance ?W4 DriveWheel)"
+    )
+    kif = kif.replace("(robotPart ?CASTER ?ROB)", "(robotPart ?CASTER ?ROB) (robotPart ?W4 ?ROB)")
+    kif = kif.replace(
+        "(connectedTo ?CASTER ?CHASSIS)",
+        "(connectedTo ?CASTER ?CHASSIS) (connectedTo ?W4 ?CHASSIS)",
+    )
+    kif = kif.replace("(?LEFT ?RIGHT ?CASTER", "(?LEFT ?RIGHT ?CASTER ?W4")
+    src = tmp_path / "skid.kif"
+    src.write_text(kif)
+    out = tmp_path / "b"
+    r = cli(
+        "design", "driving", "pick-and-place", "--param", "object_shape=cylinder",
+        "--ontology", str(src), "--no-input", "--no-verify", "--out", str(out),
+    )  # fmt: skip
+    assert r.code == 0, r.err
+    files = {
+        str(p.relative_to(out)): p.read_bytes()
+        for p in out.rglob("*")
+        if p.name in ("robot.xml", "design.json") or p.suffix == ".stl"
+    }
+    cal = calibrate(files)
+    assert {"effective_track_m", "turn_load_scale", "travel_ratio"} <= set(cal)
