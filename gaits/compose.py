@@ -39,7 +39,8 @@ resistance, so an open-loop drive falls short (5-6 % at the default speed); the 
 measures how far its base travels and turns on probe runs (``travel`` over two distances,
 ``turning`` by six angles, :meth:`ComposedController.calibrate`, kept in the record's
 ``calibration``), and ``travel``, ``turning`` and ``pick-and-place`` command what reaches
-the asked distance and heading.
+the asked distance and heading; a pick-and-place also allows for where a turn in place
+moves the wheels' middle (a few millimetres: the caster drags it).
 
 Tipping: every arm configuration a behaviour plans is checked with the whole robot's
 centre of mass (the template's masses scaled to the design's, the payload in the gripper)
@@ -97,6 +98,8 @@ PROBE_DISTANCES = (0.1, 0.3)
 PROBE_ANGLES = (0.25, 0.5, 0.875, 1.5, 2.25, 3.1)
 #: The calibration's key of a turn's ratio at an angle: ``turn_ratio_at_<angle>_rad``.
 TURN_KEY = "turn_ratio_at_"
+#: ... and of where it moved the wheels' middle: ``turn_shift_x_at_<angle>_m`` (and y).
+SHIFT_KEY = "turn_shift_"
 #: Shortest turn of a pick-and-place, s (see ``ComposedController._turn_seconds``).
 TURN_MIN_S = 1.0
 #: Peak joint acceleration of the arm, rad/s^2: gentler than a bolted arm's (3), so that
@@ -319,6 +322,14 @@ class ComposedController(Controller):
                 ratio = float(yaw[-1] - yaw[0]) / cmd
                 if ratio > 0:
                     out[f"{TURN_KEY}{abs(cmd):g}_rad"] = round(ratio, 5)
+                    # where the wheels' middle went, in the start's frame (a left turn;
+                    # a right one mirrors it)
+                    c, s = math.cos(yaw[0]), math.sin(yaw[0])
+                    d = root[-1, :2] - root[0, :2]
+                    side = math.copysign(1.0, cmd)
+                    ahead, aside = float(c * d[0] + s * d[1]), float(c * d[1] - s * d[0])
+                    out[f"{SHIFT_KEY}x_at_{abs(cmd):g}_m"] = round(ahead, 6)
+                    out[f"{SHIFT_KEY}y_at_{abs(cmd):g}_m"] = round(side * aside, 6)
         if den > 0 and num > 0 and speed:
             out["travel_ratio"] = round(num / den, 5)
             out["travel_speed_m_s"] = round(speed, 6)
@@ -342,6 +353,29 @@ class ComposedController(Controller):
                 "rolling resistance (measured); drive faster"
             )
         return distance / keep
+
+    def _turn_shift(self, angle: float) -> np.ndarray:
+        """(2,) m: where a turn in place by ``angle`` rad moves the wheels' middle, in the
+        frame the turn starts in (the calibration's probes interpolated in the angle; a
+        right turn mirrors a left one); zero without a calibration."""
+        cal = self.geometry.calibration
+        out = np.zeros(2)
+        for k, axis in enumerate("xy"):
+            key = f"{SHIFT_KEY}{axis}_at_"
+            table = sorted(
+                (float(n[len(key) : -2]), float(v))
+                for n, v in cal.items()
+                if n.startswith(key) and n.endswith("_m")
+            )
+            if table:
+                at, shift = np.array(table).T
+                out[k] = float(
+                    np.interp(
+                        abs(angle), np.concatenate([[0.0], at]), np.concatenate([[0.0], shift])
+                    )
+                )
+        out[1] *= math.copysign(1.0, angle) if angle else 0.0
+        return out
 
     def _turn_command(self, angle: float) -> float:
         """The angle rad to command for the base to turn in place by ``angle`` rad: the
@@ -675,12 +709,22 @@ class ComposedController(Controller):
         dist = float(np.hypot(*rel))
         heading = math.atan2(rel[1], rel[0]) if dist > 1e-9 else float(pose[2])
         turn = (heading - pose[2] + math.pi) % (2 * math.pi) - math.pi
+        # the turn moves the wheels' middle a little (calibrated): face the target from
+        # where it ends (a few rounds: the shift depends on the turn)
+        turned = pose[:2].copy()
+        for _ in range(3):
+            shift = self._turn_shift(turn)
+            turned = pose[:2] + np.array([c * shift[0] - s * shift[1], s * shift[0] + c * shift[1]])
+            rel = target[:2] - self.base_position[:2] - turned
+            dist = float(np.hypot(*rel))
+            heading = math.atan2(rel[1], rel[0]) if dist > 1e-9 else float(pose[2])
+            turn = (heading - pose[2] + math.pi) % (2 * math.pi) - math.pi
         for f in STANDOFFS:
             drive = dist - (self.forward + f * float(self.arm.reach))
             new = np.array(
                 [
-                    pose[0] + drive * math.cos(heading),
-                    pose[1] + drive * math.sin(heading),
+                    turned[0] + drive * math.cos(heading),
+                    turned[1] + drive * math.sin(heading),
                     pose[2] + turn,
                 ]
             )
