@@ -105,6 +105,14 @@ TURN_MIN_S = 1.0
 #: Peak joint acceleration of the arm, rad/s^2: gentler than a bolted arm's (3), so that
 #: its reaction does not turn the base on its wheels (which only hold their speed).
 ARM_ACCELERATION = 1.0
+#: Least distance m of an object lower than the base's top from the base's outline (the
+#: gripper's half-size: ``gaits.manipulator.FLOOR_CLEARANCE`` keeps as much from the floor).
+BODY_CLEARANCE = 0.04
+#: Least height m above the floor of the arm's parts while it grasps or puts down: the
+#: wheels only hold their speed, and a gripper's jaw dragging on the floor turns the base.
+FLOOR_GAP = 0.005
+#: Largest step rad between the arm's legs of a pick-and-place (they meet at one pose).
+MAX_JUMP = 1e-3
 #: Largest distance m a pick-and-place target may lie from the start.
 FIELD = 5.0
 
@@ -165,13 +173,14 @@ class ComposedController(Controller):
     """The behaviours of a locomotion base carrying an arm (see the module docstring).
 
     ``base_position`` (3,) m: where the base's root stands in the world at the start (the
-    MJCF's root body position); ``stiffness``: joint -> servo stiffness N m/rad (the
-    MJCF's ``kp``), passed on to the arm's controller for its droop compensation."""
+    MJCF's root body position; default: at the origin, standing on its wheels);
+    ``stiffness``: joint -> servo stiffness N m/rad (the MJCF's ``kp``), passed on to the
+    arm's controller for its droop compensation."""
 
     def __init__(
         self,
         geometry: DesignGeometry,
-        base_position: Sequence[float] = (0.0, 0.0, 0.0),
+        base_position: Sequence[float] | None = None,
         stiffness: Mapping[str, float] | None = None,
     ) -> None:
         super().__init__(geometry)
@@ -199,6 +208,8 @@ class ComposedController(Controller):
             raise ValueError(
                 f"{geometry.robot_type}: its arm's structure {arm_kind!r} has no controller"
             )
+        if base_position is None:  # standing on its wheels at the origin (as the MJCF)
+            base_position = (0.0, 0.0, _standing_height(self.template))
         self.base_position = np.array(base_position, dtype=float)
         # the base's controller on the whole design: it carries the arm and the payload
         module, name = CONTROLLERS[kind]
@@ -505,9 +516,13 @@ class ComposedController(Controller):
 
     def _pick_and_place_spec(self) -> BehaviorSpec:
         reach = float(self.arm.reach)
+        # the arm's own default height, or above the base's top: a target clear of the
+        # robot wherever the arm stands on it
         z = float(self.arm.behaviors["grasping"].resolve({})["z"]) + float(
             self.arm.base_position[2]
         )
+        clear_of_base = float(self.base_position[2]) + self.footprint[1] + BODY_CLEARANCE
+        z = max(z, math.ceil((clear_of_base + FLOOR_GAP) * 1e3) / 1e3)
         clear = self.arm.behaviors["grasping"].resolve({})["clearance"]
         ahead = self.forward + 2.0 * reach  # beyond the arm's reach from the start
 
@@ -669,14 +684,110 @@ class ComposedController(Controller):
             ]
         )
 
+    @cached_property
+    def footprint(self) -> tuple[np.ndarray, float]:
+        """(the base's outline (k, 2) m, counter-clockwise, root frame; its top m above the
+        root): the convex hull of its parts' boxes (a cylinder's as its box), the root's,
+        the wheels' and the casters' (what the arm does not move)."""
+        t = self.template
+        m = t.model
+        T = forward_kinematics(m, np.zeros(m.nv))
+        corners = []
+        for body in (m.bodies[0].name, *t.wheels, *t.casters):
+            for part in t.parts.get(body, ()):
+                dims = tuple(float(d) for d in part.dims)
+                if len(dims) == 2:  # a cylinder: radius, length along its z
+                    dims = (2 * dims[0], 2 * dims[0], dims[1])
+                if len(dims) != 3:
+                    continue
+                half = np.array(dims) / 2
+                for sx in (-1, 1):
+                    for sy in (-1, 1):
+                        for sz in (-1, 1):
+                            local = np.append(half * (sx, sy, sz), 1.0)
+                            corners.append((T[m.body(body)] @ part.placement @ local)[:3])
+        pts = np.array(corners)
+        return _hull(pts[:, :2]), float(pts[:, 2].max())
+
+    def _over_base(self, pose: np.ndarray, target: np.ndarray) -> bool:
+        """Whether ``target`` (world) lies over or beside the base at ``pose`` within
+        ``BODY_CLEARANCE``, lower than its top: the gripper would touch the robot."""
+        outline, top = self.footprint
+        if target[2] > self.base_position[2] + top + BODY_CLEARANCE:
+            return False
+        x, y, th = pose
+        c, s = math.cos(th), math.sin(th)
+        d = target[:2] - np.array([x, y]) - self.base_position[:2]
+        local = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+        edges = np.roll(outline, -1, axis=0) - outline
+        normals = np.column_stack([edges[:, 1], -edges[:, 0]])
+        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+        outside = float(np.max(np.einsum("ek,ek->e", normals, local[None] - outline)))
+        return outside < BODY_CLEARANCE
+
     def _grasp_from(self, pose: np.ndarray, target: np.ndarray, clearance: float):
         """The arm's ``grasping`` of ``target`` (world) with the base at ``pose``, or the
-        reason it cannot."""
+        reason it cannot (out of reach, over the base itself, or the robot would tip)."""
+        if self._over_base(pose, target):
+            return None, (
+                f"it would lie within {BODY_CLEARANCE} m of the base, lower than its top: "
+                "the gripper would touch the robot"
+            )
         p = self._arm_frame(pose, target)
         try:
-            return self.arm.run("grasping", x=p[0], y=p[1], z=p[2], clearance=clearance), None
+            grasp = self.arm.run("grasping", x=p[0], y=p[1], z=p[2], clearance=clearance)
+            self._check_tip("grasping there", self._arm_block(grasp, "planned"))
         except ValueError as e:
             return None, str(e)
+        low = float(self.lowest(self._arm_block(grasp, "planned")).min())
+        if low < FLOOR_GAP:
+            return None, (
+                f"the arm's parts would come down to {low:.4f} m above the floor (needs "
+                f"{FLOOR_GAP} m): on a base that only holds its wheels' speed, touching the "
+                "floor turns the robot"
+            )
+        return grasp, None
+
+    @cached_property
+    def _arm_corners(self) -> list[tuple[int, np.ndarray]]:
+        """(body index, (8, 4) homogeneous corners in the body's frame) of every part box of
+        the arm's moving bodies (a cylinder's as its box)."""
+        t = self.arm.template
+        m = t.model
+        out = []
+        for k, body in enumerate(m.bodies):
+            if k == 0:
+                continue
+            for part in t.parts.get(body.name, ()):
+                dims = tuple(float(d) for d in part.dims)[:3]
+                if len(dims) == 2:
+                    dims = (2 * dims[0], 2 * dims[0], dims[1])
+                if len(dims) != 3 or part.kind == "link":
+                    continue  # a link's tube lies along its joints' line, above the jaws
+                half = np.array(dims) / 2
+                box = np.array(
+                    [
+                        (*(half * (sx, sy, sz)), 1.0)
+                        for sx in (-1, 1)
+                        for sy in (-1, 1)
+                        for sz in (-1, 1)
+                    ]
+                )
+                out.append((k, (part.placement @ box.T).T))
+        return out
+
+    def lowest(self, q_arm: np.ndarray) -> np.ndarray:
+        """(N,) m: the lowest point above the floor of the arm's parts (actuators, gripper
+        jaws) with the arm at ``q_arm`` (N, na) rad and the base standing level."""
+        m = self.arm.template.model
+        q_arm = np.atleast_2d(q_arm)[:: max(1, len(np.atleast_2d(q_arm)) // 100)]
+        Q = np.zeros((len(q_arm), m.nv))
+        Q[:, [m.q_names.index(j) for j in self.arm_joints]] = q_arm
+        T = forward_kinematics(m, Q)
+        z = np.full(len(q_arm), np.inf)
+        for k, corners in self._arm_corners:
+            z = np.minimum(z, np.einsum("nj,cj->nc", T[:, k, 2, :], corners).min(axis=1))
+        return z + float(self.arm.base_position[2])
 
     def _go_to(
         self, pose: np.ndarray, target: np.ndarray, clearance: float, speed: float, what: str
@@ -741,7 +852,7 @@ class ComposedController(Controller):
         raise ValueError(
             f"the {what} at ({', '.join(f'{c:.4f}' for c in target)}) m (world) is out of "
             f"reach: the arm reaches {float(self.arm.reach):.4f} m and cannot grasp it from "
-            f"where the base can stand ({reasons[0] if reasons else why})"
+            f"where the base can stand ({'; '.join(dict.fromkeys(reasons or [why]))})"
         )
 
     def _pick_and_place(self, params: Mapping[str, object]) -> Trajectory:
@@ -782,6 +893,12 @@ class ComposedController(Controller):
                 q[:, -1], qp[:, -1] = gripper
                 v[:, -1] = a[:, -1] = 0.0
             self._check_tip(f"pick-and-place ({name})", qp)
+            jump = float(np.max(np.abs(qp[0, :-1] - plan.arm_now[1][:-1])))
+            if jump > MAX_JUMP:  # the arm's solutions of one pose differ: no leg joins them
+                raise ValueError(
+                    f"pick-and-place ({name}): the arm would jump {jump:.3g} rad between "
+                    "two legs (its solutions of one pose differ); choose other targets"
+                )
             t0 = plan.now
             plan.arm(t, q, v, qp, a)
             segments.append((name, t0, plan.now))
@@ -890,6 +1007,15 @@ class _Legs:
 
     def arrays(self):
         return tuple(np.concatenate(x) for x in (self.t, self.q, self.v, self.p, self.a))
+
+
+def _standing_height(template) -> float:
+    """m: the root's height above the floor when the wheels stand on it (their lowest rim
+    points on z = 0, as the MJCF spawns the robot)."""
+    m = template.model
+    T = forward_kinematics(m, np.zeros(m.nv))
+    r = float(template.params.wheel_radius)
+    return max((r - float(T[m.body(w), 2, 3]) for w in template.wheels), default=0.0)
 
 
 def _yaw(quat: np.ndarray) -> float:

@@ -133,12 +133,15 @@ def test_pick_and_place_drives_beyond_reach_and_targets_are_in_the_world_frame(v
     assert spec["pick_x"] - c.forward > c.arm.reach
     # an object the arm reaches from where the base stands: no drive at all
     near = c.arm.gripper_position(c.arm.home[None])[0]
+    z = float(c.arm.base_position[2] + near[2])
     t = c.run(
         "pick-and-place",
         pick_x=c.forward + near[0],
         pick_y=0.02,
+        pick_z=z,
         place_x=c.forward + near[0],
         place_y=-0.02,
+        place_z=z,
     )
     assert [s[0] for s in t.info["segments"]] == ["grasp", "stow", "reach", "put"]
     # the wheels' columns stand still while the arm moves, and the arm holds while driving
@@ -316,3 +319,30 @@ def test_a_skid_steer_base_is_calibrated_as_its_own_controller_would(cli, tmp_pa
     }
     cal = calibrate(files)
     assert {"effective_track_m", "turn_load_scale", "travel_ratio"} <= set(cal)
+
+
+def test_pick_and_place_plans_over_a_grid_of_targets(verified) -> None:
+    """Objects all around the start, near and far, low and high: each plan is refused
+    with a message naming the target, or drives and picks continuously with the object
+    and the place target where they were asked (world frame), the robot never tipping."""
+    _, _, c = _controller(verified)
+    planned = refused = 0
+    for x in (-1.0, -0.3, 0.0, 0.3, 1.0):
+        for y in (-0.6, 0.0, 0.6):
+            for z in (0.05, 0.12, 0.2, 0.6):
+                ask = {"pick_x": x, "pick_y": y, "pick_z": z}
+                try:
+                    t = c.run("pick-and-place", **ask)
+                except ValueError as e:
+                    refused += 1
+                    assert "out of reach" in str(e) or "would tip" in str(e), str(e)
+                    if z < 0.1:  # on the floor: the jaws or the robot itself in the way
+                        assert "floor" in str(e) or "touch the robot" in str(e), str(e)
+                    continue
+                planned += 1
+                assert t.info["pick"][:3] == (x, y, z)
+                assert t.info["min_tip_margin_m"] >= 0
+                step = np.abs(np.diff(t.info["planned_positions"], axis=0))
+                arm = step[:, len(c.wheels) : -1]  # the gripper opens and closes
+                assert float(arm.max()) < 0.05
+    assert planned >= 25 and refused >= 15, (planned, refused)
