@@ -667,7 +667,11 @@ def simulate(
         # where the gripper let go (info "placed_at_s"), else where it ends
         eid = model.body(end_effector).id
         where = placed_where if placed_where is not None else data.xpos[eid]
-        result.placing_error_m = float(np.linalg.norm(where - np.asarray(target)))
+        goal = np.array(target, dtype=float)
+        if chained and free:  # given for a start at the spawn pose: moved with the robot
+            spawn = model.body(1).pos[:2]
+            goal[:2] = start[:2] + turn @ (goal[:2] - spawn)
+        result.placing_error_m = float(np.linalg.norm(where - goal))
         rpy = info.get("orientation_rpy")
         if rpy is not None:
             from kinematics.spatial import matrix_from_rpy

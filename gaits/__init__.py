@@ -21,6 +21,7 @@ CONTROLLERS: dict[str, tuple[str, str]] = {
     "serial_arm": ("gaits.manipulator", "ManipulatorController"),
     "multiped": ("gaits.legged", "LeggedController"),
     "biped": ("gaits.humanoid", "HumanoidController"),
+    "mobile_manipulator": ("gaits.compose", "ComposedController"),
 }
 
 

@@ -32,6 +32,7 @@ import pytest
 from program.blocks import MAKE_TARGET, WEB_ENV, toolbox, web_dir
 from synth.cli import main
 from tests.conftest import REPO, need
+from tests.test_mobile_manipulator import KIF_DESIGNS, kif_args
 
 #: Chromium's switches: headless, no network but the page's server, a software WebGL.
 CHROMIUM_ARGS = [
@@ -57,6 +58,15 @@ DESIGNS = {
     "arm": (
         ["pick-and-place", "--param", "object_shape=cylinder"],
         (("positioning", {"z": 0.1}), 2, ("pick-and-place", {})),
+    ),
+    # KIF-only types
+    "pentapod": (
+        KIF_DESIGNS["pentapod"],
+        (("turning", {"angle": 0.5}), 2, ("turning", {"angle": -0.5})),
+    ),
+    "mobile": (
+        KIF_DESIGNS["mobile"],
+        (("positioning", {"z": 0.05}), 2, ("travel", {"distance": 0.3})),
     ),
 }
 
@@ -91,7 +101,7 @@ def _design(folder: Path, args: list[str]) -> Path:
 @pytest.fixture(scope="module")
 def bundles(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("bundles")
-    return {name: _design(root / name, args) for name, (args, _) in DESIGNS.items()}
+    return {name: _design(root / name, kif_args(args, root)) for name, (args, _) in DESIGNS.items()}
 
 
 class Server:

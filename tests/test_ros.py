@@ -33,6 +33,7 @@ from program.ros import interface, robot_name, srv_text, type_name
 from program.rosworker import Worker, serve
 from synth.cli import main
 from tests.conftest import REPO, need
+from tests.test_mobile_manipulator import KIF_DESIGNS, kif_args
 
 #: The acceptance designs: name -> ``parmor design`` arguments (README's requests).
 DESIGNS = {
@@ -40,6 +41,7 @@ DESIGNS = {
     "snake": ["sidewinding"],
     "cart": ["driving"],
     "arm": ["pick-and-place", "--param", "object_shape=cylinder"],
+    **KIF_DESIGNS,  # KIF-only types: a pentapod, a mobile manipulator
 }
 #: Longest wait for a process to come up or answer, s (a loaded 2-core machine).
 WAIT_S = 90.0
@@ -58,7 +60,7 @@ def bundles(tmp_path_factory) -> dict[str, Path]:
     out = {}
     for name, args in DESIGNS.items():
         code, _, err = parmor(
-            "design", *args, "--no-verify", "--no-input", "--out", str(root / name)
+            "design", *kif_args(args, root), "--no-verify", "--no-input", "--out", str(root / name)
         )
         assert code == 0, err
         out[name] = root / name
