@@ -272,7 +272,12 @@ class LeggedController(Controller):
                 "walking",
                 "Walk a straight line, or an arc of `curvature`, with a statically stable gait.",
                 (*walk, CURVATURE),
-                steer=(("speed", "speed"), ("turn", "curvature"), ("steps", "steps")),
+                steer=(
+                    ("speed", "speed"),
+                    ("turn", "curvature"),
+                    ("steps", "steps"),
+                    ("direction", "direction"),
+                ),
             ),
             "running": BehaviorSpec(
                 "running",
@@ -650,9 +655,7 @@ class LeggedController(Controller):
         info = straight.info
         direction = float(params["direction"])  # type: ignore[arg-type]
         u = np.array([math.cos(direction), math.sin(direction)])
-        pattern = gait_pattern(
-            str(params.get("gait", info["gait"])), self.legs, direction, duty=float(info["duty"])
-        )
+        pattern = gait_pattern(str(params["gait"]), self.legs, direction)  # as walking's
         period, cycles = float(info["cycle_s"]), int(info["cycles"])  # type: ignore[arg-type]
         v = float(info["speed"])  # type: ignore[arg-type]
         plan = self._arc_fit(pattern, cycles, period, v, u, kappa, step)

@@ -10,7 +10,9 @@ Roles (``SteerableSpec.steer``, role -> parameter name):
   the heading the loop learns from what it measures);
 - ``seconds``: how long one control period runs (a behaviour that runs any short time,
   from where it is: wheels), or ``steps``: how many whole gait cycles one period is (a
-  gait that starts and ends at rest: legs, a snake's waves).
+  gait that starts and ends at rest: legs, a snake's waves);
+- ``direction`` (optional): the direction of travel, rad from forward (a behaviour that
+  also goes sideways without turning: legs).
 
 ``fixed``: parameters held at these values in every period (e.g. no ramp). The roles
 are data of the controller's behaviour; no loop names a behaviour or a robot type.
@@ -26,7 +28,7 @@ from gaits.base import BehaviorSpec
 __all__ = ["STEER_ROLES", "SteerableSpec"]
 
 #: The roles a steerable behaviour's parameters may play.
-STEER_ROLES = ("speed", "turn", "seconds", "steps")
+STEER_ROLES = ("speed", "turn", "seconds", "steps", "direction")
 
 
 @dataclass(frozen=True)
@@ -42,8 +44,14 @@ class SteerableSpec(BehaviorSpec):
         roles = dict(self.steer)
         names = {p.name for p in self.params}
         bad = [r for r in roles if r not in STEER_ROLES]
-        if bad or not {"speed", "turn"} <= set(roles) or len({"seconds", "steps"} & set(roles)) != 1:
-            raise ValueError(f"behaviour {self.name!r}: steering roles {sorted(roles)} are not valid")
+        if (
+            bad
+            or not {"speed", "turn"} <= set(roles)
+            or len({"seconds", "steps"} & set(roles)) != 1
+        ):
+            raise ValueError(
+                f"behaviour {self.name!r}: steering roles {sorted(roles)} are not valid"
+            )
         missing = sorted(set(roles.values()) - names)
         if missing:
             raise ValueError(f"behaviour {self.name!r}: no parameter {missing[0]!r} to steer")
