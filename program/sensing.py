@@ -67,6 +67,9 @@ BUDGET = {"follow-line": (1.5, 2.0), "avoid": (3.0, 10.0)}
 #: two cycles travel about twice as far as one for little more time (a legged plan's start
 #: and stop ramps).
 PERIOD_CYCLES = 1
+#: Obstacle-avoidance by arcs: the turn past the obstacle's edge is done within this
+#: (rad), or after this many periods (a learnt bias turns only roughly).
+TURN_TOLERANCE, TURN_TRIES = math.radians(5), 4
 #: Control periods one sideways step lasts (legs go sideways several times slower than
 #: forward: a shorter stride for the same start and stop).
 SIDESTEP_PERIODS = 4
@@ -825,7 +828,7 @@ def _avoid_strides(
         reads["period"] = min(reads["period"], r)
 
     turn_k = side * (math.pi / 4) / travel  # up to an eighth of a turn a period
-    state, seen, progress = "go", RANGER_MAX_M, 0.0
+    state, seen, progress, tries = "go", RANGER_MAX_M, 0.0, 0
     cleared: tuple[float, float] | None = None
     passed_from = origin
     session.on_step = read
@@ -869,10 +872,12 @@ def _avoid_strides(
                     mover.step(turn_k, rig)
                     continue
                 if cleared is None:
+                    tries = 0
                     need = math.asin(min(1.0, (reach[side] + CLEARANCE_M) / max(seen, 1e-3)))
                     cleared = (rig.heading(), max(0.0, need - RANGER_HALF_ANGLE))
                 left = cleared[1] - side * _turned(rig.heading(), cleared[0])
-                if left > 1e-3:
+                if left > TURN_TOLERANCE and tries < TURN_TRIES:
+                    tries += 1
                     mover.step(side * left / travel, rig)
                     continue
                 state, passed_from, cleared = "pass", here.copy(), None
