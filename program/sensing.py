@@ -1,12 +1,22 @@
 """Sensing abilities simulated: following a line on the floor with two downward infrared
 sensors, and passing an obstacle with a forward ultrasonic ranger.
 
-A sensing ability is a closed loop over a locomotion behaviour the design already has:
-at :data:`CONTROL_HZ` the robot reads its sensors in the simulated world, picks a forward
-speed and a turn rate, and runs the steerable behaviour (:data:`STEERABLE`) for one control
-period, continuing from where it is (:class:`program.session.Session`). Behaviours that
-cannot be steered that way (a legged gait's walking takes a direction, not a turn rate)
-give no sensing behaviour, and the ability stays ``not_simulated``.
+A sensing ability is a closed loop over a locomotion behaviour the design already has,
+the first (by name) whose spec says which of its parameters steer it
+(:class:`gaits.steering.SteerableSpec`: speed, turn, period; :func:`steering`), continuing
+from where the robot is (:class:`program.session.Session`). Designs without one give no
+sensing behaviour, and the ability stays ``not_simulated``.
+
+- A yaw rate steered for any short time (wheels' ``driving``): at :data:`CONTROL_HZ` the
+  robot reads its sensors, picks a forward speed and a turn rate and runs the behaviour
+  for the next 1 / :data:`CONTROL_HZ` s (:func:`_line`, :func:`_avoid`).
+- A gait that starts and ends at rest, steered by a curvature (legs' ``walking``) or a
+  bias whose effect the loop learns (a snake's ``sidewinding``): the sensors are still
+  read at :data:`CONTROL_HZ` while it goes, but it decides once a control period of
+  :data:`PERIOD_CYCLES` gait cycle(s) (:class:`_Strider`, :func:`_line_strides`,
+  :func:`_avoid_strides`). Earlier, a legged gait stepped one step at a time, turning in
+  place between steps, covered 0.21 m of 1 m of line in 175 s; walking arcs, the
+  four-legged walker covers 0.5 m of a 1 m circle in 79 s.
 
 The sensors, as the ontology's sensing abilities and the catalog's modules give them:
 
@@ -28,6 +38,11 @@ What each promises, judged on the outcome (:func:`export.verdict.judge`):
 - ``obstacle-avoidance`` (motion ``avoid``): the robot reaches the goal line ``distance``
   ahead (an obstacle across its straight path halfway) without touching the obstacle,
   within 3 x what the speed needs + 10 s.
+
+For a gait, "what the speed needs" is at its speed on a straight line, stops between
+periods included (one straight period's planned travel over its duration, or measured on
+calibration periods when the gait plans no pose), and no loop runs past the session's
+simulated time (``program.script.LIMITS["sim_s"]``).
 """
 
 from __future__ import annotations
