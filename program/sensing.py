@@ -358,7 +358,12 @@ def run(session: Session, name: str, params: Mapping[str, object]) -> tuple[dict
     steer = steering(session.controller.behaviors)
     assert steer is not None
     if steer.strides:
-        strider = _Strider(session, steer, params["speed"])
+        from program.script import ProgramError
+
+        try:  # (a speed the gait cannot reach: said like a behaviour's own parameter)
+            strider = _Strider(session, steer, params["speed"])
+        except ValueError as exc:
+            raise ProgramError(f"{name}: {exc}") from None
         rig = Rig(session, strider.forward)
         if name == "line-tracking":
             return _line_strides(session, strider, rig, params)
@@ -631,16 +636,17 @@ class _Strider:
         """:data:`SIDESTEP_PERIODS` periods straight to the left (``side`` +1) or right
         (-1), not turning."""
         r = self.steer.roles
-        traj = self.session.controller.run(
-            self.steer.behavior,
-            **{
-                r["speed"]: self.speed,
-                r["turn"]: 0.0,
-                r["steps"]: SIDESTEP_PERIODS * self.cycles,
-                r["direction"]: side * math.pi / 2,
-                **self.steer.fixed,
-            },
-        )
+        ask = {
+            r["turn"]: 0.0,
+            r["steps"]: SIDESTEP_PERIODS * self.cycles,
+            r["direction"]: side * math.pi / 2,
+            **self.steer.fixed,
+        }
+        run = self.session.controller.run
+        try:
+            traj = run(self.steer.behavior, **ask, **{r["speed"]: self.speed})
+        except ValueError:  # sideways may not reach the speed forward does: its default
+            traj = run(self.steer.behavior, **ask)
         self._follow(traj)
 
     def step(self, curvature: float, rig: Rig) -> float:
