@@ -580,17 +580,23 @@ class _Strider:
         self.forward = way / np.linalg.norm(way)
         self.travel = float(np.hypot(*pose[:2])) if pose is not None else 0.0  # type: ignore[index]
 
-    def _plan(self, turn: float):
+    def _plan(self, turn: float, periods: int = 1):
         r = self.steer.roles
         return self.session.controller.run(
             self.steer.behavior,
             **{
                 r["speed"]: self.speed,
                 r["turn"]: turn,
-                r["steps"]: self.cycles,
+                r["steps"]: periods * self.cycles,
                 **self.steer.fixed,
             },
         )
+
+    def travel_of(self, periods: int) -> float:
+        """How far ``periods`` periods run as one straight plan go, m (planned; else
+        ``periods`` x :attr:`travel`)."""
+        pose = self._plan(0.0, periods).info.get("planned_pose")
+        return float(np.hypot(*pose[:2])) if pose is not None else periods * self.travel  # type: ignore[index]
 
     @property
     def v(self) -> float:
@@ -649,15 +655,16 @@ class _Strider:
             traj = run(self.steer.behavior, **ask)
         self._follow(traj)
 
-    def step(self, curvature: float, rig: Rig) -> float:
-        """One period turning at ``curvature`` rad/m (eased until the behaviour accepts
-        it); the curvature it was asked with."""
+    def step(self, curvature: float, rig: Rig, periods: int = 1) -> float:
+        """One period (or ``periods`` as one plan: a curvature turn) turning at
+        ``curvature`` rad/m (eased until the behaviour accepts it); the curvature it was
+        asked with."""
         if self.steer.kind == "curvature":
             k = float(np.clip(curvature, -self.k_max[-1.0], self.k_max[1.0]))
             for _ in range(12):
                 k = round(k, 2)  # (plans of the same arc are remembered)
                 try:
-                    traj = self._plan(k)
+                    traj = self._plan(k, periods)
                     break
                 except ValueError:
                     sense = math.copysign(1.0, k)
@@ -942,14 +949,18 @@ def _sidestep_past(
     beyond the ranger, two periods' travel and the clearance; then steps sideways (to the
     left, or to the side its body reaches least beyond the ranger), period by period,
     until the beam has passed the obstacle's edge and, by odometry, its own reach on the
-    other side clears it too; then goes on to the goal line. Its progress toward it, m."""
+    other side clears it too; then goes on to the goal line. Far from the obstacle, and
+    past it, it goes :data:`SIDESTEP_PERIODS` periods at a time. Its progress, m."""
     t0 = session.time
     travel = max(mover.travel, 1e-3)
     fwd = np.array([math.cos(heading0), math.sin(heading0)])
     left0 = np.array([-fwd[1], fwd[0]])
     side = 1.0 if reach[1.0] <= reach[-1.0] + 1e-9 else -1.0
     trigger = ahead + 2 * travel + CLEARANCE_M
-    state, seen, progress = "go", RANGER_MAX_M, 0.0
+    # away from the obstacle it goes SIDESTEP_PERIODS periods at a time (one start and
+    # stop for all: faster)
+    far = mover.travel_of(SIDESTEP_PERIODS)
+    state, seen, progress, passed = "go", RANGER_MAX_M, 0.0, False
     start = origin
     remaining = 0.0
     while session.time - t0 < budget and progress < distance and mover.room():
@@ -970,9 +981,12 @@ def _sidestep_past(
             if side * float((here - start) @ left0) < remaining:
                 mover.sidestep(side)
                 continue
-            state = "go"
+            state, passed = "go", True
         err = _turned(heading0, rig.heading())
-        mover.step(0.5 * err / travel, rig)  # holding the first heading
+        if passed or now > trigger + far + CLEARANCE_M:
+            mover.step(0.5 * err / far, rig, SIDESTEP_PERIODS)
+        else:
+            mover.step(0.5 * err / travel, rig)  # holding the first heading
         progress = float((rig.world(rig.ranger)[:2] - origin) @ fwd)
     return progress
 
