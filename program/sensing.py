@@ -84,7 +84,7 @@ BUDGET = {"follow-line": (1.5, 2.0), "avoid": (3.0, 10.0)}
 PERIOD_CYCLES = 1
 #: Obstacle-avoidance by arcs: the turn past the obstacle's edge is done within this
 #: (rad), or after this many periods (a learnt bias turns only roughly).
-TURN_TOLERANCE, TURN_TRIES = math.radians(5), 4
+TURN_TOLERANCE, TURN_TRIES = math.radians(5), 8
 #: Control periods one sideways step lasts (legs go sideways several times slower than
 #: forward: a shorter stride for the same start and stop).
 SIDESTEP_PERIODS = 4
@@ -629,6 +629,16 @@ class _Strider:
             return 0.0
         return float(np.clip((dyaw - a) / b, -top, top))
 
+    def tightest(self, side: float) -> float:
+        """For a bias: the tightest curvature rad/m it turns toward ``side`` (+1 left) at
+        its largest bias, as learnt (0 when it does not turn that way)."""
+        top = float(self.steer.turn.high or 1.0)
+        x = np.array([[1.0, b] for b, _ in self.seen])
+        y = np.array([t for _, t in self.seen])
+        (a, b), *_ = np.linalg.lstsq(x, y, rcond=None)
+        turn = side * max(a + b * top, a - b * top, key=lambda t: side * t)
+        return max(turn, 0.0) / max(self.travel, 1e-6)
+
     def room(self) -> bool:
         """Whether one more period fits in the session's simulated time."""
         return self.session.time + self.duration * 1.5 <= self.limit
@@ -854,6 +864,23 @@ def _avoid_strides(
         r = rig.range()
         reads["min"] = min(reads["min"], r)
         reads["period"] = min(reads["period"], r)
+        path.append(rig.world(rig.ranger)[:2])
+
+    # how far the ranger swings across its way within a period (a snake's head wiggles
+    # with the waves): added to the clearance
+    path: list[np.ndarray] = []
+    swing = 0.0
+
+    def swung() -> float:
+        if len(path) < 3:
+            return 0.0
+        a, b = path[0], path[-1]
+        chord = b - a
+        n = float(np.hypot(*chord))
+        if n < 1e-6:
+            return 0.0
+        across = np.array([-chord[1], chord[0]]) / n
+        return float(np.abs((np.array(path) - a) @ across).max())
 
     turn_k = side * (math.pi / 4) / travel  # up to an eighth of a turn a period
     state, seen, progress, tries = "go", RANGER_MAX_M, 0.0, 0
@@ -884,9 +911,13 @@ def _avoid_strides(
             here = rig.world(rig.ranger)[:2]
             r = min(reads["period"], rig.range())
             reads["period"] = RANGER_MAX_M
+            swing = max(swing, swung())
+            path.clear()
             # what it needs to swerve: the travel before it reacts, the radius it turns on
             radius = 1.0 / max(
-                abs(turn_k) if mover.steer.kind == "bias" else min(abs(turn_k), mover.k_max[side]),
+                mover.tightest(side)
+                if mover.steer.kind == "bias"
+                else min(abs(turn_k), mover.k_max[side]),
                 1e-3,
             )
             trigger = 2 * travel + min(radius, distance / 2) / 2 + CLEARANCE_M
@@ -901,7 +932,8 @@ def _avoid_strides(
                     continue
                 if cleared is None:
                     tries = 0
-                    need = math.asin(min(1.0, (reach[side] + CLEARANCE_M) / max(seen, 1e-3)))
+                    clear = reach[side] + CLEARANCE_M + swing
+                    need = math.asin(min(1.0, clear / max(seen, 1e-3)))
                     cleared = (rig.heading(), max(0.0, need - RANGER_HALF_ANGLE))
                 left = cleared[1] - side * _turned(rig.heading(), cleared[0])
                 if left > TURN_TOLERANCE and tries < TURN_TRIES:
