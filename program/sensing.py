@@ -741,9 +741,9 @@ def _line_strides(
     state = {"s": 0.0, "next": t0, "lost": 0.0, "longest": 0.0, "worst": 0.0}
     half_span = IR_SPACING_M / 2 + LINE_WIDTH_M / 2
     # it starts on the line, along it
-    way = np.array([math.cos(heading), math.sin(heading)])
-    # every reading: (x, y) m where the sensor was, and whether it saw the line
-    reads: list[tuple[float, float, float]] = [(*start, 1.0), *((*(start + 0.02 * way), 1.0),)]
+    # every reading: (x, y) m where the sensor was, and whether it saw the line; it starts
+    # with the line under the sensors' midpoint (which way it goes, it learns)
+    reads: list[tuple[float, float, float]] = [(*start, 1.0)]
 
     def read(t: float) -> None:
         if t < state["next"] - 1e-9:
