@@ -78,9 +78,10 @@ SENSING = {"line-tracking": "follow-line", "obstacle-avoidance": "avoid"}
 BUDGET = {"follow-line": (1.5, 2.0), "avoid": (3.0, 10.0)}
 
 #: Gait cycles in one control period of a behaviour steered stride by stride (its steps
-#: role): every plan of a gait starts and ends at rest, so the loop decides once a period;
-#: two cycles travel about twice as far as one for little more time (a legged plan's start
-#: and stop ramps).
+#: role; at least the role's own lowest): every plan of a gait starts and ends at rest,
+#: so the loop decides once a period. Measured on the four-legged walker: two cycles (17
+#: cm a period) lose 0.5 and 1 m circles between decisions; one (6 cm) follows them, the
+#: start and stop making it half as fast.
 PERIOD_CYCLES = 1
 #: Obstacle-avoidance by arcs: the turn past the obstacle's edge is done within this
 #: (rad), or after this many periods (a learnt bias turns only roughly).
@@ -724,10 +725,10 @@ def _line_strides(
     session: Session, mover: _Strider, rig: Rig, params: Mapping
 ) -> tuple[dict, dict]:
     """Line-tracking stride by stride: the sensors are read at :data:`CONTROL_HZ` while the
-    robot walks (or crawls); where a sensor saw the line is remembered (its place in the
-    world, as the robot's odometry gives it), and once a period the robot fits the line
-    to what it saw (:func:`_fit_line`) and walks the arc that brings the sensors' midpoint
-    onto it one period's travel ahead (:func:`_pursue`)."""
+    robot walks; every reading (where the sensor was, as the robot's odometry gives it, and
+    whether it saw the line) is kept, and once a period the robot locates the line near
+    its sensors from them (:func:`_locate_line`) and walks the arc that brings the
+    sensors' midpoint onto it (:func:`_pursue`)."""
     radius, length = (float(params[k]) for k in ("radius", "length"))
     mover.calibrate(rig)
     mid = (rig.ir[0] + rig.ir[1]) / 2
