@@ -61,6 +61,7 @@ from gaits.hexapod import (
     plan_gait,
     standing_height,
 )
+from gaits.steering import SteerableSpec
 from kinematics.templates import TRUNK_THICKNESS, Template
 
 __all__ = ["DIRECTIONS", "DirectionParameter", "LeggedController"]
@@ -107,6 +108,19 @@ PLAN_MEMO = 32
 #: Named directions of travel, rad (counter-clockwise from the trunk's +x).
 DIRECTIONS = {"forward": 0.0, "backward": math.pi, "left": math.pi / 2, "right": -math.pi / 2}
 
+
+#: Walking's ``curvature`` (rad/m): the trunk follows an arc, turning by this much per metre
+#: travelled, counter-clockwise positive (0: a straight line). Arcs tighter than the legs
+#: reach raise ValueError naming the tightest feasible one.
+CURVATURE = Parameter(
+    "curvature",
+    "float",
+    0.0,
+    "turn per metre walked, counter-clockwise positive (0: straight)",
+    "rad/m",
+    low=-50.0,
+    high=50.0,
+)
 
 # --- the controller ---------------------------------------------------------------------------
 
@@ -261,8 +275,16 @@ class LeggedController(Controller):
         own = gait_pattern(run_name, self.legs).duty
         duties = f"{duty:.2f}" if abs(duty - own) < 1e-9 else f"{duty:.2f} (up to {own:.2f})"
         out = {
-            "walking": BehaviorSpec(
-                "walking", "Walk a straight line with a statically stable gait.", walk
+            "walking": SteerableSpec(
+                "walking",
+                "Walk a straight line, or an arc of `curvature`, with a statically stable gait.",
+                (*walk, CURVATURE),
+                steer=(
+                    ("speed", "speed"),
+                    ("turn", "curvature"),
+                    ("steps", "steps"),
+                    ("direction", "direction"),
+                ),
             ),
             "running": BehaviorSpec(
                 "running",
@@ -348,6 +370,8 @@ class LeggedController(Controller):
                     first = e  # the running gait's own reason (its longest duty's)
             assert first is not None
             raise first
+        if float(params.get("curvature") or 0.0):  # type: ignore[arg-type]
+            return self._arc(name, params, step)
         return self._walking(name, params, step)
 
     # -- planning ------------------------------------------------------------------------------
@@ -631,6 +655,95 @@ class LeggedController(Controller):
             period = fastest
             rate = per_stance / (duty * period)
         raise ValueError(f"no {pattern.name} timing within the actuators' speeds")
+
+    # -- steering: walking along an arc ---------------------------------------------------------
+
+    def _arc(self, name: str, params: Mapping[str, object], step: float) -> Trajectory:
+        """Walking whose every stride combines the translation with a yaw: the trunk follows
+        an arc of ``params["curvature"]`` rad/m (counter-clockwise positive) towards
+        ``direction``. The straight walk's gait, cycles and timing are planned first; the arc
+        keeps them and turns the trunk by ``curvature`` x the distance as it goes. Each
+        stance's sweep then differs leg by leg (the outer legs sweep further): when a foot
+        leaves its reach, the joint limits or the stability margin, the stride is shortened
+        (``_arc_fit``); when a joint would be too fast, the cycle lengthened. Like every
+        walk it starts and ends standing, so a closed loop (:mod:`program.sensing`) runs it
+        a few cycles at a time from where the robot stands."""
+        kappa = float(params["curvature"])  # type: ignore[arg-type]
+        straight = self._walking(name, {**params, "curvature": 0.0}, step)
+        info = straight.info
+        direction = float(params["direction"])  # type: ignore[arg-type]
+        u = np.array([math.cos(direction), math.sin(direction)])
+        pattern = gait_pattern(str(params["gait"]), self.legs, direction)  # as walking's
+        period, cycles = float(info["cycle_s"]), int(info["cycles"])  # type: ignore[arg-type]
+        v = float(info["speed"])  # type: ignore[arg-type]
+        plan = self._arc_fit(pattern, cycles, period, v, u, kappa, step)
+        if plan is None:
+            raise ValueError(
+                f"curvature: {kappa:g} rad/m is tighter than this design's legs can walk "
+                f"with the {pattern.name} gait (tightest feasible about "
+                f"{self.max_curvature(pattern, cycles, period, v, u, step, kappa):.3g} rad/m)"
+            )
+        path = float(plan.speed * plan.progress)
+        return self._trajectory(
+            name,
+            plan,
+            pattern,
+            {
+                "motion": "arc",
+                "direction": (float(u[0]), float(u[1])),
+                "curvature_rad_m": kappa,
+                "planned_distance_m": path,
+                "path_length_m": path,
+            },
+        )
+
+    def _arc_fit(
+        self,
+        pattern: GaitPattern,
+        cycles: int,
+        period: float,
+        v: float,
+        u: np.ndarray,
+        kappa: float,
+        step: float,
+    ) -> GaitPlan | None:
+        """A plan of ``cycles`` cycles of ``pattern`` on an arc of ``kappa`` rad/m at up to
+        ``v`` m/s, the stride shortened until the feet stay in reach, the joints in their
+        limits and the trunk stable, the cycle lengthened while a joint is too fast; None
+        when no stride does."""
+        for _ in range(16):
+            twist = (v * float(u[0]), v * float(u[1]), v * kappa)
+            try:
+                plan = self._plan(pattern, cycles, period, twist, step, self.height, sway=None)
+            except ValueError:
+                plan = None
+            if plan is not None and self._accept(plan):
+                ratio = self._ratio(plan.q, plan.times)
+                if ratio <= 1 + 1e-6:
+                    return plan
+                period *= ratio * 1.02  # the same stride, slower
+                continue
+            v *= 0.8  # a shorter stride in the same cycle
+        return None
+
+    def max_curvature(
+        self,
+        pattern: GaitPattern,
+        cycles: int,
+        period: float,
+        v: float,
+        u: np.ndarray,
+        step: float,
+        upto: float,
+    ) -> float:
+        """The tightest curvature rad/m (at most ``|upto|``) whose arc ``_arc_fit`` plans,
+        by bisection."""
+        lo, hi = 0.0, abs(upto)
+        for _ in range(8):
+            mid = 0.5 * (lo + hi)
+            ok = self._arc_fit(pattern, cycles, period, v, u, math.copysign(mid, upto), step)
+            lo, hi = (mid, hi) if ok is not None else (lo, mid)
+        return lo
 
     def _trajectory(
         self, name: str, plan: GaitPlan, pattern: GaitPattern, extra: Mapping[str, object]

@@ -68,6 +68,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gaits.base import BehaviorSpec, Controller, DesignGeometry, Parameter, Trajectory
+from gaits.steering import SteerableSpec
 
 __all__ = [
     "GAITS",
@@ -279,6 +280,18 @@ ROTATING_ALPHA = (math.radians(5), math.radians(32))  # M = 8: A_v = 10, A_h = 4
 #: degrees turning counter-clockwise; k_h = M / 8 (one undulation at M = 8) turns M = 8
 #: at 45 degrees per 10 s and M = 10 and 14 hardly, M = 14 the wrong way.
 ROTATING_WAVES = 0.75
+#: Gaits a closed loop can steer (:mod:`program.sensing`) by their ``turn`` bias: the
+#: horizontal wave graded along the body, 1 + turn at the tail's end and 1 - turn at the
+#: head's (:func:`turn_scale`). Simulated on the designed 6-module snake (2-cycle runs at
+#: 0.4 Hz), sidewinding to the left turns its heading by about -8 (turn -1), +5 (-0.6), +9
+#: (0) and +25 (+0.6) degrees a run: which turn goes straight differs from snake to snake
+#: (the heavy head, the ground), so the loop learns it from the headings it measures.
+STEERED = ("sidewinding",)
+TURN_MAX = 1.0
+TURN_DOC = (
+    "steering bias: the horizontal wave grows by this share towards the tail (+) or "
+    "the head (-); how it turns the heading depends on the snake"
+)
 #: Largest horizontal offset rad of ``circular-path`` (the horizontal joints hold it).
 BEND_MAX = math.radians(60)
 #: Default total bend rad of ``circular-path``, shared by the horizontal joints: a circle
@@ -437,6 +450,17 @@ class SnakeController(Controller):
                 Parameter("direction", "int", 1, _SENSE[gait], "", low=-1, high=1),
                 Parameter("roll", "float", 0.0, ROLL_DOC, "rad", low=-math.pi, high=math.pi),
             ]
+            if gait in STEERED:
+                params.append(
+                    Parameter("turn", "float", 0.0, TURN_DOC, "", low=-TURN_MAX, high=TURN_MAX)
+                )
+                out[gait] = SteerableSpec(
+                    gait,
+                    _DOCS[gait],
+                    tuple(params),
+                    steer=(("speed", "frequency"), ("turn", "turn"), ("steps", "cycles")),
+                )
+                continue
             if gait == "circular-path":
                 params.append(
                     Parameter(
@@ -461,7 +485,8 @@ class SnakeController(Controller):
         if not abs(roll) <= math.pi:
             raise ValueError(f"roll must be within +-pi rad, got {roll!r}")
         freq, cycles = float(params["frequency"]), int(params["cycles"])
-        t, q, v, p = self._trajectory(name, freq, cycles, direction, bend, roll)
+        turn = float(params.get("turn", 0.0))
+        t, q, v, p = self._trajectory(name, freq, cycles, direction, bend, roll, turn)
         top = float(np.abs(v).max())
         if top > self.max_speed * (1 + 1e-9):
             raise ValueError(
@@ -499,11 +524,19 @@ class SnakeController(Controller):
         return Trajectory(name, t, self.joints, q, v, info)
 
     def _trajectory(
-        self, gait: str, freq: float, cycles: int, direction: int, bend: float, roll: float = 0.0
+        self,
+        gait: str,
+        freq: float,
+        cycles: int,
+        direction: int,
+        bend: float,
+        roll: float = 0.0,
+        turn: float = 0.0,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, WaveParams]:
         """(t (N,) s, q (N, M) rad, v (N, M) rad/s, waves) of ``cycles`` waves at ``freq``
         Hz with minimum-jerk fades over the first and last ``FADE_CYCLES``, for a body
-        rolled by ``roll`` rad."""
+        rolled by ``roll`` rad; ``turn`` grades the horizontal wave along the body
+        (:func:`turn_scale`)."""
         if freq <= 0 or cycles < 2 * FADE_CYCLES:
             raise ValueError(f"need frequency > 0 and cycles >= {2 * FADE_CYCLES:g}")
         p = gait_params(gait, self.modules, direction, bend)
@@ -515,9 +548,44 @@ class SnakeController(Controller):
         s_out, ds_out = _ramp((seconds - t) / fade)
         env = s_in * s_out
         env_rate = (ds_in * s_out - s_in * ds_out) / fade
+        if turn:
+            q, v = _graded_waves(w * t, w, self.modules, p, env, env_rate, roll, turn)
+            return t, q, v, p
         q = joint_waves(w * t, self.modules, p, env, roll)
         v = _joint_wave_rates(w * t, w, self.modules, p, env, env_rate, roll)
         return t, q, v, p
+
+
+def turn_scale(modules: int, turn: float) -> np.ndarray:
+    """Scale (M,) of the horizontal wave at every joint's place for a ``turn`` bias: 1 +
+    ``turn`` x the place along the body from -1 (``joint_1``, the head's end) to +1 (the
+    tail's), so that ``turn`` > 0 sweeps the tail wider than the head and < 0 the head
+    wider."""
+    place = np.arange(modules, dtype=float)
+    rel = (2 * place / (modules - 1) - 1) if modules > 1 else np.zeros(1)
+    return 1.0 + turn * rel
+
+
+def _graded_waves(
+    phase: np.ndarray,
+    phase_rate: float,
+    modules: int,
+    p: WaveParams,
+    env: np.ndarray,
+    env_rate: np.ndarray,
+    roll: float,
+    turn: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Joint angles and rates (N, M) of the body waves (:func:`_body_waves`) with the
+    horizontal wave scaled along the body by :func:`turn_scale`, turned by ``roll``."""
+    arg_v, arg_h = _body_phases(phase, modules, p)
+    scale = turn_scale(modules, turn)[None, :]
+    e, r = env[:, None], env_rate[:, None]
+    v = e * (p.o_v + p.a_v * np.sin(arg_v))
+    h = scale * e * (p.o_h + p.a_h * np.sin(arg_h))
+    dv = r * (p.o_v + p.a_v * np.sin(arg_v)) + e * p.a_v * phase_rate * np.cos(arg_v)
+    dh = scale * (r * (p.o_h + p.a_h * np.sin(arg_h)) + e * p.a_h * phase_rate * np.cos(arg_h))
+    return rolled_waves(v, h, roll), rolled_waves(dv, dh, roll)
 
 
 def _ramp(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

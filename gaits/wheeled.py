@@ -70,6 +70,7 @@ from gaits.base import (
     min_jerk,
     min_jerk_integral,
 )
+from gaits.steering import SteerableSpec
 from kinematics.dynamics import forward_kinematics
 from kinematics.model import GRAVITY
 from kinematics.templates import WHEEL_WIDTH, Template, TemplateParams, build
@@ -721,7 +722,7 @@ class WheeledController(Controller):
         v_max = self.v_max
         v_top, w_top = self.reach
         return {
-            "driving": BehaviorSpec(
+            "driving": SteerableSpec(
                 "driving",
                 "Drive at forward speed v and yaw rate w (eqs. 5-6), ramping up smoothly.",
                 (
@@ -754,6 +755,8 @@ class WheeledController(Controller):
                         high=60,
                     ),
                 ),
+                steer=(("speed", "v"), ("turn", "w"), ("seconds", "seconds")),
+                fixed=(("ramp", 0.0),),
             ),
             "turning": BehaviorSpec(
                 "turning",

@@ -1,12 +1,22 @@
 """Sensing abilities simulated: following a line on the floor with two downward infrared
 sensors, and passing an obstacle with a forward ultrasonic ranger.
 
-A sensing ability is a closed loop over a locomotion behaviour the design already has:
-at :data:`CONTROL_HZ` the robot reads its sensors in the simulated world, picks a forward
-speed and a turn rate, and runs the steerable behaviour (:data:`STEERABLE`) for one control
-period, continuing from where it is (:class:`program.session.Session`). Behaviours that
-cannot be steered that way (a legged gait's walking takes a direction, not a turn rate)
-give no sensing behaviour, and the ability stays ``not_simulated``.
+A sensing ability is a closed loop over a locomotion behaviour the design already has,
+the first (by name) whose spec says which of its parameters steer it
+(:class:`gaits.steering.SteerableSpec`: speed, turn, period; :func:`steering`), continuing
+from where the robot is (:class:`program.session.Session`). Designs without one give no
+sensing behaviour, and the ability stays ``not_simulated``.
+
+- A yaw rate steered for any short time (wheels' ``driving``): at :data:`CONTROL_HZ` the
+  robot reads its sensors, picks a forward speed and a turn rate and runs the behaviour
+  for the next 1 / :data:`CONTROL_HZ` s (:func:`_line`, :func:`_avoid`).
+- A gait that starts and ends at rest, steered by a curvature (legs' ``walking``) or a
+  bias whose effect the loop learns (a snake's ``sidewinding``): the sensors are still
+  read at :data:`CONTROL_HZ` while it goes, but it decides once a control period of
+  :data:`PERIOD_CYCLES` gait cycle(s) (:class:`_Strider`, :func:`_line_strides`,
+  :func:`_avoid_strides`). Earlier, a legged gait stepped one step at a time, turning in
+  place between steps, covered 0.21 m of 1 m of line in 175 s; walking arcs, the
+  four-legged walker covers 0.5 m of a 1 m circle in 79 s.
 
 The sensors, as the ontology's sensing abilities and the catalog's modules give them:
 
@@ -28,6 +38,11 @@ What each promises, judged on the outcome (:func:`export.verdict.judge`):
 - ``obstacle-avoidance`` (motion ``avoid``): the robot reaches the goal line ``distance``
   ahead (an obstacle across its straight path halfway) without touching the obstacle,
   within 3 x what the speed needs + 10 s.
+
+For a gait, "what the speed needs" is at its speed on a straight line, stops between
+periods included (one straight period's planned travel over its duration, or measured on
+calibration periods when the gait plans no pose), and no loop runs past the session's
+simulated time (``program.script.LIMITS["sim_s"]``).
 """
 
 from __future__ import annotations
@@ -56,42 +71,83 @@ HEADING_GAIN = 1.5  # 1/s: steering back to the start heading once past the obst
 OBSTACLE = "parmor_obstacle"  # the scene's obstacle body and geom
 _SIGNS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
 
-#: Behaviours a sensing loop can steer at a forward speed and a turn rate for a short
-#: period: behaviour -> the parameters playing those roles, and the values fixed for short
-#: periods. (A legged gait stepped one step at a time, turning in place between steps, was
-#: measured and left out: the hexapod covered 0.21 m of 1 m of line in 175 s.)
-STEERABLE: dict[str, dict] = {
-    "driving": {"speed": "v", "turn": "w", "seconds": "seconds", "fixed": {"ramp": 0.0}},
-}
-
 #: The sensing abilities this module simulates, with the motion each promises.
 SENSING = {"line-tracking": "follow-line", "obstacle-avoidance": "avoid"}
 
 #: time allowed: (x the time the forward speed needs for the distance, + s), per motion
 BUDGET = {"follow-line": (1.5, 2.0), "avoid": (3.0, 10.0)}
 
+#: Gait cycles in one control period of a behaviour steered stride by stride (its steps
+#: role; at least the role's own lowest): every plan of a gait starts and ends at rest,
+#: so the loop decides once a period. Measured on the four-legged walker: two cycles (17
+#: cm a period) lose 0.5 and 1 m circles between decisions; one (6 cm) follows them, the
+#: start and stop making it half as fast.
+PERIOD_CYCLES = 1
+#: Obstacle-avoidance by arcs: the turn past the obstacle's edge is done within this
+#: (rad), or after this many periods (a learnt bias turns only roughly).
+TURN_TOLERANCE, TURN_TRIES = math.radians(5), 8
+#: Control periods one sideways step lasts (legs go sideways several times slower than
+#: forward: a shorter stride for the same start and stop).
+SIDESTEP_PERIODS = 4
+#: A stride-steered robot's default line length, goal distance and tightest curve, m:
+#: shorter and gentler than a wheeled one's (2.0, 1.5, 0.5), its gaits being ten times
+#: slower and its first period blind (it learns which way the line bends only as it goes).
+GAIT_LENGTH_M, GAIT_DISTANCE_M, GAIT_RADIUS_M = 0.5, 1.0, 1.0
+#: A turn bias's calibration: the periods run before the task at these shares of its
+#: largest value (its effect on the heading is learnt from them, then from every period).
+BIAS_PROBES = (0.0, 0.5, -0.5)
+#: Line estimate: the readings within this many periods' travel of the sensors are
+#: weighed (:func:`_locate_line`),
+LINE_MEMORY_PERIODS = 3.0
+#: ... and the robot closes the line's offset and angle over this many periods' travel,
+LOOKAHEAD_PERIODS = 2.0
+#: about the curvature its trunk followed over this many periods (measured).
+FF_PERIODS = 3
+
 
 @dataclass(frozen=True)
 class Steering:
     """How a design is steered: its steerable behaviour, the parameters playing the roles
-    (:data:`STEERABLE`), and its top speed m/s."""
+    (:class:`gaits.steering.SteerableSpec`), and the speed role's parameter.
+
+    ``kind``: ``rate`` (the turn is a yaw rate, rad/s: steered continuously at
+    :data:`CONTROL_HZ`), ``curvature`` (rad/m) or ``bias`` (no unit: its effect on the
+    heading is learnt), both steered once a control period of :data:`PERIOD_CYCLES` gait
+    cycles (``steps`` role)."""
 
     behavior: str
-    roles: Mapping[str, str]  # role (speed, turn, seconds) -> the behaviour's parameter
+    roles: Mapping[str, str]  # role (speed, turn, seconds or steps) -> the parameter
     fixed: Mapping[str, object]
-    v_max: float
+    speed: Parameter  # the behaviour's parameter playing the speed role
+    turn: Parameter
+    kind: str
+
+    @property
+    def v_max(self) -> float:
+        return float(self.speed.high or 0)
+
+    @property
+    def strides(self) -> bool:
+        """Steered once a control period of whole gait cycles (not continuously)."""
+        return "steps" in self.roles
 
 
 def steering(behaviors: Mapping[str, BehaviorSpec]) -> Steering | None:
-    """The design's steerable behaviour (:data:`STEERABLE`), or None."""
-    for name, how in STEERABLE.items():
-        spec = behaviors.get(name)
-        if spec is None:
+    """The design's steerable behaviour (the first, by name, whose spec declares its
+    steering roles: :class:`gaits.steering.SteerableSpec`), or None."""
+    from gaits.steering import SteerableSpec
+
+    for name in sorted(behaviors):
+        spec = behaviors[name]
+        if not isinstance(spec, SteerableSpec) or spec.alias_of is not None:
             continue
         ps = {p.name: p for p in spec.params}
-        roles = {k: v for k, v in how.items() if k != "fixed"}
-        if set(roles.values()) <= set(ps):
-            return Steering(name, roles, dict(how["fixed"]), float(ps[how["speed"]].high or 0))
+        roles = spec.roles
+        turn = ps[roles["turn"]]
+        kind = {"rad/s": "rate", "rad/m": "curvature"}.get(turn.unit, "bias")
+        if kind == "rate" and "seconds" not in roles:
+            continue  # a rate needs a period of any length
+        return Steering(name, roles, dict(spec.fixed), ps[roles["speed"]], turn, kind)
     return None
 
 
@@ -103,13 +159,26 @@ def sensing_behaviors(
     steer = steering(behaviors)
     if steer is None:
         return {}
-    top = round(steer.v_max, 3)
-    speed = (
-        Parameter("speed", "float", round(top / 2, 3), "forward speed", "m/s", low=0.01, high=top),
-    )
-    length, distance = 2.0, 1.5
+    if steer.strides:
+        # the speed role's own parameter (a gait's default: the design's speed, or the
+        # waves' frequency), its range
+        sp = steer.speed
+        speed: tuple[Parameter, ...] = (
+            Parameter("speed", sp.kind, sp.default, sp.doc, sp.unit, low=sp.low, high=sp.high),
+        )
+        length, distance, radius = GAIT_LENGTH_M, GAIT_DISTANCE_M, GAIT_RADIUS_M
+    else:
+        top = round(steer.v_max, 3)
+        speed = (
+            Parameter(
+                "speed", "float", round(top / 2, 3), "forward speed", "m/s", low=0.01, high=top
+            ),
+        )
+        length, distance, radius = 2.0, 1.5, 0.5
     out: dict[str, BehaviorSpec] = {}
-    if "line-tracking" in abilities:
+    # a line is followed with a turn of known effect (a rate or a curvature); a bias whose
+    # effect is only learnt steers too loosely for it (measured: a sidewinding snake)
+    if "line-tracking" in abilities and steer.kind != "bias":
         out["line-tracking"] = BehaviorSpec(
             "line-tracking",
             "Follow a line on the floor with the two infrared sensors.",
@@ -122,7 +191,7 @@ def sensing_behaviors(
                     choices=("circle", "wave"),
                 ),
                 Parameter(
-                    "radius", "float", 0.5, "tightest curve of the line", "m", low=0.2, high=10
+                    "radius", "float", radius, "tightest curve of the line", "m", low=0.2, high=10
                 ),
                 Parameter("length", "float", length, "how far to follow it", "m", low=0.2, high=20),
                 *speed,
@@ -289,6 +358,17 @@ def run(session: Session, name: str, params: Mapping[str, object]) -> tuple[dict
     info) for :func:`export.verdict.judge`."""
     steer = steering(session.controller.behaviors)
     assert steer is not None
+    if steer.strides:
+        from program.script import ProgramError
+
+        try:  # (a speed the gait cannot reach: said like a behaviour's own parameter)
+            strider = _Strider(session, steer, params["speed"])
+        except ValueError as exc:
+            raise ProgramError(f"{name}: {exc}") from None
+        rig = Rig(session, strider.forward)
+        if name == "line-tracking":
+            return _line_strides(session, strider, rig, params)
+        return _avoid_strides(session, strider, rig, params)
     mover = _Driver(session, steer, float(params["speed"]))
     rig = Rig(session, mover.forward_axis())
     if name == "line-tracking":
@@ -436,10 +516,8 @@ def _line(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[
 
 
 def _avoid(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[dict, dict]:
-    import mujoco
-
     distance, width = (float(params[k]) for k in ("distance", "width"))
-    m, d = session.model, session.data
+    m = session.model
     # the robot's reach from its turning axis (what sweeps when it turns in place) and its
     # half width across the way it goes, from its parts' boxes
     corner, half = rig.extent()
@@ -452,21 +530,7 @@ def _avoid(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple
     heading0 = rig.heading()
     fwd = np.array([math.cos(heading0), math.sin(heading0)])
     origin = rig.world(rig.ranger)[:2]
-    # the obstacle: across the straight path, halfway
-    bid = m.body(OBSTACLE).mocapid[0]
-    gid = m.geom(OBSTACLE).id
-    centre = origin + fwd * distance / 2
-    d.mocap_pos[bid] = [centre[0], centre[1], OBSTACLE_HEIGHT_M / 2]
-    quat = np.empty(4)
-    mujoco.mju_axisAngle2Quat(quat, np.array([0.0, 0.0, 1.0]), heading0)
-    d.mocap_quat[bid] = quat
-    m.geom_size[gid] = [OBSTACLE_DEPTH_M / 2, width / 2, OBSTACLE_HEIGHT_M / 2]
-    m.geom_rbound[gid] = float(np.linalg.norm(m.geom_size[gid]))
-    m.geom_aabb[gid, 3:] = m.geom_size[gid]
-    body = m.body(OBSTACLE).id  # (MuJoCo filters pairs by the bodies' types too)
-    m.geom_contype[gid], m.geom_conaffinity[gid] = 1, 3
-    m.body_contype[body], m.body_conaffinity[body] = 1, 3
-    mujoco.mj_forward(m, d)
+    _place_obstacle(session, origin + fwd * distance / 2, heading0, width)
     factor, extra = BUDGET["avoid"]
     budget = factor * distance / max(mover.speed, 1e-6) + extra
     t0 = session.time
@@ -475,7 +539,6 @@ def _avoid(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple
     cleared: tuple[float, float] | None = None
     progress = 0.0
     contacts0 = session._counts["contacts"]
-    session.watched_geom = gid
     try:
         while session.time - t0 < budget and progress < distance:
             r = rig.range()
@@ -506,11 +569,8 @@ def _avoid(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple
                 # back to the first heading: a curve that turns by err over 1 / HEADING_GAIN s
                 mover.go(HEADING_GAIN * err / max(mover.speed, 1e-6))
             progress = float((rig.world(rig.ranger)[:2] - origin) @ fwd)
-    finally:  # park the obstacle again
-        session.watched_geom = None
-        d.mocap_pos[bid] = [0.0, 0.0, -10.0]
-        m.geom_contype[gid], m.geom_conaffinity[gid] = 0, 0
-        m.body_contype[body], m.body_conaffinity[body] = 0, 0
+    finally:
+        _park_obstacle(session)
     contact_s = (session._counts["contacts"] - contacts0) * m.opt.timestep
     fig = {
         "seconds": session.time - t0,
@@ -520,6 +580,516 @@ def _avoid(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple
         "min_range_m": min_range,
     }
     return fig, {"motion": SENSING["obstacle-avoidance"]}
+
+
+# -- stride by stride: gaits that start and end at rest -----------------------------------
+
+
+class _Strider:
+    """Runs a stride-steered behaviour (:attr:`Steering.strides`) one control period of
+    :data:`PERIOD_CYCLES` gait cycles at a time, from where the robot stands, turning at a
+    curvature (rad/m) of the trunk's path: given as it is to a ``curvature`` turn, turned
+    into a bias for a ``bias`` turn through what the loop has learnt of the bias's effect
+    on the heading (:meth:`calibrate`, then every period). A curvature or bias the
+    behaviour refuses (a foot out of reach, a joint too fast) is eased until it accepts.
+
+    ``travel`` m and ``duration`` s: how far one straight period goes and how long it
+    takes (planned, or measured by :meth:`calibrate` when the behaviour plans no pose)."""
+
+    def __init__(self, session: Session, steer: Steering, speed: object) -> None:
+        from program.script import LIMITS
+
+        self.session, self.steer = session, steer
+        self.speed = speed
+        self.limit = float(LIMITS["sim_s"])
+        spec = session.controller.behaviors[steer.behavior]
+        steps = {p.name: p for p in spec.params}[steer.roles["steps"]]
+        self.cycles = max(PERIOD_CYCLES, int(steps.low or 1))
+        self.k_max = {1.0: math.inf, -1.0: math.inf}  # tightest curvature accepted so far
+        self.seen: list[tuple[float, float]] = []  # (bias, heading change rad) per period
+        self.path: list[tuple[float, float]] = []  # (heading change rad, m moved) per period
+        straight = self._plan(0.0)
+        self.duration = straight.duration
+        pose = straight.info.get("planned_pose")
+        way = pose[:2] if pose is not None else straight.info.get("direction", (1.0, 0.0))
+        way = np.array([float(c) for c in way])  # type: ignore[union-attr]
+        self.forward = way / np.linalg.norm(way)
+        self.travel = float(np.hypot(*pose[:2])) if pose is not None else 0.0  # type: ignore[index]
+
+    def _plan(self, turn: float, periods: int = 1):
+        r = self.steer.roles
+        return self.session.controller.run(
+            self.steer.behavior,
+            **{
+                r["speed"]: self.speed,
+                r["turn"]: turn,
+                r["steps"]: periods * self.cycles,
+                **self.steer.fixed,
+            },
+        )
+
+    def travel_of(self, periods: int) -> float:
+        """How far ``periods`` periods run as one straight plan go, m (planned; else
+        ``periods`` x :attr:`travel`)."""
+        pose = self._plan(0.0, periods).info.get("planned_pose")
+        return float(np.hypot(*pose[:2])) if pose is not None else periods * self.travel  # type: ignore[index]
+
+    @property
+    def v(self) -> float:
+        """The robot's speed m/s on a straight line, stops between periods included."""
+        return self.travel / max(self.duration, 1e-9)
+
+    def calibrate(self, rig: Rig) -> None:
+        """For a ``bias`` turn: run one period at each of :data:`BIAS_PROBES` of the
+        largest bias, measuring the heading change (learnt) and the travel (its mean)."""
+        if self.steer.kind != "bias":
+            return
+        top = float(self.steer.turn.high or 1.0)
+        moved = []
+        for share in BIAS_PROBES:
+            start = rig.world(rig.ranger)[:2]
+            h0 = rig.heading()
+            self._run(share * top, rig)
+            moved.append(float(np.hypot(*(rig.world(rig.ranger)[:2] - start))))
+            self.seen.append((share * top, _turned(rig.heading(), h0)))
+        self.travel = float(np.mean(moved))
+
+    def _bias(self, dyaw: float) -> float:
+        """The bias that turns the heading by ``dyaw`` rad in a period: dyaw = a + b bias
+        fitted by least squares on every period seen."""
+        top = float(self.steer.turn.high or 1.0)
+        x = np.array([[1.0, b] for b, _ in self.seen])
+        y = np.array([t for _, t in self.seen])
+        (a, b), *_ = np.linalg.lstsq(x, y, rcond=None)
+        if abs(b) < 1e-6:
+            return 0.0
+        return float(np.clip((dyaw - a) / b, -top, top))
+
+    def tightest(self, side: float) -> float:
+        """For a bias: the tightest curvature rad/m it turns toward ``side`` (+1 left) at
+        its largest bias, as learnt (0 when it does not turn that way)."""
+        top = float(self.steer.turn.high or 1.0)
+        x = np.array([[1.0, b] for b, _ in self.seen])
+        y = np.array([t for _, t in self.seen])
+        (a, b), *_ = np.linalg.lstsq(x, y, rcond=None)
+        turn = side * max(a + b * top, a - b * top, key=lambda t: side * t)
+        return max(turn, 0.0) / max(self.travel, 1e-6)
+
+    def room(self) -> bool:
+        """Whether one more period fits in the session's simulated time."""
+        return self.session.time + self.duration * 1.5 <= self.limit
+
+    @property
+    def aside(self) -> bool:
+        """Whether the behaviour also goes sideways (a ``direction`` role, rad)."""
+        return "direction" in self.steer.roles
+
+    def sidestep(self, side: float) -> None:
+        """:data:`SIDESTEP_PERIODS` periods straight to the left (``side`` +1) or right
+        (-1), not turning."""
+        r = self.steer.roles
+        ask = {
+            r["turn"]: 0.0,
+            r["steps"]: SIDESTEP_PERIODS * self.cycles,
+            r["direction"]: side * math.pi / 2,
+            **self.steer.fixed,
+        }
+        run = self.session.controller.run
+        try:
+            traj = run(self.steer.behavior, **ask, **{r["speed"]: self.speed})
+        except ValueError:  # sideways may not reach the speed forward does: its default
+            traj = run(self.steer.behavior, **ask)
+        self._follow(traj)
+
+    def step(self, curvature: float, rig: Rig, periods: int = 1) -> float:
+        """One period (or ``periods`` as one plan: a curvature turn) turning at
+        ``curvature`` rad/m (eased until the behaviour accepts it); the curvature it was
+        asked with."""
+        if self.steer.kind == "curvature":
+            k = float(np.clip(curvature, -self.k_max[-1.0], self.k_max[1.0]))
+            for _ in range(12):
+                k = round(k, 2)  # (plans of the same arc are remembered)
+                try:
+                    traj = self._plan(k, periods)
+                    break
+                except ValueError:
+                    sense = math.copysign(1.0, k)
+                    self.k_max[sense] = 0.7 * abs(k)
+                    k = 0.7 * k
+            else:
+                traj = self._plan(0.0)
+                k = 0.0
+            self._follow(traj)
+            return k
+        bias = self._bias(curvature * self.travel)
+        self._run(bias, rig)
+        return curvature
+
+    def _run(self, bias: float, rig: Rig) -> None:
+        h0 = rig.heading()
+        for _ in range(12):
+            try:
+                traj = self._plan(round(bias, 3))
+                break
+            except ValueError:
+                bias *= 0.7
+        else:
+            traj = self._plan(0.0)
+            bias = 0.0
+        self._follow(traj)
+        self.seen.append((round(bias, 3), _turned(rig.heading(), h0)))
+
+    def _follow(self, traj) -> None:
+        self.duration = max(self.duration, traj.duration)
+        d = self.session.data
+        p0, f0 = d.xpos[1][:2].copy(), d.xmat[1].reshape(3, 3)[:2, 0].copy()
+        self.session.follow(traj)
+        f1 = d.xmat[1].reshape(3, 3)[:2, 0]
+        turn = math.atan2(f0[0] * f1[1] - f0[1] * f1[0], f0 @ f1)
+        self.path.append((turn, float(np.hypot(*(d.xpos[1][:2] - p0)))))
+
+    def path_curvature(self, periods: int) -> float:
+        """The curvature rad/m of the trunk's path over the last ``periods`` periods (its
+        heading change over the distance it moved), 0 before any."""
+        last = self.path[-periods:]
+        moved = sum(m for _, m in last)
+        return sum(t for t, _ in last) / moved if moved > 1e-6 else 0.0
+
+
+def _line_strides(
+    session: Session, mover: _Strider, rig: Rig, params: Mapping
+) -> tuple[dict, dict]:
+    """Line-tracking stride by stride: the sensors are read at :data:`CONTROL_HZ` while the
+    robot walks; every reading (where the sensor was, as the robot's odometry gives it, and
+    whether it saw the line) is kept, and once a period the robot locates the line near
+    its sensors from them (:func:`_locate_line`) and walks the arc that brings the
+    sensors' midpoint onto it (:func:`_pursue`)."""
+    radius, length = (float(params[k]) for k in ("radius", "length"))
+    mover.calibrate(rig)
+    mid = (rig.ir[0] + rig.ir[1]) / 2
+    start = rig.world(mid)[:2]
+    heading = rig.heading()
+    course = Course.make(str(params["course"]), radius, length, start, heading)
+    session.scene_line = course.points
+    factor, extra = BUDGET["follow-line"]
+    budget = factor * length / max(mover.v, 1e-6) + extra
+    t0 = session.time
+    state = {"s": 0.0, "next": t0, "lost": 0.0, "longest": 0.0, "worst": 0.0}
+    half_span = IR_SPACING_M / 2 + LINE_WIDTH_M / 2
+    # it starts on the line, along it
+    # every reading: (x, y) m where the sensor was, and whether it saw the line; it starts
+    # with the line under the sensors' midpoint (which way it goes, it learns)
+    reads: list[tuple[float, float, float]] = [(*start, 1.0)]
+
+    def read(t: float) -> None:
+        if t < state["next"] - 1e-9:
+            return
+        state["next"] = t + 1.0 / CONTROL_HZ
+        for p in rig.ir:
+            w = rig.world(p)[:2]
+            on = abs(course.locate(w, state["s"])[1]) <= LINE_WIDTH_M / 2
+            reads.append((float(w[0]), float(w[1]), 1.0 if on else 0.0))
+        state["s"], off = course.locate(rig.world(mid)[:2], state["s"])
+        state["worst"] = max(state["worst"], abs(off))
+        state["lost"] = state["lost"] + 1.0 / CONTROL_HZ if abs(off) > half_span else 0.0
+        state["longest"] = max(state["longest"], state["lost"])
+
+    session.on_step = read
+    try:
+        read(session.time)
+        while session.time - t0 < budget and state["s"] < length and mover.room():
+            bend = mover.path_curvature(FF_PERIODS)
+            mover.step(_pursue(rig, np.array(reads), mid, mover.travel, bend), rig)
+    finally:
+        session.on_step = None
+    fig = {
+        "seconds": session.time - t0,
+        "line_progress_m": state["s"],
+        "planned_distance_m": length,
+        "line_lost_s": state["longest"],
+        "max_line_offset_m": state["worst"],
+    }
+    return fig, {"motion": SENSING["line-tracking"], "course": str(params["course"])}
+
+
+#: The line hypotheses a line follower weighs (:func:`_locate_line`): its offset from
+#: the sensors' midpoint (m), its angle from the heading (rad) and its curvature about the
+#: trunk's recent one (rad/m): (largest, step) each.
+LINE_OFFSETS, LINE_ANGLES, LINE_CURVES = (0.08, 0.002), (0.6, 0.02), (1.0, 0.25)
+
+
+def _locate_line(
+    reads: np.ndarray, here: np.ndarray, heading: float, bend: float
+) -> tuple[float, float, float]:
+    """The line near the sensors as the readings tell it: (offset m, + to the left, of the
+    line from ``here`` across ``heading``; its angle rad from the heading; its curvature
+    rad/m), the mean of the hypotheses (y = offset + tan(angle) x + curvature x^2 / 2 in
+    the frame at ``here`` along ``heading``; the curvature ``bend`` +- :data:`LINE_CURVES`)
+    that the most readings agree with: a sensor that saw the line within half its width
+    of it, one that did not farther (readings (x, y, seen) in the world)."""
+    f = np.array([math.cos(heading), math.sin(heading)])
+    left = np.array([-f[1], f[0]])
+    rel = reads[:, :2] - here
+    x, y, seen = rel @ f, rel @ left, reads[:, 2] > 0.5
+    grid = [np.arange(-top, top + step / 2, step) for top, step in (LINE_OFFSETS, LINE_ANGLES)]
+    curves = bend + np.arange(-LINE_CURVES[0], LINE_CURVES[0] + 1e-9, LINE_CURVES[1])
+    a, t, c = np.meshgrid(grid[0], np.tan(grid[1]), curves, indexing="ij")
+    a, t, c = a.ravel(), t.ravel(), c.ravel()
+    score = np.zeros(len(a))
+    half = LINE_WIDTH_M / 2
+    for k in range(0, len(x), 64):  # (in chunks: hypotheses x readings)
+        xs, ys, on = x[k : k + 64], y[k : k + 64], seen[k : k + 64]
+        d = np.abs(ys[None, :] - (a[:, None] + t[:, None] * xs + c[:, None] * xs * xs / 2))
+        score += np.where(on[None, :], d <= half, d >= half).sum(axis=1)
+    best = score >= score.max() - 0.5
+    return float(a[best].mean()), float(np.arctan(t[best]).mean()), float(c[best].mean())
+
+
+def _pursue(rig: Rig, reads: np.ndarray, mid: np.ndarray, travel: float, bend: float) -> float:
+    """The curvature rad/m of the trunk's next arc: the line near the sensors' midpoint
+    (``mid``, trunk frame) as the readings within :data:`LINE_MEMORY_PERIODS` periods'
+    ``travel`` tell it (:func:`_locate_line`, about the trunk's recent curvature
+    ``bend``); the arc closes its offset and its angle over :data:`LOOKAHEAD_PERIODS`
+    periods' travel (pure pursuit, linearised) and follows its curve."""
+    h = rig.heading()
+    here = rig.world(mid)[:2]
+    near = reads[np.hypot(*(reads[:, :2] - here).T) <= max(LINE_MEMORY_PERIODS * travel, 0.05)]
+    offset, angle, curve = _locate_line(near if len(near) else reads[-2:], here, h, bend)
+    # the midpoint, ``front`` ahead of the trunk, after ``look`` m of an arc k moves
+    # across by about k (look^2 / 2 + front look); the line there, ahead of it, by
+    # offset + angle look + bend look^2 / 2
+    look = max(LOOKAHEAD_PERIODS * travel, 0.02)
+    front = float(mid @ rig.forward)
+    return (offset + angle * look + curve * look * look / 2) / (look * look / 2 + front * look)
+
+
+def _avoid_strides(
+    session: Session, mover: _Strider, rig: Rig, params: Mapping
+) -> tuple[dict, dict]:
+    """Obstacle-avoidance stride by stride: the ranger is read at :data:`CONTROL_HZ` while
+    the robot goes; once a period it decides. It goes on steering back to its first
+    heading until the obstacle is nearer than it can swerve from (two periods' travel,
+    its turning radius and the clearance); then it turns, period by period, toward the
+    side its body reaches least beyond the ranger (a sidewinding snake's body trails on
+    one side), until the beam has passed the obstacle's edge and its own reach on that
+    side clears it too; goes straight past it by its distance, the obstacle's depth and
+    its own length; and steers back to its first heading."""
+    distance, width = (float(params[k]) for k in ("distance", "width"))
+    mover.calibrate(rig)
+    pts = rig._corners(trunk_only=False)
+    lateral, along = pts @ rig.left, pts @ rig.forward
+    r_lat, r_fwd = float(rig.ranger @ rig.left), float(rig.ranger @ rig.forward)
+    reach = {1.0: r_lat - float(lateral.min()), -1.0: float(lateral.max()) - r_lat}
+    side = 1.0 if reach[1.0] <= reach[-1.0] + 1e-9 else -1.0  # to the left on a tie
+    behind = r_fwd - float(along.min())
+    travel = max(mover.travel, 1e-3)
+    heading0 = rig.heading()
+    fwd = np.array([math.cos(heading0), math.sin(heading0)])
+    origin = rig.world(rig.ranger)[:2]
+    _place_obstacle(session, origin + fwd * distance / 2, heading0, width)
+    factor, extra = BUDGET["avoid"]
+    budget = factor * distance / max(mover.v, 1e-6) + extra
+    t0 = session.time
+    contacts0 = session._counts["contacts"]
+    reads = {"next": t0, "min": RANGER_MAX_M, "period": RANGER_MAX_M}
+
+    def read(t: float) -> None:
+        if t < reads["next"] - 1e-9:
+            return
+        reads["next"] = t + 1.0 / CONTROL_HZ
+        r = rig.range()
+        reads["min"] = min(reads["min"], r)
+        reads["period"] = min(reads["period"], r)
+        path.append(rig.world(rig.ranger)[:2])
+
+    # how far the ranger swings across its way within a period (a snake's head wiggles
+    # with the waves): added to the clearance
+    path: list[np.ndarray] = []
+    swing = 0.0
+
+    def swung() -> float:
+        if len(path) < 3:
+            return 0.0
+        a, b = path[0], path[-1]
+        chord = b - a
+        n = float(np.hypot(*chord))
+        if n < 1e-6:
+            return 0.0
+        across = np.array([-chord[1], chord[0]]) / n
+        return float(np.abs((np.array(path) - a) @ across).max())
+
+    turn_k = side * (math.pi / 4) / travel  # up to an eighth of a turn a period
+    state, seen, progress, tries = "go", RANGER_MAX_M, 0.0, 0
+    cleared: tuple[float, float] | None = None
+    passed_from = origin
+    session.on_step = read
+    if mover.aside:
+        ahead = float(along.max()) - r_fwd  # parts reaching beyond the ranger (feet)
+        try:
+            read(session.time)
+            progress = _sidestep_past(
+                session, mover, rig, budget, distance, reach, ahead, heading0, origin, read
+            )
+        finally:
+            session.on_step = None
+            _park_obstacle(session)
+        contact_s = (session._counts["contacts"] - contacts0) * session.model.opt.timestep
+        return {
+            "seconds": session.time - t0,
+            "distance_m": progress,
+            "planned_distance_m": distance,
+            "obstacle_contact_s": contact_s,
+            "min_range_m": reads["min"],
+        }, {"motion": SENSING["obstacle-avoidance"]}
+    try:
+        read(session.time)
+        while session.time - t0 < budget and progress < distance and mover.room():
+            here = rig.world(rig.ranger)[:2]
+            r = min(reads["period"], rig.range())
+            reads["period"] = RANGER_MAX_M
+            swing = max(swing, swung())
+            path.clear()
+            # what it needs to swerve: the travel before it reacts, the radius it turns on
+            radius = 1.0 / max(
+                mover.tightest(side)
+                if mover.steer.kind == "bias"
+                else min(abs(turn_k), mover.k_max[side]),
+                1e-3,
+            )
+            trigger = 2 * travel + min(radius, distance / 2) / 2 + CLEARANCE_M
+            if state == "go" and r < trigger:
+                state, seen = "turn", r
+            if state == "turn":
+                now = rig.range()
+                if now < 2 * trigger:
+                    seen = min(seen, now)
+                    cleared = None
+                    mover.step(turn_k, rig)
+                    continue
+                if cleared is None:
+                    tries = 0
+                    clear = reach[side] + CLEARANCE_M + swing
+                    need = math.asin(min(1.0, clear / max(seen, 1e-3)))
+                    cleared = (rig.heading(), max(0.0, need - RANGER_HALF_ANGLE))
+                left = cleared[1] - side * _turned(rig.heading(), cleared[0])
+                if left > TURN_TOLERANCE and tries < TURN_TRIES:
+                    tries += 1
+                    mover.step(side * left / travel, rig)
+                    continue
+                state, passed_from, cleared = "pass", here.copy(), None
+            if state == "pass":
+                if float(np.hypot(*(here - passed_from))) > seen + OBSTACLE_DEPTH_M + behind:
+                    state = "go"
+                else:
+                    mover.step(0.0, rig)
+            if state == "go":
+                err = _turned(heading0, rig.heading())
+                mover.step(0.5 * err / travel, rig)  # back to it over about two periods
+            progress = float((rig.world(rig.ranger)[:2] - origin) @ fwd)
+    finally:
+        session.on_step = None
+        _park_obstacle(session)
+    contact_s = (session._counts["contacts"] - contacts0) * session.model.opt.timestep
+    fig = {
+        "seconds": session.time - t0,
+        "distance_m": progress,
+        "planned_distance_m": distance,
+        "obstacle_contact_s": contact_s,
+        "min_range_m": reads["min"],
+    }
+    return fig, {"motion": SENSING["obstacle-avoidance"]}
+
+
+def _sidestep_past(
+    session: Session,
+    mover: _Strider,
+    rig: Rig,
+    budget: float,
+    distance: float,
+    reach: Mapping[float, float],
+    ahead: float,
+    heading0: float,
+    origin: np.ndarray,
+    read,
+) -> float:
+    """Obstacle-avoidance for a behaviour that also goes sideways (legs): it goes on,
+    holding its first heading, until the obstacle is nearer than the parts that reach
+    beyond the ranger, two periods' travel and the clearance; then steps sideways (to the
+    left, or to the side its body reaches least beyond the ranger), period by period,
+    until the beam has passed the obstacle's edge and, by odometry, its own reach on the
+    other side clears it too; then goes on to the goal line. Far from the obstacle, and
+    past it, it goes :data:`SIDESTEP_PERIODS` periods at a time. Its progress, m."""
+    t0 = session.time
+    travel = max(mover.travel, 1e-3)
+    fwd = np.array([math.cos(heading0), math.sin(heading0)])
+    left0 = np.array([-fwd[1], fwd[0]])
+    side = 1.0 if reach[1.0] <= reach[-1.0] + 1e-9 else -1.0
+    trigger = ahead + 2 * travel + CLEARANCE_M
+    # away from the obstacle it goes SIDESTEP_PERIODS periods at a time (one start and
+    # stop for all: faster)
+    far = mover.travel_of(SIDESTEP_PERIODS)
+    state, seen, progress, passed = "go", RANGER_MAX_M, 0.0, False
+    start = origin
+    remaining = 0.0
+    while session.time - t0 < budget and progress < distance and mover.room():
+        here = rig.world(rig.ranger)[:2]
+        now = rig.range()
+        if state == "go" and now < trigger:
+            state, seen = "aside", now
+        if state == "aside":
+            if now < seen + OBSTACLE_DEPTH_M + CLEARANCE_M:  # the beam still sees it
+                seen = min(seen, now)
+                mover.sidestep(side)
+                continue
+            # the beam's edge has passed the obstacle's: on until the reach on the other
+            # side clears it too
+            state, start = "clear", here.copy()
+            remaining = reach[side] + CLEARANCE_M - seen * math.tan(RANGER_HALF_ANGLE)
+        if state == "clear":
+            if side * float((here - start) @ left0) < remaining:
+                mover.sidestep(side)
+                continue
+            state, passed = "go", True
+        err = _turned(heading0, rig.heading())
+        if passed or now > trigger + far + CLEARANCE_M:
+            mover.step(0.5 * err / far, rig, SIDESTEP_PERIODS)
+        else:
+            mover.step(0.5 * err / travel, rig)  # holding the first heading
+        progress = float((rig.world(rig.ranger)[:2] - origin) @ fwd)
+    return progress
+
+
+def _place_obstacle(session: Session, centre: np.ndarray, heading: float, width: float) -> int:
+    """Set the scene's obstacle up: a box ``width`` m wide across ``heading`` at
+    ``centre`` (x, y) m, colliding with the robot and watched; its geom id."""
+    import mujoco
+
+    m, d = session.model, session.data
+    bid = m.body(OBSTACLE).mocapid[0]
+    gid = m.geom(OBSTACLE).id
+    d.mocap_pos[bid] = [centre[0], centre[1], OBSTACLE_HEIGHT_M / 2]
+    quat = np.empty(4)
+    mujoco.mju_axisAngle2Quat(quat, np.array([0.0, 0.0, 1.0]), heading)
+    d.mocap_quat[bid] = quat
+    m.geom_size[gid] = [OBSTACLE_DEPTH_M / 2, width / 2, OBSTACLE_HEIGHT_M / 2]
+    m.geom_rbound[gid] = float(np.linalg.norm(m.geom_size[gid]))
+    m.geom_aabb[gid, 3:] = m.geom_size[gid]
+    body = m.body(OBSTACLE).id  # (MuJoCo filters pairs by the bodies' types too)
+    m.geom_contype[gid], m.geom_conaffinity[gid] = 1, 3
+    m.body_contype[body], m.body_conaffinity[body] = 1, 3
+    mujoco.mj_forward(m, d)
+    session.watched_geom = gid
+    return int(gid)
+
+
+def _park_obstacle(session: Session) -> None:
+    """Park the obstacle out of the way again (colliding with nothing, unwatched)."""
+    m, d = session.model, session.data
+    gid, body = m.geom(OBSTACLE).id, m.body(OBSTACLE).id
+    session.watched_geom = None
+    d.mocap_pos[m.body(OBSTACLE).mocapid[0]] = [0.0, 0.0, -10.0]
+    m.geom_contype[gid], m.geom_conaffinity[gid] = 0, 0
+    m.body_contype[body], m.body_conaffinity[body] = 0, 0
 
 
 def _turned(now: float, then: float) -> float:
