@@ -418,7 +418,10 @@ CASES = {
         "actuator[1] (SG90).travel_deg: must be at most 360 (continuous rotation), got 400",
     ),
     "part source": (
-        _edit('source = "bought"', 'source = "borrowed"'),
+        _edit(
+            'class = "CasterModule"\nsource = "bought"',
+            'class = "CasterModule"\nsource = "borrowed"',
+        ),
         "part[2] (BallCaster-20).source: expected one of printed, bought",
     ),
     "printed part with a mass": (
