@@ -1277,6 +1277,10 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                     tag = f"  (alias of {spec.alias_of})"
                 out.write(f"{name}: {spec.doc}{tag}\n  parameters: {ps or 'none'}\n")
             return 0
+        if args.behavior not in controller.behaviors:
+            sensed = _simulate_sensing(folder, args, params)
+            if sensed is not None:
+                return _report_sensing(sensed, args, out, err)
         progress = None
         if err.isatty():
             step = _progress(err, 100)
@@ -1327,6 +1331,47 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         why = ", ".join(result.verdict)
         when = f" (fell at {result.fell_at_s:.2f} s)" if result.fell_at_s is not None else ""
         err.write(f"parmor: {args.behavior} failed its verdict: {why}{when}\n")
+        return 1
+    return 0
+
+
+def _simulate_sensing(folder, args: argparse.Namespace, params: dict) -> dict | None:
+    """A sensing behaviour of the bundle (line-tracking, obstacle-avoidance:
+    :mod:`program.sensing`) run as the design's verification runs it, on a fresh robot with
+    ``params``; its judged figures, or None when ``args.behavior`` is not one of them. Its
+    course sets its time, so ``--seconds``, ``--perturb`` and ``--plot`` do not apply."""
+    from program.session import Session
+
+    session = Session(folder)
+    if args.behavior not in session.sensing:
+        return None
+    for given, option in ((args.seconds, "--seconds"), (args.perturb, "--perturb")):
+        if given is not None:
+            raise InputError(
+                f"{option} does not apply to {args.behavior}, a sensing loop (its course "
+                "sets its time): drop it"
+            )
+    if args.plot:
+        raise InputError(f"--plot does not apply to {args.behavior}, a sensing loop: drop it")
+    from synth.limits import stage
+
+    with stage("simulate"):
+        return session.do(args.behavior, **params)["figures"]
+
+
+def _report_sensing(fig: dict, args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    """Print a sensing run's figures (JSON or a table); exit 1 when its verdict failed."""
+    from export.record import to_json
+
+    if args.json:
+        out.write(to_json(fig))
+    else:
+        for key, value in fig.items():
+            if value is not None:
+                out.write(f"{key:>22}: {value}\n")
+    if fig["verdict"] != "ok":
+        why = ", ".join(fig["verdict"]) if isinstance(fig["verdict"], list) else fig["verdict"]
+        err.write(f"parmor: {args.behavior} failed its verdict: {why}\n")
         return 1
     return 0
 

@@ -137,3 +137,46 @@ def test_a_run_past_the_plan_holds_still_and_is_judged_on_the_plan(cli, cart, tm
     (weak / "robot.xml").write_text(xml, encoding="utf-8")
     r = cli("simulate", str(weak), "--behavior", "driving", "--seconds", "10", "--json")
     assert r.code == 1 and "distance" in json.loads(r.out)["verdict"]
+
+
+@pytest.fixture(scope="module")
+def sensing_cart(tmp_path_factory) -> Path:
+    import io
+
+    from synth.cli import main
+
+    folder = tmp_path_factory.mktemp("sense") / "cart"
+    args = ["design", "driving", "line-tracking", "obstacle-avoidance", "--no-verify"]
+    code = main([*args, "--no-input", "--out", str(folder)], io.StringIO(), io.StringIO())
+    assert code == 0
+    return folder
+
+
+def test_simulate_runs_a_sensing_loop_as_the_verification_does(cli, sensing_cart) -> None:
+    """`parmor simulate DIR --behavior line-tracking` runs the closed loop of
+    program.sensing on a fresh robot and judges it with the same verdicts."""
+    r = cli("simulate", str(sensing_cart), "--behavior", "line-tracking", "--json")
+    assert r.code == 0, r.err
+    fig = json.loads(r.out)
+    assert fig["behavior"] == "line-tracking" and fig["verdict"] == "ok"
+    assert fig["line_progress_m"] >= 0.9 * fig["planned_distance_m"]
+    # its course sets its time: --seconds is refused, naming the option
+    r = cli("simulate", str(sensing_cart), "--behavior", "line-tracking", "--seconds", "3")
+    assert r.code == 2 and "--seconds does not apply to line-tracking" in r.err
+    r = cli("simulate", str(sensing_cart), "--behavior", "line-tracking", "--set", "radius=0")
+    assert r.code == 2 and "radius" in r.err
+
+
+def test_simulate_exits_1_when_a_sensing_loop_fails(sensing_cart, monkeypatch) -> None:
+    """Built to fail: a ranger that sees nothing beyond 3 cm drives into the obstacle."""
+    import io
+
+    from program import sensing
+    from synth.cli import main
+
+    monkeypatch.setattr(sensing, "RANGER_MAX_M", 0.03)
+    out, err = io.StringIO(), io.StringIO()
+    argv = ["simulate", str(sensing_cart), "--behavior", "obstacle-avoidance", "--json"]
+    assert main(argv, out, err) == 1, err.getvalue()
+    fig = json.loads(out.getvalue())
+    assert fig["verdict"] != "ok" and "obstacle-avoidance failed its verdict" in err.getvalue()
