@@ -50,7 +50,7 @@ from synth.regress import (
     temp_beside,
 )
 
-STUDY_KEYS = {"ontology", "rules", "catalog", "request"}
+STUDY_KEYS = {"ontology", "rules", "catalog", "request", "robustness"}
 REQUEST_KEYS = {"name", "abilities", "answers", "params"}
 RESULT_FORMAT = 2  # of the stored per-request results; part of their key
 KEY_LENGTH = 16  # hex digits of the request key (64 bits)
@@ -160,6 +160,7 @@ def load_study(path: Path) -> tuple[dict, list[dict]]:
     expanded."""
     data = read_toml(path, STUDY_KEYS)
     opts = kb_options(data, path)
+    opts["robustness"] = study_robustness(data.get("robustness", 0), path)
     tables = list(array_tables(data, "request", REQUEST_KEYS, path))
     check_study_size(tables, path)
     out = []
@@ -189,9 +190,24 @@ def load_study(path: Path) -> tuple[dict, list[dict]]:
     return opts, out
 
 
-def request_key(q: dict, simulate: bool, files_digest: str) -> str:
-    """The stable key of a request's result: abilities, answers, params, mode, and the
-    digest of the study's files and parmor's own."""
+def study_robustness(value: object, path: Path) -> int:
+    """The study's ``robustness = K`` (perturbed runs per behaviour, as ``parmor design
+    --robustness K``; 0, the default, runs none): a whole number from 0 to
+    ``MAX_ROBUSTNESS``, else an InputError naming the file and key."""
+    from synth.cli import MAX_ROBUSTNESS
+
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_ROBUSTNESS:
+        raise InputError(
+            f"{path}: robustness: expected a whole number of perturbed runs per behaviour "
+            f"from 0 to {MAX_ROBUSTNESS}, got {value!r}"
+        )
+    return value
+
+
+def request_key(q: dict, simulate: bool, files_digest: str, robustness: int = 0) -> str:
+    """The stable key of a request's result: abilities, answers, params, mode (simulated
+    or not, perturbed runs per behaviour), and the digest of the study's files and
+    parmor's own."""
     ident = {
         "format": RESULT_FORMAT,
         "simulate": simulate,
@@ -200,6 +216,8 @@ def request_key(q: dict, simulate: bool, files_digest: str) -> str:
         "answers": sorted(q["answers"].items()),
         "params": sorted(q["params"].items()),
     }
+    if robustness and simulate:  # (keys of studies without robustness stay as they were)
+        ident["robustness"] = robustness
     text = json.dumps(ident, sort_keys=True, ensure_ascii=False)
     return hashlib.sha256(text.encode()).hexdigest()[:KEY_LENGTH]
 
@@ -255,7 +273,8 @@ def _init_worker(arg: tuple[dict, bool, limits.Limits | None]) -> tuple:
     opts, simulate, lim = arg
     with _bounded(lim, "grounding the study's knowledge base"):
         designer = designer_for(opts)
-    return designer, StructureOptions(opts["catalog"], verify=simulate), simulate, lim
+    k = int(opts.get("robustness", 0)) if simulate else 0
+    return designer, StructureOptions(opts["catalog"], verify=simulate, robustness=k), simulate, lim
 
 
 def _bounded(lim: limits.Limits | None, what: str = ""):
@@ -318,6 +337,11 @@ def design_one(q: dict, designer, sopts, simulate: bool) -> dict:
             res["behaviors"] = [dict(b) for b in v.behaviors]
             res["dropped"] = dict(sorted(v.dropped.items()))
             res["sizings"] = v.rounds
+            if v.robust is not None:  # each behaviour's perturbed runs (synth.robust)
+                res["robust"] = [
+                    {k: b[k] for k in ("behavior", "ability", "passed", "runs", "robust")}
+                    for b in v.robust["behaviors"]
+                ]
     except Exception as e:  # noqa: BLE001 - a sweep records a crash and goes on
         res["status"], res["reason"] = "error", f"{type(e).__name__}: {e}"
     return res
@@ -434,7 +458,7 @@ def run_study(
         validate(opts, requests)
     files = (opts["catalog"], opts["ontology"], opts["rules"])
     digest = files_digest(*files)  # reads and hashes every file: once per study
-    keys = [request_key(q, simulate, digest) for q in requests]
+    keys = [request_key(q, simulate, digest, opts["robustness"]) for q in requests]
     store = out / "requests"
     results: dict[int, dict] = {}
     for i, k in enumerate(keys):
@@ -446,8 +470,8 @@ def run_study(
     _compute(pending, results, keys, store, (opts, simulate, lim), engine, err, len(requests))
     computed = len(results) - reused
     rows = [_merged(q, results[i], keys[i]) for i, q in enumerate(requests)]
-    written = write_outputs(out, path, rows, simulate)
-    summary = summary_object(rows, simulate)
+    written = write_outputs(out, path, rows, simulate, opts["robustness"])
+    summary = summary_object(rows, simulate, opts["robustness"])
     summary.update(study=str(path), out=str(out), computed=computed, reused=reused)
     summary["files"] = written
     return summary
@@ -567,10 +591,28 @@ def _all_ok(r: dict) -> bool:
     return r["status"] == "accepted" and bool(bs) and not any(_failed(b) for b in bs)
 
 
-def summary_object(rows: Sequence[dict], simulate: bool) -> dict:
+def _nominal_ok(r: dict) -> bool:
+    """A sized design (accepted, or refused by its perturbed runs) whose every listed
+    behaviour kept its promise on the nominal model."""
+    bs = [b for b in r["behaviors"] or () if _listed(r, b)]
+    return r["status"] in ("accepted", "refused") and bool(bs) and not any(_failed(b) for b in bs)
+
+
+def _robust_ok(r: dict) -> bool:
+    """An accepted design whose every listed behaviour passed the required share of its
+    perturbed runs (``robust`` of :func:`design_one`)."""
+    bs = [b for b in r.get("robust") or () if _listed(r, b)]
+    return _all_ok(r) and bool(bs) and all(b["robust"] for b in bs)
+
+
+def summary_object(rows: Sequence[dict], simulate: bool, robustness: int = 0) -> dict:
     """Counts per status, and per robot type: requests, accepted, accepted with every
     listed behaviour ok, refused (and how many of them by a simulated behaviour), abilities
-    dropped, and the simulated behaviours failing each criterion (of every design)."""
+    dropped, and the simulated behaviours failing each criterion (of every design). With
+    ``robustness`` K (the study's key), per type also the designs whose every listed
+    behaviour passed nominally (``nominal_ok``: accepted, or refused by the perturbed
+    runs) and the accepted ones that also passed the perturbed runs (``robust_ok``), and
+    the runs passed of those simulated (``robust_runs``: [passed, runs])."""
     status = Counter(r["status"] for r in rows)
     types: dict[str, dict] = {}
     for t in sorted({r["robot_type"] or NO_TYPE for r in rows}):
@@ -587,8 +629,16 @@ def summary_object(rows: Sequence[dict], simulate: bool) -> dict:
             "dropped": dict(sorted(Counter(a for r in acc for a in r["dropped"]).items())),
             "failures": dict(sorted(crit.items())),
         }
+        if simulate and robustness:
+            runs = [b for r in mine for b in r.get("robust") or ()]
+            types[t] |= {
+                "nominal_ok": sum(_nominal_ok(r) for r in mine),
+                "robust_ok": sum(_robust_ok(r) for r in mine),
+                "robust_runs": [sum(b["passed"] for b in runs), sum(b["runs"] for b in runs)],
+            }
     return {
         "simulated": simulate,
+        "robustness": robustness if simulate else 0,
         "requests": len(rows),
         "status": {s: status.get(s, 0) for s in ("accepted", "refused", "ambiguous", "error")},
         "types": types,
@@ -607,11 +657,13 @@ def _md(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
 
-def summary_md(study: Path, rows: Sequence[dict], simulate: bool, plots: Sequence[str]) -> str:
-    """The study's pass rates per robot type, the behaviours and their failures by
-    criterion, the abilities dropped, the requests not accepted with their reasons, the
-    plots."""
-    s = summary_object(rows, simulate)
+def summary_md(
+    study: Path, rows: Sequence[dict], simulate: bool, plots: Sequence[str], robustness: int = 0
+) -> str:
+    """The study's pass rates per robot type (nominal and robust with ``robustness``), the
+    behaviours and their failures by criterion, the abilities dropped, the requests not
+    accepted with their reasons, the plots."""
+    s = summary_object(rows, simulate, robustness)
     st = s["status"]
     lines = [
         f"# Sweep of {study.name}",
@@ -650,6 +702,8 @@ def summary_md(study: Path, rows: Sequence[dict], simulate: bool, plots: Sequenc
             )
         else:
             lines.append(f"| {t} | {v['requests']} | {v['accepted']} | {v['refused']} |")
+    if s["robustness"]:
+        lines += _robust_md(s)
     if simulate:
         lines += _behaviors_md(rows)
     dropped = [(r, a, why) for r in rows for a, why in r["dropped"].items()]
@@ -697,6 +751,35 @@ def summary_md(study: Path, rows: Sequence[dict], simulate: bool, plots: Sequenc
         ]
         lines += [f"![{Path(p).stem}]({p})" for p in plots]
     return "\n".join(lines) + "\n"
+
+
+def _pct(n: int, of: int) -> str:
+    return f"{100 * n / of:.0f} %" if of else "-"
+
+
+def _robust_md(s: dict) -> list[str]:
+    """The nominal and robust pass rates per robot type (a study with ``robustness``)."""
+    lines = [
+        "",
+        "## Robustness",
+        "",
+        f"Every behaviour of a design that passed on the nominal model was run under "
+        f"{s['robustness']} seeded perturbations (`parmor design --robustness "
+        f"{s['robustness']}`); a behaviour not robust refuses the request (a demanded "
+        "ability) or drops its ability. Nominal ok: sized designs whose every listed "
+        "behaviour passed nominally; robust ok: accepted designs whose every listed "
+        "behaviour also passed the perturbed runs (shares of the requests).",
+        "",
+        "| robot type | requests | nominal ok | robust ok | perturbed runs passed |",
+        "|---|---|---|---|---|",
+    ]
+    for t, v in s["types"].items():
+        n, passed, runs = v["requests"], *v["robust_runs"]
+        lines.append(
+            f"| {t} | {n} | {v['nominal_ok']} ({_pct(v['nominal_ok'], n)}) | {v['robust_ok']} "
+            f"({_pct(v['robust_ok'], n)}) | {passed} of {runs} |"
+        )
+    return lines
 
 
 def _behaviors_md(rows: Sequence[dict]) -> list[str]:
@@ -817,13 +900,15 @@ def _plot(t: str, rows: Sequence[dict], a: str, b: str | None, simulate: bool) -
     return buf.getvalue()
 
 
-def write_outputs(out: Path, study: Path, rows: Sequence[dict], simulate: bool) -> list[str]:
+def write_outputs(
+    out: Path, study: Path, rows: Sequence[dict], simulate: bool, robustness: int = 0
+) -> list[str]:
     """Write results.csv, summary.md and plots/*.png (each atomically; plots of an earlier
     run that this one does not draw are removed). Returns the names written."""
     plots = plot_files(rows, simulate)
     files: dict[str, bytes] = {
         "results.csv": results_csv(rows).encode(),
-        "summary.md": summary_md(study, rows, simulate, sorted(plots)).encode(),
+        "summary.md": summary_md(study, rows, simulate, sorted(plots), robustness).encode(),
         **plots,
     }
     for name, data in sorted(files.items()):
@@ -846,6 +931,8 @@ def summary_text(s: dict) -> str:
     ]
     for t, v in s["types"].items():
         ok = f", every behaviour ok {v['all_ok']}" if s["simulated"] else ""
+        if s.get("robustness"):
+            ok = f", nominal ok {v['nominal_ok']}, robust ok {v['robust_ok']}" + ok
         lines.append(f"  {t:<24} accepted {v['accepted']}/{v['requests']}{ok}")
     lines.append(f"wrote {s['out']}: {', '.join(f for f in s['files'] if '/' not in f)}")
     return "\n".join(lines) + "\n"

@@ -466,3 +466,107 @@ def test_a_bonus_ability_not_robust_is_dropped(kif, cli, monkeypatch):
     assert "dropped grasping: grasping is not robust: passed 1 of 2 perturbed runs" in (
         " ".join(rec["notes"])
     )
+
+
+# --- parmor sweep with robustness = K ---------------------------------------------------
+
+
+def _nominal_ok(files, behaviors=None) -> list[dict]:
+    return [_run(0, behavior="pick-and-place", ability="pick-and-place")]
+
+
+def _study(folder: Path, kif: Path, robustness: object) -> Path:
+    shutil.copy(kif, folder / "arm.kif")
+    study = folder / "s.toml"
+    study.write_text(
+        f'ontology = ["arm.kif"]\nrobustness = {robustness}\n\n[[request]]\nname = "arm"\n'
+        'abilities = ["positioning-three", "pick-and-place"]\n'
+        'params = { payload = ["0.01kg", "0.02kg"] }\n'
+    )
+    return study
+
+
+def test_sweep_reports_nominal_and_robust_pass_rates(kif, tmp_path: Path, cli, monkeypatch):
+    """A study's ``robustness = K`` verifies each design under K perturbations as
+    ``parmor design --robustness K`` does: a request whose demanded behaviour is not
+    robust (built to fail: its second run fails) is refused and counted as nominal ok,
+    robust not; the other is both."""
+    import export.verify
+
+    calls = []
+
+    def fake(files, k, table, behaviors=None):
+        calls.append(k)
+        record = json.loads(files["design.json"])
+        bad = record["request"]["params"].get("payload") == "0.02kg"
+        return _robust(
+            [("pick-and-place", "pick-and-place", [_run(1), _run(2, ["placing"] if bad else "ok")])]
+        )
+
+    monkeypatch.setattr(export.verify, "verify_robust", fake)
+    monkeypatch.setattr(export.verify, "verify_files", _nominal_ok)
+    study = _study(tmp_path, kif, 2)
+    r = cli("sweep", str(study), "--jobs", "1", "--json")
+    assert r.code == 0, r.err
+    s = json.loads(r.out)
+    assert set(calls) == {2} and len(calls) >= 2 and s["robustness"] == 2
+    (t,) = s["types"].values()
+    assert (t["requests"], t["accepted"], t["nominal_ok"], t["robust_ok"]) == (2, 1, 2, 1)
+    assert t["robust_runs"] == [3, 4]
+    out = tmp_path / "s.sweep"
+    summary = (out / "summary.md").read_text()
+    assert "## Robustness" in summary and "under 2 seeded perturbations" in summary
+    assert "| 2 | 2 (100 %) | 1 (50 %) | 3 of 4 |" in summary
+    assert "pick-and-place is not robust: passed 1 of 2 perturbed runs" in summary
+    text = cli("sweep", str(study), "--jobs", "1").out
+    assert "nominal ok 2, robust ok 1" in text
+
+
+def test_sweep_without_robustness_runs_no_perturbation(kif, tmp_path: Path, cli, monkeypatch):
+    import export.verify
+
+    def fail(*a, **kw):
+        raise AssertionError("perturbed runs in a study without robustness")
+
+    monkeypatch.setattr(export.verify, "verify_robust", fail)
+    monkeypatch.setattr(export.verify, "verify_files", _nominal_ok)
+    study = _study(tmp_path, kif, 0)
+    r = cli("sweep", str(study), "--jobs", "1", "--json")
+    assert r.code == 0, r.err
+    s = json.loads(r.out)
+    assert s["robustness"] == 0 and "nominal_ok" not in next(iter(s["types"].values()))
+    assert "## Robustness" not in (tmp_path / "s.sweep" / "summary.md").read_text()
+
+
+def test_the_sweep_key_follows_robustness() -> None:
+    from synth.sweep import request_key
+
+    q = {"abilities": ["driving"], "answers": {}, "params": {}}
+    assert request_key(q, True, "d") == request_key(q, True, "d", 0)
+    assert request_key(q, True, "d", 2) != request_key(q, True, "d", 3)
+    assert request_key(q, True, "d", 2) != request_key(q, True, "d")
+    assert request_key(q, False, "d", 2) == request_key(q, False, "d")  # nothing simulated
+
+
+@pytest.mark.parametrize("value", ["-1", "65", '"8"', "true", "2.5"])
+def test_a_bad_study_robustness_is_exit_2(kif, tmp_path: Path, cli, value) -> None:
+    study = _study(tmp_path, kif, value)
+    r = cli("sweep", str(study), "--no-simulate")
+    assert r.code == 2 and "Traceback" not in r.err
+    assert f"{study}: robustness: expected a whole number" in r.err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.kif", "s.toml"]
+
+
+def test_a_real_sweep_with_robustness(tmp_path: Path, cli) -> None:
+    """The real harness (no fake): a wheeled design's behaviours under 2 perturbations;
+    the figures add up (robust ok <= nominal ok <= requests, runs passed <= runs)."""
+    study = tmp_path / "s.toml"
+    study.write_text('robustness = 2\n\n[[request]]\nabilities = ["driving"]\n')
+    r = cli("sweep", str(study), "--jobs", "1", "--json")
+    assert r.code == 0, r.err
+    (t,) = json.loads(r.out)["types"].values()
+    passed, runs = t["robust_runs"]
+    assert t["robust_ok"] <= t["nominal_ok"] <= t["requests"] == 1
+    assert runs == 2 * 2 and 0 <= passed <= runs
+    stored = json.loads(next((tmp_path / "s.sweep" / "requests").glob("*.json")).read_text())
+    assert {b["runs"] for b in stored["result"]["robust"]} == {2}
