@@ -138,8 +138,9 @@ SETTLE_TIME = 0.5  # s of standing still at the end of a behaviour
 #: Default full steps of a walk or run: enough that the starting and stopping half steps
 #: and the crouch take under half of the behaviour's time.
 DEFAULT_STEPS = 6
-#: rad/m: the tightest arc walking takes (provisional)
-CURVATURE_LIMIT = 10.0
+#: rad/m: the bounds of walking's ``curvature`` parameter; the tightest arc a design walks
+#: is its hip yaw's range over its ankles' swing (:meth:`HumanoidController.max_curvature`)
+CURVATURE_LIMIT = 50.0
 #: columns of the hip yaw (left, right) and of the hip pitch (the knee follows it) in
 #: the leg angles (``_joint_names(LEG_JOINTS)``)
 YAW = [LEG_JOINTS.index("hip_yaw"), len(LEG_JOINTS) + LEG_JOINTS.index("hip_yaw")]
@@ -1159,8 +1160,29 @@ class HumanoidController(Controller):
             "leg_module_m": self.size,
         }
         if curvature:
+            tightest = self.max_curvature(legs, CROUCH_TIME + plan.end, curvature)
+            if abs(curvature) > tightest:
+                raise ValueError(
+                    f"curvature: {curvature:g} rad/m is tighter than this design's hips turn "
+                    f"its feet at step length {step:.4g} m (the hip yaw's range: at most "
+                    f"{tightest:.3g} rad/m)"
+                )
             info.update(motion="arc", curvature_rad_m=curvature)
         return self._trajectory(shape.name, CROUCH_TIME + plan.end, legs, info)
+
+    def max_curvature(
+        self, legs: Callable[[np.ndarray], np.ndarray], duration: float, curvature: float
+    ) -> float:
+        """The tightest curvature rad/m of the gait whose leg angles at ``curvature`` are
+        ``legs(t)``: its hip yaw is the curvature times how far each ankle is ahead of
+        (behind) its mean pose's, which the yaw joints' range bounds (floored to 0.01)."""
+        t = np.arange(0.0, duration + SETTLE_TIME, SAMPLE_DT)
+        reach = float(np.abs(legs(t)[:, YAW]).max()) / abs(curvature)  # m: the ankles' swing
+        model = self.template.model
+        index = {n: k for k, n in enumerate(model.q_names)}
+        yaw = [index[self.joints[k]] for k in YAW]
+        room = min(min(float(model.upper[i]), -float(model.lower[i])) for i in yaw)
+        return float(np.floor(room / max(reach, 1e-12) * 100) / 100)
 
     def _ankle_ahead(self, q: np.ndarray) -> np.ndarray:
         """(n, 2) m: how far each ankle (left, right) is ahead of its hip in the leg's
