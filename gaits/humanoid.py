@@ -934,7 +934,9 @@ HOLD_TIME = 1.5  # s holding
 class HumanoidController(Controller):
     """Behaviours of a designed humanoid, from the synthetic locomotion's conversion maps.
 
-    ``walking`` and ``running``: ``steps`` full steps of ``step_length`` m (default: a
+    ``walking`` (steerable: a ``curvature`` rad/m, each hip's yaw the curvature times how
+    far its ankle is ahead of the mean pose's) and ``running``: ``steps`` full steps of
+    ``step_length`` m (default: a
     fixed fraction of the leg length, ``GaitShape.step``) between a half step that starts
     and one that ends the walk, ``direction`` forward or backward (the pendulum gait is
     time-symmetric: backward is the forward gait played in reverse), with the step period
@@ -946,7 +948,9 @@ class HumanoidController(Controller):
 
     ``info`` follows the shared contract: ``motion`` ("straight" for the gaits, "hold"
     otherwise), ``planned_pose`` (the trunk's displacement the joint angles command, by
-    :func:`odometry` of the planned angles, and no change of yaw), ``direction``,
+    :func:`odometry` of the planned angles; along the arc with its yaw when walking is
+    given a ``curvature``, motion "arc", ``curvature_rad_m``, ``path_length_m``),
+    ``direction``,
     ``locomotion`` "legged" and ``body_length_m``: the leg length (femur + tibia), the
     humanoid's natural unit of stride (its walking speed scales with it); plus
     ``stability_margin_m`` (COM inside the planned support polygon; the pendulum gait
