@@ -74,6 +74,7 @@ from gaits.base import (  # noqa: F401 - CACHE_ENV: the cache folder's variable,
     Trajectory,
     cache_folder,
 )
+from gaits.steering import SteerableSpec
 from kinematics.bodyplan import BodyPlan, PartNode
 from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics, rnea
 from kinematics.model import GRAVITY
@@ -137,6 +138,14 @@ SETTLE_TIME = 0.5  # s of standing still at the end of a behaviour
 #: Default full steps of a walk or run: enough that the starting and stopping half steps
 #: and the crouch take under half of the behaviour's time.
 DEFAULT_STEPS = 6
+#: rad/m: the bounds of walking's ``curvature`` parameter; the tightest arc a design walks
+#: is its hip yaw's range over its ankles' swing (:meth:`HumanoidController.max_curvature`)
+CURVATURE_LIMIT = 50.0
+#: columns of the hip yaw (left, right) and of the hip pitch (the knee follows it) in
+#: the leg angles (``_joint_names(LEG_JOINTS)``)
+YAW = [LEG_JOINTS.index("hip_yaw"), len(LEG_JOINTS) + LEG_JOINTS.index("hip_yaw")]
+PITCH = [LEG_JOINTS.index("hip_pitch"), len(LEG_JOINTS) + LEG_JOINTS.index("hip_pitch")]
+KNEE = [LEG_JOINTS.index("knee_pitch"), len(LEG_JOINTS) + LEG_JOINTS.index("knee_pitch")]
 
 
 # --- leg kinematics ------------------------------------------------------------------------------
@@ -925,7 +934,9 @@ HOLD_TIME = 1.5  # s holding
 class HumanoidController(Controller):
     """Behaviours of a designed humanoid, from the synthetic locomotion's conversion maps.
 
-    ``walking`` and ``running``: ``steps`` full steps of ``step_length`` m (default: a
+    ``walking`` (steerable: a ``curvature`` rad/m, each hip's yaw the curvature times how
+    far its ankle is ahead of the mean pose's) and ``running``: ``steps`` full steps of
+    ``step_length`` m (default: a
     fixed fraction of the leg length, ``GaitShape.step``) between a half step that starts
     and one that ends the walk, ``direction`` forward or backward (the pendulum gait is
     time-symmetric: backward is the forward gait played in reverse), with the step period
@@ -937,7 +948,9 @@ class HumanoidController(Controller):
 
     ``info`` follows the shared contract: ``motion`` ("straight" for the gaits, "hold"
     otherwise), ``planned_pose`` (the trunk's displacement the joint angles command, by
-    :func:`odometry` of the planned angles, and no change of yaw), ``direction``,
+    :func:`odometry` of the planned angles; along the arc with its yaw when walking is
+    given a ``curvature``, motion "arc", ``curvature_rad_m``, ``path_length_m``),
+    ``direction``,
     ``locomotion`` "legged" and ``body_length_m``: the leg length (femur + tibia), the
     humanoid's natural unit of stride (its walking speed scales with it); plus
     ``stability_margin_m`` (COM inside the planned support polygon; the pendulum gait
@@ -993,9 +1006,24 @@ class HumanoidController(Controller):
 
     @property
     def behaviors(self) -> Mapping[str, BehaviorSpec]:
-        def gait(shape: GaitShape, doc: str) -> BehaviorSpec:
+        def gait(shape: GaitShape, doc: str, steered: bool = False) -> BehaviorSpec:
             s0 = self.default_step(shape)
-            return BehaviorSpec(
+            turn = (
+                Parameter(
+                    "curvature",
+                    "float",
+                    0.0,
+                    "turn per metre walked forward, counter-clockwise positive (0: straight)",
+                    "rad/m",
+                    low=-CURVATURE_LIMIT,
+                    high=CURVATURE_LIMIT,
+                ),
+            )
+            spec = partial(
+                SteerableSpec,
+                steer=(("speed", "step_length"), ("turn", "curvature"), ("steps", "steps")),
+            )
+            return (spec if steered else BehaviorSpec)(
                 shape.name,
                 doc,
                 (
@@ -1023,12 +1051,18 @@ class HumanoidController(Controller):
                         "travel direction",
                         choices=("forward", "backward"),
                     ),
+                    *(turn if steered else ()),
                 ),
                 ability=shape.name,
             )
 
         return {
-            WALK.name: gait(WALK, "a slow crouched walk (the paper's synthetic locomotion)"),
+            WALK.name: gait(
+                WALK,
+                "a slow crouched walk (the paper's synthetic locomotion), straight or on an "
+                "arc of `curvature` (the hips' yaw turns each foot as it swings)",
+                steered=True,
+            ),
             RUN.name: gait(
                 RUN,
                 "a faster gait: shorter step period and double support, "
@@ -1087,10 +1121,16 @@ class HumanoidController(Controller):
             return self._grasping(float(params["hold"]))
         shape = WALK if name == WALK.name else RUN
         return self._gait(
-            shape, int(params["steps"]), float(params["step_length"]), str(params["direction"])
+            shape,
+            int(params["steps"]),
+            float(params["step_length"]),
+            str(params["direction"]),
+            float(params.get("curvature") or 0.0),  # type: ignore[arg-type]
         )
 
-    def _gait(self, shape: GaitShape, steps: int, step: float, direction: str) -> Trajectory:
+    def _gait(
+        self, shape: GaitShape, steps: int, step: float, direction: str, curvature: float = 0.0
+    ) -> Trajectory:
         lo, hi = leg_module_range()
         if not lo - 1e-12 <= self.size <= hi + 1e-12:
             raise ValueError(
@@ -1108,7 +1148,10 @@ class HumanoidController(Controller):
             tau = t - CROUCH_TIME
             mean, osc = maps.components(self.size, plan.ratio(tau, ratio), start + sign * tau)
             crouch = _smooth(t / CROUCH_TIME)[:, None]  # r = 0 and no oscillation meanwhile
-            return crouch * mean + plan.envelope(tau)[:, None] * osc
+            q = crouch * mean + plan.envelope(tau)[:, None] * osc
+            if curvature:
+                q[:, YAW] = curvature * (self._ankle_ahead(q) - self._ankle_ahead(crouch * mean))
+            return q
 
         info: dict[str, object] = {
             "motion": "straight",
@@ -1120,7 +1163,37 @@ class HumanoidController(Controller):
             "step_period_s": period,
             "leg_module_m": self.size,
         }
+        if curvature:
+            tightest = self.max_curvature(legs, CROUCH_TIME + plan.end, curvature)
+            if abs(curvature) > tightest:
+                raise ValueError(
+                    f"curvature: {curvature:g} rad/m is tighter than this design's hips turn "
+                    f"its feet at step length {step:.4g} m (the hip yaw's range: at most "
+                    f"{tightest:.3g} rad/m)"
+                )
+            info.update(motion="arc", curvature_rad_m=curvature)
         return self._trajectory(shape.name, CROUCH_TIME + plan.end, legs, info)
+
+    def max_curvature(
+        self, legs: Callable[[np.ndarray], np.ndarray], duration: float, curvature: float
+    ) -> float:
+        """The tightest curvature rad/m of the gait whose leg angles at ``curvature`` are
+        ``legs(t)``: its hip yaw is the curvature times how far each ankle is ahead of
+        (behind) its mean pose's, which the yaw joints' range bounds (floored to 0.01)."""
+        t = np.arange(0.0, duration + SETTLE_TIME, SAMPLE_DT)
+        reach = float(np.abs(legs(t)[:, YAW]).max()) / abs(curvature)  # m: the ankles' swing
+        model = self.template.model
+        index = {n: k for k, n in enumerate(model.q_names)}
+        yaw = [index[self.joints[k]] for k in YAW]
+        room = min(min(float(model.upper[i]), -float(model.lower[i])) for i in yaw)
+        return float(np.floor(room / max(reach, 1e-12) * 100) / 100)
+
+    def _ankle_ahead(self, q: np.ndarray) -> np.ndarray:
+        """(n, 2) m: how far each ankle (left, right) is ahead of its hip in the leg's
+        sagittal plane, from the leg angles ``q`` (n, 12) (hip pitch and knee; the inverse
+        of :func:`leg_ik`'s)."""
+        hip, knee = q[:, PITCH], q[:, KNEE]
+        return -(self.femur * np.sin(hip) + self.tibia * np.sin(hip + knee))
 
     def _stance(self, dx: np.ndarray, y: np.ndarray) -> np.ndarray:
         """(n, 12) leg angles: both ankles ``dx`` (n,) m ahead of their hips and ``-y`` (n,)
@@ -1219,8 +1292,21 @@ class HumanoidController(Controller):
                     f"{q[:, k].max():.3f}]); leg module {self.size:.3f} m"
                 )
         info["stability_margin_m"] = stability_margin(self.template, self.joints, q)
-        moved = odometry(self.template, self.joints, q)[-1]
-        info["planned_pose"] = (float(moved[0]), float(moved[1]), 0.0)
+        kappa = float(info.get("curvature_rad_m", 0.0))  # type: ignore[arg-type]
+        flat = q.copy()
+        flat[:, YAW] = 0.0  # the hips' yaw turns the trunk, the rest of the gait moves it
+        moved = odometry(self.template, self.joints, flat)[-1]
+        if kappa:  # along an arc: the hips' yaw turns kappa per metre walked
+            path = float(moved[0])
+            turn = kappa * path
+            info["planned_pose"] = (
+                float(np.sin(turn) / kappa),
+                float((1 - np.cos(turn)) / kappa),
+                turn,
+            )
+            info["path_length_m"] = abs(path)
+        else:
+            info["planned_pose"] = (float(moved[0]), float(moved[1]), 0.0)
         if info.get("motion") == "straight":
             info["expected_distance_m"] = float(np.hypot(moved[0], moved[1]))
         positions = q

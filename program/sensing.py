@@ -294,10 +294,19 @@ class Rig:
         groups[3] = 1
         best = RANGER_MAX_M
         geom = np.zeros(1, dtype=np.int32)
-        for a in (-RANGER_HALF_ANGLE, 0.0, RANGER_HALF_ANGLE):
+        # three rays across the beam, level, and one down its lower edge straight ahead (a
+        # ranger mounted above an obstacle's top still sees it from a little way off; the
+        # level middle ray is nearer wherever both hit)
+        for a, e in (
+            (-RANGER_HALF_ANGLE, 0.0),
+            (0.0, 0.0),
+            (RANGER_HALF_ANGLE, 0.0),
+            (0.0, -RANGER_HALF_ANGLE),
+        ):
             v = rot @ (math.cos(a) * self.forward + math.sin(a) * self.left)
             v[2] = 0.0
             v /= np.linalg.norm(v)
+            v = math.cos(e) * v + np.array([0.0, 0.0, math.sin(e)])
             dist = mujoco.mj_ray(m, d, origin, v, groups, 1, -1, geom)
             if dist >= 0:
                 best = min(best, dist)
@@ -882,6 +891,7 @@ def _avoid_strides(
     reach = {1.0: r_lat - float(lateral.min()), -1.0: float(lateral.max()) - r_lat}
     side = 1.0 if reach[1.0] <= reach[-1.0] + 1e-9 else -1.0  # to the left on a tie
     behind = r_fwd - float(along.min())
+    sweep = float(np.hypot(lateral, along).max())  # its parts' reach from the trunk's origin
     travel = max(mover.travel, 1e-3)
     heading0 = rig.heading()
     fwd = np.array([math.cos(heading0), math.sin(heading0)])
@@ -957,6 +967,9 @@ def _avoid_strides(
                 1e-3,
             )
             trigger = 2 * travel + min(radius, distance / 2) / 2 + CLEARANCE_M
+            if radius < sweep:  # it turns about a point within its reach: its parts sweep
+                # up to their reach plus the radius ahead of the turn's centre
+                trigger = max(trigger, 2 * travel + sweep + radius - r_fwd + CLEARANCE_M)
             if state == "go" and r < trigger:
                 state, seen = "turn", r
             if state == "turn":
