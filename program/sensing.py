@@ -177,7 +177,12 @@ def sensing_behaviors(
         length, distance, radius = 2.0, 1.5, 0.5
     out: dict[str, BehaviorSpec] = {}
     # a line is followed with a turn of known effect (a rate or a curvature); a bias whose
-    # effect is only learnt steers too loosely for it (measured: a sidewinding snake)
+    # effect is only learnt steers too loosely for it (measured on the 6-module
+    # sidewinder: mapped over its whole range, 21 calibration periods, its bias turns the
+    # sensors' path from -0.75 to 12 rad/m, not monotonically, and by what the previous
+    # period's bias was (-0.25 turned it -13 degrees after -0.1, which turned it +12);
+    # the sensors swing 3 cm across their path within a period; steered through that map
+    # it drifts off 0.5-2 m circles, lost 17-42 s of 26-48)
     if "line-tracking" in abilities and steer.kind != "bias":
         out["line-tracking"] = BehaviorSpec(
             "line-tracking",
