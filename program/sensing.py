@@ -177,7 +177,12 @@ def sensing_behaviors(
         length, distance, radius = 2.0, 1.5, 0.5
     out: dict[str, BehaviorSpec] = {}
     # a line is followed with a turn of known effect (a rate or a curvature); a bias whose
-    # effect is only learnt steers too loosely for it (measured: a sidewinding snake)
+    # effect is only learnt steers too loosely for it (measured on the 6-module
+    # sidewinder: mapped over its whole range, 21 calibration periods, its bias turns the
+    # sensors' path from -0.75 to 12 rad/m, not monotonically, and by what the previous
+    # period's bias was (-0.25 turned it -13 degrees after -0.1, which turned it +12);
+    # the sensors swing 3 cm across their path within a period; steered through that map
+    # it drifts off 0.5-2 m circles, lost 17-42 s of 26-48)
     if "line-tracking" in abilities and steer.kind != "bias":
         out["line-tracking"] = BehaviorSpec(
             "line-tracking",
@@ -325,10 +330,19 @@ class Course:
 
     @classmethod
     def make(
-        cls, shape: str, radius: float, length: float, start: np.ndarray, heading: float
+        cls,
+        shape: str,
+        radius: float,
+        length: float,
+        start: np.ndarray,
+        heading: float,
+        tangent: bool = False,
     ) -> Course:
         """The ``shape`` line ('circle' turning left, or 'wave' of tightest curve
-        ``radius``) from ``start`` (x, y) m along ``heading`` rad, ``length`` + 1 m long."""
+        ``radius``) from ``start`` (x, y) m along ``heading`` rad, ``length`` + 1 m long.
+        ``tangent``: the wave starts along ``heading`` (at a trough, bending left as the
+        circle does) rather than at its mean, atan(1 / (radius k)) (32-36 degrees) off
+        it, which a robot deciding once a gait period loses before it can turn."""
         total = length + 1.0
         s = np.arange(0.0, total + 0.005, 0.005)
         if shape == "circle":
@@ -339,7 +353,7 @@ class Course:
             k = 2 * math.pi / wavelength
             amp = 1 / (radius * k * k)
             x = s  # (arc length is recomputed from the points)
-            y = amp * np.sin(k * x)
+            y = amp * (1 - np.cos(k * x)) if tangent else amp * np.sin(k * x)
         c, sn = math.cos(heading), math.sin(heading)
         pts = np.stack([start[0] + c * x - sn * y, start[1] + sn * x + c * y], axis=1)
         return cls(pts)
@@ -778,7 +792,8 @@ def _line_strides(
     mid = (rig.ir[0] + rig.ir[1]) / 2
     start = rig.world(mid)[:2]
     heading = rig.heading()
-    course = Course.make(str(params["course"]), radius, length, start, heading)
+    # (a wave starts along the heading: the robot decides once a period, see Course.make)
+    course = Course.make(str(params["course"]), radius, length, start, heading, tangent=True)
     session.scene_line = course.points
     factor, extra = BUDGET["follow-line"]
     budget = factor * length / max(mover.v, 1e-6) + extra

@@ -190,3 +190,44 @@ def test_a_blind_snake_hits_the_obstacle(snake, monkeypatch) -> None:
     monkeypatch.setattr(sensing.Rig, "range", lambda self: sensing.RANGER_MAX_M)
     f = Session(snake).do("obstacle-avoidance", width=0.6)["figures"]
     assert "collision" in f["verdict"] and f["obstacle_contact_s"] > 0
+
+
+def test_the_wave_starts_along_the_heading_only_for_stride_loops() -> None:
+    """The stride loop's wave starts tangent to the heading and bends left at its tightest
+    curve; the wheeled loop's (``tangent`` off) is the sine it always was."""
+    import numpy as np
+
+    start = np.array([0.3, -0.2])
+    for radius in (0.5, 1.0, 2.0):
+        c = sensing.Course.make("wave", radius, 0.5, start, 0.7, tangent=True)
+        d = c.points[1] - c.points[0]
+        assert abs(math.atan2(d[1], d[0]) - 0.7) < 0.01
+        old = sensing.Course.make("wave", radius, 0.5, start, 0.7)
+        d = old.points[1] - old.points[0]
+        assert math.degrees(abs(math.atan2(d[1], d[0]) - 0.7)) > 30  # the old start
+        circle = sensing.Course.make("circle", radius, 0.5, start, 0.7, tangent=True)
+        assert np.array_equal(
+            circle.points, sensing.Course.make("circle", radius, 0.5, start, 0.7).points
+        )
+
+
+def test_a_legged_robot_follows_a_wave(walker) -> None:
+    from program.session import Session
+
+    f = Session(walker).do("line-tracking", course="wave", radius=1.0)["figures"]
+    assert f["verdict"] == "ok", f
+
+
+def test_a_wave_starting_off_the_heading_is_lost(walker, monkeypatch) -> None:
+    """Built to fail: the wave as the wheeled loop lays it (32-36 degrees off the heading
+    at the start) loses a robot that decides once a gait period."""
+    from program.session import Session
+
+    make = sensing.Course.make.__func__
+
+    def untangent(cls, *a, tangent=False, **k):
+        return make(cls, *a, **k)
+
+    monkeypatch.setattr(sensing.Course, "make", classmethod(untangent))
+    f = Session(walker).do("line-tracking", course="wave", radius=1.0)["figures"]
+    assert f["verdict"] != "ok" and f["line_lost_s"] > 0, f
