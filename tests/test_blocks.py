@@ -62,7 +62,7 @@ DESIGNS = {
     # KIF-only types
     "pentapod": (
         KIF_DESIGNS["pentapod"],
-        (("turning", {"angle": 0.5}), 2, ("turning", {"angle": -0.5})),
+        (("walking", {"steps": 1}), 2, ("turning", {"angle": -30})),  # degrees in the page
     ),
     "mobile": (
         KIF_DESIGNS["mobile"],
