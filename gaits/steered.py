@@ -80,6 +80,12 @@ __all__ = [
 SAMPLE_DT = 0.01
 #: Fraction of a steering servo's no-load speed a steering move peaks at.
 STEER_SPEED_FRACTION = 0.5
+#: Fraction of a steering servo's no-load speed the steering turns at while rolling on
+#: (``driving`` with ``rolling = 1``): the servo's own damping (its derivative gain and
+#: its motor's back-EMF) and the tyre's scrub hold it at its stall torque when it is asked
+#: to turn faster (measured: the shipped tricycle's SG90 following lines, saturated 5-7 %
+#: of the time at 0.5, 1-3 % at 0.35, never at 0.2).
+ROLL_STEER_FRACTION = 0.2
 #: Rest after a steering move before the wheels roll, s (the servo settles in its band).
 STEER_SETTLE = 0.1
 #: ``turning``'s arcs use this fraction of the steering limit's curvature (the steering
@@ -650,7 +656,7 @@ class SteeredController(Controller):
     def _rolling(self, v: float, w: float, seconds: float, w0: float) -> Trajectory:
         """``driving`` rolling on (a closed loop's short periods, :mod:`program.sensing`):
         the robot already rolls at ``v`` with its steering on the arc of ``w0``; the steering
-        turns toward the arc of ``w`` at ``STEER_SPEED_FRACTION`` of its servo's speed (the
+        turns toward the arc of ``w`` at ``ROLL_STEER_FRACTION`` of its servo's speed (the
         curvature linear in time) while the wheels roll at ``v`` on the arc they are on. A
         change the servo cannot make within ``seconds`` is made in part:
         ``info["turn_end"]`` is the yaw rate whose arc the steering ends on (the next
@@ -669,7 +675,7 @@ class SteeredController(Controller):
         delta = max(abs(a1[j] - a0[j]) for j in self.steer_joints)
         # the steering joint that turns furthest turns at most this fast (the angle is
         # nearly linear in the curvature within the limit: atan2 of a line)
-        need = delta / (STEER_SPEED_FRACTION * self.steer.steer_speed)
+        need = delta / (ROLL_STEER_FRACTION * self.steer.steer_speed)
         t = _grid(seconds)
         share = np.minimum(t / need, 1.0) if need > 1e-12 else np.ones_like(t)
         ks = k0 + (k1 - k0) * share

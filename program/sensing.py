@@ -527,12 +527,10 @@ def _line(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[
 #: A drive that rolls on from its last turn (steered wheels) follows the line this far
 #: ahead of its sensors' midpoint (m, at least): it closes the line's offset and angle
 #: over it (:func:`_pursue`), and the loop's estimate weighs the readings within 1.5 x it.
-ROLLING_LOOKAHEAD_M = 0.1
+ROLLING_LOOKAHEAD_M = 0.15
 
 
-def _line_rolling(
-    session: Session, mover: _Driver, rig: Rig, params: Mapping
-) -> tuple[dict, dict]:
+def _line_rolling(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[dict, dict]:
     """Line-tracking for a drive that rolls on from its last turn (steered wheels, whose
     steering servo turns only so fast): the sensors are read at :data:`CONTROL_HZ` and
     every reading kept (where the sensor was, whether it saw the line); every period the
@@ -554,6 +552,7 @@ def _line_rolling(
     half_span = IR_SPACING_M / 2 + LINE_WIDTH_M / 2
     reads: list[tuple[float, float, float]] = [(*start, 1.0)]
     look = max(ROLLING_LOOKAHEAD_M, 2 * mover.speed / CONTROL_HZ)
+    est: dict = {}  # the line as last located
 
     def read(t: float) -> None:
         if t < state["next"] - 1e-9:
@@ -572,7 +571,7 @@ def _line_rolling(
     try:
         read(session.time)
         while session.time - t0 < budget and state["s"] < length:
-            k = _pursue(rig, np.array(reads), mid, look / LOOKAHEAD_PERIODS, mover.k_now)
+            k = _pursue(rig, np.array(reads), mid, look / LOOKAHEAD_PERIODS, mover.k_now, est)
             mover.go(float(np.clip(k, -k_cap, k_cap)))
     finally:
         session.on_step = None
@@ -890,7 +889,11 @@ LINE_OFFSETS, LINE_ANGLES, LINE_CURVES = (0.08, 0.002), (0.6, 0.02), (1.0, 0.25)
 
 
 def _locate_line(
-    reads: np.ndarray, here: np.ndarray, heading: float, bend: float
+    reads: np.ndarray,
+    here: np.ndarray,
+    heading: float,
+    bend: float,
+    prior: tuple[float, float, float] | None = None,
 ) -> tuple[float, float, float]:
     """The line near the sensors as the readings tell it: (offset m, + to the left, of the
     line from ``here`` across ``heading``; its angle rad from the heading; its curvature
@@ -913,10 +916,26 @@ def _locate_line(
         d = np.abs(ys[None, :] - (a[:, None] + t[:, None] * xs + c[:, None] * xs * xs / 2))
         score += np.where(on[None, :], d <= half, d >= half).sum(axis=1)
     best = score >= score.max() - 0.5
+    if prior is not None:  # (tracking: of the best, the nearest to the last estimate)
+        ang = np.arctan(t[best])
+        gap = (
+            np.abs(a[best] - prior[0]) / LINE_OFFSETS[1]
+            + np.abs(ang - prior[1]) / LINE_ANGLES[1]
+            + np.abs(c[best] - prior[2]) / LINE_CURVES[1]
+        )
+        i = int(np.argmin(gap))
+        return float(a[best][i]), float(ang[i]), float(c[best][i])
     return float(a[best].mean()), float(np.arctan(t[best]).mean()), float(c[best].mean())
 
 
-def _pursue(rig: Rig, reads: np.ndarray, mid: np.ndarray, travel: float, bend: float) -> float:
+def _pursue(
+    rig: Rig,
+    reads: np.ndarray,
+    mid: np.ndarray,
+    travel: float,
+    bend: float,
+    track: dict | None = None,
+) -> float:
     """The curvature rad/m of the trunk's next arc: the line near the sensors' midpoint
     (``mid``, trunk frame) as the readings within :data:`LINE_MEMORY_PERIODS` periods'
     ``travel`` tell it (:func:`_locate_line`, about the trunk's recent curvature
@@ -925,7 +944,10 @@ def _pursue(rig: Rig, reads: np.ndarray, mid: np.ndarray, travel: float, bend: f
     h = rig.heading()
     here = rig.world(mid)[:2]
     near = reads[np.hypot(*(reads[:, :2] - here).T) <= max(LINE_MEMORY_PERIODS * travel, 0.05)]
-    offset, angle, curve = _locate_line(near if len(near) else reads[-2:], here, h, bend)
+    prior = None if track is None else track.get("line")
+    offset, angle, curve = _locate_line(near if len(near) else reads[-2:], here, h, bend, prior)
+    if track is not None:
+        track["line"] = (offset, angle, curve)
     # the midpoint, ``front`` ahead of the trunk, after ``look`` m of an arc k moves
     # across by about k (look^2 / 2 + front look); the line there, ahead of it, by
     # offset + angle look + bend look^2 / 2
