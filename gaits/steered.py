@@ -656,8 +656,8 @@ class SteeredController(Controller):
     def _rolling(self, v: float, w: float, seconds: float, w0: float) -> Trajectory:
         """``driving`` rolling on (a closed loop's short periods, :mod:`program.sensing`):
         the robot already rolls at ``v`` with its steering on the arc of ``w0``; the steering
-        turns toward the arc of ``w`` at ``ROLL_STEER_FRACTION`` of its servo's speed (the
-        curvature linear in time) while the wheels roll at ``v`` on the arc they are on. A
+        turns toward the arc of ``w``, no joint of it faster than ``ROLL_STEER_FRACTION`` of
+        its servo's speed, while the wheels roll at ``v`` on the arc they are on. A
         change the servo cannot make within ``seconds`` is made in part:
         ``info["turn_end"]`` is the yaw rate whose arc the steering ends on (the next
         period's ``w0``); ``planned_pose`` integrates the curvature's profile."""
@@ -671,14 +671,18 @@ class SteeredController(Controller):
         k0 = w0 / v if v != 0 else 0.0
         self.steer.check_curvature(k1, what)
         self.steer.check_curvature(k0, what)
-        a0, a1 = self.steer.angles(k0), self.steer.angles(k1)
-        delta = max(abs(a1[j] - a0[j]) for j in self.steer_joints)
-        # the steering joint that turns furthest turns at most this fast (the angle is
-        # nearly linear in the curvature within the limit: atan2 of a line)
-        need = delta / (ROLL_STEER_FRACTION * self.steer.steer_speed)
+        # the curvature as the steering turns: its joints' largest angle turned so far
+        # grows at ROLL_STEER_FRACTION of the servo's speed (the angles are not linear in
+        # the curvature: a car's inner wheel turns faster than its outer one)
+        fine = np.linspace(k0, k1, 201)
+        path = np.array([[self.steer.angles(float(k))[j] for j in self.steer_joints] for k in fine])
+        turned = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(path, axis=0)).max(axis=1))])
+        rate = ROLL_STEER_FRACTION * self.steer.steer_speed
         t = _grid(seconds)
-        share = np.minimum(t / need, 1.0) if need > 1e-12 else np.ones_like(t)
-        ks = k0 + (k1 - k0) * share
+        if turned[-1] > 1e-12:
+            ks = np.interp(np.minimum(t * rate, turned[-1]), turned, fine)
+        else:
+            ks = np.full_like(t, k1)
         k_end = float(ks[-1])
         angles = np.array([[self.steer.angles(float(k))[j] for j in self.steer_joints] for k in ks])
         wheels = np.vstack([self._roll(float(k), np.array([v]))[0] for k in ks])
