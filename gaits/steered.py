@@ -65,6 +65,7 @@ from gaits.base import (
     min_jerk,
     min_jerk_integral,
 )
+from gaits.steering import SteerableSpec
 from kinematics.dynamics import forward_kinematics
 from kinematics.templates import Template
 
@@ -79,6 +80,12 @@ __all__ = [
 SAMPLE_DT = 0.01
 #: Fraction of a steering servo's no-load speed a steering move peaks at.
 STEER_SPEED_FRACTION = 0.5
+#: Fraction of a steering servo's no-load speed the steering turns at while rolling on
+#: (``driving`` with ``rolling = 1``): the servo's own damping (its derivative gain and
+#: its motor's back-EMF) and the tyre's scrub hold it at its stall torque when it is asked
+#: to turn faster (measured: the shipped tricycle's SG90 following lines, saturated 5-7 %
+#: of the time at 0.5, 1-3 % at 0.35, never at 0.2).
+ROLL_STEER_FRACTION = 0.2
 #: Rest after a steering move before the wheels roll, s (the servo settles in its band).
 STEER_SETTLE = 0.1
 #: ``turning``'s arcs use this fraction of the steering limit's curvature (the steering
@@ -370,10 +377,10 @@ class SteeredController(Controller):
         v_top = self.v_max
         w_top = self.steer.k_max * self._top_speed(self.steer.k_max)
         return {
-            "driving": BehaviorSpec(
+            "driving": SteerableSpec(
                 "driving",
                 "Steer to the arc of yaw rate w at speed v (|w| <= k_max |v|: the steering "
-                "limit), then drive it, ramping up smoothly.",
+                "limit), then drive it, ramping up smoothly (rolling on, with rolling = 1).",
                 (
                     Parameter(
                         "v",
@@ -399,8 +406,34 @@ class SteeredController(Controller):
                     Parameter(
                         "ramp", "float", RAMP, "minimum-jerk ramp-up time", "s", low=0.0, high=60
                     ),
+                    Parameter(
+                        "rolling",
+                        "int",
+                        0,
+                        "1: the robot already rolls at v with its steering on the arc of w0: "
+                        "it steers while rolling, no steering at rest, no ramp",
+                        "",
+                        low=0,
+                        high=1,
+                    ),
+                    Parameter(
+                        "w0",
+                        "float",
+                        0.0,
+                        "rolling: the yaw rate whose arc the steering is on at the start",
+                        "rad/s",
+                        low=-w_top,
+                        high=w_top,
+                    ),
                 ),
                 ability="steered-driving",
+                steer=(
+                    ("speed", "v"),
+                    ("turn", "w"),
+                    ("seconds", "seconds"),
+                    ("turn_from", "w0"),
+                ),
+                fixed=(("ramp", 0.0), ("rolling", 1)),
             ),
             "turning": BehaviorSpec(
                 "turning",
@@ -441,6 +474,13 @@ class SteeredController(Controller):
 
     def _run(self, name: str, params: Mapping[str, object]) -> Trajectory:
         if name == "driving":
+            if params.get("rolling"):
+                return self._rolling(
+                    float(params["v"]),
+                    float(params["w"]),
+                    float(params["seconds"]),
+                    float(params["w0"]),
+                )
             return self._driving(
                 float(params["v"]),
                 float(params["w"]),
@@ -612,6 +652,62 @@ class SteeredController(Controller):
         else:
             info["motion"] = "arc"
         return self._trajectory("driving", pieces, info)
+
+    def _rolling(self, v: float, w: float, seconds: float, w0: float) -> Trajectory:
+        """``driving`` rolling on (a closed loop's short periods, :mod:`program.sensing`):
+        the robot already rolls at ``v`` with its steering on the arc of ``w0``; the steering
+        turns toward the arc of ``w``, no joint of it faster than ``ROLL_STEER_FRACTION`` of
+        its servo's speed, while the wheels roll at ``v`` on the arc they are on. A
+        change the servo cannot make within ``seconds`` is made in part:
+        ``info["turn_end"]`` is the yaw rate whose arc the steering ends on (the next
+        period's ``w0``); ``planned_pose`` integrates the curvature's profile."""
+        what = f"driving at (v, w) = ({v:g} m/s, {w:g} rad/s) from w0 = {w0:g} rad/s"
+        if v == 0 and (w != 0 or w0 != 0):
+            raise ValueError(
+                f"{what}: a steered robot cannot turn in place (w without v); drive an arc "
+                f"(|w| <= {self.steer.k_max:.3g} |v|) or use turning"
+            )
+        k1 = w / v if v != 0 else 0.0
+        k0 = w0 / v if v != 0 else 0.0
+        self.steer.check_curvature(k1, what)
+        self.steer.check_curvature(k0, what)
+        # the curvature as the steering turns: its joints' largest angle turned so far
+        # grows at ROLL_STEER_FRACTION of the servo's speed (the angles are not linear in
+        # the curvature: a car's inner wheel turns faster than its outer one)
+        fine = np.linspace(k0, k1, 201)
+        path = np.array([[self.steer.angles(float(k))[j] for j in self.steer_joints] for k in fine])
+        turned = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(path, axis=0)).max(axis=1))])
+        rate = ROLL_STEER_FRACTION * self.steer.steer_speed
+        t = _grid(seconds)
+        if turned[-1] > 1e-12:
+            ks = np.interp(np.minimum(t * rate, turned[-1]), turned, fine)
+        else:
+            ks = np.full_like(t, k1)
+        k_end = float(ks[-1])
+        angles = np.array([[self.steer.angles(float(k))[j] for j in self.steer_joints] for k in ks])
+        wheels = np.vstack([self._roll(float(k), np.array([v]))[0] for k in ks])
+        self._check_speeds(wheels, what)
+        # the pose: arcs between samples at their mean curvature
+        pose = (0.0, 0.0, 0.0)
+        for i in range(1, len(t)):
+            pose = _arc(pose, float(ks[i - 1] + ks[i]) / 2, v * float(t[i] - t[i - 1]))
+        d = v * seconds
+        info: dict[str, object] = {
+            "command": (v, w),
+            "ramp_s": 0.0,
+            "steer_s": 0.0,
+            "turn_end": k_end * v,
+            "planned_pose": pose,
+            "path_length_m": abs(d),
+        }
+        if v == 0:
+            info["motion"] = "hold"
+        elif w == 0 and w0 == 0:
+            info["motion"] = "straight"
+            info["direction"] = (math.copysign(1.0, v), 0.0)
+        else:
+            info["motion"] = "arc"
+        return self._trajectory("driving", [(t, angles, wheels)], info)
 
     def _turning(self, angle: float, points: int, seconds: float) -> Trajectory:
         if angle == 0:

@@ -12,7 +12,10 @@ Roles (``SteerableSpec.steer``, role -> parameter name):
   from where it is: wheels), or ``steps``: how many whole gait cycles one period is (a
   gait that starts and ends at rest: legs, a snake's waves);
 - ``direction`` (optional): the direction of travel, rad from forward (a behaviour that
-  also goes sideways without turning: legs).
+  also goes sideways without turning: legs);
+- ``turn_from`` (optional): the turn the behaviour rolls on from, in the turn's unit (a
+  steered drive's steering, which turns only so fast: the loop passes the turn the last
+  period ended on, its plan's ``info["turn_end"]``).
 
 ``fixed``: parameters held at these values in every period (e.g. no ramp). The roles
 are data of the controller's behaviour; no loop names a behaviour or a robot type.
@@ -28,7 +31,7 @@ from gaits.base import BehaviorSpec
 __all__ = ["STEER_ROLES", "SteerableSpec"]
 
 #: The roles a steerable behaviour's parameters may play.
-STEER_ROLES = ("speed", "turn", "seconds", "steps", "direction")
+STEER_ROLES = ("speed", "turn", "seconds", "steps", "direction", "turn_from")
 
 
 @dataclass(frozen=True)

@@ -411,15 +411,18 @@ class _Driver:
         #: the tightest curvature 1/m the drive takes (None: any the wheels' speed allows;
         #: a steered drive's is its steering limit, found by ``fit``)
         self.k_cap: float | None = None
+        #: a drive that rolls on from its last turn (a ``turn_from`` role: steered wheels,
+        #: whose steering turns only so fast): the curvature 1/m its last period ended on
+        self.k_now = 0.0
         self.speed = self.fit(speed, 0.0)[0]
         self.w_spin = 0.0
 
     def _plan(self, v: float, w: float):
         r = self.steer.roles
-        return self.session.controller.run(
-            self.steer.behavior,
-            **{r["speed"]: v, r["turn"]: w, r["seconds"]: self.period, **self.steer.fixed},
-        )
+        ask = {r["speed"]: v, r["turn"]: w, r["seconds"]: self.period, **self.steer.fixed}
+        if "turn_from" in r:
+            ask[r["turn_from"]] = self.k_now * v
+        return self.session.controller.run(self.steer.behavior, **ask)
 
     def forward_axis(self) -> np.ndarray:
         """The body-frame direction the robot goes forward in."""
@@ -460,7 +463,11 @@ class _Driver:
         try:
             traj = self._plan(v, w)
         except ValueError:
-            traj = self._plan(*self.fit(v, w))
+            v, w = self.fit(v, w)
+            traj = self._plan(v, w)
+        if "turn_from" in self.steer.roles:
+            end = float(traj.info.get("turn_end", w))  # type: ignore[arg-type]
+            self.k_now = end / v if v else 0.0
         self.session._play(traj.joints, traj.positions, traj.velocities, self.period)
 
     def go(self, curvature: float) -> None:
@@ -482,6 +489,8 @@ class _Driver:
 
 
 def _line(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[dict, dict]:
+    if "turn_from" in mover.steer.roles:
+        return _line_rolling(session, mover, rig, params)
     radius, length = (float(params[k]) for k in ("radius", "length"))
     # turn hard enough to follow the tightest curve and to swing the sensors, a lever
     # ``front`` ahead of the turning axis, back over the line within a sensor's span
@@ -534,6 +543,67 @@ def _line(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[
         "planned_distance_m": length,
         "line_lost_s": longest,
         "max_line_offset_m": worst,
+    }
+    return fig, {"motion": SENSING["line-tracking"], "course": str(params["course"])}
+
+
+#: A drive that rolls on from its last turn (steered wheels) follows the line this far
+#: ahead of its sensors' midpoint (m, at least): it closes the line's offset and angle
+#: over it (:func:`_pursue`), and the loop's estimate weighs the readings within 1.5 x it.
+ROLLING_LOOKAHEAD_M = 0.15
+
+
+def _line_rolling(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[dict, dict]:
+    """Line-tracking for a drive that rolls on from its last turn (steered wheels, whose
+    steering servo turns only so fast): the sensors are read at :data:`CONTROL_HZ` and
+    every reading kept (where the sensor was, whether it saw the line); every period the
+    robot locates the line near its sensors from them (:func:`_locate_line`, about the
+    curvature it rolls on) and asks for the arc that brings the sensors' midpoint onto it
+    (:func:`_pursue`, within the steering limit); the behaviour turns the steering toward
+    it while rolling, as fast as the servo turns under load."""
+    radius, length = (float(params[k]) for k in ("radius", "length"))
+    mover.tightest()  # the steering limit's curvature, k_cap
+    k_cap = mover.k_cap if mover.k_cap else math.inf
+    mid = (rig.ir[0] + rig.ir[1]) / 2
+    start = rig.world(mid)[:2]
+    course = Course.make(str(params["course"]), radius, length, start, rig.heading())
+    session.scene_line = course.points
+    factor, extra = BUDGET["follow-line"]
+    budget = factor * length / max(mover.speed, 1e-6) + extra
+    t0 = session.time
+    state = {"s": 0.0, "next": t0, "lost": 0.0, "longest": 0.0, "worst": 0.0}
+    half_span = IR_SPACING_M / 2 + LINE_WIDTH_M / 2
+    reads: list[tuple[float, float, float]] = [(*start, 1.0)]
+    look = max(ROLLING_LOOKAHEAD_M, 2 * mover.speed / CONTROL_HZ)
+    est: dict = {}  # the line as last located
+
+    def read(t: float) -> None:
+        if t < state["next"] - 1e-9:
+            return
+        state["next"] = t + 1.0 / CONTROL_HZ
+        for p in rig.ir:
+            w = rig.world(p)[:2]
+            on = abs(course.locate(w, state["s"])[1]) <= LINE_WIDTH_M / 2
+            reads.append((float(w[0]), float(w[1]), 1.0 if on else 0.0))
+        state["s"], off = course.locate(rig.world(mid)[:2], state["s"])
+        state["worst"] = max(state["worst"], abs(off))
+        state["lost"] = state["lost"] + 1.0 / CONTROL_HZ if abs(off) > half_span else 0.0
+        state["longest"] = max(state["longest"], state["lost"])
+
+    session.on_step = read
+    try:
+        read(session.time)
+        while session.time - t0 < budget and state["s"] < length:
+            k = _pursue(rig, np.array(reads), mid, look / LOOKAHEAD_PERIODS, mover.k_now, est)
+            mover.go(float(np.clip(k, -k_cap, k_cap)))
+    finally:
+        session.on_step = None
+    fig = {
+        "seconds": session.time - t0,
+        "line_progress_m": state["s"],
+        "planned_distance_m": length,
+        "line_lost_s": state["longest"],
+        "max_line_offset_m": state["worst"],
     }
     return fig, {"motion": SENSING["line-tracking"], "course": str(params["course"])}
 
@@ -843,7 +913,11 @@ LINE_OFFSETS, LINE_ANGLES, LINE_CURVES = (0.08, 0.002), (0.6, 0.02), (1.0, 0.25)
 
 
 def _locate_line(
-    reads: np.ndarray, here: np.ndarray, heading: float, bend: float
+    reads: np.ndarray,
+    here: np.ndarray,
+    heading: float,
+    bend: float,
+    prior: tuple[float, float, float] | None = None,
 ) -> tuple[float, float, float]:
     """The line near the sensors as the readings tell it: (offset m, + to the left, of the
     line from ``here`` across ``heading``; its angle rad from the heading; its curvature
@@ -866,10 +940,26 @@ def _locate_line(
         d = np.abs(ys[None, :] - (a[:, None] + t[:, None] * xs + c[:, None] * xs * xs / 2))
         score += np.where(on[None, :], d <= half, d >= half).sum(axis=1)
     best = score >= score.max() - 0.5
+    if prior is not None:  # (tracking: of the best, the nearest to the last estimate)
+        ang = np.arctan(t[best])
+        gap = (
+            np.abs(a[best] - prior[0]) / LINE_OFFSETS[1]
+            + np.abs(ang - prior[1]) / LINE_ANGLES[1]
+            + np.abs(c[best] - prior[2]) / LINE_CURVES[1]
+        )
+        i = int(np.argmin(gap))
+        return float(a[best][i]), float(ang[i]), float(c[best][i])
     return float(a[best].mean()), float(np.arctan(t[best]).mean()), float(c[best].mean())
 
 
-def _pursue(rig: Rig, reads: np.ndarray, mid: np.ndarray, travel: float, bend: float) -> float:
+def _pursue(
+    rig: Rig,
+    reads: np.ndarray,
+    mid: np.ndarray,
+    travel: float,
+    bend: float,
+    track: dict | None = None,
+) -> float:
     """The curvature rad/m of the trunk's next arc: the line near the sensors' midpoint
     (``mid``, trunk frame) as the readings within :data:`LINE_MEMORY_PERIODS` periods'
     ``travel`` tell it (:func:`_locate_line`, about the trunk's recent curvature
@@ -878,7 +968,10 @@ def _pursue(rig: Rig, reads: np.ndarray, mid: np.ndarray, travel: float, bend: f
     h = rig.heading()
     here = rig.world(mid)[:2]
     near = reads[np.hypot(*(reads[:, :2] - here).T) <= max(LINE_MEMORY_PERIODS * travel, 0.05)]
-    offset, angle, curve = _locate_line(near if len(near) else reads[-2:], here, h, bend)
+    prior = None if track is None else track.get("line")
+    offset, angle, curve = _locate_line(near if len(near) else reads[-2:], here, h, bend, prior)
+    if track is not None:
+        track["line"] = (offset, angle, curve)
     # the midpoint, ``front`` ahead of the trunk, after ``look`` m of an arc k moves
     # across by about k (look^2 / 2 + front look); the line there, ahead of it, by
     # offset + angle look + bend look^2 / 2
