@@ -48,7 +48,7 @@ simulated time (``program.script.LIMITS["sim_s"]``).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -547,6 +547,32 @@ def _line(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[
     return fig, {"motion": SENSING["line-tracking"], "course": str(params["course"])}
 
 
+def _line_reader(
+    course: Course, rig: Rig, mid: np.ndarray, state: dict, reads: list
+) -> Callable[[float], None]:
+    """The sensors read at :data:`CONTROL_HZ` while the robot moves (a session's
+    ``on_step``): every infrared reading appended to ``reads`` as (x, y, 1 if it saw the
+    line else 0), and in ``state`` how far along the line the sensors' midpoint ``mid`` is
+    (``s``), its largest offset (``worst``) and how long it has been, and at most was,
+    outside the sensors' span (``lost``, ``longest``); ``state["next"]`` is the next read."""
+    half_span = IR_SPACING_M / 2 + LINE_WIDTH_M / 2
+
+    def read(t: float) -> None:
+        if t < state["next"] - 1e-9:
+            return
+        state["next"] = t + 1.0 / CONTROL_HZ
+        for p in rig.ir:
+            w = rig.world(p)[:2]
+            on = abs(course.locate(w, state["s"])[1]) <= LINE_WIDTH_M / 2
+            reads.append((float(w[0]), float(w[1]), 1.0 if on else 0.0))
+        state["s"], off = course.locate(rig.world(mid)[:2], state["s"])
+        state["worst"] = max(state["worst"], abs(off))
+        state["lost"] = state["lost"] + 1.0 / CONTROL_HZ if abs(off) > half_span else 0.0
+        state["longest"] = max(state["longest"], state["lost"])
+
+    return read
+
+
 #: A drive that rolls on from its last turn (steered wheels) follows the line this far
 #: ahead of its sensors' midpoint (m, at least): it closes the line's offset and angle
 #: over it (:func:`_pursue`), and the loop's estimate weighs the readings within 1.5 x it.
@@ -572,23 +598,11 @@ def _line_rolling(session: Session, mover: _Driver, rig: Rig, params: Mapping) -
     budget = factor * length / max(mover.speed, 1e-6) + extra
     t0 = session.time
     state = {"s": 0.0, "next": t0, "lost": 0.0, "longest": 0.0, "worst": 0.0}
-    half_span = IR_SPACING_M / 2 + LINE_WIDTH_M / 2
     reads: list[tuple[float, float, float]] = [(*start, 1.0)]
     look = max(ROLLING_LOOKAHEAD_M, 2 * mover.speed / CONTROL_HZ)
     est: dict = {}  # the line as last located
 
-    def read(t: float) -> None:
-        if t < state["next"] - 1e-9:
-            return
-        state["next"] = t + 1.0 / CONTROL_HZ
-        for p in rig.ir:
-            w = rig.world(p)[:2]
-            on = abs(course.locate(w, state["s"])[1]) <= LINE_WIDTH_M / 2
-            reads.append((float(w[0]), float(w[1]), 1.0 if on else 0.0))
-        state["s"], off = course.locate(rig.world(mid)[:2], state["s"])
-        state["worst"] = max(state["worst"], abs(off))
-        state["lost"] = state["lost"] + 1.0 / CONTROL_HZ if abs(off) > half_span else 0.0
-        state["longest"] = max(state["longest"], state["lost"])
+    read = _line_reader(course, rig, mid, state, reads)
 
     session.on_step = read
     try:
@@ -869,24 +883,12 @@ def _line_strides(
     budget = factor * length / max(mover.v, 1e-6) + extra
     t0 = session.time
     state = {"s": 0.0, "next": t0, "lost": 0.0, "longest": 0.0, "worst": 0.0}
-    half_span = IR_SPACING_M / 2 + LINE_WIDTH_M / 2
     # it starts on the line, along it
     # every reading: (x, y) m where the sensor was, and whether it saw the line; it starts
     # with the line under the sensors' midpoint (which way it goes, it learns)
     reads: list[tuple[float, float, float]] = [(*start, 1.0)]
 
-    def read(t: float) -> None:
-        if t < state["next"] - 1e-9:
-            return
-        state["next"] = t + 1.0 / CONTROL_HZ
-        for p in rig.ir:
-            w = rig.world(p)[:2]
-            on = abs(course.locate(w, state["s"])[1]) <= LINE_WIDTH_M / 2
-            reads.append((float(w[0]), float(w[1]), 1.0 if on else 0.0))
-        state["s"], off = course.locate(rig.world(mid)[:2], state["s"])
-        state["worst"] = max(state["worst"], abs(off))
-        state["lost"] = state["lost"] + 1.0 / CONTROL_HZ if abs(off) > half_span else 0.0
-        state["longest"] = max(state["longest"], state["lost"])
+    read = _line_reader(course, rig, mid, state, reads)
 
     session.on_step = read
     try:
