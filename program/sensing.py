@@ -498,14 +498,9 @@ def _line(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[
     curve = TURN_GAIN * (1 / radius + 1 / lever)
     v, w = mover.fit(mover.speed, curve * mover.speed)
     mover.speed, curve = v, (w / v if v > 0 else 0.0)
-    mid = (rig.ir[0] + rig.ir[1]) / 2
-    start = rig.world(mid)[:2]
-    course = Course.make(str(params["course"]), radius, length, start, rig.heading())
-    session.scene_line = course.points
-    factor, extra = BUDGET["follow-line"]
-    budget = factor * length / max(mover.speed, 1e-6) + extra
-    t0 = session.time
-    state = {"s": 0.0, "turn": 0.0, "next": t0, "lost": 0.0, "longest": 0.0, "worst": 0.0}
+    mid, start, course, budget, state = _line_course(session, rig, params, mover.speed)
+    t0 = state["next"]
+    state["turn"] = 0.0
     half_span = IR_SPACING_M / 2 + LINE_WIDTH_M / 2
 
     def read(t: float) -> None:
@@ -536,13 +531,40 @@ def _line(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[
             mover.go(state["turn"] * curve)
     finally:
         session.on_step = None
-    s, longest, worst = state["s"], state["longest"], state["worst"]
+    return _line_outcome(session.time - t0, state, length, params)
+
+
+def _line_course(
+    session: Session, rig: Rig, params: Mapping, speed: float, tangent: bool = False
+) -> tuple[np.ndarray, np.ndarray, Course, float, dict]:
+    """A line-tracking run set up: the sensors' midpoint (in the trunk) and where it starts
+    (world x, y), the course laid from there along the heading (shown in the scene;
+    ``tangent``: see :meth:`Course.make`), the time allowed at ``speed`` m/s
+    (:data:`BUDGET`), and the reader's fresh ``state`` (:func:`_line_reader`; its
+    ``next`` read is now)."""
+    radius, length = (float(params[k]) for k in ("radius", "length"))
+    mid = (rig.ir[0] + rig.ir[1]) / 2
+    start = rig.world(mid)[:2]
+    kind = str(params["course"])
+    course = Course.make(kind, radius, length, start, rig.heading(), tangent=tangent)
+    session.scene_line = course.points
+    factor, extra = BUDGET["follow-line"]
+    budget = factor * length / max(speed, 1e-6) + extra
+    state = {"s": 0.0, "next": session.time, "lost": 0.0, "longest": 0.0, "worst": 0.0}
+    return mid, start, course, budget, state
+
+
+def _line_outcome(
+    seconds: float, state: Mapping, length: float, params: Mapping
+) -> tuple[dict, dict]:
+    """A line-tracking run's figures (from the reader's ``state``, :func:`_line_reader`)
+    and what it promised, for :func:`export.verdict.judge`."""
     fig = {
-        "seconds": session.time - t0,
-        "line_progress_m": s,
+        "seconds": seconds,
+        "line_progress_m": state["s"],
         "planned_distance_m": length,
-        "line_lost_s": longest,
-        "max_line_offset_m": worst,
+        "line_lost_s": state["longest"],
+        "max_line_offset_m": state["worst"],
     }
     return fig, {"motion": SENSING["line-tracking"], "course": str(params["course"])}
 
@@ -590,14 +612,8 @@ def _line_rolling(session: Session, mover: _Driver, rig: Rig, params: Mapping) -
     radius, length = (float(params[k]) for k in ("radius", "length"))
     mover.tightest()  # the steering limit's curvature, k_cap
     k_cap = mover.k_cap if mover.k_cap else math.inf
-    mid = (rig.ir[0] + rig.ir[1]) / 2
-    start = rig.world(mid)[:2]
-    course = Course.make(str(params["course"]), radius, length, start, rig.heading())
-    session.scene_line = course.points
-    factor, extra = BUDGET["follow-line"]
-    budget = factor * length / max(mover.speed, 1e-6) + extra
-    t0 = session.time
-    state = {"s": 0.0, "next": t0, "lost": 0.0, "longest": 0.0, "worst": 0.0}
+    mid, start, course, budget, state = _line_course(session, rig, params, mover.speed)
+    t0 = state["next"]
     reads: list[tuple[float, float, float]] = [(*start, 1.0)]
     look = max(ROLLING_LOOKAHEAD_M, 2 * mover.speed / CONTROL_HZ)
     est: dict = {}  # the line as last located
@@ -612,14 +628,7 @@ def _line_rolling(session: Session, mover: _Driver, rig: Rig, params: Mapping) -
             mover.go(float(np.clip(k, -k_cap, k_cap)))
     finally:
         session.on_step = None
-    fig = {
-        "seconds": session.time - t0,
-        "line_progress_m": state["s"],
-        "planned_distance_m": length,
-        "line_lost_s": state["longest"],
-        "max_line_offset_m": state["worst"],
-    }
-    return fig, {"motion": SENSING["line-tracking"], "course": str(params["course"])}
+    return _line_outcome(session.time - t0, state, length, params)
 
 
 def _avoid(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[dict, dict]:
@@ -873,16 +882,9 @@ def _line_strides(
     sensors' midpoint onto it (:func:`_pursue`)."""
     radius, length = (float(params[k]) for k in ("radius", "length"))
     mover.calibrate(rig)
-    mid = (rig.ir[0] + rig.ir[1]) / 2
-    start = rig.world(mid)[:2]
-    heading = rig.heading()
     # (a wave starts along the heading: the robot decides once a period, see Course.make)
-    course = Course.make(str(params["course"]), radius, length, start, heading, tangent=True)
-    session.scene_line = course.points
-    factor, extra = BUDGET["follow-line"]
-    budget = factor * length / max(mover.v, 1e-6) + extra
-    t0 = session.time
-    state = {"s": 0.0, "next": t0, "lost": 0.0, "longest": 0.0, "worst": 0.0}
+    mid, start, course, budget, state = _line_course(session, rig, params, mover.v, True)
+    t0 = state["next"]
     # it starts on the line, along it
     # every reading: (x, y) m where the sensor was, and whether it saw the line; it starts
     # with the line under the sensors' midpoint (which way it goes, it learns)
@@ -898,14 +900,7 @@ def _line_strides(
             mover.step(_pursue(rig, np.array(reads), mid, mover.travel, bend), rig)
     finally:
         session.on_step = None
-    fig = {
-        "seconds": session.time - t0,
-        "line_progress_m": state["s"],
-        "planned_distance_m": length,
-        "line_lost_s": state["longest"],
-        "max_line_offset_m": state["worst"],
-    }
-    return fig, {"motion": SENSING["line-tracking"], "course": str(params["course"])}
+    return _line_outcome(session.time - t0, state, length, params)
 
 
 #: The line hypotheses a line follower weighs (:func:`_locate_line`): its offset from
