@@ -1,0 +1,195 @@
+"""Issue 22's acceptance grid: requests across every robot type parmor designs (the shipped
+ones and types written in KIF alone, as a user writes them) over their documented ranges,
+each designed once as ``parmor design`` does with ``--robustness K`` (default 8). Per
+request: accepted or refused and why; for an accepted design, whether every behaviour of
+the abilities it keeps passed every perturbed run; for a refusal, whether it names the
+breaking perturbation (a robust refusal) or another cause (sizing, the catalog...).
+
+Nominal acceptance is read from the same run: a request refused as "not robust" passed the
+nominal verification (the refusal happens after it), one accepted passed it too.
+
+    python bench/robust_acceptance.py [K] [--jobs N] [--jsonl FILE] [--only SUBSTRING]
+
+The KIF types are this file's own (written like tests/test_bodyplan.py's generators, which
+they mirror), so that the grid does not depend on the tests folder.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import sys
+import tempfile
+from collections import defaultdict
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+for p in (REPO, REPO / "bench", REPO / "tests"):
+    if str(p) not in sys.path:
+        sys.path.insert(0, str(p))
+
+
+def _kifs() -> dict[str, str]:
+    from test_bodyplan import HEAVY, MOBILE, arm_kif, legged_kif
+
+    return {
+        "arm4": arm_kif(4),
+        "arm5": arm_kif(5),
+        "arm7": arm_kif(7),
+        "pentapod": legged_kif("Pentapod", 5, "five-leg-walking"),
+        "heptapod": legged_kif("Heptapod", 7, "seven-leg-walking"),
+        "octopod": legged_kif("Octopod", 8, "eight-leg-walking"),
+        "heavy": HEAVY,
+        "mobile": MOBILE,
+    }
+
+
+def _pay(*kg: str) -> list[list[str]]:
+    return [["--param", f"payload={k}kg"] for k in kg]
+
+
+#: (label, kif key or None, argv, variants): each variant appended to argv is one request.
+REQUESTS: list[tuple[str, str | None, list[str], list[list[str]]]] = [
+    ("HexapodRobot", None, ["rough-terrain-walking"], [*_pay("0", "0.1", "0.3"),
+        ["--param", "obstacle_height=1cm"], ["--param", "obstacle_height=3cm"]]),
+    ("QuadrupedRobot", None, ["walking", "--answer", "grasping=no", "--answer",
+        "rough-terrain-walking=no"], [*_pay("0", "0.1", "0.3"), ["--param", "speed=0.03m/s"]]),
+    ("HumanoidRobot", None, ["walking", "--answer", "grasping=yes"], _pay("0", "0.1", "0.3")),
+    ("HumanoidRobot", None, ["walking", "--answer", "grasping=no"], _pay("0", "0.1")),
+    ("SnakeRobot", None, ["sidewinding"], _pay("0", "0.1", "0.3")),
+    ("SnakeRobot", None, ["sidewinding", "obstacle-avoidance"], [[]]),
+    ("DifferentialDriveRobot", None, ["driving"], [*_pay("0", "0.5", "1"),
+        ["--param", "speed=0.1m/s"], ["--param", "speed=0.3m/s"]]),
+    ("DifferentialDriveRobot", None, ["driving", "line-tracking", "obstacle-avoidance"], [[]]),
+    ("SkidSteerRobot", None, ["driving"], _pay("1", "2", "3")),
+    ("Manipulator3DOF", None, ["pick-and-place", "--param", "object_shape=cylinder"],
+        [*_pay("0.05", "0.1", "0.2"), ["--param", "reach=0.2m"], ["--param", "reach=0.3m"]]),
+    ("Manipulator6DOF", None, ["pick-and-place", "--param", "object_shape=oval"],
+        [*_pay("0.05", "0.1", "0.2"), ["--param", "reach=0.2m"]]),
+    ("steered", None, ["steered-driving"], [*_pay("0.1", "0.5", "1"),
+        ["--param", "speed=0.2m/s"]]),
+    ("arm4", "arm4", ["positioning-4", "--answer", "orienting=no"], _pay("0.05", "0.1")),
+    ("arm5", "arm5", ["positioning-5", "--answer", "orienting=no"], _pay("0.05", "0.1")),
+    ("arm7", "arm7", ["positioning-7", "--answer", "orienting=yes"], _pay("0.05", "0.1")),
+    ("dof-arms", None, ["pick-and-place", "--param", "object_shape=cylinder"],
+        [["--param", "dof=4"], ["--param", "dof=5"]]),
+    ("pentapod", "pentapod", ["five-leg-walking"], [*_pay("0", "0.2"),
+        ["--param", "obstacle_height=2cm"]]),
+    ("heptapod", "heptapod", ["seven-leg-walking"], _pay("0", "0.2")),
+    ("octopod", "octopod", ["eight-leg-walking", "--catalog", "dynamixel"], _pay("0", "0.2")),
+    ("heavy", "heavy", ["heavy-walking"], _pay("0", "0.2")),
+    ("mobile", "mobile", ["driving", "pick-and-place", "--param", "object_shape=cylinder"],
+        [*_pay("0.05", "0.1"), ["--param", "speed=0.2m/s"]]),
+]  # fmt: skip
+
+
+def requests() -> list[tuple[str, str | None, list[str]]]:
+    return [(label, kif, [*argv, *v]) for label, kif, argv, vs in REQUESTS for v in vs]
+
+
+def design(job: tuple[str, str | None, list[str], int]) -> dict:
+    """One request designed with ``--robustness k``, in-process (no hint search)."""
+    import synth.verify
+    from synth.cli import main
+
+    label, kif, argv, k = job
+    synth.verify.best_value = lambda *a, **kw: None  # a refusal's hint only names a value
+    with tempfile.TemporaryDirectory() as tmp:
+        extra = []
+        if kif:
+            src = Path(tmp) / f"{kif}.kif"
+            src.write_text(_kifs()[kif])
+            extra = ["--ontology", str(src)]
+        out, err = io.StringIO(), io.StringIO()
+        code = main(
+            ["design", *argv, *extra, "--no-input", "--json", "--robustness", str(k)], out, err
+        )
+    text = out.getvalue()
+    rec = json.loads(text) if code == 0 and text.strip() else {}
+    why = err.getvalue().strip().splitlines()
+    robust = (rec.get("verified") or {}).get("robust") or {}
+    kept = set(rec.get("abilities", ()))
+    return {
+        "label": label,
+        "argv": argv,
+        "robot_type": rec.get("robot_type"),
+        "accepted": code == 0,
+        "nominal_ok": code == 0 or any("not robust" in line for line in why),
+        "all_runs_pass": bool(robust)
+        and all(b["passed"] == b["runs"] for b in robust["behaviors"] if b["ability"] in kept),
+        "runs_passed": sum(b["passed"] for b in robust.get("behaviors", [])),
+        "runs": sum(b["runs"] for b in robust.get("behaviors", [])),
+        "dropped": sorted((rec.get("verified") or {}).get("dropped") or {}),
+        "refusal": why[-1] if code and why else "",
+    }
+
+
+def grid(k: int = 8, jobs: int = 1, jsonl: str | None = None, only: str = "") -> list[str]:
+    todo = [(label, kif, argv, k) for label, kif, argv in requests() if only in label]
+    rows: list[dict] = []
+    sink = open(jsonl, "w") if jsonl else None  # noqa: SIM115
+    if jobs > 1:
+        with ProcessPoolExecutor(jobs) as pool:
+            results = pool.map(design, todo)
+            for row in results:
+                rows.append(row)
+                if sink:
+                    sink.write(json.dumps(row) + "\n")
+                    sink.flush()
+    else:
+        for job in todo:
+            row = design(job)
+            rows.append(row)
+            if sink:
+                sink.write(json.dumps(row) + "\n")
+                sink.flush()
+    if sink:
+        sink.close()
+    return report(rows, k)
+
+
+def report(rows: list[dict], k: int) -> list[str]:
+    per: dict[str, list[dict]] = defaultdict(list)
+    for r in rows:
+        per[r["label"]].append(r)
+    lines = [
+        f"Robust acceptance grid, K = {k}: {len(rows)} requests",
+        f"  {'type':<24} requests  nominal ok  robust ok  perturbed runs passed",
+    ]
+    for t, rs in per.items():
+        lines.append(
+            f"  {t:<24} {len(rs):>8}  {sum(r['nominal_ok'] for r in rs):>10}  "
+            f"{sum(r['accepted'] for r in rs):>9}  "
+            f"{sum(r['runs_passed'] for r in rs)} of {sum(r['runs'] for r in rs)}"
+        )
+    acc = [r for r in rows if r["accepted"]]
+    ok = sum(r["all_runs_pass"] for r in acc)
+    lines.append(
+        f"  accepted {len(acc)} of {len(rows)}; of them passing every perturbed run: "
+        f"{ok} ({100 * ok / max(1, len(acc)):.0f} %)"
+    )
+    for r in rows:
+        if not r["accepted"]:
+            lines.append(f"  refused {r['label']} {' '.join(r['argv'])}: {r['refusal'][:300]}")
+    return lines
+
+
+if __name__ == "__main__":
+    args = sys.argv[1:]
+    opts = {"--jsonl": None, "--jobs": "1", "--only": ""}
+    for key in opts:
+        if key in args:
+            i = args.index(key)
+            opts[key] = args[i + 1]
+            del args[i : i + 2]
+    print(
+        "\n".join(
+            grid(
+                int(args[0]) if args else 8,
+                int(opts["--jobs"] or 1),
+                opts["--jsonl"],
+                opts["--only"] or "",
+            )
+        )
+    )
