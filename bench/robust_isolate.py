@@ -41,15 +41,19 @@ def nominal(p: dict) -> dict:
     }
 
 
-def isolate(folder: str, behavior: str, seed: int) -> list[str]:
+def replays(folder: str, behavior: str, seed: int) -> tuple[dict, dict[str, dict]]:
+    """(perturbation ``seed`` of the bundle's table, case -> the run's judged figures):
+    the cases ``none`` (every component nominal), ``all`` (the whole perturbation) and one
+    per :data:`COMPONENTS` (that component alone). A bundle without a recorded table
+    (designed without --robustness) uses the shipped catalog's."""
     from adron.errors import InputError
     from export.mjcf import load_mjcf
-    from export.perturb import describe, draw, perturbed_model
-    from export.verdict import explain
+    from export.perturb import draw, perturbed_model
     from export.verify import (
         _simulate,
         bundle_parts,
         controller_for_model,
+        figures,
         folder_files,
         recorded_table,
     )
@@ -66,13 +70,24 @@ def isolate(folder: str, behavior: str, seed: int) -> list[str]:
     p = draw(table, seed)
     controller = controller_for_model(record, load_mjcf(xml, meshes))
     traj = controller.run(behavior)
-    lines = [f"{behavior} under {describe(p)}"]
     cases = {"none": nominal(p), "all": p}
     for name, keys in COMPONENTS.items():
         cases[name] = nominal(p) | {k: p[k] for k in keys}
+    out = {}
     for name, q in cases.items():
         model = perturbed_model(xml, meshes, table, q)
-        r = _simulate(model, controller, traj, None, None, q).to_dict()
+        out[name] = figures(traj, _simulate(model, controller, traj, None, None, q))
+    return p, out
+
+
+def isolate(folder: str, behavior: str, seed: int) -> list[str]:
+    """:func:`replays` as lines: each case's heading, distance, pose error and verdict."""
+    from export.perturb import describe
+    from export.verdict import explain
+
+    p, runs = replays(folder, behavior, seed)
+    lines = [f"{behavior} under {describe(p)}"]
+    for name, r in runs.items():
         why = explain(r, r["verdict"]) if r["verdict"] != "ok" else "ok"
         lines.append(
             f"  {name:<9} heading {r['heading_rad']:+.3f} (plan {r['planned_heading_rad']}) "
