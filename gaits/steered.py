@@ -92,7 +92,7 @@ STEER_SETTLE = 0.1
 #: servo's band under the tyre's scrub keeps it a little short of the commanded angle).
 LOCK_FRACTION = 0.9
 #: ``turning``'s arcs peak at this fraction of the top speed.
-TURN_SPEED_FRACTION = 0.5
+TURN_SPEED_FRACTION = 0.9
 #: Default minimum-jerk ramp of ``driving``, s.
 RAMP = 0.5
 #: Calibration runs (:meth:`SteeredController.calibration_probes`): ``driving`` on the
@@ -462,7 +462,7 @@ class SteeredController(Controller):
                         "seconds",
                         "float",
                         0.0,
-                        "duration of each arc (0: peak speed half the top speed)",
+                        f"duration of each arc (0: peak {TURN_SPEED_FRACTION:g} x the top speed)",
                         "s",
                         low=0.0,
                         high=600,
