@@ -202,6 +202,28 @@ def tube_stiffness(E: float, r_outer: float, r_inner: float, length: float) -> f
     return 3 * E * second_moment / max(length, 1e-9)
 
 
+def servo_play(r: Mapping[str, Any], model: str | None, act=None) -> tuple[list[float], float]:
+    """([low, high] backlash, dead band), rad, of a position servo ``model`` under the
+    resolved ranges ``r`` (:func:`ranges`): its gear material's backlash and its pulse dead
+    band over the catalog actuator ``act``'s travel (pi when unknown)."""
+    spec = r["servos"].get(model) or r["servos"]["default"]
+    travel = act.travel_rad if act is not None else math.pi
+    return list(r["gears"][spec["gears"]]), spec["deadband_share"] * travel
+
+
+def catalog_play(catalog, overrides: Mapping[str, Any] | None = None) -> dict[str, float]:
+    """Model -> the largest play (backlash + dead band, rad) a perturbation gives each
+    actuator of ``catalog`` (its ``[perturbation]`` table, then ``overrides``, over the
+    shipped ranges): what the verification loop compares to choose a servo with less play."""
+    own = json.loads(catalog.perturbation) if getattr(catalog, "perturbation", "") else {}
+    r = ranges(_merge(own, overrides or {}), getattr(catalog, "source", "catalog"))
+    out = {}
+    for act in catalog.actuators:
+        backlash, deadband = servo_play(r, act.model, act)
+        out[act.model] = backlash[1] + deadband
+    return out
+
+
 def design_table(
     record: Mapping[str, Any], xml: str, catalog, overrides: Mapping[str, Any] | None = None
 ) -> dict[str, Any]:
@@ -235,13 +257,11 @@ def design_table(
             if jname not in position:
                 continue
             model = (joints.get(jname) or {}).get("actuator")
-            spec = r["servos"].get(model) or r["servos"]["default"]
-            act = acts.get(model)
-            travel = act.travel_rad if act is not None else math.pi
+            backlash, deadband = servo_play(r, model, acts.get(model))
             servos[jname] = {
                 "model": model,
-                "backlash_rad": list(r["gears"][spec["gears"]]),
-                "deadband_rad": spec["deadband_share"] * travel,
+                "backlash_rad": backlash,
+                "deadband_rad": deadband,
                 "link_stiffness_Nm_rad": stiffness,
             }
     power = record.get("power") or {}

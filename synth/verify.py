@@ -50,6 +50,9 @@ if TYPE_CHECKING:
 MAX_ROUNDS = 3
 #: A saturated joint's next actuator must give at least this much more usable torque.
 STRONGER = 1.0001
+#: Sizings beyond ``MAX_ROUNDS`` that answer a perturbed run broken by the joints' play
+#: with servos of less play (``synth.robust.less_play``).
+PLAY_ROUNDS = 2
 #: A refusal's hint (:func:`best_value`): sizings with verification at most, and the
 #: bisection steps after the floor's test.
 HINT_ROUNDS = 7
@@ -71,6 +74,8 @@ class Verification:
     #: demanded abilities that no behaviour serves, accepted with --allow-unverified
     accepted_unsimulated: tuple[str, ...] = ()
     robust: dict | None = None  # the perturbed runs (synth.robust), None when not run
+    #: the servos swapped for less play (joint -> from, to) and the runs the play broke
+    play: dict | None = None
 
     def record(self) -> dict:
         out = {
@@ -85,6 +90,8 @@ class Verification:
             out["accepted_unsimulated"] = list(self.accepted_unsimulated)
         if self.robust is not None:
             out["robust"] = self.robust
+        if self.play is not None:
+            out["play"] = self.play
         return out
 
 
@@ -308,10 +315,23 @@ def _verified(
     from gaits import controller_for
     from gaits.base import DesignGeometry
     from program.sensing import verify_sensing
-    from synth.robust import failing_runs, not_robust, robust_check
+    from synth.robust import (
+        failing_runs,
+        less_play,
+        not_robust,
+        play_blame,
+        play_note,
+        robust_check,
+        robust_files,
+    )
     from synth.structure import StructureDesigner
 
     floors: dict[str, float] = {}
+    excluded: dict[str, frozenset[str]] = {}  # joint -> models too loose (their play)
+    first_model: dict[str, str] = {}  # joint -> its actuator before its play was answered
+    blamed: list[dict] = []  # the perturbed runs the play broke (synth.robust.play_blame)
+    stuck: list[str] = []  # joints the play broke that no model with less play serves
+    play = None
     rounds = 0
     while True:
         rounds += 1
@@ -328,9 +348,8 @@ def _verified(
         robust = None if failing else robust_check(designer, outcome, opts.robustness)
         more = _floors(results + failing_runs(robust), record)
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
-        if not (failing or not_robust(robust)) or not new or rounds >= MAX_ROUNDS:
+        if not (failing or not_robust(robust)):
             break
-        floors |= new
         sizer = StructureDesigner(
             designer.kb,
             outcome.design.chosen,
@@ -339,11 +358,33 @@ def _verified(
             opts.symmetric,
             opts.objective,
         )
+        looser: dict[str, frozenset[str]] = {}
+        if new and rounds < MAX_ROUNDS:
+            floors |= new
+        elif not failing and not new and rounds < MAX_ROUNDS + PLAY_ROUNDS:
+            # no actuator at its limit: does the joints' play break it? (measured)
+            if play is None:
+                from export.perturb import catalog_play
+
+                play = catalog_play(outcome.catalog)
+            models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
+            runs = play_blame(robust_files(designer, outcome), robust)
+            blamed = runs or blamed
+            looser, stuck = less_play(runs, models, sizer.assigner.serving, play, excluded)
+            if not looser:
+                break
+            for j in looser:
+                first_model.setdefault(j, models[j])
+            excluded |= looser
+        else:
+            break
         sizer.torque_floor = dict(floors)
+        sizer.excluded = dict(excluded)
         try:
             structure = sizer.run()
         except InfeasibleError:
-            break  # no stronger actuator: the failure below stands
+            stuck = sorted(set(stuck) | set(looser))
+            break  # no stronger actuator (or none with less play): the failure below stands
         outcome = replace(outcome, structure=structure, calibration=None)
     # which abilities no behaviour serves: the controller alone tells (no model needed)
     controller = controller_for(DesignGeometry.from_record(record))
@@ -364,7 +405,10 @@ def _verified(
         else:
             for a in sorted(mine):
                 dropped.setdefault(a, why)
+    models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
     for ability, why in not_robust(robust):
+        behavior = why.split(" is not robust", 1)[0]
+        why += play_note(blamed, behavior, stuck, play or {}, models)
         mine = {ability} | {a for a, s in served.items() if s == ability}
         if mine & needed:
             failure = failure or why
@@ -379,8 +423,32 @@ def _verified(
         unsimulated,
         failure,
         robust=robust,
+        play=_play_record(first_model, models, play or {}, blamed) if blamed else None,
     )
     out = replace(outcome, verification=v, bundle=files)
     if failure is not None:
         return replace(out, infeasible=failure)
     return out
+
+
+def _play_record(
+    first: Mapping[str, str],
+    models: Mapping[str, str],
+    play: Mapping[str, float],
+    blamed: list[dict],
+) -> dict:
+    """``verified.play``: each joint whose servo was swapped for one of less play (from,
+    to, their largest play in deg) and the perturbed runs the play broke (behaviour, seed,
+    failed criteria, the joints whose play broke it, the figures with and without play)."""
+    import math
+
+    def deg(m: str) -> float:
+        return round(math.degrees(play.get(m, 0.0)), 4)
+
+    return {
+        "swapped": {
+            j: {"from": m, "to": models.get(j), "play_deg": [deg(m), deg(models.get(j, ""))]}
+            for j, m in sorted(first.items())
+        },
+        "blamed": blamed,
+    }
