@@ -52,6 +52,13 @@ PLAY_SUFFIX = "/play"
 #: The play hinge's armature and damping as fractions of its servo's.
 PLAY_ARMATURE = 0.01
 PLAY_DAMPING = 0.01
+#: The play hinge's limit (``solreflimit``, ``solimplimit``): stiff, so that a loaded
+#: joint stays within its play (time constant twice the bundle's 2 ms step, the least
+#: MuJoCo keeps stable; impedance near 1). Measured on a 3-joint arm at its ready pose
+#: under gravity: the default soft limit let the shoulder's hinge sit at 1.125 deg for a
+#: half play of 0.548 deg; with these, at 0.552 deg.
+PLAY_SOLREF = "0.004 1"
+PLAY_SOLIMP = "0.99 0.999 0.001"
 #: Prefix of the payload's bodies (:func:`export.simulate.carrying_payload`): not scaled.
 PAYLOAD_PREFIX = "payload_"
 
@@ -412,6 +419,10 @@ def perturbed_xml(
                 "armature": _num(float(joint.get("armature") or 0.0) * PLAY_ARMATURE or 1e-7),
                 "damping": _num(float(joint.get("damping") or 0.0) * PLAY_DAMPING),
                 "limited": "true",
+                # a hard stop: MuJoCo's default soft limit (0.02 s, 0.9-0.95) lets a
+                # gravity-loaded joint sink past it by as much again as its play
+                "solreflimit": PLAY_SOLREF,
+                "solimplimit": PLAY_SOLIMP,
             }
             if joint.get("pos") is not None:
                 attrs["pos"] = joint.get("pos")

@@ -67,8 +67,8 @@ def play_blame(files: Mapping[str, str | bytes], robust: Mapping | None) -> list
     the same perturbation less the play): per run its behaviour, seed, failed criteria and
     the joints whose play must go for it to pass (up to ``BLAMED_RUNS`` runs a
     behaviour). A run that still fails without any play is not the play's (none listed)."""
-    if not robust:
-        return []
+    if not robust or not isinstance(robust.get("table"), Mapping):
+        return []  # no table: nothing to replay
     from export.verify import play_attribution
 
     out = []

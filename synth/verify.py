@@ -373,18 +373,32 @@ def _verified(
             looser, stuck = less_play(runs, models, sizer.assigner.serving, play, excluded)
             if not looser:
                 break
-            for j in looser:
-                first_model.setdefault(j, models[j])
-            excluded |= looser
         else:
             break
         sizer.torque_floor = dict(floors)
-        sizer.excluded = dict(excluded)
-        try:
-            structure = sizer.run()
-        except InfeasibleError:
+        structure = None
+        # all the joints the play broke at once; when no assignment holds them all, one
+        # at a time, the joint blamed in most runs first
+        blame = {j: sum(j in r["joints"] for r in blamed) for j in looser}
+        tries = [looser] + (
+            [{j: looser[j]} for j in sorted(looser, key=lambda j: (-blame[j], j))]
+            if len(looser) > 1
+            else []
+        )
+        for trial in tries:
+            sizer.excluded = excluded | trial
+            try:
+                structure = sizer.run()
+            except InfeasibleError:
+                continue
+            looser = trial
+            break
+        if structure is None:
             stuck = sorted(set(stuck) | set(looser))
             break  # no stronger actuator (or none with less play): the failure below stands
+        for j in looser:
+            first_model.setdefault(j, models[j])
+        excluded |= looser
         outcome = replace(outcome, structure=structure, calibration=None)
     # which abilities no behaviour serves: the controller alone tells (no model needed)
     controller = controller_for(DesignGeometry.from_record(record))
