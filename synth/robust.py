@@ -138,7 +138,7 @@ def play_note(
     tail = (
         f"; the catalog has no actuator with less play for {', '.join(left)}"
         if left
-        else "; no actuator with less play that holds their torque made it pass"
+        else "; no actuator of the catalog with less play holds their torque and makes it pass"
     )
     return f"; the play of {servos} breaks it (seed {seeds} passes with their play removed){tail}"
 

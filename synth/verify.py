@@ -330,6 +330,8 @@ def _verified(
     excluded: dict[str, frozenset[str]] = {}  # joint -> models too loose (their play)
     first_model: dict[str, str] = {}  # joint -> its actuator before its play was answered
     blamed: list[dict] = []  # the perturbed runs the play broke (synth.robust.play_blame)
+    history: list[dict] = []  # and those of every round, for the record
+    blamed_at = 0  # the round (sizing) they were measured on
     stuck: list[str] = []  # joints the play broke that no model with less play serves
     play = None
     rounds = 0
@@ -369,7 +371,8 @@ def _verified(
                 play = catalog_play(outcome.catalog)
             models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
             runs = play_blame(robust_files(designer, outcome), robust)
-            blamed = runs or blamed
+            blamed, blamed_at = runs, rounds
+            history += runs
             looser, stuck = less_play(runs, models, sizer.assigner.serving, play, excluded)
             if not looser:
                 break
@@ -394,7 +397,6 @@ def _verified(
             looser = trial
             break
         if structure is None:
-            stuck = sorted(set(stuck) | set(looser))
             break  # no stronger actuator (or none with less play): the failure below stands
         for j in looser:
             first_model.setdefault(j, models[j])
@@ -422,7 +424,8 @@ def _verified(
     models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
     for ability, why in not_robust(robust):
         behavior = why.split(" is not robust", 1)[0]
-        why += play_note(blamed, behavior, stuck, play or {}, models)
+        if blamed_at == rounds:  # measured on the design as it stands
+            why += play_note(blamed, behavior, stuck, play or {}, models)
         mine = {ability} | {a for a, s in served.items() if s == ability}
         if mine & needed:
             failure = failure or why
@@ -437,7 +440,7 @@ def _verified(
         unsimulated,
         failure,
         robust=robust,
-        play=_play_record(first_model, models, play or {}, blamed) if blamed else None,
+        play=_play_record(first_model, models, play or {}, history) if history else None,
     )
     out = replace(outcome, verification=v, bundle=files)
     if failure is not None:
