@@ -8,7 +8,9 @@ perturbed run that failed with an actuator at its limit feeds the same loop as a
 one (:func:`failing_runs`: each saturated joint gets a stronger actuator, the design is
 sized again); a behaviour still not robust then fails a demanded ability (the request is
 refused naming the behaviour, the perturbation that broke it and its figures against the
-thresholds) or drops a bonus one (:func:`not_robust`).
+thresholds) or drops a bonus one (:func:`not_robust`). A failed perturbed run that the
+joints' play breaks (:func:`play_blame`, measured by replays) gets servos of less play for
+those joints (:func:`less_play`); a refusal then names them (:func:`play_note`).
 
 The runs use the bundle as the user gets it (robot.xml without the payload, which
 design.json places as ``parmor simulate`` does), so that ``parmor simulate DIR --perturb

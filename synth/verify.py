@@ -13,6 +13,15 @@ again, up to ``MAX_ROUNDS`` sizings. What still fails then:
 - a behaviour of an ability the design only has as a bonus drops that ability from the
   design's ``abilities``, with a note.
 
+Under ``--robustness K`` the behaviours that passed run under K perturbations too
+(:mod:`synth.robust`): a perturbed run with an actuator at its limit feeds the same torque
+floors; one that the joints' play breaks (measured: replayed with the same perturbation
+less the play, it passes; :func:`synth.robust.play_blame`) excludes, for the joints whose
+play it is, their servo and every servo of the catalog with as much play
+(:func:`synth.robust.less_play`), and the structure is sized again (the servo with less
+play must still hold the joint's torque), up to ``PLAY_ROUNDS`` sizings more; the record's
+``verified.play`` names each swap and the runs that called for it.
+
 Before each round's verification, a controller whose open-loop model needs figures only a
 run can give (:meth:`gaits.base.Controller.calibration_probes`: a skid-steer's effective
 track and turning load) has its probe runs simulated and the design's ``calibration``
