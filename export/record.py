@@ -318,7 +318,7 @@ def verification_text(verified: dict | None, indent: str = "  ") -> str:
         broke = sorted({r["behavior"] for r in play.get("blamed", ()) if j in r["joints"]})
         out.append(
             f"{indent}  less play {j}: {sw['from']} -> {sw['to']} (play up to "
-            f"{sw['play_deg'][0]:g} -> {sw['play_deg'][1]:g} deg): its play broke "
+            f"{sw['play_deg'][0]:.2f} -> {sw['play_deg'][1]:.2f} deg): its play broke "
             f"{', '.join(broke) or 'a behaviour'} under perturbation"
         )
     for a, why in verified.get("dropped", {}).items():
