@@ -341,6 +341,7 @@ def _verified(
     blamed: list[dict] = []  # the perturbed runs the play broke (synth.robust.play_blame)
     history: list[dict] = []  # and those of every round, for the record
     blamed_at = 0  # the round (sizing) they were measured on
+    torque_done = False  # a stronger actuator was asked for and none could be had
     stuck: list[str] = []  # joints the play broke that no model with less play serves
     play = None
     rounds = 0
@@ -369,11 +370,17 @@ def _verified(
             opts.symmetric,
             opts.objective,
         )
-        looser: dict[str, frozenset[str]] = {}
-        if new and rounds < MAX_ROUNDS:
+        structure = None
+        if new and rounds < MAX_ROUNDS and not torque_done:
             floors |= new
-        elif not failing and not new and rounds < MAX_ROUNDS + PLAY_ROUNDS:
-            # no actuator at its limit: does the joints' play break it? (measured)
+            sizer.torque_floor = dict(floors)
+            sizer.excluded = dict(excluded)
+            try:
+                structure = sizer.run()
+            except InfeasibleError:
+                torque_done = True  # no stronger actuator: is it the play? (below)
+        if structure is None and not failing and rounds < MAX_ROUNDS + PLAY_ROUNDS:
+            # no stronger actuator answers it: does the joints' play break it? (measured)
             if play is None:
                 from export.perturb import catalog_play
 
@@ -383,33 +390,25 @@ def _verified(
             blamed, blamed_at = runs, rounds
             history += runs
             looser, stuck = less_play(runs, models, sizer.assigner.serving, play, excluded)
-            if not looser:
+            sizer.torque_floor = dict(floors)
+            # all the joints the play broke at once; when no assignment holds them all,
+            # one at a time, the joint blamed in most runs first
+            blame = {j: sum(j in r["joints"] for r in blamed) for j in looser}
+            tries = [looser] if looser else []
+            if len(looser) > 1:
+                tries += [{j: looser[j]} for j in sorted(looser, key=lambda j: (-blame[j], j))]
+            for trial in tries:
+                sizer.excluded = excluded | trial
+                try:
+                    structure = sizer.run()
+                except InfeasibleError:
+                    continue
+                for j in trial:
+                    first_model.setdefault(j, models[j])
+                excluded |= trial
                 break
-        else:
-            break
-        sizer.torque_floor = dict(floors)
-        structure = None
-        # all the joints the play broke at once; when no assignment holds them all, one
-        # at a time, the joint blamed in most runs first
-        blame = {j: sum(j in r["joints"] for r in blamed) for j in looser}
-        tries = [looser] + (
-            [{j: looser[j]} for j in sorted(looser, key=lambda j: (-blame[j], j))]
-            if len(looser) > 1
-            else []
-        )
-        for trial in tries:
-            sizer.excluded = excluded | trial
-            try:
-                structure = sizer.run()
-            except InfeasibleError:
-                continue
-            looser = trial
-            break
         if structure is None:
-            break  # no stronger actuator (or none with less play): the failure below stands
-        for j in looser:
-            first_model.setdefault(j, models[j])
-        excluded |= looser
+            break  # no stronger actuator, none with less play: the failure below stands
         outcome = replace(outcome, structure=structure, calibration=None)
     # which abilities no behaviour serves: the controller alone tells (no model needed)
     controller = controller_for(DesignGeometry.from_record(record))
