@@ -142,7 +142,8 @@ def play_note(
         if left
         else "; no actuator of the catalog with less play holds their torque and makes it pass"
     )
-    return f"; the play of {servos} breaks it (seed {seeds} passes with their play removed){tail}"
+    which = f"seeds {seeds} pass" if len(runs) > 1 else f"seed {seeds} passes"
+    return f"; the play of {servos} breaks it ({which} with their play removed){tail}"
 
 
 def failing_runs(robust: Mapping | None) -> list[dict]:

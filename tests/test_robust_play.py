@@ -112,7 +112,7 @@ def test_no_servo_with_less_play_is_refused_naming_it(kif, tmp_path: Path, cli):
     assert "cannot build it: " in r.err and " is not robust: passed 0 of 2 perturbed runs" in r.err
     assert "seed 1 (friction x1, slope 0 deg" in r.err
     assert "broke it: placing (placing error" in r.err
-    assert "breaks it (seed 1, 2 passes with their play removed)" in r.err
+    assert "breaks it (seeds 1, 2 pass with their play removed)" in r.err
     assert "the catalog has no actuator with less play for " in r.err
 
 
