@@ -5,7 +5,11 @@ process: as ``parmor design`` does by default (nominal verification) and with
 the nominal model, perturbed runs passing, and why the refused ones were refused. The
 refusals' hint search (the largest payload that works) is left out: it only names a value.
 
-    python bench/robust_grid.py [K] [--jsonl FILE]
+    python bench/robust_grid.py [K] [--jsonl FILE] [--arms]
+
+``--arms``: the arms' grid instead (``ARM_KINDS`` x ``ARM_PAYLOADS`` x ``ARM_REACHES``):
+the 3-joint arm (a cylinder), the 6-joint arm (an oval) and KIF-only arms of 4, 5 and 7
+joints (``tests/test_bodyplan.py``'s ``arm_kif``), each payload and reach.
 """
 
 from __future__ import annotations
@@ -34,19 +38,62 @@ def design(argv: list[str]) -> tuple[int, dict | None, str]:
     return code, json.loads(text) if text.strip() else None, err.getvalue().strip()
 
 
-def grid(k: int = 8, jsonl: str | None = None) -> list[str]:
+#: The arms' grid (``--arms``): (name, request, KIF arm joints or 0 for a shipped type).
+ARM_KINDS = (
+    ("Manipulator3DOF", ["pick-and-place", "--param", "object_shape=cylinder"], 0),
+    ("Manipulator6DOF", ["pick-and-place", "--param", "object_shape=oval"], 0),
+    ("Arm4Joints", ["positioning-4", "--answer", "orienting=no"], 4),
+    ("Arm5Joints", ["positioning-5", "--answer", "orienting=no"], 5),
+    ("Arm7Joints", ["positioning-7", "--answer", "orienting=yes"], 7),
+)
+ARM_PAYLOADS = ("0.05kg", "0.1kg", "0.2kg")
+ARM_REACHES = ("0.2m", "0.3m")
+
+
+def arm_requests(folder: Path) -> dict[str, list[list[str]]]:
+    """The arms' grid: name -> its requests (the KIF arms' ontologies written in
+    ``folder``)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("bodyplan", REPO / "tests" / "test_bodyplan.py")
+    mod = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+    spec.loader.exec_module(mod)  # type: ignore[union-attr]
+    out: dict[str, list[list[str]]] = {}
+    for name, argv, joints in ARM_KINDS:
+        extra: list[str] = []
+        if joints:
+            kif = folder / f"{name}.kif"
+            kif.write_text(mod.arm_kif(joints))
+            extra = ["--ontology", str(kif)]
+        out[name] = [
+            [*argv, *extra, "--param", f"payload={m}", "--param", f"reach={r}"]
+            for m in ARM_PAYLOADS
+            for r in ARM_REACHES
+        ]
+    return out
+
+
+def grid(k: int = 8, jsonl: str | None = None, arms: bool = False) -> list[str]:
+    import tempfile
+
     import synth.verify
     from bench import TYPE_REQUESTS
 
     synth.verify.best_value = lambda *a, **kw: None  # no hint search
     rows = []
     sink = open(jsonl, "w") if jsonl else None  # noqa: SIM115
-    for robot_type, argv in TYPE_REQUESTS.items():
-        for variant in VARIANTS:
-            args = [a for a in argv]
-            if variant and "--param" in args and variant[1].split("=")[0] in " ".join(args):
-                continue  # the request sets it already
-            args += list(variant)
+    tmp = tempfile.TemporaryDirectory()
+    if arms:
+        requests = arm_requests(Path(tmp.name))
+    else:
+        requests = {
+            t: [[*argv, *variant] for variant in VARIANTS] for t, argv in TYPE_REQUESTS.items()
+        }
+    for robot_type, variants in requests.items():
+        for args in variants:
+            params = [args[i + 1].split("=")[0] for i, a in enumerate(args) if a == "--param"]
+            if len(params) != len(set(params)):
+                continue  # a variant of a parameter the request sets already
             code0, rec0, _ = design(args)
             code1, rec1, why = design([*args, "--robustness", str(k)])
             nominal = (rec0 or {}).get("verified", {}).get("behaviors", [])
@@ -73,6 +120,7 @@ def grid(k: int = 8, jsonl: str | None = None) -> list[str]:
                 },
                 "dropped": sorted(((rec1 or {}).get("verified") or {}).get("dropped", {})),
                 "refusal": why.splitlines()[-1] if code1 else "",
+                "swapped": ((rec1 or {}).get("verified") or {}).get("play", {}).get("swapped", {}),
             }
             rows.append(row)
             if sink:
@@ -80,6 +128,7 @@ def grid(k: int = 8, jsonl: str | None = None) -> list[str]:
                 sink.flush()
     if sink:
         sink.close()
+    tmp.cleanup()
     per: dict[str, list[dict]] = defaultdict(list)
     for r in rows:
         per[r["type"]].append(r)
@@ -109,4 +158,6 @@ if __name__ == "__main__":
         i = args.index("--jsonl")
         path = args[i + 1]
         del args[i : i + 2]
-    print("\n".join(grid(int(args[0]) if args else 8, path)))
+    arms = "--arms" in args
+    args = [a for a in args if a != "--arms"]
+    print("\n".join(grid(int(args[0]) if args else 8, path, arms)))

@@ -52,6 +52,13 @@ PLAY_SUFFIX = "/play"
 #: The play hinge's armature and damping as fractions of its servo's.
 PLAY_ARMATURE = 0.01
 PLAY_DAMPING = 0.01
+#: The play hinge's limit (``solreflimit``, ``solimplimit``): stiff, so that a loaded
+#: joint stays within its play (time constant twice the bundle's 2 ms step, the least
+#: MuJoCo keeps stable; impedance near 1). Measured on a 3-joint arm at its ready pose
+#: under gravity: the default soft limit let the shoulder's hinge sit at 1.125 deg for a
+#: half play of 0.548 deg; with these, at 0.552 deg.
+PLAY_SOLREF = "0.004 1"
+PLAY_SOLIMP = "0.99 0.999 0.001"
 #: Prefix of the payload's bodies (:func:`export.simulate.carrying_payload`): not scaled.
 PAYLOAD_PREFIX = "payload_"
 
@@ -202,6 +209,28 @@ def tube_stiffness(E: float, r_outer: float, r_inner: float, length: float) -> f
     return 3 * E * second_moment / max(length, 1e-9)
 
 
+def servo_play(r: Mapping[str, Any], model: str | None, act=None) -> tuple[list[float], float]:
+    """([low, high] backlash, dead band), rad, of a position servo ``model`` under the
+    resolved ranges ``r`` (:func:`ranges`): its gear material's backlash and its pulse dead
+    band over the catalog actuator ``act``'s travel (pi when unknown)."""
+    spec = r["servos"].get(model) or r["servos"]["default"]
+    travel = act.travel_rad if act is not None else math.pi
+    return list(r["gears"][spec["gears"]]), spec["deadband_share"] * travel
+
+
+def catalog_play(catalog, overrides: Mapping[str, Any] | None = None) -> dict[str, float]:
+    """Model -> the largest play (backlash + dead band, rad) a perturbation gives each
+    actuator of ``catalog`` (its ``[perturbation]`` table, then ``overrides``, over the
+    shipped ranges): what the verification loop compares to choose a servo with less play."""
+    own = json.loads(catalog.perturbation) if getattr(catalog, "perturbation", "") else {}
+    r = ranges(_merge(own, overrides or {}), getattr(catalog, "source", "catalog"))
+    out = {}
+    for act in catalog.actuators:
+        backlash, deadband = servo_play(r, act.model, act)
+        out[act.model] = backlash[1] + deadband
+    return out
+
+
 def design_table(
     record: Mapping[str, Any], xml: str, catalog, overrides: Mapping[str, Any] | None = None
 ) -> dict[str, Any]:
@@ -235,13 +264,11 @@ def design_table(
             if jname not in position:
                 continue
             model = (joints.get(jname) or {}).get("actuator")
-            spec = r["servos"].get(model) or r["servos"]["default"]
-            act = acts.get(model)
-            travel = act.travel_rad if act is not None else math.pi
+            backlash, deadband = servo_play(r, model, acts.get(model))
             servos[jname] = {
                 "model": model,
-                "backlash_rad": list(r["gears"][spec["gears"]]),
-                "deadband_rad": spec["deadband_share"] * travel,
+                "backlash_rad": backlash,
+                "deadband_rad": deadband,
                 "link_stiffness_Nm_rad": stiffness,
             }
     power = record.get("power") or {}
@@ -392,6 +419,10 @@ def perturbed_xml(
                 "armature": _num(float(joint.get("armature") or 0.0) * PLAY_ARMATURE or 1e-7),
                 "damping": _num(float(joint.get("damping") or 0.0) * PLAY_DAMPING),
                 "limited": "true",
+                # a hard stop: MuJoCo's default soft limit (0.02 s, 0.9-0.95) lets a
+                # gravity-loaded joint sink past it by as much again as its play
+                "solreflimit": PLAY_SOLREF,
+                "solimplimit": PLAY_SOLIMP,
             }
             if joint.get("pos") is not None:
                 attrs["pos"] = joint.get("pos")

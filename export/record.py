@@ -313,6 +313,14 @@ def verification_text(verified: dict | None, indent: str = "  ") -> str:
         out.append(f"{indent}  {b['behavior']:<22} {verdict:<8} {', '.join(figs)}")
     for j, t in verified.get("strengthened", {}).items():
         out.append(f"{indent}  strengthened {j}: saturated in simulation, sized for >= {t:.3f} N m")
+    play = verified.get("play") or {}
+    for j, sw in play.get("swapped", {}).items():
+        broke = sorted({r["behavior"] for r in play.get("blamed", ()) if j in r["joints"]})
+        out.append(
+            f"{indent}  less play {j}: {sw['from']} -> {sw['to']} (play up to "
+            f"{sw['play_deg'][0]:.2f} -> {sw['play_deg'][1]:.2f} deg): its play broke "
+            f"{', '.join(broke) or 'a behaviour'} under perturbation"
+        )
     for a, why in verified.get("dropped", {}).items():
         out.append(f"{indent}  dropped {a}: {why}")
     if verified.get("not_simulated"):

@@ -493,3 +493,53 @@ def robust_failure(robust: Mapping) -> dict[str, str]:
             f"(needs {robust['required']}); {worst['perturbation']} broke it: {worst['why']}"
         )
     return out
+
+
+def play_attribution(
+    files: Mapping[str, str | bytes], table: Mapping, behavior: str, seed: int
+) -> dict | None:
+    """Does the joints' play break behaviour ``behavior`` of a bundle under perturbation
+    ``seed`` of ``table``? Measured by replays of that very perturbation: with every
+    position servo's play removed (the rest unchanged) the run must pass, else None (the
+    play alone does not break it; None too when the run passes as it is). Then the play
+    of each symmetry group of joints (the record's ``group``: alike joints get alike
+    servos) is put back, the smallest play first, and kept when the run still passes: the
+    groups left are those whose play must go. ``{"verdict": [...], "joints": [...],
+    "figures": {"with": ..., "without": ...}}`` (the failed criteria, the joints whose
+    play breaks it, the :func:`_criteria` figures of the run with and without play)."""
+    from export.mjcf import load_mjcf
+    from export.perturb import draw, perturbed_model
+
+    record, xml, meshes = bundle_parts(files)
+    controller = controller_for_model(record, load_mjcf(xml, meshes))
+    traj = controller.run(behavior)
+    p = draw(table, seed)
+    full = dict(p["play_rad"])
+
+    def run(removed: set[str]) -> dict:
+        q = dict(p, play_rad={j: (0.0 if j in removed else v) for j, v in full.items()})
+        return figures(
+            traj, _simulate(perturbed_model(xml, meshes, table, q), controller, traj, None, None, q)
+        )
+
+    before = run(set())
+    if before["verdict"] == "ok":
+        return None
+    without = run(set(full))
+    if without["verdict"] != "ok":
+        return None
+    group_of = {j["name"]: j.get("group") or j["name"] for j in record.get("joints", ())}
+    groups: dict[str, list[str]] = {}
+    for j in full:
+        groups.setdefault(group_of.get(j, j), []).append(j)
+    order = sorted(groups, key=lambda g: (max(full[j] for j in groups[g]), g))
+    removed = set(full)
+    for g in order:
+        trial = removed - set(groups[g])
+        if run(trial)["verdict"] == "ok":
+            removed = trial
+    return {
+        "verdict": list(before["verdict"]),
+        "joints": sorted(removed),
+        "figures": {"with": _criteria(before), "without": _criteria(without)},
+    }

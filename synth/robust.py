@@ -8,7 +8,9 @@ perturbed run that failed with an actuator at its limit feeds the same loop as a
 one (:func:`failing_runs`: each saturated joint gets a stronger actuator, the design is
 sized again); a behaviour still not robust then fails a demanded ability (the request is
 refused naming the behaviour, the perturbation that broke it and its figures against the
-thresholds) or drops a bonus one (:func:`not_robust`).
+thresholds) or drops a bonus one (:func:`not_robust`). A failed perturbed run that the
+joints' play breaks (:func:`play_blame`, measured by replays) gets servos of less play for
+those joints (:func:`less_play`); a refusal then names them (:func:`play_note`).
 
 The runs use the bundle as the user gets it (robot.xml without the payload, which
 design.json places as ``parmor simulate`` does), so that ``parmor simulate DIR --perturb
@@ -31,23 +33,117 @@ def robust_check(designer: Designer, outcome: Outcome, k: int) -> dict | None:
     its table; None when ``k`` is 0."""
     if k <= 0 or outcome.structure is None or outcome.catalog is None:
         return None
-    from export.bundle import bundle_files
     from export.perturb import design_table
     from export.verify import bundle_parts, verify_robust
 
-    rec = outcome.record(designer)
-    files = bundle_files(
-        rec,
+    files = robust_files(designer, outcome)
+    record, xml, _ = bundle_parts(files)
+    # through JSON as design.json keeps it: the replay draws from the very same numbers
+    table = json.loads(json.dumps(design_table(record, xml, outcome.catalog)))
+    return verify_robust(files, k, table)
+
+
+def robust_files(designer: Designer, outcome: Outcome) -> dict[str, str | bytes]:
+    """The bundle the perturbed runs use (as the user gets it: robot.xml without the
+    payload, which design.json places)."""
+    from export.bundle import bundle_files
+
+    return bundle_files(
+        outcome.record(designer),
         outcome.structure,
         outcome.catalog,
         with_payload=outcome.with_payload,
         pictures=False,
         simulated_only=True,
     )
-    record, xml, _ = bundle_parts(files)
-    # through JSON as design.json keeps it: the replay draws from the very same numbers
-    table = json.loads(json.dumps(design_table(record, xml, outcome.catalog)))
-    return verify_robust(files, k, table)
+
+
+#: Failed perturbed runs of a behaviour that are replayed to tell whether the joints' play
+#: breaks it (the worst first: most criteria failed, then the lowest seed).
+BLAMED_RUNS = 3
+
+
+def play_blame(files: Mapping[str, str | bytes], robust: Mapping | None) -> list[dict]:
+    """The failed perturbed runs of the behaviours that are not robust which the joints'
+    play breaks, measured (:func:`export.verify.play_attribution`: each run replayed with
+    the same perturbation less the play): per run its behaviour, seed, failed criteria and
+    the joints whose play must go for it to pass (up to ``BLAMED_RUNS`` runs a
+    behaviour). A run that still fails without any play is not the play's (none listed)."""
+    if not robust or not isinstance(robust.get("table"), Mapping):
+        return []  # no table: nothing to replay
+    from export.verify import play_attribution
+
+    out = []
+    for b in robust["behaviors"]:
+        if b["robust"]:
+            continue
+        worst = sorted(b["failures"], key=lambda f: (-len(f["verdict"]), f["seed"]))
+        for f in worst[:BLAMED_RUNS]:
+            found = play_attribution(files, robust["table"], b["behavior"], f["seed"])
+            if found is not None:
+                out.append({"behavior": b["behavior"], "seed": f["seed"]} | found)
+    return out
+
+
+def less_play(
+    blamed: list[dict],
+    models: Mapping[str, str],
+    serving: Mapping[str, tuple[str, ...]],
+    play: Mapping[str, float],
+    excluded: Mapping[str, frozenset[str]],
+) -> tuple[dict[str, frozenset[str]], list[str]]:
+    """The play feedback of the verification loop: for each joint whose play broke a run
+    (``blamed``, :func:`play_blame`), the models it may no longer have: its actuator
+    (``models``: joint -> model) and every one with as much play (``play``: model -> the
+    largest play, :func:`export.perturb.catalog_play`), when a model that serves it
+    (``serving``) has less. (joint -> models excluded, new entries only; the blamed joints
+    that no model with less play serves)."""
+    out: dict[str, frozenset[str]] = {}
+    stuck = []
+    for joint in sorted({j for run in blamed for j in run["joints"]}):
+        model = models.get(joint)
+        if model not in play:
+            continue
+        worse = frozenset(m for m in play if play[m] >= play[model])
+        better = [m for m in serving.get(joint, ()) if m not in worse]
+        if not better:
+            stuck.append(joint)
+            continue
+        ex = excluded.get(joint, frozenset()) | worse
+        if ex != excluded.get(joint):
+            out[joint] = ex
+    return out, stuck
+
+
+def play_note(
+    blamed: list[dict],
+    behavior: str,
+    stuck: list[str],
+    play: Mapping[str, float],
+    models: Mapping[str, str],
+) -> str:
+    """What a refusal adds when the play broke ``behavior``: the joints whose play it is
+    (measured), their actuators and play, and that the catalog has none with less play
+    that holds their torque; "" when the play did not break it."""
+    import math
+
+    runs = [r for r in blamed if r["behavior"] == behavior]
+    if not runs:
+        return ""
+    joints = sorted({j for r in runs for j in r["joints"]})
+    seeds = ", ".join(str(r["seed"]) for r in runs)
+    servos = ", ".join(
+        f"{j} ({models.get(j)}, up to {math.degrees(play.get(models.get(j), 0.0)):.2g} deg)"
+        for j in joints
+    )
+    left = [j for j in joints if j in stuck]
+    tail = (
+        f"; the catalog has no actuator with less play for {', '.join(left)}"
+        if left
+        else "; no actuator of the catalog with less play holds their torque and makes it pass"
+    )
+    which = f"seeds {seeds} pass" if len(runs) > 1 else f"seed {seeds} passes"
+    return f"; the play of {servos} breaks it ({which} with their play removed){tail}"
 
 
 def failing_runs(robust: Mapping | None) -> list[dict]:

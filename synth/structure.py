@@ -425,6 +425,9 @@ class StructureDesigner:
         #: joint -> torque N m it must be sized for at least (the verification loop's
         #: feedback: a joint that saturated in simulation needs more than its actuator gave)
         self.torque_floor: dict[str, float] = {}
+        #: joint -> models it may not have (the verification loop's feedback: a servo whose
+        #: play broke a behaviour under perturbation, and those with as much play)
+        self.excluded: dict[str, frozenset[str]] = {}
 
     def _undominated(self) -> dict[str, tuple[str, ...]]:
         """Per joint, its serving models less those dominated among the models that serve
@@ -648,6 +651,12 @@ class StructureDesigner:
             if s.name in req.holds:
                 points.append(req.holds[s.name][:2])
             names = (self.undominated if pruned else self.assigner.serving).get(s.name, ())
+            if s.name in self.excluded:  # pruning was among the models excluded too
+                names = [
+                    n
+                    for n in self.assigner.serving.get(s.name, ())
+                    if n not in self.excluded[s.name]
+                ]
             if not names:
                 out[s.name] = []
                 continue

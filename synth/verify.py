@@ -13,6 +13,15 @@ again, up to ``MAX_ROUNDS`` sizings. What still fails then:
 - a behaviour of an ability the design only has as a bonus drops that ability from the
   design's ``abilities``, with a note.
 
+Under ``--robustness K`` the behaviours that passed run under K perturbations too
+(:mod:`synth.robust`): a perturbed run with an actuator at its limit feeds the same torque
+floors; one that the joints' play breaks (measured: replayed with the same perturbation
+less the play, it passes; :func:`synth.robust.play_blame`) excludes, for the joints whose
+play it is, their servo and every servo of the catalog with as much play
+(:func:`synth.robust.less_play`), and the structure is sized again (the servo with less
+play must still hold the joint's torque), up to ``PLAY_ROUNDS`` sizings more; the record's
+``verified.play`` names each swap and the runs that called for it.
+
 Before each round's verification, a controller whose open-loop model needs figures only a
 run can give (:meth:`gaits.base.Controller.calibration_probes`: a skid-steer's effective
 track and turning load) has its probe runs simulated and the design's ``calibration``
@@ -50,6 +59,9 @@ if TYPE_CHECKING:
 MAX_ROUNDS = 3
 #: A saturated joint's next actuator must give at least this much more usable torque.
 STRONGER = 1.0001
+#: Sizings beyond ``MAX_ROUNDS`` that answer a perturbed run broken by the joints' play
+#: with servos of less play (``synth.robust.less_play``).
+PLAY_ROUNDS = 2
 #: A refusal's hint (:func:`best_value`): sizings with verification at most, and the
 #: bisection steps after the floor's test.
 HINT_ROUNDS = 7
@@ -71,6 +83,8 @@ class Verification:
     #: demanded abilities that no behaviour serves, accepted with --allow-unverified
     accepted_unsimulated: tuple[str, ...] = ()
     robust: dict | None = None  # the perturbed runs (synth.robust), None when not run
+    #: the servos swapped for less play (joint -> from, to) and the runs the play broke
+    play: dict | None = None
 
     def record(self) -> dict:
         out = {
@@ -85,6 +99,8 @@ class Verification:
             out["accepted_unsimulated"] = list(self.accepted_unsimulated)
         if self.robust is not None:
             out["robust"] = self.robust
+        if self.play is not None:
+            out["play"] = self.play
         return out
 
 
@@ -308,10 +324,26 @@ def _verified(
     from gaits import controller_for
     from gaits.base import DesignGeometry
     from program.sensing import verify_sensing
-    from synth.robust import failing_runs, not_robust, robust_check
+    from synth.robust import (
+        failing_runs,
+        less_play,
+        not_robust,
+        play_blame,
+        play_note,
+        robust_check,
+        robust_files,
+    )
     from synth.structure import StructureDesigner
 
     floors: dict[str, float] = {}
+    excluded: dict[str, frozenset[str]] = {}  # joint -> models too loose (their play)
+    first_model: dict[str, str] = {}  # joint -> its actuator before its play was answered
+    blamed: list[dict] = []  # the perturbed runs the play broke (synth.robust.play_blame)
+    history: list[dict] = []  # and those of every round, for the record
+    blamed_at = 0  # the round (sizing) they were measured on
+    torque_done = False  # a stronger actuator was asked for and none could be had
+    stuck: list[str] = []  # joints the play broke that no model with less play serves
+    play = None
     rounds = 0
     while True:
         rounds += 1
@@ -328,9 +360,8 @@ def _verified(
         robust = None if failing else robust_check(designer, outcome, opts.robustness)
         more = _floors(results + failing_runs(robust), record)
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
-        if not (failing or not_robust(robust)) or not new or rounds >= MAX_ROUNDS:
+        if not (failing or not_robust(robust)):
             break
-        floors |= new
         sizer = StructureDesigner(
             designer.kb,
             outcome.design.chosen,
@@ -339,11 +370,45 @@ def _verified(
             opts.symmetric,
             opts.objective,
         )
-        sizer.torque_floor = dict(floors)
-        try:
-            structure = sizer.run()
-        except InfeasibleError:
-            break  # no stronger actuator: the failure below stands
+        structure = None
+        if new and rounds < MAX_ROUNDS and not torque_done:
+            floors |= new
+            sizer.torque_floor = dict(floors)
+            sizer.excluded = dict(excluded)
+            try:
+                structure = sizer.run()
+            except InfeasibleError:
+                torque_done = True  # no stronger actuator: is it the play? (below)
+        if structure is None and not failing and rounds < MAX_ROUNDS + PLAY_ROUNDS:
+            # no stronger actuator answers it: does the joints' play break it? (measured)
+            if play is None:
+                from export.perturb import catalog_play
+
+                play = catalog_play(outcome.catalog)
+            models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
+            runs = play_blame(robust_files(designer, outcome), robust)
+            blamed, blamed_at = runs, rounds
+            history += runs
+            looser, stuck = less_play(runs, models, sizer.assigner.serving, play, excluded)
+            sizer.torque_floor = dict(floors)
+            # all the joints the play broke at once; when no assignment holds them all,
+            # one at a time, the joint blamed in most runs first
+            blame = {j: sum(j in r["joints"] for r in blamed) for j in looser}
+            tries = [looser] if looser else []
+            if len(looser) > 1:
+                tries += [{j: looser[j]} for j in sorted(looser, key=lambda j: (-blame[j], j))]
+            for trial in tries:
+                sizer.excluded = excluded | trial
+                try:
+                    structure = sizer.run()
+                except InfeasibleError:
+                    continue
+                for j in trial:
+                    first_model.setdefault(j, models[j])
+                excluded |= trial
+                break
+        if structure is None:
+            break  # no stronger actuator, none with less play: the failure below stands
         outcome = replace(outcome, structure=structure, calibration=None)
     # which abilities no behaviour serves: the controller alone tells (no model needed)
     controller = controller_for(DesignGeometry.from_record(record))
@@ -364,7 +429,11 @@ def _verified(
         else:
             for a in sorted(mine):
                 dropped.setdefault(a, why)
+    models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
     for ability, why in not_robust(robust):
+        behavior = why.split(" is not robust", 1)[0]
+        if blamed_at == rounds:  # measured on the design as it stands
+            why += play_note(blamed, behavior, stuck, play or {}, models)
         mine = {ability} | {a for a, s in served.items() if s == ability}
         if mine & needed:
             failure = failure or why
@@ -379,8 +448,32 @@ def _verified(
         unsimulated,
         failure,
         robust=robust,
+        play=_play_record(first_model, models, play or {}, history) if history else None,
     )
     out = replace(outcome, verification=v, bundle=files)
     if failure is not None:
         return replace(out, infeasible=failure)
     return out
+
+
+def _play_record(
+    first: Mapping[str, str],
+    models: Mapping[str, str],
+    play: Mapping[str, float],
+    blamed: list[dict],
+) -> dict:
+    """``verified.play``: each joint whose servo was swapped for one of less play (from,
+    to, their largest play in deg) and the perturbed runs the play broke (behaviour, seed,
+    failed criteria, the joints whose play broke it, the figures with and without play)."""
+    import math
+
+    def deg(m: str) -> float:
+        return round(math.degrees(play.get(m, 0.0)), 4)
+
+    return {
+        "swapped": {
+            j: {"from": m, "to": models.get(j), "play_deg": [deg(m), deg(models.get(j, ""))]}
+            for j, m in sorted(first.items())
+        },
+        "blamed": blamed,
+    }

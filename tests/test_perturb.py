@@ -228,7 +228,7 @@ def test_backlash_breaks_a_design_that_passes_nominally(parts) -> None:
     names = ["pick-and-place", "positioning"]
     tight = verify_robust(files, 2, table_of(parts, NEUTRAL), names)
     assert all(b["robust"] and b["passed"] == 2 for b in tight["behaviors"])
-    play = {"plastic": ["2 deg", "3 deg"], "metal": ["2 deg", "3 deg"]}
+    play = {"plastic": ["5 deg", "6 deg"], "metal": ["5 deg", "6 deg"]}
     loose = verify_robust(files, 2, table_of(parts, with_(gears=play)), names)
     for b in loose["behaviors"]:
         assert not b["robust"] and b["passed"] == 0
@@ -280,7 +280,7 @@ def test_a_seed_reproduces_a_failure(arm, parts, tmp_path: Path, cli) -> None:
     """The record's figures of a failed perturbed run are what ``parmor simulate --perturb
     SEED --json`` gives, from the bundle alone."""
     files = parts[0]
-    play = {"plastic": ["1 deg", "3 deg"], "metal": ["1 deg", "3 deg"]}
+    play = {"plastic": ["3 deg", "7 deg"], "metal": ["3 deg", "7 deg"]}
     robust = verify_robust(files, 3, table_of(parts, with_(gears=play)), ["positioning"])
     folder = tmp_path / "bundle"
     shutil.copytree(arm, folder)
