@@ -228,7 +228,7 @@ def test_backlash_breaks_a_design_that_passes_nominally(parts) -> None:
     names = ["pick-and-place", "positioning"]
     tight = verify_robust(files, 2, table_of(parts, NEUTRAL), names)
     assert all(b["robust"] and b["passed"] == 2 for b in tight["behaviors"])
-    play = {"plastic": ["2 deg", "3 deg"], "metal": ["2 deg", "3 deg"]}
+    play = {"plastic": ["4 deg", "5 deg"], "metal": ["4 deg", "5 deg"]}
     loose = verify_robust(files, 2, table_of(parts, with_(gears=play)), names)
     for b in loose["behaviors"]:
         assert not b["robust"] and b["passed"] == 0
