@@ -280,7 +280,7 @@ def test_a_seed_reproduces_a_failure(arm, parts, tmp_path: Path, cli) -> None:
     """The record's figures of a failed perturbed run are what ``parmor simulate --perturb
     SEED --json`` gives, from the bundle alone."""
     files = parts[0]
-    play = {"plastic": ["1 deg", "3 deg"], "metal": ["1 deg", "3 deg"]}
+    play = {"plastic": ["3 deg", "5 deg"], "metal": ["3 deg", "5 deg"]}
     robust = verify_robust(files, 3, table_of(parts, with_(gears=play)), ["positioning"])
     folder = tmp_path / "bundle"
     shutil.copytree(arm, folder)
