@@ -36,7 +36,23 @@ about 11 mm of the ankle. The gait shapes (``WALK``, ``RUN``) were therefore tun
 parameter search in MuJoCo on the default design (40 cm tall): a shallow crouch
 (hip-ankle 96 % of the leg, knees near 0.6 rad as in the sizing's load case), small
 steps (12 % of the leg), a high foot lift, and 80 % of the lateral sway to the stance
-ankle (a full sway rolls the ankle's actuator box onto the floor).
+ankle (a full sway rolls the ankle's actuator box onto the floor). The standing
+behaviours (grasping, balancing) keep that crouch (``STANCE``).
+
+The walk under perturbation (``parmor design --robustness``, ``export.perturb``): that
+gait fell in 8 of 8 perturbed runs of the default design. Replayed one perturbation at a
+time (``bench/robust_humanoid.py``), the servos' play alone broke it, and of the play the
+hip pitch's cost distance: the trunk's weight pitched the stance hip about a load near
+zero, so each landing took up the play the other way, about 4 mm a step (0.77 x the
+planned distance, whatever the seed); a high foot lift and a fast step then rocked the
+robot sideways over its ankles' play until it fell. ``WALK`` is now tuned for the
+perturbed runs (a parameter search on seeds 11-26, checked on seeds 1-8 and 19-50): the
+arms held back (``arms``, 0.6 rad at the shoulders, in the plan's COM) keep the stance
+hips' load one-sided, so their play stays taken up; a lower foot lift (8 % of the leg:
+soft landings), a slower step (1.1 s at the reference leg) with a longer double support
+(45 %), a lower hip (92 %) and 75 % of the sway. Its perturbed runs pass 38 of 48 (the
+old gait: 1 of 48); none falls (the trunk tilts at most 7 deg); most failures left are
+a walk short of 0.8 x its plan.
 
 The servos' give. A position servo is a spring (``kp``, N m/rad) with a velocity gain
 (``kv`` plus the motor's back-EMF, N m s/rad): it settles ``tau / kp`` short of its
@@ -95,6 +111,7 @@ __all__ = [
     "MAP_SIZES",
     "REACH_SHOULDER",
     "RUN",
+    "STANCE",
     "WALK",
     "ConversionMaps",
     "GaitPlan",
@@ -129,8 +146,9 @@ MAP_RATIOS = (0.0, 0.5, 1.0, 1.25)
 REFERENCE_SIZE = 0.09
 #: Leg length (femur + tibia, m) at which a ``GaitShape``'s step period is given.
 REFERENCE_LEG = 2 * REFERENCE_SIZE
-#: Harmonics of the stride frequency kept per joint (besides the mean).
-HARMONICS = 8
+#: Harmonics of the stride frequency kept per joint (besides the mean): 9 keep the walk's
+#: 45 % double support within 0.01 rad at every fitted size (8 did for the former 25 %).
+HARMONICS = 9
 SAMPLES = 256  # samples of one stride of a reference gait
 CROUCH_TIME = 1.0  # s from q = 0 to the gait's mean pose
 SAMPLE_DT = 0.01  # s between trajectory samples
@@ -180,6 +198,15 @@ def leg_ik(ankle: np.ndarray, femur: float, tibia: float) -> np.ndarray:
     return np.stack([np.zeros_like(x), roll, hip, knee, -(hip + knee), -roll], axis=-1)
 
 
+def _with_arms(
+    model_names: tuple[str, ...], names: tuple[str, ...], q: np.ndarray, arms: float
+) -> np.ndarray:
+    """:func:`_q_full` of the leg angles ``q`` with both shoulders' pitch at ``arms`` rad."""
+    shoulders = _joint_names(ARM_JOINTS[:1])
+    held = np.full((q.shape[0], len(shoulders)), arms)
+    return _q_full(model_names, names + shoulders, np.concatenate([q, held], axis=1))
+
+
 def _joint_names(part: tuple[str, ...]) -> tuple[str, ...]:
     return tuple(f"{s}_{j}" for s in SIDES for j in part)
 
@@ -205,7 +232,9 @@ class GaitShape:
     step with both feet down; ``height`` hip-ankle distance / L with the COM over the
     stance ankle (< 1: crouched); ``step`` default step length / L; ``lift`` swing foot
     lift / L; ``sway`` lateral ZMP position in single support as a fraction of half the
-    hip width (1: under the stance ankle).
+    hip width (1: under the stance ankle); ``arms`` the shoulders' pitch rad held through
+    the gait (positive: the arms back), part of the whole-body COM the gait is planned
+    with (see :data:`WALK`).
     """
 
     name: str
@@ -215,6 +244,7 @@ class GaitShape:
     step: float
     lift: float
     sway: float
+    arms: float = 0.0
 
     def period(self, leg: float) -> float:
         """Step period s of legs of length ``leg`` m: ``step_period`` scaled with
@@ -225,8 +255,12 @@ class GaitShape:
         return self.step_period * float(np.sqrt(leg / REFERENCE_LEG))
 
 
-#: The walking gait: tuned in MuJoCo on the default design (see the module docstring).
-WALK = GaitShape("walking", 0.75, 0.25, 0.96, 0.12, 0.12, 0.8)
+#: The walking gait: tuned in MuJoCo on the default design under perturbation (see the
+#: module docstring).
+WALK = GaitShape("walking", 1.1, 0.45, 0.92, 0.13, 0.08, 0.75, 0.6)
+#: The crouch of the standing behaviours (grasping, balancing): the hip-ankle height and
+#: the sway of the walk tuned on the nominal model (the module docstring).
+STANCE = GaitShape("stance", 0.75, 0.25, 0.96, 0.12, 0.12, 0.8)
 #: The faster gait (``running``): a shorter period and double support, longer steps. Its
 #: period is bounded by the servos' speed at the smallest legs: the same Froude number gives
 #: short legs fast joints (``1 / sqrt(leg)``), and at the 40 mm leg modules a 0.5 s step
@@ -381,7 +415,9 @@ def reference_gait(
             [leg_ik(ankles[k] - pelvis - hips[k], femur, tibia) for k in range(2)], axis=1
         )
         offset = (
-            center_of_mass(model, _q_full(q_names, names, q)) if com_model is None else com_model(q)
+            center_of_mass(model, _with_arms(q_names, names, q, shape.arms))
+            if com_model is None
+            else com_model(q)
         )
         zc = pelvis_z + float(offset[:, 2].mean())
     com[:, 2] = pelvis_z + offset[:, 2]
@@ -1172,7 +1208,18 @@ class HumanoidController(Controller):
                     f"{tightest:.3g} rad/m)"
                 )
             info.update(motion="arc", curvature_rad_m=curvature)
-        return self._trajectory(shape.name, CROUCH_TIME + plan.end, legs, info)
+        return self._trajectory(
+            shape.name, CROUCH_TIME + plan.end, legs, info, partial(self._held_arms, shape=shape)
+        )
+
+    @staticmethod
+    def _held_arms(t: np.ndarray, shape: GaitShape) -> np.ndarray:
+        """(n, 6) arm angles of a gait: the shoulders' pitch ``shape.arms`` reached with the
+        crouch and held, the elbows and grippers at 0."""
+        s = shape.arms * _smooth(t / CROUCH_TIME)
+        zero = np.zeros_like(t)
+        one = np.stack([s, zero, zero], axis=1)
+        return np.concatenate([one, one], axis=1)
 
     def max_curvature(
         self, legs: Callable[[np.ndarray], np.ndarray], duration: float, curvature: float
@@ -1200,7 +1247,7 @@ class HumanoidController(Controller):
         m beside them (the pelvis moved back and sideways), at the walking gait's stance
         height."""
         hw = self.template.lengths["hip_width"] / 2
-        height = stance_height(WALK, self.leg, hw)
+        height = stance_height(STANCE, self.leg, hw)
         ankle = np.stack([dx, -y, np.full_like(dx, -height)], axis=1)
         one = leg_ik(ankle, self.femur, self.tibia)  # both legs alike, side by side
         return np.concatenate([one, one], axis=1)
