@@ -41,19 +41,22 @@ behaviours (grasping, balancing) keep that crouch, and walking on an arc that ga
 (``ARC``).
 
 The walk under perturbation (``parmor design --robustness``, ``export.perturb``): that
-gait fell in 8 of 8 perturbed runs of the default design. Replayed one perturbation at a
-time (``bench/robust_humanoid.py``), the servos' play alone broke it, and of the play the
-hip pitch's cost distance: the trunk's weight pitched the stance hip about a load near
-zero, so each landing took up the play the other way, about 4 mm a step (0.77 x the
-planned distance, whatever the seed); a high foot lift and a fast step then rocked the
-robot sideways over its ankles' play until it fell. ``WALK`` is now tuned for the
-perturbed runs (a parameter search on seeds 11-26, checked on seeds 1-8 and 19-50): the
-arms held back (``arms``, 0.6 rad at the shoulders, in the plan's COM) keep the stance
-hips' load one-sided, so their play stays taken up; a lower foot lift (8 % of the leg:
-soft landings), a slower step (1.1 s at the reference leg) with a longer double support
-(45 %), a lower hip (92 %) and 75 % of the sway. Its perturbed runs pass 38 of 48 (the
-old gait: 1 of 48); none falls (the trunk tilts at most 7 deg); most failures left are
-a walk short of 0.8 x its plan.
+gait fell in 32 of 48 perturbed runs of the default design and passed 3. Replayed one
+perturbation at a time (``bench/robust_humanoid.py``), the servos' play alone broke it;
+a high foot lift and a fast step rocked the robot sideways over its ankles' and hips'
+play until it fell. A lower lift stopped the falls, but then the hip pitch's play cost
+distance: the trunk's weight loads the stance hip about zero, so each landing took up
+its play the other way, about 4 mm a step (0.77 x the planned distance, whatever the
+seed). ``WALK`` is now tuned for the perturbed runs (a parameter search on seeds 11-26,
+checked on seeds 1-48): the arms held back (``arms``, 0.6 rad at the shoulders, in the
+plan's COM) keep the stance hips' load one-sided, so their play stays taken up; a foot
+lift of 8 % of the leg (soft landings), a slower step (1.1 s at the reference leg) with a
+longer double support (45 %), a lower hip (92 %) and 75 % of the sway. Its perturbed
+runs pass 38 of 48 on the same design, none falls (the trunk tilts at most 8 deg); the
+10 failed runs fail distance (8: short of 0.8 x the plan; 3 of them also progress),
+heading (1) or saturation (1). With the SG90s' play as metal gears' (0.3-0.6 deg and
+a 5 us dead band) it passes 21 of seeds 1-24 (22 with the plastic play): the play left
+is not what limits it.
 
 The servos' give. A position servo is a spring (``kp``, N m/rad) with a velocity gain
 (``kv`` plus the motor's back-EMF, N m s/rad): it settles ``tau / kp`` short of its
