@@ -8,14 +8,17 @@ the bus latency alone, ...; ``all``: the whole draw, what ``--robustness`` runs)
 play of one joint group at a time (``GROUPS``). ``--servo MODEL=GEARS:DEADBAND`` overrides
 the perturbation table's servo entry (e.g. ``SG90=metal:5us``: what a metal-geared servo
 with a smaller dead band would give), ``--play-stop-steps N`` the play hinges' end-stop
-time constant (``export.perturb.PLAY_STOP_STEPS``; 10 is MuJoCo's default 0.02 s).
+time constant (``export.perturb.PLAY_STOP_STEPS``; 10 is MuJoCo's default 0.02 s);
+``--walk robust``: walking is ``gaits.humanoid.ROBUST_WALK`` (tuned for the perturbed
+runs) instead of the default walk, in the designs' sizing too.
 
 ``grid``: the humanoid requests (walking with grasping; payload default, 0, 0.1 and
 0.3 kg) designed as ``bench/robust_grid.py`` does, nominal and with ``--robustness K``:
 accepted before -> after and the perturbed runs that passed.
 
-    python bench/robust_humanoid.py isolate [K] [--servo M=G:D] [--play-stop-steps N] [ARGS..]
-    python bench/robust_humanoid.py grid [K]
+    python bench/robust_humanoid.py isolate [K] [--servo M=G:D] [--play-stop-steps N]
+        [--walk robust] [ARGS..]
+    python bench/robust_humanoid.py grid [K] [--play-stop-steps N] [--walk robust]
 """
 
 from __future__ import annotations
@@ -173,6 +176,14 @@ if __name__ == "__main__":
 
         i = args.index("--play-stop-steps")
         export.perturb.PLAY_STOP_STEPS = float(args[i + 1])
+        del args[i : i + 2]
+    if "--walk" in args:
+        i = args.index("--walk")
+        if args[i + 1] != "robust":
+            sys.exit(f"--walk {args[i + 1]}: the only alternative walk is 'robust'")
+        import gaits.humanoid
+
+        gaits.humanoid.WALK = gaits.humanoid.ROBUST_WALK
         del args[i : i + 2]
     k = int(args.pop(0)) if args and args[0].isdigit() else 8
     if what == "grid":

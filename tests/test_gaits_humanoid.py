@@ -150,12 +150,8 @@ def test_reference_gait_joint_angles_put_the_feet_on_the_planned_path(gait):
     for k in range(2):
         np.testing.assert_allclose(ankles[k], gait.ankles[k] - gait.pelvis, atol=1e-9)
     np.testing.assert_allclose(rotations, np.broadcast_to(np.eye(3), rotations.shape), atol=1e-9)
-    # the multibody COM (the shoulders held at the gait's ``arms``) follows the pendulum's
-    # (pelvis placed by iteration)
-    held = np.full((len(gait.q), 2), WALK.arms)
-    names = (*gait.joints, "l_shoulder_pitch", "r_shoulder_pitch")
-    com = center_of_mass(tmpl.model, _full(tmpl.model, names, np.hstack([gait.q, held])))
-    com = com + gait.pelvis
+    # the multibody COM follows the pendulum's (pelvis placed by iteration)
+    com = center_of_mass(tmpl.model, _full(tmpl.model, gait.joints, gait.q)) + gait.pelvis
     np.testing.assert_allclose(com[:, :2], gait.com[:, :2], atol=2e-4)
     # one foot at a time leaves the ground, by the planned lift
     lift = gait.ankles[:, :, 2] - gait.ankles[:, :, 2].min()
@@ -316,10 +312,10 @@ def test_bad_parameters_raise(controller, name, params):
 
 
 def _landings(controller, traj):
-    """At each planned touchdown (by FK; a foot more than 1 mm above the other lifts):
+    """At each planned touchdown (by FK; a foot more than 3 mm above the other lifts):
     (which foot landed: +1 left, -1 right, how far it is in front of the other, m)."""
     ankles, _ = _ankles(controller.template, traj.joints, traj.positions)
-    up = ankles[:, :, 2] - ankles[:, :, 2].min(axis=0) > 0.001  # (2, n)
+    up = ankles[:, :, 2] - ankles[:, :, 2].min(axis=0) > 0.003  # (2, n)
     out = []
     for foot, sign in ((0, 1.0), (1, -1.0)):
         for k in np.flatnonzero(up[foot, :-1] & ~up[foot, 1:]):
@@ -339,14 +335,9 @@ def test_walking_takes_the_steps_it_promises(controller, direction):
     info = traj.info
     assert info["motion"] == "straight" and info["locomotion"] == "legged"
     assert info["body_length_m"] == pytest.approx(controller.leg)
-    # the planned pose is the joints' own odometry: the crouch's shift of the trunk over
-    # the feet (the arms held back: forward) and about the 5 steps, straight ahead
-    planned = info.get("planned_positions", traj.positions)
-    crouched = odometry(controller.template, traj.joints, planned[traj.times <= 1.0 + 1e-9])
+    # the planned pose is the joints' own odometry: about the 5 steps, straight ahead
     dx, dy, dyaw = info["planned_pose"]
-    assert 0 < crouched[-1, 0] < s if WALK.arms > 0 else True
-    assert dx - crouched[-1, 0] == pytest.approx(sign * 5 * s, rel=0.1)
-    assert abs(dy) < 0.05 * s and dyaw == 0
+    assert dx == pytest.approx(sign * 5 * s, rel=0.1) and abs(dy) < 0.05 * s and dyaw == 0
     assert info["expected_distance_m"] == pytest.approx(abs(dx), rel=1e-3)
     landings = _landings(controller, traj)
     ahead = landings[:, 1]
@@ -565,11 +556,10 @@ def test_default_design_keeps_every_promise(design, name):
     assert fig["verdict"] == "ok", fig
 
 
-def test_default_design_runs_too_far_when_the_servos_give(design):
+def test_default_design_walks_too_far_when_the_servos_give(design):
     """The servos lag their references (velocity gain) and give under the stance loads:
-    commanded the bare angles, the default design runs about 1.3 x its plan (the walk,
-    slower since it was tuned under perturbation, went 1.006 x; with the give 1.001 x)."""
-    fig = _verdict(design, "running", compensated=False)
+    commanded the bare angles, the default design walks about 1.3 x its plan."""
+    fig = _verdict(design, "walking", compensated=False)
     assert "distance" in fig["verdict"], fig
     assert fig["distance_m"] > 1.25 * fig["planned_distance_m"]
 

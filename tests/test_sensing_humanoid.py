@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gaits.humanoid import ARC
 from program import sensing
 
 ASK = ("design", "walking", "grasping", "line-tracking", "obstacle-avoidance")
@@ -75,11 +74,10 @@ def test_an_arc_turns_the_hips_and_plans_the_turn(humanoid) -> None:
         assert dyaw == pytest.approx(k * arc.info["path_length_m"], rel=1e-9)
         assert math.copysign(1, dy) == math.copysign(1, k)
         amplitude[k] = np.abs(arc.info.get("planned_positions", arc.positions)[:, yaw]).max()
-        # every other joint is the straight walk's of the arcs' gait (gaits.humanoid.ARC)
+        # every other joint is the straight walk's
         others = [j for j in range(len(c.joints)) if j not in yaw]
         plan = arc.info.get("planned_positions", arc.positions)
-        on_arc = c._gait(ARC, 2, float(arc.info["step_length_m"]), "forward")
-        base = on_arc.info.get("planned_positions", on_arc.positions)
+        base = straight.info.get("planned_positions", straight.positions)
         assert np.allclose(plan[:, others], base[:, others])
     assert amplitude[8.0] == pytest.approx(2 * amplitude[4.0], rel=1e-6)
     assert amplitude[-8.0] == pytest.approx(amplitude[8.0], rel=1e-6)
