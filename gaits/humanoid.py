@@ -240,7 +240,7 @@ class GaitShape:
     lift / L; ``sway`` lateral ZMP position in single support as a fraction of half the
     hip width (1: under the stance ankle); ``arms`` the shoulders' pitch rad held through
     the gait (positive: the arms back), part of the whole-body COM the gait is planned
-    with (see :data:`WALK`).
+    with (see :data:`ROBUST_WALK`).
     """
 
     name: str
@@ -1161,24 +1161,22 @@ class HumanoidController(Controller):
             )
         if name == "grasping":
             return self._grasping(float(params["hold"]))
-        curvature = float(params.get("curvature") or 0.0)  # type: ignore[arg-type]
         shape = WALK if name == WALK.name else RUN
         return self._gait(
             shape,
             int(params["steps"]),
             float(params["step_length"]),
             str(params["direction"]),
-            curvature,
+            float(params.get("curvature") or 0.0),  # type: ignore[arg-type]
         )
 
     def _gait(
         self, shape: GaitShape, steps: int, step: float, direction: str, curvature: float = 0.0
     ) -> Trajectory:
-        name = shape.name
         lo, hi = leg_module_range()
         if not lo - 1e-12 <= self.size <= hi + 1e-12:
             raise ValueError(
-                f"{name}: leg module {self.size * 1000:.1f} mm is outside the conversion "
+                f"{shape.name}: leg module {self.size * 1000:.1f} mm is outside the conversion "
                 f"maps' sizes {lo * 1000:.0f}-{hi * 1000:.0f} mm (not extrapolated)"
             )
         maps = conversion_maps(shape.name)
@@ -1217,7 +1215,7 @@ class HumanoidController(Controller):
                 )
             info.update(motion="arc", curvature_rad_m=curvature)
         return self._trajectory(
-            name, CROUCH_TIME + plan.end, legs, info, partial(self._held_arms, shape=shape)
+            shape.name, CROUCH_TIME + plan.end, legs, info, partial(self._held_arms, shape=shape)
         )
 
     @staticmethod
