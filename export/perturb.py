@@ -52,12 +52,14 @@ PLAY_SUFFIX = "/play"
 #: The play hinge's armature and damping as fractions of its servo's.
 PLAY_ARMATURE = 0.01
 PLAY_DAMPING = 0.01
-#: The play hinge's limit (``solreflimit``, ``solimplimit``): stiff, so that a loaded
-#: joint stays within its play (time constant twice the bundle's 2 ms step, the least
-#: MuJoCo keeps stable; impedance near 1). Measured on a 3-joint arm at its ready pose
-#: under gravity: the default soft limit let the shoulder's hinge sit at 1.125 deg for a
-#: half play of 0.548 deg; with these, at 0.552 deg.
-PLAY_SOLREF = "0.004 1"
+#: The play hinge's end stops (gear teeth meeting): MuJoCo limits of time constant
+#: ``PLAY_STOP_STEPS`` physics steps (``solreflimit``; 2, the stiffest MuJoCo integrates
+#: stably) and impedance near 1 (``PLAY_SOLIMP``). MuJoCo's default (0.02 s, 0.9-0.95)
+#: scales a stop's stiffness with the light body behind the hinge: a foot's stop gave
+#: about 5 N m/rad, a seventh of its servo's kp, and bent 5-6 deg past a 1 deg play under
+#: the robot's weight; a 3-joint arm's shoulder at its ready pose sat at 1.125 deg for a
+#: half play of 0.548 deg. With these: 0.552 deg.
+PLAY_STOP_STEPS = 2
 PLAY_SOLIMP = "0.99 0.999 0.001"
 #: Prefix of the payload's bodies (:func:`export.simulate.carrying_payload`): not scaled.
 PAYLOAD_PREFIX = "payload_"
@@ -381,6 +383,7 @@ def perturbed_xml(
     if option is None:
         option = ET.SubElement(root, "option")
     g = [float(v) for v in (option.get("gravity") or "0 0 -9.81").split()]
+    timestep = float(option.get("timestep") or 0.002)  # MuJoCo's default
     magnitude = math.sqrt(sum(v * v for v in g))
     a, d = p["slope_rad"], p["slope_direction_rad"]
     tilted = (
@@ -421,7 +424,7 @@ def perturbed_xml(
                 "limited": "true",
                 # a hard stop: MuJoCo's default soft limit (0.02 s, 0.9-0.95) lets a
                 # gravity-loaded joint sink past it by as much again as its play
-                "solreflimit": PLAY_SOLREF,
+                "solreflimit": f"{_num(PLAY_STOP_STEPS * timestep)} 1",
                 "solimplimit": PLAY_SOLIMP,
             }
             if joint.get("pos") is not None:

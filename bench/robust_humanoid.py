@@ -1,0 +1,192 @@
+"""The humanoid under robust verification (issue 22): which perturbation breaks its
+behaviours, and how its requests fare with ``--robustness K``.
+
+``isolate``: one humanoid request designed (nominal verification), then each listed
+behaviour replayed under perturbations 1..K of the design's table with one perturbation
+kept at a time and the others at their neutral values (``KEEP``: the servos' play alone,
+the bus latency alone, ...; ``all``: the whole draw, what ``--robustness`` runs), and the
+play of one joint group at a time (``GROUPS``). ``--servo MODEL=GEARS:DEADBAND`` overrides
+the perturbation table's servo entry (e.g. ``SG90=metal:5us``: what a metal-geared servo
+with a smaller dead band would give), ``--play-stop-steps N`` the play hinges' end-stop
+time constant (``export.perturb.PLAY_STOP_STEPS``; 10 is MuJoCo's default 0.02 s);
+``--walk robust``: walking is ``gaits.humanoid.ROBUST_WALK`` (tuned for the perturbed
+runs) instead of the default walk, in the designs' sizing too.
+
+``grid``: the humanoid requests (walking with grasping; payload default, 0, 0.1 and
+0.3 kg) designed as ``bench/robust_grid.py`` does, nominal and with ``--robustness K``:
+accepted before -> after and the perturbed runs that passed.
+
+    python bench/robust_humanoid.py isolate [K] [--servo M=G:D] [--play-stop-steps N]
+        [--walk robust] [ARGS..]
+    python bench/robust_humanoid.py grid [K] [--play-stop-steps N] [--walk robust]
+"""
+
+from __future__ import annotations
+
+import copy
+import re
+import sys
+import tempfile
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+for p in (REPO, REPO / "bench"):
+    if str(p) not in sys.path:
+        sys.path.insert(0, str(p))
+
+#: One perturbation kept at a time (the others neutral); "all": the whole draw.
+KEEP = ("all", "play", "latency", "slope", "friction", "mass", "battery", "all-but-play")
+#: Joint groups whose play is kept alone (a regular expression on the joint's name).
+GROUPS = ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll", "arm")
+GROUP_RE = {"arm": "shoulder|elbow|gripper"}
+#: The humanoid requests of the grid (walking without grasping is a quadruped's request:
+#: not here) and their payloads.
+REQUESTS = (("walking", "--answer", "grasping=yes"),)
+PAYLOADS = (
+    (),
+    ("--param", "payload=0kg"),
+    ("--param", "payload=0.1kg"),
+    ("--param", "payload=0.3kg"),
+)
+
+
+def neutral(p: dict, keep: str, joints: str | None = None) -> dict:
+    """Perturbation ``p`` (``export.perturb.draw``) with all but ``keep`` at their neutral
+    values; ``joints``: only the play of joints matching it is kept."""
+    p = copy.deepcopy(p)
+    kept = set(KEEP[1:7]) if keep == "all" else {keep}
+    if keep == "all-but-play":
+        kept = set(KEEP[2:7])
+    if "play" not in kept:
+        p["play_rad"] = dict.fromkeys(p["play_rad"], 0.0)
+    elif joints is not None:
+        p["play_rad"] = {j: v if re.search(joints, j) else 0.0 for j, v in p["play_rad"].items()}
+    if "latency" not in kept:
+        p["latency_s"] = p["control_period_s"] = 0.0
+    if "slope" not in kept:
+        p["slope_rad"] = 0.0
+    if "friction" not in kept:
+        p["friction_scale"] = 1.0
+    if "mass" not in kept:
+        p["mass_scale"] = dict.fromkeys(p["mass_scale"], 1.0)
+    if "battery" not in kept:
+        p["battery_scale"] = 1.0
+    return p
+
+
+def _design(argv: list[str]) -> tuple[int, str]:
+    import io
+
+    from synth.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    code = main(["design", *argv, "--no-input"], out, err)
+    return code, err.getvalue().strip()
+
+
+def isolate(k: int, argv: list[str], servo: dict | None = None) -> list[str]:
+    """Lines: per behaviour and kept perturbation, the runs of 1..k that passed and the
+    criteria the others failed."""
+    from adron.catalog import load_catalog
+    from export.mjcf import load_mjcf
+    from export.perturb import design_table, draw, perturbed_model
+    from export.verify import _simulate, bundle_parts, controller_for_model, folder_files
+
+    with tempfile.TemporaryDirectory() as tmp:
+        code, why = _design([*argv, "--out", tmp])
+        if code:
+            return [f"{' '.join(argv)}: not designed: {why.splitlines()[-1]}"]
+        files = folder_files(tmp)
+    record, xml, meshes = bundle_parts(files)
+    table = design_table(record, xml, load_catalog(), {"servo": servo} if servo else None)
+    nominal = load_mjcf(xml, meshes)
+    ctl = controller_for_model(record, nominal)
+    names = ctl.listed(record.get("abilities", ()))
+    plays = sorted(
+        {
+            (s["model"], f"{s['backlash_rad'][0]:.4f}", f"{s['deadband_rad']:.4f}")
+            for s in table["servos"].values()
+        }
+    )
+    lines = [
+        f"{' '.join(argv)}: behaviours {', '.join(names)}; servos (model, backlash low, "
+        f"dead band, rad) {plays}"
+    ]
+    print(lines[0], flush=True)
+    draws = {s: draw(table, s) for s in range(1, k + 1)}
+    models: dict = {}
+    cases = [(keep, None) for keep in KEEP] + [(f"play:{g}", GROUP_RE.get(g, g)) for g in GROUPS]
+    for name in names:
+        traj = ctl.run(name)
+        for label, joints in cases:
+            keep = "play" if joints is not None else label
+            passed, failed = 0, {}
+            for s, p0 in draws.items():
+                p = neutral(p0, keep, joints)
+                key = (label, s)
+                if key not in models:
+                    models[key] = perturbed_model(xml, meshes, table, p)
+                verdict = _simulate(models[key], ctl, traj, None, None, p).verdict
+                passed += not verdict
+                for v in verdict:
+                    failed[v] = failed.get(v, 0) + 1
+            why = ", ".join(f"{v} {n}" for v, n in sorted(failed.items()))
+            lines.append(f"  {name:<10} {label:<18} passed {passed} of {k}  {why}")
+            print(lines[-1], flush=True)
+    return lines
+
+
+def grid(k: int) -> list[str]:
+    from robust_grid import design
+
+    import synth.verify
+
+    synth.verify.best_value = lambda *a, **kw: None  # no hint search
+    lines = [f"Humanoid requests, K = {k}: accepted nominal -> robust, perturbed runs passed"]
+    for req in REQUESTS:
+        for payload in PAYLOADS:
+            args = [*req, *payload]
+            code0, rec0, _ = design(args)
+            code1, rec1, why = design([*args, "--robustness", str(k)])
+            robust = ((rec1 or {}).get("verified") or {}).get("robust") or {}
+            runs = {
+                b["behavior"]: f"{b['passed']}/{b['runs']}" for b in robust.get("behaviors", ())
+            }
+            lines.append(
+                f"  {' '.join(args):<52} {'ok' if code0 == 0 else 'refused'} -> "
+                f"{'ok' if code1 == 0 else 'refused'}  {runs}"
+                + (f"  ({why.splitlines()[-1][:160]})" if code1 else "")
+            )
+            print(lines[-1], flush=True)
+    return lines
+
+
+if __name__ == "__main__":
+    args = sys.argv[1:]
+    what = args.pop(0) if args else "isolate"
+    servo = {}
+    while "--servo" in args:
+        i = args.index("--servo")
+        model, spec = args[i + 1].split("=")
+        gears, dead = spec.split(":")
+        servo[model] = {"gears": gears, "deadband": dead.replace("us", " us")}
+        del args[i : i + 2]
+    if "--play-stop-steps" in args:
+        import export.perturb
+
+        i = args.index("--play-stop-steps")
+        export.perturb.PLAY_STOP_STEPS = float(args[i + 1])
+        del args[i : i + 2]
+    if "--walk" in args:
+        i = args.index("--walk")
+        if args[i + 1] != "robust":
+            sys.exit(f"--walk {args[i + 1]}: the only alternative walk is 'robust'")
+        import gaits.humanoid
+
+        gaits.humanoid.WALK = gaits.humanoid.ROBUST_WALK
+        del args[i : i + 2]
+    k = int(args.pop(0)) if args and args[0].isdigit() else 8
+    if what == "grid":
+        grid(k)
+    else:
+        isolate(k, args or list(REQUESTS[0]), servo or None)

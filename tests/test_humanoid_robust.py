@@ -1,0 +1,134 @@
+"""The humanoid under perturbation (issue 22): the servos' play modelled as a passive hinge
+with end stops (export/perturb.py) must hold its range under the robot's weight.
+
+MuJoCo's default limit (time constant 0.02 s) makes a stop's stiffness proportional to the
+inertia behind the hinge: behind an ankle's roll hinge there is only the foot, and the
+stop gave about 5 N m/rad, bending 5-11 times the half play (1 deg of metal-gear play
+became 6 deg) and toppling the walk sideways in every seed. The stops are now two physics
+steps stiff. Cases built to fail: the old stop on the same seed.
+
+``gaits.humanoid.ROBUST_WALK`` is a walk tuned for the perturbed runs (not the default:
+it turns short on arcs): built to fail, the default walk (tuned on the nominal model) on
+the same robot and the same perturbations."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import re
+from pathlib import Path
+
+import pytest
+
+from export import perturb
+from synth.cli import main
+
+#: Perturbations of the design's table the tuned walk passes whole (of seeds 1-8: the
+#: grid in bench/robust_humanoid.py) and the default one falls in.
+SEEDS = (1, 2, 5)
+#: The humanoid request (walking with grasping) and the joints whose play is kept.
+REQUEST = ("walking", "--answer", "grasping=yes", "--no-input", "--no-verify")
+ANKLE_ROLL = "ankle_roll"
+
+
+@pytest.fixture(scope="module")
+def humanoid(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("humanoid") / "bundle"
+    err = io.StringIO()
+    assert main(["design", *REQUEST, "--out", str(folder)], io.StringIO(), err) == 0, err
+    return folder
+
+
+def _run(folder: Path, seed: int, joints: str, whole: bool = False) -> tuple[list[str], float]:
+    """Walking under perturbation ``seed`` with only the play of ``joints`` (the rest of
+    the draw neutral; ``whole``: the whole draw): (the failed criteria, the largest |play
+    hinge| over its half play in the first 3 s)."""
+    from adron.catalog import load_catalog
+    from export.mjcf import load_mjcf
+    from export.simulate import simulate
+    from export.verify import bundle_parts, controller_for_model, folder_files
+
+    record, xml, meshes = bundle_parts(folder_files(folder))
+    table = json.loads(json.dumps(perturb.design_table(record, xml, load_catalog())))
+    p = perturb.draw(table, seed)
+    if not whole:
+        p.update(latency_s=0.0, control_period_s=0.0, slope_rad=0.0, friction_scale=1.0)
+        p.update(battery_scale=1.0, mass_scale=dict.fromkeys(p["mass_scale"], 1.0))
+        p["play_rad"] = {j: v if re.search(joints, j) else 0.0 for j, v in p["play_rad"].items()}
+    model = perturb.perturbed_model(xml, meshes, table, p)
+    traj = controller_for_model(record, load_mjcf(xml, meshes)).run("walking")
+    hinges = [i for i in range(model.njnt) if model.joint(i).name.endswith(perturb.PLAY_SUFFIX)]
+    assert hinges
+    worst = [0.0]
+
+    def observe(t: float, data) -> None:
+        if t <= 3.0:
+            for i in hinges:
+                ratio = abs(data.qpos[model.jnt_qposadr[i]]) / model.jnt_range[i][1]
+                worst[0] = max(worst[0], float(ratio))
+
+    result = simulate(
+        model,
+        traj,
+        observe=observe,
+        observe_every=0.002,
+        latency_s=p["latency_s"],
+        command_period_s=p["control_period_s"],
+    )
+    return result.verdict, worst[0]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_ankles_play_stays_within_its_stops(humanoid, seed) -> None:
+    verdict, worst = _run(humanoid, seed, ANKLE_ROLL)
+    assert worst < 1.8, f"seed {seed}: the play hinge went {worst:.2f} x its half play"
+    assert verdict == [], verdict
+
+
+def test_the_default_soft_stop_bends_far_past_the_play(humanoid, monkeypatch) -> None:
+    """Built to fail: MuJoCo's default limit (0.02 s, 10 steps of 2 ms) on the same seed."""
+    monkeypatch.setattr(perturb, "PLAY_STOP_STEPS", 10)
+    verdict, worst = _run(humanoid, 1, ANKLE_ROLL)
+    assert worst > 3.0
+    assert verdict  # the walk fails (the tuned walk: short; the former one fell)
+
+
+def test_the_play_stop_is_two_physics_steps(humanoid) -> None:
+    from export.verify import bundle_parts, folder_files
+
+    record, xml, meshes = bundle_parts(folder_files(humanoid))
+    from adron.catalog import load_catalog
+
+    table = perturb.design_table(record, xml, load_catalog())
+    model = perturb.perturbed_model(xml, meshes, table, perturb.draw(table, 1))
+    hinge = next(i for i in range(model.njnt) if model.joint(i).name.endswith(perturb.PLAY_SUFFIX))
+    assert model.jnt_solref[hinge][0] == pytest.approx(2 * model.opt.timestep)
+    assert math.isclose(model.jnt_solref[hinge][1], 1.0)
+
+
+@pytest.fixture
+def robust_walk(monkeypatch):
+    from gaits import base, humanoid
+
+    monkeypatch.setattr(humanoid, "WALK", humanoid.ROBUST_WALK)
+    humanoid.conversion_maps.cache_clear()
+    base._PLANNED.clear()
+    yield
+    humanoid.conversion_maps.cache_clear()
+    base._PLANNED.clear()
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_the_tuned_walk_keeps_its_promise_under_the_whole_perturbation(
+    humanoid, robust_walk, seed
+) -> None:
+    verdict, _ = _run(humanoid, seed, ".", whole=True)
+    assert verdict == [], f"seed {seed}: {verdict}"
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_the_default_walk_falls_under_the_same_perturbation(humanoid, seed) -> None:
+    """Built to fail: the gait tuned on the nominal model, on the same robot and seed."""
+    verdict, _ = _run(humanoid, seed, ".", whole=True)
+    assert "fell" in verdict
