@@ -39,16 +39,26 @@ a straight line at the body's speed relative to the trunk; in swing a foot lifts
 minimum-jerk rise over ``LIFT_FRACTION`` of the swing to ``step_height``, a plateau, and
 the mirrored descent) while it moves to the next foothold along a minimum-jerk straight
 line that starts and ends ``SWING_EDGE`` of the swing later/earlier, so it is above the
-obstacle for most of its way. Each foothold is the mean of the leg's neutral point (its
-foot at q = 0) at the beginning and end of the stance it carries, so a stance sweeps the
-stride symmetrically about the neutral point, pulled towards the leg's mount on straight
-travel by half the outward bulge of that sweep (:func:`stance_inset`: a sweep across the
-leg takes the foot farther from the coxa axis at its ends), so that the stance tibia tilts
-as far inward as outward and its servo carries the leg's load at the smallest lever; the
-robot starts standing at q = 0 and ends with every foot on its neutral point. The body's
-speed ramps up and down with minimum-jerk envelopes just long enough that the first and
-last stances stay within half a stride of neutral. A stance higher than the zero pose
-starts with a ``TRANSITION_S`` minimum-jerk rise from q = 0 with the feet in place.
+obstacle for most of its way. With an **approach** angle a (``plan_gait(approach=a)``:
+the turns of ``gaits.legged``) the straight line stops short of the foothold by a x the
+foot's distance from its coxa axis and the foot covers that last bit in a second, slow
+minimum-jerk move (the last ``APPROACH_SHARE`` of the swing's horizontal motion, before
+the descent). Why: the play of a geared hip servo (``export/perturb.toml``) is free about
+the vertical coxa axis (gravity does not take it up); a single move ends decelerating,
+the leg's inertia carries it across the play, and each landing locks in the offset the
+play then has: in MuJoCo a quadruped's turn in place drifted 10-14 % past its angle on
+every perturbed run, 3-4 % with the slow approach (the hexapod's 5-8 % past it).
+
+Each foothold is the mean of the leg's neutral point (its foot at q = 0) at the
+beginning and end of the stance it carries, so a stance sweeps the stride symmetrically
+about the neutral point, pulled towards the leg's mount on straight travel by half the
+outward bulge of that sweep (:func:`stance_inset`: a sweep across the leg takes the foot
+farther from the coxa axis at its ends), so that the stance tibia tilts as far inward as
+outward and its servo carries the leg's load at the smallest lever; the robot starts
+standing at q = 0 and ends with every foot on its neutral point. The body's speed ramps
+up and down with minimum-jerk envelopes just long enough that the first and last stances
+stay within half a stride of neutral. A stance higher than the zero pose starts with a
+``TRANSITION_S`` minimum-jerk rise from q = 0 with the feet in place.
 
 **Stride** (:func:`max_stride`): the longest stance segment about each neutral point
 that keeps the coxa within ``COXA_SWING`` (the designer's working swing), the tibia within
@@ -143,6 +153,9 @@ TRANSITION_S = 1.0
 #: the swing before the foot starts (after it stops) moving horizontally.
 LIFT_FRACTION = 0.4
 SWING_EDGE = 0.15
+#: Share of a swing's phase given to the slow final approach of a foot to its foothold
+#: (``plan_gait``'s ``approach``), taken from the straight line's, before the descent.
+APPROACH_SHARE = 0.15
 #: Duty factor of the quadruped's crawl (one leg at a time needs >= 3/4), and the shortest
 #: one a crawl may be given (a four-foot phase of 2 x duty - 3/2 cycles must remain between
 #: the sides for the trunk to sway across).
@@ -891,9 +904,15 @@ def _lift(tau: np.ndarray) -> np.ndarray:
     return np.minimum(_smooth(tau / LIFT_FRACTION), _smooth((1 - tau) / LIFT_FRACTION))
 
 
-def _advance(tau: np.ndarray) -> np.ndarray:
-    """Horizontal share (0..1) of a swing's way at its phase tau in [0, 1]."""
-    return _smooth((tau - SWING_EDGE) / (1 - 2 * SWING_EDGE))
+def _advance(tau: np.ndarray, short: float = 0.0) -> np.ndarray:
+    """Horizontal share (0..1) of a swing's way at its phase tau in [0, 1]; with ``short``
+    > 0, the straight line stops that share of the way short of the foothold and a
+    second move covers it over ``APPROACH_SHARE`` of the phase (module docstring)."""
+    if short <= 0:
+        return _smooth((tau - SWING_EDGE) / (1 - 2 * SWING_EDGE))
+    end = 1 - SWING_EDGE - APPROACH_SHARE
+    main = _smooth((tau - SWING_EDGE) / (end - SWING_EDGE))
+    return (1 - short) * main + short * _smooth((tau - end) / APPROACH_SHARE)
 
 
 @dataclass(frozen=True, eq=False)
@@ -1079,10 +1098,12 @@ def plan_gait(
     height: float,
     sway: bool | None = None,
     stand: bool = False,
+    approach: float = 0.0,
 ) -> GaitPlan:
     """Sample a gait: ``cycles`` cycles of ``period`` s of ``pattern`` while the trunk moves
     with ``twist`` = (v_x m/s, v_y m/s, yaw rate rad/s) in its own frame at full speed,
-    feet lifting ``step_height`` m, trunk ``height`` m above the ground.
+    feet lifting ``step_height`` m, trunk ``height`` m above the ground; each swing ends
+    with a slow approach of ``approach`` rad about the coxa (module docstring; 0: none).
 
     The trunk sways (see the module docstring) when ``sway`` is True, or when it is None
     and the margin without sway would fall below ``MIN_MARGIN``; a swaying trunk (or
@@ -1112,7 +1133,9 @@ def plan_gait(
         yaw = wz * tm.progress
         vel = np.einsum("nij,j->ni", _rot(yaw), np.array([vx, vy])) * e[:, None]
         pos = np.stack([_progress(times, vel[:, 0]), _progress(times, vel[:, 1])], axis=1)
-        plan = _feet_plan(legs, tm.swings, times, pos, yaw, t_rise, h0, height, step_height, inset)
+        plan = _feet_plan(
+            legs, tm.swings, times, pos, yaw, t_rise, h0, height, step_height, inset, approach
+        )
         d = np.zeros((n, 2))
         q, feet_b = _joint_plan(template, legs, plan, pos, yaw, d)
         margin = stability_margins(template, legs, q, plan["stance"])
@@ -1169,10 +1192,13 @@ def _feet_plan(
     height: float,
     step: float,
     inset: Mapping[str, float] | None = None,
+    approach: float = 0.0,
 ) -> dict[str, np.ndarray]:
     """World feet (N, legs, 2), lift above the ground (N, legs), stance (N, legs) and the
     trunk height (N,) of a gait; the footholds between the first and the last stance are
-    ``inset[leg]`` m closer to the leg's mount than its neutral point."""
+    ``inset[leg]`` m closer to the leg's mount than its neutral point; each swing's last
+    ``approach`` rad x the foot's distance from its coxa axis is a slow second move (at
+    most half the swing's way)."""
     n, nl = len(times), len(legs)
     feet = np.zeros((n, nl, 2))
     lift = np.zeros((n, nl))
@@ -1184,6 +1210,7 @@ def _feet_plan(
 
     for k, leg in enumerate(legs):
         iv = swings[leg.name]
+        lever = approach * float(np.linalg.norm(leg.neutral[:2] - leg.mount[:2]))
         holds = [neutral_world(leg, 0.0)]
         pull = (inset or {}).get(leg.name, 0.0)
         for c in range(1, len(iv)):
@@ -1203,7 +1230,9 @@ def _feet_plan(
         for c, (a, b) in enumerate(iv):
             inside = (times > a) & (times < b)
             tau = (times[inside] - a) / (b - a)
-            feet[inside, k] = holds_a[c] + _advance(tau)[:, None] * (holds_a[c + 1] - holds_a[c])
+            way = holds_a[c + 1] - holds_a[c]
+            short = min(0.5, lever / max(float(np.linalg.norm(way)), 1e-12))
+            feet[inside, k] = holds_a[c] + _advance(tau, short)[:, None] * way
             lift[inside, k] = step * _lift(tau)
             stance[inside, k] = False
     z = np.full(n, height)
