@@ -14,7 +14,7 @@ run with its default parameters and judged by :mod:`export.verdict`.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -396,10 +396,11 @@ def verify_robust(
     k: int,
     table: Mapping,
     behaviors: Sequence[str] | None = None,
+    only: Collection[str] | None = None,
 ) -> dict:
-    """Every listed behaviour of a bundle (default parameters) run under the perturbations
-    1..``k`` of ``table`` (:mod:`export.perturb`) and judged: the record's
-    ``verified.robust``. A behaviour is robust when it passes at least
+    """Every listed behaviour of a bundle (default parameters; ``behaviors`` when given,
+    the listed ones named in ``only``) run under the perturbations 1..``k`` of ``table``
+    (:mod:`export.perturb`) and judged: the record's ``verified.robust``. A behaviour is robust when it passes at least
     :func:`required_passes` of its runs.
 
     The plans are the nominal model's, made once; behaviours with the same plan are run
@@ -416,6 +417,8 @@ def verify_robust(
     record, xml, meshes = bundle_parts(files)
     controller = controller_for_model(record, load_mjcf(xml, meshes))
     names = controller.listed(record.get("abilities", ())) if behaviors is None else list(behaviors)
+    if only is not None:
+        names = [n for n in names if n in only]
     trajs = [controller.run(n) for n in names]
     same: dict[bytes, int] = {}
     first = [same.setdefault(_plan_digest(t), i) for i, t in enumerate(trajs)]

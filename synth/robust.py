@@ -20,7 +20,7 @@ SEED`` replays each recorded run to the bit.
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -28,9 +28,12 @@ if TYPE_CHECKING:
     from synth.pipeline import Outcome
 
 
-def robust_check(designer: Designer, outcome: Outcome, k: int) -> dict | None:
+def robust_check(
+    designer: Designer, outcome: Outcome, k: int, only: Collection[str] | None = None
+) -> dict | None:
     """``verified.robust`` of ``outcome`` (a sized design) under perturbations 1..``k`` of
-    its table; None when ``k`` is 0."""
+    its table (of its listed behaviours, those named in ``only`` when given); None when
+    ``k`` is 0."""
     if k <= 0 or outcome.structure is None or outcome.catalog is None:
         return None
     from export.perturb import design_table
@@ -40,7 +43,7 @@ def robust_check(designer: Designer, outcome: Outcome, k: int) -> dict | None:
     record, xml, _ = bundle_parts(files)
     # through JSON as design.json keeps it: the replay draws from the very same numbers
     table = json.loads(json.dumps(design_table(record, xml, outcome.catalog)))
-    return verify_robust(files, k, table)
+    return verify_robust(files, k, table, only=only)
 
 
 def robust_files(designer: Designer, outcome: Outcome) -> dict[str, str | bytes]:

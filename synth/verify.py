@@ -410,6 +410,11 @@ def _verified(
         if structure is None:
             break  # no stronger actuator, none with less play: the failure below stands
         outcome = replace(outcome, structure=structure, calibration=None)
+    if robust is None and failing and opts.robustness > 0:
+        # what failed nominally drops its bonus abilities or refuses the request (below);
+        # what passed must pass under the perturbations too, or no perturbed run is claimed
+        passed = {r["behavior"] for r in results if r["verdict"] == "ok"}
+        robust = robust_check(designer, outcome, opts.robustness, passed)
     # which abilities no behaviour serves: the controller alone tells (no model needed)
     controller = controller_for(DesignGeometry.from_record(record))
     served = served_abilities(record, controller)

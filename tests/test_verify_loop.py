@@ -199,3 +199,55 @@ def test_a_skid_steer_is_calibrated_before_it_is_verified(designer):
     assert turning != trajectory_files(bare)["trajectories/turning.csv"]
     # not simulated: nothing measured
     assert "calibration" not in run(designer, req, StructureOptions(verify=False)).record(designer)
+
+
+def test_a_dropped_bonus_ability_does_not_skip_the_robust_runs(designer, monkeypatch):
+    """A design whose bonus behaviour failed nominally still has its other behaviours run
+    under perturbation (a design accepted with no perturbed run was the bug), and one
+    that is not robust there refuses the request."""
+    import synth.robust
+
+    monkeypatch.setattr(synth.verify, "HINT_ROUNDS", 0)
+    bad = _result("positioning", "positioning", ["placing"], placing_error_m=0.02)
+    ok = _result("pick-and-place", "pick-and-place")
+    fake, _ = _fake([[ok, bad]])
+    monkeypatch.setattr(export.verify, "verify_files", fake)
+    asked = []
+
+    def robust(files, k, table, behaviors=None, only=None):
+        asked.append(sorted(only or ()))
+        passed = 0 if asked_to_fail else k
+        fig = {"seed": 1, "verdict": [] if passed else ["placing"], "placing_error_m": 0.02}
+        return {
+            "k": k,
+            "required": k,
+            "behaviors": [
+                {
+                    "behavior": "pick-and-place",
+                    "ability": "pick-and-place",
+                    "passed": passed,
+                    "runs": k,
+                    "robust": bool(passed),
+                    "worst": {},
+                    "failures": []
+                    if passed
+                    else [{"seed": 1, "verdict": ["placing"], "why": "placing", "perturbation": "p"}],
+                    "figures": [fig | {"verdict": "ok"}] if passed else [fig],
+                }
+            ],
+            "table": table,
+        }
+
+    monkeypatch.setattr(export.verify, "verify_robust", robust)
+    monkeypatch.setattr(synth.robust, "play_blame", lambda files, r: [])
+    asked_to_fail = False
+    out = run(designer, ARM, StructureOptions(robustness=2))
+    assert out.infeasible is None
+    assert asked == [["pick-and-place"]]  # the nominal failure's behaviour is not run
+    rec = out.record(designer)
+    assert rec["verified"]["robust"]["behaviors"][0]["passed"] == 2
+    assert "positioning" not in rec["abilities"]
+    asked.clear()
+    asked_to_fail = True  # built to fail: not robust -> the demanded ability refuses it
+    out = run(designer, ARM, StructureOptions(robustness=2))
+    assert out.infeasible is not None and "pick-and-place is not robust" in out.infeasible
