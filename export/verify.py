@@ -400,8 +400,8 @@ def verify_robust(
 ) -> dict:
     """Every listed behaviour of a bundle (default parameters; ``behaviors`` when given,
     the listed ones named in ``only``) run under the perturbations 1..``k`` of ``table``
-    (:mod:`export.perturb`) and judged: the record's ``verified.robust``. A behaviour is robust when it passes at least
-    :func:`required_passes` of its runs.
+    (:mod:`export.perturb`) and judged: the record's ``verified.robust``. A behaviour is
+    robust when it passes at least :func:`required_passes` of its runs.
 
     The plans are the nominal model's, made once; behaviours with the same plan are run
     once per perturbation (as :func:`verify_model`); the K x runs go on

@@ -218,6 +218,7 @@ def test_a_dropped_bonus_ability_does_not_skip_the_robust_runs(designer, monkeyp
         asked.append(sorted(only or ()))
         passed = 0 if asked_to_fail else k
         fig = {"seed": 1, "verdict": [] if passed else ["placing"], "placing_error_m": 0.02}
+        failure = {"seed": 1, "verdict": ["placing"], "why": "placing", "perturbation": "p"}
         return {
             "k": k,
             "required": k,
@@ -229,9 +230,7 @@ def test_a_dropped_bonus_ability_does_not_skip_the_robust_runs(designer, monkeyp
                     "runs": k,
                     "robust": bool(passed),
                     "worst": {},
-                    "failures": []
-                    if passed
-                    else [{"seed": 1, "verdict": ["placing"], "why": "placing", "perturbation": "p"}],
+                    "failures": [] if passed else [failure],
                     "figures": [fig | {"verdict": "ok"}] if passed else [fig],
                 }
             ],
