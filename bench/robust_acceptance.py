@@ -56,7 +56,7 @@ REQUESTS: list[tuple[str, str | None, list[str], list[list[str]]]] = [
     ("QuadrupedRobot", None, ["walking", "--answer", "grasping=no", "--answer",
         "rough-terrain-walking=no"], [*_pay("0", "0.1", "0.3"), ["--param", "speed=0.03m/s"]]),
     ("HumanoidRobot", None, ["walking", "--answer", "grasping=yes"], _pay("0", "0.1", "0.3")),
-    ("HumanoidRobot", None, ["walking", "--answer", "grasping=no"], _pay("0", "0.1")),
+    ("HumanoidRobot", None, ["walking", "grasping"], _pay("0", "0.1")),
     ("SnakeRobot", None, ["sidewinding"], _pay("0", "0.1", "0.3")),
     ("SnakeRobot", None, ["sidewinding", "obstacle-avoidance"], [[]]),
     ("DifferentialDriveRobot", None, ["driving"], [*_pay("0", "0.5", "1"),
