@@ -42,7 +42,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gaits.base import BehaviorSpec, Controller, DesignGeometry, Parameter, Trajectory
+from gaits.base import (
+    AUTO,
+    BehaviorSpec,
+    Controller,
+    DesignGeometry,
+    Parameter,
+    Trajectory,
+    significant,
+)
 from gaits.hexapod import (
     GAITS,
     MIN_CRAWL_DUTY,
@@ -81,6 +89,19 @@ DEFAULT_SPEED = 0.05
 #: Slowest default trunk speed, body lengths per s: twice the verdict's floor of 0.5 per
 #: 10 s, leaving room for the start and stop ramps and the standing lead-in and -out.
 MIN_PACE = 0.1
+#: The declared ranges of a design's own values (``LeggedController._own``): the slowest
+#: speed offered, as a fraction of the default; the shortest stride, as a fraction of the
+#: longest the legs reach; the lowest lift above the design's obstacle, m.
+SLOW_FRACTION = 0.1
+SHORT_FRACTION = 0.1
+LOW_LIFT = 0.005
+#: Fastest speed declared: plans tried, each this much slower than the last.
+OWN_TRIES = 6
+OWN_BACKOFF = 0.95
+#: Halvings of the highest lift's search (a leg of 0.2 m: to 0.8 mm).
+LIFT_BISECTIONS = 8
+#: A stride shorter than this (m) is no stride (as ``_stride`` refuses the step height).
+STRIDE_FLOOR = 1e-4
 #: Running: this times the walking speed (slowed down to the actuators' speeds).
 RUN_SPEED_FACTOR = 2.0
 #: Running's gait by leg count: (gait, duty; None: the gait's own).
@@ -197,6 +218,7 @@ class LeggedController(Controller):
         self.com_masses = "design" if template is not None else "template defaults"
         self.legs = legs_of(self.template)
         self._context: tuple | None = None  # what identifies the plans' template and legs
+        self._behaviors: dict[str, BehaviorSpec] | None = None  # worked out when first asked
         self.gaits = GAITS.get(len(self.legs), ())
         if not self.gaits:
             raise ValueError(
@@ -224,61 +246,203 @@ class LeggedController(Controller):
 
     @property
     def behaviors(self) -> Mapping[str, BehaviorSpec]:
+        """The behaviours (see the class), their ``speed``, ``stride`` and ``step_height``
+        declared with the design's own values and ranges (:meth:`_own`), worked out once."""
+        if self._behaviors is None:
+            self._behaviors = self._specs(self._own())
+        return self._behaviors
+
+    def _own(self) -> dict[str, dict[str, tuple[float, float, float]]]:
+        """behaviour -> parameter -> (default, low, high) of its ``own`` parameters: the
+        values the plan at every default uses (:data:`gaits.base.AUTO` planned, as
+        ``_run`` works them out) and the design's ranges:
+
+        - ``speed``: up to the fastest the actuators allow (the default plan's speed over
+          its largest share of ``SPEED_MARGIN`` of a joint's no-load speed, checked by a
+          plan at that speed, lowered by ``OWN_BACKOFF`` steps until one plans), down to
+          ``SLOW_FRACTION`` of the default;
+        - ``stride``: up to the longest the legs reach (``max_stride`` forward, with the
+          default step), down to ``SHORT_FRACTION`` of it;
+        - ``step_height``: from ``LOW_LIFT`` above the obstacle up to the highest lift
+          with which the legs still reach a stride (:meth:`_highest_step`).
+
+        A behaviour that does not plan at its defaults keeps the nominal values (the
+        design's speed, ``STRIDE_FRACTION`` of the longest stride, the step height)."""
+        specs = self._specs(None)
+        forward = {leg.name: np.array([1.0, 0.0]) for leg in self.legs}
+        reach = max(float(np.hypot(*leg.neutral[:2])) for leg in self.legs)
+        around = {
+            leg.name: np.array([-leg.neutral[1], leg.neutral[0]]) / reach for leg in self.legs
+        }
+        out: dict[str, dict[str, tuple[float, float, float]]] = {}
+        lifts: dict[bool, float] = {}  # turning or not -> the highest step
+        for name, spec in specs.items():
+            base = spec.planned(spec.resolve({}))
+            turning = name == "turning"
+            travel = around if turning else forward
+            step = self.step_height * (ROUGH_STEP_FACTOR if "rough" in name else 1.0)
+            rate = self.speed / reach if turning else self.speed
+            rate *= RUN_SPEED_FACTOR if name == "running" else 1.0
+            s_max = max_stride(self.legs, travel, self.height, step)
+            stride = STRIDE_FRACTION * s_max
+            try:
+                traj = self._planned(name, base)
+            except ValueError:
+                traj = None
+            if traj is not None:
+                rate = float(traj.info["speed"])  # type: ignore[arg-type]
+                stride = float(traj.info["stride_m"])  # type: ignore[arg-type]
+                step = float(traj.info["step_height_m"])  # type: ignore[arg-type]
+            top = self._fastest(name, base, traj, rate)
+            rate = significant(rate)
+            if turning not in lifts:
+                lifts[turning] = self._highest_step(travel)
+            lift = lifts[turning]
+            values = {
+                "speed": (
+                    rate,
+                    min(rate, significant(SLOW_FRACTION * rate, down=True)),
+                    max(rate, top),
+                ),
+                "step_height": (
+                    significant(step),
+                    min(significant(step), significant(self.obstacle + LOW_LIFT)),
+                    max(significant(step), lift),
+                ),
+            }
+            if not turning:
+                longest = significant(s_max, down=True)
+                stride = significant(stride)
+                values["stride"] = (
+                    stride,
+                    min(stride, significant(SHORT_FRACTION * s_max, down=True)),
+                    max(stride, longest),
+                )
+            out[name] = values
+        return out
+
+    def _fastest(
+        self, name: str, base: Mapping[str, object], traj: Trajectory | None, rate: float
+    ) -> float:
+        """The fastest ``speed`` (m/s, rad/s turning) a plan of behaviour ``name`` takes
+        with the other parameters of ``base``: the default plan's speed over its joints'
+        largest share of their usable speed (joint rates scale with the trunk's speed),
+        to 3 significant digits down, checked by planning it; ``rate`` when the default
+        does not plan."""
+        if traj is None:
+            return rate
+        ratio = self._ratio(traj.positions, traj.times)
+        top = significant(rate / max(ratio, 1e-9), down=True)
+        for _ in range(OWN_TRIES):
+            if top <= rate:
+                return rate
+            try:
+                self._planned(name, {**base, "speed": top})
+                return top
+            except ValueError:
+                top = significant(top * OWN_BACKOFF, down=True)
+        return rate
+
+    def _highest_step(self, travel: Mapping[str, np.ndarray]) -> float:
+        """The highest foot lift m (to the millimetre, down) with which the legs still
+        reach a stride along ``travel`` (``max_stride`` above ``_stride``'s floor), by
+        ``LIFT_BISECTIONS`` halvings between the design's step and the leg's length; the
+        design's step when none is higher."""
+        lo = self.step_height
+        hi = max(self.step_height, max(leg.femur + leg.tibia for leg in self.legs))
+
+        def reaches(step: float) -> bool:
+            return max_stride(self.legs, travel, self.height, step) > STRIDE_FLOOR
+
+        if not reaches(lo):
+            return lo
+        for _ in range(LIFT_BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if reaches(mid) else (lo, mid)
+        return math.floor(lo * 1000 + 1e-9) / 1000
+
+    def _specs(
+        self, own: Mapping[str, Mapping[str, tuple[float, float, float]]] | None
+    ) -> dict[str, BehaviorSpec]:
+        """The behaviours with ``own`` values (None: placeholders, every own parameter at
+        :data:`gaits.base.AUTO`, to plan the defaults with)."""
+
+        def mine(behaviour: str, name: str, doc: str, unit: str) -> Parameter:
+            if own is None:
+                return Parameter(name, "float", AUTO, doc, unit, low=0.0, high=None, own=True)
+            default, low, high = own[behaviour][name]
+            return Parameter(name, "float", default, doc, unit, low=low, high=high, own=True)
+
         gait = Parameter("gait", "choice", self.gaits[0], "gait", choices=self.gaits)
-        step = Parameter(
-            "step_height",
-            "float",
-            0.0,
-            "foot lift (0: the design's obstacle height + margin)",
-            "m",
-            low=0.0,
-            high=1.0,
-        )
-        walk = (
-            gait,
-            Parameter(
-                "steps", "int", 4, "gait cycles (every leg steps once a cycle)", low=1, high=10000
-            ),
-            Parameter(
-                "seconds",
-                "float",
-                0.0,
-                "walk for about this long instead of `steps` (0: use steps)",
-                "s",
-                low=0.0,
-                high=36000.0,
-            ),
-            DirectionParameter(
-                "direction",
-                "float",
-                0.0,
-                "direction of travel: rad from forward, counter-clockwise, "
-                "or forward/backward/left/right",
-                "rad",
-                low=-math.pi,
-                high=math.pi,
-            ),
-            Parameter(
-                "speed",
-                "float",
-                0.0,
-                "trunk speed (0: the design's, within the actuators' speeds)",
-                "m/s",
-                low=0.0,
-                high=10.0,
-            ),
-            Parameter("stride", "float", 0.0, "stride (0: automatic)", "m", low=0.0, high=10.0),
-            step,
-        )
+
+        def step(behaviour: str) -> Parameter:
+            return mine(
+                behaviour,
+                "step_height",
+                "foot lift (default: the design's obstacle height + margin"
+                + (f", x {ROUGH_STEP_FACTOR:g} on rough terrain)" if "rough" in behaviour else ")"),
+                "m",
+            )
+
+        def walk(behaviour: str) -> tuple[Parameter, ...]:
+            return (
+                gait,
+                Parameter(
+                    "steps",
+                    "int",
+                    4,
+                    "gait cycles (every leg steps once a cycle)",
+                    low=1,
+                    high=10000,
+                ),
+                Parameter(
+                    "seconds",
+                    "float",
+                    0.0,
+                    "walk for about this long instead of `steps` (0: use steps)",
+                    "s",
+                    low=0.0,
+                    high=36000.0,
+                ),
+                DirectionParameter(
+                    "direction",
+                    "float",
+                    0.0,
+                    "direction of travel: rad from forward, counter-clockwise, "
+                    "or forward/backward/left/right",
+                    "rad",
+                    low=-math.pi,
+                    high=math.pi,
+                ),
+                mine(
+                    behaviour,
+                    "speed",
+                    "trunk speed (default: the design's"
+                    + (f" x {RUN_SPEED_FACTOR:g}" if behaviour == "running" else "")
+                    + ", within the actuators' speeds for the gait and direction asked)",
+                    "m/s",
+                ),
+                mine(
+                    behaviour,
+                    "stride",
+                    f"stride (default: {STRIDE_FRACTION:g} of the longest the legs reach "
+                    "in the direction asked)",
+                    "m",
+                ),
+                step(behaviour),
+            )
+
         run_name, run_duty = run_gait(len(self.legs))
         duty = run_duty or gait_pattern(run_name, self.legs).duty
-        own = gait_pattern(run_name, self.legs).duty
-        duties = f"{duty:.2f}" if abs(duty - own) < 1e-9 else f"{duty:.2f} (up to {own:.2f})"
+        own_duty = gait_pattern(run_name, self.legs).duty
+        duties = (
+            f"{duty:.2f}" if abs(duty - own_duty) < 1e-9 else f"{duty:.2f} (up to {own_duty:.2f})"
+        )
         out = {
             "walking": SteerableSpec(
                 "walking",
                 "Walk a straight line, or an arc of `curvature`, with a statically stable gait.",
-                (*walk, CURVATURE),
+                (*walk("walking"), CURVATURE),
                 steer=(
                     ("speed", "speed"),
                     ("turn", "curvature"),
@@ -291,7 +455,7 @@ class LeggedController(Controller):
                 f"Travel a straight line fast: a {run_name} of duty {duties} at "
                 f"{RUN_SPEED_FACTOR:g}x the walking speed within the actuators' speeds "
                 "(statically stable, no flight phase).",
-                tuple(p for p in walk if p.name != "gait"),
+                tuple(p for p in walk("running") if p.name != "gait"),
             ),
             "turning": BehaviorSpec(
                 "turning",
@@ -307,16 +471,14 @@ class LeggedController(Controller):
                         high=4 * math.pi,
                     ),
                     gait,
-                    Parameter(
+                    mine(
+                        "turning",
                         "speed",
-                        "float",
-                        0.0,
-                        "yaw rate (0: the design's trunk speed at the farthest foot)",
+                        "yaw rate (default: the design's trunk speed at the farthest foot, "
+                        "within the actuators' speeds)",
                         "rad/s",
-                        low=0.0,
-                        high=10.0,
                     ),
-                    step,
+                    step("turning"),
                 ),
                 ability="walking",
             ),
@@ -326,7 +488,7 @@ class LeggedController(Controller):
             out["rough-terrain-walking"] = BehaviorSpec(
                 "rough-terrain-walking",
                 f"Walk like `walking` with a {ROUGH_STEP_FACTOR:g}x higher step.",
-                walk,
+                walk("rough-terrain-walking"),
             )
         return out
 
