@@ -100,8 +100,9 @@ OWN_TRIES = 6
 OWN_BACKOFF = 0.95
 #: Halvings of the highest lift's search (a leg of 0.2 m: to 0.8 mm).
 LIFT_BISECTIONS = 8
-#: A stride shorter than this (m) is no stride (as ``_stride`` refuses the step height).
-STRIDE_FLOOR = 1e-4
+#: The highest lift declared: the legs still reach this share of their stride at the
+#: design's step (``LeggedController._highest_step``).
+LIFT_STRIDE_SHARE = 0.5
 #: Running: this times the walking speed (slowed down to the actuators' speeds).
 RUN_SPEED_FACTOR = 2.0
 #: Running's gait by leg count: (gait, duty; None: the gait's own).
@@ -345,21 +346,21 @@ class LeggedController(Controller):
 
     def _highest_step(self, travel: Mapping[str, np.ndarray]) -> float:
         """The highest foot lift m (to the millimetre, down) with which the legs still
-        reach a stride along ``travel`` (``max_stride`` above ``_stride``'s floor), by
-        ``LIFT_BISECTIONS`` halvings between the design's step and the leg's length; the
-        design's step when none is higher."""
+        reach ``LIFT_STRIDE_SHARE`` of the stride along ``travel`` that they reach with
+        the design's step (``max_stride``; higher lifts leave too short a stride to
+        plan), by ``LIFT_BISECTIONS`` halvings between the design's step and the leg's
+        length; the design's step when none is higher."""
         lo = self.step_height
         hi = max(self.step_height, max(leg.femur + leg.tibia for leg in self.legs))
+        need = max(LIFT_STRIDE_SHARE * max_stride(self.legs, travel, self.height, lo), 1e-4)
 
         def reaches(step: float) -> bool:
-            return max_stride(self.legs, travel, self.height, step) > STRIDE_FLOOR
+            return max_stride(self.legs, travel, self.height, step) >= need
 
-        if not reaches(lo):
-            return lo
         for _ in range(LIFT_BISECTIONS):
             mid = 0.5 * (lo + hi)
             lo, hi = (mid, hi) if reaches(mid) else (lo, mid)
-        return math.floor(lo * 1000 + 1e-9) / 1000
+        return max(self.step_height, math.floor(lo * 1000 + 1e-9) / 1000)
 
     def _specs(
         self, own: Mapping[str, Mapping[str, tuple[float, float, float]]] | None
