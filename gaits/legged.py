@@ -175,18 +175,22 @@ class LeggedController(Controller):
       ``steps`` gait cycles (every leg steps once a cycle), or about ``seconds`` s when
       that is > 0 (whole cycles then fill the time: the cycle is shortened so that the
       trunk is at least as fast as asked, when the actuators allow), towards
-      ``direction`` (rad, or forward/backward/left/right), trunk speed ``speed`` m/s (0:
-      the design's, slowed down to the actuators' speeds), ``stride`` m (0:
-      ``STRIDE_FRACTION`` of the longest feasible), feet lifted ``step_height`` m (0: the
-      design's obstacle height + ``STEP_MARGIN``).
+      ``direction`` (rad, or forward/backward/left/right), trunk speed ``speed`` m/s (the
+      design's, slowed down to the actuators' speeds), ``stride`` m (``STRIDE_FRACTION``
+      of the longest feasible), feet lifted ``step_height`` m (the design's obstacle
+      height + ``STEP_MARGIN``). These three are the design's own (``Parameter.own``):
+      declared with the values the plan at every default uses and the design's ranges
+      (:meth:`_own`); given at their default, or as 0 (``gaits.base.AUTO``: programs of
+      earlier versions), they are worked out for the other values (the speed for the
+      direction asked...), as when not given.
     - ``rough-terrain-walking``: the same with a step ``ROUGH_STEP_FACTOR`` times higher
       (offered when the design has that ability, or names no abilities).
     - ``running(steps, seconds, direction, speed, stride, step_height)``: like walking with
       the gait of ``RUN_GAITS`` at ``RUN_SPEED_FACTOR`` times the walking speed (see the
       module docstring: a fast statically stable walk, not a run).
     - ``turning(angle, gait, speed, step_height)``: turn in place by ``angle`` rad
-      (counter-clockwise positive) at up to ``speed`` rad/s (0: the design's trunk speed
-      at the farthest foot, within the actuators' speeds).
+      (counter-clockwise positive) at up to ``speed`` rad/s (the design's own: its trunk
+      speed at the farthest foot, within the actuators' speeds).
 
     ``Trajectory.info``: ``motion`` ("straight" for walking, rough-terrain walking and
     running; "turn" for turning), ``planned_pose`` (dx m, dy m, dyaw rad: the trunk's
