@@ -64,7 +64,6 @@ from gaits.base import (
     Trajectory,
     min_jerk,
     min_jerk_integral,
-    significant,
 )
 from gaits.steering import SteerableSpec
 from kinematics.dynamics import forward_kinematics
@@ -377,7 +376,7 @@ class SteeredController(Controller):
     def behaviors(self) -> Mapping[str, BehaviorSpec]:
         v_top = self.v_max
         w_top = self.steer.k_max * self._top_speed(self.steer.k_max)
-        arc_shortest, arc_own = self.arc_seconds(math.pi / 2, 1)  # the default turn's
+        _, arc_own = self.arc_seconds(math.pi / 2, 1)  # the default turn's
         return {
             "driving": SteerableSpec(
                 "driving",
@@ -467,7 +466,7 @@ class SteeredController(Controller):
                         "duration of each arc (default: the design's own for the angle and "
                         f"points asked: peak speed {TURN_SPEED_FRACTION:g} of the top speed)",
                         "s",
-                        low=min(arc_own, significant(arc_shortest, up=True)),
+                        low=2 * SAMPLE_DT,
                         high=600,
                         own=True,
                     ),

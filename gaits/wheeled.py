@@ -69,7 +69,6 @@ from gaits.base import (
     Trajectory,
     min_jerk,
     min_jerk_integral,
-    significant,
 )
 from gaits.steering import SteerableSpec
 from kinematics.dynamics import forward_kinematics
@@ -780,12 +779,13 @@ class WheeledController(Controller):
 
     def _turn_seconds_parameter(self) -> Parameter:
         """turning's ``seconds``: the design's own duration for the angle asked
-        (:meth:`turn_seconds`), declared for the default quarter turn, from the shortest
-        one the wheels allow for it up to an hour."""
+        (:meth:`turn_seconds`), declared for the default quarter turn; from two samples
+        (a smaller angle turns faster; a duration too short for the angle asked is refused
+        with the shortest one) up to an hour."""
         try:
-            shortest, own = self.turn_seconds(math.pi / 2)
+            _, own = self.turn_seconds(math.pi / 2)
         except ValueError:  # the servos cannot turn it: turning refuses every value
-            shortest = own = 1.0
+            own = 1.0
         return Parameter(
             "seconds",
             "float",
@@ -793,7 +793,7 @@ class WheeledController(Controller):
             f"duration (default: the design's own for the angle asked: peak rim speed "
             f"{TURN_SPEED_FRACTION:g} of the wheels' top speed)",
             "s",
-            low=min(own, significant(shortest, up=True)),
+            low=2 * SAMPLE_DT,
             high=3600,
             own=True,
         )
