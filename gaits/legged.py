@@ -333,11 +333,13 @@ class LeggedController(Controller):
         with the other parameters of ``base``: the default plan's speed over its joints'
         largest share of their usable speed (joint rates scale with the trunk's speed),
         to 3 significant digits down, checked by planning it; ``rate`` when the default
-        does not plan."""
+        does not plan or the design gives no actuator speeds."""
         if traj is None:
             return rate
         ratio = self._ratio(traj.positions, traj.times)
-        top = significant(rate / max(ratio, 1e-9), down=True)
+        if not ratio > 0:  # no actuator speeds known (a bare geometry): no bound to scale
+            return rate
+        top = significant(rate / ratio, down=True)
         for _ in range(OWN_TRIES):
             if top <= rate:
                 return rate
