@@ -14,6 +14,7 @@ parmor but ``kinematics``.
 from __future__ import annotations
 
 import io
+import math
 import os
 from abc import ABC, abstractmethod
 from collections import OrderedDict
@@ -111,9 +112,45 @@ class Trajectory:
         return out.getvalue()
 
 
+#: The value an ``own`` parameter (:class:`Parameter`) is planned with when it is at its
+#: default: "work it out" (the controllers' plans read 0 so). Programs written before the
+#: defaults were the design's values carry it too (``speed=0.0``): it is still accepted for
+#: an ``own`` parameter, outside its range, and means the same; the block page never shows
+#: it (its field shows the default and refuses values outside [low, high]).
+AUTO = 0.0
+
+
+def significant(x: float, digits: int = 3, down: bool = False, up: bool = False) -> float:
+    """``x`` to ``digits`` significant digits (the nearest; towards -inf when ``down``,
+    towards +inf when ``up``): how a design's own value or limit is declared (``0.0497``
+    m/s, not ``0.04973261``; a highest value down, a lowest up, so that they stay
+    feasible)."""
+    if x == 0 or not math.isfinite(x):
+        return float(x)
+    if not (down or up):
+        return float(f"{x:.{digits}g}")
+    e = math.floor(math.log10(abs(x))) - digits + 1
+    m = x / 10.0**e
+    k = math.floor(m * (1 + 1e-12)) if down else math.ceil(m * (1 - 1e-12))
+    if x < 0:
+        k = math.floor(m * (1 - 1e-12)) if down else math.ceil(m * (1 + 1e-12))
+    return float(f"{k}e{e}")
+
+
 @dataclass(frozen=True)
 class Parameter:
-    """A behaviour parameter: name, kind ("float" | "int" | "choice"), default, unit, doc."""
+    """A behaviour parameter: name, kind ("float" | "int" | "choice"), default, unit, doc,
+    and its range [``low``, ``high``] (None: unbounded).
+
+    ``own``: the default is the design's own value, which the plan works out from the
+    other parameters' values (the design's speed slowed down to what its actuators reach
+    with the asked gait and direction, the legs' automatic stride, a turn's duration for
+    the asked angle...); it is declared as the value the plan uses with every other
+    parameter at its default. A value equal to the default, or :data:`AUTO` (0: what
+    programs of earlier versions carry), plans as when the parameter is not given
+    (:meth:`BehaviorSpec.planned`), so that a block left at its default, a ROS call and the
+    Python API plan the same; any other value is the user's own (a speed beyond what the
+    actuators reach is refused, not slowed down)."""
 
     name: str
     kind: str
@@ -123,9 +160,11 @@ class Parameter:
     choices: tuple[str, ...] = ()
     low: float | None = None
     high: float | None = None
+    own: bool = False
 
     def check(self, value: object) -> object:
-        """The value converted to the parameter's kind; ValueError naming it otherwise."""
+        """The value converted to the parameter's kind; ValueError naming it otherwise
+        (a value outside [low, high] with the bound it passes)."""
         if self.kind == "choice":
             if value not in self.choices:
                 raise ValueError(
@@ -138,6 +177,8 @@ class Parameter:
             raise ValueError(f"{self.name}: expected a number, got {value!r}") from None
         if x != x:  # NaN passes every comparison below
             raise ValueError(f"{self.name}: expected a number, got {value!r}")
+        if self.own and x == AUTO:
+            return x
         if (self.low is not None and x < self.low) or (self.high is not None and x > self.high):
             lo = "-inf" if self.low is None else f"{self.low:g}"
             hi = "inf" if self.high is None else f"{self.high:g}"
@@ -178,6 +219,16 @@ class BehaviorSpec:
         return {
             p.name: p.check(given[p.name]) if p.name in given else p.default for p in self.params
         }
+
+    def planned(self, resolved: Mapping[str, object]) -> dict[str, object]:
+        """What the controller plans with for ``resolved`` values (:meth:`resolve`'s): an
+        ``own`` parameter at its default (or at :data:`AUTO`) becomes :data:`AUTO`, "the
+        design's own for the other values"; every other value as it is."""
+        out = dict(resolved)
+        for p in self.params:
+            if p.own and p.name in out and out[p.name] in (p.default, AUTO):
+                out[p.name] = 0 if p.kind == "int" else AUTO
+        return out
 
 
 def serving(
@@ -425,7 +476,13 @@ class Controller(ABC):
                 f"{self.geometry.robot_type} has no behaviour {name!r} "
                 f"(behaviours: {', '.join(sorted(self.behaviors))})"
             )
-        resolved = spec.resolve(params)
+        return self._planned(name, spec.planned(spec.resolve(params)))
+
+    def _planned(self, name: str, resolved: Mapping[str, object]) -> Trajectory:
+        """The trajectory of behaviour ``name`` with ``resolved`` values (``own``
+        parameters at their defaults already :data:`AUTO`), remembered in this process by
+        the controller's identity: :meth:`run` and a controller working out its own
+        defaults (from the plans at :data:`AUTO`) share the plans."""
         if self.identity is None:
             return self._run(name, resolved)
         key = (self.identity, name, _plain(resolved))

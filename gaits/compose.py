@@ -525,6 +525,9 @@ class ComposedController(Controller):
         z = max(z, math.ceil((clear_of_base + FLOOR_GAP) * 1e3) / 1e3)
         clear = self.arm.behaviors["grasping"].resolve({})["clearance"]
         ahead = self.forward + 2.0 * reach  # beyond the arm's reach from the start
+        # the highest point the gripper reaches: its shoulder on the base, + the reach
+        top = float(self.arm.base_position[2]) + float(self.arm._shoulder[2]) + reach
+        top = max(math.ceil(top * 1e4) / 1e4, round(z, 4))
 
         def xyz(prefix: str, where: str, x: float, y: float) -> tuple[Parameter, ...]:
             return tuple(
@@ -535,7 +538,7 @@ class ComposedController(Controller):
                     f"{where} {c} in the world frame (start: root at the origin, facing +x)",
                     "m",
                     low=0.0 if c == "z" else -FIELD,
-                    high=FIELD,
+                    high=top if c == "z" else FIELD,
                 )
                 for c, v in (("x", x), ("y", y), ("z", z))
             )

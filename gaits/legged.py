@@ -48,7 +48,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gaits.base import BehaviorSpec, Controller, DesignGeometry, Parameter, Trajectory
+from gaits.base import (
+    AUTO,
+    BehaviorSpec,
+    Controller,
+    DesignGeometry,
+    Parameter,
+    Trajectory,
+    significant,
+)
 from gaits.hexapod import (
     GAITS,
     MIN_CRAWL_DUTY,
@@ -90,6 +98,20 @@ MIN_PACE = 0.1
 #: Turning: each swing's slow final approach to its foothold, rad about the coxa (covers
 #: the play of plastic-geared hobby servos, 1-2 deg of backlash plus their dead band).
 TURN_APPROACH = 0.1
+#: The declared ranges of a design's own values (``LeggedController._own``): the slowest
+#: speed offered, as a fraction of the default; the shortest stride, as a fraction of the
+#: longest the legs reach; the lowest lift above the design's obstacle, m.
+SLOW_FRACTION = 0.1
+SHORT_FRACTION = 0.1
+LOW_LIFT = 0.005
+#: Fastest speed declared: plans tried, each this much slower than the last.
+OWN_TRIES = 6
+OWN_BACKOFF = 0.95
+#: Halvings of the highest lift's search (a leg of 0.2 m: to 0.8 mm).
+LIFT_BISECTIONS = 8
+#: The highest lift declared: the legs still reach this share of their stride at the
+#: design's step (``LeggedController._highest_step``).
+LIFT_STRIDE_SHARE = 0.5
 #: Running: this times the walking speed (slowed down to the actuators' speeds).
 RUN_SPEED_FACTOR = 2.0
 #: Running's gait by leg count: (gait, duty; None: the gait's own).
@@ -162,18 +184,22 @@ class LeggedController(Controller):
       ``steps`` gait cycles (every leg steps once a cycle), or about ``seconds`` s when
       that is > 0 (whole cycles then fill the time: the cycle is shortened so that the
       trunk is at least as fast as asked, when the actuators allow), towards
-      ``direction`` (rad, or forward/backward/left/right), trunk speed ``speed`` m/s (0:
-      the design's, slowed down to the actuators' speeds), ``stride`` m (0:
-      ``STRIDE_FRACTION`` of the longest feasible), feet lifted ``step_height`` m (0: the
-      design's obstacle height + ``STEP_MARGIN``).
+      ``direction`` (rad, or forward/backward/left/right), trunk speed ``speed`` m/s (the
+      design's, slowed down to the actuators' speeds), ``stride`` m (``STRIDE_FRACTION``
+      of the longest feasible), feet lifted ``step_height`` m (the design's obstacle
+      height + ``STEP_MARGIN``). These three are the design's own (``Parameter.own``):
+      declared with the values the plan at every default uses and the design's ranges
+      (:meth:`_own`); given at their default, or as 0 (``gaits.base.AUTO``: programs of
+      earlier versions), they are worked out for the other values (the speed for the
+      direction asked...), as when not given.
     - ``rough-terrain-walking``: the same with a step ``ROUGH_STEP_FACTOR`` times higher
       (offered when the design has that ability, or names no abilities).
     - ``running(steps, seconds, direction, speed, stride, step_height)``: like walking with
       the gait of ``RUN_GAITS`` at ``RUN_SPEED_FACTOR`` times the walking speed (see the
       module docstring: a fast statically stable walk, not a run).
     - ``turning(angle, gait, speed, step_height)``: turn in place by ``angle`` rad
-      (counter-clockwise positive) at up to ``speed`` rad/s (0: the design's trunk speed
-      at the farthest foot, within the actuators' speeds).
+      (counter-clockwise positive) at up to ``speed`` rad/s (the design's own: its trunk
+      speed at the farthest foot, within the actuators' speeds).
 
     ``Trajectory.info``: ``motion`` ("straight" for walking, rough-terrain walking and
     running; "turn" for turning), ``planned_pose`` (dx m, dy m, dyaw rad: the trunk's
@@ -206,6 +232,7 @@ class LeggedController(Controller):
         self.com_masses = "design" if template is not None else "template defaults"
         self.legs = legs_of(self.template)
         self._context: tuple | None = None  # what identifies the plans' template and legs
+        self._behaviors: dict[str, BehaviorSpec] | None = None  # worked out when first asked
         self.gaits = GAITS.get(len(self.legs), ())
         if not self.gaits:
             raise ValueError(
@@ -233,61 +260,205 @@ class LeggedController(Controller):
 
     @property
     def behaviors(self) -> Mapping[str, BehaviorSpec]:
+        """The behaviours (see the class), their ``speed``, ``stride`` and ``step_height``
+        declared with the design's own values and ranges (:meth:`_own`), worked out once."""
+        if self._behaviors is None:
+            self._behaviors = self._specs(self._own())
+        return self._behaviors
+
+    def _own(self) -> dict[str, dict[str, tuple[float, float, float]]]:
+        """behaviour -> parameter -> (default, low, high) of its ``own`` parameters: the
+        values the plan at every default uses (:data:`gaits.base.AUTO` planned, as
+        ``_run`` works them out) and the design's ranges:
+
+        - ``speed``: up to the fastest the actuators allow (the default plan's speed over
+          its largest share of ``SPEED_MARGIN`` of a joint's no-load speed, checked by a
+          plan at that speed, lowered by ``OWN_BACKOFF`` steps until one plans), down to
+          ``SLOW_FRACTION`` of the default;
+        - ``stride``: up to the longest the legs reach (``max_stride`` forward, with the
+          default step), down to ``SHORT_FRACTION`` of it;
+        - ``step_height``: from ``LOW_LIFT`` above the obstacle up to the highest lift
+          with which the legs still reach a stride (:meth:`_highest_step`).
+
+        A behaviour that does not plan at its defaults keeps the nominal values (the
+        design's speed, ``STRIDE_FRACTION`` of the longest stride, the step height)."""
+        specs = self._specs(None)
+        forward = {leg.name: np.array([1.0, 0.0]) for leg in self.legs}
+        reach = max(float(np.hypot(*leg.neutral[:2])) for leg in self.legs)
+        around = {
+            leg.name: np.array([-leg.neutral[1], leg.neutral[0]]) / reach for leg in self.legs
+        }
+        out: dict[str, dict[str, tuple[float, float, float]]] = {}
+        lifts: dict[bool, float] = {}  # turning or not -> the highest step
+        for name, spec in specs.items():
+            base = spec.planned(spec.resolve({}))
+            turning = name == "turning"
+            travel = around if turning else forward
+            step = self.step_height * (ROUGH_STEP_FACTOR if "rough" in name else 1.0)
+            rate = self.speed / reach if turning else self.speed
+            rate *= RUN_SPEED_FACTOR if name == "running" else 1.0
+            s_max = max_stride(self.legs, travel, self.height, step)
+            stride = STRIDE_FRACTION * s_max
+            try:
+                traj = self._planned(name, base)
+            except ValueError:
+                traj = None
+            if traj is not None:
+                rate = float(traj.info["speed"])  # type: ignore[arg-type]
+                stride = float(traj.info["stride_m"])  # type: ignore[arg-type]
+                step = float(traj.info["step_height_m"])  # type: ignore[arg-type]
+            top = self._fastest(name, base, traj, rate)
+            rate = significant(rate)
+            if turning not in lifts:
+                lifts[turning] = self._highest_step(travel)
+            lift = lifts[turning]
+            values = {
+                "speed": (
+                    rate,
+                    min(rate, significant(SLOW_FRACTION * rate, down=True)),
+                    max(rate, top),
+                ),
+                "step_height": (
+                    significant(step),
+                    min(significant(step), significant(self.obstacle + LOW_LIFT)),
+                    max(significant(step), lift),
+                ),
+            }
+            if not turning:
+                longest = significant(s_max, down=True)
+                stride = significant(stride)
+                values["stride"] = (
+                    stride,
+                    min(stride, significant(SHORT_FRACTION * s_max, down=True)),
+                    max(stride, longest),
+                )
+            out[name] = values
+        return out
+
+    def _fastest(
+        self, name: str, base: Mapping[str, object], traj: Trajectory | None, rate: float
+    ) -> float:
+        """The fastest ``speed`` (m/s, rad/s turning) a plan of behaviour ``name`` takes
+        with the other parameters of ``base``: the default plan's speed over its joints'
+        largest share of their usable speed (joint rates scale with the trunk's speed),
+        to 3 significant digits down, checked by planning it; ``rate`` when the default
+        does not plan or the design gives no actuator speeds."""
+        if traj is None:
+            return rate
+        ratio = self._ratio(traj.positions, traj.times)
+        if not ratio > 0:  # no actuator speeds known (a bare geometry): no bound to scale
+            return rate
+        top = significant(rate / ratio, down=True)
+        for _ in range(OWN_TRIES):
+            if top <= rate:
+                return rate
+            try:
+                self._planned(name, {**base, "speed": top})
+                return top
+            except ValueError:
+                top = significant(top * OWN_BACKOFF, down=True)
+        return rate
+
+    def _highest_step(self, travel: Mapping[str, np.ndarray]) -> float:
+        """The highest foot lift m (to the millimetre, down) with which the legs still
+        reach ``LIFT_STRIDE_SHARE`` of the stride along ``travel`` that they reach with
+        the design's step (``max_stride``; higher lifts leave too short a stride to
+        plan), by ``LIFT_BISECTIONS`` halvings between the design's step and the leg's
+        length; the design's step when none is higher."""
+        lo = self.step_height
+        hi = max(self.step_height, max(leg.femur + leg.tibia for leg in self.legs))
+        need = max(LIFT_STRIDE_SHARE * max_stride(self.legs, travel, self.height, lo), 1e-4)
+
+        def reaches(step: float) -> bool:
+            return max_stride(self.legs, travel, self.height, step) >= need
+
+        for _ in range(LIFT_BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if reaches(mid) else (lo, mid)
+        return max(self.step_height, math.floor(lo * 1000 + 1e-9) / 1000)
+
+    def _specs(
+        self, own: Mapping[str, Mapping[str, tuple[float, float, float]]] | None
+    ) -> dict[str, BehaviorSpec]:
+        """The behaviours with ``own`` values (None: placeholders, every own parameter at
+        :data:`gaits.base.AUTO`, to plan the defaults with)."""
+
+        def mine(behaviour: str, name: str, doc: str, unit: str) -> Parameter:
+            if own is None:
+                return Parameter(name, "float", AUTO, doc, unit, low=0.0, high=None, own=True)
+            default, low, high = own[behaviour][name]
+            return Parameter(name, "float", default, doc, unit, low=low, high=high, own=True)
+
         gait = Parameter("gait", "choice", self.gaits[0], "gait", choices=self.gaits)
-        step = Parameter(
-            "step_height",
-            "float",
-            0.0,
-            "foot lift (0: the design's obstacle height + margin)",
-            "m",
-            low=0.0,
-            high=1.0,
-        )
-        walk = (
-            gait,
-            Parameter(
-                "steps", "int", 4, "gait cycles (every leg steps once a cycle)", low=1, high=10000
-            ),
-            Parameter(
-                "seconds",
-                "float",
-                0.0,
-                "walk for about this long instead of `steps` (0: use steps)",
-                "s",
-                low=0.0,
-                high=36000.0,
-            ),
-            DirectionParameter(
-                "direction",
-                "float",
-                0.0,
-                "direction of travel: rad from forward, counter-clockwise, "
-                "or forward/backward/left/right",
-                "rad",
-                low=-math.pi,
-                high=math.pi,
-            ),
-            Parameter(
-                "speed",
-                "float",
-                0.0,
-                "trunk speed (0: the design's, within the actuators' speeds)",
-                "m/s",
-                low=0.0,
-                high=10.0,
-            ),
-            Parameter("stride", "float", 0.0, "stride (0: automatic)", "m", low=0.0, high=10.0),
-            step,
-        )
+
+        def step(behaviour: str) -> Parameter:
+            return mine(
+                behaviour,
+                "step_height",
+                "foot lift (default: the design's obstacle height + margin"
+                + (f", x {ROUGH_STEP_FACTOR:g} on rough terrain)" if "rough" in behaviour else ")"),
+                "m",
+            )
+
+        def walk(behaviour: str) -> tuple[Parameter, ...]:
+            return (
+                gait,
+                Parameter(
+                    "steps",
+                    "int",
+                    4,
+                    "gait cycles (every leg steps once a cycle)",
+                    low=1,
+                    high=10000,
+                ),
+                Parameter(
+                    "seconds",
+                    "float",
+                    0.0,
+                    "walk for about this long instead of `steps` (0: use steps)",
+                    "s",
+                    low=0.0,
+                    high=36000.0,
+                ),
+                DirectionParameter(
+                    "direction",
+                    "float",
+                    0.0,
+                    "direction of travel: rad from forward, counter-clockwise, "
+                    "or forward/backward/left/right",
+                    "rad",
+                    low=-math.pi,
+                    high=math.pi,
+                ),
+                mine(
+                    behaviour,
+                    "speed",
+                    "trunk speed (default: the design's"
+                    + (f" x {RUN_SPEED_FACTOR:g}" if behaviour == "running" else "")
+                    + ", within the actuators' speeds for the gait and direction asked)",
+                    "m/s",
+                ),
+                mine(
+                    behaviour,
+                    "stride",
+                    f"stride (default: {STRIDE_FRACTION:g} of the longest the legs reach "
+                    "in the direction asked)",
+                    "m",
+                ),
+                step(behaviour),
+            )
+
         run_name, run_duty = run_gait(len(self.legs))
         duty = run_duty or gait_pattern(run_name, self.legs).duty
-        own = gait_pattern(run_name, self.legs).duty
-        duties = f"{duty:.2f}" if abs(duty - own) < 1e-9 else f"{duty:.2f} (up to {own:.2f})"
+        own_duty = gait_pattern(run_name, self.legs).duty
+        duties = (
+            f"{duty:.2f}" if abs(duty - own_duty) < 1e-9 else f"{duty:.2f} (up to {own_duty:.2f})"
+        )
         out = {
             "walking": SteerableSpec(
                 "walking",
                 "Walk a straight line, or an arc of `curvature`, with a statically stable gait.",
-                (*walk, CURVATURE),
+                (*walk("walking"), CURVATURE),
                 steer=(
                     ("speed", "speed"),
                     ("turn", "curvature"),
@@ -300,7 +471,7 @@ class LeggedController(Controller):
                 f"Travel a straight line fast: a {run_name} of duty {duties} at "
                 f"{RUN_SPEED_FACTOR:g}x the walking speed within the actuators' speeds "
                 "(statically stable, no flight phase).",
-                tuple(p for p in walk if p.name != "gait"),
+                tuple(p for p in walk("running") if p.name != "gait"),
             ),
             "turning": BehaviorSpec(
                 "turning",
@@ -316,16 +487,14 @@ class LeggedController(Controller):
                         high=4 * math.pi,
                     ),
                     gait,
-                    Parameter(
+                    mine(
+                        "turning",
                         "speed",
-                        "float",
-                        0.0,
-                        "yaw rate (0: the design's trunk speed at the farthest foot)",
+                        "yaw rate (default: the design's trunk speed at the farthest foot, "
+                        "within the actuators' speeds)",
                         "rad/s",
-                        low=0.0,
-                        high=10.0,
                     ),
-                    step,
+                    step("turning"),
                 ),
                 ability="walking",
             ),
@@ -335,7 +504,7 @@ class LeggedController(Controller):
             out["rough-terrain-walking"] = BehaviorSpec(
                 "rough-terrain-walking",
                 f"Walk like `walking` with a {ROUGH_STEP_FACTOR:g}x higher step.",
-                walk,
+                walk("rough-terrain-walking"),
             )
         return out
 

@@ -678,11 +678,22 @@ class ManipulatorController(Controller):
         # (3 joints: L1, L2 + L3; 6 joints: L1, L2 + L3 with the L4 tool pointing down)
         height = float(self._shoulder[2])
         arm = self.reach - self.tool_length
-        lim = height + self.reach
         r0 = 0.6 * arm
         z0 = 0.5 * height
         side = r0 / math.sqrt(2)
         clear = 0.15 * arm
+
+        def box(k: int, v: float) -> tuple[float, float]:
+            """Coordinate ``k``'s range: the shoulder's +- the reach (the box around the
+            sphere the gripper reaches), to the 0.1 mm outwards, z from
+            ``FLOOR_CLEARANCE`` above the floor; holding ``v``."""
+            c = float(self._shoulder[k])
+            lo = math.floor((c - self.reach) * 1e4) / 1e4
+            hi = math.ceil((c + self.reach) * 1e4) / 1e4
+            if k == 2:
+                floor = FLOOR_CLEARANCE - float(self.base_position[2])
+                lo = max(lo, math.ceil(floor * 1e4 - 1e-6) / 1e4)
+            return min(lo, round(v, 4)), max(hi, round(v, 4))
 
         def xyz(prefix: str, where: str, y: float, z: float = z0) -> tuple[Parameter, ...]:
             return tuple(
@@ -692,10 +703,10 @@ class ManipulatorController(Controller):
                     round(v, 4),
                     f"{where} {c} in the base frame",
                     "m",
-                    low=-lim,
-                    high=lim,
+                    low=box(k, v)[0],
+                    high=box(k, v)[1],
                 )
-                for c, v in (("x", side), ("y", y), ("z", z))
+                for k, (c, v) in enumerate((("x", side), ("y", y), ("z", z)))
             )
 
         heights = (
@@ -807,10 +818,10 @@ class ManipulatorController(Controller):
                             round(float(v), 4),
                             f"gripper {c}, base frame",
                             "m",
-                            low=-lim,
-                            high=lim,
+                            low=box(k, float(v))[0],
+                            high=box(k, float(v))[1],
                         )
-                        for c, v in zip("xyz", home, strict=True)
+                        for k, (c, v) in enumerate(zip("xyz", home, strict=True))
                     ),
                 ),
             )

@@ -427,17 +427,34 @@ class SnakeController(Controller):
         return float(f"{min(DEFAULT_FREQUENCY, share * self.max_frequency(gait)):.3g}")
 
     @property
+    def _default_bend(self) -> float:
+        """circular-path's default ``bend`` rad: ``CIRCLE_BEND`` shared by half the modules."""
+        return round(CIRCLE_BEND / (self.modules // 2), 4)
+
+    @property
     def body_length(self) -> float:
         """Length m of the module chain (M module pitches)."""
         return self.modules * float(self.template.lengths["module"])
 
     @property
     def behaviors(self) -> Mapping[str, BehaviorSpec]:
-        out = {}
+        """The gaits (``gaits``) with their parameters: ``frequency`` from the default
+        (``default_frequency``) up to the highest the modules' speed allows
+        (``max_frequency`` upright, with the default ``bend``); worked out once."""
+        cached = self.__dict__.get("_behaviors")
+        if cached is None:
+            cached = self.__dict__["_behaviors"] = self._specs()
+        return cached
+
+    def _specs(self) -> dict[str, BehaviorSpec]:
+        out: dict[str, BehaviorSpec] = {}
         for gait in self.gaits:
             f = self.default_frequency(gait)
+            # up to the highest the modules' speed allows (upright, default bend)
+            bend = self._default_bend if gait == "circular-path" else 0.0
+            top = max(f, self.max_frequency(gait, bend=bend))
             params = [
-                Parameter("frequency", "float", f, "wave frequency", "Hz", low=1e-3, high=10),
+                Parameter("frequency", "float", f, "wave frequency", "Hz", low=1e-3, high=top),
                 Parameter(
                     "cycles",
                     "int",
@@ -466,7 +483,7 @@ class SnakeController(Controller):
                     Parameter(
                         "bend",
                         "float",
-                        round(CIRCLE_BEND / (self.modules // 2), 4),
+                        self._default_bend,
                         "horizontal offset of the arc, positive curls the tail left",
                         "rad",
                         low=-BEND_MAX,
@@ -490,7 +507,7 @@ class SnakeController(Controller):
         top = float(np.abs(v).max())
         if top > self.max_speed * (1 + 1e-9):
             raise ValueError(
-                f"{name} at {freq:g} Hz needs {top:.3g} rad/s, above the usable "
+                f"frequency: {name} at {freq:g} Hz needs {top:.3g} rad/s, above the usable "
                 f"{self.max_speed:.3g} rad/s of the modules ({SPEED_MARGIN:.0%} of their "
                 f"no-load speed); at most {freq * self.max_speed / top:.3g} Hz"
             )

@@ -380,6 +380,7 @@ class SteeredController(Controller):
     def behaviors(self) -> Mapping[str, BehaviorSpec]:
         v_top = self.v_max
         w_top = self.steer.k_max * self._top_speed(self.steer.k_max)
+        _, arc_own = self.arc_seconds(math.pi / 2, 1)  # the default turn's
         return {
             "driving": SteerableSpec(
                 "driving",
@@ -465,11 +466,13 @@ class SteeredController(Controller):
                     Parameter(
                         "seconds",
                         "float",
-                        0.0,
-                        f"duration of each arc (0: peak {TURN_SPEED_FRACTION:g} x the top speed)",
+                        arc_own,
+                        "duration of each arc (default: the design's own for the angle and "
+                        f"points asked: peak speed {TURN_SPEED_FRACTION:g} of the top speed)",
                         "s",
-                        low=0.0,
+                        low=2 * SAMPLE_DT,
                         high=600,
+                        own=True,
                     ),
                 ),
                 ability="steered-driving",
@@ -713,20 +716,32 @@ class SteeredController(Controller):
             info["motion"] = "arc"
         return self._trajectory("driving", [(t, angles, wheels)], info)
 
+    def arc_seconds(self, angle: float, points: int) -> tuple[float, float]:
+        """(the shortest, the design's own) duration s of each arc of turning by ``angle``
+        rad in ``points`` arcs at the smallest radius: the shortest the wheels' top speed
+        allows (min-jerk: peak speed 1.875 leg / T), and the own one, whose peak speed is
+        ``TURN_SPEED_FRACTION`` of it (on the sample grid, at least 0.1 s)."""
+        k_turn = LOCK_FRACTION * self.steer.k_max
+        leg = abs(angle) / points / k_turn  # m each arc travels
+        cap = TURN_SPEED_FRACTION * self._top_speed(k_turn)
+        shortest = 1.875 * leg / self._top_speed(k_turn)
+        own = max(round(math.ceil(1.875 * leg / cap / SAMPLE_DT) * SAMPLE_DT, 9), 0.1)
+        return shortest, own
+
     def _turning(self, angle: float, points: int, seconds: float) -> Trajectory:
         if angle == 0:
             raise ValueError("turning by 0 rad: nothing to do")
         k_turn = LOCK_FRACTION * self.steer.k_max
         turn = math.copysign(1.0, angle)
         leg = abs(angle) / points / k_turn  # m each arc travels
-        cap = TURN_SPEED_FRACTION * self._top_speed(k_turn)
-        shortest = 1.875 * leg / self._top_speed(k_turn)
-        if seconds == 0:
-            seconds = max(round(math.ceil(1.875 * leg / cap / SAMPLE_DT) * SAMPLE_DT, 9), 0.1)
+        shortest, own = self.arc_seconds(angle, points)
+        if seconds == 0:  # the design's own (gaits.base.AUTO)
+            seconds = own
         elif seconds < shortest * (1 - 1e-9):
             raise ValueError(
-                f"an arc of {leg:.3g} m in {seconds:g} s needs a wheel faster than the usable "
-                f"{self.steer.max_speed:.3g} rad/s; each arc takes at least {shortest:.3g} s"
+                f"seconds: an arc of {leg:.3g} m in {seconds:g} s needs a wheel faster than "
+                f"the usable {self.steer.max_speed:.3g} rad/s; each arc takes at least "
+                f"{shortest:.3g} s"
             )
         pieces = []
         angles = dict.fromkeys(self.steer_joints, 0.0)

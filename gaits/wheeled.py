@@ -774,19 +774,32 @@ class WheeledController(Controller):
                         low=-4 * math.pi,
                         high=4 * math.pi,
                     ),
-                    Parameter(
-                        "seconds",
-                        "float",
-                        0.0,
-                        f"duration (0: rim speed peaks at {TURN_SPEED_FRACTION:g} x the top)",
-                        "s",
-                        low=0.0,
-                        high=3600,
-                    ),
+                    self._turn_seconds_parameter(),
                 ),
                 ability="driving",
             ),
         }
+
+    def _turn_seconds_parameter(self) -> Parameter:
+        """turning's ``seconds``: the design's own duration for the angle asked
+        (:meth:`turn_seconds`), declared for the default quarter turn; from two samples
+        (a smaller angle turns faster; a duration too short for the angle asked is refused
+        with the shortest one) up to an hour."""
+        try:
+            _, own = self.turn_seconds(math.pi / 2)
+        except ValueError:  # the servos cannot turn it: turning refuses every value
+            own = 1.0
+        return Parameter(
+            "seconds",
+            "float",
+            own,
+            f"duration (default: the design's own for the angle asked: peak rim speed "
+            f"{TURN_SPEED_FRACTION:g} of the wheels' top speed)",
+            "s",
+            low=2 * SAMPLE_DT,
+            high=3600,
+            own=True,
+        )
 
     def _run(self, name: str, params: Mapping[str, object]) -> Trajectory:
         if name == "driving":
@@ -844,9 +857,12 @@ class WheeledController(Controller):
         zero = np.zeros_like(t)
         return t, s, *self.drive.commands(zero, w, zero, alpha)
 
-    def _turning(self, angle: float, seconds: float) -> Trajectory:
-        # heading theta(t) = angle s(t / T); peak rate 1.875 angle / T (min-jerk); the
-        # shortest T is the first (on a 1 % grid) whose loaded commands fit the wheels
+    def turn_seconds(self, angle: float) -> tuple[float, float]:
+        """(the shortest, the design's own) duration s of turning in place by ``angle``
+        rad: the shortest whose loaded wheel commands fit the wheels (peak rate 1.875
+        angle / T, min-jerk; on a 1 % grid), and the own one, at least as long, whose peak
+        rim speed is ``TURN_SPEED_FRACTION`` of the wheels' top speed (on the sample grid).
+        ValueError when the servos cannot turn the robot at all."""
         shortest = max(1.875 * abs(angle) / self.w_max, SAMPLE_DT * 2)
         if angle != 0:
             for _ in range(400):
@@ -859,14 +875,19 @@ class WheeledController(Controller):
                     f"the wheels cannot turn the robot in place: their servos stall under "
                     f"the scrubbing torque ({self.drive.skid_torque():.3g} N m)"
                 )
-        if seconds == 0:
-            rim = TURN_SPEED_FRACTION * self.v_max  # the peak rim speed
-            shortest = max(shortest, 1.875 * abs(angle) * self.drive.effective_track / 2 / rim)
-            seconds = max(round(math.ceil(shortest / SAMPLE_DT) * SAMPLE_DT, 9), SAMPLE_DT * 2)
+        rim = TURN_SPEED_FRACTION * self.v_max  # the peak rim speed
+        own = max(shortest, 1.875 * abs(angle) * self.drive.effective_track / 2 / rim)
+        own = max(round(math.ceil(own / SAMPLE_DT) * SAMPLE_DT, 9), SAMPLE_DT * 2)
+        return shortest, own
+
+    def _turning(self, angle: float, seconds: float) -> Trajectory:
+        shortest, own = self.turn_seconds(angle)
+        if seconds == 0:  # the design's own (gaits.base.AUTO)
+            seconds = own
         elif seconds < shortest * (1 - 1e-9):
             raise ValueError(
-                f"turning {angle:g} rad in {seconds:g} s needs a wheel speed above the "
-                f"usable {self.drive.max_speed:.3g} rad/s; it takes at least {shortest:.3g} s"
+                f"seconds: turning {angle:g} rad in {seconds:g} s needs a wheel speed above "
+                f"the usable {self.drive.max_speed:.3g} rad/s; it takes at least {shortest:.3g} s"
             )
         t, _, left, right = self._turn_profile(angle, seconds)
         self.drive.check_commands(left, right, f"turning {angle:g} rad in {seconds:g} s")

@@ -178,6 +178,7 @@ def _request_field(p: Parameter) -> dict:
         "high": p.high,
         "choices": list(p.choices),
         "doc": p.doc,
+        "own": p.own,
     }
 
 
@@ -290,6 +291,11 @@ def srv_text(service: Mapping) -> str:
             hi = "inf" if f["high"] is None else _num(f["high"])
             kind = "integer" if f["kind"] == "int" else "number"
             what.append(f"#   {kind} in [{lo}, {hi}]; default {_num(f['default'])}")
+            if f.get("own"):
+                what.append(
+                    "#   the default is the design's own, worked out for the other fields "
+                    "(0, or the field left out, means the same)"
+                )
             consts.append(f"{f['ros']} {upper}_DEFAULT={f['default']!r}")
             if f["low"] is not None:
                 consts.append(f"{f['ros']} {upper}_MIN={f['low']!r}")

@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -163,9 +163,7 @@ def sensing_behaviors(
         # the speed role's own parameter (a gait's default: the design's speed, or the
         # waves' frequency), its range
         sp = steer.speed
-        speed: tuple[Parameter, ...] = (
-            Parameter("speed", sp.kind, sp.default, sp.doc, sp.unit, low=sp.low, high=sp.high),
-        )
+        speed: tuple[Parameter, ...] = (replace(sp, name="speed"),)  # own default too
         length, distance, radius = GAIT_LENGTH_M, GAIT_DISTANCE_M, GAIT_RADIUS_M
     else:
         top = round(steer.v_max, 3)

@@ -232,7 +232,9 @@ def test_an_unreachable_target_is_refused_with_the_reach(arms) -> None:
         solve_ik(chain, (0.6, 0.0, 0.1))
     c = ManipulatorController(_geometry(arms[5]))
     with pytest.raises(ValueError, match="reaches"):
-        c.run("positioning", x=0.34, y=0.0, z=0.1)  # inside the parameter range
+        # inside the parameter ranges (each coordinate within the shoulder +- the reach),
+        # out of reach together
+        c.run("positioning", x=0.24, y=0.24, z=0.1)
     with pytest.raises(ValueError, match="cannot choose its tool orientation"):
         c.ik((0.2, 0, 0.1), rotation=np.eye(3))
 

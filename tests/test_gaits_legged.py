@@ -412,9 +412,10 @@ def test_seconds_and_a_higher_stance():
         ("walking", {"steps": 0}, "steps"),
         ("walking", {"direction": "sideways"}, "direction"),
         ("walking", {"direction": 4.0}, "direction"),
-        ("walking", {"step_height": 0.02}, "obstacle"),
-        ("walking", {"stride": 0.5}, "reach"),
-        ("walking", {"speed": 0.5}, "at most"),
+        # beyond the design's own ranges (issue 24): refused naming the bound
+        ("walking", {"step_height": 0.02}, r"step_height: 0.02 is outside \[0.035, "),
+        ("walking", {"stride": 0.5}, r"stride: 0.5 is outside \[\S+, "),
+        ("walking", {"speed": 0.5}, r"speed: 0.5 is outside \[\S+, "),
         ("walking", {"seconds": 1.0}, "seconds"),
         ("walking", {"pace": 1}, "pace"),
         ("turning", {"angle": 0}, "angle"),
@@ -425,6 +426,23 @@ def test_bad_parameters(behavior, params, match, designs):
     c = designs["QuadrupedRobot"].controller()
     with pytest.raises(ValueError, match=match):
         c.run(behavior, **params)
+
+
+@pytest.mark.parametrize(
+    ("params", "match"),
+    [
+        ({"step_height": 0.02}, "obstacle"),
+        ({"stride": 0.5}, "reach"),
+        ({"speed": 0.5}, "at most"),
+    ],
+)
+def test_the_plan_says_why_past_the_declared_ranges(params, match, designs):
+    """The plan's own reasons for what the declared ranges keep out (a value given to
+    the planner as it is, past ``Parameter.check``)."""
+    c = designs["QuadrupedRobot"].controller()
+    spec = c.behaviors["walking"]
+    with pytest.raises(ValueError, match=match):
+        c._run("walking", {**spec.planned(spec.resolve({})), **params})
 
 
 def test_a_hexapod_does_not_crawl():

@@ -359,8 +359,12 @@ def test_bad_parameters_raise_value_errors():
         c3.run("pick-and-place", speed=1)
     with pytest.raises(ValueError, match="reaches"):
         c3.run("pick-and-place", place_x=0.3, place_y=0.2)
+    # the base sits on the floor by default: z's declared range starts FLOOR_CLEARANCE
+    # above it (issue 24), and the plan itself says why below it
+    with pytest.raises(ValueError, match=r"pick_z: 0.01 is outside \[0.04, "):
+        c3.run("pick-and-place", pick_z=0.01)
     with pytest.raises(ValueError, match="floor"):
-        c3.run("pick-and-place", pick_z=0.01)  # the base sits on the floor by default
+        c3._run("pick-and-place", {**c3.behaviors["pick-and-place"].resolve({}), "pick_z": 0.01})
     assert (
         ManipulatorController(_geometry("Manipulator3DOF"), base_position=(0, 0, 0.1))
         .run("pick-and-place", pick_z=-0.05)

@@ -201,7 +201,7 @@ def test_worker_answers_plans_refusals_and_malformed_lines(packages) -> None:
     bad = worker.call({"service": "positioning", "fields": fields | {"z": 2.0}})
     assert not bad["ok"] and "trajectory" not in bad
     message = bad["response"]["message"]
-    assert message.startswith("positioning: z: 2 ") and "[-0.35, 0.35]" in message
+    assert message.startswith("positioning: z: 2 ") and "[0.04, 0.35]" in message  # issue 24
     assert set(bad["response"]) == set(reply["response"])  # every response field, emptied
     lines = io.StringIO('{"service": "nope"}\nnot json\n\n{"service": "positioning"}\n')
     out = io.StringIO()

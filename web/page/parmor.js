@@ -178,10 +178,17 @@
     return Number(block.getFieldValue(name));
   }
 
-  /** A behaviour block's parameter in the API's unit (a choice as it is). */
+  /** A behaviour block's parameter in the API's unit (a choice as it is): the default
+   * itself while the field shows it (a design's own value, e.g. its speed, then plans as
+   * when not given; a field in degrees would send it rounded to 0.1 degree), else the
+   * shown value's. */
   function paramValue(block, p) {
     if (p.kind === 'choice') return block.getFieldValue(p.name);
-    return fromShown(p, numberField(block, p.name));
+    const v = numberField(block, p.name);
+    const d = disp(p);
+    const tol = d.step ? d.step / 2 : 1e-12 * Math.max(1, Math.abs(v));
+    if (typeof p.default === 'number' && Math.abs(v - shown(p, p.default)) < tol) return p.default;
+    return fromShown(p, v);
   }
 
   function statementJson(block) {
