@@ -499,10 +499,16 @@ def robust_failure(robust: Mapping) -> dict[str, str]:
 
 
 def play_attribution(
-    files: Mapping[str, str | bytes], table: Mapping, behavior: str, seed: int
+    files: Mapping[str, str | bytes],
+    table: Mapping,
+    behavior: str,
+    seed: int,
+    failed: Mapping | None = None,
 ) -> dict | None:
     """Does the joints' play break behaviour ``behavior`` of a bundle under perturbation
-    ``seed`` of ``table``? Measured by replays of that very perturbation: with every
+    ``seed`` of ``table``? ``failed``: that run's figures when they are known already
+    (:func:`verify_robust`'s, to the bit: the run is not simulated again). Measured by
+    replays of that very perturbation: with every
     position servo's play removed (the rest unchanged) the run must pass, else None (the
     play alone does not break it; None too when the run passes as it is). Then the play
     of each symmetry group of joints (the record's ``group``: alike joints get alike
@@ -525,7 +531,7 @@ def play_attribution(
             traj, _simulate(perturbed_model(xml, meshes, table, q), controller, traj, None, None, q)
         )
 
-    before = run(set())
+    before = run(set()) if failed is None else failed
     if before["verdict"] == "ok":
         return None
     without = run(set(full))

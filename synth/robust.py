@@ -81,8 +81,11 @@ def play_blame(files: Mapping[str, str | bytes], robust: Mapping | None) -> list
         if b["robust"]:
             continue
         worst = sorted(b["failures"], key=lambda f: (-len(f["verdict"]), f["seed"]))
+        runs = {fig.get("seed"): fig for fig in b.get("figures", ())}
         for f in worst[:BLAMED_RUNS]:
-            found = play_attribution(files, robust["table"], b["behavior"], f["seed"])
+            found = play_attribution(
+                files, robust["table"], b["behavior"], f["seed"], runs.get(f["seed"])
+            )
             if found is not None:
                 out.append({"behavior": b["behavior"], "seed": f["seed"]} | found)
     return out
