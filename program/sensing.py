@@ -552,6 +552,21 @@ def _line_course(
     return mid, start, course, budget, state
 
 
+def _obstacle_course(
+    session: Session, rig: Rig, distance: float, width: float, speed: float
+) -> tuple[float, np.ndarray, np.ndarray, float]:
+    """An obstacle-avoidance run set up: the heading it starts with, its unit vector, the
+    ranger's start (world x, y), the obstacle placed across the way halfway along
+    ``distance`` (``width`` m wide), and the time allowed at ``speed`` m/s
+    (:data:`BUDGET`)."""
+    heading0 = rig.heading()
+    fwd = np.array([math.cos(heading0), math.sin(heading0)])
+    origin = rig.world(rig.ranger)[:2]
+    _place_obstacle(session, origin + fwd * distance / 2, heading0, width)
+    factor, extra = BUDGET["avoid"]
+    return heading0, fwd, origin, factor * distance / max(speed, 1e-6) + extra
+
+
 def _line_outcome(
     seconds: float, state: Mapping, length: float, params: Mapping
 ) -> tuple[dict, dict]:
@@ -641,12 +656,7 @@ def _avoid(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple
     safe = corner - rig.front + CLEARANCE_M + ahead
     if mover.w_spin == 0:  # it turns by arcs (steered wheels): it swerves from further off
         safe += mover.tightest()
-    heading0 = rig.heading()
-    fwd = np.array([math.cos(heading0), math.sin(heading0)])
-    origin = rig.world(rig.ranger)[:2]
-    _place_obstacle(session, origin + fwd * distance / 2, heading0, width)
-    factor, extra = BUDGET["avoid"]
-    budget = factor * distance / max(mover.speed, 1e-6) + extra
+    heading0, fwd, origin, budget = _obstacle_course(session, rig, distance, width, mover.speed)
     t0 = session.time
     state, min_range, seen = "go", RANGER_MAX_M, RANGER_MAX_M
     passed_from = origin
@@ -996,12 +1006,7 @@ def _avoid_strides(
     behind = r_fwd - float(along.min())
     sweep = float(np.hypot(lateral, along).max())  # its parts' reach from the trunk's origin
     travel = max(mover.travel, 1e-3)
-    heading0 = rig.heading()
-    fwd = np.array([math.cos(heading0), math.sin(heading0)])
-    origin = rig.world(rig.ranger)[:2]
-    _place_obstacle(session, origin + fwd * distance / 2, heading0, width)
-    factor, extra = BUDGET["avoid"]
-    budget = factor * distance / max(mover.v, 1e-6) + extra
+    heading0, fwd, origin, budget = _obstacle_course(session, rig, distance, width, mover.v)
     t0 = session.time
     contacts0 = session._counts["contacts"]
     reads = {"next": t0, "min": RANGER_MAX_M, "period": RANGER_MAX_M}
