@@ -391,22 +391,10 @@ def _verified(
             history += runs
             looser, stuck = less_play(runs, models, sizer.assigner.serving, play, excluded)
             sizer.torque_floor = dict(floors)
-            # all the joints the play broke at once; when no assignment holds them all,
-            # one at a time, the joint blamed in most runs first
-            blame = {j: sum(j in r["joints"] for r in blamed) for j in looser}
-            tries = [looser] if looser else []
-            if len(looser) > 1:
-                tries += [{j: looser[j]} for j in sorted(looser, key=lambda j: (-blame[j], j))]
-            for trial in tries:
-                sizer.excluded = excluded | trial
-                try:
-                    structure = sizer.run()
-                except InfeasibleError:
-                    continue
-                for j in trial:
-                    first_model.setdefault(j, models[j])
-                excluded |= trial
-                break
+            structure, trial = _size_with_less_play(sizer, looser, runs, excluded)
+            for j in trial:
+                first_model.setdefault(j, models[j])
+            excluded |= trial
         if structure is None:
             break  # no stronger actuator, none with less play: the failure below stands
         outcome = replace(outcome, structure=structure, calibration=None)
@@ -459,6 +447,26 @@ def _verified(
     if failure is not None:
         return replace(out, infeasible=failure)
     return out
+
+
+def _size_with_less_play(
+    sizer, looser: Mapping[str, frozenset[str]], blamed: list[dict], excluded: Mapping
+) -> tuple[object | None, dict[str, frozenset[str]]]:
+    """The structure ``sizer`` gives with the looser models of the joints the play broke
+    (``looser``, :func:`synth.robust.less_play`) excluded: all of them at once; when no
+    assignment holds them all, one joint at a time, the one blamed in most runs first.
+    (The structure, None when none sizes; the exclusions it was sized with.)"""
+    blame = {j: sum(j in r["joints"] for r in blamed) for j in looser}
+    tries = [dict(looser)] if looser else []
+    if len(looser) > 1:
+        tries += [{j: looser[j]} for j in sorted(looser, key=lambda j: (-blame[j], j))]
+    for trial in tries:
+        sizer.excluded = {**excluded, **trial}
+        try:
+            return sizer.run(), trial
+        except InfeasibleError:
+            continue
+    return None, {}
 
 
 def _play_record(
