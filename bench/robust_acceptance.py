@@ -16,6 +16,7 @@ they mirror), so that the grid does not depend on the tests folder.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import sys
@@ -128,24 +129,16 @@ def design(job: tuple[str, str | None, list[str], int]) -> dict:
 def grid(k: int = 8, jobs: int = 1, jsonl: str | None = None, only: str = "") -> list[str]:
     todo = [(label, kif, argv, k) for label, kif, argv in requests() if only in label]
     rows: list[dict] = []
-    sink = open(jsonl, "w") if jsonl else None  # noqa: SIM115
-    if jobs > 1:
-        with ProcessPoolExecutor(jobs) as pool:
-            results = pool.map(design, todo)
-            for row in results:
-                rows.append(row)
-                if sink:
-                    sink.write(json.dumps(row) + "\n")
-                    sink.flush()
-    else:
-        for job in todo:
-            row = design(job)
+    pool = ProcessPoolExecutor(jobs) if jobs > 1 else None
+    with contextlib.ExitStack() as stack:
+        sink = stack.enter_context(open(jsonl, "w")) if jsonl else None  # noqa: SIM115
+        if pool is not None:
+            stack.enter_context(pool)
+        for row in (pool.map if pool is not None else map)(design, todo):
             rows.append(row)
             if sink:
                 sink.write(json.dumps(row) + "\n")
                 sink.flush()
-    if sink:
-        sink.close()
     return report(rows, k)
 
 
