@@ -168,10 +168,13 @@ def failing_runs(robust: Mapping | None) -> list[dict]:
 
 def not_robust(robust: Mapping | None) -> list[tuple[str, str]]:
     """(ability, why) of each behaviour that is not robust (:func:`export.verify.
-    robust_failure`), in name order."""
+    robust_failure`), the worst first: the smallest share of its perturbed runs passed,
+    then name order (a refusal names the first that serves a demand)."""
     if not robust:
         return []
     from export.verify import robust_failure
 
     why = robust_failure(robust)
-    return [(b["ability"], why[b["behavior"]]) for b in robust["behaviors"] if not b["robust"]]
+    bad = [b for b in robust["behaviors"] if not b["robust"]]
+    bad.sort(key=lambda b: (b["passed"] / max(b["runs"], 1), b["behavior"]))
+    return [(b["ability"], why[b["behavior"]]) for b in bad]

@@ -423,16 +423,23 @@ def _verified(
             for a in sorted(mine):
                 dropped.setdefault(a, why)
     models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
+    also = []  # the other demanded behaviours that are not robust, named after the worst
     for ability, why in not_robust(robust):
         behavior = why.split(" is not robust", 1)[0]
         if blamed_at == rounds:  # measured on the design as it stands
             why += play_note(blamed, behavior, stuck, play or {}, models)
         mine = {ability} | {a for a, s in served.items() if s == ability}
         if mine & needed:
-            failure = failure or why
+            if failure is None:
+                failure = why
+            else:
+                passed = why.split(": passed ", 1)[1].split(" perturbed", 1)[0]
+                also.append(f"{behavior} (passed {passed})")
         else:
             for a in sorted(mine):
                 dropped.setdefault(a, why)
+    if also:
+        failure += f"; also not robust: {', '.join(also)}"
     v = Verification(
         tuple(results),
         rounds,

@@ -1,0 +1,33 @@
+"""A refusal for robustness names the worst behaviour first (the smallest share of its
+perturbed runs passed), not the alphabetically first, and the other demanded ones after."""
+
+from __future__ import annotations
+
+from synth.robust import not_robust
+
+
+def _b(name: str, passed: int, runs: int = 8) -> dict:
+    return {
+        "behavior": name,
+        "ability": name,
+        "robust": passed == runs,
+        "passed": passed,
+        "runs": runs,
+        "failures": [
+            {"seed": s, "verdict": ["pose"], "perturbation": f"seed {s}", "why": "pose off"}
+            for s in range(1, runs - passed + 1)
+        ],
+    }
+
+
+def test_worst_behaviour_first() -> None:
+    robust = {"required": 8, "behaviors": [_b("driving", 7), _b("turning", 2), _b("zig", 5)]}
+    order = [a for a, _ in not_robust(robust)]
+    # name order would be driving, turning, zig: built to fail on it
+    assert order == ["turning", "zig", "driving"]
+
+
+def test_ties_in_name_order_and_robust_ones_left_out() -> None:
+    robust = {"required": 8, "behaviors": [_b("b", 4), _b("a", 4), _b("ok", 8)]}
+    assert [a for a, _ in not_robust(robust)] == ["a", "b"]
+    assert not_robust(None) == []
