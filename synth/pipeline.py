@@ -114,10 +114,9 @@ class Outcome:
     def files(self, designer: Designer) -> dict[str, str | bytes]:
         """The output bundle: everything for a sized design, design.json alone otherwise.
 
-        The robot is sized for its payload and simulated with it: before the verification
-        (a sized design, not verified yet and not ``verify_skipped``) the files are those
-        it simulates, their models carrying the payload; afterwards robot.urdf and
-        robot.xml carry it only ``with_payload`` (the user's choice)."""
+        The robot is sized for its payload and simulated with it: robot.urdf and robot.xml
+        carry it only ``with_payload`` (the user's choice), else design.json places it and
+        the simulation adds it there (the verification's files and the user's alike)."""
         from export.record import to_json
 
         rec = self.record(designer)
@@ -126,20 +125,18 @@ class Outcome:
         from export.bundle import bundle_files
 
         doc = designer.kb.translation.documentation.get(self.structure.robot_type, "")
-        # the verification's own call: the loaded robot, no pictures; afterwards the same
-        # design (its meshes and trajectories reused) as the user asked for it
+        # the verification's own call: no pictures; afterwards the same design (its meshes
+        # and trajectories reused) with them. Both carry the payload as the user's bundle
+        # does (in the models only ``with_payload``, else placed from design.json by
+        # ``export.simulate.carrying_payload``), so that ``parmor simulate`` on the bundle
+        # reproduces the verification's figures exactly
         simulating = self.verification is None and not self.verify_skipped
-        if simulating and "payload" in rec:  # these models carry it: say so
-            rec = {
-                **rec,
-                "payload": {**rec["payload"], "in_models": bool(rec["payload"]["held_by"])},
-            }
         return bundle_files(
             rec,
             self.structure,
             self.catalog,
             doc,
-            with_payload=self.with_payload or simulating,
+            with_payload=self.with_payload,
             pictures=not simulating,
             simulated_only=simulating,
             bed=None if simulating else self.bed,
