@@ -333,6 +333,7 @@ def _verified(
         robust_check,
         robust_files,
     )
+    from synth.robust_wheels import wheel_exclusions, wheel_note
     from synth.structure import StructureDesigner
 
     floors: dict[str, float] = {}
@@ -344,6 +345,7 @@ def _verified(
     torque_done = False  # a stronger actuator was asked for and none could be had
     stuck: list[str] = []  # joints the play broke that no model with less play serves
     play = None
+    wheels_at: tuple[int, dict | None] = (0, None)  # the stiffer wheels tried (synth.robust_wheels)
     rounds = 0
     while True:
         rounds += 1
@@ -360,6 +362,12 @@ def _verified(
         robust = None if failing else robust_check(designer, outcome, opts.robustness)
         more = _floors(results + failing_runs(robust), record)
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
+        stiffer: dict[str, frozenset[str]] = {}
+        if not (new or failing) and not_robust(robust) and rounds < MAX_ROUNDS:
+            # no actuator saturated: does a stiffer wheel servo answer it? (measured)
+            files_now = robust_files(designer, outcome)
+            stiffer, wheels = wheel_exclusions(files_now, robust, outcome.catalog, excluded)
+            wheels_at = (rounds, wheels)
         if not (failing or not_robust(robust)):
             break
         sizer = StructureDesigner(
@@ -371,12 +379,13 @@ def _verified(
             opts.objective,
         )
         structure = None
-        if new and rounds < MAX_ROUNDS and not torque_done:
+        if (new or stiffer) and rounds < MAX_ROUNDS and not torque_done:
             floors |= new
             sizer.torque_floor = dict(floors)
-            sizer.excluded = dict(excluded)
+            sizer.excluded = dict(excluded) | stiffer
             try:
                 structure = sizer.run()
+                excluded |= stiffer
             except InfeasibleError:
                 torque_done = True  # no stronger actuator: is it the play? (below)
         if structure is None and not failing and rounds < MAX_ROUNDS + PLAY_ROUNDS:
@@ -427,6 +436,8 @@ def _verified(
         behavior = why.split(" is not robust", 1)[0]
         if blamed_at == rounds:  # measured on the design as it stands
             why += play_note(blamed, behavior, stuck, play or {}, models)
+        if wheels_at[0] == rounds:
+            why += wheel_note(wheels_at[1], behavior)
         mine = {ability} | {a for a, s in served.items() if s == ability}
         if mine & needed:
             failure = failure or why
