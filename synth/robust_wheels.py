@@ -238,8 +238,8 @@ def wheel_note(found: Mapping | None, behavior: str) -> str:
     and none made it pass; "" otherwise."""
     if not found or found.get("model") is not None:
         return ""
-    tried = ", ".join(found.get("tried") or ()) or "none of the catalog's (none serves them)"
-    return (
-        f"; stiffer wheel servos ({tried}, for {', '.join(found['from'])}) do not make its "
-        f"failed runs pass"
-    )
+    wheels = f"{', '.join(found['joints'])} ({', '.join(found['from'])})"
+    tried = found.get("tried")
+    if not tried:
+        return f"; the catalog has no stiffer servo that drives the wheels {wheels} as fast"
+    return f"; stiffer servos for the wheels {wheels}, {', '.join(tried)}, do not make it pass"

@@ -362,8 +362,9 @@ def _verified(
         robust = None if failing else robust_check(designer, outcome, opts.robustness)
         more = _floors(results + failing_runs(robust), record)
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
+        grow = new if rounds < MAX_ROUNDS and not torque_done else {}
         stiffer: dict[str, frozenset[str]] = {}
-        if not (new or failing) and not_robust(robust) and rounds < MAX_ROUNDS:
+        if not (grow or failing) and not_robust(robust) and rounds < MAX_ROUNDS + PLAY_ROUNDS:
             # no actuator saturated: does a stiffer wheel servo answer it? (measured)
             files_now = robust_files(designer, outcome)
             stiffer, wheels = wheel_exclusions(files_now, robust, outcome.catalog, excluded)
@@ -379,8 +380,8 @@ def _verified(
             opts.objective,
         )
         structure = None
-        if (new or stiffer) and rounds < MAX_ROUNDS and not torque_done:
-            floors |= new
+        if grow or stiffer:
+            floors |= grow
             sizer.torque_floor = dict(floors)
             sizer.excluded = dict(excluded) | stiffer
             try:
