@@ -21,6 +21,9 @@ play it is, their servo and every servo of the catalog with as much play
 (:func:`synth.robust.less_play`), and the structure is sized again (the servo with less
 play must still hold the joint's torque), up to ``PLAY_ROUNDS`` sizings more; the record's
 ``verified.play`` names each swap and the runs that called for it.
+A failed perturbed run with no actuator saturated on a robot with wheels is replayed with
+stiffer wheel servos (:func:`synth.robust_wheels.wheel_exclusions`): the first with which
+the runs pass is the answer, the wheels may have no less stiff servo in the next sizing.
 
 Before each round's verification, a controller whose open-loop model needs figures only a
 run can give (:meth:`gaits.base.Controller.calibration_probes`: a skid-steer's effective
