@@ -336,7 +336,7 @@ def _verified(
         robust_check,
         robust_files,
     )
-    from synth.robust_wheels import wheel_exclusions, wheel_note
+    from synth.robust_wheels import wheel_exclusions, wheel_joints, wheel_note
     from synth.structure import StructureDesigner
 
     floors: dict[str, float] = {}
@@ -367,7 +367,12 @@ def _verified(
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
         grow = new if rounds < MAX_ROUNDS and not torque_done else {}
         stiffer: dict[str, frozenset[str]] = {}
-        if not (grow or failing) and not_robust(robust) and rounds < MAX_ROUNDS + PLAY_ROUNDS:
+        if (
+            not (grow or failing)
+            and not_robust(robust)
+            and rounds < MAX_ROUNDS + PLAY_ROUNDS
+            and wheel_joints(record, outcome.catalog)
+        ):
             # no actuator saturated: does a stiffer wheel servo answer it? (measured)
             files_now = robust_files(designer, outcome)
             stiffer, wheels = wheel_exclusions(files_now, robust, outcome.catalog, excluded)

@@ -191,3 +191,17 @@ def test_the_loop_gives_the_wheels_a_stiffer_servo(tmp_path: Path) -> None:
     robust = rec["verified"]["robust"]
     assert all(b["passed"] == b["runs"] == 8 for b in robust["behaviors"])
     assert rec["verified"]["rounds"] == 2
+
+
+def test_the_loop_refuses_naming_the_wheels_when_none_is_as_fast() -> None:
+    """Built to fail: the drive asked for 0.3 m/s has the one servo of the catalog that
+    turns its wheels that fast (FS90R) and veers 16.8 deg on seed 6's 2.9 deg slope: no
+    stiffer servo to try, and the refusal says so."""
+    argv = ("driving", "--param", "payload=0kg", "--param", "speed=0.3m/s", "--no-input")
+    code, _, err = _main("design", *argv, "--robustness")
+    assert code == 1
+    assert "driving is not robust" in err and "seed 6" in err
+    assert (
+        "the catalog has no stiffer servo that drives the wheels left_wheel, right_wheel "
+        "(FS90R) as fast" in err
+    ), err
