@@ -88,6 +88,8 @@ class Verification:
     robust: dict | None = None  # the perturbed runs (synth.robust), None when not run
     #: the servos swapped for less play (joint -> from, to) and the runs the play broke
     play: dict | None = None
+    #: the wheels given stiffer servos (joint -> from, to) and the runs that called for it
+    wheels: dict | None = None
 
     def record(self) -> dict:
         out = {
@@ -104,6 +106,8 @@ class Verification:
             out["robust"] = self.robust
         if self.play is not None:
             out["play"] = self.play
+        if self.wheels is not None:
+            out["wheels"] = self.wheels
         return out
 
 
@@ -349,6 +353,8 @@ def _verified(
     stuck: list[str] = []  # joints the play broke that no model with less play serves
     play = None
     wheels_at: tuple[int, dict | None] = (0, None)  # the stiffer wheels tried (synth.robust_wheels)
+    first_wheel: dict[str, str] = {}  # wheel joint -> its servo before a stiffer one
+    wheel_runs: list[dict] = []  # the perturbed runs that called for the stiffer wheels
     rounds = 0
     while True:
         rounds += 1
@@ -377,6 +383,7 @@ def _verified(
             files_now = robust_files(designer, outcome)
             stiffer, wheels = wheel_exclusions(files_now, robust, outcome.catalog, excluded)
             wheels_at = (rounds, wheels)
+            models_now = {j["name"]: j["actuator"] for j in record.get("joints", ())}
         if not (failing or not_robust(robust)):
             break
         sizer = StructureDesigner(
@@ -395,6 +402,10 @@ def _verified(
             try:
                 structure = sizer.run()
                 excluded |= stiffer
+                if stiffer:  # synth.robust_wheels: what called for it
+                    wheel_runs += wheels_at[1]["runs"]  # type: ignore[index]
+                    for j in stiffer:
+                        first_wheel.setdefault(j, models_now[j])
             except InfeasibleError:
                 torque_done = True  # no stronger actuator: is it the play? (below)
         if structure is None and not failing and rounds < MAX_ROUNDS + PLAY_ROUNDS:
@@ -462,6 +473,14 @@ def _verified(
         failure,
         robust=robust,
         play=_play_record(first_model, models, play or {}, history) if history else None,
+        wheels={
+            "swapped": {
+                j: {"from": m, "to": models.get(j)} for j, m in sorted(first_wheel.items())
+            },
+            "runs": wheel_runs,
+        }
+        if first_wheel
+        else None,
     )
     out = replace(outcome, verification=v, bundle=files)
     if failure is not None:

@@ -191,6 +191,11 @@ def test_the_loop_gives_the_wheels_a_stiffer_servo(tmp_path: Path) -> None:
     robust = rec["verified"]["robust"]
     assert all(b["passed"] == b["runs"] == 8 for b in robust["behaviors"])
     assert rec["verified"]["rounds"] == 2
+    swapped = rec["verified"]["wheels"]["swapped"]
+    assert swapped == {j: {"from": "FS90R", "to": "FS5113R"} for j in wheels}
+    runs = rec["verified"]["wheels"]["runs"]
+    assert {(r["behavior"], r["seed"]) for r in runs} >= {("driving", 1), ("driving", 6)}
+    assert "stiffer wheel left_wheel: FS90R -> FS5113R" in text
 
 
 def test_the_loop_refuses_naming_the_wheels_when_none_is_as_fast() -> None:
