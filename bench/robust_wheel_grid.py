@@ -1,6 +1,6 @@
 """Robust verification of wheeled robots over a grid (issue 22): differential drive,
-skid-steer, tricycle, car and the KIF-only steered types of ``tests/test_steered.py``,
-payload x speed, each request designed as ``parmor design`` does (nominal verification)
+skid-steer, tricycle, car, the KIF-only steered types of ``tests/test_steered.py`` and the
+KIF mobile manipulator of ``tests/test_bodyplan.py``, payload x speed, each request designed as ``parmor design`` does (nominal verification)
 and with ``--robustness K``. Prints per type the requests accepted nominal -> robust and
 the perturbed runs passed; ``--jsonl FILE`` keeps one row per request (the failures'
 seeds, criteria and perturbations). The refusals' hint search is left out.
@@ -25,7 +25,7 @@ for p in (REPO, REPO / "bench", REPO / "tests"):
 
 
 def requests(kif_dir: Path) -> list[tuple[str, list[str]]]:
-    """(label, design argv) of the grid: >= 20 requests over the wheeled types."""
+    """(label, design argv) of the grid: 27 requests over the wheeled types."""
     from test_bodyplan import MOBILE
     from test_steered import TYPES
 
