@@ -1,11 +1,12 @@
 """Robust verification of wheeled robots over a grid (issue 22): differential drive,
 skid-steer, tricycle, car, the KIF-only steered types of ``tests/test_steered.py`` and the
-KIF mobile manipulator of ``tests/test_bodyplan.py``, payload x speed, each request designed as ``parmor design`` does (nominal verification)
-and with ``--robustness K``. Prints per type the requests accepted nominal -> robust and
-the perturbed runs passed; ``--jsonl FILE`` keeps one row per request (the failures'
-seeds, criteria and perturbations). The refusals' hint search is left out.
-``--no-stiffer-wheels``: the sizing loop without its stiffer wheel servos
-(``synth/robust_wheels.py``), for the figures before it.
+KIF mobile manipulator of ``tests/test_bodyplan.py``, payload x speed, each request
+designed as ``parmor design`` does (nominal verification) and with ``--robustness K``.
+Prints per type the requests accepted nominal -> robust and the perturbed runs passed;
+``--jsonl FILE`` keeps one row per request (the failures' seeds, criteria and
+perturbations). The refusals' hint search is left out. ``--no-stiffer-wheels``: the
+sizing loop without its stiffer wheel servos (``synth/robust_wheels.py``), for the
+figures before it.
 
     python bench/robust_wheel_grid.py [K] [--jsonl FILE] [--only TYPE] [--no-stiffer-wheels]
 """
