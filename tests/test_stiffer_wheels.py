@@ -210,3 +210,30 @@ def test_the_loop_refuses_naming_the_wheels_when_none_is_as_fast() -> None:
         "the catalog has no stiffer servo that drives the wheels left_wheel, right_wheel "
         "(FS90R) as fast" in err
     ), err
+
+
+def test_a_kif_only_steered_type_gets_stiffer_wheels(tmp_path: Path, monkeypatch) -> None:
+    """A type written in KIF alone (tests/test_steered.py's cart: a steered free wheel in
+    front, two driven behind) gets the same answer: with 0.5 kg at 0.1 m/s its FS90R
+    wheels under-turn on the slopes; sized with FS5113R it is robust. Without the answer
+    (the case built to fail) it is refused."""
+    import synth.robust_wheels
+    from tests.test_steered import CART
+
+    kif = tmp_path / "cart.kif"
+    kif.write_text(CART)
+    argv = (
+        "design", "cart-driving", "--ontology", str(kif), "--param", "payload=0.5kg",
+        "--param", "speed=0.1m/s", "--no-input", "--robustness", "--json",
+    )  # fmt: skip
+    code, out, err = _main(*argv)
+    assert code == 0, err
+    rec = json.loads(out)
+    assert rec["robot_type"] == "SteeredCart"
+    assert rec["verified"]["wheels"]["swapped"] == {
+        j: {"from": "FS90R", "to": "FS5113R"} for j in ("left_wheel", "right_wheel")
+    }
+    assert all(b["passed"] == 8 for b in rec["verified"]["robust"]["behaviors"])
+    monkeypatch.setattr(synth.robust_wheels, "wheel_exclusions", lambda *a, **k: ({}, None))
+    code, _, err = _main(*argv)
+    assert code == 1 and "turning is not robust" in err, err
