@@ -1,11 +1,14 @@
 """Robust verification of wheeled robots over a grid (issue 22): differential drive,
-skid-steer, tricycle, car and the KIF-only steered types of ``tests/test_steered.py``,
-payload x speed, each request designed as ``parmor design`` does (nominal verification)
-and with ``--robustness K``. Prints per type the requests accepted nominal -> robust and
-the perturbed runs passed; ``--jsonl FILE`` keeps one row per request (the failures'
-seeds, criteria and perturbations). The refusals' hint search is left out.
+skid-steer, tricycle, car, the KIF-only steered types of ``tests/test_steered.py`` and the
+KIF mobile manipulator of ``tests/test_bodyplan.py``, payload x speed, each request
+designed as ``parmor design`` does (nominal verification) and with ``--robustness K``.
+Prints per type the requests accepted nominal -> robust and the perturbed runs passed;
+``--jsonl FILE`` keeps one row per request (the failures' seeds, criteria and
+perturbations). The refusals' hint search is left out. ``--no-stiffer-wheels``: the
+sizing loop without its stiffer wheel servos (``synth/robust_wheels.py``), for the
+figures before it.
 
-    python bench/robust_wheel_grid.py [K] [--jsonl FILE] [--only TYPE]
+    python bench/robust_wheel_grid.py [K] [--jsonl FILE] [--only TYPE] [--no-stiffer-wheels]
 """
 
 from __future__ import annotations
@@ -23,7 +26,8 @@ for p in (REPO, REPO / "bench", REPO / "tests"):
 
 
 def requests(kif_dir: Path) -> list[tuple[str, list[str]]]:
-    """(label, design argv) of the grid: >= 20 requests over the wheeled types."""
+    """(label, design argv) of the grid: 27 requests over the wheeled types."""
+    from test_bodyplan import MOBILE
     from test_steered import TYPES
 
     out: list[tuple[str, list[str]]] = []
@@ -45,15 +49,26 @@ def requests(kif_dir: Path) -> list[tuple[str, list[str]]]:
         for payload in ("0kg", "0.3kg"):
             p = ["--param", f"payload={payload}"]
             out.append((case, [ability, "--ontology", str(src), *p]))
+    # the KIF mobile manipulator of tests/test_bodyplan.py: a differential drive with an arm
+    src = kif_dir / "mobile.kif"
+    src.write_text(MOBILE)
+    for payload in ("0kg", "0.05kg", "0.1kg"):
+        p = ["--param", "object_shape=cylinder", "--param", f"payload={payload}"]
+        out.append(("mobile", ["driving", "pick-and-place", "--ontology", str(src), *p]))
     return out
 
 
-def run(k: int = 8, jsonl: str | None = None, only: str | None = None) -> list[str]:
+def run(
+    k: int = 8, jsonl: str | None = None, only: str | None = None, stiffer: bool = True
+) -> list[str]:
     from robust_grid import design
 
+    import synth.robust_wheels
     import synth.verify
 
     synth.verify.best_value = lambda *a, **kw: None  # no hint search
+    if not stiffer:  # the loop without the stiffer wheels' answer (the figures before it)
+        synth.robust_wheels.wheel_exclusions = lambda *a, **kw: ({}, None)
     rows = []
     sink = open(jsonl, "w") if jsonl else None  # noqa: SIM115
     with tempfile.TemporaryDirectory() as tmp:
@@ -117,4 +132,6 @@ if __name__ == "__main__":
                 path = val
             else:
                 only = val
-    print("\n".join(run(int(args[0]) if args else 8, path, only)))
+    stiffer = "--no-stiffer-wheels" not in args
+    args = [a for a in args if a != "--no-stiffer-wheels"]
+    print("\n".join(run(int(args[0]) if args else 8, path, only, stiffer)))

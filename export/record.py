@@ -321,6 +321,13 @@ def verification_text(verified: dict | None, indent: str = "  ") -> str:
             f"{sw['play_deg'][0]:.2f} -> {sw['play_deg'][1]:.2f} deg): its play broke "
             f"{', '.join(broke) or 'a behaviour'} under perturbation"
         )
+    wheels = verified.get("wheels") or {}
+    for j, sw in wheels.get("swapped", {}).items():
+        broke = sorted({r["behavior"] for r in wheels.get("runs", ())})
+        out.append(
+            f"{indent}  stiffer wheel {j}: {sw['from']} -> {sw['to']}: its motor line's droop "
+            f"broke {', '.join(broke) or 'a behaviour'} under perturbation"
+        )
     for a, why in verified.get("dropped", {}).items():
         out.append(f"{indent}  dropped {a}: {why}")
     if verified.get("not_simulated"):

@@ -21,6 +21,9 @@ play it is, their servo and every servo of the catalog with as much play
 (:func:`synth.robust.less_play`), and the structure is sized again (the servo with less
 play must still hold the joint's torque), up to ``PLAY_ROUNDS`` sizings more; the record's
 ``verified.play`` names each swap and the runs that called for it.
+A failed perturbed run with no actuator saturated on a robot with wheels is replayed with
+stiffer wheel servos (:func:`synth.robust_wheels.wheel_exclusions`): the first with which
+the runs pass is the answer, the wheels may have no less stiff servo in the next sizing.
 
 Before each round's verification, a controller whose open-loop model needs figures only a
 run can give (:meth:`gaits.base.Controller.calibration_probes`: a skid-steer's effective
@@ -85,6 +88,8 @@ class Verification:
     robust: dict | None = None  # the perturbed runs (synth.robust), None when not run
     #: the servos swapped for less play (joint -> from, to) and the runs the play broke
     play: dict | None = None
+    #: the wheels given stiffer servos (joint -> from, to) and the runs that called for it
+    wheels: dict | None = None
 
     def record(self) -> dict:
         out = {
@@ -101,6 +106,8 @@ class Verification:
             out["robust"] = self.robust
         if self.play is not None:
             out["play"] = self.play
+        if self.wheels is not None:
+            out["wheels"] = self.wheels
         return out
 
 
@@ -333,6 +340,7 @@ def _verified(
         robust_check,
         robust_files,
     )
+    from synth.robust_wheels import wheel_exclusions, wheel_joints, wheel_note
     from synth.structure import StructureDesigner
 
     floors: dict[str, float] = {}
@@ -344,6 +352,9 @@ def _verified(
     torque_done = False  # a stronger actuator was asked for and none could be had
     stuck: list[str] = []  # joints the play broke that no model with less play serves
     play = None
+    wheels_at: tuple[int, dict | None] = (0, None)  # the stiffer wheels tried (synth.robust_wheels)
+    first_wheel: dict[str, str] = {}  # wheel joint -> its servo before a stiffer one
+    wheel_runs: list[dict] = []  # the perturbed runs that called for the stiffer wheels
     rounds = 0
     while True:
         rounds += 1
@@ -360,6 +371,19 @@ def _verified(
         robust = None if failing else robust_check(designer, outcome, opts.robustness)
         more = _floors(results + failing_runs(robust), record)
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
+        grow = new if rounds < MAX_ROUNDS and not torque_done else {}
+        stiffer: dict[str, frozenset[str]] = {}
+        if (
+            not (grow or failing)
+            and not_robust(robust)
+            and rounds < MAX_ROUNDS + PLAY_ROUNDS
+            and wheel_joints(record, outcome.catalog)
+        ):
+            # no actuator saturated: does a stiffer wheel servo answer it? (measured)
+            files_now = robust_files(designer, outcome)
+            stiffer, wheels = wheel_exclusions(files_now, robust, outcome.catalog, excluded)
+            wheels_at = (rounds, wheels)
+            models_now = {j["name"]: j["actuator"] for j in record.get("joints", ())}
         if not (failing or not_robust(robust)):
             break
         sizer = StructureDesigner(
@@ -371,12 +395,17 @@ def _verified(
             opts.objective,
         )
         structure = None
-        if new and rounds < MAX_ROUNDS and not torque_done:
-            floors |= new
+        if grow or stiffer:
+            floors |= grow
             sizer.torque_floor = dict(floors)
-            sizer.excluded = dict(excluded)
+            sizer.excluded = dict(excluded) | stiffer
             try:
                 structure = sizer.run()
+                excluded |= stiffer
+                if stiffer:  # synth.robust_wheels: what called for it
+                    wheel_runs += wheels_at[1]["runs"]  # type: ignore[index]
+                    for j in stiffer:
+                        first_wheel.setdefault(j, models_now[j])
             except InfeasibleError:
                 torque_done = True  # no stronger actuator: is it the play? (below)
         if structure is None and not failing and rounds < MAX_ROUNDS + PLAY_ROUNDS:
@@ -428,6 +457,8 @@ def _verified(
         behavior = why.split(" is not robust", 1)[0]
         if blamed_at == rounds:  # measured on the design as it stands
             why += play_note(blamed, behavior, stuck, play or {}, models)
+        if wheels_at[0] == rounds:
+            why += wheel_note(wheels_at[1], behavior)
         mine = {ability} | {a for a, s in served.items() if s == ability}
         if mine & needed:
             if failure is None:
@@ -449,6 +480,14 @@ def _verified(
         failure,
         robust=robust,
         play=_play_record(first_model, models, play or {}, history) if history else None,
+        wheels={
+            "swapped": {
+                j: {"from": m, "to": models.get(j)} for j, m in sorted(first_wheel.items())
+            },
+            "runs": wheel_runs,
+        }
+        if first_wheel
+        else None,
     )
     out = replace(outcome, verification=v, bundle=files)
     if failure is not None:

@@ -1,0 +1,245 @@
+"""The wheels' answer to a perturbed run they break: a stiffer wheel servo, measured.
+
+A wheel servo is a DC motor line (``export.mjcf``: a velocity servo of gain ``kv =
+stall torque / no-load speed``): under a load torque tau it turns ``tau / kv`` slower
+than commanded. An open-loop plan commands each wheel its speed plus the droop of the
+load it predicts on flat ground of the catalog's friction; whatever load it cannot know
+(a floor's slope across the robot's path pulling its centre of mass sideways, a floor of
+other friction, a heavier robot) turns the wheels by another ``delta tau / kv``, and the
+robot veers or turns by another angle. Measured on the designed differential drive with
+1 kg (FS90R wheels): 1.9-2.9 deg of cross slope veered its 5 s drive by 23-37 deg; the
+same runs with the wheels' ``kv`` x 2, 4, 8, 32: 16-25, 8-15, 9, 2 deg. A stiffer servo
+(more torque for its speed) is the answer no plan can give.
+
+:func:`wheel_blame` measures it as :func:`synth.robust.play_blame` measures the play: the
+failed perturbed runs of each behaviour that is not robust (up to
+:data:`synth.robust.BLAMED_RUNS`, the worst first) are replayed under the very same
+perturbation with the wheel servos swapped for each stiffer servo of the catalog that
+serves them (same class, continuous rotation, holding the joint's required torque at its
+required speed; the least stiff first): the first with which every replayed run passes is
+the answer: the next sizing may give the wheels no servo less stiff than it
+(:func:`wheel_exclusions`, as :func:`synth.robust.less_play` excludes servos of too much
+play). The replay is the bundle with the swapped servo in both files:
+``design.json``'s joint (stall torque, no-load speed: what the controller plans with) and
+``robot.xml``'s velocity servo (``kv``, ``ctrlrange``, ``forcerange``, the rotor's
+armature), so its plans and its model are those the next sizing gives (less the modules'
+own mass, which that sizing's verification then includes). None answers it when the
+stiffest does not make every run pass: the failure stands, and :func:`wheel_note` says so.
+
+Wheels are read off the structure (a joint whose actuator turns without an end stop);
+no robot type is named.
+
+How :mod:`synth.verify` calls it: where a round's perturbed runs failed and no actuator
+saturated (``_floors`` gave nothing new), ``wheel_floors(robust_files(designer,
+outcome), robust, outcome.catalog, excluded)`` gives joint -> the models excluded (empty:
+no wheel, or no stiffer wheel servo makes them pass), merged into the round's exclusions
+before it sizes again.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from adron.catalog import Actuator, Catalog
+
+#: A stiffer servo's kv must exceed the wheel's by this factor (else it is the same motor line).
+STIFFER = 1.0001
+
+
+def wheel_joints(record: Mapping, catalog: Catalog) -> dict[str, Actuator]:
+    """The design's wheel joints -> their actuator: the joints whose catalog actuator turns
+    without an end stop (continuous rotation: a velocity servo in the MJCF)."""
+    by_model = {a.model: a for a in catalog.actuators}
+    out = {}
+    for j in record.get("joints", ()):
+        a = by_model.get(j.get("actuator"))
+        if a is not None and a.continuous:
+            out[j["name"]] = a
+    return out
+
+
+def kv(a: Actuator) -> float:
+    """The motor line's gain N m s/rad of actuator ``a`` (stall torque / no-load speed)."""
+    return a.stall_torque_Nm / a.no_load_speed_rad_s
+
+
+def stiffer_servos(record: Mapping, catalog: Catalog) -> list[Actuator]:
+    """The catalog's servos that may replace every wheel servo of the design, the least
+    stiff first: of the wheels' class (the record's ``module_class``), continuous,
+    stiffer than each wheel's (``kv`` x :data:`STIFFER`), holding each wheel's required
+    torque at its required speed (``synth.structure.meets``)."""
+    from synth.structure import meets
+
+    wheels = wheel_joints(record, catalog)
+    joints = [j for j in record.get("joints", ()) if j["name"] in wheels]
+    if not joints:
+        return []
+    out = []
+    for a in catalog.actuators:
+        if not a.continuous or a.no_load_speed_rad_s <= 0:
+            continue
+        if any(
+            a.ontology_class != j.get("module_class")
+            or kv(a) <= kv(wheels[j["name"]]) * STIFFER
+            or not meets(
+                a,
+                float(j.get("required_torque_Nm") or 0.0),
+                float(j.get("required_speed_rad_s") or 0.0),
+                catalog,
+            )
+            for j in joints
+        ):
+            continue
+        out.append(a)
+    return sorted(out, key=lambda a: (kv(a), a.cost, a.model))
+
+
+def swapped_files(
+    files: Mapping[str, str | bytes], joints: list[str], actuator: Actuator
+) -> dict[str, str | bytes]:
+    """The bundle ``files`` with ``actuator`` driving ``joints`` (wheels): the record's
+    stall torque and no-load speed, the MJCF's velocity servo (``kv``, ``ctrlrange``,
+    ``forcerange``) and the joint's armature, as ``export.mjcf`` writes them."""
+    import xml.etree.ElementTree as ET
+
+    from export.mjcf import SERVO_BAND, TIMESTEP, WHEEL_MOTOR_TIME_CONSTANT
+
+    def text(v: str | bytes) -> str:
+        return v.decode("utf-8") if isinstance(v, bytes) else v
+
+    names = set(joints)
+    record = json.loads(text(files["design.json"]))
+    for j in record.get("joints", ()):
+        if j["name"] in names:
+            j["actuator"] = actuator.model
+            j["actuator_torque_Nm"] = actuator.stall_torque_Nm
+            j["no_load_speed_rad_s"] = actuator.no_load_speed_rad_s
+    effort, speed = actuator.stall_torque_Nm, actuator.no_load_speed_rad_s
+    gain = effort / speed
+    armature = max(effort / SERVO_BAND * (4.0 * TIMESTEP) ** 2, gain * WHEEL_MOTOR_TIME_CONSTANT)
+    root = ET.fromstring(text(files["robot.xml"]))
+    for act in root.iter("velocity"):
+        if act.get("joint") in names:
+            act.set("kv", repr(gain))
+            act.set("ctrlrange", f"{-speed!r} {speed!r}")
+            act.set("forcerange", f"{-effort!r} {effort!r}")
+    for joint in root.iter("joint"):
+        if joint.get("name") in names:
+            joint.set("armature", repr(armature))
+    out = dict(files)
+    out["design.json"] = json.dumps(record)
+    out["robot.xml"] = ET.tostring(root, encoding="unicode")
+    return out
+
+
+def _failed_runs(robust: Mapping) -> list[tuple[str, int, dict]]:
+    """(behaviour, seed, figures) of the failed perturbed runs of each behaviour that is
+    not robust, up to ``BLAMED_RUNS`` a behaviour, the worst first (as ``play_blame``)."""
+    from synth.robust import BLAMED_RUNS
+
+    out = []
+    for b in robust.get("behaviors", ()):
+        if b["robust"]:
+            continue
+        figs = {f.get("seed"): f for f in b.get("figures", ())}
+        worst = sorted(b["failures"], key=lambda f: (-len(f["verdict"]), f["seed"]))
+        out += [(b["behavior"], f["seed"], figs.get(f["seed"], {})) for f in worst[:BLAMED_RUNS]]
+    return out
+
+
+def wheel_blame(
+    files: Mapping[str, str | bytes], robust: Mapping | None, catalog: Catalog
+) -> dict | None:
+    """Does a stiffer wheel servo make the failed perturbed runs pass? Measured (module
+    docstring): ``{"model": the first servo of :func:`stiffer_servos` with which every
+    replayed run passes, "from": the wheels' servo, "joints": the wheels, "runs": [{behavior,
+    seed, verdict (as failed), "figures": {"with": the failed run's criteria figures,
+    "stiffer": the replay's}}]}``; None without wheels, without a failed run, or when
+    none of them makes every run pass (``{"model": None, "tried": [...]}`` then, so that a
+    refusal can say so)."""
+    if not robust or not isinstance(robust.get("table"), Mapping):
+        return None
+    from export.verify import _criteria, bundle_parts, figures, run_perturbed
+
+    runs = _failed_runs(robust)
+    if not runs:
+        return None
+    record, _, _ = bundle_parts(files)
+    wheels = wheel_joints(record, catalog)
+    if not wheels:
+        return None
+    candidates = stiffer_servos(record, catalog)
+    joints = sorted(wheels)
+    table = robust["table"]
+    for a in candidates:
+        trial = swapped_files(files, joints, a)
+        replays = []
+        for behavior, seed, failed in runs:
+            traj, result, _ = run_perturbed(trial, behavior, seed, table=table)
+            fig = figures(traj, result)
+            if fig["verdict"] != "ok":
+                break
+            replays.append(
+                {
+                    "behavior": behavior,
+                    "seed": seed,
+                    "verdict": list(failed.get("verdict") or ()),
+                    "figures": {"with": _criteria(failed), "stiffer": _criteria(fig)},
+                }
+            )
+        else:
+            return {
+                "model": a.model,
+                "from": sorted({w.model for w in wheels.values()}),
+                "joints": joints,
+                "runs": replays,
+            }
+    return {
+        "model": None,
+        "from": sorted({w.model for w in wheels.values()}),
+        "joints": joints,
+        "tried": [a.model for a in candidates],
+    }
+
+
+def wheel_exclusions(
+    files: Mapping[str, str | bytes],
+    robust: Mapping | None,
+    catalog: Catalog,
+    excluded: Mapping[str, frozenset[str]] | None = None,
+) -> tuple[dict[str, frozenset[str]], dict | None]:
+    """The wheels' answer for the next sizing: each wheel joint -> the models it may no
+    longer have (``excluded``'s and every continuous servo less stiff than the one
+    :func:`wheel_blame` measured as the answer: the sizing then picks that one or a stiffer
+    one that meets the joint's operating points), new entries only; and what
+    :func:`wheel_blame` found (None: no wheel or no failed run). Empty when no stiffer
+    wheel servo makes the failed runs pass."""
+    excluded = excluded or {}
+    found = wheel_blame(files, robust, catalog)
+    if not found or found["model"] is None:
+        return {}, found
+    answer = next(x for x in catalog.actuators if x.model == found["model"])
+    looser = frozenset(
+        a.model for a in catalog.actuators if a.continuous and kv(a) * STIFFER < kv(answer)
+    )
+    out = {}
+    for j in found["joints"]:
+        ex = excluded.get(j, frozenset()) | looser
+        if ex != excluded.get(j):
+            out[j] = ex
+    return out, found
+
+
+def wheel_note(found: Mapping | None, behavior: str) -> str:
+    """What a refusal adds when the wheels' servos were tried stiffer for ``behavior``
+    and none made it pass; "" otherwise."""
+    if not found or found.get("model") is not None:
+        return ""
+    wheels = f"{', '.join(found['joints'])} ({', '.join(found['from'])})"
+    tried = found.get("tried")
+    if not tried:
+        return f"; the catalog has no stiffer servo that drives the wheels {wheels} as fast"
+    return f"; stiffer servos for the wheels {wheels}, {', '.join(tried)}, do not make it pass"
