@@ -61,6 +61,26 @@ hips' yaw fights itself while both feet are down, 45 % of the time), and the ste
 loops of bench/sensing_humanoid.py, whose straight strides it would walk between arcs
 of this gait, passed 19 of 24 (24 with this gait alone).
 
+Measured again once the perturbed floors used MuJoCo's no-slip solver (the feet no
+longer creep; ``bench/robust_humanoid.py seeds 48 --walk robust``): ``ROBUST_WALK``
+passes 24 of seeds 1-48 on the default design (the default walk 1 of seeds 1-24), and
+what breaks it is the hips' yaw. While both feet are down the legs and the floor close a
+loop that the perturbations (a lateral slope, the joints' play) twist: the rear leg's hip
+yaw, an SG90 (the gaits plan it 0.04 N m), is driven past its stall torque, the trunk
+yaws up to 8 deg, and the run fails saturated (the hip yaw the most saturated joint in
+each), short or off its heading; its distance also grows with the slope along the walk
+(about 15 % a degree: 0.64-1.41 x). Without the hip yaws' play it passes 33 of 48
+(0.74-1.39 x, the SG90 still saturated): their torque is what is missing first. The same
+design with the hip yaws given the hip pitch's torque and gains
+(``--yaw-as-pitch``) passes 39 of 48 (with 0.3 kg, 43; the rest: downhill distance up to
+1.38 x, heading 0.28-0.32 rad on lateral slopes: the SG90's play), with an MG996R at the
+hip yaws (the bundle edited by hand: its torque and its metal gears' play) 48 of 48
+(``tests/test_humanoid_hip_yaw.py`` pins seeds 6 and 8).
+Arcs of this gait still turn 0.87-0.92 x on that robot (0.91-0.94 x with the arms
+hanging, 0.94-0.96 x with 0.75 s steps), and with the arms held back they end off their
+planned pose. Holding both hips' yaw while both feet are down (turning only in single
+support) did not close them: 0.88-1.07 x up to 20 rad/m, the pose still off.
+
 The servos' give. A position servo is a spring (``kp``, N m/rad) with a velocity gain
 (``kv`` plus the motor's back-EMF, N m s/rad): it settles ``tau / kp`` short of its
 reference under a load ``tau`` and lags a moving reference by ``(kv + damping) / kp`` s
