@@ -989,7 +989,10 @@ REACH_SHOULDER = -pi / 4
 REACH_ELBOW = -pi / 4
 GRIPPER_OPEN = pi / 2  # rad: the gripper joint's open end (0: closed)
 REACH_TIME = 1.5  # s to raise the arms
-GRIP_TIME = 0.5  # s to close the grippers
+#: s to close the grippers. Closed in 0.5 s (5.9 rad/s at the peak) and opened in the
+#: crouch alone, an SG90 gripper was at its limit 2 % of every perturbed run
+#: (``tests/test_humanoid_grasp.py``).
+GRIP_TIME = 1.0
 HOLD_TIME = 1.5  # s holding
 
 
@@ -1296,11 +1299,14 @@ class HumanoidController(Controller):
     @staticmethod
     def _arms(t: np.ndarray, hold: float) -> np.ndarray:
         """(n, 6) arm angles of grasping (``ARM_JOINTS`` per side): the grippers open while
-        crouching, the arms reach forward, the grippers close and stay closed, the arms come
+        crouching and reaching (2.5 s: at most 1.2 rad/s) as the arms reach forward, the
+        grippers close (``GRIP_TIME``: at most 2.9 rad/s, what an SG90 still gives at the
+        battery's cut-off) and stay closed, the arms come
         back down after the hold."""
         back = CROUCH_TIME + REACH_TIME + GRIP_TIME + hold
         reach = _smooth((t - CROUCH_TIME) / REACH_TIME) - _smooth((t - back) / REACH_TIME)
-        opened = _smooth(t / CROUCH_TIME) - _smooth((t - CROUCH_TIME - REACH_TIME) / GRIP_TIME)
+        close = CROUCH_TIME + REACH_TIME  # the grippers open while crouching and reaching
+        opened = _smooth(t / close) - _smooth((t - close) / GRIP_TIME)
         one = np.stack([REACH_SHOULDER * reach, REACH_ELBOW * reach, GRIPPER_OPEN * opened], 1)
         return np.concatenate([one, one], axis=1)
 
