@@ -179,6 +179,12 @@ SAMPLES = 256  # samples of one stride of a reference gait
 CROUCH_TIME = 1.0  # s from q = 0 to the gait's mean pose
 SAMPLE_DT = 0.01  # s between trajectory samples
 SETTLE_TIME = 0.5  # s of standing still at the end of a behaviour
+#: ``calibration`` key: the arcs' hip yaw over the plan's (:meth:`HumanoidController.calibrate`)
+TURN_GAIN = "walking_turn_gain"
+#: rad/m: the probe arc's curvature, the first the design's hips turn
+PROBE_CURVATURES = (10.0, 5.0, 2.0)
+#: the calibrated gain's bounds (a probe outside them measured something else)
+TURN_GAIN_RANGE = (0.5, 2.0)
 #: Default full steps of a walk or run: enough that the starting and stopping half steps
 #: and the crouch take under half of the behaviour's time.
 DEFAULT_STEPS = 6
@@ -260,7 +266,8 @@ class GaitShape:
     lift / L; ``sway`` lateral ZMP position in single support as a fraction of half the
     hip width (1: under the stance ankle); ``arms`` the shoulders' pitch rad held through
     the gait (positive: the arms back), part of the whole-body COM the gait is planned
-    with (see :data:`ROBUST_WALK`).
+    with (see :data:`ROBUST_WALK`); ``measured_turn``: its arcs' hip yaw is scaled by the
+    turn measured on the design (:meth:`HumanoidController.calibrate`).
     """
 
     name: str
@@ -271,6 +278,7 @@ class GaitShape:
     lift: float
     sway: float
     arms: float = 0.0
+    measured_turn: bool = False
 
     def period(self, leg: float) -> float:
         """Step period s of legs of length ``leg`` m: ``step_period`` scaled with
@@ -286,7 +294,7 @@ WALK = GaitShape("walking", 0.75, 0.25, 0.96, 0.12, 0.12, 0.8)
 #: A walk tuned for the perturbed runs (the module docstring), not the default: on an arc
 #: it turns 10-16 % short, and steered loops that mix it with walking on arcs lose their
 #: line or touch their obstacle (``bench/robust_humanoid.py --walk robust`` runs it).
-ROBUST_WALK = GaitShape("walking", 1.1, 0.45, 0.92, 0.12, 0.08, 0.75, 0.6)
+ROBUST_WALK = GaitShape("walking", 1.1, 0.45, 0.92, 0.12, 0.08, 0.75, 0.6, measured_turn=True)
 #: The faster gait (``running``): a shorter period and double support, longer steps. Its
 #: period is bounded by the servos' speed at the smallest legs: the same Froude number gives
 #: short legs fast joints (``1 / sqrt(leg)``), and at the 40 mm leg modules a 0.5 s step
@@ -1028,7 +1036,7 @@ class HumanoidController(Controller):
     ``info["planned_positions"]`` keeps the planned angles.
     """
 
-    PLAN_IGNORES = frozenset({"mass_kg", "joint_torque", "calibration", "joint_speed"})
+    PLAN_IGNORES = frozenset({"mass_kg", "joint_torque", "joint_speed"})
 
     def __init__(
         self,
@@ -1052,6 +1060,8 @@ class HumanoidController(Controller):
             ),
         )
         self.stiffness = None if stiffness is None else self._per_joint(stiffness, "stiffness")
+        #: the arcs' hip yaw over the plan's (the design's ``calibration``, measured)
+        self.turn_gain = float(geometry.calibration.get(TURN_GAIN, 1.0))
         self.damping = None if damping is None else self._per_joint(damping, "damping", zero=True)
 
     def _per_joint(self, values: Mapping[str, float], what: str, zero: bool = False) -> np.ndarray:
@@ -1215,7 +1225,10 @@ class HumanoidController(Controller):
             crouch = _smooth(t / CROUCH_TIME)[:, None]  # r = 0 and no oscillation meanwhile
             q = crouch * mean + plan.envelope(tau)[:, None] * osc
             if curvature:
-                q[:, YAW] = curvature * (self._ankle_ahead(q) - self._ankle_ahead(crouch * mean))
+                gain = self.turn_gain if shape.measured_turn else 1.0
+                q[:, YAW] = (
+                    gain * curvature * (self._ankle_ahead(q) - self._ankle_ahead(crouch * mean))
+                )
             return q
 
         info: dict[str, object] = {
@@ -1240,6 +1253,43 @@ class HumanoidController(Controller):
         return self._trajectory(
             shape.name, CROUCH_TIME + plan.end, legs, info, partial(self._held_arms, shape=shape)
         )
+
+    def calibration_probes(self) -> list[tuple[str, dict[str, object]]]:
+        """When the walking gait's arcs are measured (``GaitShape.measured_turn``): one arc
+        of ``DEFAULT_STEPS`` steps at the first of ``PROBE_CURVATURES`` this design's hips
+        turn; none otherwise."""
+        if not WALK.measured_turn:
+            return []
+        for k in PROBE_CURVATURES:
+            try:
+                self.run(WALK.name, curvature=k)  # plans (or refuses) it
+            except ValueError:
+                continue
+            return [(WALK.name, {"curvature": k})]
+        return []
+
+    def calibrate(self, runs) -> dict:
+        """``walking_turn_gain``: the hips' yaw on an arc over the plan's, so that the
+        robot turns as planned: the gain the probe ran with times the planned change of
+        heading over the measured one (the trunk's yaw, first sample to last), within
+        ``TURN_GAIN_RANGE``. Empty when no probe ran or it did not turn its way."""
+        import math
+
+        gains = []
+        for traj, series in runs:
+            planned = float(traj.info["planned_pose"][2])  # type: ignore[index]
+            root = np.asarray(series["root"])
+            w, x, y, z = root[:, 3], root[:, 4], root[:, 5], root[:, 6]
+            yaw = np.unwrap(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+            turned = float(yaw[-1] - yaw[0])
+            if planned == 0 or turned * planned <= 0:
+                continue
+            gains.append(self.turn_gain * planned / turned)
+        if not gains:
+            return {}
+        lo, hi = TURN_GAIN_RANGE
+        gain = min(max(float(np.mean(gains)), lo), hi)
+        return {TURN_GAIN: float(f"{gain:.4f}")} if math.isfinite(gain) else {}
 
     @staticmethod
     def _held_arms(t: np.ndarray, shape: GaitShape) -> np.ndarray:
