@@ -24,13 +24,16 @@ within 0.96-1.26 x.
 
 ``grid``: the humanoid requests (walking with grasping; payload default, 0, 0.1 and
 0.3 kg) designed as ``bench/robust_grid.py`` does, nominal and with ``--robustness K``:
-accepted before -> after and the perturbed runs that passed.
+accepted before -> after and the perturbed runs that passed. ``--floors needed``: the
+robust loop's torque floors from the demanded behaviours' runs only, and only for joints
+saturated 1 % of a run or more (:func:`needed_floors`).
 
     python bench/robust_humanoid.py isolate [K] [--servo M=G:D] [--play-stop-steps N]
         [--walk robust] [ARGS..]
     python bench/robust_humanoid.py seeds [K] [--walk robust] [--no-play REGEX] [--yaw-as-pitch]
         [ARGS..]
     python bench/robust_humanoid.py grid [K] [--play-stop-steps N] [--walk robust]
+        [--floors needed]
 """
 
 from __future__ import annotations
@@ -205,6 +208,42 @@ def seeds(
     return lines
 
 
+#: ``--floors needed``: a joint whose share of saturated samples in a failed run is below
+#: this gets no torque floor from it (it did not break the run: the verdict allows 5 %).
+FLOOR_SHARE = 0.01
+
+
+def needed_floors() -> None:
+    """The robust loop's torque floors (``synth.verify._floors``) taken only from the runs
+    of behaviours that serve a demanded ability (a bonus one that fails is dropped, not
+    sized for) and only for the joints saturated at least ``FLOOR_SHARE`` of a run: what
+    ``--floors needed`` measures (the shipped loop floors every saturated joint of every
+    failed run, and the bonus ``running`` saturates joints no catalog servo strengthens,
+    so the sizing is infeasible and the hip yaw never gets its stronger servo)."""
+    import synth.verify
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    plain = synth.verify._floors
+
+    def floors(results: list[dict], record: dict) -> dict[str, float]:
+        ctl = controller_for(DesignGeometry.from_record(record))
+        needed = set(record.get("needed") or record.get("abilities", ()))
+        served = {s for a in needed if (s := ctl.serving(a)) is not None}
+        realises = {name: spec.realises for name, spec in ctl.behaviors.items()}
+        kept = []
+        for r in results:
+            if realises.get(r.get("behavior"), next(iter(served), None)) not in served:
+                continue
+            shares = r.get("saturated_joints") or {}
+            kept.append(
+                {**r, "saturated_joints": {j: v for j, v in shares.items() if v >= FLOOR_SHARE}}
+            )
+        return plain(kept, record)
+
+    synth.verify._floors = floors
+
+
 def grid(k: int) -> list[str]:
     from robust_grid import design
 
@@ -258,6 +297,12 @@ if __name__ == "__main__":
     if "--no-play" in args:
         i = args.index("--no-play")
         no_play = args[i + 1]
+        del args[i : i + 2]
+    if "--floors" in args:
+        i = args.index("--floors")
+        if args[i + 1] != "needed":
+            sys.exit(f"--floors {args[i + 1]}: the only alternative is 'needed'")
+        needed_floors()
         del args[i : i + 2]
     yaw_as_pitch = "--yaw-as-pitch" in args
     if yaw_as_pitch:
