@@ -130,7 +130,10 @@ def test_the_tuned_walk_keeps_its_promise_under_the_whole_perturbation(
 
 
 @pytest.mark.parametrize("seed", (1, 5))
-def test_the_default_walk_falls_under_the_same_perturbation(humanoid, seed) -> None:
-    """Built to fail: the gait tuned on the nominal model, on the same robot and seed."""
+def test_the_default_walk_fails_under_the_same_perturbation(humanoid, seed) -> None:
+    """Built to fail: the gait tuned on the nominal model, on the same robot and seed. How
+    it fails is chaotic: with the grippers' slower close the design's peak current is
+    0.05 % lower, and on seed 5 it no longer falls but saturates and ends off course."""
     verdict, _ = _run(humanoid, seed, ".", whole=True)
-    assert "fell" in verdict
+    assert verdict
+    assert "fell" in verdict or "saturated" in verdict
