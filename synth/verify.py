@@ -58,6 +58,11 @@ if TYPE_CHECKING:
     from synth.conceptual import Designer, Request
     from synth.pipeline import Outcome, StructureOptions
 
+#: What a refusal for robustness adds: the design did pass on the nominal model.
+ROBUST_OFF = (
+    "it passes on the nominal model: --robustness 0 gives that design (not verified under "
+    "perturbations)"
+)
 #: Sizings tried in all (the first one included) before a failure is final.
 MAX_ROUNDS = 3
 #: A saturated joint's next actuator must give at least this much more usable torque.
@@ -453,6 +458,7 @@ def _verified(
                 dropped.setdefault(a, why)
     models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
     also = []  # the other demanded behaviours that are not robust, named after the worst
+    nominal_failure = failure is not None
     for ability, why in not_robust(robust):
         behavior = why.split(" is not robust", 1)[0]
         if blamed_at == rounds:  # measured on the design as it stands
@@ -471,6 +477,8 @@ def _verified(
                 dropped.setdefault(a, why)
     if also:
         failure += f"; also not robust: {', '.join(also)}"
+    if failure is not None and not nominal_failure:  # it passed on the nominal model
+        failure += f"; {ROBUST_OFF}"
     v = Verification(
         tuple(results),
         rounds,

@@ -159,6 +159,7 @@ def test_a_refusal_by_simulation_names_the_largest_payload_that_verifies(designe
     assert out.status == "infeasible"
     msg = out.infeasible
     assert msg.startswith("pick-and-place failed in simulation: placing (placing error 20 mm")
+    assert synth.verify.ROBUST_OFF not in msg  # failed on the nominal model: no such design
     # on the grid of the grams shown: 0.1 ok, 0.15 and 0.125 fail, 0.112 ok
     assert msg.endswith("; the largest payload that works here is 0.112 kg")
     assert calls[-1] == pytest.approx(0.112)  # the value named was tested
@@ -250,3 +251,4 @@ def test_a_dropped_bonus_ability_does_not_skip_the_robust_runs(designer, monkeyp
     asked_to_fail = True  # built to fail: not robust -> the demanded ability refuses it
     out = run(designer, ARM, StructureOptions(robustness=2))
     assert out.infeasible is not None and "pick-and-place is not robust" in out.infeasible
+    assert synth.verify.ROBUST_OFF in out.infeasible  # it passed nominally: say how to get it
