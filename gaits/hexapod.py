@@ -137,11 +137,18 @@ JOINT_MARGIN = 0.05
 #: Smallest static stability margin a plan must keep, m.
 MIN_MARGIN = 0.01
 #: Trunk sway limits: offset per axis m, acceleration per axis m/s^2.
-SWAY_MAX = 0.02
+SWAY_MAX = 0.03
 SWAY_ACCEL = 0.5
 #: The sway keeps the best margin it can reach, but no more than this (m): a larger sway
 #: tilts the tibias of the stance legs (see below) for a margin the gait does not need.
-SWAY_TARGET_MARGIN = 0.015
+#: Why 25 mm (and a 30 mm sway): a crawl's third foot carries the share of the weight
+#: that the margin gives it over the diagonal of the other two, and under the
+#: perturbations of ``parmor design --robustness`` (a 2-3 deg slope, the servos' play)
+#: the shipped quadruped's lightest foot, at a planned 13 mm (15 mm and a 20 mm sway),
+#: held 1.4 N of 21 N and lost contact for 20-30 ms in 3-4 of 8 runs of each of its
+#: walking, running and turning (the measured margin then -11 to -15 mm against the
+#: remaining two feet); at 17-19 mm planned (this target, this sway) it passed 24 of 24.
+SWAY_TARGET_MARGIN = 0.025
 #: Weight of the sway's radial share (its component along the legs, which tilts the stance
 #: tibias: their servos carry the leg's load at that lever) against its smoothness.
 SWAY_RADIAL_WEIGHT = 0.2

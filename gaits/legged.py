@@ -23,7 +23,11 @@ explicit speed that needs faster joints raises ValueError with the largest feasi
 the coxa (``gaits.hexapod``'s module docstring): without it the play of plastic-geared
 hip servos (about 3-4 deg with their dead band) ratchets a quadruped's turn in place 10-14
 % past its angle on every perturbed run (``parmor design ... --robustness``); with it the
-same runs end within 4 % of the angle.
+same runs end within 4 % of the angle. A turn's joints use at most ``TURN_PACE`` of the
+usable speed walking's may (``SPEED_MARGIN``): a quadruped's crawl lifts a foot off a
+diagonal it then balances on, and at walking's pace the lift-off rocked the trunk so
+that a stance foot left the ground for 15-30 ms (the measured margin then below 0 against
+the other two) in 1 of 8 perturbed runs with a 3 deg slope; slower, none.
 
 **Running** is not a run (no flight phase: the servos are too slow for one) but the
 fastest statically stable travel: the gait of ``run_gait`` (the fewest feet on the
@@ -98,6 +102,9 @@ MIN_PACE = 0.1
 #: Turning: each swing's slow final approach to its foothold, rad about the coxa (covers
 #: the play of plastic-geared hobby servos, 1-2 deg of backlash plus their dead band).
 TURN_APPROACH = 0.1
+#: Turning: the share of ``SPEED_MARGIN`` a turn's joints may use (module docstring,
+#: **Turning**): its swings are slower than walking's.
+TURN_PACE = 0.7
 #: The declared ranges of a design's own values (``LeggedController._own``): the slowest
 #: speed offered, as a fraction of the default; the shortest stride, as a fraction of the
 #: longest the legs reach; the lowest lift above the design's obstacle, m.
@@ -199,7 +206,7 @@ class LeggedController(Controller):
       module docstring: a fast statically stable walk, not a run).
     - ``turning(angle, gait, speed, step_height)``: turn in place by ``angle`` rad
       (counter-clockwise positive) at up to ``speed`` rad/s (the design's own: its trunk
-      speed at the farthest foot, within the actuators' speeds).
+      speed at the farthest foot, within ``TURN_PACE`` of the actuators' usable speeds).
 
     ``Trajectory.info``: ``motion`` ("straight" for walking, rough-terrain walking and
     running; "turn" for turning), ``planned_pose`` (dx m, dy m, dyaw rad: the trunk's
@@ -345,7 +352,7 @@ class LeggedController(Controller):
         does not plan or the design gives no actuator speeds."""
         if traj is None:
             return rate
-        ratio = self._ratio(traj.positions, traj.times)
+        ratio = self._ratio(traj.positions, traj.times, TURN_PACE if name == "turning" else 1.0)
         if not ratio > 0:  # no actuator speeds known (a bare geometry): no bound to scale
             return rate
         top = significant(rate / ratio, down=True)
@@ -570,10 +577,11 @@ class LeggedController(Controller):
             )
         return s_max
 
-    def _ratio(self, q: np.ndarray, times: np.ndarray) -> float:
-        """Largest joint speed of ``q`` as a share of the usable actuator speed."""
+    def _ratio(self, q: np.ndarray, times: np.ndarray, pace: float = 1.0) -> float:
+        """Largest joint speed of ``q`` as a share of ``pace`` x the usable actuator
+        speed."""
         v = np.gradient(q, times, axis=0)
-        return float(np.max(np.abs(v) / self._limits))
+        return float(np.max(np.abs(v) / self._limits)) / pace
 
     def _accept(self, plan: GaitPlan) -> bool:
         """Whether a plan keeps every joint inside its limits and the robot stable."""
@@ -696,6 +704,7 @@ class LeggedController(Controller):
                 0,
                 0.0,
                 TURN_APPROACH,
+                TURN_PACE,
             )
             if plan is not None:
                 break
@@ -779,12 +788,13 @@ class LeggedController(Controller):
         steps: int,
         seconds: float,
         approach: float = 0.0,
+        pace: float = 1.0,
     ) -> GaitPlan | None:
         """A plan of ``pattern`` whose stances each cover ``per_stance`` (m along ``u``, or
         rad of a turn by ``angle`` when ``u`` is None) at ``rate`` (m/s or rad/s), for
         ``steps`` cycles or about ``seconds`` s, each swing ending with a slow ``approach``
-        (rad, ``plan_gait``); slower than ``rate`` when a joint would exceed its usable
-        speed (ValueError instead when ``explicit``). None when the plan leaves the joint
+        (rad, ``plan_gait``); slower than ``rate`` when a joint would exceed ``pace`` x its
+        usable speed (ValueError instead when ``explicit``). None when the plan leaves the joint
         limits or the stability margin.
 
         The timing is settled on sway-free plans (cheap); a gait that needs the trunk to
@@ -837,7 +847,7 @@ class LeggedController(Controller):
                     sway = bool(plan.margin.min() < MIN_MARGIN)
                     if sway:
                         continue  # the timing again, with the standing lead-in and -out
-                ratio = self._ratio(plan.q, plan.times)
+                ratio = self._ratio(plan.q, plan.times, pace)
                 if ratio <= 1 + 1e-6 and sway:
                     plan = self._plan(
                         pattern,
@@ -849,7 +859,7 @@ class LeggedController(Controller):
                         sway=True,
                         approach=approach,
                     )
-                    ratio = self._ratio(plan.q, plan.times)
+                    ratio = self._ratio(plan.q, plan.times, pace)
             except ValueError:  # a foot out of reach, or no sway: a shorter stride may do
                 return None
             if ratio <= 1 + 1e-6:
@@ -857,7 +867,7 @@ class LeggedController(Controller):
             if explicit:
                 unit = "m/s" if u is not None else "rad/s"
                 raise ValueError(
-                    f"speed: {rate:g} {unit} needs joints faster than {SPEED_MARGIN:.0%} of "
+                    f"speed: {rate:g} {unit} needs joints faster than {pace * SPEED_MARGIN:.0%} of "
                     f"their actuators' no-load speed; at most about {rate / ratio:.3g} {unit} "
                     f"with the {pattern.name} gait"
                 )
