@@ -333,6 +333,7 @@ def _verified(
         robust_check,
         robust_files,
     )
+    from synth.robust_legs import hold_blame, hold_note
     from synth.structure import StructureDesigner
 
     floors: dict[str, float] = {}
@@ -423,10 +424,12 @@ def _verified(
             for a in sorted(mine):
                 dropped.setdefault(a, why)
     models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
+    held = hold_blame(robust_files(designer, outcome), robust) if not_robust(robust) else []
     for ability, why in not_robust(robust):
         behavior = why.split(" is not robust", 1)[0]
         if blamed_at == rounds:  # measured on the design as it stands
             why += play_note(blamed, behavior, stuck, play or {}, models)
+        why += hold_note(held, behavior)
         mine = {ability} | {a for a, s in served.items() if s == ability}
         if mine & needed:
             failure = failure or why
