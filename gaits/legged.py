@@ -66,6 +66,8 @@ from gaits.hexapod import (
     MIN_CRAWL_DUTY,
     MIN_MARGIN,
     SWAY_LEAD,
+    SWAY_MAX,
+    SWAY_TARGET_MARGIN,
     TRANSITION_S,
     GaitPattern,
     GaitPlan,
@@ -105,6 +107,18 @@ TURN_APPROACH = 0.1
 #: Turning: the share of ``SPEED_MARGIN`` a turn's joints may use (module docstring,
 #: **Turning**): its swings are slower than walking's.
 TURN_PACE = 0.7
+#: The trunk's sway (``gaits.hexapod.plan_gait``'s ``sway_limits``: m per axis, the margin
+#: it keeps) of a design with ``line-tracking``: its line sensors ride on the trunk, and
+#: the two 50 mm modules (``program.sensing``: the line within 34.5 mm of their midpoint)
+#: lost the line for 1.9 s at a 30 mm sway (43 mm off it; 32.5 mm at 20 mm): it keeps the
+#: previous 20 mm sway for a 15 mm margin, and with it the crawl's smaller margin under
+#: perturbation (``SWAY_TARGET_MARGIN``).
+LINE_SWAY = (0.02, 0.015)
+#: Walking on an arc: the shortest stride it takes, as a share of the straight walk's (a
+#: tighter arc is refused rather than walked in steps of millimetres: with the crawl's
+#: 30 mm sway a 4-legged walker's arcs of up to 45 rad/m planned at 3 % of its stride,
+#: and a line-following loop that steered them crawled on, 0.55 m in 79 s).
+ARC_SHORTEST = 0.5
 #: The declared ranges of a design's own values (``LeggedController._own``): the slowest
 #: speed offered, as a fraction of the default; the shortest stride, as a fraction of the
 #: longest the legs reach; the lowest lift above the design's obstacle, m.
@@ -239,6 +253,12 @@ class LeggedController(Controller):
         self.com_masses = "design" if template is not None else "template defaults"
         self.legs = legs_of(self.template)
         self._context: tuple | None = None  # what identifies the plans' template and legs
+        sensing = set(geometry.abilities) | {
+            b for a in geometry.abilities for b in geometry.ancestors.get(a, ())
+        }
+        self.sway_limits = (
+            LINE_SWAY if "line-tracking" in sensing else (SWAY_MAX, SWAY_TARGET_MARGIN)
+        )
         self._behaviors: dict[str, BehaviorSpec] | None = None  # worked out when first asked
         self.gaits = GAITS.get(len(self.legs), ())
         if not self.gaits:
@@ -732,7 +752,7 @@ class LeggedController(Controller):
         running and rough-terrain walking, the same design planned with other actuators
         and the same plan asked again while a timing settles reuse it."""
         if self._context is None:
-            self._context = (model_key(self.template), legs_key(self.legs))
+            self._context = (model_key(self.template), legs_key(self.legs), self.sway_limits)
         key = (
             self._context,
             pattern_key(pattern),
@@ -760,6 +780,7 @@ class LeggedController(Controller):
                     sway=sway,
                     stand=stand,
                     approach=approach,
+                    sway_limits=self.sway_limits,
                 )
             except ValueError as e:
                 hit = str(e)
@@ -931,6 +952,7 @@ class LeggedController(Controller):
         ``v`` m/s, the stride shortened until the feet stay in reach, the joints in their
         limits and the trunk stable, the cycle lengthened while a joint is too fast; None
         when no stride does."""
+        shortest = ARC_SHORTEST * v
         for _ in range(16):
             twist = (v * float(u[0]), v * float(u[1]), v * kappa)
             try:
@@ -944,6 +966,8 @@ class LeggedController(Controller):
                 period *= ratio * 1.02  # the same stride, slower
                 continue
             v *= 0.8  # a shorter stride in the same cycle
+            if v < shortest:
+                break
         return None
 
     def max_curvature(
