@@ -107,12 +107,13 @@ TURN_APPROACH = 0.1
 #: Turning: the share of ``SPEED_MARGIN`` a turn's joints may use (module docstring,
 #: **Turning**): its swings are slower than walking's.
 TURN_PACE = 0.7
-#: The trunk's sway (``gaits.hexapod.plan_gait``'s ``sway_limits``: m per axis, the margin
-#: it keeps) of a design with ``line-tracking``: its line sensors ride on the trunk, and
-#: the two 50 mm modules (``program.sensing``: the line within 34.5 mm of their midpoint)
-#: lost the line for 1.9 s at a 30 mm sway (43 mm off it; 32.5 mm at 20 mm): it keeps the
-#: previous 20 mm sway for a 15 mm margin, and with it the crawl's smaller margin under
-#: perturbation (``SWAY_TARGET_MARGIN``).
+#: The narrower sway (``gaits.hexapod.plan_gait``'s ``sway_limits``: m per axis, the
+#: margin it keeps; the previous release's): a design with ``line-tracking`` sways no
+#: more (its line sensors ride on the trunk, and the two 50 mm modules of
+#: ``program.sensing``, the line within 34.5 mm of their midpoint, lost it for 1.9 s at a
+#: 30 mm sway: 43 mm off it, 32.5 mm at 20 mm), keeping the crawl's smaller margin under
+#: perturbation; and a plan whose wider sway takes a joint out of its limits is planned
+#: again with it (the quadruped's run over a 1 cm obstacle with 0.1 kg).
 LINE_SWAY = (0.02, 0.015)
 #: Walking on an arc: the shortest stride it takes, as a share of the straight walk's (a
 #: tighter arc is refused rather than walked in steps of millimetres: with the crawl's
@@ -746,15 +747,19 @@ class LeggedController(Controller):
         sway: bool | None = None,
         stand: bool = False,
         approach: float = 0.0,
+        limits: tuple[float, float] | None = None,
     ) -> GaitPlan:
-        """``plan_gait`` on this design's template and legs, remembered by what decides
+        """``plan_gait`` on this design's template and legs (its sway within ``limits``,
+        default ``self.sway_limits``), remembered by what decides
         it (the template's content, legs, gait and arguments; read-only arrays): walking,
         running and rough-terrain walking, the same design planned with other actuators
         and the same plan asked again while a timing settles reuse it."""
         if self._context is None:
-            self._context = (model_key(self.template), legs_key(self.legs), self.sway_limits)
+            self._context = (model_key(self.template), legs_key(self.legs))
+        limits = self.sway_limits if limits is None else limits
         key = (
             self._context,
+            tuple(limits),
             pattern_key(pattern),
             int(cycles),
             float(period),
@@ -780,7 +785,7 @@ class LeggedController(Controller):
                     sway=sway,
                     stand=stand,
                     approach=approach,
-                    sway_limits=self.sway_limits,
+                    sway_limits=limits,
                 )
             except ValueError as e:
                 hit = str(e)
@@ -796,6 +801,48 @@ class LeggedController(Controller):
         if isinstance(hit, str):
             raise ValueError(hit)
         return hit
+
+    def _swayed(
+        self,
+        pattern: GaitPattern,
+        cycles: int,
+        period: float,
+        twist: tuple[float, float, float],
+        step: float,
+        approach: float,
+        sway: bool | None = True,
+    ) -> GaitPlan:
+        """The plan with the trunk's sway (``sway``: True, or None to sway when needed) of
+        this design (``sway_limits``); when that takes a foot out of reach, a joint out of
+        its limits or the margin below ``MIN_MARGIN``, the plan with the narrower
+        ``LINE_SWAY`` if that one keeps them (else the first, or its ValueError)."""
+        try:
+            plan = self._plan(
+                pattern, cycles, period, twist, step, self.height, sway=sway, approach=approach
+            )
+        except ValueError:
+            if tuple(self.sway_limits) == LINE_SWAY:
+                raise
+            plan = None
+        if plan is not None and (self._accept(plan) or tuple(self.sway_limits) == LINE_SWAY):
+            return plan
+        try:
+            small = self._plan(
+                pattern,
+                cycles,
+                period,
+                twist,
+                step,
+                self.height,
+                sway=sway,
+                approach=approach,
+                limits=LINE_SWAY,
+            )
+        except ValueError:
+            if plan is None:
+                raise
+            return plan
+        return small if (plan is None or self._accept(small)) else plan
 
     def _fit(
         self,
@@ -870,16 +917,7 @@ class LeggedController(Controller):
                         continue  # the timing again, with the standing lead-in and -out
                 ratio = self._ratio(plan.q, plan.times, pace)
                 if ratio <= 1 + 1e-6 and sway:
-                    plan = self._plan(
-                        pattern,
-                        cycles,
-                        period,
-                        twist,
-                        step,
-                        self.height,
-                        sway=True,
-                        approach=approach,
-                    )
+                    plan = self._swayed(pattern, cycles, period, twist, step, approach)
                     ratio = self._ratio(plan.q, plan.times, pace)
             except ValueError:  # a foot out of reach, or no sway: a shorter stride may do
                 return None
@@ -956,7 +994,7 @@ class LeggedController(Controller):
         for _ in range(16):
             twist = (v * float(u[0]), v * float(u[1]), v * kappa)
             try:
-                plan = self._plan(pattern, cycles, period, twist, step, self.height, sway=None)
+                plan = self._swayed(pattern, cycles, period, twist, step, 0.0, sway=None)
             except ValueError:
                 plan = None
             if plan is not None and self._accept(plan):

@@ -63,8 +63,8 @@ def _fresh_plans(monkeypatch):
 def _old_plans(m: pytest.MonkeyPatch) -> None:
     """The previous plans: a sway of at most 20 mm for at most 15 mm, turns at walking's
     joint speeds."""
-    m.setattr(hexapod, "SWAY_MAX", 0.02)
-    m.setattr(hexapod, "SWAY_TARGET_MARGIN", 0.015)
+    m.setattr(legged, "SWAY_MAX", 0.02)  # the controller's sway_limits
+    m.setattr(legged, "SWAY_TARGET_MARGIN", 0.015)
     m.setattr(legged, "TURN_PACE", 1.0)
     m.setattr(gaits.base, "_PLANNED", OrderedDict())
     m.setattr(legged, "_PLANS", OrderedDict())
@@ -157,3 +157,49 @@ def test_every_count_turns_within_its_pace_and_keeps_its_margin(walkers, n) -> N
             assert margin > 0.016, (behavior, margin)
     turn = ctl.run("turning")
     assert turn.info["heading_rad"] == pytest.approx(math.pi / 2)
+
+
+def test_a_design_with_line_tracking_keeps_the_narrow_sway(quadruped) -> None:
+    """The line sensors ride on the trunk: a design with line-tracking (or an ability
+    under it) sways within LINE_SWAY, one without within the wider limits."""
+    from gaits.base import DesignGeometry
+
+    rec = json.loads((quadruped / "design.json").read_text())
+    plain = legged.LeggedController(DesignGeometry.from_record(rec))
+    assert plain.sway_limits == (hexapod.SWAY_MAX, hexapod.SWAY_TARGET_MARGIN)
+    assert legged.LINE_SWAY[0] < hexapod.SWAY_MAX
+    lined = {**rec, "abilities": [*rec["abilities"], "line-tracking"]}
+    assert legged.LeggedController(DesignGeometry.from_record(lined)).sway_limits == (
+        legged.LINE_SWAY
+    )
+    sub = {
+        **rec,
+        "abilities": [*rec["abilities"], "tape-following"],
+        "ability_ancestors": {"tape-following": ["line-tracking"]},
+    }
+    assert legged.LeggedController(DesignGeometry.from_record(sub)).sway_limits == (
+        legged.LINE_SWAY
+    )
+    walk = plain.run("walking")
+    lined_walk = legged.LeggedController(DesignGeometry.from_record(lined)).run("walking")
+    assert (
+        np.abs(lined_walk.info["body_path"][:, 1]).max()
+        < np.abs(walk.info["body_path"][:, 1]).max()
+    )
+
+
+def test_a_sway_out_of_reach_is_planned_again_narrower(tmp_path, monkeypatch) -> None:
+    """Built to fail: over a 1 cm obstacle with 0.1 kg the 4-legged walker's run at the
+    wider sway puts a foot out of reach at every stride; without the narrower sway to
+    fall back on, running does not plan; with it, it does, keeping MIN_MARGIN."""
+    from gaits.base import DesignGeometry
+
+    folder = _design(tmp_path, 4, "--param", "payload=0.1kg", "--param", "obstacle_height=1cm")
+    rec = json.loads((folder / "design.json").read_text())
+    with monkeypatch.context() as m:
+        m.setattr(legged, "LINE_SWAY", (hexapod.SWAY_MAX, hexapod.SWAY_TARGET_MARGIN))
+        m.setattr(legged, "_PLANS", OrderedDict())
+        with pytest.raises(ValueError, match="no stable crawl"):
+            legged.LeggedController(DesignGeometry.from_record(rec)).run("running")
+    run = legged.LeggedController(DesignGeometry.from_record(rec)).run("running")
+    assert run.info["min_stability_margin_m"] >= hexapod.MIN_MARGIN
