@@ -23,7 +23,11 @@ explicit speed that needs faster joints raises ValueError with the largest feasi
 the coxa (``gaits.hexapod``'s module docstring): without it the play of plastic-geared
 hip servos (about 3-4 deg with their dead band) ratchets a quadruped's turn in place 10-14
 % past its angle on every perturbed run (``parmor design ... --robustness``); with it the
-same runs end within 4 % of the angle.
+same runs end within 4 % of the angle. A turn's joints use at most ``TURN_PACE`` of the
+usable speed walking's may (``SPEED_MARGIN``): a quadruped's crawl lifts a foot off a
+diagonal it then balances on, and at walking's pace the lift-off rocked the trunk so
+that a stance foot left the ground for 15-30 ms (the measured margin then below 0 against
+the other two) in 1 of 8 perturbed runs with a 3 deg slope; slower, none.
 
 **Running** is not a run (no flight phase: the servos are too slow for one) but the
 fastest statically stable travel: the gait of ``run_gait`` (the fewest feet on the
@@ -62,6 +66,8 @@ from gaits.hexapod import (
     MIN_CRAWL_DUTY,
     MIN_MARGIN,
     SWAY_LEAD,
+    SWAY_MAX,
+    SWAY_TARGET_MARGIN,
     TRANSITION_S,
     GaitPattern,
     GaitPlan,
@@ -98,6 +104,22 @@ MIN_PACE = 0.1
 #: Turning: each swing's slow final approach to its foothold, rad about the coxa (covers
 #: the play of plastic-geared hobby servos, 1-2 deg of backlash plus their dead band).
 TURN_APPROACH = 0.1
+#: Turning: the share of ``SPEED_MARGIN`` a turn's joints may use (module docstring,
+#: **Turning**): its swings are slower than walking's.
+TURN_PACE = 0.7
+#: The narrower sway (``gaits.hexapod.plan_gait``'s ``sway_limits``: m per axis, the
+#: margin it keeps; the previous release's): a design with ``line-tracking`` sways no
+#: more (its line sensors ride on the trunk, and the two 50 mm modules of
+#: ``program.sensing``, the line within 34.5 mm of their midpoint, lost it for 1.9 s at a
+#: 30 mm sway: 43 mm off it, 32.5 mm at 20 mm), keeping the crawl's smaller margin under
+#: perturbation; and a plan whose wider sway takes a joint out of its limits is planned
+#: again with it (the quadruped's run over a 1 cm obstacle with 0.1 kg).
+LINE_SWAY = (0.02, 0.015)
+#: Walking on an arc: the shortest stride it takes, as a share of the straight walk's (a
+#: tighter arc is refused rather than walked in steps of millimetres: with the crawl's
+#: 30 mm sway a 4-legged walker's arcs of up to 45 rad/m planned at 3 % of its stride,
+#: and a line-following loop that steered them crawled on, 0.55 m in 79 s).
+ARC_SHORTEST = 0.5
 #: The declared ranges of a design's own values (``LeggedController._own``): the slowest
 #: speed offered, as a fraction of the default; the shortest stride, as a fraction of the
 #: longest the legs reach; the lowest lift above the design's obstacle, m.
@@ -199,7 +221,7 @@ class LeggedController(Controller):
       module docstring: a fast statically stable walk, not a run).
     - ``turning(angle, gait, speed, step_height)``: turn in place by ``angle`` rad
       (counter-clockwise positive) at up to ``speed`` rad/s (the design's own: its trunk
-      speed at the farthest foot, within the actuators' speeds).
+      speed at the farthest foot, within ``TURN_PACE`` of the actuators' usable speeds).
 
     ``Trajectory.info``: ``motion`` ("straight" for walking, rough-terrain walking and
     running; "turn" for turning), ``planned_pose`` (dx m, dy m, dyaw rad: the trunk's
@@ -232,6 +254,12 @@ class LeggedController(Controller):
         self.com_masses = "design" if template is not None else "template defaults"
         self.legs = legs_of(self.template)
         self._context: tuple | None = None  # what identifies the plans' template and legs
+        sensing = set(geometry.abilities) | {
+            b for a in geometry.abilities for b in geometry.ancestors.get(a, ())
+        }
+        self.sway_limits = (
+            LINE_SWAY if "line-tracking" in sensing else (SWAY_MAX, SWAY_TARGET_MARGIN)
+        )
         self._behaviors: dict[str, BehaviorSpec] | None = None  # worked out when first asked
         self.gaits = GAITS.get(len(self.legs), ())
         if not self.gaits:
@@ -345,7 +373,7 @@ class LeggedController(Controller):
         does not plan or the design gives no actuator speeds."""
         if traj is None:
             return rate
-        ratio = self._ratio(traj.positions, traj.times)
+        ratio = self._ratio(traj.positions, traj.times, TURN_PACE if name == "turning" else 1.0)
         if not ratio > 0:  # no actuator speeds known (a bare geometry): no bound to scale
             return rate
         top = significant(rate / ratio, down=True)
@@ -570,10 +598,11 @@ class LeggedController(Controller):
             )
         return s_max
 
-    def _ratio(self, q: np.ndarray, times: np.ndarray) -> float:
-        """Largest joint speed of ``q`` as a share of the usable actuator speed."""
+    def _ratio(self, q: np.ndarray, times: np.ndarray, pace: float = 1.0) -> float:
+        """Largest joint speed of ``q`` as a share of ``pace`` x the usable actuator
+        speed."""
         v = np.gradient(q, times, axis=0)
-        return float(np.max(np.abs(v) / self._limits))
+        return float(np.max(np.abs(v) / self._limits)) / pace
 
     def _accept(self, plan: GaitPlan) -> bool:
         """Whether a plan keeps every joint inside its limits and the robot stable."""
@@ -696,6 +725,7 @@ class LeggedController(Controller):
                 0,
                 0.0,
                 TURN_APPROACH,
+                TURN_PACE,
             )
             if plan is not None:
                 break
@@ -717,15 +747,19 @@ class LeggedController(Controller):
         sway: bool | None = None,
         stand: bool = False,
         approach: float = 0.0,
+        limits: tuple[float, float] | None = None,
     ) -> GaitPlan:
-        """``plan_gait`` on this design's template and legs, remembered by what decides
+        """``plan_gait`` on this design's template and legs (its sway within ``limits``,
+        default ``self.sway_limits``), remembered by what decides
         it (the template's content, legs, gait and arguments; read-only arrays): walking,
         running and rough-terrain walking, the same design planned with other actuators
         and the same plan asked again while a timing settles reuse it."""
         if self._context is None:
             self._context = (model_key(self.template), legs_key(self.legs))
+        limits = self.sway_limits if limits is None else limits
         key = (
             self._context,
+            tuple(limits),
             pattern_key(pattern),
             int(cycles),
             float(period),
@@ -751,6 +785,7 @@ class LeggedController(Controller):
                     sway=sway,
                     stand=stand,
                     approach=approach,
+                    sway_limits=limits,
                 )
             except ValueError as e:
                 hit = str(e)
@@ -767,6 +802,48 @@ class LeggedController(Controller):
             raise ValueError(hit)
         return hit
 
+    def _swayed(
+        self,
+        pattern: GaitPattern,
+        cycles: int,
+        period: float,
+        twist: tuple[float, float, float],
+        step: float,
+        approach: float,
+        sway: bool | None = True,
+    ) -> GaitPlan:
+        """The plan with the trunk's sway (``sway``: True, or None to sway when needed) of
+        this design (``sway_limits``); when that takes a foot out of reach, a joint out of
+        its limits or the margin below ``MIN_MARGIN``, the plan with the narrower
+        ``LINE_SWAY`` if that one keeps them (else the first, or its ValueError)."""
+        try:
+            plan = self._plan(
+                pattern, cycles, period, twist, step, self.height, sway=sway, approach=approach
+            )
+        except ValueError:
+            if tuple(self.sway_limits) == LINE_SWAY:
+                raise
+            plan = None
+        if plan is not None and (self._accept(plan) or tuple(self.sway_limits) == LINE_SWAY):
+            return plan
+        try:
+            small = self._plan(
+                pattern,
+                cycles,
+                period,
+                twist,
+                step,
+                self.height,
+                sway=sway,
+                approach=approach,
+                limits=LINE_SWAY,
+            )
+        except ValueError:
+            if plan is None:
+                raise
+            return plan
+        return small if (plan is None or self._accept(small)) else plan
+
     def _fit(
         self,
         pattern: GaitPattern,
@@ -779,12 +856,13 @@ class LeggedController(Controller):
         steps: int,
         seconds: float,
         approach: float = 0.0,
+        pace: float = 1.0,
     ) -> GaitPlan | None:
         """A plan of ``pattern`` whose stances each cover ``per_stance`` (m along ``u``, or
         rad of a turn by ``angle`` when ``u`` is None) at ``rate`` (m/s or rad/s), for
         ``steps`` cycles or about ``seconds`` s, each swing ending with a slow ``approach``
-        (rad, ``plan_gait``); slower than ``rate`` when a joint would exceed its usable
-        speed (ValueError instead when ``explicit``). None when the plan leaves the joint
+        (rad, ``plan_gait``); slower than ``rate`` when a joint would exceed ``pace`` x its
+        usable speed (ValueError instead when ``explicit``). None when the plan leaves the joint
         limits or the stability margin.
 
         The timing is settled on sway-free plans (cheap); a gait that needs the trunk to
@@ -837,19 +915,10 @@ class LeggedController(Controller):
                     sway = bool(plan.margin.min() < MIN_MARGIN)
                     if sway:
                         continue  # the timing again, with the standing lead-in and -out
-                ratio = self._ratio(plan.q, plan.times)
+                ratio = self._ratio(plan.q, plan.times, pace)
                 if ratio <= 1 + 1e-6 and sway:
-                    plan = self._plan(
-                        pattern,
-                        cycles,
-                        period,
-                        twist,
-                        step,
-                        self.height,
-                        sway=True,
-                        approach=approach,
-                    )
-                    ratio = self._ratio(plan.q, plan.times)
+                    plan = self._swayed(pattern, cycles, period, twist, step, approach)
+                    ratio = self._ratio(plan.q, plan.times, pace)
             except ValueError:  # a foot out of reach, or no sway: a shorter stride may do
                 return None
             if ratio <= 1 + 1e-6:
@@ -857,7 +926,7 @@ class LeggedController(Controller):
             if explicit:
                 unit = "m/s" if u is not None else "rad/s"
                 raise ValueError(
-                    f"speed: {rate:g} {unit} needs joints faster than {SPEED_MARGIN:.0%} of "
+                    f"speed: {rate:g} {unit} needs joints faster than {pace * SPEED_MARGIN:.0%} of "
                     f"their actuators' no-load speed; at most about {rate / ratio:.3g} {unit} "
                     f"with the {pattern.name} gait"
                 )
@@ -921,10 +990,11 @@ class LeggedController(Controller):
         ``v`` m/s, the stride shortened until the feet stay in reach, the joints in their
         limits and the trunk stable, the cycle lengthened while a joint is too fast; None
         when no stride does."""
+        shortest = ARC_SHORTEST * v
         for _ in range(16):
             twist = (v * float(u[0]), v * float(u[1]), v * kappa)
             try:
-                plan = self._plan(pattern, cycles, period, twist, step, self.height, sway=None)
+                plan = self._swayed(pattern, cycles, period, twist, step, 0.0, sway=None)
             except ValueError:
                 plan = None
             if plan is not None and self._accept(plan):
@@ -934,6 +1004,8 @@ class LeggedController(Controller):
                 period *= ratio * 1.02  # the same stride, slower
                 continue
             v *= 0.8  # a shorter stride in the same cycle
+            if v < shortest:
+                break
         return None
 
     def max_curvature(

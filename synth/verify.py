@@ -345,6 +345,7 @@ def _verified(
         robust_check,
         robust_files,
     )
+    from synth.robust_legs import hold_blame, hold_note
     from synth.robust_wheels import wheel_exclusions, wheel_joints, wheel_note
     from synth.structure import StructureDesigner
 
@@ -459,12 +460,14 @@ def _verified(
     models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
     also = []  # the other demanded behaviours that are not robust, named after the worst
     nominal_failure = failure is not None
+    held = hold_blame(robust_files(designer, outcome), robust) if not_robust(robust) else []
     for ability, why in not_robust(robust):
         behavior = why.split(" is not robust", 1)[0]
         if blamed_at == rounds:  # measured on the design as it stands
             why += play_note(blamed, behavior, stuck, play or {}, models)
         if wheels_at[0] == rounds:
             why += wheel_note(wheels_at[1], behavior)
+        why += hold_note(held, behavior)
         mine = {ability} | {a for a, s in served.items() if s == ability}
         if mine & needed:
             if failure is None:

@@ -26,8 +26,10 @@ from synth.structure import (
 #: MuJoCo's peak |actuator force| of a leg's femur and tibia along the default quadruped's
 #: walk, over the torque predicted here: between these. The inverse dynamics matches the
 #: simulated stance torques closely (the femur's to a few per cent); the position servos
-#: add transients at touchdown and lift-off that it does not see (up to about 2x).
-SIM_OVER_PREDICTED = (0.7, 2.5)
+#: add transients at touchdown and lift-off that it does not see (up to about 2x; 2.2-2.6x
+#: for the tibias since the crawl's sway keeps a 25 mm margin: they carry 0.17-0.19 N m
+#: and get MG996R servos, whose stiffer gain peaks at 0.43-0.44 N m at touchdown).
+SIM_OVER_PREDICTED = (0.7, 2.8)
 
 
 @pytest.fixture(scope="module")

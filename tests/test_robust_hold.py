@@ -1,0 +1,99 @@
+"""Perturbed runs that the servos' command hold breaks (issue 22, ``synth.robust_legs``):
+a position servo gives its stall torque ``export.mjcf.SERVO_BAND`` off its reference, and
+a command held for the bus's control period makes a fast joint's reference jump further
+than that at every frame: the servo saturates with no stronger actuator to answer it.
+The robot is a KIF-only walker of the tests' own (tests/test_bodyplan.py's
+``legged_kif``); the perturbation tables close every range but the one a case is about,
+so a failure is reproduced by its seed."""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import pytest
+
+from export import perturb
+from export.mjcf import SERVO_BAND
+from export.verify import bundle_parts, folder_files, run_perturbed, verify_robust
+from synth.cli import main
+from synth.robust_legs import hold_attribution, hold_blame, hold_note
+from tests.test_bodyplan import legged_kif
+
+
+def _closed(period: str, rated: str = "1 V") -> dict:
+    """Every perturbation closed but the command hold of ``period`` (and a battery whose
+    servos are rated at ``rated``: "1 V" is a full battery)."""
+    return {
+        "mass": {"spread": 0.0},
+        "floor": {"friction_low": 1.0, "friction_high": 1.0, "max_slope": "0 deg"},
+        "bus": {"latency_low": "0 ms", "latency_high": "0 ms", "control_period": period},
+        "battery": {"supply": "direct", "rated_voltage": rated},
+        "compliance": {"scale": 0.0},
+        "gears": {"plastic": ["0 deg", "0 deg"], "metal": ["0 deg", "0 deg"]},
+    }
+
+
+@pytest.fixture(scope="module")
+def walker(tmp_path_factory) -> Path:
+    tmp = tmp_path_factory.mktemp("hold")
+    kif = tmp / "walker.kif"
+    kif.write_text(legged_kif("HoldWalker4", 4, "hold-4-walking"))
+    folder = tmp / "bundle"
+    out, err = io.StringIO(), io.StringIO()
+    argv = ["design", "hold-4-walking", "--ontology", str(kif), "--no-input", "--no-verify"]
+    assert main([*argv, "--out", str(folder)], out, err) == 0, err.getvalue()
+    return folder
+
+
+def _table(folder: Path, ranges: dict) -> dict:
+    from adron.catalog import load_catalog
+
+    record, xml, _ = bundle_parts(folder_files(folder))
+    return json.loads(json.dumps(perturb.design_table(record, xml, load_catalog(), ranges)))
+
+
+def test_a_long_hold_saturates_the_walk_and_a_lower_speed_answers_it(walker) -> None:
+    """Built to fail: held 40 ms, every joint's reference steps further than the servo's
+    band a frame and the walk fails saturated; replayed with the commands applied as sent
+    it passes, and the speed named makes the same perturbed run pass."""
+    files = folder_files(walker)
+    table = _table(walker, _closed("40 ms"))
+    traj, result, p = run_perturbed(files, "walking", 1, table=table)
+    assert p["control_period_s"] == pytest.approx(0.04)
+    assert "saturated" in result.verdict, result.verdict
+    found = hold_attribution(files, table, "walking", 1)
+    assert found is not None
+    assert found["frame_s"] == pytest.approx(0.04) and found["unit"] == "m/s"
+    assert max(found["joints"].values()) > SERVO_BAND
+    assert found["speed"] is not None and found["speed"] < found["default_speed"]
+    _, slower, _ = run_perturbed(files, "walking", 1, {"speed": found["speed"]}, table=table)
+    assert not slower.verdict, slower.verdict
+    note = hold_note([{"behavior": "walking", "seed": 1} | found], "walking")
+    assert "40 ms command hold breaks it" in note and f"{found['speed']:g} m/s" in note
+
+
+def test_what_the_hold_does_not_break_is_not_blamed_on_it(walker) -> None:
+    """A run that passes, a run with no hold, and a run that a weak battery breaks with or
+    without the hold (its servos at a quarter of their torque) are not the hold's."""
+    files = folder_files(walker)
+    assert hold_attribution(files, _table(walker, _closed("10 ms")), "walking", 1) is None
+    assert hold_attribution(files, _table(walker, _closed("0 ms")), "walking", 1) is None
+    weak = _table(walker, _closed("20 ms", "40 V"))
+    _, result, p = run_perturbed(files, "walking", 1, table=weak)
+    assert p["battery_scale"] < 0.3 and "saturated" in result.verdict
+    assert hold_attribution(files, weak, "walking", 1) is None
+    assert hold_note([], "walking") == ""
+
+
+def test_hold_blame_reads_the_robust_record(walker) -> None:
+    """On ``verify_robust``'s record: the failed runs of the behaviour that is not robust,
+    each with its seed, and none for a record of runs that all passed."""
+    files = folder_files(walker)
+    robust = verify_robust(files, 2, _table(walker, _closed("40 ms")), behaviors=["walking"])
+    assert not robust["behaviors"][0]["robust"]
+    blamed = hold_blame(files, robust)
+    assert [(r["behavior"], r["seed"]) for r in blamed] == [("walking", 1), ("walking", 2)]
+    fine = verify_robust(files, 1, _table(walker, _closed("10 ms")), behaviors=["walking"])
+    assert fine["behaviors"][0]["robust"] and hold_blame(files, fine) == []
