@@ -35,7 +35,7 @@ demo: $(STAMP) $(WEB_STAMP)
 	$(BYTECODE)
 	$(BIN)/parmor abilities
 	$(BIN)/parmor design walking --no-input || test $$? -eq 3
-	$(BIN)/parmor design walking --answer grasping=yes
+	$(BIN)/parmor design walking --answer grasping=no --answer rough-terrain-walking=no
 	$(BIN)/parmor design pick-and-place --param object_shape=oval --json
 	$(BIN)/parmor design driving line-tracking obstacle-avoidance --out demo/cart --force
 	$(BIN)/parmor run examples/square.py demo/cart
