@@ -41,9 +41,10 @@ demo: $(STAMP) $(WEB_STAMP)
 	$(BIN)/parmor run examples/square.py demo/cart
 	$(BIN)/parmor blocks demo/cart
 
+# Two processes, each file's tests on one (pytest-xdist; the test extras install it).
 test: $(STAMP) $(WEB_STAMP)
 	$(BYTECODE)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n 2 --dist loadfile
 
 bench: $(STAMP)
 	$(BYTECODE)
