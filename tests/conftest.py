@@ -107,3 +107,63 @@ def cli(monkeypatch: pytest.MonkeyPatch):
         return Run(code, out.getvalue(), err.getvalue())
 
     return run
+
+
+# --- designs several test files ask for: one per request per session ----------------------
+
+
+@dataclass(frozen=True)
+class Designed:
+    """What ``parmor design ARGV --no-input --out FOLDER`` printed and wrote."""
+
+    folder: Path
+    code: int
+    out: str
+    err: str
+
+
+class SharedDesigns:
+    """``parmor design`` run once per session for each request (its arguments and the
+    text of its KIF files): several files design the same request, and a verified design
+    takes seconds. The bundle is read-only for the tests: one that writes into it copies it
+    first (:meth:`copy`). An argument ``KIF:<name>`` is the path of a file ``<name>.kif``
+    holding ``kif[name]``."""
+
+    def __init__(self, root: Path) -> None:
+        self.root = root
+        self._made: dict[tuple, Designed] = {}
+
+    def __call__(self, *argv: str, kif: dict[str, str] | None = None) -> Designed:
+        texts = kif or {}
+        key = (argv, tuple(sorted(texts.items())))
+        if key not in self._made:
+            here = self.root / f"design{len(self._made)}"
+            here.mkdir(parents=True)
+            args = []
+            for a in argv:
+                if a.startswith("KIF:"):
+                    path = here / f"{a[4:]}.kif"
+                    path.write_text(texts[a[4:]], encoding="utf-8")
+                    a = str(path)
+                args.append(a)
+            out, err = io.StringIO(), io.StringIO()
+            folder = here / "bundle"
+            code = main(["design", *args, "--no-input", "--out", str(folder)], out, err)
+            self._made[key] = Designed(folder, code, out.getvalue(), err.getvalue())
+        done = self._made[key]
+        assert done.code == 0, done.err
+        return done
+
+    @staticmethod
+    def copy(done: Designed, to: Path) -> Path:
+        """A copy of the bundle of ``done`` at ``to``, for a test that writes into it."""
+        import shutil
+
+        shutil.copytree(done.folder, to)
+        return to
+
+
+@pytest.fixture(scope="session")
+def designs(tmp_path_factory: pytest.TempPathFactory) -> SharedDesigns:
+    """The session's :class:`SharedDesigns`."""
+    return SharedDesigns(tmp_path_factory.mktemp("shared-designs"))

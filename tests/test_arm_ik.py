@@ -318,21 +318,20 @@ def test_a_chain_with_the_closed_forms_names_but_other_links_goes_numeric(tmp_pa
 # --- designed and verified in MuJoCo ---------------------------------------------------------
 
 
+def verified_arm_request(n: int) -> tuple[str, ...]:
+    """``parmor design`` arguments of ``arm_kif(n)`` (KIF:arm<n>), verified."""
+    extra = ("--param", "payload=0.1 kg") if n == 7 else ("--answer", "orienting=no")
+    return (f"positioning-{n}", *extra, "--ontology", f"KIF:arm{n}")
+
+
 @pytest.mark.parametrize("n", [4, 5, 7])
-def test_kif_only_arms_design_verify_and_simulate(cli, tmp_path, n) -> None:
+def test_kif_only_arms_design_verify_and_simulate(cli, designs, n) -> None:
     """``tests.test_bodyplan.arm_kif(n)``: designed with verification (exit 0, every
     listed behaviour ok), then every behaviour run again by ``parmor simulate --json``
     (the 7-joint arm with a 0.1 kg payload: at the default 0.2 kg no servo of the catalog
-    holds it stretched)."""
-    src = tmp_path / f"arm{n}.kif"
-    src.write_text(arm_kif(n))
-    out = tmp_path / "bundle"
-    extra = ("--param", "payload=0.1 kg") if n == 7 else ("--answer", "orienting=no")
-    r = cli(
-        "design", f"positioning-{n}", *extra, "--ontology", str(src), "--no-input",
-        "--json", "--out", str(out),
-    )  # fmt: skip
-    assert r.code == 0, r.err
+    holds it stretched). The session's design (tests/conftest.py): test_bodyplan's
+    verified 5-joint arm is the same request."""
+    out = designs(*verified_arm_request(n), kif={f"arm{n}": arm_kif(n)}).folder
     rec = json.loads((out / "design.json").read_text())
     runs = rec["verified"]["behaviors"] if isinstance(rec["verified"], dict) else rec["verified"]
     names = sorted(p.stem for p in (out / "trajectories").glob("*.csv"))

@@ -432,17 +432,18 @@ def test_dof_on_a_request_no_arm_meets_is_refused(cli) -> None:
     assert r.code == 1 and "dof=4" in r.err
 
 
-def test_an_arm_of_5_joints_is_verified(cli, tmp_path) -> None:
+def test_an_arm_of_5_joints_is_verified(cli, designs, tmp_path) -> None:
     """A serial arm of 5 joints written only in KIF is served by the manipulator's
     numerical IK (issue 21): designed and verified (tests/test_arm_ik.py runs its
-    behaviours again in MuJoCo); --no-verify sizes and exports it unverified."""
-    src = tmp_path / "arm5.kif"
-    src.write_text(arm_kif(5))
-    r = cli(
-        "design", "positioning-5", "--answer", "orienting=no", "--ontology", str(src), "--no-input"
-    )
+    behaviours again in MuJoCo: the session's one design of the request, tests/conftest.py);
+    --no-verify sizes and exports it unverified."""
+    from tests.test_arm_ik import verified_arm_request
+
+    r = designs(*verified_arm_request(5), kif={"arm5": arm_kif(5)})
     assert r.code == 0, r.err
     assert "pick-and-place" in r.out and "cannot be simulated" not in r.err
+    src = tmp_path / "arm5.kif"
+    src.write_text(arm_kif(5))
     r = cli(
         "design", "positioning-5", "--answer", "orienting=no", "--ontology", str(src),
         "--no-input", "--no-verify",

@@ -3,7 +3,6 @@ obstacle avoider, judged on what the robot did."""
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 import pytest
@@ -11,16 +10,14 @@ import pytest
 from export.verdict import judge
 from program import sensing
 
+#: A cart with both sensing abilities, not verified (its runs are judged here).
+SENSING_CART = ("driving", "line-tracking", "obstacle-avoidance", "--no-verify")
+
 
 @pytest.fixture(scope="module")
-def cart(tmp_path_factory) -> Path:
-    from synth.cli import main
-
-    folder = tmp_path_factory.mktemp("sense") / "cart"
-    err = io.StringIO()
-    argv = ["design", "driving", "line-tracking", "obstacle-avoidance", "--no-verify"]
-    assert main([*argv, "--out", str(folder)], out=io.StringIO(), err=err) == 0, err.getvalue()
-    return folder
+def cart(designs) -> Path:
+    """The session's design (tests/conftest.py): tests/test_simulate_cli.py asks the same."""
+    return designs(*SENSING_CART).folder
 
 
 def test_a_cart_follows_a_line_and_passes_an_obstacle(cart) -> None:
@@ -140,5 +137,3 @@ def test_design_verifies_sensing_abilities_where_it_can(cli) -> None:
     assert v["not_simulated"] == []
     line = {b["behavior"]: b for b in v["behaviors"]}["line-tracking"]
     assert line["verdict"] == "ok" and line["line_lost_s"] <= 0.5
-
-

@@ -140,16 +140,11 @@ def test_a_run_past_the_plan_holds_still_and_is_judged_on_the_plan(cli, cart, tm
 
 
 @pytest.fixture(scope="module")
-def sensing_cart(tmp_path_factory) -> Path:
-    import io
+def sensing_cart(designs) -> Path:
+    """The session's design (tests/conftest.py), tests/test_sensing.py's cart."""
+    from tests.test_sensing import SENSING_CART
 
-    from synth.cli import main
-
-    folder = tmp_path_factory.mktemp("sense") / "cart"
-    args = ["design", "driving", "line-tracking", "obstacle-avoidance", "--no-verify"]
-    code = main([*args, "--no-input", "--out", str(folder)], io.StringIO(), io.StringIO())
-    assert code == 0
-    return folder
+    return designs(*SENSING_CART).folder
 
 
 def test_simulate_runs_a_sensing_loop_as_the_verification_does(cli, sensing_cart) -> None:
