@@ -72,18 +72,29 @@ def play_blame(files: Mapping[str, str | bytes], robust: Mapping | None) -> list
     the same perturbation less the play): per run its behaviour, seed, failed criteria and
     the joints whose play must go for it to pass (up to ``BLAMED_RUNS`` runs a
     behaviour). A run that still fails without any play is not the play's (none listed)."""
-    if not robust or not isinstance(robust.get("table"), Mapping):
-        return []  # no table: nothing to replay
     from export.verify import play_attribution
 
+    return replayed_blame(files, robust, play_attribution, BLAMED_RUNS)
+
+
+def replayed_blame(
+    files: Mapping[str, str | bytes], robust: Mapping | None, attribution, most: int
+) -> list[dict]:
+    """The failed perturbed runs of the behaviours that are not robust (up to ``most`` a
+    behaviour, the worst first: most criteria failed, then the lowest seed) for which
+    ``attribution(files, table, behavior, seed, figures)`` (a replay of that run with one
+    cause taken away, given the run's recorded figures) finds the cause: each its
+    ``behavior`` and ``seed`` with what ``attribution`` returned; none without a table."""
+    if not robust or not isinstance(robust.get("table"), Mapping):
+        return []  # no table: nothing to replay
     out = []
     for b in robust["behaviors"]:
         if b["robust"]:
             continue
         worst = sorted(b["failures"], key=lambda f: (-len(f["verdict"]), f["seed"]))
         runs = {fig.get("seed"): fig for fig in b.get("figures", ())}
-        for f in worst[:BLAMED_RUNS]:
-            found = play_attribution(
+        for f in worst[:most]:
+            found = attribution(
                 files, robust["table"], b["behavior"], f["seed"], runs.get(f["seed"])
             )
             if found is not None:

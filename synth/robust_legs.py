@@ -111,21 +111,9 @@ def hold_blame(files: Mapping[str, str | bytes], robust: Mapping | None) -> list
     """:func:`hold_attribution` of the failed perturbed runs (up to ``HOLD_BLAMED_RUNS`` a
     behaviour, the worst first) of the behaviours that are not robust, each with its
     ``behavior`` and ``seed``: those the command hold breaks."""
-    if not robust or not isinstance(robust.get("table"), Mapping):
-        return []
-    out = []
-    for b in robust["behaviors"]:
-        if b["robust"]:
-            continue
-        worst = sorted(b["failures"], key=lambda f: (-len(f["verdict"]), f["seed"]))
-        runs = {fig.get("seed"): fig for fig in b.get("figures", ())}
-        for f in worst[:HOLD_BLAMED_RUNS]:
-            found = hold_attribution(
-                files, robust["table"], b["behavior"], f["seed"], runs.get(f["seed"])
-            )
-            if found is not None:
-                out.append({"behavior": b["behavior"], "seed": f["seed"]} | found)
-    return out
+    from synth.robust import replayed_blame
+
+    return replayed_blame(files, robust, hold_attribution, HOLD_BLAMED_RUNS)
 
 
 def hold_note(blamed: list[dict], behavior: str) -> str:
