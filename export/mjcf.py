@@ -198,11 +198,19 @@ def _gains(j: JointSpec) -> tuple[float, float]:
     """(kp or kv, armature) of the servo of a movable joint."""
     if not (math.isfinite(j.effort) and j.effort > 0):
         raise ValueError(f"joint {j.name!r} moves but has no actuator effort ({j.effort})")
-    kp = j.effort / SERVO_BAND
+    return servo_gains(j.effort, j.velocity, j.kind == "continuous")
+
+
+def servo_gains(effort: float, velocity: float, continuous: bool) -> tuple[float, float]:
+    """(kp or kv, armature) of a servo of stall torque ``effort`` N m and no-load speed
+    ``velocity`` rad/s: a position servo's ``kp = effort / SERVO_BAND``, or, turning without
+    an end stop (``continuous``), a velocity servo's ``kv = effort / velocity``; the armature
+    of the module docstring."""
+    kp = effort / SERVO_BAND
     armature = kp * (4.0 * TIMESTEP) ** 2
-    if j.kind == "continuous":
-        speed = j.velocity if math.isfinite(j.velocity) and j.velocity > 0 else 1.0
-        kv = j.effort / speed
+    if continuous:
+        speed = velocity if math.isfinite(velocity) and velocity > 0 else 1.0
+        kv = effort / speed
         return kv, max(armature, kv * WHEEL_MOTOR_TIME_CONSTANT)
     return kp, armature
 

@@ -29,17 +29,21 @@ if TYPE_CHECKING:
 
 
 def robust_check(
-    designer: Designer, outcome: Outcome, k: int, only: Collection[str] | None = None
+    designer: Designer,
+    outcome: Outcome,
+    k: int,
+    only: Collection[str] | None = None,
+    files: Mapping[str, str | bytes] | None = None,
 ) -> dict | None:
     """``verified.robust`` of ``outcome`` (a sized design) under perturbations 1..``k`` of
     its table (of its listed behaviours, those named in ``only`` when given); None when
-    ``k`` is 0."""
+    ``k`` is 0. ``files``: its :func:`robust_files` when the caller has them already."""
     if k <= 0 or outcome.structure is None or outcome.catalog is None:
         return None
     from export.perturb import design_table
     from export.verify import bundle_parts, verify_robust
 
-    files = robust_files(designer, outcome)
+    files = robust_files(designer, outcome) if files is None else files
     record, xml, _ = bundle_parts(files)
     # through JSON as design.json keeps it: the replay draws from the very same numbers
     table = json.loads(json.dumps(design_table(record, xml, outcome.catalog)))
@@ -88,17 +92,24 @@ def replayed_blame(
     if not robust or not isinstance(robust.get("table"), Mapping):
         return []  # no table: nothing to replay
     out = []
-    for b in robust["behaviors"]:
+    for behavior, seed, figures in worst_failures(robust, most):
+        found = attribution(files, robust["table"], behavior, seed, figures)
+        if found is not None:
+            out.append({"behavior": behavior, "seed": seed} | found)
+    return out
+
+
+def worst_failures(robust: Mapping, most: int) -> list[tuple[str, int, dict | None]]:
+    """(behaviour, seed, the run's recorded figures or None) of the failed perturbed runs
+    of each behaviour that is not robust, up to ``most`` a behaviour, the worst first (most
+    criteria failed, then the lowest seed): the runs the loop replays for a cause."""
+    out = []
+    for b in robust.get("behaviors", ()):
         if b["robust"]:
             continue
         worst = sorted(b["failures"], key=lambda f: (-len(f["verdict"]), f["seed"]))
         runs = {fig.get("seed"): fig for fig in b.get("figures", ())}
-        for f in worst[:most]:
-            found = attribution(
-                files, robust["table"], b["behavior"], f["seed"], runs.get(f["seed"])
-            )
-            if found is not None:
-                out.append({"behavior": b["behavior"], "seed": f["seed"]} | found)
+        out += [(b["behavior"], f["seed"], runs.get(f["seed"])) for f in worst[:most]]
     return out
 
 

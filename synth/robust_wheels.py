@@ -30,7 +30,7 @@ Wheels are read off the structure (a joint whose actuator turns without an end s
 no robot type is named.
 
 How :mod:`synth.verify` calls it: where a round's perturbed runs failed and no actuator
-saturated (``_floors`` gave nothing new), ``wheel_floors(robust_files(designer,
+saturated (``_floors`` gave nothing new), ``wheel_exclusions(robust_files(designer,
 outcome), robust, outcome.catalog, excluded)`` gives joint -> the models excluded (empty:
 no wheel, or no stiffer wheel servo makes them pass), merged into the round's exclusions
 before it sizes again.
@@ -105,7 +105,8 @@ def swapped_files(
     ``forcerange``) and the joint's armature, as ``export.mjcf`` writes them."""
     import xml.etree.ElementTree as ET
 
-    from export.mjcf import SERVO_BAND, TIMESTEP, WHEEL_MOTOR_TIME_CONSTANT
+    from export.mjcf import servo_gains
+    from export.urdf import number, numbers
 
     def text(v: str | bytes) -> str:
         return v.decode("utf-8") if isinstance(v, bytes) else v
@@ -118,17 +119,16 @@ def swapped_files(
             j["actuator_torque_Nm"] = actuator.stall_torque_Nm
             j["no_load_speed_rad_s"] = actuator.no_load_speed_rad_s
     effort, speed = actuator.stall_torque_Nm, actuator.no_load_speed_rad_s
-    gain = effort / speed
-    armature = max(effort / SERVO_BAND * (4.0 * TIMESTEP) ** 2, gain * WHEEL_MOTOR_TIME_CONSTANT)
+    gain, armature = servo_gains(effort, speed, continuous=True)
     root = ET.fromstring(text(files["robot.xml"]))
     for act in root.iter("velocity"):
         if act.get("joint") in names:
-            act.set("kv", repr(gain))
-            act.set("ctrlrange", f"{-speed!r} {speed!r}")
-            act.set("forcerange", f"{-effort!r} {effort!r}")
+            act.set("kv", number(gain))
+            act.set("ctrlrange", numbers((-speed, speed)))
+            act.set("forcerange", numbers((-effort, effort)))
     for joint in root.iter("joint"):
         if joint.get("name") in names:
-            joint.set("armature", repr(armature))
+            joint.set("armature", number(armature))
     out = dict(files)
     out["design.json"] = json.dumps(record)
     out["robot.xml"] = ET.tostring(root, encoding="unicode")
@@ -136,18 +136,11 @@ def swapped_files(
 
 
 def _failed_runs(robust: Mapping) -> list[tuple[str, int, dict]]:
-    """(behaviour, seed, figures) of the failed perturbed runs of each behaviour that is
-    not robust, up to ``BLAMED_RUNS`` a behaviour, the worst first (as ``play_blame``)."""
-    from synth.robust import BLAMED_RUNS
+    """(behaviour, seed, figures) of the failed perturbed runs replayed: those
+    ``play_blame`` replays (``synth.robust.worst_failures``)."""
+    from synth.robust import BLAMED_RUNS, worst_failures
 
-    out = []
-    for b in robust.get("behaviors", ()):
-        if b["robust"]:
-            continue
-        figs = {f.get("seed"): f for f in b.get("figures", ())}
-        worst = sorted(b["failures"], key=lambda f: (-len(f["verdict"]), f["seed"]))
-        out += [(b["behavior"], f["seed"], figs.get(f["seed"], {})) for f in worst[:BLAMED_RUNS]]
-    return out
+    return [(b, s, fig or {}) for b, s, fig in worst_failures(robust, BLAMED_RUNS)]
 
 
 def wheel_blame(
