@@ -498,6 +498,35 @@ def robust_failure(robust: Mapping) -> dict[str, str]:
     return out
 
 
+class Replay:
+    """A failed perturbed run of a bundle set up to be replayed with one cause changed:
+    the record, the nominal model's controller and its plan of ``behavior`` (what the
+    robot's program knows), and perturbation ``seed`` of ``table`` drawn
+    (``perturbation``). :meth:`run` simulates a variant of that perturbation on the
+    perturbed robot and gives the run's :func:`figures`."""
+
+    def __init__(
+        self, files: Mapping[str, str | bytes], table: Mapping, behavior: str, seed: int
+    ) -> None:
+        from export.mjcf import load_mjcf
+        from export.perturb import draw
+
+        self.record, self._xml, self._meshes = bundle_parts(files)
+        self.table = table
+        self.controller = controller_for_model(self.record, load_mjcf(self._xml, self._meshes))
+        self.plan = self.controller.run(behavior)
+        self.perturbation = draw(table, seed)
+
+    def run(self, perturbation: Mapping, plan: Trajectory | None = None) -> dict:
+        """The figures of ``plan`` (default: the behaviour's default plan) run under
+        ``perturbation``."""
+        from export.perturb import perturbed_model
+
+        plan = self.plan if plan is None else plan
+        model = perturbed_model(self._xml, self._meshes, self.table, perturbation)
+        return figures(plan, _simulate(model, self.controller, plan, None, None, perturbation))
+
+
 def play_attribution(
     files: Mapping[str, str | bytes],
     table: Mapping,
@@ -516,19 +545,13 @@ def play_attribution(
     groups left are those whose play must go. ``{"verdict": [...], "joints": [...],
     "figures": {"with": ..., "without": ...}}`` (the failed criteria, the joints whose
     play breaks it, the :func:`_criteria` figures of the run with and without play)."""
-    from export.mjcf import load_mjcf
-    from export.perturb import draw, perturbed_model
-
-    record, xml, meshes = bundle_parts(files)
-    controller = controller_for_model(record, load_mjcf(xml, meshes))
-    traj = controller.run(behavior)
-    p = draw(table, seed)
+    replay = Replay(files, table, behavior, seed)
+    record, p = replay.record, replay.perturbation
     full = dict(p["play_rad"])
 
     def run(removed: set[str]) -> dict:
-        q = dict(p, play_rad={j: (0.0 if j in removed else v) for j, v in full.items()})
-        return figures(
-            traj, _simulate(perturbed_model(xml, meshes, table, q), controller, traj, None, None, q)
+        return replay.run(
+            dict(p, play_rad={j: (0.0 if j in removed else v) for j, v in full.items()})
         )
 
     before = run(set()) if failed is None else failed

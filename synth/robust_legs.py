@@ -63,24 +63,16 @@ def hold_attribution(
     "joints": {joint: its largest reference step rad a frame}, "speed": the largest of
     SPEED_SHARES x the default speed at which the run passes as perturbed (None: none
     does, or the behaviour has no speed), "default_speed", "unit"}``."""
-    from export.mjcf import load_mjcf
-    from export.perturb import draw, perturbed_model
-    from export.verify import _simulate, bundle_parts, controller_for_model, figures
+    from export.verify import Replay
 
-    record, xml, meshes = bundle_parts(files)
-    controller = controller_for_model(record, load_mjcf(xml, meshes))
-    traj = controller.run(behavior)
-    p = draw(table, seed)
+    replay = Replay(files, table, behavior, seed)
+    controller, traj, p, run = replay.controller, replay.plan, replay.perturbation, replay.run
     frame = float(p.get("control_period_s") or 0.0)
 
-    def run(q: Mapping, plan) -> dict:
-        model = perturbed_model(xml, meshes, table, q)
-        return figures(plan, _simulate(model, controller, plan, None, None, q))
-
-    before = run(p, traj) if failed is None else failed
+    before = run(p) if failed is None else failed
     if frame <= 0 or "saturated" not in before["verdict"]:
         return None
-    if run(dict(p, control_period_s=0.0), traj)["verdict"] != "ok":
+    if run(dict(p, control_period_s=0.0))["verdict"] != "ok":
         return None
     spec = controller.behaviors[behavior]
     speed = next((x for x in spec.params if x.name == "speed"), None)
