@@ -361,6 +361,15 @@ def _verified(
     wheels_at: tuple[int, dict | None] = (0, None)  # the stiffer wheels tried (synth.robust_wheels)
     first_wheel: dict[str, str] = {}  # wheel joint -> its servo before a stiffer one
     wheel_runs: list[dict] = []  # the perturbed runs that called for the stiffer wheels
+    bundles: dict[int, dict] = {}  # the round's bundle as the user gets it (robust_files)
+
+    def robust_bundle() -> dict:
+        """The perturbed runs' bundle of the design as it stands, built once a round."""
+        if rounds not in bundles:
+            bundles.clear()
+            bundles[rounds] = robust_files(designer, outcome)
+        return bundles[rounds]
+
     rounds = 0
     while True:
         rounds += 1
@@ -370,11 +379,16 @@ def _verified(
             outcome = replace(outcome, calibration=calibration)
             files = outcome.files(designer)
         record = outcome.record(designer)
+        models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
         # the behaviours' trajectories, then the sensing abilities' closed loops
         results = verify_files(files) + verify_sensing(files)
         failing = [r for r in results if r["verdict"] != "ok"]
         # nominally passed: under the perturbations of synth.robust (--robustness K)
-        robust = None if failing else robust_check(designer, outcome, opts.robustness)
+        robust = (
+            None
+            if failing or opts.robustness <= 0
+            else robust_check(designer, outcome, opts.robustness, files=robust_bundle())
+        )
         more = _floors(results + failing_runs(robust), record)
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
         grow = new if rounds < MAX_ROUNDS and not torque_done else {}
@@ -386,10 +400,8 @@ def _verified(
             and wheel_joints(record, outcome.catalog)
         ):
             # no actuator saturated: does a stiffer wheel servo answer it? (measured)
-            files_now = robust_files(designer, outcome)
-            stiffer, wheels = wheel_exclusions(files_now, robust, outcome.catalog, excluded)
+            stiffer, wheels = wheel_exclusions(robust_bundle(), robust, outcome.catalog, excluded)
             wheels_at = (rounds, wheels)
-            models_now = {j["name"]: j["actuator"] for j in record.get("joints", ())}
         if not (failing or not_robust(robust)):
             break
         sizer = StructureDesigner(
@@ -411,7 +423,7 @@ def _verified(
                 if stiffer:  # synth.robust_wheels: what called for it
                     wheel_runs += wheels_at[1]["runs"]  # type: ignore[index]
                     for j in stiffer:
-                        first_wheel.setdefault(j, models_now[j])
+                        first_wheel.setdefault(j, models[j])
             except InfeasibleError:
                 torque_done = True  # no stronger actuator: is it the play? (below)
         if structure is None and not failing and rounds < MAX_ROUNDS + PLAY_ROUNDS:
@@ -420,8 +432,7 @@ def _verified(
                 from export.perturb import catalog_play
 
                 play = catalog_play(outcome.catalog)
-            models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
-            runs = play_blame(robust_files(designer, outcome), robust)
+            runs = play_blame(robust_bundle(), robust)
             blamed, blamed_at = runs, rounds
             history += runs
             looser, stuck = less_play(runs, models, sizer.assigner.serving, play, excluded)
@@ -437,7 +448,7 @@ def _verified(
         # what failed nominally drops its bonus abilities or refuses the request (below);
         # what passed must pass under the perturbations too, or no perturbed run is claimed
         passed = {r["behavior"] for r in results if r["verdict"] == "ok"}
-        robust = robust_check(designer, outcome, opts.robustness, passed)
+        robust = robust_check(designer, outcome, opts.robustness, passed, robust_bundle())
     # which abilities no behaviour serves: the controller alone tells (no model needed)
     controller = controller_for(DesignGeometry.from_record(record))
     served = served_abilities(record, controller)
@@ -457,10 +468,10 @@ def _verified(
         else:
             for a in sorted(mine):
                 dropped.setdefault(a, why)
-    models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
     also = []  # the other demanded behaviours that are not robust, named after the worst
     nominal_failure = failure is not None
-    held = hold_blame(robust_files(designer, outcome), robust) if not_robust(robust) else []
+    held = hold_blame(robust_bundle(), robust) if not_robust(robust) else []
+    perturbed = {b["behavior"]: b for b in (robust or {}).get("behaviors", ())}
     for ability, why in not_robust(robust):
         behavior = why.split(" is not robust", 1)[0]
         if blamed_at == rounds:  # measured on the design as it stands
@@ -473,8 +484,8 @@ def _verified(
             if failure is None:
                 failure = why
             else:
-                passed = why.split(": passed ", 1)[1].split(" perturbed", 1)[0]
-                also.append(f"{behavior} (passed {passed})")
+                b = perturbed[behavior]
+                also.append(f"{behavior} (passed {b['passed']} of {b['runs']})")
         else:
             for a in sorted(mine):
                 dropped.setdefault(a, why)
