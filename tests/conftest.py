@@ -167,3 +167,24 @@ class SharedDesigns:
 def designs(tmp_path_factory: pytest.TempPathFactory) -> SharedDesigns:
     """The session's :class:`SharedDesigns`."""
     return SharedDesigns(tmp_path_factory.mktemp("shared-designs"))
+
+
+@pytest.fixture(scope="session")
+def humanoid(designs: SharedDesigns) -> Path:
+    """The humanoid's bundle (walking with grasping, not verified), designed once for the
+    files that perturb it (read-only)."""
+    return designs("walking", "--answer", "grasping=yes", "--no-verify").folder
+
+
+@pytest.fixture
+def robust_walk(monkeypatch):
+    """``gaits.humanoid.ROBUST_WALK`` as the humanoid's walk for one test (the plan memos
+    cleared before and after)."""
+    from gaits import base, humanoid
+
+    monkeypatch.setattr(humanoid, "WALK", humanoid.ROBUST_WALK)
+    humanoid.conversion_maps.cache_clear()
+    base._PLANNED.clear()
+    yield
+    humanoid.conversion_maps.cache_clear()
+    base._PLANNED.clear()

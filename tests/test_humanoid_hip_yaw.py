@@ -12,39 +12,16 @@ seeds`` measures the seeds one by one."""
 
 from __future__ import annotations
 
-import io
 import json
 from pathlib import Path
 
 import pytest
 
 from export import perturb
-from synth.cli import main
 
-REQUEST = ("walking", "--answer", "grasping=yes", "--no-input", "--no-verify")
 #: Perturbations of the design's table (seeds 1-8) that break the tuned walk by the hips'
 #: yaw (lateral slopes of 2.9 and 0.3 deg).
 SEEDS = (6, 8)
-
-
-@pytest.fixture(scope="module")
-def humanoid(tmp_path_factory) -> Path:
-    folder = tmp_path_factory.mktemp("humanoid") / "bundle"
-    err = io.StringIO()
-    assert main(["design", *REQUEST, "--out", str(folder)], io.StringIO(), err) == 0, err
-    return folder
-
-
-@pytest.fixture
-def robust_walk(monkeypatch):
-    from gaits import base, humanoid
-
-    monkeypatch.setattr(humanoid, "WALK", humanoid.ROBUST_WALK)
-    humanoid.conversion_maps.cache_clear()
-    base._PLANNED.clear()
-    yield
-    humanoid.conversion_maps.cache_clear()
-    base._PLANNED.clear()
 
 
 def _walk(folder: Path, seed: int, stronger_yaw: bool):

@@ -13,7 +13,6 @@ the same robot and the same perturbations."""
 
 from __future__ import annotations
 
-import io
 import json
 import math
 import re
@@ -22,22 +21,12 @@ from pathlib import Path
 import pytest
 
 from export import perturb
-from synth.cli import main
 
 #: Perturbations of the design's table the tuned walk passes whole (of seeds 1-8: the
 #: grid in bench/robust_humanoid.py) and the default one falls in.
 SEEDS = (1, 2, 5)
-#: The humanoid request (walking with grasping) and the joints whose play is kept.
-REQUEST = ("walking", "--answer", "grasping=yes", "--no-input", "--no-verify")
+#: The joints whose play is kept (the humanoid: conftest.py's ``humanoid``).
 ANKLE_ROLL = "ankle_roll"
-
-
-@pytest.fixture(scope="module")
-def humanoid(tmp_path_factory) -> Path:
-    folder = tmp_path_factory.mktemp("humanoid") / "bundle"
-    err = io.StringIO()
-    assert main(["design", *REQUEST, "--out", str(folder)], io.StringIO(), err) == 0, err
-    return folder
 
 
 def _run(folder: Path, seed: int, joints: str, whole: bool = False) -> tuple[list[str], float]:
@@ -107,18 +96,6 @@ def test_the_play_stop_is_two_physics_steps(humanoid) -> None:
     hinge = next(i for i in range(model.njnt) if model.joint(i).name.endswith(perturb.PLAY_SUFFIX))
     assert model.jnt_solref[hinge][0] == pytest.approx(2 * model.opt.timestep)
     assert math.isclose(model.jnt_solref[hinge][1], 1.0)
-
-
-@pytest.fixture
-def robust_walk(monkeypatch):
-    from gaits import base, humanoid
-
-    monkeypatch.setattr(humanoid, "WALK", humanoid.ROBUST_WALK)
-    humanoid.conversion_maps.cache_clear()
-    base._PLANNED.clear()
-    yield
-    humanoid.conversion_maps.cache_clear()
-    base._PLANNED.clear()
 
 
 @pytest.mark.parametrize("seed", SEEDS)

@@ -8,37 +8,13 @@ default walk asks for no probe (its arcs turn as planned)."""
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from synth.cli import main
-
-REQUEST = ("walking", "--answer", "grasping=yes", "--no-input", "--no-verify")
 ARC = 5.0  # rad/m
-
-
-@pytest.fixture(scope="module")
-def humanoid(tmp_path_factory) -> Path:
-    folder = tmp_path_factory.mktemp("humanoid") / "bundle"
-    err = io.StringIO()
-    assert main(["design", *REQUEST, "--out", str(folder)], io.StringIO(), err) == 0, err
-    return folder
-
-
-@pytest.fixture
-def robust_walk(monkeypatch):
-    from gaits import base, humanoid
-
-    monkeypatch.setattr(humanoid, "WALK", humanoid.ROBUST_WALK)
-    humanoid.conversion_maps.cache_clear()
-    base._PLANNED.clear()
-    yield
-    humanoid.conversion_maps.cache_clear()
-    base._PLANNED.clear()
 
 
 def _parts(folder: Path, calibration: dict | None = None):
