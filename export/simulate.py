@@ -62,7 +62,7 @@ from pathlib import Path
 import numpy as np
 
 from adron.errors import InputError
-from gaits.base import Trajectory
+from gaits.base import Trajectory, quat_yaw
 
 
 @dataclass
@@ -257,11 +257,6 @@ def load_files_model(files: Mapping[str, str | bytes]):
         if k.endswith(".stl")
     }
     return load_mjcf(text, meshes)
-
-
-def _yaw(quat: np.ndarray) -> float:
-    w, x, y, z = quat
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
 def _tilt(quat: np.ndarray) -> float:
@@ -509,7 +504,7 @@ def simulate(
         mujoco.mj_forward(model, data)
     start = data.qpos[:3].copy() if free else np.zeros(3)
     com0 = data.subtree_com[1].copy() if free else np.zeros(3)
-    yaw0 = _yaw(data.qpos[3:7]) if free else 0.0
+    yaw0 = quat_yaw(data.qpos[3:7]) if free else 0.0
     dt = model.opt.timestep
     steps = max(1, int(round(seconds / dt)))
     idx = np.array([a for _, a, _ in columns], dtype=int)
@@ -622,7 +617,7 @@ def simulate(
     end = data.qpos[:3].copy() if free else np.zeros(3)
     heading = 0.0
     if free:  # unwrapped over the samples, so turns past 180 degrees count whole
-        heading = float(np.unwrap([_yaw(r[3:7]) for r in root])[-1] - yaw0)
+        heading = float(np.unwrap([quat_yaw(r[3:7]) for r in root])[-1] - yaw0)
     result = SimResult(
         traj.behavior,
         seconds,
@@ -715,7 +710,7 @@ def _tracking_error(result: SimResult, command, until: float = math.inf) -> floa
     if half.sum() < 2:
         return float("inf")
     dt = t[half][-1] - t[half][0]
-    yaws = np.unwrap([_yaw(qq[3:7]) for qq in root[half]])
+    yaws = np.unwrap([quat_yaw(qq[3:7]) for qq in root[half]])
     dx = root[half][-1, :2] - root[half][0, :2]
     heading = np.array([math.cos(yaws.mean()), math.sin(yaws.mean())])
     v = float(dx @ heading) / dt

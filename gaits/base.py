@@ -29,6 +29,13 @@ from kinematics.bodyplan import BodyPlan
 from kinematics.templates import Template, TemplateParams, build, register_plan
 
 
+def quat_yaw(quat) -> float:
+    """Yaw rad of a (w, x, y, z) quaternion (a free body's ``qpos[3:7]``): the heading every
+    controller and verdict measures a robot's turn by."""
+    w, x, y, z = (float(c) for c in quat)
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
 def min_jerk(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Minimum-jerk profile ``s = 10 t^3 - 15 t^4 + 6 t^5`` on ``tau`` in [0, 1] (clipped)
     and its first and second derivatives: s rises from 0 to 1 with s' and s'' zero at both

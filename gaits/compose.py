@@ -67,6 +67,7 @@ from gaits.base import (
     Parameter,
     Trajectory,
     min_jerk,
+    quat_yaw,
 )
 from kinematics.bodyplan import BodyPlan, PartNode
 from kinematics.dynamics import forward_kinematics
@@ -329,7 +330,7 @@ class ComposedController(Controller):
                 speed = float(traj.info["speed_m_s"])  # type: ignore[arg-type]
             elif traj.behavior == "turning":
                 cmd = float(traj.info["heading_rad"])  # type: ignore[arg-type]
-                yaw = np.unwrap([_yaw(q) for q in root[:, 3:7]])
+                yaw = np.unwrap([quat_yaw(q) for q in root[:, 3:7]])
                 ratio = float(yaw[-1] - yaw[0]) / cmd
                 if ratio > 0:
                     out[f"{TURN_KEY}{abs(cmd):g}_rad"] = round(ratio, 5)
@@ -1019,12 +1020,6 @@ def _standing_height(template) -> float:
     T = forward_kinematics(m, np.zeros(m.nv))
     r = float(template.params.wheel_radius)
     return max((r - float(T[m.body(w), 2, 3]) for w in template.wheels), default=0.0)
-
-
-def _yaw(quat: np.ndarray) -> float:
-    """Yaw rad of a (w, x, y, z) quaternion."""
-    w, x, y, z = (float(c) for c in quat)
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
 def _params(geometry: DesignGeometry, payload: float = 0.0):

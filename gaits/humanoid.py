@@ -122,6 +122,7 @@ from gaits.base import (  # noqa: F401 - CACHE_ENV: the cache folder's variable,
     Parameter,
     Trajectory,
     cache_folder,
+    quat_yaw,
 )
 from gaits.steering import SteerableSpec
 from kinematics.bodyplan import BodyPlan, PartNode
@@ -1284,9 +1285,7 @@ class HumanoidController(Controller):
         gains = []
         for traj, series in runs:
             planned = float(traj.info["planned_pose"][2])  # type: ignore[index]
-            root = np.asarray(series["root"])
-            w, x, y, z = root[:, 3], root[:, 4], root[:, 5], root[:, 6]
-            yaw = np.unwrap(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+            yaw = np.unwrap([quat_yaw(q) for q in np.asarray(series["root"])[:, 3:7]])
             turned = float(yaw[-1] - yaw[0])
             if planned == 0 or turned * planned <= 0:
                 continue

@@ -69,6 +69,7 @@ from gaits.base import (
     Trajectory,
     min_jerk,
     min_jerk_integral,
+    quat_yaw,
 )
 from gaits.steering import SteerableSpec
 from kinematics.dynamics import forward_kinematics
@@ -639,7 +640,7 @@ class WheeledController(Controller):
             nl = len(d.left)
             left, right = float(np.mean(speeds[:nl])), float(np.mean(speeds[nl:]))
             root = np.asarray(series["root"])
-            yaw = np.unwrap([_yaw(quat) for quat in root[:, 3:7]])
+            yaw = np.unwrap([quat_yaw(quat) for quat in root[:, 3:7]])
             w = float(np.polyfit(t[steady], yaw[steady], 1)[0])
             num += d.radius * (right - left) * w
             den += w * w
@@ -920,12 +921,6 @@ class WheeledController(Controller):
             "effective_track_m": self.drive.effective_track,
         }
         return Trajectory(name, t, self.joints, pos, vel, info)
-
-
-def _yaw(quat: np.ndarray) -> float:
-    """Yaw rad of a (w, x, y, z) quaternion."""
-    w, x, y, z = (float(c) for c in quat)
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
 def _grid(seconds: float) -> np.ndarray:

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from adron.errors import InputError, ParmorError
+from gaits.base import quat_yaw
 from program.script import LIMITS, REPORTS, ProgramError, execute, validate
 
 BLEND_MIN_S = 0.3  # s: shortest move to a behaviour's first pose
@@ -38,11 +39,6 @@ PATH_HZ = 20  # path samples per simulated second
 #: root body's roll about its own x axis (rad, right-handed) since the start, as an IMU on
 #: it would read it: a snake that rolled on its side plans its next gait for that.
 SENSED_ROLL = "roll"
-
-
-def _yaw(quat: np.ndarray) -> float:
-    w, x, y, z = quat
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
 def _round(x: float) -> float:
@@ -352,7 +348,7 @@ class Session:
         if not self.free:
             return np.zeros(3)
         q = self.data.qpos
-        return np.array([q[0], q[1], _yaw(q[3:7])])
+        return np.array([q[0], q[1], quat_yaw(q[3:7])])
 
     def _roll(self) -> float:
         """Roll (rad) of the root body about its own x axis since the model's start pose:
@@ -508,7 +504,7 @@ class Session:
         """Sample the path and the animation at their rates."""
         if not self._path["t"] or t >= self._path["t"][-1] + 1 / PATH_HZ - 1e-9:
             x, y, yaw = self._pose() - self._origin
-            yaw = _yaw(d.qpos[3:7]) if self.free else 0.0
+            yaw = quat_yaw(d.qpos[3:7]) if self.free else 0.0
             if self._yaws:
                 prev = self._yaws[-1]
                 yaw = prev + (yaw - prev + math.pi) % (2 * math.pi) - math.pi
