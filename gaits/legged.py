@@ -816,33 +816,26 @@ class LeggedController(Controller):
         this design (``sway_limits``); when that takes a foot out of reach, a joint out of
         its limits or the margin below ``MIN_MARGIN``, the plan with the narrower
         ``LINE_SWAY`` if that one keeps them (else the first, or its ValueError)."""
-        try:
-            plan = self._plan(
-                pattern, cycles, period, twist, step, self.height, sway=sway, approach=approach
-            )
-        except ValueError:
-            if tuple(self.sway_limits) == LINE_SWAY:
-                raise
-            plan = None
-        if plan is not None and (self._accept(plan) or tuple(self.sway_limits) == LINE_SWAY):
-            return plan
-        try:
-            small = self._plan(
-                pattern,
-                cycles,
-                period,
-                twist,
-                step,
-                self.height,
-                sway=sway,
-                approach=approach,
-                limits=LINE_SWAY,
-            )
-        except ValueError:
-            if plan is None:
-                raise
-            return plan
-        return small if (plan is None or self._accept(small)) else plan
+        tries = [tuple(self.sway_limits)]
+        if tries[0] != LINE_SWAY:
+            tries.append(LINE_SWAY)
+        planned: list[GaitPlan] = []  # those not accepted, in the order tried
+        error = None
+        for limits in tries:
+            try:
+                plan = self._plan(
+                    pattern, cycles, period, twist, step, self.height, sway=sway,
+                    approach=approach, limits=limits,
+                )  # fmt: skip
+            except ValueError as e:
+                error = e
+                continue
+            if self._accept(plan):
+                return plan
+            planned.append(plan)
+        if planned:
+            return planned[0]
+        raise error  # type: ignore[misc]
 
     def _fit(
         self,
