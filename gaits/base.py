@@ -274,6 +274,10 @@ class DesignGeometry:
     #: ``ability_ancestors``, from the ontology's action taxonomy): which behaviours serve
     #: an ability that has none of its own (:func:`serving`); gaits read no ontology
     ancestors: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    #: the catalog classes of the design's sensor modules (the record's ``modules`` whose
+    #: kind is a ``...SensorModule``), sorted: what its feedback loops may read
+    #: (:mod:`gaits.feedback`; an IMU only where the ontology made the design carry one)
+    sensors: tuple[str, ...] = ()
 
     @classmethod
     def from_record(cls, record: Mapping) -> DesignGeometry:
@@ -307,6 +311,15 @@ class DesignGeometry:
                 str(k): tuple(str(a) for a in v)
                 for k, v in (record.get("ability_ancestors") or {}).items()
             },
+            sensors=tuple(
+                sorted(
+                    {
+                        str(m["kind"])
+                        for m in record.get("modules") or ()
+                        if str(m.get("kind", "")).endswith("SensorModule")
+                    }
+                )
+            ),
         )
 
     def build(self) -> Template:
