@@ -174,6 +174,7 @@ def _simulate(
         progress=progress,
         latency_s=float(perturbation["latency_s"]) if perturbation else 0.0,
         command_period_s=float(perturbation["control_period_s"]) if perturbation else 0.0,
+        sensor_noise=perturbation.get("imu") if perturbation else None,
     )
 
 
