@@ -338,7 +338,8 @@ def test_out_writes_design_json(cli, tmp_path: Path) -> None:
         "trajectories",
     ]
     walks = sorted(p.name for p in (out / "trajectories").iterdir())
-    assert walks == ["grasping.csv", "running.csv", "walking.csv"]
+    # a biped carries an IMU (KIF), so it can keep its balance: that behaviour is listed too
+    assert walks == ["balancing.csv", "grasping.csv", "running.csv", "walking.csv"]
     assert all(p.suffix == ".stl" for p in (out / "meshes").iterdir())
     r = cli(
         "design",
