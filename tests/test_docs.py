@@ -196,9 +196,9 @@ def run_block(block: Block, folder: Path) -> list[str]:
     answers = [m.group(2) for c in cmds for s in c.shown if (m := QUESTION.match(s.strip()))]
     script = []
     for i, c in enumerate(cmds):
-        script.append(f"printf '\\n@@CMD {i}\\n'")
+        script.append(f"printf '\\n@@CMD {i}\\n'; (exit ${{__rc:-0}})")  # $? as it was
         script.append(c.text)
-        script.append(f"__rc=$?; printf '\\n@@RC {i} %s\\n' $__rc; (exit $__rc)")
+        script.append(f"__rc=$?; printf '\\n@@RC {i} %s\\n' $__rc")
     stdin, master = subprocess.DEVNULL, None
     if answers:
         master, slave = os.openpty()
