@@ -1,4 +1,4 @@
-"""``make bench``: the figures of the performance budget (DESIGN.md), printed.
+"""``make bench``: the figures of the performance budget (docs/architecture.md), printed.
 
 Timings are wall-clock, best (and median) of several runs, on whatever machine runs
 them; nothing here is asserted. Sections that need ``../shared`` say so and skip.

@@ -1,6 +1,6 @@
 """Tests of the ``parmor`` command line (synth.cli), run in-process through ``main(argv)``.
 
-Exit codes (DESIGN.md): 0 done; 1 the request cannot be met; 2 bad input; 3 an answer is
+Exit codes (docs/architecture.md): 0 done; 1 the request cannot be met; 2 bad input; 3 an answer is
 needed and input is off.
 """
 
