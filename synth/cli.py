@@ -399,6 +399,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="run the robot under perturbation SEED of the table it was verified with "
         "(design.json verified.robust; seeds 1..K are the verification's runs)",
     )
+    p.add_argument(
+        "--fine",
+        action="store_true",
+        help="with --perturb: run at the model's own time step, where the verification ran "
+        "its perturbed runs at the coarse one (design.json verified.robust.physics says which)",
+    )
     p.add_argument("--plot", action="store_true", help="write PNG plots of the run into DIR/plots/")
     _json_option(p)
     _limit_options(p, size=False, memory="of this process")
@@ -1260,6 +1266,8 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from export.record import to_json
 
     folder = Path(args.dir)
+    if args.fine and args.perturb is None:
+        raise InputError("--fine sets the step of a perturbed run: add --perturb SEED")
     from export.verify import controller_for_model, figures, load_bundle, run_behavior
 
     params: dict[str, str] = {}
@@ -1313,14 +1321,24 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                 )
             else:
                 from export.perturb import summary
-                from export.verify import folder_files, run_perturbed
+                from export.verify import (
+                    bundle_record,
+                    folder_files,
+                    recorded_table,
+                    run_perturbed,
+                )
 
+                table = None
+                if args.fine:  # the recorded table at the model's own step
+                    table = recorded_table(bundle_record(folder))
+                    table.pop("timestep_s", None)
                 traj, result, drawn = run_perturbed(
                     folder_files(folder),
                     args.behavior,
                     args.perturb,
                     params,
                     args.seconds,
+                    table=table,
                     progress=progress,
                 )
     except (ValueError, KeyError) as e:

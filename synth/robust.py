@@ -20,7 +20,7 @@ SEED`` replays each recorded run to the bit.
 from __future__ import annotations
 
 import json
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -34,20 +34,32 @@ def robust_check(
     k: int,
     only: Collection[str] | None = None,
     files: Mapping[str, str | bytes] | None = None,
+    nominal: Sequence[Mapping] | None = None,
 ) -> dict | None:
     """``verified.robust`` of ``outcome`` (a sized design) under perturbations 1..``k`` of
     its table (of its listed behaviours, those named in ``only`` when given); None when
-    ``k`` is 0. ``files``: its :func:`robust_files` when the caller has them already."""
+    ``k`` is 0. ``files``: its :func:`robust_files` when the caller has them already;
+    ``nominal``: the figures of its nominal runs (``verify_files``) when the caller has
+    them. The runs use the coarse time step where the nominal runs agree at it
+    (:func:`export.verify.physics_check`; ``table["timestep_s"]``, recorded with the
+    table, so a replay uses it too); ``verified.robust.physics`` says which and why."""
     if k <= 0 or outcome.structure is None or outcome.catalog is None:
         return None
     from export.perturb import design_table
-    from export.verify import bundle_parts, verify_robust
+    from export.verify import bundle_parts, physics_check, verify_robust
 
     files = robust_files(designer, outcome) if files is None else files
     record, xml, _ = bundle_parts(files)
+    table = design_table(record, xml, outcome.catalog)
+    # the coarse step where this design's nominal runs agree with the fine ones
+    physics = physics_check(files, nominal)
+    if physics["timestep_s"]:
+        table["timestep_s"] = physics["timestep_s"]
     # through JSON as design.json keeps it: the replay draws from the very same numbers
-    table = json.loads(json.dumps(design_table(record, xml, outcome.catalog)))
-    return verify_robust(files, k, table, only=only)
+    table = json.loads(json.dumps(table))
+    robust = verify_robust(files, k, table, only=only)
+    robust["physics"] = physics
+    return robust
 
 
 def robust_files(designer: Designer, outcome: Outcome) -> dict[str, str | bytes]:
