@@ -59,7 +59,45 @@ def robust_check(
     table = json.loads(json.dumps(table))
     robust = verify_robust(files, k, table, only=only)
     robust["physics"] = physics
+    robust["shows"] = shows(robust)
     return robust
+
+
+#: The confidence of the bound :func:`shows` states.
+CONFIDENCE = 0.9
+
+
+def success_bound(passed: int, runs: int, confidence: float = CONFIDENCE) -> float:
+    """The one-sided Clopper-Pearson lower bound of a success probability after ``passed``
+    successes in ``runs`` independent runs: the p below which so many successes would
+    happen with probability under 1 - ``confidence`` ((1 - c)^(1/n) when all passed)."""
+    if runs <= 0 or passed <= 0:
+        return 0.0
+    alpha = 1.0 - confidence
+    if passed == runs:
+        return alpha ** (1.0 / runs)
+    from scipy.stats import beta
+
+    return float(beta.ppf(alpha, passed, runs - passed + 1))
+
+
+def shows(robust: Mapping) -> dict:
+    """What the perturbed runs show (``verified.robust.shows``): for the behaviour with the
+    fewest passes, the lower bound of its success probability over the table's
+    perturbations at :data:`CONFIDENCE` (each behaviour's own is at least that)."""
+    rows = robust.get("behaviors") or []
+    if not rows:
+        return {}
+    worst = min(rows, key=lambda b: (b["passed"] / max(b["runs"], 1), b["behavior"]))
+    bound = success_bound(int(worst["passed"]), int(worst["runs"]))
+    return {
+        "method": "Clopper-Pearson, one-sided",
+        "confidence": CONFIDENCE,
+        "passed": int(worst["passed"]),
+        "runs": int(worst["runs"]),
+        "behavior": worst["behavior"],
+        "success_lower_bound": float(f"{bound:.4g}"),
+    }
 
 
 def robust_files(designer: Designer, outcome: Outcome) -> dict[str, str | bytes]:

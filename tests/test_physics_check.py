@@ -48,3 +48,29 @@ def test_fine_needs_a_perturbed_run(cli, arm) -> None:
     r = cli("simulate", str(arm), "--behavior", "positioning", "--fine")
     assert r.code == 2
     assert "--perturb" in r.err
+
+
+def test_what_k_of_k_shows() -> None:
+    from synth.robust import shows, success_bound
+
+    assert success_bound(8, 8) == pytest.approx(0.1 ** (1 / 8))  # 0.7499: "> 74 %"
+    assert success_bound(30, 30) > 0.92
+    # the bound is of the outcome: a failed run lowers it (beta quantile, scipy's)
+    assert success_bound(7, 8) == pytest.approx(0.5938, abs=1e-4)
+    assert success_bound(0, 8) == 0.0
+    s = shows(
+        {
+            "behaviors": [
+                {"behavior": "walking", "passed": 8, "runs": 8},
+                {"behavior": "turning", "passed": 7, "runs": 8},
+            ]
+        }
+    )
+    assert s["behavior"] == "turning" and s["success_lower_bound"] == pytest.approx(0.5938)
+
+
+def test_certify_takes_the_place_of_robustness(cli) -> None:
+    r = cli("design", "walking", "--certify", "30", "--robustness", "4")
+    assert r.code == 2 and "--certify" in r.err
+    r = cli("design", "walking", "--certify", "0")
+    assert r.code == 2
