@@ -361,7 +361,7 @@ def verification_text(verified: dict | None, indent: str = "  ") -> str:
         if shown:
             out.append(
                 f"{indent}  shows: each behaviour succeeds with probability above "
-                f"{shown['success_lower_bound'] * 100:.0f} % at "
+                f"{math.floor(shown['success_lower_bound'] * 100)} % at "
                 f"{shown['confidence'] * 100:.0f} % confidence ({shown['passed']} of "
                 f"{shown['runs']}, Clopper-Pearson; --certify N runs N)"
             )
