@@ -139,6 +139,9 @@ RAMP = 0.5
 PROBE_RIM_FRACTIONS = (0.25, 0.15, 0.08)
 PROBE_SECONDS = 2.0
 PROBE_SETTLE = 0.5
+#: s a turn's plan holds still after its heading profile ends, its feedback loop
+#: (:mod:`gaits.wheel_feedback`) bringing the measured heading onto the angle asked
+TURN_SETTLE_S = 0.6
 
 
 def wheel_speeds(v: float, w: float, radius: float, track: float) -> tuple[float, float]:
@@ -838,6 +841,7 @@ class WheeledController(Controller):
             "ramp_s": ramp,
             "planned_pose": pose,
             "path_length_m": abs(v) * D,
+            "feedback": self.feedback_spec({"v": v, "w": w, "ramp": ramp, "seconds": seconds}),
         }
         if v == 0 and w == 0:
             info["motion"] = "hold"
@@ -892,13 +896,42 @@ class WheeledController(Controller):
             )
         t, _, left, right = self._turn_profile(angle, seconds)
         self.drive.check_commands(left, right, f"turning {angle:g} rad in {seconds:g} s")
+        # the settling tail: the wheels' plan stands still, the loop ends the turn on the
+        # measured heading
+        tail = seconds + SAMPLE_DT * np.arange(1, int(round(TURN_SETTLE_S / SAMPLE_DT)) + 1)
+        t = np.concatenate([t, tail])
+        left = np.concatenate([left, np.zeros(len(tail))])
+        right = np.concatenate([right, np.zeros(len(tail))])
         info = {
             "heading_rad": angle,
             "motion": "turn",
             "planned_pose": (0.0, 0.0, angle),
             "path_length_m": 0.0,
+            "feedback": self.feedback_spec({"angle": angle, "seconds": seconds}),
         }
         return self._trajectory("turning", t, left, right, info)
+
+    def feedback_spec(self, profile: Mapping[str, float], kind: str = "wheel-odometry") -> dict:
+        """The plan's feedback loop (:mod:`gaits.wheel_feedback`): ``kind`` on the drive's
+        wheels, for a ``profile`` (its heading and distance reference); the heading from
+        the IMU where the design carries one (``DesignGeometry.sensors``), else from the
+        wheels' odometry."""
+        from gaits.feedback import has_imu
+
+        d = self.drive
+        spec: dict[str, object] = {
+            "loop": kind,
+            "left": list(d.left),
+            "right": list(d.right),
+            "sign": {n: d.sign[n] for n in (*d.left, *d.right)},
+            "radius_m": d.radius,
+            "track_m": d.effective_track,
+            "max_speed_rad_s": d.max_speed / SPEED_MARGIN,
+        }
+        if kind == "wheel-odometry":
+            spec["profile"] = dict(profile)
+            spec["imu"] = has_imu(self.geometry.sensors)
+        return spec
 
     def _trajectory(
         self,
