@@ -56,8 +56,10 @@ KI_HEADING = 2.0
 #: 1/s, 1/s^2: the distance loop's
 KP_DISTANCE = 2.0
 KI_DISTANCE = 0.5
-#: 1/s: the hold's gain on each wheel's angle
+#: 1/s, 1/s^2: the hold's proportional and integral gains on each wheel's angle (the
+#: integral takes out what a steady load, a slope's pull, leaves of the proportional band)
 K_HOLD = 6.0
+KI_HOLD = 6.0
 #: rad/s: a planned wheel speed below this is "still" (the hold acts)
 STILL_RAD_S = 1e-6
 
@@ -68,11 +70,23 @@ def _min_jerk_pos(x: float) -> float:
 
 def reference(profile: Mapping[str, object], t: float) -> tuple[float, float]:
     """(heading rad, distance m) the plan's ``profile`` reaches at ``t`` s: a turn in place
-    (``angle`` rad in ``seconds`` s, minimum jerk) or a drive (``v`` m/s, ``w`` rad/s,
-    reached with a minimum-jerk ``ramp`` s, held until ``seconds``, then held where the
-    plan ends); a hold (neither) stays at (0, 0)."""
+    (``angle`` rad in ``seconds`` s, minimum jerk), a straight drive (``distance`` m in
+    ``seconds`` s, minimum jerk) or a drive (``v`` m/s, ``w`` rad/s, reached with a
+    minimum-jerk ``ramp`` s, held until ``seconds``), each held where it ends; a hold (none
+    of them) stays at (0, 0); ``legs``: a list of such profiles, each with its start
+    ``t0`` s, one after another (a pick-and-place's drives and turns between its arm's
+    legs: the reference holds still between them)."""
+    legs = profile.get("legs")
+    if legs is not None:  # one leg after another: each adds its own from its start
+        h = d = 0.0
+        for leg in legs:  # type: ignore[attr-defined]
+            dh, dd = reference(leg, t - float(leg.get("t0", 0.0)))
+            h, d = h + dh, d + dd
+        return h, d
     seconds = float(profile.get("seconds", 0.0))  # type: ignore[arg-type]
     t = min(max(t, 0.0), seconds)
+    if "distance" in profile:  # a straight drive, minimum jerk
+        return 0.0, float(profile["distance"]) * _min_jerk_pos(t / max(seconds, 1e-9))  # type: ignore[arg-type]
     if "angle" in profile:
         return float(profile["angle"]) * _min_jerk_pos(t / max(seconds, 1e-9)), 0.0  # type: ignore[arg-type]
     v = float(profile.get("v", 0.0))  # type: ignore[arg-type]
@@ -184,18 +198,28 @@ class WheelHold(_Wheels):
     def __init__(self, traj, spec: Mapping[str, object]) -> None:
         super().__init__(traj, spec)
         self.k = float(spec.get("k", K_HOLD))  # type: ignore[arg-type]
+        self.ki = float(spec.get("ki", KI_HOLD))  # type: ignore[arg-type]
         self.still = float(spec.get("still_rad_s", STILL_RAD_S))  # type: ignore[arg-type]
         self.anchor: np.ndarray | None = None
+        self.acc = np.zeros(len(self.joints))
+        self.last_t: float | None = None
 
     def correct(self, r: Reading) -> np.ndarray:
         _, v_plan = self.planned(r.t)
+        dt = 0.0 if self.last_t is None else r.t - self.last_t
+        self.last_t = r.t
         past = r.t >= float(self.traj.times[-1])
         q = np.asarray(r.q, dtype=float)
         if not past and np.any(np.abs(v_plan[self.wheel]) > self.still):
             self.anchor = None  # the plan drives the wheels: no hold
+            self.acc[:] = 0.0
             return np.zeros(len(self.joints))
         if self.anchor is None:
             self.anchor = q.copy()
-        want = np.where(self.wheel, -self.k * (q - self.anchor), 0.0)
+        err = np.where(self.wheel, q - self.anchor, 0.0)
+        want = -self.k * err - self.ki * (self.acc + err * dt)
         lo, hi = -self.top - v_plan, self.top - v_plan
-        return np.where(self.wheel, np.clip(want, lo, hi), 0.0)
+        out = np.where(self.wheel, np.clip(want, lo, hi), 0.0)
+        free = np.abs(out - np.where(self.wheel, want, 0.0)) <= 1e-12
+        self.acc = np.where(free, self.acc + err * dt, self.acc)  # anti-windup
+        return out
