@@ -87,8 +87,9 @@ def reference(profile: Mapping[str, object], t: float) -> tuple[float, float]:
     t = min(max(t, 0.0), seconds)
     if "distance" in profile:  # a straight drive, minimum jerk
         return 0.0, float(profile["distance"]) * _min_jerk_pos(t / max(seconds, 1e-9))  # type: ignore[arg-type]
-    if "angle" in profile:
-        return float(profile["angle"]) * _min_jerk_pos(t / max(seconds, 1e-9)), 0.0  # type: ignore[arg-type]
+    if "angle" in profile:  # a skid-steer's turn drives its measured centre's offset out
+        h = float(profile["angle"]) * _min_jerk_pos(t / max(seconds, 1e-9))  # type: ignore[arg-type]
+        return h, -float(profile.get("centre_y", 0.0)) * h  # type: ignore[arg-type]
     v = float(profile.get("v", 0.0))  # type: ignore[arg-type]
     w = float(profile.get("w", 0.0))  # type: ignore[arg-type]
     ramp = float(profile.get("ramp", 0.0))  # type: ignore[arg-type]

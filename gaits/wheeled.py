@@ -590,6 +590,10 @@ class WheeledController(Controller):
                 effective_track=float(cal.get("effective_track_m", self.drive.effective_track)),
                 turn_load_scale=float(cal.get("turn_load_scale", 1.0)),
             )
+        #: m: where a skid-steer turning in place turns about, left of the wheels' middle
+        #: (measured: :func:`_turn_centre`); its turns drive the chassis forward at
+        #: ``-w centre_y`` so that the wheels' middle stays where it is
+        self.centre_y = float(cal.get("turn_centre_y_m", 0.0)) if self.drive.skid else 0.0
         self.joints = (*self.drive.left, *self.drive.right)
 
     def calibration_probes(self) -> list[tuple[str, dict[str, object]]]:
@@ -660,10 +664,14 @@ class WheeledController(Controller):
                 t_den += turn * turn
         if den <= 0 or num <= 0 or t_den <= 0:
             return {}
-        return {
+        out = {
             "effective_track_m": round(num / den, 4),
             "turn_load_scale": round(max(t_num / t_den, 0.0), 3),
         }
+        centre = _turn_centre(runs)
+        if centre is not None:
+            out["turn_centre_y_m"] = round(centre, 5)
+        return out
 
     @property
     def v_max(self) -> float:
@@ -859,8 +867,8 @@ class WheeledController(Controller):
         s, ds, dds = min_jerk(t / seconds)
         w = angle * ds / seconds
         alpha = angle * dds / seconds**2
-        zero = np.zeros_like(t)
-        return t, s, *self.drive.commands(zero, w, zero, alpha)
+        c = self.centre_y  # the measured turn centre's offset, taken out (0: none)
+        return t, s, *self.drive.commands(-c * w, w, -c * alpha, alpha)
 
     def turn_seconds(self, angle: float) -> tuple[float, float]:
         """(the shortest, the design's own) duration s of turning in place by ``angle``
@@ -907,7 +915,10 @@ class WheeledController(Controller):
             "motion": "turn",
             "planned_pose": (0.0, 0.0, angle),
             "path_length_m": 0.0,
-            "feedback": self.feedback_spec({"angle": angle, "seconds": seconds}),
+            "feedback": self.feedback_spec(
+                {"angle": angle, "seconds": seconds}
+                | ({"centre_y": self.centre_y} if self.centre_y else {})
+            ),
         }
         return self._trajectory("turning", t, left, right, info)
 
@@ -954,6 +965,33 @@ class WheeledController(Controller):
             "effective_track_m": self.drive.effective_track,
         }
         return Trajectory(name, t, self.joints, pos, vel, info)
+
+
+def _turn_centre(runs: Sequence[tuple[Trajectory, Mapping[str, np.ndarray]]]) -> float | None:
+    """m: how far left of the wheels' middle (the root) a skid-steer turns about, from its
+    calibration probe in place (``command`` v = 0): the root's path is a circle about that
+    point, ``p(t) - p(0) = (I - R(yaw(t) - yaw(0))) c`` (c in the start's frame; least
+    squares over the probe). Its ``y`` is what eq. 5's common mode can take out (the wheels
+    drive the chassis along x; a centre ahead or behind would need a sideways push). None
+    without an in-place probe that turned."""
+    for traj, series in runs:
+        v, w = (float(x) for x in traj.info.get("command", (1.0, 0.0)))  # type: ignore[union-attr]
+        if v != 0 or w == 0:
+            continue
+        root = np.asarray(series["root"])
+        yaw = np.unwrap([quat_yaw(q) for q in root[:, 3:7]])
+        c0, s0 = math.cos(yaw[0]), math.sin(yaw[0])
+        d = root[:, :2] - root[0, :2]
+        d = np.column_stack([c0 * d[:, 0] + s0 * d[:, 1], -s0 * d[:, 0] + c0 * d[:, 1]])
+        a = yaw - yaw[0]
+        if float(np.ptp(a)) < 0.5:
+            continue
+        ca, sa = np.cos(a), np.sin(a)
+        # rows: x = (1 - cos) cx + sin cy ; y = -sin cx + (1 - cos) cy
+        m = np.vstack([np.column_stack([1 - ca, sa]), np.column_stack([-sa, 1 - ca])])
+        c, *_ = np.linalg.lstsq(m, np.concatenate([d[:, 0], d[:, 1]]), rcond=None)
+        return float(c[1])
+    return None
 
 
 def _grid(seconds: float) -> np.ndarray:
