@@ -118,7 +118,7 @@ MAX_JUMP = 1e-3
 FIELD = 5.0
 #: s a ``travel`` stands still after its drive, its feedback loop settling on the distance
 #: (:mod:`gaits.wheel_feedback`)
-TRAVEL_SETTLE_S = 0.6
+TRAVEL_SETTLE_S = 1.0
 
 
 def _role(kinds, node: PartNode) -> str:

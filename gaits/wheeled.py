@@ -141,7 +141,7 @@ PROBE_SECONDS = 2.0
 PROBE_SETTLE = 0.5
 #: s a turn's plan holds still after its heading profile ends, its feedback loop
 #: (:mod:`gaits.wheel_feedback`) bringing the measured heading onto the angle asked
-TURN_SETTLE_S = 0.6
+TURN_SETTLE_S = 1.0
 
 
 def wheel_speeds(v: float, w: float, radius: float, track: float) -> tuple[float, float]:
