@@ -591,8 +591,8 @@ class WheeledController(Controller):
                 turn_load_scale=float(cal.get("turn_load_scale", 1.0)),
             )
         #: m: where a skid-steer turning in place turns about, left of the wheels' middle
-        #: (measured: :func:`_turn_centre`); its turns drive the chassis forward at
-        #: ``-w centre_y`` so that the wheels' middle stays where it is
+        #: (measured: :func:`_turn_centre`); its turns and arcs drive the chassis forward
+        #: at ``-w centre_y`` more, so that the wheels' middle goes where eq. 5 says
         self.centre_y = float(cal.get("turn_centre_y_m", 0.0)) if self.drive.skid else 0.0
         self.joints = (*self.drive.left, *self.drive.right)
 
@@ -834,7 +834,9 @@ class WheeledController(Controller):
             dist = np.where(t < ramp, ramp * min_jerk_integral(t / ramp), ramp / 2 + (t - ramp))
         else:
             s, ds, dist = np.ones_like(t), np.zeros_like(t), t
-        left, right = self.drive.commands(v * s, w * s, v * ds, w * ds)
+        # a skid-steer's wheels drive its measured turn centre's offset out (0: none)
+        u = v - self.centre_y * w
+        left, right = self.drive.commands(u * s, w * s, u * ds, w * ds)
         self.drive.check_commands(left, right, f"driving at ({v:g} m/s, {w:g} rad/s)")
         # the exact end pose: the path is one circle (curvature w / v), travelled for the
         # integral of the profile, D = seconds - ramp / 2
@@ -849,7 +851,7 @@ class WheeledController(Controller):
             "ramp_s": ramp,
             "planned_pose": pose,
             "path_length_m": abs(v) * D,
-            "feedback": self.feedback_spec({"v": v, "w": w, "ramp": ramp, "seconds": seconds}),
+            "feedback": self.feedback_spec({"v": u, "w": w, "ramp": ramp, "seconds": seconds}),
         }
         if v == 0 and w == 0:
             info["motion"] = "hold"
