@@ -11,9 +11,9 @@ wheel commands (rad/s offsets on each side, the convention of diff_drive_control
 odometry: eq. 5 of :mod:`gaits.wheeled`).
 
 ``wheel-odometry`` (:class:`WheelOdometry`): the plan's reference, the chassis' planned
-heading and distance over time (``spec["profile"]``: a drive's ``v``, ``w`` and ramp, or a
-turn's ``angle`` and duration, both minimum-jerk as the plan's), against the measured
-ones:
+heading and distance over time (``spec["profile"]``: a drive's ``v``, ``w`` and ramp, a
+turn's ``angle`` and duration, a straight ``distance``, all minimum-jerk as the plans', or
+``legs`` of them: :func:`reference`), against the measured ones:
 
 - heading: the IMU's yaw (the firmware's attitude estimate, :class:`gaits.feedback.Attitude`:
   the gyro's yaw rate integrated, drifting with its bias) where ``spec["imu"]`` is true
@@ -30,14 +30,16 @@ still: a turn's plan carries a settling tail, so a turn ends on the measured hea
 
 ``wheel-hold`` (:class:`WheelHold`): while the plan holds the wheels still (every wheel's
 planned speed below ``still_rad_s``), each wheel is held at the encoder angle it had when
-the hold began: ``offset = -k (angle - angle at start)`` (a position loop on a velocity
-servo), clipped to the no-load speed. A mobile manipulator's base under its arm's
+the hold began: ``offset = -k (angle - angle at start) - ki integral`` (a position loop on
+a velocity servo), clipped to the no-load speed. A mobile manipulator's base under its arm's
 reaction, on a slope, keeps its place. While the plan drives the wheels, no offset.
 
 Gains (1/s): the loop runs at the control period (20 ms) behind the bus latency (10-40 ms)
 and the wheel motor's time constant (50 ms); with ~0.1 s of lag in the loop a
 proportional gain of 4 1/s keeps ~25 deg of phase margin on the yaw integrator and halves
-an error in ~0.2 s.
+an error in ~0.2 s; the integral (6 1/s^2) takes out a steady load's share; at rest it runs
+at ``KI_STILL`` and is dropped once the error changes sign (the breakaway friction's dead
+band, see there).
 """
 
 from __future__ import annotations
@@ -60,7 +62,7 @@ KI_DISTANCE = 6.0
 #: tail, between a pick-and-place's drives): a wheel at rest sees the breakaway friction of
 #: its tyres and the caster, a dead band that only the integral crosses, and no motion to
 #: make it oscillate (measured: with the moving gains a differential drive's turn stopped
-#: 0.02 rad short of its reference through the whole 0.6 s tail)
+#: 0.02 rad short of its reference through a 0.6 s tail)
 KI_STILL = 24.0
 #: 1/s, 1/s^2: the hold's proportional and integral gains on each wheel's angle (the
 #: integral takes out what a steady load, a slope's pull, leaves of the proportional band)
