@@ -66,6 +66,7 @@ __all__ = [
     "evaluate",
     "in_use",
     "load",
+    "load_texts",
     "shipped_text",
     "use",
 ]
@@ -213,6 +214,9 @@ class PartKinds:
     serial_lengths: Mapping[str, float]
     constants: Mapping[str, float]
     sources: tuple[str, ...] = ()
+    #: (file name, text) of each file read after the shipped one (``--parts``): what a
+    #: design record carries so that its bundle is rebuilt without them (:func:`load_texts`)
+    texts: tuple[tuple[str, str], ...] = ()
 
     def of(self, kinds: Sequence[str]) -> PartKind | None:
         """The kind of a part whose class and ancestors are ``kinds`` (most specific
@@ -244,6 +248,16 @@ def load(extra: Sequence[str | Path] = ()) -> PartKinds:
             sources.append((str(path), p.read_text(encoding="utf-8")))
         except (OSError, UnicodeDecodeError) as e:
             raise PartKindError(f"{path}: cannot read it ({e})") from None
+    return _cached(sources)
+
+
+def load_texts(extra: Sequence[tuple[str, str]]) -> PartKinds:
+    """As :func:`load` with the user's files given as (name, text): a design record's
+    ``part_kinds``."""
+    return _cached([shipped_text(), *((str(n), str(t)) for n, t in extra)])
+
+
+def _cached(sources: list[tuple[str, str]]) -> PartKinds:
     key = tuple(sources)
     if key not in _CACHE:
         _CACHE[key] = _parse(sources)
@@ -285,6 +299,7 @@ def _parse(sources: Sequence[tuple[str, str]]) -> PartKinds:
         MappingProxyType(serial_lengths),
         MappingProxyType(constants),
         tuple(n for n, _ in sources),
+        tuple(sources[1:]),
     )
 
 
