@@ -435,6 +435,9 @@ class _Walk:
         i = 0
         links = 0
         pos = 0
+        # a chain of servos that names no printed link (the paper's manipulators): its
+        # links go where the [serial] row marks them, as in an arm composed for N joints
+        implied = _implied_link_kind(self.kinds, serial_rows, chain)
         while pos < len(chain):
             node = chain[pos]
             kind = _kind(self.kinds, node)
@@ -444,20 +447,21 @@ class _Walk:
                     f"(connected straight to {parent.kind})"
                 )
             link = None
-            if pos + 1 < len(chain) and _kind(self.kinds, chain[pos + 1]).link:
-                lk = _kind(self.kinds, chain[pos + 1])
+            row = serial_rows[i] if serial_rows is not None else None
+            named = pos + 1 < len(chain) and bool(_kind(self.kinds, chain[pos + 1]).link)
+            lk = _kind(self.kinds, chain[pos + 1]) if named else implied
+            if lk is not None and (named or (row is not None and row[4])):
                 links += 1
                 d = np.array(AXES[lk.link.get("first" if links == 1 else "rest", "x")])
                 link = (f"{names or lk.link.get('names', 'L')}{links}", d)
             spec = kind.joints[0]
-            row = serial_rows[i] if serial_rows is not None else None
             index = i + 1 if kind.naming == "index" else None
             here = self.joint(node, kind, spec, here, index, row, link, axis_index=i)
             i += 1
-            pos += 2 if link is not None else 1
+            pos += 2 if named else 1
             # what else hangs on this module (a gripper at the end of an arm)
             rest = [c for c in node.children if _kind(self.kinds, c).role not in _CHAIN]
-            if link is not None:
+            if named:
                 rest += [
                     c for c in chain[pos - 1].children if _kind(self.kinds, c).role not in _CHAIN
                 ]
@@ -644,11 +648,26 @@ def serial_links(plan: BodyPlan, kinds: PartKinds) -> list[list[str]]:
     return [c for c in _chains(plan, kinds) if c]
 
 
+def _implied_link_kind(
+    kinds: PartKinds, rows: tuple | None, chain: list[PartNode]
+) -> PartKind | None:
+    """The part kind of a printed link (one with a ``link`` table) to put where the
+    ``[serial]`` ``rows`` mark a link, for a serial ``chain`` that names no link part of
+    its own (the paper's manipulators: servos connectedTo servos); None otherwise."""
+    if rows is None or any(_kind(kinds, n).link for n in chain):
+        return None
+    return next((k for k in kinds.kinds.values() if k.link and not k.joints), None)
+
+
 def _chains(plan: BodyPlan, kinds: PartKinds) -> list[list[str]]:
     out: list[list[str]] = []
+    nodes: list[list[PartNode]] = []  # the parts of each chain
+    prefixes: list[str] = []
 
     def visit(node: PartNode, chain: list[str] | None, prefix: str) -> None:
         kind = _kind(kinds, node)
+        if chain is not None:
+            nodes[next(i for i, c in enumerate(out) if c is chain)].append(node)
         if kind.link and chain is not None:
             chain.append(f"{prefix or kind.link.get('names', 'L')}{len(chain) + 1}")
         for c, m in _ordered_children(node, kind, kinds):
@@ -656,11 +675,21 @@ def _chains(plan: BodyPlan, kinds: PartKinds) -> list[list[str]]:
                 if chain is None or kind.role not in _CHAIN:
                     new: list[str] = []
                     out.append(new)
-                    visit(c, new, m.links if m is not None else "")
+                    nodes.append([])
+                    prefixes.append(m.links if m is not None else "")
+                    visit(c, new, prefixes[-1])
                 else:
                     visit(c, chain, prefix)
             else:
                 visit(c, None, "")
 
     visit(plan.root, None, "")
+    for chain, parts, prefix in zip(out, nodes, prefixes, strict=True):
+        joints = [n for n in parts if _kind(kinds, n).joints and not _kind(kinds, n).link]
+        serial = any(_kind(kinds, n).joints[0].name == "serial" for n in joints)
+        rows = kinds.serial.get(len(joints)) if serial else None
+        lk = _implied_link_kind(kinds, rows, parts)
+        if lk is not None and rows is not None:
+            marked = sum(1 for r in rows if r[4])
+            chain += [f"{prefix or lk.link.get('names', 'L')}{k + 1}" for k in range(marked)]
     return out
