@@ -14,6 +14,7 @@ run with its default parameters and judged by :mod:`export.verdict`.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -21,7 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from adron import readers
-from adron.errors import InputError
+from adron.errors import InfeasibleError, InputError
 
 if TYPE_CHECKING:
     from export.simulate import SimResult
@@ -205,7 +206,16 @@ def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None)
 
     controller = controller_for_model(record, model)
     names = controller.listed(record.get("abilities", ())) if behaviors is None else list(behaviors)
-    trajs = [controller.run(n) for n in names]
+    trajs = []
+    for n in names:
+        try:
+            trajs.append(controller.run(n))
+        except ValueError as e:  # planned on the simulated model (its base where it stands)
+            raise InfeasibleError(
+                f"{record.get('robot_type')}: its behaviour {n!r} cannot be planned with its "
+                f"default parameters on the simulated robot: "
+                + re.sub(r";\s*choose other targets\b", "", str(e))
+            ) from None
     same: dict[bytes, int] = {}
     first = [same.setdefault(_plan_digest(t), k) for k, t in enumerate(trajs)]
     runs = sorted(set(first))
@@ -420,7 +430,16 @@ def verify_robust(
     names = controller.listed(record.get("abilities", ())) if behaviors is None else list(behaviors)
     if only is not None:
         names = [n for n in names if n in only]
-    trajs = [controller.run(n) for n in names]
+    trajs = []
+    for n in names:
+        try:
+            trajs.append(controller.run(n))
+        except ValueError as e:  # planned on the simulated model (its base where it stands)
+            raise InfeasibleError(
+                f"{record.get('robot_type')}: its behaviour {n!r} cannot be planned with its "
+                f"default parameters on the simulated robot: "
+                + re.sub(r";\s*choose other targets\b", "", str(e))
+            ) from None
     same: dict[bytes, int] = {}
     first = [same.setdefault(_plan_digest(t), i) for i, t in enumerate(trajs)]
     runs = sorted(set(first))
