@@ -2,6 +2,13 @@
 ``pick-and-place``, ``grasping``, ``positioning`` (``move_to``), ``move_to_pose`` and
 ``orienting`` behaviours.
 
+A chain may end in a gripper (its own joint, last in q), a tool without joints (a fixed
+``tool_link`` whose origin is the tool's tip: a probe, a nozzle, a camera) or nothing (a
+fixed ``tip_link`` at the end of the last link): grasping behaviours only with a gripper;
+with a tool also ``pointing`` and ``scanning`` (the tool's axis along a direction, by
+damped least squares on the chain's angular Jacobian, with the ``joint-hold`` loop); a
+2-joint chain (a pan-tilt head) cannot place a point and only points its tool.
+
 Any serial chain from the base to the gripper (3 to 7 joints in the part kinds, any axes)
 is served by the numerical IK of :mod:`gaits.arm_ik` (task-priority damped least squares
 with joint limits, seeded restarts); what the chain can do is read from it
