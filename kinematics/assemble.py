@@ -318,6 +318,12 @@ class _Walk:
         if kind.role == "leg":
             self.legs += 1
         if kind.end == "tool":  # no joints: fixed on the chain's end, its origin the tip
+            if node.children:
+                raise AssemblyError(
+                    f"part {node.children[0].kind}{_where(node.children[0])}: it is connected "
+                    f"to the tool {node.kind}, which ends its chain (a tool has no joints; "
+                    "nothing is mounted on it)"
+                )
             self.fixed_end(tip, "tool", node, kind)
             return
         here = tip

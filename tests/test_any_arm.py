@@ -417,3 +417,20 @@ def test_the_body_plans_assemble_with_a_tool_or_a_bare_tip(kif, tmp_path) -> Non
     assert end == ("tool_link" if rtype == "ProbeArm" else "tip_link")
     joint = t.model.joints[t.model.body(end)]
     assert not joint.movable
+
+
+def test_a_part_mounted_on_a_tool_is_refused_naming_it(cli, tmp_path) -> None:
+    """A tool has no joints and ends its chain: a servo connected after it is refused
+    (exit 2, the axiom's location), not dropped in silence."""
+    kif = PROBE.replace(
+        "(connectedTo ?K3 ?TOOL)", "(connectedTo ?K2 ?TOOL) (connectedTo ?TOOL ?S3)"
+    )
+    kif = kif.replace("(connectedTo ?K2 ?S3) ", "")
+    path = _write(tmp_path, "mid.kif", kif)
+    r = cli(
+        "design", "positioning", "--ontology", path, "--answer", "grasping=no", "--no-input",
+        "--no-verify",
+    )  # fmt: skip
+    assert r.code == 2, r.err
+    assert "Traceback" not in r.err
+    assert "which ends its chain" in r.err and f"{path}:" in r.err
