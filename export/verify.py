@@ -193,6 +193,22 @@ def figures(traj: Trajectory, result: SimResult) -> dict:
 VERIFY_THREADS = 2
 
 
+class UnplannedError(InfeasibleError):
+    """A behaviour of the design that cannot be planned with its default parameters on
+    the simulated robot: ``behavior``, the ``ability`` it realises and ``why`` (the
+    planner's reason, without its advice to choose other targets, which no option of a
+    design sets). :mod:`synth.verify` drops a bonus ability for it; a demanded one
+    refuses the request with this message."""
+
+    def __init__(self, record: Mapping, behavior: str, ability: str, error: Exception) -> None:
+        self.behavior, self.ability = behavior, ability
+        self.why = re.sub(r";\s*choose other targets\b", "", str(error))
+        super().__init__(
+            f"{record.get('robot_type')}: its behaviour {behavior!r} cannot be planned with "
+            f"its default parameters on the simulated robot: {self.why}"
+        )
+
+
 def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None) -> list[dict]:
     """Every listed behaviour of the design (default parameters) run and judged: one
     :func:`figures` dict each, in name order.
@@ -211,11 +227,7 @@ def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None)
         try:
             trajs.append(controller.run(n))
         except ValueError as e:  # planned on the simulated model (its base where it stands)
-            raise InfeasibleError(
-                f"{record.get('robot_type')}: its behaviour {n!r} cannot be planned with its "
-                f"default parameters on the simulated robot: "
-                + re.sub(r";\s*choose other targets\b", "", str(e))
-            ) from None
+            raise UnplannedError(record, n, controller.behaviors[n].realises, e) from None
     same: dict[bytes, int] = {}
     first = [same.setdefault(_plan_digest(t), k) for k, t in enumerate(trajs)]
     runs = sorted(set(first))
@@ -435,11 +447,7 @@ def verify_robust(
         try:
             trajs.append(controller.run(n))
         except ValueError as e:  # planned on the simulated model (its base where it stands)
-            raise InfeasibleError(
-                f"{record.get('robot_type')}: its behaviour {n!r} cannot be planned with its "
-                f"default parameters on the simulated robot: "
-                + re.sub(r";\s*choose other targets\b", "", str(e))
-            ) from None
+            raise UnplannedError(record, n, controller.behaviors[n].realises, e) from None
     same: dict[bytes, int] = {}
     first = [same.setdefault(_plan_digest(t), i) for i, t in enumerate(trajs)]
     runs = sorted(set(first))
