@@ -14,6 +14,7 @@ run with its default parameters and judged by :mod:`export.verdict`.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -21,7 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from adron import readers
-from adron.errors import InputError
+from adron.errors import InfeasibleError, InputError
 
 if TYPE_CHECKING:
     from export.simulate import SimResult
@@ -192,6 +193,22 @@ def figures(traj: Trajectory, result: SimResult) -> dict:
 VERIFY_THREADS = 2
 
 
+class UnplannedError(InfeasibleError):
+    """A behaviour of the design that cannot be planned with its default parameters on
+    the simulated robot: ``behavior``, the ``ability`` it realises and ``why`` (the
+    planner's reason, without its advice to choose other targets, which no option of a
+    design sets). :mod:`synth.verify` drops a bonus ability for it; a demanded one
+    refuses the request with this message."""
+
+    def __init__(self, record: Mapping, behavior: str, ability: str, error: Exception) -> None:
+        self.behavior, self.ability = behavior, ability
+        self.why = re.sub(r";\s*choose other targets\b", "", str(error))
+        super().__init__(
+            f"{record.get('robot_type')}: its behaviour {behavior!r} cannot be planned with "
+            f"its default parameters on the simulated robot: {self.why}"
+        )
+
+
 def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None) -> list[dict]:
     """Every listed behaviour of the design (default parameters) run and judged: one
     :func:`figures` dict each, in name order.
@@ -205,7 +222,12 @@ def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None)
 
     controller = controller_for_model(record, model)
     names = controller.listed(record.get("abilities", ())) if behaviors is None else list(behaviors)
-    trajs = [controller.run(n) for n in names]
+    trajs = []
+    for n in names:
+        try:
+            trajs.append(controller.run(n))
+        except ValueError as e:  # planned on the simulated model (its base where it stands)
+            raise UnplannedError(record, n, controller.behaviors[n].realises, e) from None
     same: dict[bytes, int] = {}
     first = [same.setdefault(_plan_digest(t), k) for k, t in enumerate(trajs)]
     runs = sorted(set(first))
@@ -503,7 +525,12 @@ def verify_robust(
     names = controller.listed(record.get("abilities", ())) if behaviors is None else list(behaviors)
     if only is not None:
         names = [n for n in names if n in only]
-    trajs = [controller.run(n) for n in names]
+    trajs = []
+    for n in names:
+        try:
+            trajs.append(controller.run(n))
+        except ValueError as e:  # planned on the simulated model (its base where it stands)
+            raise UnplannedError(record, n, controller.behaviors[n].realises, e) from None
     same: dict[bytes, int] = {}
     first = [same.setdefault(_plan_digest(t), i) for i, t in enumerate(trajs)]
     runs = sorted(set(first))

@@ -29,6 +29,21 @@ from kinematics.bodyplan import BodyPlan
 from kinematics.templates import Template, TemplateParams, build, register_plan
 
 
+def use_recorded_kinds(entries) -> None:
+    """Assemble with the shipped part kinds and the user's ones a design record carries
+    (``part_kinds``: ``{"file", "toml"}`` each): its bundle needs no ``--parts`` file.
+    ValueError (a ``PartKindError``) when they cannot be read."""
+    from kinematics.partkinds import PartKindError, load_texts, use
+
+    try:
+        texts = [(str(e["file"]), str(e["toml"])) for e in entries]
+    except (TypeError, KeyError):
+        raise PartKindError(
+            "design.json: part_kinds must be a list of {file, toml} tables"
+        ) from None
+    use(load_texts(texts))
+
+
 def quat_yaw(quat) -> float:
     """Yaw rad of a (w, x, y, z) quaternion (a free body's ``qpos[3:7]``): the heading every
     controller and verdict measures a robot's turn by."""
@@ -286,6 +301,8 @@ class DesignGeometry:
         bundle is rebuilt without the ontology that made it."""
         if record.get("template") is None:
             raise ValueError("the design record has no structure (designed with --conceptual?)")
+        if record.get("part_kinds"):  # the user's part kinds it was designed with
+            use_recorded_kinds(record["part_kinds"])
         if record.get("body_plan"):
             register_plan(BodyPlan.from_dict(record["body_plan"]))
         return cls(

@@ -26,7 +26,9 @@ A kind (``[[kind]]``):
   ``<joint>_link``); ``name = "serial"``: one joint of a serial arm, named from
   ``[serial]``;
 - ``end``: what the last joint's body ends in: point_foot, foot_plate, gripper, wheel,
-  caster;
+  caster; or ``tool``: a part without joints at the tip of an arm (a probe, a spray
+  nozzle, a camera), a ``box`` [length along the chain, width, height] (m) of ``mass``
+  (kg) fixed on the chain's end, the point it places or points with at its far end;
 - ``role``: leg, arm, end_effector, wheel, caster, module, joint, link (what a template
   counts: legs, arms, wheels ...);
 - ``mounts``: how its children of a class attach: ``layout`` bilateral (even counts
@@ -66,6 +68,7 @@ __all__ = [
     "evaluate",
     "in_use",
     "load",
+    "load_texts",
     "shipped_text",
     "use",
 ]
@@ -79,7 +82,7 @@ AXES = {
     "-z": (0.0, 0.0, -1.0),
 }
 JOINT_KINDS = ("revolute", "continuous", "fixed")
-ENDS = ("point_foot", "foot_plate", "gripper", "wheel", "caster")
+ENDS = ("point_foot", "foot_plate", "gripper", "wheel", "caster", "tool")
 LAYOUTS = ("bilateral", "radial", "pair", "axle", "trailing", "front", "serial", "tip")
 ROLES = ("leg", "arm", "end_effector", "wheel", "caster", "module", "joint", "link", "")
 FACES = ("up", "down", "back")
@@ -200,6 +203,7 @@ class PartKind:
     mounts: tuple[Mount, ...] = ()
     naming: str = ""
     link: Mapping[str, str] = field(default_factory=dict)
+    mass: float = 0.0  # kg: a tool's (end = "tool")
 
 
 @dataclass(frozen=True)
@@ -213,6 +217,9 @@ class PartKinds:
     serial_lengths: Mapping[str, float]
     constants: Mapping[str, float]
     sources: tuple[str, ...] = ()
+    #: (file name, text) of each file read after the shipped one (``--parts``): what a
+    #: design record carries so that its bundle is rebuilt without them (:func:`load_texts`)
+    texts: tuple[tuple[str, str], ...] = ()
 
     def of(self, kinds: Sequence[str]) -> PartKind | None:
         """The kind of a part whose class and ancestors are ``kinds`` (most specific
@@ -244,6 +251,16 @@ def load(extra: Sequence[str | Path] = ()) -> PartKinds:
             sources.append((str(path), p.read_text(encoding="utf-8")))
         except (OSError, UnicodeDecodeError) as e:
             raise PartKindError(f"{path}: cannot read it ({e})") from None
+    return _cached(sources)
+
+
+def load_texts(extra: Sequence[tuple[str, str]]) -> PartKinds:
+    """As :func:`load` with the user's files given as (name, text): a design record's
+    ``part_kinds``."""
+    return _cached([shipped_text(), *((str(n), str(t)) for n, t in extra)])
+
+
+def _cached(sources: list[tuple[str, str]]) -> PartKinds:
     key = tuple(sources)
     if key not in _CACHE:
         _CACHE[key] = _parse(sources)
@@ -285,6 +302,7 @@ def _parse(sources: Sequence[tuple[str, str]]) -> PartKinds:
         MappingProxyType(serial_lengths),
         MappingProxyType(constants),
         tuple(n for n, _ in sources),
+        tuple(sources[1:]),
     )
 
 
@@ -380,6 +398,7 @@ class _Reader:
             "mounts",
             "naming",
             "link",
+            "mass",
         }
         self.only(key, d, allowed)
         cls = self.text(f"{key}.class", d.get("class"))
@@ -426,10 +445,20 @@ class _Reader:
             mounts=tuple(self.mount(f"{key}.mounts[{i}]", m) for i, m in enumerate(mounts)),
             naming=self.word(f"{key}.naming", d.get("naming", ""), ("", "index")),
             link={k: str(v) for k, v in link.items()},
+            mass=self.number(f"{key}.mass", d["mass"]) if "mass" in d else 0.0,
         )
         if root and not (kind.body and len(kind.box) == 3):
             self.fail(key, f"root part kind {cls} needs a 'body' name and a 'box' [x, y, z]")
-        if not root and not specs and not link:
+        tool = kind.end == "tool"
+        if tool and (specs or root or len(kind.box) != 3 or "mass" not in d):
+            self.fail(
+                key,
+                f"tool part kind {cls} (end = 'tool') has no joints and is not a root; it "
+                "needs a 'box' [length along the chain, width, height] (m) and a 'mass' (kg)",
+            )
+        if "mass" in d and not tool:
+            self.fail(f"{key}.mass", "only a tool (end = 'tool') has a mass of its own")
+        if not root and not specs and not link and not tool:
             self.fail(key, f"part kind {cls} has no joints, no link and is not a root")
         return kind
 

@@ -332,7 +332,7 @@ def _verified(
 ) -> Outcome:
     """The loop of the module docstring on ``outcome``, sized for ``params`` (SI)."""
     from export.verdict import explain
-    from export.verify import verify_files
+    from export.verify import UnplannedError, verify_files
     from gaits import controller_for
     from gaits.base import DesignGeometry
     from program.sensing import verify_sensing
@@ -381,8 +381,14 @@ def _verified(
         record = outcome.record(designer)
         models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
         # the behaviours' trajectories, then the sensing abilities' closed loops
-        planned = verify_files(files)
-        results = planned + verify_sensing(files)
+        try:
+            planned = verify_files(files)
+            results = planned + verify_sensing(files)
+        except UnplannedError as e:  # a bonus ability's plan: dropped, and this round again
+            outcome = _drop_unplanned(designer, outcome, record, e)
+            bundles.clear()
+            rounds -= 1
+            continue
         failing = [r for r in results if r["verdict"] != "ok"]
         # nominally passed: under the perturbations of synth.robust (--robustness K)
         robust = (
@@ -525,6 +531,33 @@ def _verified(
     if failure is not None:
         return replace(out, infeasible=failure)
     return out
+
+
+def _drop_unplanned(designer: Designer, outcome: Outcome, record: Mapping, e) -> Outcome:
+    """``outcome`` without the bonus abilities that the behaviour of ``e`` (an
+    ``export.verify.UnplannedError``: it cannot be planned on the simulated robot) serves,
+    with a note; ``e`` itself when it serves a demanded ability (the request is refused)."""
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    served = served_abilities(record, controller_for(DesignGeometry.from_record(record)))
+    needed = set(record.get("needed") or record.get("abilities", ()))
+    mine = {e.ability} | {a for a, s in served.items() if s == e.ability}
+    if mine & needed:
+        raise e
+    d, c = outcome.design, outcome.design.chosen
+    why = f"its behaviour {e.behavior} cannot be planned with its default parameters ({e.why})"
+    keep = tuple(a for a in c.abilities if designer.short(a) not in mine)
+    notes = "; ".join(f"dropped the bonus ability {a}: {why}" for a in sorted(mine))
+    d = replace(
+        d, chosen=replace(c, abilities=keep), note=f"{d.note}; {notes}" if d.note else notes
+    )
+    return replace(
+        outcome,
+        design=d,
+        unplanned=(*outcome.unplanned, *((a, why) for a in sorted(mine))),
+        calibration=None,
+    )
 
 
 def _size_with_less_play(

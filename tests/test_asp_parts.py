@@ -356,6 +356,7 @@ SHIPPED = {
     ],
     "orienting": ["Manipulator6DOF"],
     "pick-and-place": ["Manipulator3DOF", "Manipulator6DOF"],
+    "pointing": [],  # a tool's (RobotTool): no shipped type carries one
     "positioning": ["Manipulator3DOF", "Manipulator6DOF"],
     "rectilinear": ["SnakeRobot"],
     "rolling": ["SnakeRobot"],
