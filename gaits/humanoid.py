@@ -114,6 +114,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gaits.balance import balance_spec
 from gaits.base import (  # noqa: F401 - CACHE_ENV: the cache folder's variable, for callers
     CACHE_ENV,
     BehaviorSpec,
@@ -124,6 +125,7 @@ from gaits.base import (  # noqa: F401 - CACHE_ENV: the cache folder's variable,
     cache_folder,
     quat_yaw,
 )
+from gaits.feedback import has_imu
 from gaits.steering import SteerableSpec
 from kinematics.bodyplan import BodyPlan, PartNode
 from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics, rnea
@@ -192,6 +194,13 @@ TURN_GAIN = "walking_turn_gain"
 PROBE_CURVATURES = (10.0, 5.0, 2.0)
 #: the calibrated gain's bounds (a probe outside them measured something else)
 TURN_GAIN_RANGE = (0.5, 2.0)
+#: The balance loop's gains (:data:`gaits.balance.GAINS` overridden) of the gaits and of
+#: the standing behaviours (grasping, balancing): measured in MuJoCo on the default design
+#: under its perturbations (``docs/feedback-balance.md``)
+BALANCE_GAINS: dict[str, dict[str, float]] = {
+    "gait": {"kp_ankle": 0.3, "kd_ankle": 0.05},
+    "stand": {"kp_ankle": 0.15, "kd_ankle": 0.02},
+}
 #: Default full steps of a walk or run: enough that the starting and stopping half steps
 #: and the crouch take under half of the behaviour's time.
 DEFAULT_STEPS = 6
@@ -633,15 +642,20 @@ def fit_maps(
     return ConversionMaps(shape, reference, coef, tuple(sizes), tuple(ratios), worst)
 
 
-@cache
-def conversion_maps(gait: str = "walking") -> ConversionMaps:
-    """The conversion maps of ``gait`` ("walking" or "running"), fitted on first use (the
-    same numbers every time: the fit is deterministic), kept on disk between processes
-    (:func:`_maps_file`)."""
+def conversion_maps(gait: str | GaitShape = "walking") -> ConversionMaps:
+    """The conversion maps of ``gait`` ("walking" or "running": ``WALK``, ``RUN``; or a
+    :class:`GaitShape`, e.g. ``ROBUST_WALK``), fitted on first use (the same numbers every
+    time: the fit is deterministic), kept on disk between processes (:func:`_maps_file`)."""
+    if isinstance(gait, GaitShape):
+        return _shape_maps(gait)
     shapes = {WALK.name: WALK, RUN.name: RUN}
     if gait not in shapes:
         raise ValueError(f"no gait {gait!r}; gaits: {', '.join(shapes)}")
-    shape = shapes[gait]
+    return _shape_maps(shapes[gait])
+
+
+@cache
+def _shape_maps(shape: GaitShape) -> ConversionMaps:
     path = _maps_file(shape)
     maps = _read_maps(path, shape) if path is not None else None
     if maps is None:
@@ -1070,6 +1084,10 @@ class HumanoidController(Controller):
         #: the arcs' hip yaw over the plan's (the design's ``calibration``, measured)
         self.turn_gain = float(geometry.calibration.get(TURN_GAIN, 1.0))
         self.damping = None if damping is None else self._per_joint(damping, "damping", zero=True)
+        #: the walk: a design that feels its tilt (an IMU) walks ``ROBUST_WALK`` with its
+        #: balance loop (:mod:`gaits.balance`); one without, the open-loop ``WALK``
+        self.balanced = has_imu(geometry.sensors)
+        self.walk = ROBUST_WALK if self.balanced else WALK
 
     def _per_joint(self, values: Mapping[str, float], what: str, zero: bool = False) -> np.ndarray:
         """(len(joints),) ``values`` by joint name; ValueError when one is missing or not
@@ -1140,7 +1158,7 @@ class HumanoidController(Controller):
 
         return {
             WALK.name: gait(
-                WALK,
+                self.walk,
                 "a slow crouched walk (the paper's synthetic locomotion), straight or on an "
                 "arc of `curvature` (the hips' yaw turns each foot as it swings)",
                 steered=True,
@@ -1201,7 +1219,7 @@ class HumanoidController(Controller):
             )
         if name == "grasping":
             return self._grasping(float(params["hold"]))
-        shape = WALK if name == WALK.name else RUN
+        shape = self.walk if name == WALK.name else RUN
         return self._gait(
             shape,
             int(params["steps"]),
@@ -1219,7 +1237,7 @@ class HumanoidController(Controller):
                 f"{shape.name}: leg module {self.size * 1000:.1f} mm is outside the conversion "
                 f"maps' sizes {lo * 1000:.0f}-{hi * 1000:.0f} mm (not extrapolated)"
             )
-        maps = conversion_maps(shape.name)
+        maps = conversion_maps(shape)
         plan = GaitPlan.of(shape, steps, self.leg)
         sign = 1.0 if direction == "forward" else -1.0
         ratio = step / self.default_step(shape)
@@ -1258,14 +1276,19 @@ class HumanoidController(Controller):
                 )
             info.update(motion="arc", curvature_rad_m=curvature)
         return self._trajectory(
-            shape.name, CROUCH_TIME + plan.end, legs, info, partial(self._held_arms, shape=shape)
+            shape.name,
+            CROUCH_TIME + plan.end,
+            legs,
+            info,
+            partial(self._held_arms, shape=shape),
+            BALANCE_GAINS["gait"],
         )
 
     def calibration_probes(self) -> list[tuple[str, dict[str, object]]]:
         """When the walking gait's arcs are measured (``GaitShape.measured_turn``): one arc
         of ``DEFAULT_STEPS`` steps at the first of ``PROBE_CURVATURES`` this design's hips
         turn; none otherwise."""
-        if not WALK.measured_turn:
+        if not self.walk.measured_turn:
             return []
         for k in PROBE_CURVATURES:
             try:
@@ -1349,7 +1372,9 @@ class HumanoidController(Controller):
             return self._stance(np.zeros_like(t), y) * _smooth(t / CROUCH_TIME)[:, None]
 
         info: dict[str, object] = {"motion": "hold", "body_length_m": self.leg}
-        return self._trajectory("balancing", CROUCH_TIME + duration, legs, info)
+        return self._trajectory(
+            "balancing", CROUCH_TIME + duration, legs, info, gains=BALANCE_GAINS["stand"]
+        )
 
     @staticmethod
     def _arms(t: np.ndarray, hold: float) -> np.ndarray:
@@ -1391,7 +1416,7 @@ class HumanoidController(Controller):
             return q
 
         info: dict[str, object] = {"motion": "hold", "body_length_m": self.leg}
-        return self._trajectory("grasping", duration, legs, info, arms)
+        return self._trajectory("grasping", duration, legs, info, arms, BALANCE_GAINS["stand"])
 
     def _trajectory(
         self,
@@ -1400,6 +1425,7 @@ class HumanoidController(Controller):
         legs: Callable[[np.ndarray], np.ndarray],
         info: dict[str, object],
         arms: Callable[[np.ndarray], np.ndarray] | None = None,
+        gains: Mapping[str, float] | None = None,
     ) -> Trajectory:
         """The trajectory of leg angles ``legs(t)`` (n, 12) rad and arm angles ``arms(t)``
         (n, 6) rad (default: hanging, 0) over ``duration`` s and ``SETTLE_TIME`` s more,
@@ -1447,6 +1473,8 @@ class HumanoidController(Controller):
             info["planned_pose"] = (float(moved[0]), float(moved[1]), 0.0)
         if info.get("motion") == "straight":
             info["expected_distance_m"] = float(np.hypot(moved[0], moved[1]))
+        if has_imu(self.geometry.sensors):  # balance on the trunk's IMU (gaits.balance)
+            info["feedback"] = balance_spec(self.template.model, self.template.feet, self.joints, q)
         positions = q
         if self.stiffness is not None:  # the servos' give under the stance loads
             tau = stance_torques(self.masses, self.joints, q, SAMPLE_DT)
