@@ -1473,8 +1473,10 @@ class HumanoidController(Controller):
             info["planned_pose"] = (float(moved[0]), float(moved[1]), 0.0)
         if info.get("motion") == "straight":
             info["expected_distance_m"] = float(np.hypot(moved[0], moved[1]))
-        if has_imu(self.geometry.sensors):  # balance on the trunk's IMU (gaits.balance)
-            info["feedback"] = balance_spec(self.template.model, self.template.feet, self.joints, q)
+        if self.balanced:  # balance on the trunk's IMU (gaits.balance)
+            info["feedback"] = balance_spec(
+                self.template.model, self.template.feet, self.joints, q, **(gains or {})
+            )
         positions = q
         if self.stiffness is not None:  # the servos' give under the stance loads
             tau = stance_torques(self.masses, self.joints, q, SAMPLE_DT)
