@@ -3,7 +3,7 @@ loop of :mod:`gaits.balance`): one line per behaviour and seed with the floor's 
 and across the walk, the latency, the verdict, the trunk's largest tilt, the distance over
 the plan's, the heading error and the most saturated joint.
 
-    python bench/balance_seeds.py DIR [K] [--behavior NAME]... [--open] [--closed]
+    python bench/balance_seeds.py DIR [K] [--seeds S,S..] [--behavior NAME]... [--open] [--closed]
 
 ``DIR`` a bundle (``parmor design ... --out DIR``; its ``verified.robust.table`` when it
 has one, else the design's table); ``K`` seeds 1..K (default 8); both modes unless one is
@@ -40,6 +40,11 @@ def main(argv: list[str]) -> None:
         i = argv.index("--behavior")
         names.append(argv[i + 1])
         del argv[i : i + 2]
+    only = None
+    if "--seeds" in argv:
+        i = argv.index("--seeds")
+        only = [int(x) for x in argv[i + 1].split(",")]
+        del argv[i : i + 2]
     modes = [m for m in ("open", "closed") if f"--{m}" in argv] or ["open", "closed"]
     argv = [a for a in argv if not a.startswith("--")]
     k = int(argv[0]) if argv else 8
@@ -60,7 +65,8 @@ def main(argv: list[str]) -> None:
             traj.info["feedback"] = {**traj.info["feedback"], **json.loads(gains)}
         for mode in modes:
             passed = 0
-            for seed in range(1, k + 1):
+            seeds = only or range(1, k + 1)
+            for seed in seeds:
                 p = draw(table, seed)
                 model = perturbed_model(xml, meshes, table, p)
                 body = traj.info.get("tool_body") or (
@@ -91,7 +97,7 @@ def main(argv: list[str]) -> None:
                     f"{', '.join(r.verdict) or 'ok'}",
                     flush=True,
                 )
-            print(f"{name:<10} {mode:<6} passed {passed} of {k}", flush=True)
+            print(f"{name:<10} {mode:<6} passed {passed} of {len(seeds)}", flush=True)
 
 
 if __name__ == "__main__":

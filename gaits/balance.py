@@ -61,6 +61,9 @@ GAINS: dict[str, float] = {
     "rate_filter_s": 0.02,
     "kp_swing": 1.0,
     "lead_s": 0.03,
+    "k_slope": 0.0,
+    "k_level": 0.0,
+    "stride_limit": 0.3,
 }
 
 
@@ -165,7 +168,12 @@ class Balance(Loop):
         self.ankle, self.hip, self.yaw = rows("ankle"), rows("hip"), rows("yaw")
         support = spec.get("support")
         self.support = None if support is None else np.asarray(support, dtype=float)
+        stride = spec.get("stride")
+        self.stride = None if stride is None else np.asarray(stride, dtype=float)
+        self.travel = float(spec.get("travel", 0.0))  # type: ignore[arg-type]
+        self.step_change = 0.0  # the stride correction: relative change of the step length
         self.rate = np.zeros(3)
+        self.floor = np.zeros(3)  # the floor's tilt (roll, pitch, 0) against gravity
         self.yaw0: float | None = None
         self.last_t: float | None = None
 
@@ -173,7 +181,20 @@ class Balance(Loop):
         self.rate = np.zeros(3)
         self.last_t = first.t
         if first.attitude is not None:
-            self.yaw0 = roll_pitch_yaw(first.attitude)[2]
+            roll0, pitch0, self.yaw0 = roll_pitch_yaw(first.attitude)
+            # standing on the floor at switch-on (q = 0, both soles flat), the trunk's
+            # tilt is the floor's: what a swing foot is kept parallel to
+            self.floor = np.array([roll0, pitch0, 0.0])
+            if self.stride is not None:
+                # standing on the floor at switch-on, the trunk's pitch is the floor's slope
+                # along the walk (positive: downhill ahead); the pendulum goes farther per
+                # step downhill: shorter steps there, longer uphill
+                g = self.g
+                self.step_change = float(
+                    np.clip(
+                        -g["k_slope"] * self.travel * pitch0, -g["stride_limit"], g["stride_limit"]
+                    )
+                )
 
     def stance(self, t: float) -> np.ndarray:
         """(legs,) each foot's planned share of the support at ``t`` (1 without a plan)."""
@@ -205,12 +226,14 @@ class Balance(Loop):
         if len(idx):
             w = s[legs]
             push = np.clip(
-                axes @ (g["kp_ankle"] * tilt + g["kd_ankle"] * rate),
+                axes @ (g["kp_ankle"] * tilt + g["kd_ankle"] * rate + g["k_level"] * self.floor),
                 -g["ankle_limit_rad"],
                 g["ankle_limit_rad"],
             )
             level = np.clip(
-                -g["kp_swing"] * (axes @ tilt), -g["ankle_limit_rad"], g["ankle_limit_rad"]
+                -g["kp_swing"] * (axes @ (tilt - self.floor)),
+                -g["ankle_limit_rad"],
+                g["ankle_limit_rad"],
             )
             out[idx] += w * push + (1 - w) * level
         idx, legs, axes = self.hip
@@ -229,6 +252,12 @@ class Balance(Loop):
             w = s[legs]
             alone = w * (1 - s[1 - legs]) if len(s) == 2 else w  # one foot down: it turns
             out[idx] += alone * u - (1 - w) * u
+        if self.stride is not None and self.step_change:
+            tt = self.traj.times
+            t = r.t + g["lead_s"]
+            out += self.step_change * np.array(
+                [np.interp(t, tt, self.stride[:, k]) for k in range(len(self.joints))]
+            )
         return np.clip(out, -g["limit_rad"], g["limit_rad"])
 
     def heading(self, t: float) -> float:

@@ -198,9 +198,11 @@ TURN_GAIN_RANGE = (0.5, 2.0)
 #: the standing behaviours (grasping, balancing): measured in MuJoCo on the default design
 #: under its perturbations (``docs/feedback-balance.md``)
 BALANCE_GAINS: dict[str, dict[str, float]] = {
-    "gait": {"kp_ankle": 0.3, "kd_ankle": 0.05},
+    "gait": {"kp_ankle": 0.3, "kd_ankle": 0.05, "k_slope": 4.0, "k_level": 0.5},
     "stand": {"kp_ankle": 0.15, "kd_ankle": 0.02},
 }
+#: relative change of the step length of the stride derivative (``info["feedback"]["stride"]``)
+STRIDE_EPS = 0.05
 #: Default full steps of a walk or run: enough that the starting and stopping half steps
 #: and the crouch take under half of the behaviour's time.
 DEFAULT_STEPS = 6
@@ -1244,7 +1246,7 @@ class HumanoidController(Controller):
         period = shape.period(self.leg)
         start = shape.double_support * period / 2  # mid double support
 
-        def legs(t: np.ndarray) -> np.ndarray:
+        def legs(t: np.ndarray, ratio: float = ratio) -> np.ndarray:
             tau = t - CROUCH_TIME
             mean, osc = maps.components(self.size, plan.ratio(tau, ratio), start + sign * tau)
             crouch = _smooth(t / CROUCH_TIME)[:, None]  # r = 0 and no oscillation meanwhile
@@ -1282,6 +1284,13 @@ class HumanoidController(Controller):
             info,
             partial(self._held_arms, shape=shape),
             BALANCE_GAINS["gait"],
+            # the leg angles' change per relative change of the step length: the balance
+            # loop's stride correction (gaits.balance: shorter steps downhill)
+            lambda t: (
+                (legs(t, ratio * (1 + STRIDE_EPS)) - legs(t, ratio * (1 - STRIDE_EPS)))
+                / (2 * STRIDE_EPS)
+            ),
+            sign,
         )
 
     def calibration_probes(self) -> list[tuple[str, dict[str, object]]]:
@@ -1426,6 +1435,8 @@ class HumanoidController(Controller):
         info: dict[str, object],
         arms: Callable[[np.ndarray], np.ndarray] | None = None,
         gains: Mapping[str, float] | None = None,
+        stride: Callable[[np.ndarray], np.ndarray] | None = None,
+        travel: float = 0.0,
     ) -> Trajectory:
         """The trajectory of leg angles ``legs(t)`` (n, 12) rad and arm angles ``arms(t)``
         (n, 6) rad (default: hanging, 0) over ``duration`` s and ``SETTLE_TIME`` s more,
@@ -1477,6 +1488,10 @@ class HumanoidController(Controller):
             info["feedback"] = balance_spec(
                 self.template.model, self.template.feet, self.joints, q, **(gains or {})
             )
+            if stride is not None and travel:
+                per = np.zeros_like(q)
+                per[:, :12] = stride(t)
+                info["feedback"].update(stride=per, travel=travel)  # type: ignore[union-attr]
         positions = q
         if self.stiffness is not None:  # the servos' give under the stance loads
             tau = stance_torques(self.masses, self.joints, q, SAMPLE_DT)
