@@ -644,6 +644,7 @@ def fit_maps(
     return ConversionMaps(shape, reference, coef, tuple(sizes), tuple(ratios), worst)
 
 
+@cache
 def conversion_maps(gait: str | GaitShape = "walking") -> ConversionMaps:
     """The conversion maps of ``gait`` ("walking" or "running": ``WALK``, ``RUN``; or a
     :class:`GaitShape`, e.g. ``ROBUST_WALK``), fitted on first use (the same numbers every
