@@ -5,7 +5,6 @@ where the closed loop walks."""
 
 from __future__ import annotations
 
-import copy
 import math
 
 import numpy as np
@@ -17,7 +16,7 @@ from export.perturb import design_table, draw, perturbed_model
 from export.simulate import simulate
 from export.verify import bundle_parts, controller_for_model, folder_files
 from gaits.balance import GAINS, KIND, Balance, balance_joints
-from gaits.feedback import IMU_CLASS, Reading, has_imu, loop_for
+from gaits.feedback import Reading, has_imu, loop_for
 
 
 @pytest.fixture(scope="module")
@@ -25,13 +24,6 @@ def bundle(humanoid):
     record, xml, meshes = bundle_parts(folder_files(humanoid))
     nominal = load_mjcf(xml, meshes)
     return record, xml, meshes, nominal, design_table(record, xml, load_catalog())
-
-
-def _without_imu(record: dict) -> dict:
-    """The record with its IMU module dropped: a biped whose design carries none."""
-    out = copy.deepcopy(record)
-    out["modules"] = [m for m in out.get("modules", ()) if m.get("kind") != IMU_CLASS]
-    return out
 
 
 def _run(bundle, ctl, traj, seed: int, feedback: bool = True):
@@ -137,9 +129,9 @@ def test_output_is_bounded(bundle) -> None:
         assert float(spec["limit_rad"]) <= GAINS["limit_rad"]
 
 
-def test_a_design_without_an_imu_gets_no_imu_loop(bundle) -> None:
+def test_a_design_without_an_imu_gets_no_imu_loop(bundle, without_imu) -> None:
     record, _, _, nominal, _ = bundle
-    bare = _without_imu(record)
+    bare = without_imu(record)
     ctl = controller_for_model(bare, nominal)
     assert not has_imu(ctl.geometry.sensors)
     for name in ctl.behaviors:
@@ -147,14 +139,14 @@ def test_a_design_without_an_imu_gets_no_imu_loop(bundle) -> None:
     # a plan that asks for the IMU loop on a model without an IMU is refused, not run blind
     traj = controller_for_model(record, nominal).run("balancing")
     model = load_mjcf(
-        record_xml_without_imu(bundle[1]),
+        record_xmlwithout_imu(bundle[1]),
         bundle[2],
     )
     with pytest.raises(ValueError, match="IMU"):
         simulate(model, traj, seconds=0.1)
 
 
-def record_xml_without_imu(xml: str) -> str:
+def record_xmlwithout_imu(xml: str) -> str:
     """The MJCF with its IMU sensors taken out (a design built without one)."""
     import xml.etree.ElementTree as ET
 
@@ -169,11 +161,11 @@ def record_xml_without_imu(xml: str) -> str:
     return ET.tostring(root, encoding="unicode")
 
 
-def test_open_loop_humanoid_falls_where_the_closed_loop_walks(bundle) -> None:
+def test_open_loop_humanoid_falls_where_the_closed_loop_walks(bundle, without_imu) -> None:
     """Seed 1: the humanoid as it walked without its IMU (the open-loop walk) falls; with
     the IMU and its balance loop it walks the plan."""
     record, _, _, nominal, _ = bundle
-    blind = controller_for_model(_without_imu(record), nominal)
+    blind = controller_for_model(without_imu(record), nominal)
     fell = _run(bundle, blind, blind.run("walking"), 1, feedback=False)
     assert fell.fell and "fell" in fell.verdict
     ctl = controller_for_model(record, nominal)
