@@ -125,7 +125,7 @@ from gaits.base import (  # noqa: F401 - CACHE_ENV: the cache folder's variable,
     cache_folder,
     quat_yaw,
 )
-from gaits.feedback import has_imu
+from gaits.feedback import IMU_CLASS, has_imu
 from gaits.steering import SteerableSpec
 from kinematics.bodyplan import BodyPlan, PartNode
 from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics, rnea
@@ -1088,9 +1088,15 @@ class HumanoidController(Controller):
         self.turn_gain = float(geometry.calibration.get(TURN_GAIN, 1.0))
         self.damping = None if damping is None else self._per_joint(damping, "damping", zero=True)
         #: the walk: a design that feels its tilt (an IMU) walks ``ROBUST_WALK`` with its
-        #: balance loop (:mod:`gaits.balance`); one without, the open-loop ``WALK``
+        #: balance loop (:mod:`gaits.balance`); one without, the open-loop ``WALK``; the
+        #: balance loop runs on every behaviour of a design with an IMU
         self.balanced = has_imu(geometry.sensors)
-        self.walk = ROBUST_WALK if self.balanced else WALK
+        # a design whose walk its other sensors steer (program.sensing: line-tracking,
+        # obstacle-avoidance, stride by stride) keeps ``WALK``: its loops were tuned on its
+        # faster, narrower steps (ROBUST_WALK's slower ones sway the line sensors off the
+        # line for 0.65-0.8 s, over the 0.5 s allowed, measured with the balance loop)
+        steered = any(s != IMU_CLASS for s in geometry.sensors)
+        self.walk = ROBUST_WALK if self.balanced and not steered else WALK
 
     def _per_joint(self, values: Mapping[str, float], what: str, zero: bool = False) -> np.ndarray:
         """(len(joints),) ``values`` by joint name; ValueError when one is missing or not
