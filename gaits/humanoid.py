@@ -99,6 +99,13 @@ controller commands ``q + (tau + damping q') / kp`` with ``tau`` the stance load
 :func:`stance_torques` (the template's masses with the design's payload): 1.02 x. The
 plan (``planned_pose``, ``info["planned_positions"]``) stays the bare angles ``q``.
 
+Balance (issue 30): a design with an IMU on its trunk (every biped: ``BipedalRobot`` in
+the KIF) runs every behaviour closed on it (:mod:`gaits.balance`: the stance ankles turn the
+trunk back upright, the swing foot is kept parallel to the floor, the steps shortened
+downhill), and walks ``ROBUST_WALK`` (``WALK`` when other sensors steer its walk); a design
+without one walks ``WALK`` open loop. With the loop, the default humanoid's walk passes 24
+of seeds 1-24 (distance 0.94-1.21 x); measured in ``docs/feedback-balance.md``.
+
 Units: m, s, rad. Frames: trunk frame at the pelvis centre, x forward, z up (the
 template's); a reference gait's world frame has the ground at z = 0.
 """
