@@ -63,6 +63,7 @@ GAINS: dict[str, float] = {
     "lead_s": 0.03,
     "k_slope": 0.0,
     "k_level": 0.0,
+    "deadband_rad": 0.0,
     "stride_limit": 0.3,
 }
 
@@ -221,12 +222,14 @@ class Balance(Loop):
         if self.support is None:
             s = np.ones(max(1 + max(self.ankle[1], default=0), 1))
 
+        # tilts within the dead band are the plan's own sway: left to it
+        band = np.sign(tilt) * np.maximum(np.abs(tilt) - g["deadband_rad"], 0.0)
         # ankle: the stance feet turn the trunk back; a swing foot is kept level
         idx, legs, axes = self.ankle
         if len(idx):
             w = s[legs]
             push = np.clip(
-                axes @ (g["kp_ankle"] * tilt + g["kd_ankle"] * rate + g["k_level"] * self.floor),
+                axes @ (g["kp_ankle"] * band + g["kd_ankle"] * rate + g["k_level"] * self.floor),
                 -g["ankle_limit_rad"],
                 g["ankle_limit_rad"],
             )
