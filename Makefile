@@ -10,7 +10,7 @@ STAMP  := $(VENV)/.installed
 PACKAGES := asp adron synth kinematics gaits export program
 BYTECODE := $(BIN)/python -m compileall -q $(PACKAGES)
 
-.PHONY: demo test bench lint clean web
+.PHONY: demo test bench lint clean web docs
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -51,6 +51,10 @@ test: $(STAMP) $(WEB_STAMP)
 bench: $(STAMP)
 	$(BYTECODE)
 	$(BIN)/python bench/bench.py
+
+# The documentation site into site/ (git-ignored); `make test` builds it too (tests/test_docs.py).
+docs: $(STAMP)
+	$(BIN)/python -m mkdocs build --strict
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -414,9 +414,7 @@ def _imu_sensors(root: ET.Element, assembly: Assembly, elements: dict[str, ET.El
     sensor = ET.SubElement(root, "sensor")
     for k, (body, part) in enumerate(found):
         site = "imu" if k == 0 else f"imu_{k}"
-        ET.SubElement(
-            elements[body], "site", name=site, pos=numbers(part.com, SNAP), size="0.005"
-        )
+        ET.SubElement(elements[body], "site", name=site, pos=numbers(part.com, SNAP), size="0.005")
         ET.SubElement(sensor, "gyro", name=f"{site}_gyro", site=site)
         ET.SubElement(sensor, "accelerometer", name=f"{site}_accel", site=site)
 

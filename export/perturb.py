@@ -409,6 +409,8 @@ def perturbed_xml(
     if option is None:
         option = ET.SubElement(root, "option")
     g = [float(v) for v in (option.get("gravity") or "0 0 -9.81").split()]
+    if table.get("timestep_s"):  # the perturbed runs' physics (export.verify.physics_check)
+        option.set("timestep", _num(float(table["timestep_s"])))
     timestep = float(option.get("timestep") or 0.002)  # MuJoCo's default
     magnitude = math.sqrt(sum(v * v for v in g))
     a, d = p["slope_rad"], p["slope_direction_rad"]

@@ -345,6 +345,26 @@ def verification_text(verified: dict | None, indent: str = "  ") -> str:
             f"{indent}robust:     {robust['k']} perturbed runs per behaviour, each must pass "
             f"{robust['required']} (parmor simulate DIR --behavior NAME --perturb SEED)"
         )
+        physics = robust.get("physics") or {}
+        if physics:
+            step = physics.get("timestep_s")
+            out.append(
+                f"{indent}  physics: "
+                + (
+                    f"perturbed runs at a {step * 1000:g} ms step ({physics.get('why')}; "
+                    "--fine replays at the model's own)"
+                    if step
+                    else f"perturbed runs at the model's own step ({physics.get('why')})"
+                )
+            )
+        shown = robust.get("shows") or {}
+        if shown:
+            out.append(
+                f"{indent}  shows: each behaviour succeeds with probability above "
+                f"{math.floor(shown['success_lower_bound'] * 100)} % at "
+                f"{shown['confidence'] * 100:.0f} % confidence ({shown['passed']} of "
+                f"{shown['runs']}, Clopper-Pearson; --certify N runs N)"
+            )
         for b in robust["behaviors"]:
             verdict = "ok" if b["robust"] else "FAILED"
             line = f"{indent}  {b['behavior']:<22} {verdict:<8} passed {b['passed']} of {b['runs']}"

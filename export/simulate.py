@@ -534,9 +534,7 @@ def simulate(
     if closed is not None:
         every = math.gcd(every, closed.period)
         start_closed(closed, data)
-    observe_steps = (
-        1 if observe_every is None else max(1, int(round(observe_every / dt)))
-    )
+    observe_steps = 1 if observe_every is None else max(1, int(round(observe_every / dt)))
     # the run goes in blocks of whole observation periods, each measured once it is done:
     # memory stays that of a block whatever the duration
     block = max(1, BLOCK_STEPS // every) * every
@@ -585,11 +583,13 @@ def simulate(
         if closed is not None:
             closed.begin_block(ctrl, start_step, every)
 
-        def after(i: int, offset: int = start_step) -> None:
+        def after(i: int, offset: int = start_step, rows: np.ndarray = ctrl) -> None:
             done = offset + i
             if closed is not None:
-                closed.after(data, done, ctrl)
-            if observe is not None and (closed is None or done % observe_steps == 0 or done == steps):
+                closed.after(data, done, rows)
+            if observe is not None and (
+                closed is None or done % observe_steps == 0 or done == steps
+            ):
                 observe(done * dt, data)
             if progress is not None and done // CHUNK_STEPS > (done - every) // CHUNK_STEPS:
                 progress(done * dt / seconds)

@@ -306,6 +306,89 @@ def _criteria(fig: Mapping) -> dict[str, float]:
     return out
 
 
+#: The perturbed runs' time step as a multiple of the model's (2 ms -> 4 ms), used for a
+#: design only where its nominal runs at that step agree with the fine ones
+#: (:func:`physics_check`); a perturbed run then costs about 0.55 of a fine one.
+COARSE_STEP = 2
+#: How far a figure of a coarse nominal run may be from the fine run's (absolute, in the
+#: figure's unit) for the coarse step to be used: a tenth or less of each verdict's margin
+#: (export/verdict.py: saturation 5 % of the run, placing 5 mm, ...), so a verdict the fine
+#: physics gives is not turned by the step. Figures not listed must be equal to 10 %.
+AGREE = {
+    "saturated_fraction": 0.005,
+    "demand_ratio_max": 0.1,
+    "max_torque_ratio": 0.05,
+    "min_height_ratio": 0.02,
+    "max_tilt_rad": 0.02,
+    "distance_ratio": 0.03,
+    "heading_error_rad": 0.03,
+    "final_pose_error_m": 0.003,
+    "drift_m": 0.003,
+    "tracking_error": 0.03,
+    "placing_error_m": 0.0015,
+    "orientation_error_rad": 0.01,
+    "line_lost_s": 0.05,
+    "obstacle_contact_s": 0.02,
+}
+
+
+def coarse_xml(xml: str, factor: int = COARSE_STEP) -> tuple[str, float]:
+    """(MJCF text with its time step ``factor`` x longer, that step in s)."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(xml)
+    option = root.find("option")
+    if option is None:
+        option = ET.SubElement(root, "option")
+    step = float(option.get("timestep") or 0.002) * factor
+    option.set("timestep", f"{step:.12g}")
+    return ET.tostring(root, encoding="unicode"), step
+
+
+def physics_check(
+    files: Mapping[str, str | bytes],
+    fine: Sequence[Mapping] | None = None,
+    behaviors: Sequence[str] | None = None,
+) -> dict:
+    """Whether this design's perturbed runs may use the coarse step (:data:`COARSE_STEP`):
+    its behaviours run nominally at that step give the verdicts of the fine step (``fine``:
+    :func:`verify_model`'s figures when the caller has them) with every figure within
+    :data:`AGREE`. Returns ``{"timestep_s": step or None (the model's own), "coarse_s":
+    the coarse step, "largest": {figure: (difference, behaviour)}, "why": text}``."""
+    from export.mjcf import load_mjcf
+
+    record, xml, meshes = bundle_parts(files)
+    if fine is None:
+        fine = verify_model(record, load_mjcf(xml, meshes), behaviors)
+    wanted = [str(f["behavior"]) for f in fine]
+    text, step = coarse_xml(xml)
+    coarse = {str(f["behavior"]): f for f in verify_model(record, load_mjcf(text, meshes), wanted)}
+    largest: dict[str, tuple[float, str]] = {}
+    why = ""
+    for f in fine:
+        name = str(f["behavior"])
+        c = coarse[name]
+        if (f["verdict"] == "ok") != (c["verdict"] == "ok"):
+            why = why or f"{name}: verdict {f['verdict']} at the fine step, {c['verdict']} coarse"
+        a, b = _criteria(f), _criteria(c)
+        for key in sorted(set(a) | set(b)):
+            if key not in a or key not in b:
+                why = why or f"{name}: {key} measured at one step only"
+                continue
+            d = abs(a[key] - b[key])
+            tol = AGREE.get(key, 0.1 * max(abs(a[key]), 1e-9))
+            if d > largest.get(key, (-1.0, ""))[0]:
+                largest[key] = (float(f"{d:.4g}"), name)
+            if d > tol:
+                why = why or f"{name}: {key} {a[key]:.4g} at the fine step, {b[key]:.4g} coarse"
+    return {
+        "timestep_s": None if why else step,
+        "coarse_s": step,
+        "largest": {k: list(v) for k, v in sorted(largest.items())},
+        "why": why or "every figure of the nominal runs agrees",
+    }
+
+
 def _worse(kind: str, a: float, b: float) -> bool:
     """Is ``a`` worse than ``b`` for a figure of kind ``kind`` (:data:`WORST`)?"""
     if kind == "min":

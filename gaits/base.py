@@ -344,7 +344,7 @@ def cache_write(
     renamed over it (concurrent writers write the same bytes, no reader sees half a file),
     then the oldest ``prefix*`` entries beyond ``keep`` deleted; a folder that cannot be
     written only means no cache. (``adron.units.write_cache_file`` and ``prune_cache`` do
-    the same for adron and synth: DESIGN.md has gaits import nothing of adron, and adron
+    the same for adron and synth: docs/architecture.md has gaits import nothing of adron, and adron
     nothing of ours.)"""
     import contextlib
     import tempfile

@@ -381,13 +381,16 @@ def _verified(
         record = outcome.record(designer)
         models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
         # the behaviours' trajectories, then the sensing abilities' closed loops
-        results = verify_files(files) + verify_sensing(files)
+        planned = verify_files(files)
+        results = planned + verify_sensing(files)
         failing = [r for r in results if r["verdict"] != "ok"]
         # nominally passed: under the perturbations of synth.robust (--robustness K)
         robust = (
             None
             if failing or opts.robustness <= 0
-            else robust_check(designer, outcome, opts.robustness, files=robust_bundle())
+            else robust_check(
+                designer, outcome, opts.robustness, files=robust_bundle(), nominal=planned
+            )
         )
         more = _floors(results + failing_runs(robust), record)
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
@@ -448,7 +451,14 @@ def _verified(
         # what failed nominally drops its bonus abilities or refuses the request (below);
         # what passed must pass under the perturbations too, or no perturbed run is claimed
         passed = {r["behavior"] for r in results if r["verdict"] == "ok"}
-        robust = robust_check(designer, outcome, opts.robustness, passed, robust_bundle())
+        robust = robust_check(
+            designer,
+            outcome,
+            opts.robustness,
+            passed,
+            robust_bundle(),
+            [r for r in planned if r["behavior"] in passed],
+        )
     # which abilities no behaviour serves: the controller alone tells (no model needed)
     controller = controller_for(DesignGeometry.from_record(record))
     served = served_abilities(record, controller)

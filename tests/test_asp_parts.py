@@ -370,7 +370,7 @@ DECLARED = {
     "CarRobot": ("RobotSteeredDriving",),
     "DifferentialDriveRobot": ("RobotDriving",),
     "HexapodRobot": ("RobotRoughTerrainWalking", "RobotRunning", "RobotWalking"),
-    "HumanoidRobot": ("RobotGrasping", "RobotRunning", "RobotWalking"),
+    "HumanoidRobot": ("RobotBalancing", "RobotGrasping", "RobotRunning", "RobotWalking"),
     "Manipulator3DOF": ("RobotGrasping", "RobotPickAndPlace", "RobotPositioning"),
     "Manipulator6DOF": (
         "RobotGrasping",
