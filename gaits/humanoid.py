@@ -1306,7 +1306,7 @@ class HumanoidController(Controller):
             legs,
             info,
             partial(self._held_arms, shape=shape),
-            BALANCE_GAINS["steered" if shape is WALK else "gait"],
+            BALANCE_GAINS["gait" if shape in (ROBUST_WALK, RUN) else "steered"],
             # the leg angles' change per relative change of the step length: the balance
             # loop's stride correction (gaits.balance: shorter steps downhill)
             lambda t: (
