@@ -8,21 +8,28 @@ estimate (roll, pitch: the complementary filter of :mod:`gaits.feedback`, never 
 simulator's pose) and the gyro's rates, and turns the trunk back upright through the legs'
 joints:
 
-- **ankle strategy**: every joint of a leg's ankle (the joints nearest its foot whose axes
-  are the trunk's roll and pitch axes) is offset by ``kp_ankle * tilt + kd_ankle * rate``
-  along its axis. With the foot flat on the floor, turning a joint of the leg by ``d``
-  about its axis turns everything above it by ``-d``: the offset turns the trunk back by
-  ``kp`` of its tilt, and the ankle's torque moves the centre of pressure under the foot
-  the way that stops the fall (the inverted pendulum's only lever without stepping). It is
-  applied to both legs: on the swing leg it keeps the foot parallel to the floor while the
-  trunk tilts, so the foot lands flat.
-- **hip strategy**: the hips' roll and pitch joints (the joints nearest the trunk with
-  those axes) get ``kp_hip`` and ``kd_hip`` on the part of the tilt beyond ``hip_from_rad``
-  (a larger error than the ankles' feet can hold: the trunk is swung back over the hips).
-- **heading** (optional, ``kp_yaw``): the hips' yaw joints turn the trunk back to the
-  plan's heading (the planned yaw is the plan's ``heading`` samples: 0 for a straight plan)
-  from the gyro's integrated yaw rate, only while both feet are down would it fight
-  itself, so it is a small proportional term.
+- **ankle strategy** on the stance feet (each foot's share of the support is the plan's:
+  ``support``, from its feet's heights): every joint of a leg's ankle (the joints nearest
+  its foot whose axes are the trunk's roll and pitch axes) is offset by
+  ``kp_ankle * tilt + kd_ankle * rate + k_level * floor`` along its axis (``tilt`` beyond
+  a ``deadband_rad``; ``floor`` the floor's slope). With the foot flat on the floor,
+  turning a joint of the leg by ``d`` about its axis turns everything above it by ``-d``:
+  the offset turns the trunk back by ``kp`` of its tilt, and the ankle's torque moves the
+  centre of pressure under the foot the way that stops the fall (the inverted pendulum's
+  only lever without stepping); ``k_level`` leans the legs off the slope.
+- **swing foot**: a lifted foot's ankle turns by minus the trunk's tilt relative to the
+  floor (``kp_swing``), so it lands flat. The floor's slope is the trunk's tilt at
+  switch-on: the robot stands on it with q = 0 (the firmware's levelling).
+- **stride** (gaits): the plan carries its leg angles' derivative per relative change of
+  the step length (``stride``) and its travel direction (``travel``); the steps are
+  shortened by ``k_slope`` x the slope along the walk downhill and lengthened uphill
+  (within ``stride_limit``): the pendulum goes farther per step downhill.
+- **hip strategy** (off by default): the hips' roll and pitch joints (the joints nearest
+  the trunk with those axes) of the stance legs get ``kp_hip`` and ``kd_hip`` on the part
+  of the tilt beyond ``hip_from_rad``.
+- **heading** (off by default, ``kp_yaw``): the hips' yaw joints turn the trunk back to the
+  plan's heading from the attitude's yaw (the gyro's, drifting with its bias): a stance
+  leg alone on the floor turns the trunk, a swing leg aims its foot the other way.
 
 Each joint's offset is bounded by ``limit_rad`` (and each strategy's by its own
 ``*_limit_rad``), so the loop never asks a servo for more than a few degrees beyond its
@@ -48,8 +55,8 @@ KIND = "balance"
 #: default humanoid under the perturbation table: ``docs/feedback-balance.md``). Angles rad,
 #: rates rad/s: ``kp`` rad of offset per rad of tilt, ``kd`` per rad/s (s).
 GAINS: dict[str, float] = {
-    "kp_ankle": 0.6,
-    "kd_ankle": 0.04,
+    "kp_ankle": 0.3,
+    "kd_ankle": 0.05,
     "kp_hip": 0.0,
     "kd_hip": 0.0,
     "hip_from_rad": 0.05,
