@@ -182,7 +182,7 @@ def loop_for(traj) -> Loop | None:
 
 
 #: modules that register loop kinds (imported when a plan asks for a loop)
-LOOP_MODULES: tuple[str, ...] = ("gaits.feedback", "gaits.wheel_feedback")
+LOOP_MODULES: tuple[str, ...] = ("gaits.feedback", "gaits.wheel_feedback", "gaits.balance")
 
 
 def _load_loops() -> None:

@@ -99,6 +99,13 @@ controller commands ``q + (tau + damping q') / kp`` with ``tau`` the stance load
 :func:`stance_torques` (the template's masses with the design's payload): 1.02 x. The
 plan (``planned_pose``, ``info["planned_positions"]``) stays the bare angles ``q``.
 
+Balance (issue 30): a design with an IMU on its trunk (every biped: ``BipedalRobot`` in
+the KIF) runs every behaviour closed on it (:mod:`gaits.balance`: the stance ankles turn the
+trunk back upright, the swing foot is kept parallel to the floor, the steps shortened
+downhill), and walks ``ROBUST_WALK`` (``WALK`` when other sensors steer its walk); a design
+without one walks ``WALK`` open loop. With the loop, the default humanoid's walk passes 24
+of seeds 1-24 (distance 0.94-1.21 x); measured in ``docs/feedback-balance.md``.
+
 Units: m, s, rad. Frames: trunk frame at the pelvis centre, x forward, z up (the
 template's); a reference gait's world frame has the ground at z = 0.
 """
@@ -114,6 +121,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gaits.balance import balance_spec
 from gaits.base import (  # noqa: F401 - CACHE_ENV: the cache folder's variable, for callers
     CACHE_ENV,
     BehaviorSpec,
@@ -124,6 +132,7 @@ from gaits.base import (  # noqa: F401 - CACHE_ENV: the cache folder's variable,
     cache_folder,
     quat_yaw,
 )
+from gaits.feedback import IMU_CLASS, has_imu
 from gaits.steering import SteerableSpec
 from kinematics.bodyplan import BodyPlan, PartNode
 from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics, rnea
@@ -192,6 +201,24 @@ TURN_GAIN = "walking_turn_gain"
 PROBE_CURVATURES = (10.0, 5.0, 2.0)
 #: the calibrated gain's bounds (a probe outside them measured something else)
 TURN_GAIN_RANGE = (0.5, 2.0)
+#: The balance loop's gains (:data:`gaits.balance.GAINS` overridden) of the gaits and of
+#: the standing behaviours (grasping, balancing): measured in MuJoCo on the default design
+#: under its perturbations (``docs/feedback-balance.md``)
+BALANCE_GAINS: dict[str, dict[str, float]] = {
+    "gait": {"kp_ankle": 0.3, "kd_ankle": 0.05, "k_slope": 4.0, "k_level": 0.5},
+    "stand": {"kp_ankle": 0.15, "kd_ankle": 0.02},
+    # ``WALK`` of a design whose other sensors steer it: its arcs end within 10 mm of their
+    # planned pose only with a gentler loop (the plan's own sway, 1 deg, left to it)
+    "steered": {
+        "kp_ankle": 0.3,
+        "kd_ankle": 0.02,
+        "deadband_rad": 0.02,
+        "k_slope": 4.0,
+        "k_level": 0.5,
+    },
+}
+#: relative change of the step length of the stride derivative (``info["feedback"]["stride"]``)
+STRIDE_EPS = 0.05
 #: Default full steps of a walk or run: enough that the starting and stopping half steps
 #: and the crouch take under half of the behaviour's time.
 DEFAULT_STEPS = 6
@@ -634,14 +661,20 @@ def fit_maps(
 
 
 @cache
-def conversion_maps(gait: str = "walking") -> ConversionMaps:
-    """The conversion maps of ``gait`` ("walking" or "running"), fitted on first use (the
-    same numbers every time: the fit is deterministic), kept on disk between processes
-    (:func:`_maps_file`)."""
+def conversion_maps(gait: str | GaitShape = "walking") -> ConversionMaps:
+    """The conversion maps of ``gait`` ("walking" or "running": ``WALK``, ``RUN``; or a
+    :class:`GaitShape`, e.g. ``ROBUST_WALK``), fitted on first use (the same numbers every
+    time: the fit is deterministic), kept on disk between processes (:func:`_maps_file`)."""
+    if isinstance(gait, GaitShape):
+        return _shape_maps(gait)
     shapes = {WALK.name: WALK, RUN.name: RUN}
     if gait not in shapes:
         raise ValueError(f"no gait {gait!r}; gaits: {', '.join(shapes)}")
-    shape = shapes[gait]
+    return _shape_maps(shapes[gait])
+
+
+@cache
+def _shape_maps(shape: GaitShape) -> ConversionMaps:
     path = _maps_file(shape)
     maps = _read_maps(path, shape) if path is not None else None
     if maps is None:
@@ -1070,6 +1103,16 @@ class HumanoidController(Controller):
         #: the arcs' hip yaw over the plan's (the design's ``calibration``, measured)
         self.turn_gain = float(geometry.calibration.get(TURN_GAIN, 1.0))
         self.damping = None if damping is None else self._per_joint(damping, "damping", zero=True)
+        #: the walk: a design that feels its tilt (an IMU) walks ``ROBUST_WALK`` with its
+        #: balance loop (:mod:`gaits.balance`); one without, the open-loop ``WALK``; the
+        #: balance loop runs on every behaviour of a design with an IMU
+        self.balanced = has_imu(geometry.sensors)
+        # a design whose walk its other sensors steer (program.sensing: line-tracking,
+        # obstacle-avoidance, stride by stride) keeps ``WALK``: its loops were tuned on its
+        # faster, narrower steps (ROBUST_WALK's slower ones sway the line sensors off the
+        # line for 0.65-0.8 s, over the 0.5 s allowed, measured with the balance loop)
+        steered = any(s != IMU_CLASS for s in geometry.sensors)
+        self.walk = ROBUST_WALK if self.balanced and not steered else WALK
 
     def _per_joint(self, values: Mapping[str, float], what: str, zero: bool = False) -> np.ndarray:
         """(len(joints),) ``values`` by joint name; ValueError when one is missing or not
@@ -1140,7 +1183,7 @@ class HumanoidController(Controller):
 
         return {
             WALK.name: gait(
-                WALK,
+                self.walk,
                 "a slow crouched walk (the paper's synthetic locomotion), straight or on an "
                 "arc of `curvature` (the hips' yaw turns each foot as it swings)",
                 steered=True,
@@ -1201,7 +1244,7 @@ class HumanoidController(Controller):
             )
         if name == "grasping":
             return self._grasping(float(params["hold"]))
-        shape = WALK if name == WALK.name else RUN
+        shape = self.walk if name == WALK.name else RUN
         return self._gait(
             shape,
             int(params["steps"]),
@@ -1219,14 +1262,14 @@ class HumanoidController(Controller):
                 f"{shape.name}: leg module {self.size * 1000:.1f} mm is outside the conversion "
                 f"maps' sizes {lo * 1000:.0f}-{hi * 1000:.0f} mm (not extrapolated)"
             )
-        maps = conversion_maps(shape.name)
+        maps = conversion_maps(shape)
         plan = GaitPlan.of(shape, steps, self.leg)
         sign = 1.0 if direction == "forward" else -1.0
         ratio = step / self.default_step(shape)
         period = shape.period(self.leg)
         start = shape.double_support * period / 2  # mid double support
 
-        def legs(t: np.ndarray) -> np.ndarray:
+        def legs(t: np.ndarray, ratio: float = ratio) -> np.ndarray:
             tau = t - CROUCH_TIME
             mean, osc = maps.components(self.size, plan.ratio(tau, ratio), start + sign * tau)
             crouch = _smooth(t / CROUCH_TIME)[:, None]  # r = 0 and no oscillation meanwhile
@@ -1258,14 +1301,26 @@ class HumanoidController(Controller):
                 )
             info.update(motion="arc", curvature_rad_m=curvature)
         return self._trajectory(
-            shape.name, CROUCH_TIME + plan.end, legs, info, partial(self._held_arms, shape=shape)
+            shape.name,
+            CROUCH_TIME + plan.end,
+            legs,
+            info,
+            partial(self._held_arms, shape=shape),
+            BALANCE_GAINS["gait" if shape in (ROBUST_WALK, RUN) else "steered"],
+            # the leg angles' change per relative change of the step length: the balance
+            # loop's stride correction (gaits.balance: shorter steps downhill)
+            lambda t: (
+                (legs(t, ratio * (1 + STRIDE_EPS)) - legs(t, ratio * (1 - STRIDE_EPS)))
+                / (2 * STRIDE_EPS)
+            ),
+            sign,
         )
 
     def calibration_probes(self) -> list[tuple[str, dict[str, object]]]:
         """When the walking gait's arcs are measured (``GaitShape.measured_turn``): one arc
         of ``DEFAULT_STEPS`` steps at the first of ``PROBE_CURVATURES`` this design's hips
         turn; none otherwise."""
-        if not WALK.measured_turn:
+        if not self.walk.measured_turn:
             return []
         for k in PROBE_CURVATURES:
             try:
@@ -1349,7 +1404,9 @@ class HumanoidController(Controller):
             return self._stance(np.zeros_like(t), y) * _smooth(t / CROUCH_TIME)[:, None]
 
         info: dict[str, object] = {"motion": "hold", "body_length_m": self.leg}
-        return self._trajectory("balancing", CROUCH_TIME + duration, legs, info)
+        return self._trajectory(
+            "balancing", CROUCH_TIME + duration, legs, info, gains=BALANCE_GAINS["stand"]
+        )
 
     @staticmethod
     def _arms(t: np.ndarray, hold: float) -> np.ndarray:
@@ -1391,7 +1448,7 @@ class HumanoidController(Controller):
             return q
 
         info: dict[str, object] = {"motion": "hold", "body_length_m": self.leg}
-        return self._trajectory("grasping", duration, legs, info, arms)
+        return self._trajectory("grasping", duration, legs, info, arms, BALANCE_GAINS["stand"])
 
     def _trajectory(
         self,
@@ -1400,6 +1457,9 @@ class HumanoidController(Controller):
         legs: Callable[[np.ndarray], np.ndarray],
         info: dict[str, object],
         arms: Callable[[np.ndarray], np.ndarray] | None = None,
+        gains: Mapping[str, float] | None = None,
+        stride: Callable[[np.ndarray], np.ndarray] | None = None,
+        travel: float = 0.0,
     ) -> Trajectory:
         """The trajectory of leg angles ``legs(t)`` (n, 12) rad and arm angles ``arms(t)``
         (n, 6) rad (default: hanging, 0) over ``duration`` s and ``SETTLE_TIME`` s more,
@@ -1447,6 +1507,14 @@ class HumanoidController(Controller):
             info["planned_pose"] = (float(moved[0]), float(moved[1]), 0.0)
         if info.get("motion") == "straight":
             info["expected_distance_m"] = float(np.hypot(moved[0], moved[1]))
+        if self.balanced:  # balance on the trunk's IMU (gaits.balance)
+            info["feedback"] = balance_spec(
+                self.template.model, self.template.feet, self.joints, q, **(gains or {})
+            )
+            if stride is not None and travel:
+                per = np.zeros_like(q)
+                per[:, :12] = stride(t)
+                info["feedback"].update(stride=per, travel=travel)  # type: ignore[union-attr]
         positions = q
         if self.stiffness is not None:  # the servos' give under the stance loads
             tau = stance_torques(self.masses, self.joints, q, SAMPLE_DT)

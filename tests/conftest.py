@@ -188,3 +188,35 @@ def robust_walk(monkeypatch):
     yield
     humanoid.conversion_maps.cache_clear()
     base._PLANNED.clear()
+
+
+def _without_imu(record: dict) -> dict:
+    """The record with its IMU module dropped: a biped whose design carries none (it walks
+    ``gaits.humanoid.WALK`` open loop, as every biped did before it had an IMU)."""
+    import copy
+
+    from gaits.feedback import IMU_CLASS
+
+    out = copy.deepcopy(record)
+    out["modules"] = [m for m in out.get("modules", ()) if m.get("kind") != IMU_CLASS]
+    return out
+
+
+def _open_loop(traj):
+    """The same plan without its feedback loop (what ``simulate(..., feedback=False)``
+    runs), for the runners that take no ``feedback`` argument."""
+    import dataclasses
+
+    return dataclasses.replace(traj, info={k: v for k, v in traj.info.items() if k != "feedback"})
+
+
+@pytest.fixture(scope="session")
+def without_imu():
+    """``without_imu(record)``: the record with its IMU dropped (tests/test_balance.py)."""
+    return _without_imu
+
+
+@pytest.fixture(scope="session")
+def open_loop():
+    """``open_loop(traj)``: the plan without its feedback loop (tests/test_balance.py)."""
+    return _open_loop

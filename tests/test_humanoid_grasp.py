@@ -38,7 +38,7 @@ def fresh_plans():
     base._PLANNED.clear()
 
 
-def _grasp(folder: Path, seed: int):
+def _grasp(folder: Path, seed: int, open_loop=None):
     from adron.catalog import load_catalog
     from export.mjcf import load_mjcf
     from export.verify import _simulate, bundle_parts, controller_for_model, folder_files
@@ -48,7 +48,10 @@ def _grasp(folder: Path, seed: int):
     p = perturb.draw(table, seed)
     model = perturb.perturbed_model(xml, meshes, table, p)
     ctl = controller_for_model(record, load_mjcf(xml, meshes))
-    return _simulate(model, ctl, ctl.run("grasping"), None, None, p)
+    traj = ctl.run("grasping")
+    if open_loop is not None:  # conftest's: the plan without the trunk's balance loop
+        traj = open_loop(traj)
+    return _simulate(model, ctl, traj, None, None, p)
 
 
 def test_the_grippers_follow_their_servos_under_perturbation(loaded, fresh_plans) -> None:
@@ -58,11 +61,14 @@ def test_the_grippers_follow_their_servos_under_perturbation(loaded, fresh_plans
     assert grippers and max(grippers.values()) < 0.01, r.saturated_joints
 
 
-def test_a_fast_close_saturates_the_grippers(loaded, fresh_plans, monkeypatch) -> None:
-    """Built to fail: the grippers closed in 0.5 s on the same robot and seed."""
+def test_a_fast_close_saturates_the_grippers(loaded, fresh_plans, monkeypatch, open_loop) -> None:
+    """Built to fail: the grippers closed in 0.5 s on the same robot and seed, open loop (the
+    trunk's balance loop steadies the robot enough that the run's saturated share stays
+    under the verdict's 5 % while the grippers still saturate 1.5 % of it: the grippers'
+    saturation is what this case is about)."""
     from gaits import humanoid
 
     monkeypatch.setattr(humanoid, "GRIP_TIME", 0.5)
-    r = _grasp(loaded, SEED)
+    r = _grasp(loaded, SEED, open_loop=open_loop)
     assert "saturated" in r.verdict, r.saturated_joints
     assert max(v for j, v in r.saturated_joints.items() if j.endswith("gripper")) > 0.01

@@ -24,10 +24,12 @@ from export import perturb
 SEEDS = (6, 8)
 
 
-def _walk(folder: Path, seed: int, stronger_yaw: bool):
+def _walk(folder: Path, seed: int, stronger_yaw: bool, open_loop=None):
     """Walking under the whole perturbation ``seed``; ``stronger_yaw``: the hip yaws'
     actuators given the same side's hip pitch's (force range, position and velocity
-    gains, as perturbed)."""
+    gains, as perturbed). ``open_loop`` (conftest's): the plan run without the trunk's
+    balance loop (gaits.balance), as this file measured it before the design had one."""
+
     from adron.catalog import load_catalog
     from export.mjcf import load_mjcf
     from export.verify import _simulate, bundle_parts, controller_for_model, folder_files
@@ -45,19 +47,31 @@ def _walk(folder: Path, seed: int, stronger_yaw: bool):
             model.actuator_gainprm[a] = model.actuator_gainprm[b]
             model.actuator_biasprm[a] = model.actuator_biasprm[b]
     ctl = controller_for_model(record, load_mjcf(xml, meshes))
-    return _simulate(model, ctl, ctl.run("walking"), None, None, p)
+    traj = ctl.run("walking")
+    return _simulate(model, ctl, traj if open_loop is None else open_loop(traj), None, None, p)
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-def test_the_hip_yaw_breaks_the_tuned_walk(humanoid, robust_walk, seed) -> None:
-    """Built to fail: the shipped hip yaw servo saturates, the most saturated joint."""
-    r = _walk(humanoid, seed, stronger_yaw=False)
+def test_the_hip_yaw_breaks_the_tuned_walk(humanoid, robust_walk, open_loop, seed) -> None:
+    """Built to fail: the shipped hip yaw servo saturates, the most saturated joint (open
+    loop)."""
+    r = _walk(humanoid, seed, stronger_yaw=False, open_loop=open_loop)
     assert "saturated" in r.verdict, r.verdict
     worst = max(r.saturated_joints, key=r.saturated_joints.get)
     assert worst.endswith("hip_yaw"), r.saturated_joints
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-def test_a_hip_yaw_that_holds_lets_the_tuned_walk_pass(humanoid, robust_walk, seed) -> None:
-    r = _walk(humanoid, seed, stronger_yaw=True)
+def test_a_hip_yaw_that_holds_lets_the_tuned_walk_pass(
+    humanoid, robust_walk, open_loop, seed
+) -> None:
+    r = _walk(humanoid, seed, stronger_yaw=True, open_loop=open_loop)
     assert r.verdict == [], (r.verdict, r.distance_m, r.planned_distance_m, r.heading_rad)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_the_balance_loop_holds_the_tuned_walk_on_the_sg90(humanoid, seed) -> None:
+    """The same robot and perturbation with the SG90 hip yaws, closed on the IMU: the
+    balance loop keeps the trunk and the swing foot level, and the hip yaws hold."""
+    r = _walk(humanoid, seed, stronger_yaw=False)
+    assert r.verdict == [], (r.verdict, r.saturated_joints)

@@ -36,9 +36,18 @@ def _turn(yaw: float) -> dict[str, np.ndarray]:
     return {"t": np.linspace(0.0, 5.0, 50), "root": root}
 
 
-def test_the_default_walk_asks_for_no_probe(humanoid) -> None:
+def test_the_default_walk_asks_for_no_probe(humanoid, without_imu) -> None:
+    """The default walk (a biped without an IMU: ``WALK``, open loop) asks for no probe; the
+    design with its IMU walks ``ROBUST_WALK`` and asks for one."""
+
+    from export.mjcf import load_mjcf
+    from export.verify import bundle_parts, controller_for_model, folder_files
+
+    record, xml, meshes = bundle_parts(folder_files(humanoid))
+    bare = controller_for_model(without_imu(record), load_mjcf(xml, meshes))
+    assert bare.calibration_probes() == []
     _, _, ctl = _parts(humanoid)
-    assert ctl.calibration_probes() == []
+    assert ctl.calibration_probes() == [("walking", {"curvature": 10.0})]
 
 
 def test_the_gain_is_the_planned_turn_over_the_measured_one(humanoid, robust_walk) -> None:
