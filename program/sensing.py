@@ -237,6 +237,42 @@ def scene_xml(xml: str) -> str:
 # -- the sensors -------------------------------------------------------------------------
 
 
+class SensorNoise:
+    """What the sensing loops' sensors read on a perturbed robot (``export/perturb.toml``'s
+    ``[infrared]`` and ``[ultrasonic]``, a perturbation's ``sensing`` draws): an infrared
+    sensor sees the line when it is within the tape's half width moved by that sensor's
+    edge offset and a fresh jitter; the ranger reads the distance x the run's scale plus a
+    fresh noise, rounded to its resolution. The fresh draws come from a generator seeded
+    with (stream, seed, 2) in the order the loop reads: a run is replayed to the bit.
+    ``None`` (the nominal robot): exact readings, nothing drawn."""
+
+    def __init__(self, drawn: Mapping | None) -> None:
+        drawn = drawn or {}
+        self.ir = drawn.get("infrared")
+        self.us = drawn.get("ultrasonic")
+        self.rng = (
+            np.random.default_rng([int(drawn["stream"]), int(drawn["seed"]), 2])
+            if (self.ir or self.us)
+            else None
+        )
+
+    def sees(self, k: int, offset: float) -> bool:
+        half = LINE_WIDTH_M / 2
+        if self.ir is None:
+            return abs(offset) <= half
+        edge = half + float(self.ir["edge_offset_m"][k])
+        edge += float(self.rng.normal(0.0, float(self.ir["edge_jitter_m"])))  # type: ignore[union-attr]
+        return abs(offset) <= edge
+
+    def range(self, distance: float) -> float:
+        if self.us is None:
+            return distance
+        r = distance * float(self.us["scale"])
+        r += float(self.rng.normal(0.0, float(self.us["noise_m"])))  # type: ignore[union-attr]
+        step = float(self.us["resolution_m"])
+        return round(r / step) * step if step > 0 else r
+
+
 class Rig:
     """The sensors on a session's robot: where they sit on the trunk (body frame, m)."""
 
@@ -313,7 +349,13 @@ class Rig:
             dist = mujoco.mj_ray(m, d, origin, v, groups, 1, -1, geom)
             if dist >= 0:
                 best = min(best, dist)
+        best = self.session.noise.range(best)
         return float(min(max(best, RANGER_MIN_M), RANGER_MAX_M))
+
+    def sees(self, k: int, offset: float) -> bool:
+        """Infrared sensor ``k``'s reading (0 left, 1 right) ``offset`` m across from the
+        line's middle: whether it sees the line (:class:`SensorNoise`)."""
+        return self.session.noise.sees(k, offset)
 
 
 class Course:
@@ -466,7 +508,7 @@ class _Driver:
         if "turn_from" in self.steer.roles:
             end = float(traj.info.get("turn_end", w))  # type: ignore[arg-type]
             self.k_now = end / v if v else 0.0
-        self.session._play(traj.joints, traj.positions, traj.velocities, self.period)
+        self.session._play(traj.joints, traj.positions, traj.velocities, self.period, plan=traj)
 
     def go(self, curvature: float) -> None:
         self.step(self.speed, curvature * self.speed)
@@ -508,7 +550,8 @@ def _line(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[
             return
         state["next"] = t + 1.0 / CONTROL_HZ
         on = [
-            abs(course.locate(rig.world(p)[:2], state["s"])[1]) <= LINE_WIDTH_M / 2 for p in rig.ir
+            rig.sees(k, course.locate(rig.world(p)[:2], state["s"])[1])
+            for k, p in enumerate(rig.ir)
         ]
         if on[0] and not on[1]:
             state["turn"] = 1.0  # the line is under the left sensor: turn left
@@ -596,9 +639,9 @@ def _line_reader(
         if t < state["next"] - 1e-9:
             return
         state["next"] = t + 1.0 / CONTROL_HZ
-        for p in rig.ir:
+        for k, p in enumerate(rig.ir):
             w = rig.world(p)[:2]
-            on = abs(course.locate(w, state["s"])[1]) <= LINE_WIDTH_M / 2
+            on = rig.sees(k, course.locate(w, state["s"])[1])
             reads.append((float(w[0]), float(w[1]), 1.0 if on else 0.0))
         state["s"], off = course.locate(rig.world(mid)[:2], state["s"])
         state["worst"] = max(state["worst"], abs(off))
