@@ -404,6 +404,12 @@ def verify_robust(
     (:mod:`export.perturb`) and judged: the record's ``verified.robust``. A behaviour is
     robust when it passes at least :func:`required_passes` of its runs.
 
+    The sensing loops (``line-tracking``, ``obstacle-avoidance``: :mod:`program.sensing`,
+    as :func:`program.sensing.verify_sensing` runs them nominally) run on each perturbed
+    robot too, from a fresh start, with the perturbation's bus and their sensors' noise
+    (:class:`program.session.Session` ``perturb``); their entries say ``"loop":
+    "sensing"`` and their failures name the sensors' draws as well.
+
     The plans are the nominal model's, made once; behaviours with the same plan are run
     once per perturbation (as :func:`verify_model`); the K x runs go on
     ``VERIFY_THREADS`` threads (MuJoCo steps without Python's lock). The results do not
@@ -415,11 +421,20 @@ def verify_robust(
     from export.perturb import describe, draw, perturbed_model, summary
     from export.verdict import explain
 
+    from program.sensing import run_sensing, sensing_behaviors
+
     record, xml, meshes = bundle_parts(files)
     controller = controller_for_model(record, load_mjcf(xml, meshes))
-    names = controller.listed(record.get("abilities", ())) if behaviors is None else list(behaviors)
+    # the sensing loops (program.sensing) the design's verification runs, by name
+    sensed = sorted(sensing_behaviors(controller.behaviors, tuple(record.get("abilities", ()))))
+    if behaviors is None:
+        names = controller.listed(record.get("abilities", ()))
+    else:
+        names = [n for n in behaviors if n not in sensed]
+        sensed = [n for n in sensed if n in behaviors]
     if only is not None:
         names = [n for n in names if n in only]
+        sensed = [n for n in sensed if n in only]
     trajs = [controller.run(n) for n in names]
     same: dict[bytes, int] = {}
     first = [same.setdefault(_plan_digest(t), i) for i, t in enumerate(trajs)]
@@ -427,10 +442,14 @@ def verify_robust(
     seeds = list(range(1, k + 1))
     perturbations = {s: draw(table, s) for s in seeds}
     models = {s: perturbed_model(xml, meshes, table, perturbations[s]) for s in seeds}
-    jobs = [(s, r) for s in seeds for r in runs]
+    # the sensing runs first (the longest: the threads finish together)
+    jobs: list[tuple] = [(s, n) for s in seeds for n in sensed]
+    jobs += [(s, r) for s in seeds for r in runs]
 
-    def one(job: tuple[int, int]) -> SimResult:
+    def one(job: tuple) -> SimResult | dict:
         s, r = job
+        if isinstance(r, str):  # a sensing loop on the perturbed robot, from a fresh start
+            return run_sensing(files, r, perturb=(table, s))
         return _simulate(models[s], controller, trajs[r], None, None, perturbations[s])
 
     threads = min(VERIFY_THREADS, len(jobs), os.cpu_count() or 1)
@@ -441,10 +460,14 @@ def verify_robust(
         done = {job: one(job) for job in jobs}
     need = required_passes(k, float(table["share"]))
     out = []
-    for i, n in enumerate(names):
+    for i, n in enumerate([*names, *sensed]):
         figs = []
+        loop = i >= len(names)  # a sensing loop
         for s in seeds:
-            result = dataclasses.replace(done[(s, first[i])], behavior=trajs[i].behavior)
+            if loop:
+                figs.append({"seed": s} | done[(s, n)])  # type: ignore[operator]
+                continue
+            result = dataclasses.replace(done[(s, first[i])], behavior=trajs[i].behavior)  # type: ignore[arg-type]
             figs.append({"seed": s} | figures(trajs[i], result))
         worst: dict[str, dict] = {}
         for fig in figs:
@@ -456,7 +479,8 @@ def verify_robust(
         passed = len(figs) - len(failed)
         entry = {
             "behavior": n,
-            "ability": controller.behaviors[n].realises,
+            "ability": n if loop else controller.behaviors[n].realises,
+            **({"loop": "sensing"} if loop else {}),
             "passed": passed,
             "runs": len(figs),
             "robust": passed >= need,
@@ -466,7 +490,7 @@ def verify_robust(
                     "seed": f["seed"],
                     "verdict": f["verdict"],
                     "why": explain(f, f["verdict"]),
-                    "perturbation": describe(perturbations[f["seed"]]),
+                    "perturbation": describe(perturbations[f["seed"]], sensors=loop),
                 }
                 for f in failed
             ],
@@ -481,6 +505,25 @@ def verify_robust(
         "behaviors": out,
         "table": dict(table),
     }
+
+
+def robust_missing(record: Mapping) -> list[str]:
+    """The behaviours a verified record lists (``verified.behaviors``, the sensing loops
+    included) that passed on the nominal model but are missing from its perturbed runs
+    (``verified.robust.behaviors``), name order; none when the record was not verified
+    under perturbation. Every behaviour the design lists must have been run under them."""
+    verified = record.get("verified") if isinstance(record, Mapping) else None
+    robust = verified.get("robust") if isinstance(verified, Mapping) else None
+    if not isinstance(robust, Mapping):
+        return []
+    ran = {b.get("behavior") for b in robust.get("behaviors", ())}
+    return sorted(
+        {
+            b["behavior"]
+            for b in verified.get("behaviors", ())
+            if b.get("verdict") == "ok" and b["behavior"] not in ran
+        }
+    )
 
 
 def robust_failure(robust: Mapping) -> dict[str, str]:

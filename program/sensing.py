@@ -439,6 +439,10 @@ def run(session: Session, name: str, params: Mapping[str, object]) -> tuple[dict
     return _avoid(session, mover, rig, params)
 
 
+#: Plans a driven loop remembers (:class:`_Driver`): a few turn rates, asked again and again.
+PLAN_MEMO = 256
+
+
 class _Driver:
     """Runs the steerable behaviour one control period at a time: forward while turning
     (``go``, curvature rad/m) or turning in place (``spin``) at rates that fit the drive
@@ -454,6 +458,9 @@ class _Driver:
         #: a drive that rolls on from its last turn (a ``turn_from`` role: steered wheels,
         #: whose steering turns only so fast): the curvature 1/m its last period ended on
         self.k_now = 0.0
+        #: the plans asked for so far (a loop asks for the same few again and again; the
+        #: controller plans the same for the same ask): ask -> plan, or the error it gave
+        self._plans: dict[tuple, object] = {}
         self.speed = self.fit(speed, 0.0)[0]
         self.w_spin = 0.0
 
@@ -462,7 +469,18 @@ class _Driver:
         ask = {r["speed"]: v, r["turn"]: w, r["seconds"]: self.period, **self.steer.fixed}
         if "turn_from" in r:
             ask[r["turn_from"]] = self.k_now * v
-        return self.session.controller.run(self.steer.behavior, **ask)
+        key = tuple(sorted((k, repr(x)) for k, x in ask.items()))
+        got = self._plans.get(key)
+        if got is None:
+            try:
+                got = self.session.controller.run(self.steer.behavior, **ask)
+            except ValueError as e:
+                got = e
+            if len(self._plans) < PLAN_MEMO:
+                self._plans[key] = got
+        if isinstance(got, ValueError):
+            raise got
+        return got
 
     def forward_axis(self) -> np.ndarray:
         """The body-frame direction the robot goes forward in."""
@@ -1259,6 +1277,20 @@ def _park_obstacle(session: Session) -> None:
 def _turned(now: float, then: float) -> float:
     """Counter-clockwise turn (rad) from heading ``then`` to ``now``, in (-pi, pi]."""
     return (now - then + math.pi) % (2 * math.pi) - math.pi
+
+
+def run_sensing(
+    files: Mapping[str, str | bytes],
+    name: str,
+    params: Mapping[str, object] | None = None,
+    perturb: tuple[Mapping, int] | None = None,
+) -> dict:
+    """Sensing behaviour ``name`` of the design in ``files`` run on a fresh robot (under
+    perturbation ``perturb`` = (table, seed) of :mod:`export.perturb` when given) and
+    judged: its figures (``verdict`` and the loop's figures)."""
+    from program.session import Session
+
+    return Session(files=files, perturb=perturb).do(name, **dict(params or {}))["figures"]
 
 
 def verify_sensing(files: Mapping[str, str | bytes]) -> list[dict]:

@@ -1357,24 +1357,33 @@ def _simulate_sensing(folder, args: argparse.Namespace, params: dict) -> dict | 
     """A sensing behaviour of the bundle (line-tracking, obstacle-avoidance:
     :mod:`program.sensing`) run as the design's verification runs it, on a fresh robot with
     ``params``; its judged figures, or None when ``args.behavior`` is not one of them. Its
-    course sets its time, so ``--seconds``, ``--perturb`` and ``--plot`` do not apply."""
+    course sets its time, so ``--seconds`` and ``--plot`` do not apply. ``--perturb SEED``
+    runs it on that perturbation of the table the design was verified with, as the robust
+    verification ran it (the figures of its ``verified.robust`` entry, to the bit)."""
     from program.session import Session
 
     session = Session(folder)
     if args.behavior not in session.sensing:
         return None
-    for given, option in ((args.seconds, "--seconds"), (args.perturb, "--perturb")):
-        if given is not None:
-            raise InputError(
-                f"{option} does not apply to {args.behavior}, a sensing loop (its course "
-                "sets its time): drop it"
-            )
+    if args.seconds is not None:
+        raise InputError(
+            f"--seconds does not apply to {args.behavior}, a sensing loop (its course "
+            "sets its time): drop it"
+        )
     if args.plot:
         raise InputError(f"--plot does not apply to {args.behavior}, a sensing loop: drop it")
     from synth.limits import stage
 
+    if args.perturb is not None:
+        from export.perturb import summary
+        from export.verify import recorded_table
+
+        session = Session(folder, perturb=(recorded_table(session.record), args.perturb))
     with stage("simulate"):
-        return session.do(args.behavior, **params)["figures"]
+        fig = session.do(args.behavior, **params)["figures"]
+    if session.perturbation is not None:
+        fig["perturbation"] = summary(session.perturbation)
+    return fig
 
 
 def _report_sensing(fig: dict, args: argparse.Namespace, out: TextIO, err: TextIO) -> int:

@@ -105,8 +105,8 @@ def worst_failures(robust: Mapping, most: int) -> list[tuple[str, int, dict | No
     criteria failed, then the lowest seed): the runs the loop replays for a cause."""
     out = []
     for b in robust.get("behaviors", ()):
-        if b["robust"]:
-            continue
+        if b["robust"] or b.get("loop") == "sensing":
+            continue  # (a sensing loop is no plan to replay with one cause taken away)
         worst = sorted(b["failures"], key=lambda f: (-len(f["verdict"]), f["seed"]))
         runs = {fig.get("seed"): fig for fig in b.get("figures", ())}
         out += [(b["behavior"], f["seed"], runs.get(f["seed"])) for f in worst[:most]]

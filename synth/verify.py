@@ -491,6 +491,12 @@ def _verified(
                 dropped.setdefault(a, why)
     if also:
         failure += f"; also not robust: {', '.join(also)}"
+    skipped = robust_skipped(results, robust)
+    if skipped and failure is None:  # (a bug, never a design's fault: said, not passed)
+        failure = (
+            f"{', '.join(skipped)} passed on the nominal model but did not run under the "
+            "perturbations: every behaviour the design lists must"
+        )
     if failure is not None and not nominal_failure:  # it passed on the nominal model
         failure += f"; {ROBUST_OFF}"
     v = Verification(
@@ -515,6 +521,15 @@ def _verified(
     if failure is not None:
         return replace(out, infeasible=failure)
     return out
+
+
+def robust_skipped(results: list[dict], robust: Mapping | None) -> list[str]:
+    """The behaviours of ``results`` (the nominal runs, sensing loops included) that passed
+    but that the perturbed runs ``robust`` do not list (:func:`export.verify.
+    robust_missing`); none when no perturbed run was made."""
+    from export.verify import robust_missing
+
+    return robust_missing({"verified": {"behaviors": results, "robust": robust}})
 
 
 def _size_with_less_play(
