@@ -420,7 +420,6 @@ def verify_robust(
     from export.mjcf import load_mjcf
     from export.perturb import describe, draw, perturbed_model, summary
     from export.verdict import explain
-
     from program.sensing import run_sensing, sensing_behaviors
 
     record, xml, meshes = bundle_parts(files)
