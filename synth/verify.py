@@ -381,7 +381,8 @@ def _verified(
         record = outcome.record(designer)
         models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
         # the behaviours' trajectories, then the sensing abilities' closed loops
-        results = verify_files(files) + verify_sensing(files)
+        sensed = verify_sensing(files)
+        results = verify_files(files) + sensed
         failing = [r for r in results if r["verdict"] != "ok"]
         # nominally passed: under the perturbations of synth.robust (--robustness K)
         robust = (
@@ -491,7 +492,7 @@ def _verified(
                 dropped.setdefault(a, why)
     if also:
         failure += f"; also not robust: {', '.join(also)}"
-    skipped = robust_skipped(results, robust)
+    skipped = robust_skipped(sensed, robust)
     if skipped and failure is None:  # (a bug, never a design's fault: said, not passed)
         failure = (
             f"{', '.join(skipped)} passed on the nominal model but did not run under the "
@@ -524,8 +525,9 @@ def _verified(
 
 
 def robust_skipped(results: list[dict], robust: Mapping | None) -> list[str]:
-    """The behaviours of ``results`` (the nominal runs, sensing loops included) that passed
-    but that the perturbed runs ``robust`` do not list (:func:`export.verify.
+    """The behaviours of ``results`` (nominal runs: :func:`_verified` gives it the sensing
+    loops', which run by another path than the plans, :class:`program.session.Session`)
+    that passed but that the perturbed runs ``robust`` do not list (:func:`export.verify.
     robust_missing`); none when no perturbed run was made."""
     from export.verify import robust_missing
 
