@@ -699,14 +699,32 @@ class Session:
         self._commanded_path += float(info.get("path_length_m") or math.hypot(dx, dy))
 
 
+def perturbed_session(
+    folder: str | Path,
+    progress: Callable[[str], None] | None = None,
+    perturb: int | None = None,
+) -> Session:
+    """A session of the bundle in ``folder``; with ``perturb`` (a seed), on that
+    perturbation of the table the design was verified with (``verified.robust.table``;
+    InputError when it has none): the robot the verification's run of that seed drove."""
+    session = Session(folder, progress=progress)
+    if perturb is None:
+        return session
+    from export.verify import recorded_table
+
+    return Session(folder, progress=progress, perturb=(recorded_table(session.record), perturb))
+
+
 def run_program(
     folder: str | Path,
     program: Mapping,
     progress: Callable[[str], None] | None = None,
+    perturb: int | None = None,
 ) -> dict:
     """Validate ``program`` (JSON data, :mod:`program.script`) against the bundle's design
-    and run it; :meth:`Session.result`."""
-    session = Session(folder, progress=progress)
+    and run it (on perturbation ``perturb`` of its table: :func:`perturbed_session`);
+    :meth:`Session.result`."""
+    session = perturbed_session(folder, progress, perturb)
     validate(program, session.behaviors)
     execute(program, session)
     return session.result()
@@ -716,6 +734,7 @@ def run_python(
     folder: str | Path,
     path: str | Path,
     progress: Callable[[str], None] | None = None,
+    perturb: int | None = None,
 ) -> dict:
     """Run the ``main(robot)`` of a Python program file (``parmor run``) on the bundle.
 
@@ -731,7 +750,7 @@ def run_python(
     if not path.is_file():
         raise InputError(f"{path}: no such program file")
     if not hasattr(os, "fork"):
-        return _run_python_here(folder, path, progress)
+        return _run_python_here(folder, path, progress, perturb)
     import pickle
     import signal
     import sys
@@ -746,7 +765,7 @@ def run_python(
             os.close(read)
             signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops it
             try:
-                reply: tuple = ("ok", _run_python_here(folder, path, progress))
+                reply: tuple = ("ok", _run_python_here(folder, path, progress, perturb))
             except ParmorError as e:
                 reply = ("error", e.exit_code, str(e))
             except MemoryError:
@@ -792,6 +811,7 @@ def _run_python_here(
     folder: str | Path,
     path: Path,
     progress: Callable[[str], None] | None = None,
+    perturb: int | None = None,
 ) -> dict:
     """:func:`run_python` in this process."""
     import runpy
@@ -807,7 +827,7 @@ def _run_python_here(
     main = namespace.get("main")
     if not callable(main):
         raise InputError(f"{path}: defines no main(robot) function")
-    session = Session(folder, progress=progress)
+    session = perturbed_session(folder, progress, perturb)
     try:
         main(session)
     except (ParmorError, KeyboardInterrupt, MemoryError):

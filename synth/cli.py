@@ -454,6 +454,14 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="with --json: include the animation frames (every drawn part's pose, 20 per s)",
     )
+    p.add_argument(
+        "--perturb",
+        type=_whole("a seed", MAX_SEED),
+        metavar="SEED",
+        help="run the program on the robot of perturbation SEED of the table it was verified "
+        "with (design.json verified.robust; seeds 1..K are the verification's runs): its "
+        "masses, floor, battery, play, bus latency and sensor noise",
+    )
     _json_option(p)
     _limit_options(p, size=False, memory="of this process")
 
@@ -1465,9 +1473,9 @@ def cmd_run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     with stage("run"):  # the program and its behaviours: a limit here is not in 'parse'
         if form == "json":
-            result = run_program(args.dir, program, progress)
+            result = run_program(args.dir, program, progress, args.perturb)
         else:
-            result = run_python(args.dir, path, progress)
+            result = run_python(args.dir, path, progress, args.perturb)
     if not args.animation:
         result.pop("animation")
     if args.json:
