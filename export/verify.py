@@ -412,15 +412,16 @@ def verify_robust(
 
     The plans are the nominal model's, made once; behaviours with the same plan are run
     once per perturbation (as :func:`verify_model`); the K x runs go on
-    ``VERIFY_THREADS`` threads (MuJoCo steps without Python's lock). The results do not
-    depend on the threads."""
+    ``VERIFY_THREADS`` threads (MuJoCo steps without Python's lock), the sensing loops'
+    on as many forked processes (:func:`_sensing_runs`). The results do not depend on
+    the threads or processes."""
     import dataclasses
     from concurrent.futures import ThreadPoolExecutor
 
     from export.mjcf import load_mjcf
     from export.perturb import describe, draw, perturbed_model, summary
     from export.verdict import explain
-    from program.sensing import run_sensing, sensing_behaviors
+    from program.sensing import sensing_behaviors
 
     record, xml, meshes = bundle_parts(files)
     controller = controller_for_model(record, load_mjcf(xml, meshes))
@@ -441,22 +442,24 @@ def verify_robust(
     seeds = list(range(1, k + 1))
     perturbations = {s: draw(table, s) for s in seeds}
     models = {s: perturbed_model(xml, meshes, table, perturbations[s]) for s in seeds}
-    # the sensing runs first (the longest: the threads finish together)
-    jobs: list[tuple] = [(s, n) for s in seeds for n in sensed]
-    jobs += [(s, r) for s in seeds for r in runs]
+    # the sensing loops on the perturbed robots, from a fresh start: Python most of their
+    # time, so on processes of their own (threads would wait on each other's lock)
+    sensing_jobs = [(s, n) for s in seeds for n in sensed]
+    workers = min(VERIFY_THREADS, len(sensing_jobs), os.cpu_count() or 1)
+    sensing = _sensing_runs(files, table, sensing_jobs, workers)
+    jobs: list[tuple] = [(s, r) for s in seeds for r in runs]
 
-    def one(job: tuple) -> SimResult | dict:
+    def one(job: tuple) -> SimResult:
         s, r = job
-        if isinstance(r, str):  # a sensing loop on the perturbed robot, from a fresh start
-            return run_sensing(files, r, perturb=(table, s))
         return _simulate(models[s], controller, trajs[r], None, None, perturbations[s])
 
     threads = min(VERIFY_THREADS, len(jobs), os.cpu_count() or 1)
     if threads > 1:
         with ThreadPoolExecutor(threads) as pool:
-            done = dict(zip(jobs, pool.map(one, jobs), strict=True))
+            done: dict = dict(zip(jobs, pool.map(one, jobs), strict=True))
     else:
         done = {job: one(job) for job in jobs}
+    done |= sensing()
     need = required_passes(k, float(table["share"]))
     out = []
     for i, n in enumerate([*names, *sensed]):
@@ -504,6 +507,41 @@ def verify_robust(
         "behaviors": out,
         "table": dict(table),
     }
+
+
+def _sensing_run(job: tuple) -> dict:
+    """One perturbed sensing run (:func:`_sensing_runs`): (files, name, table, seed) ->
+    its figures."""
+    from program.sensing import run_sensing
+
+    files, name, table, seed = job
+    return run_sensing(files, name, perturb=(table, seed))
+
+
+def _sensing_runs(
+    files: Mapping[str, str | bytes], table: Mapping, jobs: list[tuple[int, str]], workers: int
+) -> Callable[[], dict]:
+    """The sensing loops' perturbed runs ``jobs`` ((seed, name) each) started on up to
+    ``workers`` forked processes (run here, one after another, where the system cannot
+    fork or one worker is all there is): a function that waits for them and gives
+    (seed, name) -> figures. The figures do not depend on where they ran."""
+    import multiprocessing
+
+    args = [(dict(files), name, dict(table), seed) for seed, name in jobs]
+    if workers <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+        return lambda: {job: _sensing_run(a) for job, a in zip(jobs, args, strict=True)}
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
+    futures = [pool.submit(_sensing_run, a) for a in args]
+
+    def wait() -> dict:
+        try:
+            return {job: f.result() for job, f in zip(jobs, futures, strict=True)}
+        finally:
+            pool.shutdown(cancel_futures=True)
+
+    return wait
 
 
 def robust_missing(record: Mapping) -> list[str]:

@@ -1290,7 +1290,8 @@ def run_sensing(
     judged: its figures (``verdict`` and the loop's figures)."""
     from program.session import Session
 
-    return Session(files=files, perturb=perturb).do(name, **dict(params or {}))["figures"]
+    session = Session(files=files, perturb=perturb, animate=False)
+    return session.do(name, **dict(params or {}))["figures"]
 
 
 def verify_sensing(files: Mapping[str, str | bytes]) -> list[dict]:
@@ -1299,10 +1300,10 @@ def verify_sensing(files: Mapping[str, str | bytes]) -> list[dict]:
     ``ability`` and the figures), in name order; none when the design has none."""
     from program.session import Session
 
-    probe = Session(files=files)
+    probe = Session(files=files, animate=False)
     out = []
     for name in sorted(probe.sensing):
-        session = probe if not probe.started else Session(files=files)
+        session = probe if not probe.started else Session(files=files, animate=False)
         fig = session.do(name)["figures"]
         out.append({"behavior": name, "ability": name, **fig})
     return out

@@ -66,6 +66,7 @@ class Session:
         progress: Callable[[str], None] | None = None,
         files: Mapping[str, str | bytes] | None = None,
         perturb: tuple[Mapping, int] | None = None,
+        animate: bool = True,
     ) -> None:
         """The bundle in ``folder``, or held in memory as ``files`` (``Outcome.files``).
 
@@ -75,7 +76,8 @@ class Session:
         held for each control period, its plans' feedback loops read the IMU with its noise
         and its sensing loops their sensors with theirs (:class:`program.sensing.
         SensorNoise`), as a robust verification runs it; the controller is the nominal
-        model's (what the robot's program knows)."""
+        model's (what the robot's program knows). ``animate``: record the animation's
+        frames (a verification, which shows none, saves a tenth of a walker's run)."""
         import mujoco
 
         from export.simulate import load_files_model
@@ -151,6 +153,7 @@ class Session:
         self._yaws: list[float] = []  # unwrapped heading at each path sample
         self._path: dict[str, list[float]] = {"t": [], "x": [], "y": [], "yaw": []}
         self._frames: list[dict] = []
+        self.animate = animate
         self._expected = np.zeros(3)  # commanded (x, y, yaw), composed
         self._commanded_path = 0.0
         self._anchored = False
@@ -618,6 +621,8 @@ class Session:
             self._yaws.append(yaw)
             for k, v in zip(("t", "x", "y", "yaw"), (t, x, y, yaw), strict=True):
                 self._path[k].append(v)
+        if not self.animate:
+            return
         if not self._frames or t >= self._frames[-1]["t"] + 1 / ANIMATION_FPS - 1e-9:
             self._frames.append(self._frame(t, d))
 
