@@ -7,6 +7,7 @@ loops the verification ran."""
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 from pathlib import Path
 
@@ -202,9 +203,8 @@ def test_a_sensing_loops_plans_run_their_feedback_loop(cart, monkeypatch) -> Non
     plan = s.controller.run
 
     def with_loop(name, **params):
-        traj = plan(name, **params)
-        traj.info["feedback"] = {"loop": "test-count"}
-        return traj
+        traj = plan(name, **params)  # (a copy: plans are remembered)
+        return dataclasses.replace(traj, info={**traj.info, "feedback": {"loop": "test-count"}})
 
     monkeypatch.setattr(s.controller, "run", with_loop)
     fig = s.do("line-tracking", length=0.3)["figures"]
@@ -213,3 +213,13 @@ def test_a_sensing_loops_plans_run_their_feedback_loop(cart, monkeypatch) -> Non
     periods = round(fig["seconds"] * 20)
     assert len(readings) >= 3 * (periods - 2), (len(readings), periods)
     assert sorted(set(np.round(readings, 6))) == [0.0, 0.02, 0.04]
+
+
+def test_a_bundle_not_verified_under_perturbation_cannot_be_replayed(cli, cart, tmp_path) -> None:
+    """Built to fail: the cart designed with --no-verify has no perturbation table."""
+    r = cli("simulate", str(cart), "--behavior", "line-tracking", "--perturb", "1")
+    assert r.code == 2 and "verified.robust.table is missing" in r.err
+    program = tmp_path / "p.json"
+    program.write_text(json.dumps({"program": [{"do": "line-tracking"}]}))
+    r = cli("run", str(program), str(cart), "--perturb", "1")
+    assert r.code == 2 and "verified.robust.table is missing" in r.err

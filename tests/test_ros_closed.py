@@ -17,6 +17,8 @@ from tests.test_ros import Ros, parmor, ros_python, wait_for
 
 #: A worker whose plans all ask for the example loop (joint-hold, a strong integral).
 LOOP_WORKER = """
+import dataclasses
+
 import program.rosworker as w
 
 _init = w.Worker.__init__
@@ -28,8 +30,8 @@ def _with_loop(self, *args, **kwargs):
 
     def run_with_loop(name, **params):
         traj = run(name, **params)
-        traj.info["feedback"] = {"loop": "joint-hold", "ki": 20.0, "moving_rad_s": 100.0}
-        return traj
+        loop = {"loop": "joint-hold", "ki": 20.0, "moving_rad_s": 100.0}
+        return dataclasses.replace(traj, info={**traj.info, "feedback": loop})
 
     self.controller.run = run_with_loop
 

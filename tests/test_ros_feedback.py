@@ -4,6 +4,7 @@ topics the controller reads (the servos' read-back; the IMU where the design has
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -60,9 +61,9 @@ def test_the_worker_runs_the_plans_loop_on_the_robots_readings(arm, monkeypatch)
     run = worker.controller.run
 
     def with_loop(name, **params):
-        traj = run(name, **params)
-        traj.info["feedback"] = {"loop": "joint-hold", "ki": 4.0}
-        return traj
+        traj = run(name, **params)  # (a copy: plans are remembered)
+        loop = {"loop": "joint-hold", "ki": 4.0}
+        return dataclasses.replace(traj, info={**traj.info, "feedback": loop})
 
     monkeypatch.setattr(worker.controller, "run", with_loop)
     reply = worker.call({"service": service["service"], "fields": {}})
