@@ -454,11 +454,15 @@ def verify_robust(
         return _simulate(models[s], controller, trajs[r], None, None, perturbations[s])
 
     threads = min(VERIFY_THREADS, len(jobs), os.cpu_count() or 1)
-    if threads > 1:
-        with ThreadPoolExecutor(threads) as pool:
-            done: dict = dict(zip(jobs, pool.map(one, jobs), strict=True))
-    else:
-        done = {job: one(job) for job in jobs}
+    try:
+        if threads > 1:
+            with ThreadPoolExecutor(threads) as pool:
+                done: dict = dict(zip(jobs, pool.map(one, jobs), strict=True))
+        else:
+            done = {job: one(job) for job in jobs}
+    except BaseException:  # (a time limit, Ctrl-C): the sensing runs are not waited for
+        sensing(cancel=True)
+        raise
     done |= sensing()
     need = required_passes(k, float(table["share"]))
     out = []
@@ -520,26 +524,45 @@ def _sensing_run(job: tuple) -> dict:
 
 def _sensing_runs(
     files: Mapping[str, str | bytes], table: Mapping, jobs: list[tuple[int, str]], workers: int
-) -> Callable[[], dict]:
+) -> Callable[..., dict]:
     """The sensing loops' perturbed runs ``jobs`` ((seed, name) each) started on up to
     ``workers`` forked processes (run here, one after another, where the system cannot
     fork or one worker is all there is): a function that waits for them and gives
-    (seed, name) -> figures. The figures do not depend on where they ran."""
+    (seed, name) -> figures (called with ``cancel=True``: stops them). The figures do not
+    depend on where they ran."""
     import multiprocessing
 
     args = [(dict(files), name, dict(table), seed) for seed, name in jobs]
     if workers <= 1 or "fork" not in multiprocessing.get_all_start_methods():
-        return lambda: {job: _sensing_run(a) for job, a in zip(jobs, args, strict=True)}
+
+        def here(cancel: bool = False) -> dict:
+            if cancel:
+                return {}
+            return {job: _sensing_run(a) for job, a in zip(jobs, args, strict=True)}
+
+        return here
     from concurrent.futures import ProcessPoolExecutor
 
     pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
     futures = [pool.submit(_sensing_run, a) for a in args]
 
-    def wait() -> dict:
+    def stop() -> None:
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):
+            proc.terminate()
+        pool.shutdown(wait=False, cancel_futures=True)
+
+    def wait(cancel: bool = False) -> dict:
+        """The runs' figures; with ``cancel``, the runs stopped instead (nothing)."""
+        if cancel:
+            stop()
+            return {}
         try:
-            return {job: f.result() for job, f in zip(jobs, futures, strict=True)}
-        finally:
-            pool.shutdown(cancel_futures=True)
+            out = {job: f.result() for job, f in zip(jobs, futures, strict=True)}
+        except BaseException:  # (a time limit, Ctrl-C): the runs left are not waited for
+            stop()
+            raise
+        pool.shutdown()
+        return out
 
     return wait
 
