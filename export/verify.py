@@ -398,6 +398,7 @@ def verify_robust(
     table: Mapping,
     behaviors: Sequence[str] | None = None,
     only: Collection[str] | None = None,
+    sensing: bool = True,
 ) -> dict:
     """Every listed behaviour of a bundle (default parameters; ``behaviors`` when given,
     the listed ones named in ``only``) run under the perturbations 1..``k`` of ``table``
@@ -408,7 +409,8 @@ def verify_robust(
     as :func:`program.sensing.verify_sensing` runs them nominally) run on each perturbed
     robot too, from a fresh start, with the perturbation's bus and their sensors' noise
     (:class:`program.session.Session` ``perturb``); their entries say ``"loop":
-    "sensing"`` and their failures name the sensors' draws as well.
+    "sensing"`` and their failures name the sensors' draws as well (``sensing``: false
+    leaves them out).
 
     The plans are the nominal model's, made once; behaviours with the same plan are run
     once per perturbation (as :func:`verify_model`); the K x runs go on
@@ -435,6 +437,8 @@ def verify_robust(
     if only is not None:
         names = [n for n in names if n in only]
         sensed = [n for n in sensed if n in only]
+    if not sensing:
+        sensed = []
     trajs = [controller.run(n) for n in names]
     same: dict[bytes, int] = {}
     first = [same.setdefault(_plan_digest(t), i) for i, t in enumerate(trajs)]

@@ -34,10 +34,12 @@ def robust_check(
     k: int,
     only: Collection[str] | None = None,
     files: Mapping[str, str | bytes] | None = None,
+    sensing: bool = True,
 ) -> dict | None:
     """``verified.robust`` of ``outcome`` (a sized design) under perturbations 1..``k`` of
-    its table (of its listed behaviours, those named in ``only`` when given); None when
-    ``k`` is 0. ``files``: its :func:`robust_files` when the caller has them already."""
+    its table (of its listed behaviours, those named in ``only`` when given; its sensing
+    loops unless ``sensing`` is false); None when ``k`` is 0. ``files``: its
+    :func:`robust_files` when the caller has them already."""
     if k <= 0 or outcome.structure is None or outcome.catalog is None:
         return None
     from export.perturb import design_table
@@ -47,7 +49,15 @@ def robust_check(
     record, xml, _ = bundle_parts(files)
     # through JSON as design.json keeps it: the replay draws from the very same numbers
     table = json.loads(json.dumps(design_table(record, xml, outcome.catalog)))
-    return verify_robust(files, k, table, only=only)
+    return verify_robust(files, k, table, only=only, sensing=sensing)
+
+
+def with_sensing(robust: dict, more: Mapping | None) -> dict:
+    """``robust`` (the plans' perturbed runs) with the sensing loops' of ``more`` (the same
+    table and seeds) after them."""
+    if not more:
+        return robust
+    return dict(robust, behaviors=[*robust["behaviors"], *more["behaviors"]])
 
 
 def robust_files(designer: Designer, outcome: Outcome) -> dict[str, str | bytes]:

@@ -25,6 +25,13 @@ A failed perturbed run with no actuator saturated on a robot with wheels is repl
 stiffer wheel servos (:func:`synth.robust_wheels.wheel_exclusions`): the first with which
 the runs pass is the answer, the wheels may have no less stiff servo in the next sizing.
 
+The sensing loops (:mod:`program.sensing`: line-tracking, obstacle-avoidance) that passed
+nominally run under the same K perturbations once the repairs are done, on the design as
+it stands (their runs feed no repair: they have no saturated joint to point at), unless
+the plans' perturbed runs refuse the design already; a loop not robust refuses a demanded
+ability or drops a bonus one like any behaviour, and one that passed nominally but was
+not run perturbed refuses the design (:func:`robust_skipped`).
+
 Before each round's verification, a controller whose open-loop model needs figures only a
 run can give (:meth:`gaits.base.Controller.calibration_probes`: a skid-steer's effective
 track and turning load) has its probe runs simulated and the design's ``calibration``
@@ -344,6 +351,7 @@ def _verified(
         play_note,
         robust_check,
         robust_files,
+        with_sensing,
     )
     from synth.robust_legs import hold_blame, hold_note
     from synth.robust_wheels import wheel_exclusions, wheel_joints, wheel_note
@@ -388,7 +396,9 @@ def _verified(
         robust = (
             None
             if failing or opts.robustness <= 0
-            else robust_check(designer, outcome, opts.robustness, files=robust_bundle())
+            else robust_check(
+                designer, outcome, opts.robustness, files=robust_bundle(), sensing=False
+            )
         )
         more = _floors(results + failing_runs(robust), record)
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
@@ -455,6 +465,17 @@ def _verified(
     served = served_abilities(record, controller)
     unsimulated = tuple(a for a in record.get("abilities", ()) if served.get(a) is None)
     needed = set(record.get("needed") or record.get("abilities", ()))
+    if robust is not None and not failing:
+        # the sensing loops under the perturbations: once, on the design as it stands (a
+        # repair answers the plans' runs; a loop's run has no saturated joint to feed
+        # it), unless a plan's perturbed runs refuse the design already
+        refused = any(
+            ({a} | {x for x, s in served.items() if s == a}) & needed for a, _ in not_robust(robust)
+        )
+        loops = [r["behavior"] for r in sensed if r["verdict"] == "ok"]
+        if loops and not refused:
+            more = robust_check(designer, outcome, opts.robustness, set(loops), robust_bundle())
+            robust = with_sensing(robust, more)
     # a behaviour fails the request when it serves a demanded ability (walking serves a
     # demanded heavy-walking); else the abilities it serves are dropped
     dropped: dict[str, str] = {}
