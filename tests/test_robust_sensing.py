@@ -223,3 +223,16 @@ def test_a_bundle_not_verified_under_perturbation_cannot_be_replayed(cli, cart, 
     program.write_text(json.dumps({"program": [{"do": "line-tracking"}]}))
     r = cli("run", str(program), str(cart), "--perturb", "1")
     assert r.code == 2 and "verified.robust.table is missing" in r.err
+
+
+def test_parmor_design_lists_the_sensing_loops_in_verified_robust(cli) -> None:
+    """The design loop (synth/verify.py) runs the loops perturbed once the repairs are
+    done: every behaviour the design lists is in ``verified.robust``."""
+    r = cli("design", "driving", "line-tracking", "--robustness", "2", "--no-input", "--json")
+    assert r.code == 0, r.err
+    v = json.loads(r.out)["verified"]
+    entries = {b["behavior"]: b for b in v["robust"]["behaviors"]}
+    assert set(entries) == {b["behavior"] for b in v["behaviors"]} >= {"line-tracking"}
+    assert entries["line-tracking"]["loop"] == "sensing"
+    assert (entries["line-tracking"]["passed"], entries["line-tracking"]["runs"]) == (2, 2)
+    assert robust_missing({"verified": v}) == []
