@@ -32,7 +32,11 @@ text, then compiled as any bundle model):
   bending stiffness k: ``kp k / (kp + k)``;
 - **command latency and control rate**: not a model edit; the run's references are
   those of ``latency`` s earlier, held for each control period
-  (:func:`export.simulate.simulate`'s ``latency_s``, ``command_period_s``).
+  (:func:`export.simulate.simulate`'s ``latency_s``, ``command_period_s``);
+- **sensors**: not a model edit; the IMU's noise and gyro bias (``imu``) reach the plans'
+  feedback loops, the line sensors' edge offsets and jitter and the ranger's scale, noise
+  and resolution (``sensing``, drawn after the IMU's) the sensing loops
+  (:class:`program.sensing.SensorNoise`).
 """
 
 from __future__ import annotations
@@ -68,6 +72,9 @@ PLAY_SOLIMP = "0.99 0.999 0.001"
 #: slid 45 mm in 30 s; with these 0.2 mm), which friction stops on a real floor. Set when
 #: the floor is tilted; a level floor's model (the nominal one) is left as it is.
 NOSLIP_ITERATIONS = 10
+#: The sensor module classes whose readings a sensing loop (:mod:`program.sensing`) takes,
+#: and the table's key of their noise (``perturb.toml``'s section of that name).
+SENSING_MODULES = {"InfraredSensorModule": "infrared", "UltrasonicSensorModule": "ultrasonic"}
 #: Prefix of the payload's bodies (:func:`export.simulate.carrying_payload`): not scaled.
 PAYLOAD_PREFIX = "payload_"
 
@@ -199,6 +206,15 @@ def _resolve(raw: Mapping[str, Any], source: str) -> dict[str, Any]:
             "gyro_bias_rad_s": q("imu", "gyro_bias", "angular_speed", zero=True),
             "accel_std_m_s2": q("imu", "accel_noise", "acceleration", zero=True),
         },
+        "infrared": {
+            "edge_offset_m": q("infrared", "edge_offset", "length", zero=True),
+            "edge_jitter_m": q("infrared", "edge_jitter", "length", zero=True),
+        },
+        "ultrasonic": {
+            "noise_m": q("ultrasonic", "noise", "length", zero=True),
+            "resolution_m": q("ultrasonic", "resolution", "length", zero=True),
+            "scale": ratio("ultrasonic", "scale", 0.0, 0.5),
+        },
         "share": ratio("acceptance", "share", 0.0, 1.0),
         "default_k": int(ratio("acceptance", "default_k", 0, 1000)),
     }
@@ -286,6 +302,7 @@ def design_table(
                 "link_stiffness_Nm_rad": stiffness,
             }
     power = record.get("power") or {}
+    kinds = {str(m.get("kind")) for m in record.get("modules") or () if isinstance(m, Mapping)}
     pack = catalog.battery.voltage_V
     return {
         "stream": r["stream"],
@@ -300,6 +317,8 @@ def design_table(
         "share": r["share"],
         # the IMU's noise where the design carries one (export.mjcf's gyro sensor)
         **({"imu": r["imu"]} if root.find(".//sensor/gyro") is not None else {}),
+        # the sensing loops' sensors where the design carries them (program.sensing)
+        **{key: r[key] for cls, key in SENSING_MODULES.items() if cls in kinds},
     }
 
 
@@ -333,8 +352,27 @@ def draw(table: Mapping[str, Any], seed: int) -> dict[str, Any]:
             "gyro_std_rad_s": float(i["gyro_std_rad_s"]),
             "accel_std_m_s2": float(i["accel_std_m_s2"]),
         }
+    sensing = {}
+    # drawn after the IMU's: the draws above are those of tables without these sensors
+    if table.get("infrared"):  # one edge offset per sensor (left, right) and run
+        i = table["infrared"]
+        e = float(i["edge_offset_m"])
+        sensing["infrared"] = {
+            "edge_offset_m": [float(x) for x in rng.uniform(-e, e, 2)],
+            "edge_jitter_m": float(i["edge_jitter_m"]),
+        }
+    if table.get("ultrasonic"):  # one speed-of-sound scale a run
+        u = table["ultrasonic"]
+        sensing["ultrasonic"] = {
+            "scale": 1.0 + float(rng.uniform(-float(u["scale"]), float(u["scale"]))),
+            "noise_m": float(u["noise_m"]),
+            "resolution_m": float(u["resolution_m"]),
+        }
+    if sensing:  # the readings' noise: a stream of its own (program.sensing.SensorNoise)
+        sensing |= {"stream": int(table["stream"]), "seed": seed}
     return {
         **({"imu": imu} if imu is not None else {}),
+        **({"sensing": sensing} if sensing else {}),
         "seed": seed,
         "friction_scale": friction,
         "slope_rad": slope,
@@ -367,12 +405,15 @@ def summary(p: Mapping[str, Any]) -> dict[str, Any]:
         "mass_scale": [r(min(masses)), r(max(masses))],
         "max_play_deg": r(math.degrees(plays[worst])) if worst else 0.0,
         "max_play_joint": worst,
+        **({"sensors": sensor_text(p).lstrip(", ")} if p.get("sensing") else {}),
     }
 
 
-def describe(p: Mapping[str, Any]) -> str:
-    """One line: ``seed 3 (friction x0.71, slope 2.1 deg, latency 31 ms, ...)``."""
+def describe(p: Mapping[str, Any], sensors: bool = False) -> str:
+    """One line: ``seed 3 (friction x0.71, slope 2.1 deg, latency 31 ms, ...)``; with
+    ``sensors``, the sensing loops' sensors' draws too (:func:`sensor_text`)."""
     s = summary(p)
+    extra = sensor_text(p) if sensors else ""
     play = (
         f", play up to {s['max_play_deg']:g} deg ({s['max_play_joint']})"
         if s["max_play_joint"]
@@ -381,8 +422,23 @@ def describe(p: Mapping[str, Any]) -> str:
     return (
         f"seed {s['seed']} (friction x{s['friction_scale']:g}, slope {s['slope_deg']:g} deg, "
         f"latency {s['latency_ms']:g} ms, battery x{s['battery_scale']:g}, masses "
-        f"x{s['mass_scale'][0]:g}-{s['mass_scale'][1]:g}{play})"
+        f"x{s['mass_scale'][0]:g}-{s['mass_scale'][1]:g}{play}{extra})"
     )
+
+
+def sensor_text(p: Mapping[str, Any]) -> str:
+    """The sensing loops' sensors of perturbation ``p``, e.g. ``, line edges +1.2/-0.4 mm
+    +- 0.5 mm, ranger x1.008 +- 3 mm``; "" when it draws none."""
+    sensing = p.get("sensing") or {}
+    out = ""
+    ir = sensing.get("infrared")
+    if ir:
+        edges = "/".join(f"{x * 1000:+.2g}" for x in ir["edge_offset_m"])
+        out += f", line edges {edges} mm +- {ir['edge_jitter_m'] * 1000:.2g} mm"
+    us = sensing.get("ultrasonic")
+    if us:
+        out += f", ranger x{us['scale']:.4g} +- {us['noise_m'] * 1000:.2g} mm"
+    return out
 
 
 def _num(x: float) -> str:

@@ -384,12 +384,29 @@ def physics_check(
         fine = verify_model(record, load_mjcf(xml, meshes), behaviors)
     wanted = [str(f["behavior"]) for f in fine]
     text, step = coarse_xml(xml)
-    coarse = {str(f["behavior"]): f for f in verify_model(record, load_mjcf(text, meshes), wanted)}
-    largest: dict[str, tuple[float, str]] = {}
+    coarse = verify_model(record, load_mjcf(text, meshes), wanted)
+    largest: dict[str, list] = {}
+    why = agreement(fine, coarse, largest)
+    return {
+        "timestep_s": None if why else step,
+        "coarse_s": step,
+        "largest": dict(sorted(largest.items())),
+        "why": why or "every figure of the nominal runs agrees",
+    }
+
+
+def agreement(fine: Sequence[Mapping], coarse: Sequence[Mapping], largest: dict) -> str:
+    """Why the runs ``coarse`` (figures by behaviour) do not give the verdicts and figures
+    of ``fine`` within :data:`AGREE` ("" when they do); ``largest`` gets each figure's
+    largest difference and its behaviour."""
+    by_name = {str(c["behavior"]): c for c in coarse}
     why = ""
     for f in fine:
         name = str(f["behavior"])
-        c = coarse[name]
+        c = by_name.get(name)
+        if c is None:
+            why = why or f"{name}: not run at the coarse step"
+            continue
         if (f["verdict"] == "ok") != (c["verdict"] == "ok"):
             why = why or f"{name}: verdict {f['verdict']} at the fine step, {c['verdict']} coarse"
         a, b = _criteria(f), _criteria(c)
@@ -399,16 +416,11 @@ def physics_check(
                 continue
             d = abs(a[key] - b[key])
             tol = AGREE.get(key, 0.1 * max(abs(a[key]), 1e-9))
-            if d > largest.get(key, (-1.0, ""))[0]:
-                largest[key] = (float(f"{d:.4g}"), name)
+            if d > largest.get(key, [-1.0, ""])[0]:
+                largest[key] = [float(f"{d:.4g}"), name]
             if d > tol:
                 why = why or f"{name}: {key} {a[key]:.4g} at the fine step, {b[key]:.4g} coarse"
-    return {
-        "timestep_s": None if why else step,
-        "coarse_s": step,
-        "largest": {k: list(v) for k, v in sorted(largest.items())},
-        "why": why or "every figure of the nominal runs agrees",
-    }
+    return why
 
 
 def _worse(kind: str, a: float, b: float) -> bool:
@@ -503,28 +515,47 @@ def verify_robust(
     table: Mapping,
     behaviors: Sequence[str] | None = None,
     only: Collection[str] | None = None,
+    sensing: bool = True,
 ) -> dict:
     """Every listed behaviour of a bundle (default parameters; ``behaviors`` when given,
     the listed ones named in ``only``) run under the perturbations 1..``k`` of ``table``
     (:mod:`export.perturb`) and judged: the record's ``verified.robust``. A behaviour is
     robust when it passes at least :func:`required_passes` of its runs.
 
+    The sensing loops (``line-tracking``, ``obstacle-avoidance``: :mod:`program.sensing`,
+    as :func:`program.sensing.verify_sensing` runs them nominally) run on each perturbed
+    robot too, from a fresh start, with the perturbation's bus and their sensors' noise
+    (:class:`program.session.Session` ``perturb``); their entries say ``"loop":
+    "sensing"`` and their failures name the sensors' draws as well (``sensing``: false
+    leaves them out).
+
     The plans are the nominal model's, made once; behaviours with the same plan are run
     once per perturbation (as :func:`verify_model`); the K x runs go on
-    ``VERIFY_THREADS`` threads (MuJoCo steps without Python's lock). The results do not
-    depend on the threads."""
+    ``VERIFY_THREADS`` threads (MuJoCo steps without Python's lock), the sensing loops'
+    on as many forked processes (:func:`_sensing_runs`). The results do not depend on
+    the threads or processes."""
     import dataclasses
     from concurrent.futures import ThreadPoolExecutor
 
     from export.mjcf import load_mjcf
     from export.perturb import describe, draw, perturbed_model, summary
     from export.verdict import explain
+    from program.sensing import sensing_behaviors
 
     record, xml, meshes = bundle_parts(files)
     controller = controller_for_model(record, load_mjcf(xml, meshes))
-    names = controller.listed(record.get("abilities", ())) if behaviors is None else list(behaviors)
+    # the sensing loops (program.sensing) the design's verification runs, by name
+    sensed = sorted(sensing_behaviors(controller.behaviors, tuple(record.get("abilities", ()))))
+    if behaviors is None:
+        names = controller.listed(record.get("abilities", ()))
+    else:
+        names = [n for n in behaviors if n not in sensed]
+        sensed = [n for n in sensed if n in behaviors]
     if only is not None:
         names = [n for n in names if n in only]
+        sensed = [n for n in sensed if n in only]
+    if not sensing:
+        sensed = []
     trajs = []
     for n in names:
         try:
@@ -537,24 +568,38 @@ def verify_robust(
     seeds = list(range(1, k + 1))
     perturbations = {s: draw(table, s) for s in seeds}
     models = {s: perturbed_model(xml, meshes, table, perturbations[s]) for s in seeds}
-    jobs = [(s, r) for s in seeds for r in runs]
+    # the sensing loops on the perturbed robots, from a fresh start: Python most of their
+    # time, so on processes of their own (threads would wait on each other's lock)
+    sensing_jobs = [(s, n) for s in seeds for n in sensed]
+    workers = min(VERIFY_THREADS, len(sensing_jobs), os.cpu_count() or 1)
+    sensing = _sensing_runs(files, table, sensing_jobs, workers)
+    jobs: list[tuple] = [(s, r) for s in seeds for r in runs]
 
-    def one(job: tuple[int, int]) -> SimResult:
+    def one(job: tuple) -> SimResult:
         s, r = job
         return _simulate(models[s], controller, trajs[r], None, None, perturbations[s])
 
     threads = min(VERIFY_THREADS, len(jobs), os.cpu_count() or 1)
-    if threads > 1:
-        with ThreadPoolExecutor(threads) as pool:
-            done = dict(zip(jobs, pool.map(one, jobs), strict=True))
-    else:
-        done = {job: one(job) for job in jobs}
+    try:
+        if threads > 1:
+            with ThreadPoolExecutor(threads) as pool:
+                done: dict = dict(zip(jobs, pool.map(one, jobs), strict=True))
+        else:
+            done = {job: one(job) for job in jobs}
+    except BaseException:  # (a time limit, Ctrl-C): the sensing runs are not waited for
+        sensing(cancel=True)
+        raise
+    done |= sensing()
     need = required_passes(k, float(table["share"]))
     out = []
-    for i, n in enumerate(names):
+    for i, n in enumerate([*names, *sensed]):
         figs = []
+        loop = i >= len(names)  # a sensing loop
         for s in seeds:
-            result = dataclasses.replace(done[(s, first[i])], behavior=trajs[i].behavior)
+            if loop:
+                figs.append({"seed": s} | done[(s, n)])  # type: ignore[operator]
+                continue
+            result = dataclasses.replace(done[(s, first[i])], behavior=trajs[i].behavior)  # type: ignore[arg-type]
             figs.append({"seed": s} | figures(trajs[i], result))
         worst: dict[str, dict] = {}
         for fig in figs:
@@ -566,7 +611,8 @@ def verify_robust(
         passed = len(figs) - len(failed)
         entry = {
             "behavior": n,
-            "ability": controller.behaviors[n].realises,
+            "ability": n if loop else controller.behaviors[n].realises,
+            **({"loop": "sensing"} if loop else {}),
             "passed": passed,
             "runs": len(figs),
             "robust": passed >= need,
@@ -576,7 +622,7 @@ def verify_robust(
                     "seed": f["seed"],
                     "verdict": f["verdict"],
                     "why": explain(f, f["verdict"]),
-                    "perturbation": describe(perturbations[f["seed"]]),
+                    "perturbation": describe(perturbations[f["seed"]], sensors=loop),
                 }
                 for f in failed
             ],
@@ -591,6 +637,79 @@ def verify_robust(
         "behaviors": out,
         "table": dict(table),
     }
+
+
+def _sensing_run(job: tuple) -> dict:
+    """One perturbed sensing run (:func:`_sensing_runs`): (files, name, table, seed) ->
+    its figures."""
+    from program.sensing import run_sensing
+
+    files, name, table, seed = job
+    return run_sensing(files, name, perturb=(table, seed))
+
+
+def _sensing_runs(
+    files: Mapping[str, str | bytes], table: Mapping, jobs: list[tuple[int, str]], workers: int
+) -> Callable[..., dict]:
+    """The sensing loops' perturbed runs ``jobs`` ((seed, name) each) started on up to
+    ``workers`` forked processes (run here, one after another, where the system cannot
+    fork or one worker is all there is): a function that waits for them and gives
+    (seed, name) -> figures (called with ``cancel=True``: stops them). The figures do not
+    depend on where they ran."""
+    import multiprocessing
+
+    args = [(dict(files), name, dict(table), seed) for seed, name in jobs]
+    if workers <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+
+        def here(cancel: bool = False) -> dict:
+            if cancel:
+                return {}
+            return {job: _sensing_run(a) for job, a in zip(jobs, args, strict=True)}
+
+        return here
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
+    futures = [pool.submit(_sensing_run, a) for a in args]
+
+    def stop() -> None:
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):
+            proc.terminate()
+        pool.shutdown(wait=False, cancel_futures=True)
+
+    def wait(cancel: bool = False) -> dict:
+        """The runs' figures; with ``cancel``, the runs stopped instead (nothing)."""
+        if cancel:
+            stop()
+            return {}
+        try:
+            out = {job: f.result() for job, f in zip(jobs, futures, strict=True)}
+        except BaseException:  # (a time limit, Ctrl-C): the runs left are not waited for
+            stop()
+            raise
+        pool.shutdown()
+        return out
+
+    return wait
+
+
+def robust_missing(record: Mapping) -> list[str]:
+    """The behaviours a verified record lists (``verified.behaviors``, the sensing loops
+    included) that passed on the nominal model but are missing from its perturbed runs
+    (``verified.robust.behaviors``), name order; none when the record was not verified
+    under perturbation. Every behaviour the design lists must have been run under them."""
+    verified = record.get("verified") if isinstance(record, Mapping) else None
+    robust = verified.get("robust") if isinstance(verified, Mapping) else None
+    if not isinstance(robust, Mapping):
+        return []
+    ran = {b.get("behavior") for b in robust.get("behaviors", ())}
+    return sorted(
+        {
+            b["behavior"]
+            for b in verified.get("behaviors", ())
+            if b.get("verdict") == "ok" and b["behavior"] not in ran
+        }
+    )
 
 
 def robust_failure(robust: Mapping) -> dict[str, str]:

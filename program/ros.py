@@ -62,8 +62,17 @@ FIXED_RESPONSE = (
     ("message", "string", "why the call was refused (the field, its value and range)"),
     ("duration_s", "float64", "duration of the published trajectory, s"),
 )
-#: Names of the node's topics, relative to ``<robot>/``.
-TOPICS = {"trajectory": "joint_trajectory", "joint_states": "joint_states"}
+#: Names of the node's topics, relative to ``<robot>/``: what it publishes (the plan,
+#: its playback, the commands for the servos) and what its feedback loops read (the
+#: servos' read-back; ``imu`` only where the design carries an IMU, :data:`IMU_TOPIC`).
+TOPICS = {
+    "trajectory": "joint_trajectory",
+    "joint_states": "joint_states",
+    "commands": "joint_commands",
+    "measured": "measured_joint_states",
+}
+#: The topic of the IMU's readings (``sensor_msgs/Imu``), where the design carries one.
+IMU_TOPIC = "imu"
 #: Rate at which the node plays the trajectory back on ``joint_states``, Hz (default).
 PLAYBACK_RATE_HZ = 50.0
 #: Longest the node waits for one plan before it restarts the worker, s (default).
@@ -206,6 +215,7 @@ def interface(record: Mapping, name: str | None = None) -> dict:
     controller or no behaviour."""
     from gaits import controller_for
     from gaits.base import DesignGeometry
+    from gaits.feedback import CONTROL_PERIOD_S, has_imu
 
     try:
         geometry = DesignGeometry.from_record(record)
@@ -251,12 +261,26 @@ def interface(record: Mapping, name: str | None = None) -> dict:
         "robot": robot,
         "package": f"parmor_{robot}",
         "robot_type": geometry.robot_type,
-        "topics": dict(TOPICS),
+        "topics": dict(TOPICS) | ({"imu": IMU_TOPIC} if has_imu(geometry.sensors) else {}),
+        # what the node's feedback loops read and at which period (gaits.feedback); the
+        # wheels' offsets are speeds (their servos take a velocity)
+        "feedback": {
+            "period_s": CONTROL_PERIOD_S,
+            "imu": has_imu(geometry.sensors),
+            "velocity_joints": _wheel_joints(controller.template, record),
+        },
         "playback_rate_hz": PLAYBACK_RATE_HZ,
         "plan_timeout_s": PLAN_TIMEOUT_S,
         "max_points": MAX_POINTS,
         "services": services,
     }
+
+
+def _wheel_joints(template, record: Mapping) -> list[str]:
+    """The driven wheels' joints (velocity servos: a loop's offset for them is a speed)."""
+    m = template.model
+    driven = {j.get("name") for j in record.get("joints", ())}
+    return sorted(name for w in template.wheels if (name := m.joints[m.body(w)].name) in driven)
 
 
 # --- the package's files ------------------------------------------------------------------
@@ -368,6 +392,9 @@ def launch_xml(iface: Mapping) -> str:
             f'  <arg name="rate" default="{PLAYBACK_RATE_HZ:g}"/>',
             f'  <arg name="plan_timeout" default="{PLAN_TIMEOUT_S:g}"/>',
             f'  <param name="robot_description" textfile="$(find {pkg})/urdf/robot.urdf"/>',
+            "  <!-- the controller publishes the servos' commands on joint_commands and, while a",
+            "       plan has a feedback loop, reads the servos' read-back on",
+            f"       measured_joint_states (sensor_msgs/JointState){_imu_comment(iface)} -->",
             f'  <node name="{pkg}" pkg="{pkg}" type="parmor_node" output="screen" required="true">',
             '    <param name="python" value="$(arg python)"/>',
             '    <param name="pythonpath" value="$(arg pythonpath)"/>',
@@ -378,6 +405,12 @@ def launch_xml(iface: Mapping) -> str:
             "",
         ]
     )
+
+
+def _imu_comment(iface: Mapping) -> str:
+    if "imu" not in iface["topics"]:
+        return ""
+    return f" and the IMU on {iface['topics']['imu']} (sensor_msgs/Imu)"
 
 
 def readme(iface: Mapping) -> str:
@@ -408,6 +441,29 @@ def readme(iface: Mapping) -> str:
         "start plus its time), and answers at once with `ok`, `message`, `duration_s` and what",
         "the behaviour promises. A value out of its range gets `ok: False` and a message",
         "naming the field, the value and the range; the node keeps serving.",
+        "",
+        "## What the controller reads and writes",
+        "",
+        f"The node drives the servos through `/{r}/{t['commands']}` (`sensor_msgs/JointState`:",
+        "`position` for position servos, `velocity` for the wheels' velocity servos, every",
+        f"{iface['feedback']['period_s'] * 1000:g} ms). When a plan carries a feedback loop (the",
+        "one the design was verified with: parmor's `gaits.feedback`, run by its worker), the",
+        "node reads, every period:",
+        "",
+        f"- `/{r}/{t['measured']}` (`sensor_msgs/JointState`): the servos' read-back,",
+        "  position and velocity of each joint (a wheel's encoder), published by the hardware",
+        "  driver;",
+    ]
+    if "imu" in t:
+        lines += [
+            f"- `/{r}/{t['imu']}` (`sensor_msgs/Imu`): the design's IMU module,"
+            " `angular_velocity` rad/s and `linear_acceleration` m/s^2 (specific force) in its",
+            "  own frame, as its driver publishes them;",
+        ]
+    lines += [
+        "",
+        "and adds the loop's correction to the plan's commands. Until the read-back arrives,",
+        "the plan is sent as it is (open loop) and the node says so once.",
         "",
         "The node runs under the system's ROS Python and starts a parmor worker",
         "(`python -m program.rosworker` on this folder); its interpreter and import folder",

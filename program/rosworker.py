@@ -12,7 +12,13 @@ stdin and stdout:
   service request's fields), one reply line ``{"ok": bool, "response": {FIELD: VALUE},
   "trajectory": {"joints", "times", "positions", "velocities"}}`` (``trajectory`` only
   when ok; ``response`` holds every response field of the service, ``message`` the
-  reason of a refusal: the field, its value and its range).
+  reason of a refusal: the field, its value and its range); the trajectory's
+  ``feedback`` is the plan's feedback loop (``info["feedback"]``, :mod:`gaits.feedback`)
+  or null;
+- for each request line ``{"correct": {"t", "q", "qd", "gyro", "accel"}}`` (what the
+  robot measured, ``t`` s into the last plan served), one reply line ``{"ok": true,
+  "offsets": [...]}``: what that plan's loop adds to its commands (:meth:`Worker.correct`;
+  the node sends one every control period while it plays a plan with a loop).
 
 It ends at the end of its input, so it never outlives the node, and quietly when the node
 is gone (its output closed). It ignores SIGINT: roslaunch sends it to the node's whole
@@ -72,6 +78,11 @@ class Worker:
         self.iface = iface
         self.services = {s["service"]: s for s in iface["services"]}
         self.controller: Controller = controller_for(DesignGeometry.from_record(record))
+        #: the last plan served and its feedback loop (gaits.feedback), None when it has none
+        self.plan: Trajectory | None = None
+        self.loop = None
+        self.attitude = None  # the IMU's attitude estimate, once the loop has read the IMU
+        self.last_t: float | None = None
 
     @classmethod
     def load(cls, package: str | Path) -> Worker:
@@ -121,8 +132,56 @@ class Worker:
             rec[f["field"]] = [] if f["ros"].endswith("[]") else _EMPTY[f["ros"]]
         return {"ok": False, "response": rec}
 
+    def correct(self, reading: object) -> dict:
+        """The offsets the last plan's feedback loop adds to its commands for one reading of
+        the robot's sensors (``{"t", "q", "qd", "gyro", "accel"}``: s since the plan's
+        start, the plan's joints in its order, the IMU's rates and specific force or null):
+        ``{"ok": true, "offsets": [...]}`` (zeros for a plan without a loop), the same
+        :mod:`gaits.feedback` loop the verification ran, its attitude estimated by the
+        same filter. A malformed reading is refused."""
+        import numpy as np
+
+        from gaits.feedback import Attitude, Reading
+
+        plan = self.plan
+        if plan is None:
+            return {"ok": False, "message": "no plan to correct: call a service first"}
+        if not isinstance(reading, Mapping):
+            return {"ok": False, "message": "correct: expected an object"}
+        n = len(plan.joints)
+        try:
+            t = float(reading["t"])  # type: ignore[arg-type]
+            q = np.asarray(reading["q"], dtype=float).reshape(n)
+            qd = np.asarray(reading.get("qd") or np.zeros(n), dtype=float).reshape(n)
+            gyro = reading.get("gyro")
+            accel = reading.get("accel")
+            gyro = None if gyro is None else np.asarray(gyro, dtype=float).reshape(3)
+            accel = None if accel is None else np.asarray(accel, dtype=float).reshape(3)
+        except (KeyError, TypeError, ValueError) as e:
+            return {"ok": False, "message": f"correct: malformed reading: {e}"}
+        if not (math.isfinite(t) and np.isfinite(q).all() and np.isfinite(qd).all()):
+            return {"ok": False, "message": "correct: a reading is not finite"}
+        if self.loop is None:
+            return {"ok": True, "offsets": [0.0] * n}
+        att = None
+        if gyro is not None and accel is not None:
+            if self.attitude is None:  # switched on level (the firmware's start-up levelling)
+                self.attitude = Attitude()
+                self.attitude.reset(np.array([1.0, 0.0, 0.0, 0.0]))
+                att = self.attitude.q
+            else:
+                dt = max(0.0, t - (self.last_t if self.last_t is not None else t))
+                att = self.attitude.update(gyro, accel, dt)
+        r = Reading(t=t, q=q, qd=qd, gyro=gyro, accel=accel, attitude=att)
+        if self.last_t is None:
+            self.loop.reset(r)
+        self.last_t = t
+        return {"ok": True, "offsets": [float(x) for x in self.loop.correct(r)]}
+
     def call(self, request: Mapping) -> dict:
         """One reply (see the module docstring); never raises for a bad request."""
+        if "correct" in request:
+            return self.correct(request["correct"])
         service = self.services.get(str(request.get("service")))
         if service is None:
             return self.refusal(None, f"no service {request.get('service')!r}")
@@ -141,6 +200,14 @@ class Worker:
                 f"{service['service']}: the trajectory has {len(traj.times)} points, more "
                 f"than the {MAX_POINTS} one call may publish; ask for a shorter one",
             )
+        from gaits.feedback import loop_for
+
+        try:
+            loop = loop_for(traj)
+        except ValueError as e:
+            return self.refusal(service, f"{service['service']}: {e}")
+        self.plan, self.loop, self.attitude, self.last_t = traj, loop, None, None
+        feedback = traj.info.get("feedback")
         return {
             "ok": True,
             "response": self.response(service, traj),
@@ -149,6 +216,8 @@ class Worker:
                 "times": traj.times.tolist(),
                 "positions": traj.positions.tolist(),
                 "velocities": traj.velocities.tolist(),
+                # the loop the node closes around it (None: the plan alone, open loop)
+                "feedback": dict(feedback) if loop is not None else None,  # type: ignore[arg-type]
             },
         }
 

@@ -237,6 +237,42 @@ def scene_xml(xml: str) -> str:
 # -- the sensors -------------------------------------------------------------------------
 
 
+class SensorNoise:
+    """What the sensing loops' sensors read on a perturbed robot (``export/perturb.toml``'s
+    ``[infrared]`` and ``[ultrasonic]``, a perturbation's ``sensing`` draws): an infrared
+    sensor sees the line when it is within the tape's half width moved by that sensor's
+    edge offset and a fresh jitter; the ranger reads the distance x the run's scale plus a
+    fresh noise, rounded to its resolution. The fresh draws come from a generator seeded
+    with (stream, seed, 2) in the order the loop reads: a run is replayed to the bit.
+    ``None`` (the nominal robot): exact readings, nothing drawn."""
+
+    def __init__(self, drawn: Mapping | None) -> None:
+        drawn = drawn or {}
+        self.ir = drawn.get("infrared")
+        self.us = drawn.get("ultrasonic")
+        self.rng = (
+            np.random.default_rng([int(drawn["stream"]), int(drawn["seed"]), 2])
+            if (self.ir or self.us)
+            else None
+        )
+
+    def sees(self, k: int, offset: float) -> bool:
+        half = LINE_WIDTH_M / 2
+        if self.ir is None:
+            return abs(offset) <= half
+        edge = half + float(self.ir["edge_offset_m"][k])
+        edge += float(self.rng.normal(0.0, float(self.ir["edge_jitter_m"])))  # type: ignore[union-attr]
+        return abs(offset) <= edge
+
+    def range(self, distance: float) -> float:
+        if self.us is None:
+            return distance
+        r = distance * float(self.us["scale"])
+        r += float(self.rng.normal(0.0, float(self.us["noise_m"])))  # type: ignore[union-attr]
+        step = float(self.us["resolution_m"])
+        return round(r / step) * step if step > 0 else r
+
+
 class Rig:
     """The sensors on a session's robot: where they sit on the trunk (body frame, m)."""
 
@@ -313,7 +349,13 @@ class Rig:
             dist = mujoco.mj_ray(m, d, origin, v, groups, 1, -1, geom)
             if dist >= 0:
                 best = min(best, dist)
+        best = self.session.noise.range(best)
         return float(min(max(best, RANGER_MIN_M), RANGER_MAX_M))
+
+    def sees(self, k: int, offset: float) -> bool:
+        """Infrared sensor ``k``'s reading (0 left, 1 right) ``offset`` m across from the
+        line's middle: whether it sees the line (:class:`SensorNoise`)."""
+        return self.session.noise.sees(k, offset)
 
 
 class Course:
@@ -397,6 +439,10 @@ def run(session: Session, name: str, params: Mapping[str, object]) -> tuple[dict
     return _avoid(session, mover, rig, params)
 
 
+#: Plans a driven loop remembers (:class:`_Driver`): a few turn rates, asked again and again.
+PLAN_MEMO = 256
+
+
 class _Driver:
     """Runs the steerable behaviour one control period at a time: forward while turning
     (``go``, curvature rad/m) or turning in place (``spin``) at rates that fit the drive
@@ -412,6 +458,9 @@ class _Driver:
         #: a drive that rolls on from its last turn (a ``turn_from`` role: steered wheels,
         #: whose steering turns only so fast): the curvature 1/m its last period ended on
         self.k_now = 0.0
+        #: the plans asked for so far (a loop asks for the same few again and again; the
+        #: controller plans the same for the same ask): ask -> plan, or the error it gave
+        self._plans: dict[tuple, object] = {}
         self.speed = self.fit(speed, 0.0)[0]
         self.w_spin = 0.0
 
@@ -420,7 +469,18 @@ class _Driver:
         ask = {r["speed"]: v, r["turn"]: w, r["seconds"]: self.period, **self.steer.fixed}
         if "turn_from" in r:
             ask[r["turn_from"]] = self.k_now * v
-        return self.session.controller.run(self.steer.behavior, **ask)
+        key = tuple(sorted((k, repr(x)) for k, x in ask.items()))
+        got = self._plans.get(key)
+        if got is None:
+            try:
+                got = self.session.controller.run(self.steer.behavior, **ask)
+            except ValueError as e:
+                got = e
+            if len(self._plans) < PLAN_MEMO:
+                self._plans[key] = got
+        if isinstance(got, ValueError):
+            raise got
+        return got
 
     def forward_axis(self) -> np.ndarray:
         """The body-frame direction the robot goes forward in."""
@@ -466,7 +526,7 @@ class _Driver:
         if "turn_from" in self.steer.roles:
             end = float(traj.info.get("turn_end", w))  # type: ignore[arg-type]
             self.k_now = end / v if v else 0.0
-        self.session._play(traj.joints, traj.positions, traj.velocities, self.period)
+        self.session._play(traj.joints, traj.positions, traj.velocities, self.period, plan=traj)
 
     def go(self, curvature: float) -> None:
         self.step(self.speed, curvature * self.speed)
@@ -508,7 +568,8 @@ def _line(session: Session, mover: _Driver, rig: Rig, params: Mapping) -> tuple[
             return
         state["next"] = t + 1.0 / CONTROL_HZ
         on = [
-            abs(course.locate(rig.world(p)[:2], state["s"])[1]) <= LINE_WIDTH_M / 2 for p in rig.ir
+            rig.sees(k, course.locate(rig.world(p)[:2], state["s"])[1])
+            for k, p in enumerate(rig.ir)
         ]
         if on[0] and not on[1]:
             state["turn"] = 1.0  # the line is under the left sensor: turn left
@@ -596,9 +657,9 @@ def _line_reader(
         if t < state["next"] - 1e-9:
             return
         state["next"] = t + 1.0 / CONTROL_HZ
-        for p in rig.ir:
+        for k, p in enumerate(rig.ir):
             w = rig.world(p)[:2]
-            on = abs(course.locate(w, state["s"])[1]) <= LINE_WIDTH_M / 2
+            on = rig.sees(k, course.locate(w, state["s"])[1])
             reads.append((float(w[0]), float(w[1]), 1.0 if on else 0.0))
         state["s"], off = course.locate(rig.world(mid)[:2], state["s"])
         state["worst"] = max(state["worst"], abs(off))
@@ -1218,16 +1279,31 @@ def _turned(now: float, then: float) -> float:
     return (now - then + math.pi) % (2 * math.pi) - math.pi
 
 
+def run_sensing(
+    files: Mapping[str, str | bytes],
+    name: str,
+    params: Mapping[str, object] | None = None,
+    perturb: tuple[Mapping, int] | None = None,
+) -> dict:
+    """Sensing behaviour ``name`` of the design in ``files`` run on a fresh robot (under
+    perturbation ``perturb`` = (table, seed) of :mod:`export.perturb` when given) and
+    judged: its figures (``verdict`` and the loop's figures)."""
+    from program.session import Session
+
+    session = Session(files=files, perturb=perturb, animate=False)
+    return session.do(name, **dict(params or {}))["figures"]
+
+
 def verify_sensing(files: Mapping[str, str | bytes]) -> list[dict]:
     """Every sensing behaviour of the design in ``files`` (a bundle held in memory) run
     with its default parameters on a fresh robot and judged: one dict each (``behavior``,
     ``ability`` and the figures), in name order; none when the design has none."""
     from program.session import Session
 
-    probe = Session(files=files)
+    probe = Session(files=files, animate=False)
     out = []
     for name in sorted(probe.sensing):
-        session = probe if not probe.started else Session(files=files)
+        session = probe if not probe.started else Session(files=files, animate=False)
         fig = session.do(name)["figures"]
         out.append({"behavior": name, "ability": name, **fig})
     return out

@@ -65,13 +65,24 @@ class Session:
         folder: str | Path | None = None,
         progress: Callable[[str], None] | None = None,
         files: Mapping[str, str | bytes] | None = None,
+        perturb: tuple[Mapping, int] | None = None,
+        animate: bool = True,
     ) -> None:
-        """The bundle in ``folder``, or held in memory as ``files`` (``Outcome.files``)."""
+        """The bundle in ``folder``, or held in memory as ``files`` (``Outcome.files``).
+
+        ``perturb``: (table, seed) of :mod:`export.perturb` (a design's
+        ``verified.robust.table``): the robot is that perturbation's (masses, floor,
+        battery, play, compliance), its commands reach the servos ``latency`` late and
+        held for each control period, its plans' feedback loops read the IMU with its noise
+        and its sensing loops their sensors with theirs (:class:`program.sensing.
+        SensorNoise`), as a robust verification runs it; the controller is the nominal
+        model's (what the robot's program knows). ``animate``: record the animation's
+        frames (a verification, which shows none, saves a tenth of a walker's run)."""
         import mujoco
 
         from export.simulate import load_files_model
         from export.verify import bundle_record, controller_for_model
-        from program.sensing import scene_xml, sensing_behaviors
+        from program.sensing import SensorNoise, scene_xml, sensing_behaviors
 
         if files is None:
             if folder is None:
@@ -99,6 +110,20 @@ class Session:
             raise InputError(f"{folder or 'bundle'}: cannot load the MuJoCo model: {e}") from None
         self.folder = folder
         self.controller = controller_for_model(self.record, self.model)
+        #: the perturbation drawn (``perturb``), None for the nominal robot
+        self.perturbation: dict | None = None
+        #: what the sensing loops' sensors add to the truth (nothing on the nominal robot)
+        self.noise = SensorNoise(None)
+        if perturb is not None:
+            self.model = self._perturbed(files, *perturb)
+            self.noise = SensorNoise(self.perturbation.get("sensing"))  # type: ignore[union-attr]
+        # the bus (a perturbed robot's): commands reach the servos this many physics steps
+        # late, and change once every ``_hold`` steps (the main module's control period)
+        p, dt = self.perturbation, self.model.opt.timestep
+        self._delay = int(round(p["latency_s"] / dt)) if p else 0
+        self._hold = max(1, int(round(p["control_period_s"] / dt))) if p else 1
+        self._sent: np.ndarray | None = None  # the last _delay + _hold commands sent
+        self._step = 0  # physics steps run so far (the bus's clock)
         abilities = tuple(self.record.get("abilities", ()))
         #: the behaviours a program may call: name -> BehaviorSpec
         self.behaviors = program_behaviors(self.controller, abilities)
@@ -128,11 +153,31 @@ class Session:
         self._yaws: list[float] = []  # unwrapped heading at each path sample
         self._path: dict[str, list[float]] = {"t": [], "x": [], "y": [], "yaw": []}
         self._frames: list[dict] = []
+        self.animate = animate
         self._expected = np.zeros(3)  # commanded (x, y, yaw), composed
         self._commanded_path = 0.0
         self._anchored = False
         self._geoms = self._animated_geoms()
         self._origin = np.zeros(3)
+
+    def _perturbed(self, files: Mapping[str, str | bytes], table: Mapping, seed: int):
+        """The robot's model under perturbation ``seed`` of ``table`` (its scene included);
+        sets :attr:`perturbation`. InputError when the table cannot be applied."""
+        from export.mjcf import load_mjcf
+        from export.perturb import draw, perturbed_xml
+        from export.verify import bundle_parts
+        from program.sensing import scene_xml
+
+        _, xml, meshes = bundle_parts(files)
+        try:
+            p = draw(table, seed)
+            model = load_mjcf(scene_xml(perturbed_xml(xml, table, p)), meshes)
+        except (KeyError, TypeError, ValueError) as e:
+            raise InputError(
+                f"design.json: verified.robust.table: cannot be applied: {e}"
+            ) from None
+        self.perturbation = p
+        return model
 
     # -- what a program calls --------------------------------------------------------
 
@@ -168,6 +213,7 @@ class Session:
         if body is None and tmpl.end_effectors:
             body = tmpl.end_effectors[0]
         t0 = self.time
+        p = self.perturbation
         result = simulate(
             self.model,
             traj,
@@ -176,8 +222,14 @@ class Session:
             data=self.data,
             observe=lambda t, d: self._observe(t0 + t, d),
             observe_every=1 / max(PATH_HZ, ANIMATION_FPS),
+            latency_s=float(p["latency_s"]) if p else 0.0,
+            command_period_s=float(p["control_period_s"]) if p else 0.0,
+            sensor_noise=p.get("imu") if p else None,
         )
         self.time = t0 + result.seconds
+        if p:  # the bus after it: the commands it ended on
+            self._step += int(round(result.seconds / self.model.opt.timestep))
+            self._sent = np.tile(self.data.ctrl, (self._delay + self._hold, 1))
         end = self._pose()
         self.fell = self.fell or result.fell
         self._last_distance = float(np.hypot(*(end[:2] - start[:2])))
@@ -379,7 +431,9 @@ class Session:
             self._start(traj.positions[0], traj.joints)
         else:
             self._blend_to(traj.joints, traj.positions[0])
-        self._play(traj.joints, traj.positions, traj.velocities, traj.duration, traj.times)
+        self._play(
+            traj.joints, traj.positions, traj.velocities, traj.duration, traj.times, plan=traj
+        )
 
     def _blend_to(self, joints, q1: np.ndarray) -> None:
         """Move ``joints`` from where they are to ``q1`` (minimum jerk)."""
@@ -414,10 +468,17 @@ class Session:
         vel: np.ndarray,
         seconds: float,
         times: np.ndarray | None = None,
+        plan=None,
     ) -> None:
         """Step the physics for ``seconds`` following ``pos`` with velocity servos
         following ``vel``: rows at ``times`` s (interpolated at every step, as ``simulate``
         does), or without ``times`` spread evenly over the time, the last held.
+
+        ``plan``: the trajectory these rows are of (a sensing loop's period): when it asks
+        for a feedback loop (``info["feedback"]``) the loop runs around it as
+        :func:`export.simulate.simulate` runs it (its ``_ClosedLoop``: the same readings,
+        control period, latency and IMU noise). On a perturbed robot the commands reach
+        the servos through the bus (:meth:`_bus`).
 
         The steps run inside MuJoCo (:func:`export.simulate.step_through`) in chunks of
         1 / :data:`PATH_HZ` s, the path, the animation and ``on_step`` (a sensing loop) being
@@ -426,7 +487,7 @@ class Session:
         step from what was recorded."""
         import mujoco
 
-        from export.simulate import ServoLaw, step_through
+        from export.simulate import ServoLaw, start_closed, step_through
         from export.verdict import COLLAPSE_TILT, SATURATION_LEVEL
 
         m, d = self.model, self.data
@@ -444,17 +505,27 @@ class Session:
             r = np.minimum(rows - 1, (np.arange(steps) * rows) // steps) if rows > 1 else 0
             for k, a, _, velocity in cols:
                 ctrl[:, a] = (vel if velocity else pos)[r, k]
+        ctrl = self._bus(ctrl)
         watch = self.watched_geom
         sensor = None if watch is None else self._contact_sensor(watch)
         every = max(1, int(round(1 / max(PATH_HZ, ANIMATION_FPS) / m.opt.timestep)))
+        observe_every = every
         contacts = 0
+        closed = self._closed(plan, cols)
+        if closed is not None:
+            every = math.gcd(every, closed.period)
+            start_closed(closed, d)
+            closed.begin_block(ctrl, 0, every)
 
         def after(i: int) -> None:
             nonlocal contacts
             t = t0 + i * m.opt.timestep
-            self._observe(t, d)
-            if self.on_step is not None:
-                self.on_step(t)
+            if closed is not None:
+                closed.after(d, i, ctrl)
+            if closed is None or i % observe_every == 0 or i == steps:
+                self._observe(t, d)
+                if self.on_step is not None:
+                    self.on_step(t)
             if watch is not None and sensor is None and d.ncon:  # stepped one at a time
                 c = d.contact
                 contacts += int(np.any((c.geom1 == watch) | (c.geom2 == watch)))
@@ -481,6 +552,45 @@ class Session:
             contacts = int(np.count_nonzero(sensed[:, sensor] > 0))
         self._counts["contacts"] += contacts
         self.time = t0 + steps * m.opt.timestep
+
+    def _bus(self, ctrl: np.ndarray) -> np.ndarray:
+        """The controls the servos act on when the program sends ``ctrl`` (steps, nu) from
+        now: on a perturbed robot each step's is the command sent ``_delay`` steps earlier,
+        held for each control period of ``_hold`` steps (on the session's clock, so it
+        carries over from one call to the next; before the first command, that one), as
+        :func:`export.simulate.simulate` delays a plan's; the nominal robot's are ``ctrl``."""
+        if self.perturbation is None:
+            return ctrl
+        d, hold = self._delay, self._hold
+        keep = d + hold
+        if self._sent is None:
+            self._sent = np.tile(ctrl[0], (keep, 1))
+        sent = np.vstack([self._sent, ctrl])  # row j: the command of step _step - keep + j
+        n = self._step + np.arange(len(ctrl))
+        src = ((n - d) // hold) * hold  # the step whose command is in force
+        out = sent[np.maximum(src - (self._step - keep), 0)]
+        self._sent = sent[-keep:].copy()
+        self._step += len(ctrl)
+        return out
+
+    def _closed(self, plan, cols):
+        """The feedback loop of ``plan`` wired to this session's run (``export.simulate``'s
+        ``_ClosedLoop``), or None for no plan or a plan run open loop."""
+        if plan is None:
+            return None
+        from export.simulate import _ClosedLoop
+
+        p = self.perturbation
+        columns = [(k, a, velocity) for k, a, _, velocity in cols]
+        return _ClosedLoop.of(
+            self.model,
+            self.data,
+            plan,
+            columns,
+            float(p["latency_s"]) if p else 0.0,
+            float(p["control_period_s"]) if p else 0.0,
+            p.get("imu") if p else None,
+        )
 
     def _contact_sensor(self, geom: int) -> int | None:
         """The sensordata address of a ``contact`` sensor counting ``geom``'s contacts
@@ -511,6 +621,8 @@ class Session:
             self._yaws.append(yaw)
             for k, v in zip(("t", "x", "y", "yaw"), (t, x, y, yaw), strict=True):
                 self._path[k].append(v)
+        if not self.animate:
+            return
         if not self._frames or t >= self._frames[-1]["t"] + 1 / ANIMATION_FPS - 1e-9:
             self._frames.append(self._frame(t, d))
 
@@ -592,14 +704,32 @@ class Session:
         self._commanded_path += float(info.get("path_length_m") or math.hypot(dx, dy))
 
 
+def perturbed_session(
+    folder: str | Path,
+    progress: Callable[[str], None] | None = None,
+    perturb: int | None = None,
+) -> Session:
+    """A session of the bundle in ``folder``; with ``perturb`` (a seed), on that
+    perturbation of the table the design was verified with (``verified.robust.table``;
+    InputError when it has none): the robot the verification's run of that seed drove."""
+    session = Session(folder, progress=progress)
+    if perturb is None:
+        return session
+    from export.verify import recorded_table
+
+    return Session(folder, progress=progress, perturb=(recorded_table(session.record), perturb))
+
+
 def run_program(
     folder: str | Path,
     program: Mapping,
     progress: Callable[[str], None] | None = None,
+    perturb: int | None = None,
 ) -> dict:
     """Validate ``program`` (JSON data, :mod:`program.script`) against the bundle's design
-    and run it; :meth:`Session.result`."""
-    session = Session(folder, progress=progress)
+    and run it (on perturbation ``perturb`` of its table: :func:`perturbed_session`);
+    :meth:`Session.result`."""
+    session = perturbed_session(folder, progress, perturb)
     validate(program, session.behaviors)
     execute(program, session)
     return session.result()
@@ -609,6 +739,7 @@ def run_python(
     folder: str | Path,
     path: str | Path,
     progress: Callable[[str], None] | None = None,
+    perturb: int | None = None,
 ) -> dict:
     """Run the ``main(robot)`` of a Python program file (``parmor run``) on the bundle.
 
@@ -624,7 +755,7 @@ def run_python(
     if not path.is_file():
         raise InputError(f"{path}: no such program file")
     if not hasattr(os, "fork"):
-        return _run_python_here(folder, path, progress)
+        return _run_python_here(folder, path, progress, perturb)
     import pickle
     import signal
     import sys
@@ -639,7 +770,7 @@ def run_python(
             os.close(read)
             signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops it
             try:
-                reply: tuple = ("ok", _run_python_here(folder, path, progress))
+                reply: tuple = ("ok", _run_python_here(folder, path, progress, perturb))
             except ParmorError as e:
                 reply = ("error", e.exit_code, str(e))
             except MemoryError:
@@ -685,6 +816,7 @@ def _run_python_here(
     folder: str | Path,
     path: Path,
     progress: Callable[[str], None] | None = None,
+    perturb: int | None = None,
 ) -> dict:
     """:func:`run_python` in this process."""
     import runpy
@@ -700,7 +832,7 @@ def _run_python_here(
     main = namespace.get("main")
     if not callable(main):
         raise InputError(f"{path}: defines no main(robot) function")
-    session = Session(folder, progress=progress)
+    session = perturbed_session(folder, progress, perturb)
     try:
         main(session)
     except (ParmorError, KeyboardInterrupt, MemoryError):

@@ -468,6 +468,14 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="with --json: include the animation frames (every drawn part's pose, 20 per s)",
     )
+    p.add_argument(
+        "--perturb",
+        type=_whole("a seed", MAX_SEED),
+        metavar="SEED",
+        help="run the program on the robot of perturbation SEED of the table it was verified "
+        "with (design.json verified.robust; seeds 1..K are the verification's runs): its "
+        "masses, floor, battery, play, bus latency and sensor noise",
+    )
     _json_option(p)
     _limit_options(p, size=False, memory="of this process")
 
@@ -1391,24 +1399,33 @@ def _simulate_sensing(folder, args: argparse.Namespace, params: dict) -> dict | 
     """A sensing behaviour of the bundle (line-tracking, obstacle-avoidance:
     :mod:`program.sensing`) run as the design's verification runs it, on a fresh robot with
     ``params``; its judged figures, or None when ``args.behavior`` is not one of them. Its
-    course sets its time, so ``--seconds``, ``--perturb`` and ``--plot`` do not apply."""
+    course sets its time, so ``--seconds`` and ``--plot`` do not apply. ``--perturb SEED``
+    runs it on that perturbation of the table the design was verified with, as the robust
+    verification ran it (the figures of its ``verified.robust`` entry, to the bit)."""
     from program.session import Session
 
     session = Session(folder)
     if args.behavior not in session.sensing:
         return None
-    for given, option in ((args.seconds, "--seconds"), (args.perturb, "--perturb")):
-        if given is not None:
-            raise InputError(
-                f"{option} does not apply to {args.behavior}, a sensing loop (its course "
-                "sets its time): drop it"
-            )
+    if args.seconds is not None:
+        raise InputError(
+            f"--seconds does not apply to {args.behavior}, a sensing loop (its course "
+            "sets its time): drop it"
+        )
     if args.plot:
         raise InputError(f"--plot does not apply to {args.behavior}, a sensing loop: drop it")
     from synth.limits import stage
 
+    if args.perturb is not None:
+        from export.perturb import summary
+        from export.verify import recorded_table
+
+        session = Session(folder, perturb=(recorded_table(session.record), args.perturb))
     with stage("simulate"):
-        return session.do(args.behavior, **params)["figures"]
+        fig = session.do(args.behavior, **params)["figures"]
+    if session.perturbation is not None:
+        fig["perturbation"] = summary(session.perturbation)
+    return fig
 
 
 def _report_sensing(fig: dict, args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -1490,9 +1507,9 @@ def cmd_run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     with stage("run"):  # the program and its behaviours: a limit here is not in 'parse'
         if form == "json":
-            result = run_program(args.dir, program, progress)
+            result = run_program(args.dir, program, progress, args.perturb)
         else:
-            result = run_python(args.dir, path, progress)
+            result = run_python(args.dir, path, progress, args.perturb)
     if not args.animation:
         result.pop("animation")
     if args.json:

@@ -35,32 +35,70 @@ def robust_check(
     only: Collection[str] | None = None,
     files: Mapping[str, str | bytes] | None = None,
     nominal: Sequence[Mapping] | None = None,
+    sensing: bool = True,
+    sensed: Sequence[Mapping] | None = None,
+    table: Mapping | None = None,
 ) -> dict | None:
     """``verified.robust`` of ``outcome`` (a sized design) under perturbations 1..``k`` of
-    its table (of its listed behaviours, those named in ``only`` when given); None when
-    ``k`` is 0. ``files``: its :func:`robust_files` when the caller has them already;
-    ``nominal``: the figures of its nominal runs (``verify_files``) when the caller has
-    them. The runs use the coarse time step where the nominal runs agree at it
-    (:func:`export.verify.physics_check`; ``table["timestep_s"]``, recorded with the
-    table, so a replay uses it too); ``verified.robust.physics`` says which and why."""
+    its table (of its listed behaviours, those named in ``only`` when given; its sensing
+    loops unless ``sensing`` is false); None when ``k`` is 0. ``files``: its
+    :func:`robust_files` when the caller has them already; ``nominal``, ``sensed``: the
+    figures of its nominal runs (``verify_files``, ``verify_sensing``) when the caller has
+    them. The runs use the coarse time step where the nominal runs, sensing loops
+    included, agree at it (:func:`physics`; ``table["timestep_s"]``, recorded with the
+    table, so a replay uses it too); ``verified.robust.physics`` says which and why.
+    ``table``: a table already chosen (the sensing loops' runs after the plans')."""
     if k <= 0 or outcome.structure is None or outcome.catalog is None:
         return None
     from export.perturb import design_table
-    from export.verify import bundle_parts, physics_check, verify_robust
+    from export.verify import bundle_parts, verify_robust
 
     files = robust_files(designer, outcome) if files is None else files
-    record, xml, _ = bundle_parts(files)
-    table = design_table(record, xml, outcome.catalog)
-    # the coarse step where this design's nominal runs agree with the fine ones
-    physics = physics_check(files, nominal)
-    if physics["timestep_s"]:
-        table["timestep_s"] = physics["timestep_s"]
+    checked = None
+    if table is None:
+        record, xml, _ = bundle_parts(files)
+        table = design_table(record, xml, outcome.catalog)
+        # the coarse step where this design's nominal runs agree with the fine ones
+        checked = physics(files, nominal, sensed)
+        if checked["timestep_s"]:
+            table["timestep_s"] = checked["timestep_s"]
     # through JSON as design.json keeps it: the replay draws from the very same numbers
     table = json.loads(json.dumps(table))
-    robust = verify_robust(files, k, table, only=only)
-    robust["physics"] = physics
+    robust = verify_robust(files, k, table, only=only, sensing=sensing)
+    if checked is not None:
+        robust["physics"] = checked
     robust["shows"] = shows(robust)
     return robust
+
+
+def physics(
+    files: Mapping[str, str | bytes],
+    nominal: Sequence[Mapping] | None = None,
+    sensed: Sequence[Mapping] | None = None,
+) -> dict:
+    """:func:`export.verify.physics_check` of the plans (``nominal``: their fine runs when
+    known), and where they agree at the coarse step, the sensing loops' too (``sensed``:
+    their fine nominal runs, ``program.sensing.verify_sensing``; each run again on the
+    bundle at the coarse step): one step for every perturbed run of the design."""
+    from export.verify import agreement, coarse_xml, physics_check
+
+    checked = physics_check(files, nominal)
+    loops = [r for r in sensed or () if r.get("verdict") is not None]
+    if not checked["timestep_s"] or not loops:
+        return checked
+    from program.sensing import verify_sensing
+
+    raw = files["robot.xml"]
+    text, _ = coarse_xml(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
+    coarse = verify_sensing({**files, "robot.xml": text})
+    largest = dict(checked["largest"])
+    why = agreement(loops, coarse, largest)
+    return dict(
+        checked,
+        largest=dict(sorted(largest.items())),
+        timestep_s=None if why else checked["timestep_s"],
+        why=why or checked["why"],
+    )
 
 
 #: The confidence of the bound :func:`shows` states.
@@ -98,6 +136,16 @@ def shows(robust: Mapping) -> dict:
         "behavior": worst["behavior"],
         "success_lower_bound": float(f"{bound:.4g}"),
     }
+
+
+def with_sensing(robust: dict, more: Mapping | None) -> dict:
+    """``robust`` (the plans' perturbed runs) with the sensing loops' of ``more`` (the same
+    table and seeds) after them."""
+    if not more:
+        return robust
+    out = dict(robust, behaviors=[*robust["behaviors"], *more["behaviors"]])
+    out["shows"] = shows(out)
+    return out
 
 
 def robust_files(designer: Designer, outcome: Outcome) -> dict[str, str | bytes]:
@@ -155,8 +203,8 @@ def worst_failures(robust: Mapping, most: int) -> list[tuple[str, int, dict | No
     criteria failed, then the lowest seed): the runs the loop replays for a cause."""
     out = []
     for b in robust.get("behaviors", ()):
-        if b["robust"]:
-            continue
+        if b["robust"] or b.get("loop") == "sensing":
+            continue  # (a sensing loop is no plan to replay with one cause taken away)
         worst = sorted(b["failures"], key=lambda f: (-len(f["verdict"]), f["seed"]))
         runs = {fig.get("seed"): fig for fig in b.get("figures", ())}
         out += [(b["behavior"], f["seed"], runs.get(f["seed"])) for f in worst[:most]]

@@ -25,6 +25,13 @@ A failed perturbed run with no actuator saturated on a robot with wheels is repl
 stiffer wheel servos (:func:`synth.robust_wheels.wheel_exclusions`): the first with which
 the runs pass is the answer, the wheels may have no less stiff servo in the next sizing.
 
+The sensing loops (:mod:`program.sensing`: line-tracking, obstacle-avoidance) that passed
+nominally run under the same K perturbations once the repairs are done, on the design as
+it stands (their runs feed no repair: they have no saturated joint to point at), unless
+the plans' perturbed runs refuse the design already; a loop not robust refuses a demanded
+ability or drops a bonus one like any behaviour, and one that passed nominally but was
+not run perturbed refuses the design (:func:`robust_skipped`).
+
 Before each round's verification, a controller whose open-loop model needs figures only a
 run can give (:meth:`gaits.base.Controller.calibration_probes`: a skid-steer's effective
 track and turning load) has its probe runs simulated and the design's ``calibration``
@@ -344,6 +351,7 @@ def _verified(
         play_note,
         robust_check,
         robust_files,
+        with_sensing,
     )
     from synth.robust_legs import hold_blame, hold_note
     from synth.robust_wheels import wheel_exclusions, wheel_joints, wheel_note
@@ -383,19 +391,26 @@ def _verified(
         # the behaviours' trajectories, then the sensing abilities' closed loops
         try:
             planned = verify_files(files)
-            results = planned + verify_sensing(files)
+            sensed = verify_sensing(files)
         except UnplannedError as e:  # a bonus ability's plan: dropped, and this round again
             outcome = _drop_unplanned(designer, outcome, record, e)
             bundles.clear()
             rounds -= 1
             continue
+        results = planned + sensed
         failing = [r for r in results if r["verdict"] != "ok"]
         # nominally passed: under the perturbations of synth.robust (--robustness K)
         robust = (
             None
             if failing or opts.robustness <= 0
             else robust_check(
-                designer, outcome, opts.robustness, files=robust_bundle(), nominal=planned
+                designer,
+                outcome,
+                opts.robustness,
+                files=robust_bundle(),
+                nominal=planned,
+                sensing=False,
+                sensed=sensed,
             )
         )
         more = _floors(results + failing_runs(robust), record)
@@ -464,12 +479,31 @@ def _verified(
             passed,
             robust_bundle(),
             [r for r in planned if r["behavior"] in passed],
+            sensed=[r for r in sensed if r["behavior"] in passed],
         )
     # which abilities no behaviour serves: the controller alone tells (no model needed)
     controller = controller_for(DesignGeometry.from_record(record))
     served = served_abilities(record, controller)
     unsimulated = tuple(a for a in record.get("abilities", ()) if served.get(a) is None)
     needed = set(record.get("needed") or record.get("abilities", ()))
+    if robust is not None and not failing:
+        # the sensing loops under the perturbations: once, on the design as it stands (a
+        # repair answers the plans' runs; a loop's run has no saturated joint to feed
+        # it), unless a plan's perturbed runs refuse the design already
+        refused = any(
+            ({a} | {x for x, s in served.items() if s == a}) & needed for a, _ in not_robust(robust)
+        )
+        loops = [r["behavior"] for r in sensed if r["verdict"] == "ok"]
+        if loops and not refused:
+            more = robust_check(
+                designer,
+                outcome,
+                opts.robustness,
+                set(loops),
+                robust_bundle(),
+                table=robust["table"],
+            )
+            robust = with_sensing(robust, more)
     # a behaviour fails the request when it serves a demanded ability (walking serves a
     # demanded heavy-walking); else the abilities it serves are dropped
     dropped: dict[str, str] = {}
@@ -507,6 +541,12 @@ def _verified(
                 dropped.setdefault(a, why)
     if also:
         failure += f"; also not robust: {', '.join(also)}"
+    skipped = robust_skipped(sensed, robust)
+    if skipped and failure is None:  # (a bug, never a design's fault: said, not passed)
+        failure = (
+            f"{', '.join(skipped)} passed on the nominal model but did not run under the "
+            "perturbations: every behaviour the design lists must"
+        )
     if failure is not None and not nominal_failure:  # it passed on the nominal model
         failure += f"; {ROBUST_OFF}"
     v = Verification(
@@ -558,6 +598,16 @@ def _drop_unplanned(designer: Designer, outcome: Outcome, record: Mapping, e) ->
         unplanned=(*outcome.unplanned, *((a, why) for a in sorted(mine))),
         calibration=None,
     )
+
+
+def robust_skipped(results: list[dict], robust: Mapping | None) -> list[str]:
+    """The behaviours of ``results`` (nominal runs: :func:`_verified` gives it the sensing
+    loops', which run by another path than the plans, :class:`program.session.Session`)
+    that passed but that the perturbed runs ``robust`` do not list (:func:`export.verify.
+    robust_missing`); none when no perturbed run was made."""
+    from export.verify import robust_missing
+
+    return robust_missing({"verified": {"behaviors": results, "robust": robust}})
 
 
 def _size_with_less_play(

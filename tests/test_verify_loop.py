@@ -215,7 +215,7 @@ def test_a_dropped_bonus_ability_does_not_skip_the_robust_runs(designer, monkeyp
     monkeypatch.setattr(export.verify, "verify_files", fake)
     asked = []
 
-    def robust(files, k, table, behaviors=None, only=None):
+    def robust(files, k, table, behaviors=None, only=None, sensing=True):
         asked.append(sorted(only or ()))
         passed = 0 if asked_to_fail else k
         fig = {"seed": 1, "verdict": [] if passed else ["placing"], "placing_error_m": 0.02}

@@ -13,7 +13,11 @@ recorded interpreter).
 Each service call is passed to the worker; the node publishes the planned trajectory on
 ``<robot>/joint_trajectory`` (trajectory_msgs/JointTrajectory, latched, stamped with the
 start of its playback), plays it back on ``<robot>/joint_states`` (sensor_msgs/JointState
-at ``~rate`` Hz, each stamped with the start plus its time, the last at the end), and
+at ``~rate`` Hz, each stamped with the start plus its time, the last at the end), drives
+the servos on ``<robot>/joint_commands`` (sensor_msgs/JointState every control period:
+the plan's command plus, when the plan carries a feedback loop, the loop's correction,
+which the worker computes from the servos' read-back on ``<robot>/measured_joint_states``
+and, where the design has an IMU, ``<robot>/imu``, sensor_msgs/Imu), and
 answers at once with the worker's response: ``ok``, ``message``, ``duration_s`` and what
 the behaviour promises. A refused call (a value out of range) publishes nothing, and the
 node keeps serving; a plan that takes longer than ``~plan_timeout`` s restarts the worker.
@@ -59,7 +63,7 @@ except ImportError:
         raise
     os.execv(_python, [_python, os.path.realpath(__file__), *sys.argv[1:]])
 
-from sensor_msgs.msg import JointState  # noqa: E402
+from sensor_msgs.msg import Imu, JointState  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
 PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
@@ -183,21 +187,130 @@ def interp(times, column, t):
     return column[k - 1] + (column[k] - column[k - 1]) * (t - t0) / (t1 - t0)
 
 
-class Player:
-    """Publishes a trajectory and plays it back as joint states (a new one replaces it)."""
+class Sensors:
+    """The latest readings of the robot's sensors: the servos' read-back (``measured``
+    joint states: position and velocity by joint name) and, where the design carries an
+    IMU, its rates and specific force (``imu``)."""
 
-    def __init__(self, robot, topics, rate):
+    def __init__(self, robot, topics):
+        self.lock = threading.Lock()
+        self.joints = {}
+        self.gyro = self.accel = None
+        rospy.Subscriber("{}/{}".format(robot, topics["measured"]), JointState, self._joints)
+        self.imu = "imu" in topics
+        if self.imu:
+            rospy.Subscriber("{}/{}".format(robot, topics["imu"]), Imu, self._imu)
+
+    def _joints(self, msg):
+        with self.lock:
+            for k, name in enumerate(msg.name):
+                q = msg.position[k] if k < len(msg.position) else None
+                qd = msg.velocity[k] if k < len(msg.velocity) else 0.0
+                if q is not None:
+                    self.joints[name] = (float(q), float(qd))
+
+    def _imu(self, msg):
+        w, a = msg.angular_velocity, msg.linear_acceleration
+        with self.lock:
+            self.gyro, self.accel = [w.x, w.y, w.z], [a.x, a.y, a.z]
+
+    def reading(self, joints, t):
+        """The reading of ``joints`` (in the plan's order) at ``t`` s into the plan, or None
+        while a joint has no read-back (or the IMU no reading, where there is one)."""
+        with self.lock:
+            if any(j not in self.joints for j in joints):
+                return None
+            if self.imu and self.gyro is None:
+                return None
+            return {
+                "t": t,
+                "q": [self.joints[j][0] for j in joints],
+                "qd": [self.joints[j][1] for j in joints],
+                "gyro": self.gyro,
+                "accel": self.accel,
+            }
+
+
+class Player:
+    """Publishes a trajectory, plays it back as joint states (a new one replaces it) and
+    drives the servos with it: every control period its commands on ``commands``, with
+    the correction of the plan's feedback loop (run by the worker on the sensors'
+    readings) when the plan has one."""
+
+    def __init__(self, robot, topics, rate, feedback=None, worker=None):
         self.trajectory = rospy.Publisher(
             "{}/{}".format(robot, topics["trajectory"]), JointTrajectory, queue_size=1, latch=True
         )
         self.states = rospy.Publisher(
             "{}/{}".format(robot, topics["joint_states"]), JointState, queue_size=10
         )
+        self.commands = rospy.Publisher(
+            "{}/{}".format(robot, topics["commands"]), JointState, queue_size=10
+        )
         self.rate = rate
+        self.feedback = feedback or {"period_s": 0.02, "velocity_joints": []}
+        self.worker = worker
+        self.sensors = Sensors(robot, topics)
         self.lock = threading.Lock()
         self.current = None
         self.wake = threading.Event()
+        self.control_wake = threading.Event()
+        self.said_open = False
         threading.Thread(target=self._play, daemon=True).start()
+        threading.Thread(target=self._control, daemon=True).start()
+
+    def _command(self, start, traj, columns, t, offsets):
+        """The servos' command at ``t`` s into the plan, with the loop's ``offsets``."""
+        msg = self._state(start, traj, columns, t)
+        wheels = set(self.feedback.get("velocity_joints", ()))
+        position, velocity = list(msg.position), list(msg.velocity)
+        for k, name in enumerate(msg.name):
+            if name in wheels:
+                velocity[k] += offsets[k]
+            else:
+                position[k] += offsets[k]
+        msg.position, msg.velocity = position, velocity
+        return msg
+
+    def _control(self):
+        """Every control period while a plan plays: the loop's correction (when the plan
+        has a loop and the sensors have been read) added to the plan's command."""
+        period = float(self.feedback.get("period_s", 0.02))
+        while not rospy.is_shutdown():
+            with self.lock:
+                current = self.current
+            if current is None:
+                self.control_wake.wait(0.5)
+                self.control_wake.clear()
+                continue
+            start, traj, columns = current
+            t = (rospy.Time.now() - start).to_sec()
+            end = traj["times"][-1]
+            offsets = [0.0] * len(traj["joints"])
+            if traj.get("feedback") and self.worker is not None:
+                reading = self.sensors.reading(traj["joints"], max(0.0, t))
+                if reading is None:
+                    if not self.said_open:
+                        rospy.logwarn(
+                            "parmor: no read-back on the measured topics yet: the plan "
+                            "is sent open loop"
+                        )
+                        self.said_open = True
+                else:
+                    try:
+                        reply = self.worker.call({"correct": reading})
+                        if reply.get("ok"):
+                            offsets = reply["offsets"]
+                    except (OSError, WorkerError, ValueError) as e:
+                        rospy.logerr(f"parmor: feedback: {e}")
+            with self.lock:
+                if self.current is current:
+                    self.commands.publish(self._command(start, traj, columns, min(t, end), offsets))
+            if t >= end:  # the last command sent: until the next plan
+                self.control_wake.wait(0.5)
+            else:
+                self.control_wake.wait(period)
+            self.control_wake.clear()
 
     def publish(self, traj):
         msg = JointTrajectory()
@@ -217,6 +330,7 @@ class Player:
             self.current = (start, traj, columns)
             self.trajectory.publish(msg)
         self.wake.set()
+        self.control_wake.set()
 
     def _state(self, start, traj, columns, t):
         msg = JointState()
@@ -279,7 +393,11 @@ def main():
         "parmor worker ready for {}: {}".format(hello["robot"], ", ".join(hello["services"]))
     )
     player = Player(
-        iface["robot"], iface["topics"], float(rospy.get_param("~rate", iface["playback_rate_hz"]))
+        iface["robot"],
+        iface["topics"],
+        float(rospy.get_param("~rate", iface["playback_rate_hz"])),
+        iface.get("feedback"),
+        worker,
     )
 
     def handler_for(service, response_class):
