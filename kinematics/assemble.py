@@ -59,6 +59,9 @@ _POSITIONS = {1: ("m",), 2: ("f", "h"), 3: ("f", "m", "h")}
 _AXLES = {1: ("",), 2: ("front", "rear"), 3: ("front", "middle", "rear")}
 #: Roles of the parts that form chains (one joint or one printed link each).
 _CHAIN = ("joint", "link", "module")
+#: Roles of limbs placed by a mount of another class of the same role when no mount names
+#: their own class.
+_BY_ROLE = ("leg", "wheel", "arm")
 
 
 class AssemblyError(ValueError):
@@ -121,6 +124,15 @@ def _ordered_children(
     for m in kind.mounts:
         mine = [c for c in rest if m.child in c.kinds]
         rest = [c for c in rest if m.child not in c.kinds]
+        out += [(c, m) for c in mine]
+    # a limb of a class no mount names (a user's own leg class beside MultipedLeg) goes
+    # where the first mount of a limb of its role goes (its layout, span and track)
+    for m in kind.mounts:
+        mk = kinds.of((m.child,))
+        if mk is None or mk.role not in _BY_ROLE:
+            continue
+        mine = [c for c in rest if (k := kinds.of(c.kinds)) is not None and k.role == mk.role]
+        rest = [c for c in rest if c not in mine]
         out += [(c, m) for c in mine]
     out += [(c, None) for c in rest]
     return out
@@ -465,6 +477,22 @@ class _Walk:
                 self.part(c, here)
 
 
+def _check_unique(plan: BodyPlan, recs: list[_Rec]) -> None:
+    """AssemblyError when two joints or bodies got one name: limbs that no mount of their
+    parent places (each would hang at the same place, named alike)."""
+    seen: set[str] = set()
+    for r in recs:
+        for name in (r.name, r.body):
+            if name in seen:
+                raise AssemblyError(
+                    f"{plan.robot_type}: two parts would make the joint or body {name!r}: "
+                    "several limbs hang on one part that has no mount for them (a part "
+                    "kind's `mounts` places limbs by their class or their role: leg, wheel, "
+                    "arm); give the parent part a mount for them in a part kinds file (--parts)"
+                )
+            seen.add(name)
+
+
 def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Template:
     """The kinematic template of ``plan`` with ``params`` (see ``kinematics.templates``)."""
     p = params
@@ -473,6 +501,7 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
     w = _Walk(plan, kinds, p, lengths)
     root_parts = w.root()
     recs = w.recs
+    _check_unique(plan, recs)
     b = _Builder(plan.robot_type, p, lengths)
     b.add("root", None, "fixed", np.eye(4), root_parts, body=w.root_body)
     feet: list[str] = []

@@ -519,7 +519,10 @@ class Humanoid(Family):
     def size(self, robot_type, p, catalog):
         H = p["height"]
         why = f"height {H * 100:.0f} cm"
-        lengths = {k: f * H for k, f in HUMANOID.items()}
+        # the proportions of the lengths this body plan has (a biped without arms has no
+        # upper_arm or forearm)
+        have = default_lengths(robot_type)
+        lengths = {k: f * H for k, f in HUMANOID.items() if k in have}
         out = {}
         for k, v in lengths.items():
             tube = k in ("femur", "tibia", "upper_arm", "forearm")
