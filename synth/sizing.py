@@ -388,19 +388,34 @@ class Multipeds(Family):
         d = default_lengths(robot_type)
         h = p["obstacle_height"]
         why = f"obstacle height {h * 100:.1f} cm"
-        femur = (h + STEP_MARGIN) / math.sin(math.pi / 4)
-        tibia = max(h + TRUNK_CLEARANCE, 1.25 * femur)
-        coxa = d["coxa"]
-        reach = coxa + femur
+        shape = leg_shape(robot_type)
+        lengths: dict[str, float] = {}
+        # the lifting tube (the femur of a coxa-femur-tibia leg): the foot lifts h +
+        # STEP_MARGIN with it at 45 degrees; the tubes hanging down (the tibia) clear h
+        # standing and are at least 1.25 x it; the tubes before the first pitch joint (the
+        # coxa) keep their lengths
+        lift = (h + STEP_MARGIN) / math.sin(math.pi / 4) if shape.lift else 0.0
+        down = max(h + TRUNK_CLEARANCE, 1.25 * lift)
+        if not shape.lift:  # a leg that lifts its foot by swinging the tubes hanging down
+            down = max(down, sum(d[k] for k in shape.down))
+        for k in shape.order:
+            if k == shape.lift:
+                lengths[k] = lift
+            elif k in shape.down:
+                lengths[k] = down * d[k] / sum(d[j] for j in shape.down)
+            else:
+                lengths[k] = d[k]
+        reach = sum(lengths[k] for k in shape.across)
         stride = stride_length(reach)
         spacing = stride + LEG_CLEARANCE
         legs_per_side = build(robot_type).legs // 2
-        la1 = spacing * (legs_per_side - 1)
-        la2 = max(d["La2"], catalog.passive.dovetail_face_m * 2)
-        lengths = {"coxa": coxa, "femur": femur, "tibia": tibia, "La1": la1, "La2": la2}
+        if shape.span:
+            lengths[shape.span] = spacing * (legs_per_side - 1)
+        if shape.track:
+            lengths[shape.track] = max(d[shape.track], catalog.passive.dovetail_face_m * 2)
         out = {}
         for k, v in lengths.items():
-            out[k] = v if k in ("La1", "La2") else _clamp_length(k, v, catalog, why)
+            out[k] = v if k in (shape.span, shape.track) else _clamp_length(k, v, catalog, why)
         return Sizing(out, notes=[f"stride {stride * 100:.1f} cm"])
 
     def load_cases(self, tmpl, p, catalog):
@@ -420,13 +435,92 @@ class Multipeds(Family):
 
     def speeds(self, tmpl, p, sizing):
         L = tmpl.lengths
-        reach = L["coxa"] + L["femur"]
+        shape = leg_shape(tmpl.plan)
+        reach = sum(L[k] for k in shape.across)
         stride = stride_length(reach)
         swing_time = stride / p["speed"] * (1 - DUTY) / DUTY
-        lift = math.asin(min(1.0, (p["obstacle_height"] + STEP_MARGIN) / L["femur"]))
+        rise = p["obstacle_height"] + STEP_MARGIN
+        if shape.lift:
+            lift = math.asin(min(1.0, rise / L[shape.lift]))
+        else:  # the tubes hanging down swing out to lift the foot
+            down = sum(L[k] for k in shape.down)
+            lift = math.acos(max(-1.0, 1.0 - rise / down)) if down > 0 else math.pi / 2
         sweep = 2 * COXA_SWING
         w = PEAK_FACTOR * max(sweep, 2 * lift) / swing_time
         return dict.fromkeys(_movable(tmpl), w)
+
+
+@dataclass(frozen=True)
+class LegShape:
+    """The tubes of a multiped's leg read off its part kind's chain (never by their
+    names): ``order``: every tube's length name, root first; ``across``: the tubes that
+    reach out level from the trunk (along x or y at q = 0: the foot's distance from the
+    first joint's axis); ``lift``: the last level tube after the first pitch joint (a
+    horizontal axis across the leg, y), which lifts the foot ("" when none: a leg whose
+    tubes after that joint hang down); ``down``: the tubes hanging down (along -z: the
+    height the trunk stands at); ``span``, ``track``: the length names of the trunk's
+    mount that spaces the legs (along x, across), "" when it has none."""
+
+    order: tuple[str, ...]
+    across: tuple[str, ...]
+    lift: str
+    down: tuple[str, ...]
+    span: str = ""
+    track: str = ""
+
+
+def leg_shape(robot_type) -> LegShape:
+    """The :class:`LegShape` of a multiped (robot type or body plan): its first leg part's
+    kind; InfeasibleError naming the kind's file when its chain has no joint with a tube
+    hanging down (no foot under the trunk)."""
+    from kinematics.assemble import _ordered_children
+    from kinematics.partkinds import in_use
+    from kinematics.templates import plan_of
+
+    kinds = in_use()
+    plan = robot_type if hasattr(robot_type, "root") else plan_of(robot_type)
+    root_kind = kinds.of(plan.root.kinds)
+    found = None
+    for child, mount in _ordered_children(plan.root, root_kind, kinds):
+        k = kinds.of(child.kinds)
+        if k is not None and k.role == "leg":
+            found = (k, mount)
+            break
+    if found is None:
+        raise InfeasibleError(f"{plan.robot_type}: no leg part on its root part")
+    kind, mount = found
+    order, across, down = [], [], []
+    lift = ""
+    pitched = False
+    for j in kind.joints:
+        if j.axis in ("y", "-y") or any(a in ("y", "-y") for a in j.axes):
+            pitched = True
+        t = j.tube_length
+        if not t:
+            continue
+        if t not in order:
+            order.append(t)
+        if j.tube_along in ("-z", "z"):
+            down.append(t)
+        else:
+            across.append(t)
+            if pitched:
+                lift = t
+    if not down:
+        raise InfeasibleError(
+            f"{plan.robot_type}: its leg kind {kind.cls} ({kind.where}, key `joints`) has "
+            "no tube hanging down (a joint's tube `along = \"-z\"`): parmor sizes and walks "
+            "legs whose last tubes hang down to a point foot, after level tubes reaching out "
+            "from the trunk"
+        )
+    return LegShape(
+        tuple(order),
+        tuple(across),
+        lift if lift not in down else "",
+        tuple(down),
+        mount.span if mount is not None else "",
+        mount.track if mount is not None else "",
+    )
 
 
 class Humanoid(Family):
