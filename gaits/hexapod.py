@@ -369,13 +369,14 @@ def _leg_prefix(first: str, names: Sequence[str]) -> str:
     return common[:cut] if cut > 0 else first
 
 
-def _chain_ik(leg: Leg, p: np.ndarray) -> np.ndarray:
+def _chain_ik(leg: Leg, p: np.ndarray, exact: bool = True) -> np.ndarray:
     """Joint angles (..., n) of a chain leg for foot points ``p`` (..., 3) (trunk frame):
     damped least squares on every point at once from the leg's pose as built
     (:func:`_chain_start`; the minimal steps of a redundant leg keep its posture near
     that one, and smooth along a path), inside the limits; a point it leaves short is
     solved by :func:`gaits.arm_ik.solve_ik` from there. ValueError when a point is out of
-    reach."""
+    reach. ``exact`` False: a point left short is out of reach (no second try: the
+    stride search's probes, most of them out of reach)."""
     chain = leg.chain
     p = np.asarray(p, dtype=float)
     flat = p.reshape(-1, 3)
@@ -395,6 +396,8 @@ def _chain_ik(leg: Leg, p: np.ndarray) -> np.ndarray:
         q = np.clip(q + dq, lo, hi)
     end, _, _ = _chain_frames(chain, q)
     short = np.flatnonzero(np.linalg.norm(flat - end, axis=1) > CHAIN_IK_ACCEPT)
+    if len(short) and not exact:
+        raise ValueError(f"leg {leg.name}: foot target out of reach")
     for i in short:
         try:
             q[i] = solve_ik(chain, flat[i], q0=q[i], tol=1e-9, refine=0, restarts=4)
@@ -871,8 +874,12 @@ def _segment_ok(
     p = np.column_stack([points, np.full(len(points), -height)])
     lifted = p + (0.0, 0.0, step)
     try:
-        q = leg_ik(leg, p)
-        ql = leg_ik(leg, lifted)
+        if leg.chain is not None:
+            q = _chain_ik(leg, p, exact=False)
+            ql = _chain_ik(leg, lifted, exact=False)
+        else:
+            q = leg_ik(leg, p)
+            ql = leg_ik(leg, lifted)
     except ValueError:
         return False
     return bool(

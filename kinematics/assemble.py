@@ -90,6 +90,7 @@ class _Rec:
     on_parent: bool = False
     module: str = ""
     passive: bool = False
+    wheel_width: float = WHEEL_WIDTH
 
 
 @dataclass
@@ -136,6 +137,38 @@ def _ordered_children(
         out += [(c, m) for c in mine]
     out += [(c, None) for c in rest]
     return out
+
+
+def wheel_size(
+    plan: BodyPlan, kinds: PartKinds, lengths: dict[str, float]
+) -> tuple[float | None, str]:
+    """(the wheel radius m its wheel kinds give, where: the kind's file and key), or
+    (None, "") when none gives one; AssemblyError when two wheel kinds give different
+    radii (a template has one wheel radius)."""
+    found: dict[float, str] = {}
+
+    def visit(node: PartNode) -> None:
+        kind = _kind(kinds, node)
+        if kind.end == "wheel" and "radius" in kind.wheel:
+            names = {**kinds.constants, **lengths, "pi": math.pi}
+            try:
+                r = evaluate(kind.wheel["radius"], names)
+            except (KeyError, ValueError, ZeroDivisionError) as e:
+                raise AssemblyError(f"{kind.where}: wheel.radius: {e}") from None
+            if not (math.isfinite(r) and r > 0):
+                raise AssemblyError(f"{kind.where}: wheel.radius: {r} m must be positive")
+            found.setdefault(r, f"{kind.where}: wheel.radius")
+        for c in node.children:
+            visit(c)
+
+    visit(plan.root)
+    if len(found) > 1:
+        raise AssemblyError(
+            f"{plan.robot_type}: its wheel kinds give different radii ("
+            + "; ".join(f"{w} = {r * 1000:.1f} mm" for r, w in found.items())
+            + "); a design has one wheel radius"
+        )
+    return next(iter(found.items()), (None, ""))
 
 
 def length_defaults(plan: BodyPlan, kinds: PartKinds) -> dict[str, float]:
@@ -396,6 +429,8 @@ class _Walk:
             passive=j.passive,
         )
         rec.module = j.module
+        if rec.end == "wheel" and "width" in kind.wheel:
+            rec.wheel_width = self.ev(kind.wheel["width"], node, "wheel width")
         self.recs.append(rec)
         k = len(self.recs) - 1
         frame = transform(self.L[tube[1]] * tube[2]) if tube else np.eye(4)
@@ -429,6 +464,9 @@ class _Walk:
                 raise ValueError(f"modules must be an integer >= 1, got {m!r}")
             chain = [joints[0]] * int(m)
             joints = chain
+        lifted = self.p.lifted
+        if 0 < lifted < len(chain) and all(_kind(self.kinds, n).role == "module" for n in chain):
+            chain = joints = chain[:lifted]  # the lifted segment of a module chain
         serial_rows = None
         if any(
             _kind(self.kinds, n).joints[0].name == "serial"
@@ -547,12 +585,11 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
             rr = p.wheel_radius
             if not (math.isfinite(rr) and rr > 0):
                 raise ValueError(f"wheel_radius must be positive, got {rr}")
-            inertia = tube_inertia(p.wheel_mass, WHEEL_WIDTH, rr, 0, tuple(r.axis))
+            ww = r.wheel_width
+            inertia = tube_inertia(p.wheel_mass, ww, rr, 0, tuple(r.axis))
             frame = transform_from(rot_x(-math.pi / 2), (0, 0, 0))
             parts.append(
-                LabelledPart(
-                    r.body, "wheel", p.wheel_mass, np.zeros(3), inertia, frame, (rr, WHEEL_WIDTH)
-                )
+                LabelledPart(r.body, "wheel", p.wheel_mass, np.zeros(3), inertia, frame, (rr, ww))
             )
             wheels.append(r.body)
         elif r.end == "caster":

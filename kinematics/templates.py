@@ -195,6 +195,9 @@ class TemplateParams:
     payload: float = 0.0
     trunk_mass: float = 0.25
     modules: int = 3
+    #: build only the first ``lifted`` modules of a module chain (0: all), extensible or
+    #: written out: the unsupported segment its sizing analyses
+    lifted: int = 0
     wheel_radius: float = 0.03
     foot_mass: float = 0.01
     gripper_mass: float = 0.03

@@ -27,7 +27,7 @@ import numpy as np
 from adron.catalog import Catalog
 from adron.errors import InfeasibleError
 from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics
-from kinematics.templates import Template, build, default_lengths
+from kinematics.templates import Template, TemplateParams, build, default_lengths
 
 if TYPE_CHECKING:  # gaits is imported lazily, when a structure is sized
     from gaits.base import DesignGeometry
@@ -284,6 +284,10 @@ class Family(ABC):
         """Snake modules in the analysed chain (others: unused)."""
         return modules
 
+    def analysis_params(self, tp: TemplateParams, lifted_share: float = 0.5) -> TemplateParams:
+        """The template parameters of the analysed template (a snake: its lifted segment)."""
+        return replace(tp, modules=self.analysis_modules(tp.modules, lifted_share))
+
     def holds(
         self, tmpl: Template, p: Mapping[str, float], catalog: Catalog
     ) -> dict[str, tuple[float, float, str]]:
@@ -448,6 +452,20 @@ class Multipeds(Family):
         sweep = 2 * COXA_SWING
         w = PEAK_FACTOR * max(sweep, 2 * lift) / swing_time
         return dict.fromkeys(_movable(tmpl), w)
+
+
+def _kind_wheel(robot_type, lengths: dict[str, float]) -> tuple[float | None, str]:
+    """(the radius m the design's wheel kinds give, where) or (None, "")
+    (:func:`kinematics.assemble.wheel_size`)."""
+    from kinematics.assemble import AssemblyError, wheel_size
+    from kinematics.partkinds import in_use
+    from kinematics.templates import plan_of
+
+    plan = robot_type if hasattr(robot_type, "root") else plan_of(robot_type)
+    try:
+        return wheel_size(plan, in_use(), lengths)
+    except AssemblyError as e:
+        raise InfeasibleError(str(e)) from None
 
 
 @dataclass(frozen=True)
@@ -734,15 +752,22 @@ class Snake(Family):
     def analysis_modules(self, modules: int, lifted_share: float = 0.5) -> int:
         return max(1, math.ceil(modules * lifted_share))
 
+    def analysis_params(self, tp, lifted_share=0.5):
+        # the lifted segment of the chain, whether its modules are extensible (built
+        # ``modules`` long) or written out in the body plan (cut to ``lifted``)
+        k = self.analysis_modules(tp.modules, lifted_share)
+        return replace(tp, modules=k, lifted=k)
+
     def load_cases(self, tmpl, p, catalog):
         model = tmpl.model
         q = np.zeros(model.nv)
         v = np.full(model.nv, SNAKE_SPEED)
         head = HEAD_SHARE * (tmpl.params.trunk_mass + p.get("payload", 0.0))
         tip = model.bodies[-1].name
-        point = forward_kinematics(model, q)[model.body(tip)] @ np.array(
-            [tmpl.lengths["module"], 0.0, 0.0, 1.0]
-        )
+        # the free end of the last module's tube (whatever its kind calls its length)
+        seg = next((s for s in reversed(tmpl.segments) if s.body == tip), None)
+        end = seg.start + seg.direction * seg.length if seg is not None else np.zeros(3)
+        point = forward_kinematics(model, q)[model.body(tip)] @ np.array([*end, 1.0])
         fext = np.zeros((len(model.bodies), 6))
         weight = head * catalog.design.gravity_m_s2
         fext[model.body(tip)] = external_force_at(model, q, tip, point[:3], (0.0, 0.0, -weight))
@@ -778,7 +803,10 @@ class Wheeled(Family):
     def size(self, robot_type, p, catalog):
         area = p["load_area"]
         l1 = math.sqrt(area * CHASSIS_ASPECT)
-        return Sizing({"L1": l1, "L2": area / l1}, wheel_radius=catalog.passive.wheel_min_radius_m)
+        lengths = {"L1": l1, "L2": area / l1}
+        own, _ = _kind_wheel(robot_type, {**default_lengths(robot_type), **lengths})
+        r = own if own is not None else catalog.passive.wheel_min_radius_m
+        return Sizing(lengths, wheel_radius=r)
 
     @staticmethod
     def traction(mass: float, p: Mapping[str, float], catalog: Catalog) -> float:
@@ -796,6 +824,8 @@ class Wheeled(Family):
         rest = tmpl.model.total_mass - n * wheel_mass(tmpl.params.wheel_radius)
         r = sizing.wheel_radius
         driven = len(self.driven(tmpl))
+        # a wheel kind that gives its own radius keeps it: checked, not chosen
+        own = _kind_wheel(tmpl.plan, dict(tmpl.lengths))
         for _ in range(50):  # the wheels' own mass depends on their radius: a fixed point
             mass = rest + n * wheel_mass(r)
             new = self._radius(
@@ -805,6 +835,7 @@ class Wheeled(Family):
                 ],
                 p,
                 catalog,
+                own,
             )
             if abs(new - r) <= 1e-12:
                 break
@@ -812,15 +843,23 @@ class Wheeled(Family):
         return replace(sizing, wheel_radius=r)
 
     def _radius(
-        self, points: list[tuple[float, float]], p: Mapping[str, float], catalog: Catalog
+        self,
+        points: list[tuple[float, float]],
+        p: Mapping[str, float],
+        catalog: Catalog,
+        own: tuple[float | None, str] = (None, ""),
     ) -> float:
         """The smallest printable wheel radius with which one servo meets every operating
-        point (rim force N, ground speed m/s; speeds with SPEED_MARGIN)."""
+        point (rim force N, ground speed m/s; speeds with SPEED_MARGIN); ``own``: (the
+        radius m the wheel kind gives, where), which is returned when one servo meets them
+        with it (InfeasibleError naming it and the radii that would work, otherwise)."""
         sf = catalog.design.torque_safety_factor
         r_min, r_max = catalog.passive.wheel_min_radius_m, catalog.passive.wheel_max_radius_m
         servos = catalog.actuators_of("ContinuousRotationServomotor")
         # whichever servo the assignment picks, its case clears the ground
         r_min = max(r_min, self.servo_clearance_radius(servos))
+        if own[0] is not None:
+            return self._own_radius(points, p, catalog, own, servos, r_min)
         best: float | None = None
         for a in servos:
             # at each point, the speed under load w0 (1 - F r / Ts) r must reach v: r at
@@ -849,6 +888,32 @@ class Wheeled(Family):
                 "ask for less speed, payload or slope"
             )
         return best
+
+    def _own_radius(self, points, p, catalog, own, servos, r_min) -> float:
+        """:meth:`_radius` for a wheel kind's own radius: that radius when a catalog
+        servo meets every point with it and its case clears the ground."""
+        r, where = own
+        sf = catalog.design.torque_safety_factor
+        for a in servos:
+            w0, ts = a.no_load_speed_rad_s, a.stall_torque_Nm
+            clear = r >= self.servo_clearance_radius([a]) - 1e-12
+            ok = all(
+                f * r <= ts / sf + 1e-12 and w0 * (1 - f * r / ts) * r >= s * SPEED_MARGIN - 1e-12
+                for f, s in points
+            )
+            if clear and ok:
+                return r
+        force, _ = max(points)
+        try:
+            works = f"; {self._radius(points, p, catalog) * 1000:.1f} mm works"
+        except InfeasibleError:
+            works = ""
+        raise InfeasibleError(
+            f"{where}: no catalog wheel servo drives a wheel of radius {r * 1000:.1f} mm "
+            f"(clearing its case by {self.GROUND_CLEARANCE * 1000:.0f} mm) at "
+            f"{p['speed']:.2f} m/s while pushing {force:.2f} N (climbing a "
+            f"{math.degrees(p['slope']):.0f} deg slope{self.ALSO_LOADED}){works}"
+        )
 
     @classmethod
     def servo_clearance_radius(cls, servos) -> float:

@@ -31,7 +31,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -560,7 +560,7 @@ class StructureDesigner:
         converged with; none before it)."""
         analysis = build(
             self.type,
-            replace(tp, modules=self.family.analysis_modules(tp.modules, self.lifted_share)),
+            self.family.analysis_params(tp, self.lifted_share),
         )
         cases: list[LoadCase] = self.family.load_cases(analysis, self.values, self.catalog)
         if actuator_sets is None:
@@ -1280,7 +1280,7 @@ class _TorqueModel:
         d = self.d
         tp = d._params(sizing, tubes, act_mass, d.modules)
         analysis = build(
-            d.type, replace(tp, modules=d.family.analysis_modules(tp.modules, d.lifted_share))
+            d.type, d.family.analysis_params(tp, d.lifted_share)
         )
         m = analysis.model
         if self.cases is None:
