@@ -296,8 +296,7 @@ def _chain_leg(template: Template, foot: str, point: np.ndarray) -> Leg:
         if j.movable:
             if j.kind != "revolute":
                 raise ValueError(
-                    f"leg of {foot!r}: joint {j.name!r} is {j.kind}; a leg walks on revolute "
-                    "joints"
+                    f"leg of {foot!r}: joint {j.name!r} is {j.kind}; a leg walks on revolute joints"
                 )
             i = len(names)
             names.append(j.name)

@@ -90,7 +90,7 @@ class _Rec:
     on_parent: bool = False
     module: str = ""
     passive: bool = False
-    wheel_width: float = WHEEL_WIDTH
+    wheel_width: float | None = None  # the wheel kind's own width, m
 
 
 @dataclass
@@ -140,33 +140,33 @@ def _ordered_children(
 
 
 def wheel_size(
-    plan: BodyPlan, kinds: PartKinds, lengths: dict[str, float]
+    plan: BodyPlan, kinds: PartKinds, lengths: dict[str, float], what: str = "radius"
 ) -> tuple[float | None, str]:
-    """(the wheel radius m its wheel kinds give, where: the kind's file and key), or
-    (None, "") when none gives one; AssemblyError when two wheel kinds give different
-    radii (a template has one wheel radius)."""
+    """(the wheel ``what`` (radius or width) m its wheel kinds give, where: the kind's
+    file and key), or (None, "") when none gives one; AssemblyError when two wheel kinds
+    give different values (a design has one wheel size)."""
     found: dict[float, str] = {}
 
     def visit(node: PartNode) -> None:
         kind = _kind(kinds, node)
-        if kind.end == "wheel" and "radius" in kind.wheel:
+        if kind.end == "wheel" and what in kind.wheel:
             names = {**kinds.constants, **lengths, "pi": math.pi}
             try:
-                r = evaluate(kind.wheel["radius"], names)
+                r = evaluate(kind.wheel[what], names)
             except (KeyError, ValueError, ZeroDivisionError) as e:
-                raise AssemblyError(f"{kind.where}: wheel.radius: {e}") from None
+                raise AssemblyError(f"{kind.where}: wheel.{what}: unknown length {e}") from None
             if not (math.isfinite(r) and r > 0):
-                raise AssemblyError(f"{kind.where}: wheel.radius: {r} m must be positive")
-            found.setdefault(r, f"{kind.where}: wheel.radius")
+                raise AssemblyError(f"{kind.where}: wheel.{what}: {r} m must be positive")
+            found.setdefault(r, f"{kind.where}: wheel.{what}")
         for c in node.children:
             visit(c)
 
     visit(plan.root)
     if len(found) > 1:
         raise AssemblyError(
-            f"{plan.robot_type}: its wheel kinds give different radii ("
+            f"{plan.robot_type}: its wheel kinds give different wheel {what}s ("
             + "; ".join(f"{w} = {r * 1000:.1f} mm" for r, w in found.items())
-            + "); a design has one wheel radius"
+            + f"); a design has one wheel {what}"
         )
     return next(iter(found.items()), (None, ""))
 
@@ -585,7 +585,7 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
             rr = p.wheel_radius
             if not (math.isfinite(rr) and rr > 0):
                 raise ValueError(f"wheel_radius must be positive, got {rr}")
-            ww = r.wheel_width
+            ww = r.wheel_width or p.wheel_width or WHEEL_WIDTH
             inertia = tube_inertia(p.wheel_mass, ww, rr, 0, tuple(r.axis))
             frame = transform_from(rot_x(-math.pi / 2), (0, 0, 0))
             parts.append(

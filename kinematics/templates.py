@@ -199,6 +199,8 @@ class TemplateParams:
     #: written out: the unsupported segment its sizing analyses
     lifted: int = 0
     wheel_radius: float = 0.03
+    #: the wheels' width m when their part kind gives it (None: the catalog's)
+    wheel_width: float | None = None
     foot_mass: float = 0.01
     gripper_mass: float = 0.03
     fingers: int = 2

@@ -101,6 +101,8 @@ class Sizing:
     modules: int = 3
     wheel_radius: float = 0.03
     notes: list[str] = field(default_factory=list)
+    #: the wheels' width m when their part kind gives it (None: the catalog's)
+    wheel_width: float | None = None
 
 
 def _clamp_length(name: str, value: float, catalog: Catalog, why: str) -> float:
@@ -454,16 +456,18 @@ class Multipeds(Family):
         return dict.fromkeys(_movable(tmpl), w)
 
 
-def _kind_wheel(robot_type, lengths: dict[str, float]) -> tuple[float | None, str]:
-    """(the radius m the design's wheel kinds give, where) or (None, "")
-    (:func:`kinematics.assemble.wheel_size`)."""
+def _kind_wheel(
+    robot_type, lengths: dict[str, float], what: str = "radius"
+) -> tuple[float | None, str]:
+    """(the radius (``what``: or width) m the design's wheel kinds give, where) or
+    (None, "") (:func:`kinematics.assemble.wheel_size`)."""
     from kinematics.assemble import AssemblyError, wheel_size
     from kinematics.partkinds import in_use
     from kinematics.templates import plan_of
 
     plan = robot_type if hasattr(robot_type, "root") else plan_of(robot_type)
     try:
-        return wheel_size(plan, in_use(), lengths)
+        return wheel_size(plan, in_use(), lengths, what)
     except AssemblyError as e:
         raise InfeasibleError(str(e)) from None
 
@@ -527,7 +531,7 @@ def leg_shape(robot_type) -> LegShape:
     if not down:
         raise InfeasibleError(
             f"{plan.robot_type}: its leg kind {kind.cls} ({kind.where}, key `joints`) has "
-            "no tube hanging down (a joint's tube `along = \"-z\"`): parmor sizes and walks "
+            'no tube hanging down (a joint\'s tube `along = "-z"`): parmor sizes and walks '
             "legs whose last tubes hang down to a point foot, after level tubes reaching out "
             "from the trunk"
         )
@@ -804,9 +808,11 @@ class Wheeled(Family):
         area = p["load_area"]
         l1 = math.sqrt(area * CHASSIS_ASPECT)
         lengths = {"L1": l1, "L2": area / l1}
-        own, _ = _kind_wheel(robot_type, {**default_lengths(robot_type), **lengths})
+        names = {**default_lengths(robot_type), **lengths}
+        own, _ = _kind_wheel(robot_type, names)
+        width, _ = _kind_wheel(robot_type, names, "width")
         r = own if own is not None else catalog.passive.wheel_min_radius_m
-        return Sizing(lengths, wheel_radius=r)
+        return Sizing(lengths, wheel_radius=r, wheel_width=width)
 
     @staticmethod
     def traction(mass: float, p: Mapping[str, float], catalog: Catalog) -> float:
@@ -820,6 +826,7 @@ class Wheeled(Family):
     def update(self, sizing, tmpl, p, catalog):
         n = len(tmpl.wheels)
         rho, width = catalog.material.density_kg_m3, catalog.passive.wheel_width_m
+        width = sizing.wheel_width or width
         wheel_mass = lambda r: math.pi * r * r * width * rho  # noqa: E731 (solid printed disc)
         rest = tmpl.model.total_mass - n * wheel_mass(tmpl.params.wheel_radius)
         r = sizing.wheel_radius
@@ -1024,7 +1031,7 @@ class Steered(Wheeled):
         from gaits.steered import wheel_loads
 
         loads = wheel_loads(tmpl, mass * catalog.design.gravity_m_s2)
-        lever = catalog.passive.wheel_width_m / 2
+        lever = (tmpl.params.wheel_width or catalog.passive.wheel_width_m) / 2
         return {j: TYRE_FRICTION * loads[w] * lever for j, w in self.steering_wheels(tmpl).items()}
 
     @staticmethod

@@ -484,7 +484,7 @@ class StructureDesigner:
             foot = side * FOOT_WIDTH_RATIO * side * p.foot_thickness_m * rho
         else:  # a printed pad under a leg's tip
             foot = p.foot_min_side_m**2 * p.foot_thickness_m * rho
-        wheel = cat.wheel_mass_kg(sizing.wheel_radius, WHEEL_BORE)
+        wheel = cat.wheel_mass_kg(sizing.wheel_radius, WHEEL_BORE, sizing.wheel_width)
         # the catalog's jaw and ball caster (a catalog without them: the template's own)
         classes = {q.ontology_class for q in cat.parts}
         extra: dict = {"fingers": self.fingers}
@@ -507,6 +507,7 @@ class StructureDesigner:
             trunk_mass=self._trunk_mass(sizing),
             modules=modules,
             wheel_radius=sizing.wheel_radius,
+            wheel_width=sizing.wheel_width,
             foot_mass=foot,
             wheel_mass=wheel,
             **extra,
@@ -1279,9 +1280,7 @@ class _TorqueModel:
         behaviour samples' |speeds| (rad/s)."""
         d = self.d
         tp = d._params(sizing, tubes, act_mass, d.modules)
-        analysis = build(
-            d.type, d.family.analysis_params(tp, d.lifted_share)
-        )
+        analysis = build(d.type, d.family.analysis_params(tp, d.lifted_share))
         m = analysis.model
         if self.cases is None:
             cases = self.cases = d.family.load_cases(analysis, d.values, d.catalog)
