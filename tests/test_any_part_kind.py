@@ -21,13 +21,25 @@ DATA = Path(__file__).resolve().parent / "data" / "any_part_kind"
 LEGS = str(DATA / "legs.toml")
 
 
+@pytest.fixture(autouse=True)
+def _shipped_kinds_after():
+    """Each test that uses its own part kinds puts the shipped ones back."""
+    from kinematics.partkinds import use
+
+    yield
+    use(None)
+
+
 def _template(kif: str, robot_type: str, parts: str | None = None):
+    """The template of ``robot_type`` of ``kif`` with the part kinds ``parts`` (then in
+    use)."""
     from adron.kb import load as load_kb
-    from kinematics.partkinds import load
+    from kinematics.partkinds import load, use
     from kinematics.templates import build
     from synth.bodyplan import plan_of
 
     kinds = load([parts] if parts else [])
+    use(kinds)
     return build(plan_of(load_kb([DATA / kif]), robot_type, kinds)), kinds
 
 
@@ -60,7 +72,6 @@ def test_leg_shape_of_the_shipped_leg() -> None:
 
 
 def test_leg_shape_of_other_legs() -> None:
-    from kinematics.partkinds import use
     from synth.sizing import leg_shape
 
     for kif, robot, want in (
@@ -68,12 +79,8 @@ def test_leg_shape_of_other_legs() -> None:
         ("hexapod5.kif", "FiveJointHexapod", ("thigh", ("shin", "toe"), ("base", "hip", "thigh"))),
         ("shank_hexapod.kif", "ShankHexapod", ("", ("shank",), ("thigh",))),
     ):
-        tmpl, kinds = _template(kif, robot, LEGS)
-        use(kinds)
-        try:
-            s = leg_shape(tmpl.plan)
-        finally:
-            use(None)
+        tmpl, _ = _template(kif, robot, LEGS)
+        s = leg_shape(tmpl.plan)
         assert (s.lift, s.down, s.across) == want
 
 
@@ -125,7 +132,7 @@ def test_biped_without_arms_walks(cli, tmp_path: Path) -> None:
     )
     assert r.code == 0, r.err
     record = json.loads((out / "design.json").read_text())
-    assert "forearm" not in json.dumps(record["structure"])
+    assert "forearm" not in record["lengths_m"] and "femur" in record["lengths_m"]
     behaviours = {p.stem for p in (out / "trajectories").glob("*.csv")}
     assert {"walking", "balancing"} <= behaviours and "grasping" not in behaviours
 
@@ -152,7 +159,7 @@ def test_four_joint_quadruped_walks(cli, tmp_path: Path) -> None:
     assert r.code == 0, r.err
     assert "walking                ok" in r.out and "turning                ok" in r.out
     record = json.loads((out / "design.json").read_text())
-    assert {"hip", "thigh", "shin", "toe", "La1", "La2"} <= set(record["structure"]["lengths_m"])
+    assert {"hip", "thigh", "shin", "toe", "La1", "La2"} <= set(record["lengths_m"])
 
 
 def test_five_joint_legs_over_the_bus_are_refused(cli) -> None:
@@ -182,7 +189,7 @@ def test_wheel_kind_keeps_its_size(cli, tmp_path: Path) -> None:
     )
     r, out = _design(cli, tmp_path, *argv, "--no-verify")
     assert r.code == 0, r.err
-    s = json.loads((out / "design.json").read_text())["structure"]
+    s = json.loads((out / "design.json").read_text())
     assert s["wheel_radius_m"] == pytest.approx(0.07)
     assert s["lengths_m"]["tyre_radius"] == pytest.approx(0.07)
     urdf = (out / "robot.urdf").read_text()
