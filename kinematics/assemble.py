@@ -561,6 +561,12 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
             feet.append(r.body)
             points.append(_frozen(foot))
         elif r.end == "foot_plate":
+            if "foot" not in lengths:
+                raise AssemblyError(
+                    f"{plan.robot_type}: a foot_plate end is a plate of the named length "
+                    "`foot` (its width foot_width_ratio x it), but its part kinds have no "
+                    "length `foot`; add `foot` to the leg kind's `lengths`"
+                )
             sole = p.actuator_size[2] / 2
             c = kinds.constants
             plate = (lengths["foot"], c["foot_width_ratio"] * lengths["foot"], c["foot_plate"])

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from adron.catalog import Catalog
-from adron.errors import InfeasibleError
+from adron.errors import InfeasibleError, InputError
 from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics
 from kinematics.templates import Template, TemplateParams, build, default_lengths
 
@@ -74,6 +74,10 @@ HUMANOID = {
     "upper_arm": 0.17,
     "forearm": 0.19,
 }
+#: The lengths a biped's sizing and its gait (the humanoid gait's maps, fitted on the
+#: shipped BipedLeg and HumanoidTorso) read: the thigh and shank tubes, the foot plate,
+#: the torso's height and hip width.
+BIPED_LENGTHS = ("femur", "tibia", "foot", "trunk_height", "hip_width")
 #: Humanoid: share of the half foot length ahead of and behind the centre of mass over
 #: which the ankle must move the centre of pressure (the open-loop gait's balance margin).
 ANKLE_COP_REACH = 0.5
@@ -456,6 +460,35 @@ class Multipeds(Family):
         return dict.fromkeys(_movable(tmpl), w)
 
 
+def _biped_refusal(robot_type, missing: Sequence[str]) -> str:
+    """Why a biped whose kinds lack ``missing`` of BIPED_LENGTHS is not sized: its kinds'
+    files and what is supported."""
+    from kinematics.partkinds import in_use
+    from kinematics.templates import plan_of
+
+    kinds = in_use()
+    plan = robot_type if hasattr(robot_type, "root") else plan_of(robot_type)
+    where: list[str] = []
+
+    legs = {"femur", "tibia", "foot"} & set(missing)
+
+    def visit(node) -> None:
+        k = kinds.of(node.kinds)
+        mine = (k.role == "leg" and legs) or (k.root and set(missing) - legs) if k else False
+        if mine and f"{k.where}: lengths" not in where:
+            where.append(f"{k.where}: lengths")
+        for c in node.children:
+            visit(c)
+
+    visit(plan.root)
+    return (
+        f"{'; '.join(where) or plan.robot_type}: a biped is sized and walked by the humanoid "
+        "gait, fitted on legs of thigh and shank tubes named femur and tibia over a foot "
+        f"plate `foot`, under a torso of trunk_height and hip_width; these kinds have no "
+        f"{', '.join(missing)}"
+    )
+
+
 def _kind_wheel(
     robot_type, lengths: dict[str, float], what: str = "radius"
 ) -> tuple[float | None, str]:
@@ -638,6 +671,9 @@ class Humanoid(Family):
         # the proportions of the lengths this body plan has (a biped without arms has no
         # upper_arm or forearm)
         have = default_lengths(robot_type)
+        missing = [k for k in BIPED_LENGTHS if k not in have]
+        if missing:
+            raise InputError(_biped_refusal(robot_type, missing))
         lengths = {k: f * H for k, f in HUMANOID.items() if k in have}
         out = {}
         for k, v in lengths.items():

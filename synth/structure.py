@@ -321,6 +321,22 @@ class _Requirements:
     points: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
 
 
+def _plate_area(plan, lengths: Mapping[str, float]) -> float | None:
+    """The face m^2 of the root part's plate that carries its modules, when its box is
+    sized (the two sides of that face are expressions of the design's lengths: a trunk's
+    La1 x La2, a torso's shoulder width x height); None for a box of fixed size (numbers,
+    the actuator's size: an arm's base, a snake's head)."""
+    from kinematics.partkinds import _names, evaluate, in_use
+
+    kind = in_use().of(plan.root.kinds)
+    if kind is None or len(kind.box) != 3:
+        return None
+    sides = kind.box[1:] if kind.faces == "back" else kind.box[:2]
+    if not all(isinstance(x, str) and _names(x) and _names(x) <= set(lengths) for x in sides):
+        return None
+    return evaluate(sides[0], lengths) * evaluate(sides[1], lengths)
+
+
 class StructureDesigner:
     """One robot type's co-design loop with its own actuator assigner (grounded once)."""
 
@@ -464,13 +480,8 @@ class StructureDesigner:
         fixed = sum(n * mass for _, _, n, mass, _, _ in self._fixed_modules())
         p = self.catalog.passive
         L = sizing.lengths
-        if "La1" in L:
-            area = L["La1"] * L["La2"]
-        elif "L1" in L and "L2" in L and "L3" not in L:
-            area = L["L1"] * L["L2"]
-        elif "shoulder_width" in L:
-            area = L["shoulder_width"] * L["trunk_height"]
-        else:
+        area = _plate_area(self.plan, L)
+        if area is None:
             area = p.dovetail_face_m**2
         return fixed + area * p.face_thickness_m * self.catalog.material.density_kg_m3
 

@@ -233,3 +233,91 @@ def test_explicit_snake_sized_as_extensible(cli) -> None:
         return [line for line in text.splitlines() if line.strip().startswith("joint joint_")]
 
     assert joints(mine.out) and joints(mine.out) == joints(shipped.out)
+
+
+# --- kinds parmor does not size: refused naming the kind's file and key -------------------
+
+
+def _leg_kind(tmp_path: Path, along: str) -> str:
+    """legs.toml with the 4-joint leg's last two tubes along ``along``."""
+    text = (DATA / "legs.toml").read_text()
+    for tube in ("shin", "toe"):
+        text = text.replace(
+            f'tube = {{ length = "{tube}", along = "-z" }}',
+            f'tube = {{ length = "{tube}", along = "{along}" }}',
+        )
+    f = tmp_path / "flat.toml"
+    f.write_text(text)
+    return str(f)
+
+
+def test_leg_without_a_tube_hanging_down_is_refused(cli, tmp_path: Path) -> None:
+    r = cli(
+        "design",
+        "four-joint-walking",
+        "--ontology",
+        str(DATA / "quadruped4.kif"),
+        "--parts",
+        _leg_kind(tmp_path, "x"),
+        "--no-input",
+        "--no-verify",
+    )
+    assert r.code == 1 and "Traceback" not in r.err
+    assert "flat.toml: kind[" in r.err and "no tube hanging down" in r.err
+
+
+def test_trunk_kind_of_its_own_lengths(cli, tmp_path: Path) -> None:
+    """A trunk whose lengths are not La1 and La2: the legs spaced along its mount's span,
+    its plate weighed by its own box."""
+    trunk = tmp_path / "trunk.toml"
+    trunk.write_text(
+        "format = 1\n[[kind]]\n"
+        'class = "RobotTrunk"\nroot = true\nbody = "trunk"\n'
+        "lengths = { body_len = 0.20, body_wid = 0.10 }\n"
+        'box = ["body_len", "body_wid", "trunk_thickness"]\nfaces = "up"\npayload = "root"\n'
+        'mounts = [{ child = "MultipedLeg", layout = "bilateral", span = "body_len", '
+        'track = "body_wid" }]\n'
+    )
+    r, out = _design(
+        cli,
+        tmp_path,
+        "four-joint-walking",
+        "--ontology",
+        str(DATA / "quadruped4.kif"),
+        "--parts",
+        LEGS,
+        "--parts",
+        str(trunk),
+        "--no-verify",
+    )
+    assert r.code == 0, r.err
+    lengths = json.loads((out / "design.json").read_text())["lengths_m"]
+    assert "La1" not in lengths and lengths["body_len"] > 0.1
+
+
+def test_biped_of_other_length_names_is_refused(cli, tmp_path: Path) -> None:
+    """The humanoid gait is fitted on femur, tibia and a foot plate `foot`: a biped leg
+    kind naming its tubes otherwise is refused (exit 2) naming its file and key."""
+    text = (
+        "format = 1\n[[kind]]\n"
+        'class = "BipedLeg"\nrole = "leg"\nlengths = { thigh = 0.09, shin = 0.09, foot = 0.10 }\n'
+        "joints = [\n"
+        '  { name = "hip_yaw", axis = "z", limits = ["-pi/4", "pi/4"] },\n'
+        '  { name = "hip_roll", axis = "x", limits = ["-pi/4", "pi/4"] },\n'
+        '  { name = "hip_pitch", axis = "y", limits = ["-pi/2", "pi/2"], '
+        'tube = { length = "thigh", along = "-z" } },\n'
+        '  { name = "knee_pitch", axis = "y", limits = [0, "5pi/6"], '
+        'tube = { length = "shin", along = "-z" } },\n'
+        '  { name = "ankle_pitch", axis = "y", limits = ["-pi/3", "pi/3"] },\n'
+        '  { name = "ankle_roll", axis = "x", limits = ["-pi/4", "pi/4"] },\n'
+        ']\nend = "foot_plate"\n'
+    )
+    f = tmp_path / "biped.toml"
+    f.write_text(text)
+    argv = ("armless-walking", "--ontology", str(DATA / "armless_biped.kif"), "--parts", str(f))
+    r = cli("design", *argv, "--answer", "grasping=no", "--no-input", "--no-verify")
+    assert r.code == 2 and "Traceback" not in r.err
+    assert "biped.toml: kind[0] (BipedLeg): lengths" in r.err and "femur, tibia" in r.err
+    f.write_text(text.replace("foot = 0.10", "sole = 0.10"))
+    r = cli("design", *argv, "--answer", "grasping=no", "--no-input", "--no-verify")
+    assert r.code == 2 and "no length `foot`" in r.err
