@@ -171,6 +171,44 @@ def wheel_size(
     return next(iter(found.items()), (None, ""))
 
 
+def unused_lengths(plan: BodyPlan, kinds: PartKinds) -> tuple[str, ...]:
+    """The named lengths of the plan's part kinds (``lengths``) and of its ontology
+    (``defaultLength``) that nothing of its kinds uses: no box, place, limit, tube or wheel
+    size names them (a ``foot_plate`` end uses ``foot``; a serial arm, its links). A value
+    given and not used is reported, never dropped in silence."""
+    from kinematics.partkinds import _names
+
+    used: set[str] = set()
+    given: list[str] = []
+
+    def names(*xs) -> None:
+        for x in xs:
+            if x != "":
+                used.update(_names(x))
+
+    def visit(node: PartNode) -> None:
+        kind = _kind(kinds, node)
+        given.extend(k for k in kind.lengths if k not in given)
+        names(*kind.box, *kind.at, *(x for v in kind.at_with.values() for x in v))
+        names(*kind.wheel.values())
+        for j in kind.joints:
+            names(*j.limits)
+            if j.tube_length:
+                used.add(j.tube_length)
+        for m in kind.mounts:
+            names(m.span, m.track, *m.at)
+        if kind.end == "foot_plate":
+            used.add("foot")
+        for c in node.children:
+            visit(c)
+
+    visit(plan.root)
+    for chain in serial_links(plan, kinds):
+        used.update(chain)
+    given.extend(k for k in plan.lengths if k not in given)
+    return tuple(k for k in given if k not in used)
+
+
 def length_defaults(plan: BodyPlan, kinds: PartKinds) -> dict[str, float]:
     """The plan's named lengths with their defaults (m), in the order a template lists
     them: the root's, then each part's in assembly order; the ontology's

@@ -378,11 +378,15 @@ class StructureDesigner:
             "deflection": catalog.design.max_tip_deflection_m,
             "slope": catalog.design.max_slope_rad,
         }
-        self.values, self.ignored = resolve(
+        self.values, ignored = resolve(
             structure, params, defaults, ontology_defaults(kb, ancestors(kb, candidate.robot_type))
         )
+        from kinematics.assemble import AssemblyError, unused_lengths
+        from kinematics.partkinds import in_use
+
+        # the request's parameters and the kinds' lengths that nothing uses: said
+        self.ignored = tuple(ignored) + unused_lengths(plan, in_use())
         self.modules = max(candidate.dof, 1)
-        from kinematics.assemble import AssemblyError
 
         try:
             probe = build(self.type, TemplateParams(modules=self.modules))

@@ -321,3 +321,27 @@ def test_biped_of_other_length_names_is_refused(cli, tmp_path: Path) -> None:
     f.write_text(text.replace("foot = 0.10", "sole = 0.10"))
     r = cli("design", *argv, "--answer", "grasping=no", "--no-input", "--no-verify")
     assert r.code == 2 and "no length `foot`" in r.err
+
+
+def test_unused_lengths_are_reported(cli, tmp_path: Path) -> None:
+    """A length of a kind nothing uses, and a KIF defaultLength of no length of the plan,
+    are in ignored_params; a KIF defaultLength of the wheel's radius length is kept."""
+    kinds = tmp_path / "wheel.toml"
+    kinds.write_text(
+        (DATA / "bigwheel.toml")
+        .read_text()
+        .replace("tyre_width = 0.012 }", "tyre_width = 0.012, hub = 0.01 }")
+    )
+    kif = tmp_path / "cart.kif"
+    kif.write_text(
+        (DATA / "bigwheel.kif").read_text()
+        + '(defaultLength BigWheelCart "tyre_radius" "8 cm")\n'
+        + '(defaultLength BigWheelCart "spoke" "3 cm")\n'
+    )
+    argv = ("big-wheel-driving", "--ontology", str(kif), "--parts", str(kinds), "--no-verify")
+    r, out = _design(cli, tmp_path, *argv)
+    assert r.code == 0, r.err
+    record = json.loads((out / "design.json").read_text())
+    assert record["ignored_params"] == ["hub", "spoke"]
+    assert record["wheel_radius_m"] == pytest.approx(0.08)
+    assert "not used by BigWheelCart: hub, spoke" in r.out
