@@ -19,6 +19,17 @@ and the closed-form inverse (:func:`leg_ik`), with ``rho = |p_xy - m_xy| - c``,
     q_tibia = asin((f^2 + t^2 - D^2) / (2 f t))          (the knee-up branch, |q| <= pi/2)
     q_femur = atan2(-z, rho) - atan2(t cos(q_tibia), f - t sin(q_tibia))
 
+Any other leg (issue 31: 2 to 5 revolute joints, whatever their axes and the tubes
+between them, as its part kind builds it) is a **chain leg**: its joints from the trunk to
+the foot point as a :class:`gaits.arm_ik.SerialChain`, placed by numerical IK on that chain
+(:func:`_chain_ik`: damped least squares on every point of a path at once, from the leg's
+pose as built, inside the limits; ``solve_ik`` for a point left short). Its reach, stride,
+step height and the tilt of its last tube are read from the chain (:func:`leg_tilt`; the
+coxa swing bounds a first joint about the vertical); a chain that moves its foot in fewer
+than three directions (a yaw and a pitch joint) is refused, naming why: a standing foot
+must stay put while the trunk moves over it. The coxa-femur-tibia leg keeps its closed
+form (the shipped legs plan exactly as before).
+
 **Gaits** (:func:`gait_pattern`) are phase offsets on the legs ranked in the direction of
 travel (left/right of it, rear to front; in a turn, the rear and front halves, each along
 its own travel): ``tripod`` (hexapod: two alternating tripods, duty 1/2), ``ripple`` (each
@@ -478,8 +489,12 @@ def _yaw_first(leg: Leg) -> bool:
     bounds its swing (``coxa_swing``)."""
     if leg.chain is None:
         return True
-    axis = leg.chain.steps[1][0][:3, :3] @ leg.chain.steps[1][1]
-    return bool(abs(abs(axis[2]) - 1.0) < 1e-9)
+    R = np.eye(3)
+    for origin, axis, i in leg.chain.steps:
+        R = R @ origin[:3, :3]
+        if i >= 0:
+            return bool(abs(abs((R @ axis)[2]) - 1.0) < 1e-9)
+    return False
 
 
 def leg_fk(leg: Leg, q: np.ndarray) -> np.ndarray:
@@ -977,8 +992,20 @@ def legs_key(legs: Sequence[Leg]) -> tuple:
             tuple(float(x) for x in leg.upper),
             leg.foot_body,
         )
+        + (() if leg.chain is None else (_chain_key(leg.chain),))
         for leg in legs
     )
+
+
+def _chain_key(chain: SerialChain) -> bytes:
+    """What identifies a chain leg's geometry: its joints' origins and axes, its foot."""
+    h = hashlib.blake2b(digest_size=16)
+    for origin, axis, i in chain.steps:
+        h.update(np.ascontiguousarray(origin, dtype=float).tobytes())
+        h.update(repr(i).encode())
+        if axis is not None:
+            h.update(np.ascontiguousarray(axis, dtype=float).tobytes())
+    return h.digest()
 
 
 def model_key(template: Template) -> bytes:
