@@ -212,9 +212,6 @@ class Leg:
     #: its chain from the trunk to the foot point, placed by numerical IK
     #: (:func:`gaits.arm_ik.solve_ik`); None: the coxa-femur-tibia leg of the closed form
     chain: SerialChain | None = field(default=None, repr=False)
-    #: a chain leg's knee: the first joint whose tube hangs down at q = 0 (its lower leg,
-    #: from that joint to the foot, is what stands on the ground: its tilt is bounded)
-    knee: int = -1
 
     @property
     def neutral(self) -> np.ndarray:
@@ -352,15 +349,6 @@ def _chain_leg(template: Template, foot: str, point: np.ndarray) -> Leg:
     p0, _, _, origins = chain.frames(q0)
     d = p0 - mount
     last = origins[-1]
-    ends = [*origins[1:], p0]
-    knee = next(
-        (
-            i
-            for i in range(n)
-            if (ends[i] - origins[i])[2] < -0.7 * np.linalg.norm(ends[i] - origins[i]) - 1e-12
-        ),
-        n - 1,
-    )
     return Leg(
         name=_leg_prefix(first.name, names),
         joints=tuple(names),
@@ -373,7 +361,6 @@ def _chain_leg(template: Template, foot: str, point: np.ndarray) -> Leg:
         upper=np.array(hi),
         foot_body=foot,
         chain=chain,
-        knee=knee,
     )
 
 
@@ -485,15 +472,14 @@ def _chain_fk(leg: Leg, q: np.ndarray) -> np.ndarray:
 
 
 def leg_tilt(leg: Leg, q: np.ndarray) -> np.ndarray:
-    """Tilt (...,) rad from vertical of the leg's lower leg, from its knee (the first joint
-    whose tube hangs down) to the foot (the tibia of the closed form: :func:`tibia_tilt`),
-    at the leg angles (..., n)."""
+    """Tilt (...,) rad from vertical of the leg's last tube (the tibia of the closed form:
+    :func:`tibia_tilt`) at the leg angles (..., n)."""
     if leg.chain is None:
         return tibia_tilt(q)
     q = np.asarray(q, dtype=float)
     flat = q.reshape(-1, leg.chain.n)
     end, _, origins = _chain_frames(leg.chain, flat)
-    d = end - origins[:, leg.knee]
+    d = end - origins[:, -1]
     out = np.arctan2(np.hypot(d[:, 0], d[:, 1]), -d[:, 2])
     return out.reshape(q.shape[:-1])
 
