@@ -345,3 +345,21 @@ def test_unused_lengths_are_reported(cli, tmp_path: Path) -> None:
     assert record["ignored_params"] == ["hub", "spoke"]
     assert record["wheel_radius_m"] == pytest.approx(0.08)
     assert "not used by BigWheelCart: hub, spoke" in r.out
+
+
+def test_snake_module_of_its_own_length_name(cli, tmp_path: Path) -> None:
+    """A snake module kind whose tube is `pitch`, not `module`: sized (the lifted
+    segment's end) and its gaits planned and simulated from the chain."""
+    kinds = tmp_path / "module.toml"
+    kinds.write_text(
+        "format = 1\n[[kind]]\n"
+        'class = "SnakeModule"\nrole = "module"\nlengths = { pitch = 0.06 }\n'
+        'joints = [{ name = "joint", body = "module", axes = ["y", "z"], '
+        'limits = ["-pi/2", "pi/2"], group = "snake_module", '
+        'tube = { length = "pitch", along = "x" } }]\nnaming = "index"\n'
+    )
+    argv = ("eight-module-rolling", "--ontology", str(DATA / "snake8.kif"), "--parts", str(kinds))
+    r, out = _design(cli, tmp_path, *argv, "--robustness", "0")
+    assert r.code == 0, r.err
+    assert "rolling                ok" in r.out
+    assert json.loads((out / "design.json").read_text())["lengths_m"] == {"pitch": 0.06}
