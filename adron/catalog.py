@@ -278,10 +278,11 @@ class Catalog:
                 return p
         raise InputError(f"{self.source}: no [[part]] of class '{ontology_class}'")
 
-    def wheel_mass_kg(self, radius: float, bore: float) -> float:
-        """kg of a wheel of outer ``radius`` m: the printed rim (the catalog's wheel width,
-        a hub bore of ``bore`` m, the tyre's thickness less than the radius) and its tyre."""
-        w = self.passive.wheel_width_m
+    def wheel_mass_kg(self, radius: float, bore: float, width: float | None = None) -> float:
+        """kg of a wheel of outer ``radius`` m: the printed rim (``width`` m, default the
+        catalog's wheel width, a hub bore of ``bore`` m, the tyre's thickness less than
+        the radius) and its tyre."""
+        w = self.passive.wheel_width_m if width is None else width
         t = self.tyre.thickness_m if self.tyre is not None else 0.0
         rim = math.pi * ((radius - t) ** 2 - bore**2) * w * self.material.density_kg_m3
         return rim + (self.tyre.mass_kg(radius, w) if self.tyre is not None else 0.0)

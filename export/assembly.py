@@ -263,7 +263,9 @@ def _wheel(b: _Builder, lp: LabelledPart) -> list[PartUse]:
     """The printed rim (seen, not touching: its mesh is a polygon that would roll
     bumpily), the catalog's tyre around it (bought: a ring of its mass, no shape of its
     own) and the contact with the ground: a cylinder of the wheel's radius and width."""
-    r, w = lp.dims[0], b.catalog.passive.wheel_width_m
+    # the wheel kind's own width when it gives one (the template's), else the catalog's
+    own = b.structure.template.params.wheel_width
+    r, w = lp.dims[0], own or b.catalog.passive.wheel_width_m
     tyre = b.catalog.tyre
     t = tyre.thickness_m if tyre is not None else 0.0
     rim_r, bore = r - t, meshes.WHEEL_BORE

@@ -19,6 +19,17 @@ and the closed-form inverse (:func:`leg_ik`), with ``rho = |p_xy - m_xy| - c``,
     q_tibia = asin((f^2 + t^2 - D^2) / (2 f t))          (the knee-up branch, |q| <= pi/2)
     q_femur = atan2(-z, rho) - atan2(t cos(q_tibia), f - t sin(q_tibia))
 
+Any other leg (issue 31: 2 to 5 revolute joints, whatever their axes and the tubes
+between them, as its part kind builds it) is a **chain leg**: its joints from the trunk to
+the foot point as a :class:`gaits.arm_ik.SerialChain`, placed by numerical IK on that chain
+(:func:`_chain_ik`: damped least squares on every point of a path at once, from the leg's
+pose as built, inside the limits; ``solve_ik`` for a point left short). Its reach, stride,
+step height and the tilt of its last tube are read from the chain (:func:`leg_tilt`; the
+coxa swing bounds a first joint about the vertical); a chain that moves its foot in fewer
+than three directions (a yaw and a pitch joint) is refused, naming why: a standing foot
+must stay put while the trunk moves over it. The coxa-femur-tibia leg keeps its closed
+form (the shipped legs plan exactly as before).
+
 **Gaits** (:func:`gait_pattern`) are phase offsets on the legs ranked in the direction of
 travel (left/right of it, rear to front; in a turn, the rear and front halves, each along
 its own travel): ``tripod`` (hexapod: two alternating tripods, duty 1/2), ``ripple`` (each
@@ -88,11 +99,12 @@ import math
 import os
 from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from gaits.arm_ik import DAMPING, MAX_STEP, SerialChain, chain_rank, solve_ik
 from kinematics.dynamics import center_of_mass, forward_kinematics
 from kinematics.templates import Template
 
@@ -196,11 +208,27 @@ class Leg:
     lower: np.ndarray
     upper: np.ndarray
     foot_body: str
+    #: any other leg (2 to 5 revolute joints, axes and tubes as its part kind has them):
+    #: its chain from the trunk to the foot point, placed by numerical IK
+    #: (:func:`gaits.arm_ik.solve_ik`); None: the coxa-femur-tibia leg of the closed form
+    chain: SerialChain | None = field(default=None, repr=False)
 
     @property
     def neutral(self) -> np.ndarray:
         """(3,) the foot at q = 0, trunk frame, m."""
-        return leg_fk(self, np.zeros(3))
+        return leg_fk(self, np.zeros(len(self.joints)))
+
+    @property
+    def foot_offset(self) -> np.ndarray:
+        """(3,) the foot point in the foot body's frame, m."""
+        if self.chain is None:
+            return np.array([0.0, 0.0, -self.tibia])
+        return np.array(self.chain.steps[-1][0][:3, 3], dtype=float)
+
+    @property
+    def extent(self) -> float:
+        """The sum of the leg's lengths, m (a bound of its reach)."""
+        return self.coxa + self.femur + self.tibia
 
 
 def legs_of(template: Template) -> tuple[Leg, ...]:
@@ -219,12 +247,11 @@ def legs_of(template: Template) -> tuple[Leg, ...]:
         j_femur = m.joints[j_tibia.parent]
         j_coxa = m.joints[j_femur.parent]
         chain = (j_coxa, j_femur, j_tibia)
-        if j_coxa.parent < 0 or any(j.kind != "revolute" for j in chain):
-            raise ValueError(f"foot {foot!r} does not hang on three revolute joints")
-        if m.joints[j_coxa.parent].movable:
-            raise ValueError(f"leg of {foot!r} is not mounted on the trunk")
         ok = (
-            np.allclose(j_coxa.axis, (0, 0, 1))
+            j_coxa.parent >= 0
+            and all(j.kind == "revolute" for j in chain)
+            and not m.joints[j_coxa.parent].movable
+            and np.allclose(j_coxa.axis, (0, 0, 1))
             and np.allclose(j_femur.axis, (0, 1, 0))
             and np.allclose(j_tibia.axis, (0, 1, 0))
             and np.allclose(j_coxa.origin[2, :3], (0, 0, 1))
@@ -235,8 +262,9 @@ def legs_of(template: Template) -> tuple[Leg, ...]:
             and np.allclose(point[:2], 0)
             and point[2] < 0
         )
-        if not ok:
-            raise ValueError(f"leg of {foot!r} is not a coxa-femur-tibia leg of the template")
+        if not ok:  # any other leg: its own chain
+            legs.append(_chain_leg(template, foot, np.asarray(point, dtype=float)))
+            continue
         R = j_coxa.origin[:3, :3]
         legs.append(
             Leg(
@@ -255,8 +283,224 @@ def legs_of(template: Template) -> tuple[Leg, ...]:
     return tuple(legs)
 
 
+#: Revolute joints a leg of any other shape may have (the first one on the trunk).
+CHAIN_JOINTS = (2, 5)
+
+
+def _chain_leg(template: Template, foot: str, point: np.ndarray) -> Leg:
+    """A leg that is not the closed form's coxa-femur-tibia: the revolute joints from the
+    trunk to the foot point ``point`` (foot body frame), read off the template (their
+    axes, origins and limits as the part kind built them). ValueError naming why when the
+    chain cannot walk: a joint that is not revolute, fewer than 2 or more than 5 joints,
+    a foot it cannot place in three dimensions (the trunk moves over a standing foot)."""
+    m = template.model
+    path = []
+    b = m.body(foot)
+    while b >= 0:
+        path.append(b)
+        b = m.joints[b].parent
+    path.reverse()
+    steps, names, lo, hi = [], [], [], []
+    for b in path:
+        j = m.joints[b]
+        i = -1
+        if j.movable:
+            if j.kind != "revolute":
+                raise ValueError(
+                    f"leg of {foot!r}: joint {j.name!r} is {j.kind}; a leg walks on revolute joints"
+                )
+            i = len(names)
+            names.append(j.name)
+            lo.append(j.lower)
+            hi.append(j.upper)
+        steps.append((np.array(j.origin), np.array(j.axis) if i >= 0 else None, i))
+    steps.append((_translation(point), None, -1))
+    n = len(names)
+    if not CHAIN_JOINTS[0] <= n <= CHAIN_JOINTS[1]:
+        raise ValueError(
+            f"leg of {foot!r} has {n} revolute joints; parmor walks legs of "
+            f"{CHAIN_JOINTS[0]} to {CHAIN_JOINTS[1]}"
+        )
+    qn = m.q_names
+    chain = SerialChain(
+        tuple(names),
+        tuple(qn.index(x) for x in names),
+        np.array(lo),
+        np.array(hi),
+        foot,
+        foot,
+        np.array([0.0, 0.0, -1.0]),
+        point.copy(),
+        tuple(steps),
+    )
+    rank = chain_rank(chain, position_only=True)
+    if rank < 3:
+        raise ValueError(
+            f"leg of {foot!r}: its {n} joints ({', '.join(names)}) move the foot in {rank} "
+            "directions only; a standing foot must stay put while the trunk moves over it "
+            "(forward, sideways and at a height), which takes joints that move it in 3 "
+            "(for instance a yaw joint and two pitch joints)"
+        )
+    first = m.joints[path[1]]  # the first joint after the trunk
+    if m.joints[first.parent].movable:
+        raise ValueError(f"leg of {foot!r} is not mounted on the trunk")
+    mount = np.array(first.origin[:3, 3], dtype=float)
+    q0 = np.zeros(n)
+    p0, _, _, origins = chain.frames(q0)
+    d = p0 - mount
+    last = origins[-1]
+    return Leg(
+        name=_leg_prefix(first.name, names),
+        joints=tuple(names),
+        mount=mount,
+        yaw=math.atan2(d[1], d[0]),
+        coxa=0.0,
+        femur=float(np.hypot(*(last - mount)[:2]) + np.linalg.norm(p0 - last)),
+        tibia=float(max(0.0, -d[2])),
+        lower=np.array(lo),
+        upper=np.array(hi),
+        foot_body=foot,
+        chain=chain,
+    )
+
+
+def _translation(point: np.ndarray) -> np.ndarray:
+    """The (4, 4) transform that moves by ``point`` (3,)."""
+    out = np.eye(4)
+    out[:3, 3] = point
+    return out
+
+
+def _leg_prefix(first: str, names: Sequence[str]) -> str:
+    """The leg's name: what its joints' names share before an underscore (``lf`` of
+    ``lf_hip``, ``lf_knee``), else the first joint's name."""
+    common = os.path.commonprefix(list(names))
+    cut = common.rfind("_")
+    return common[:cut] if cut > 0 else first
+
+
+def _chain_ik(leg: Leg, p: np.ndarray, exact: bool = True) -> np.ndarray:
+    """Joint angles (..., n) of a chain leg for foot points ``p`` (..., 3) (trunk frame):
+    damped least squares on every point at once from the leg's pose as built
+    (:func:`_chain_start`; the minimal steps of a redundant leg keep its posture near
+    that one, and smooth along a path), inside the limits; a point it leaves short is
+    solved by :func:`gaits.arm_ik.solve_ik` from there. ValueError when a point is out of
+    reach. ``exact`` False: a point left short is out of reach (no second try: the
+    stride search's probes, most of them out of reach)."""
+    chain = leg.chain
+    p = np.asarray(p, dtype=float)
+    flat = p.reshape(-1, 3)
+    q = np.tile(_chain_start(leg), (len(flat), 1))
+    lo, hi = leg.lower, leg.upper
+    eye = np.eye(3) * DAMPING**2
+    for _ in range(CHAIN_IK_ITERATIONS):
+        end, axes, origins = _chain_frames(chain, q)
+        e = flat - end
+        if not len(e) or float(np.max(np.abs(e))) < CHAIN_IK_TOL:
+            break
+        J = np.cross(axes, (end[:, None, :] - origins))  # (N, n, 3): J^T
+        JJt = np.einsum("nki,nkj->nij", J, J) + eye
+        dq = np.einsum("nki,ni->nk", J, np.linalg.solve(JJt, e[..., None])[..., 0])
+        big = np.max(np.abs(dq), axis=1, keepdims=True)
+        dq = dq * np.minimum(1.0, MAX_STEP / np.maximum(big, 1e-300))
+        q = np.clip(q + dq, lo, hi)
+    end, _, _ = _chain_frames(chain, q)
+    short = np.flatnonzero(np.linalg.norm(flat - end, axis=1) > CHAIN_IK_ACCEPT)
+    if len(short) and not exact:
+        raise ValueError(f"leg {leg.name}: foot target out of reach")
+    for i in short:
+        try:
+            q[i] = solve_ik(chain, flat[i], q0=q[i], tol=1e-9, refine=0, restarts=4)
+        except ValueError as e:
+            raise ValueError(f"leg {leg.name}: foot target out of reach ({e})") from None
+    return q.reshape(*p.shape[:-1], chain.n)
+
+
+#: The chain legs' batched IK: iterations, the error m at which all points stop, the
+#: error m above which a point is solved again by ``solve_ik``.
+CHAIN_IK_ITERATIONS = 60
+CHAIN_IK_TOL = 1e-10
+CHAIN_IK_ACCEPT = 1e-7
+
+
+def _chain_frames(chain: SerialChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:meth:`SerialChain.frames` of many configurations ``q`` (N, n) at once: (end
+    points (N, 3), joint axes (N, n, 3), joint origins (N, n, 3)), root frame."""
+    N = len(q)
+    R = np.tile(np.eye(3), (N, 1, 1))
+    p = np.zeros((N, 3))
+    axes = np.zeros((N, chain.n, 3))
+    origins = np.zeros((N, chain.n, 3))
+    for k, (origin, axis, i) in enumerate(chain.steps):
+        p = p + R @ origin[:3, 3]
+        R = R @ origin[:3, :3]
+        if k == len(chain.steps) - 1:
+            break
+        if i >= 0:
+            a = R @ axis
+            axes[:, i] = a
+            origins[:, i] = p
+            R = R @ _rotations(axis, q[:, i])
+    return p, axes, origins
+
+
+def _rotations(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotations (N, 3, 3) by the angles (N,) rad about the unit ``axis`` (Rodrigues)."""
+    x, y, z = (float(v) for v in axis)
+    c, s = np.cos(angle), np.sin(angle)
+    C = 1.0 - c
+    return np.stack(
+        [
+            np.stack([c + x * x * C, x * y * C - z * s, x * z * C + y * s], -1),
+            np.stack([y * x * C + z * s, c + y * y * C, y * z * C - x * s], -1),
+            np.stack([z * x * C - y * s, z * y * C + x * s, c + z * z * C], -1),
+        ],
+        -2,
+    )
+
+
+def _chain_start(leg: Leg) -> np.ndarray:
+    """The pose the IK of a chain leg starts from: its joints at 0 (the leg as built: the
+    tubes reaching out and hanging down), inside the limits."""
+    return np.clip(np.zeros(leg.chain.n), leg.lower, leg.upper)
+
+
+def _chain_fk(leg: Leg, q: np.ndarray) -> np.ndarray:
+    q = np.asarray(q, dtype=float)
+    flat = q.reshape(-1, leg.chain.n)
+    return _chain_frames(leg.chain, flat)[0].reshape(*q.shape[:-1], 3)
+
+
+def leg_tilt(leg: Leg, q: np.ndarray) -> np.ndarray:
+    """Tilt (...,) rad from vertical of the leg's last tube (the tibia of the closed form:
+    :func:`tibia_tilt`) at the leg angles (..., n)."""
+    if leg.chain is None:
+        return tibia_tilt(q)
+    q = np.asarray(q, dtype=float)
+    flat = q.reshape(-1, leg.chain.n)
+    end, _, origins = _chain_frames(leg.chain, flat)
+    d = end - origins[:, -1]
+    out = np.arctan2(np.hypot(d[:, 0], d[:, 1]), -d[:, 2])
+    return out.reshape(q.shape[:-1])
+
+
+def _yaw_first(leg: Leg) -> bool:
+    """Whether the leg's first joint turns about the trunk's vertical (a coxa): the gait
+    bounds its swing (``coxa_swing``)."""
+    if leg.chain is None:
+        return True
+    R = np.eye(3)
+    for origin, axis, i in leg.chain.steps:
+        R = R @ origin[:3, :3]
+        if i >= 0:
+            return bool(abs(abs((R @ axis)[2]) - 1.0) < 1e-9)
+    return False
+
+
 def leg_fk(leg: Leg, q: np.ndarray) -> np.ndarray:
     """Foot positions (..., 3) m in the trunk frame of joint angles (..., 3) rad."""
+    if leg.chain is not None:
+        return _chain_fk(leg, q)
     q = np.asarray(q, dtype=float)
     psi = leg.yaw + q[..., 0]
     s = q[..., 1] + q[..., 2]
@@ -272,7 +516,10 @@ def leg_ik(leg: Leg, p: np.ndarray) -> np.ndarray:
     """Joint angles (..., 3) rad (coxa, femur, tibia) that put the foot at ``p`` (..., 3) m
     (trunk frame), outward of the coxa axis, knee-up branch (|q_tibia| <= pi/2); ValueError
     when a point is out of the leg's reach.
-    Joint limits are not checked (see :func:`limit_slack`)."""
+    Joint limits are not checked (see :func:`limit_slack`). A chain leg
+    (``leg.chain``): numerical IK inside the limits, point after point."""
+    if leg.chain is not None:
+        return _chain_ik(leg, p)
     q, k = _ik(leg.mount, leg.yaw, leg.coxa, leg.femur, leg.tibia, p)
     if np.any(np.abs(k) > 1 + 1e-12):
         worst = float(np.max(np.abs(k)))
@@ -387,7 +634,7 @@ def stability_margins(
     T = forward_kinematics(model, q)
     feet = np.stack(
         [
-            T[:, model.body(leg.foot_body), :3, :3] @ np.array([0.0, 0.0, -leg.tibia])
+            T[:, model.body(leg.foot_body), :3, :3] @ leg.foot_offset
             + T[:, model.body(leg.foot_body), :3, 3]
             for leg in legs
         ],
@@ -641,15 +888,19 @@ def _segment_ok(
     p = np.column_stack([points, np.full(len(points), -height)])
     lifted = p + (0.0, 0.0, step)
     try:
-        q = leg_ik(leg, p)
-        ql = leg_ik(leg, lifted)
+        if leg.chain is not None:
+            q = _chain_ik(leg, p, exact=False)
+            ql = _chain_ik(leg, lifted, exact=False)
+        else:
+            q = leg_ik(leg, p)
+            ql = leg_ik(leg, lifted)
     except ValueError:
         return False
     return bool(
-        np.all(np.abs(q[:, 0]) <= coxa_swing)
+        (not _yaw_first(leg) or np.all(np.abs(q[:, 0]) <= coxa_swing))
         and np.all(limit_slack(leg, q) >= JOINT_MARGIN)
         and np.all(limit_slack(leg, ql) >= JOINT_MARGIN)
-        and np.all(tibia_tilt(q) <= TIBIA_TILT)
+        and np.all(leg_tilt(leg, q) <= TIBIA_TILT)
     )
 
 
@@ -741,8 +992,20 @@ def legs_key(legs: Sequence[Leg]) -> tuple:
             tuple(float(x) for x in leg.upper),
             leg.foot_body,
         )
+        + (() if leg.chain is None else (_chain_key(leg.chain),))
         for leg in legs
     )
+
+
+def _chain_key(chain: SerialChain) -> bytes:
+    """What identifies a chain leg's geometry: its joints' origins and axes, its foot."""
+    h = hashlib.blake2b(digest_size=16)
+    for origin, axis, i in chain.steps:
+        h.update(np.ascontiguousarray(origin, dtype=float).tobytes())
+        h.update(repr(i).encode())
+        if axis is not None:
+            h.update(np.ascontiguousarray(axis, dtype=float).tobytes())
+    return h.digest()
 
 
 def model_key(template: Template) -> bytes:
@@ -774,7 +1037,9 @@ def _bisect_stride(
     coxa_swing: float,
 ) -> float:
     """:func:`max_stride` without its memo."""
-    lo, hi = 0.0, 4 * max(leg.coxa + leg.femur + leg.tibia for leg in legs)
+    lo, hi = 0.0, 4 * max(leg.extent for leg in legs)
+    if any(leg.chain is not None for leg in legs):
+        return _bisect_stride_chain(legs, travel, height, step, coxa_swing, hi)
     left = STRIDE_BISECTIONS
     first = True
     while left > 0:
@@ -800,6 +1065,49 @@ def _bisect_stride(
             mid = 0.5 * (lo + hi)
             lo, hi, i = (mid, hi, 2 * i + 2) if ok(skip + i) else (lo, mid, 2 * i + 1)
         left -= k
+    return lo
+
+
+#: Chain legs (numerical IK): halvings of their stride search (4 x leg length / 2^14:
+#: about 0.03 mm) and points tested along each stance segment.
+CHAIN_STRIDE_BISECTIONS = 14
+CHAIN_STRIDE_SAMPLES = 9
+
+
+def _bisect_stride_chain(
+    legs: Sequence[Leg],
+    travel: Mapping[str, np.ndarray],
+    height: float,
+    step: float,
+    coxa_swing: float,
+    hi: float,
+) -> float:
+    """:func:`max_stride` for legs of which some are chain legs (numerical IK): the same
+    rules (:func:`_segment_ok` on ``CHAIN_STRIDE_SAMPLES`` points of each stance segment,
+    neighbouring segments ``LEG_CLEARANCE`` apart), one stride at a time."""
+    n = {leg.name: leg.neutral[:2] for leg in legs}
+    lin = np.linspace(-1.0, 1.0, CHAIN_STRIDE_SAMPLES)[:, None]
+
+    def ok(s: float) -> bool:
+        ends = {}
+        for leg in legs:
+            half = 0.5 * s * np.asarray(travel[leg.name], dtype=float)
+            if not _segment_ok(leg, n[leg.name] + lin * half, height, step, coxa_swing):
+                return False
+            ends[leg.name] = (n[leg.name] - half, n[leg.name] + half)
+        names = [leg.name for leg in legs]
+        for i, a in enumerate(names):
+            for b in names[i + 1 :]:
+                if _segment_distance(*ends[a], *ends[b]) < LEG_CLEARANCE:
+                    return False
+        return True
+
+    if not ok(0.0):
+        return 0.0
+    lo = 0.0
+    for _ in range(CHAIN_STRIDE_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
     return lo
 
 

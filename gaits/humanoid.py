@@ -1089,7 +1089,11 @@ class HumanoidController(Controller):
         self.femur, self.tibia = float(L["femur"]), float(L["tibia"])
         self.leg = self.femur + self.tibia
         self.size = self.leg / 2  # the maps' x, m
-        self.joints = _joint_names(LEG_JOINTS) + _joint_names(ARM_JOINTS)
+        # the arms when the body plan has them (a biped without arms walks on its legs
+        # alone: it has no grasping)
+        arms = _joint_names(ARM_JOINTS)
+        self.has_arms = set(arms) <= set(self.template.model.q_names)
+        self.joints = _joint_names(LEG_JOINTS) + (arms if self.has_arms else ())
         #: the template with the design's payload on the trunk: its masses
         self.masses = build(
             geometry.template,
@@ -1181,7 +1185,7 @@ class HumanoidController(Controller):
                 ability=shape.name,
             )
 
-        return {
+        out = {
             WALK.name: gait(
                 self.walk,
                 "a slow crouched walk (the paper's synthetic locomotion), straight or on an "
@@ -1236,6 +1240,9 @@ class HumanoidController(Controller):
                 ability="balancing",
             ),
         }
+        if not self.has_arms:
+            del out["grasping"]
+        return out
 
     def _run(self, name: str, params: Mapping[str, object]) -> Trajectory:
         if name == "balancing":
@@ -1471,7 +1478,7 @@ class HumanoidController(Controller):
         v = np.zeros_like(q)
         q[:, :12] = legs(t)
         v[:, :12] = (legs(t + h) - legs(t - h)) / (2 * h)
-        if arms is not None:
+        if arms is not None and self.has_arms:
             q[:, 12:] = arms(t)
             v[:, 12:] = (arms(t + h) - arms(t - h)) / (2 * h)
         model = self.template.model

@@ -433,8 +433,10 @@ class SnakeController(Controller):
 
     @property
     def body_length(self) -> float:
-        """Length m of the module chain (M module pitches)."""
-        return self.modules * float(self.template.lengths["module"])
+        """Length m of the module chain (M module pitches: its first module's tube, however
+        its part kind names that length)."""
+        pitch = self.template.segments[0].length if self.template.segments else 0.0
+        return self.modules * float(pitch)
 
     @property
     def behaviors(self) -> Mapping[str, BehaviorSpec]:

@@ -59,6 +59,9 @@ _POSITIONS = {1: ("m",), 2: ("f", "h"), 3: ("f", "m", "h")}
 _AXLES = {1: ("",), 2: ("front", "rear"), 3: ("front", "middle", "rear")}
 #: Roles of the parts that form chains (one joint or one printed link each).
 _CHAIN = ("joint", "link", "module")
+#: Roles of limbs placed by a mount of another class of the same role when no mount names
+#: their own class.
+_BY_ROLE = ("leg", "wheel", "arm")
 
 
 class AssemblyError(ValueError):
@@ -88,6 +91,7 @@ class _Rec:
     module: str = ""
     passive: bool = False
     tool: tuple[float, tuple[float, float, float], float] | None = None  # length, box, kg
+    wheel_width: float | None = None  # the wheel kind's own width, m
 
 
 @dataclass
@@ -123,8 +127,87 @@ def _ordered_children(
         mine = [c for c in rest if m.child in c.kinds]
         rest = [c for c in rest if m.child not in c.kinds]
         out += [(c, m) for c in mine]
+    # a limb of a class no mount names (a user's own leg class beside MultipedLeg) goes
+    # where the first mount of a limb of its role goes (its layout, span and track)
+    for m in kind.mounts:
+        mk = kinds.of((m.child,))
+        if mk is None or mk.role not in _BY_ROLE:
+            continue
+        mine = [c for c in rest if (k := kinds.of(c.kinds)) is not None and k.role == mk.role]
+        rest = [c for c in rest if c not in mine]
+        out += [(c, m) for c in mine]
     out += [(c, None) for c in rest]
     return out
+
+
+def wheel_size(
+    plan: BodyPlan, kinds: PartKinds, lengths: dict[str, float], what: str = "radius"
+) -> tuple[float | None, str]:
+    """(the wheel ``what`` (radius or width) m its wheel kinds give, where: the kind's
+    file and key), or (None, "") when none gives one; AssemblyError when two wheel kinds
+    give different values (a design has one wheel size)."""
+    found: dict[float, str] = {}
+
+    def visit(node: PartNode) -> None:
+        kind = _kind(kinds, node)
+        if kind.end == "wheel" and what in kind.wheel:
+            names = {**kinds.constants, **lengths, "pi": math.pi}
+            try:
+                r = evaluate(kind.wheel[what], names)
+            except (KeyError, ValueError, ZeroDivisionError) as e:
+                raise AssemblyError(f"{kind.where}: wheel.{what}: unknown length {e}") from None
+            if not (math.isfinite(r) and r > 0):
+                raise AssemblyError(f"{kind.where}: wheel.{what}: {r} m must be positive")
+            found.setdefault(r, f"{kind.where}: wheel.{what}")
+        for c in node.children:
+            visit(c)
+
+    visit(plan.root)
+    if len(found) > 1:
+        raise AssemblyError(
+            f"{plan.robot_type}: its wheel kinds give different wheel {what}s ("
+            + "; ".join(f"{w} = {r * 1000:.1f} mm" for r, w in found.items())
+            + f"); a design has one wheel {what}"
+        )
+    return next(iter(found.items()), (None, ""))
+
+
+def unused_lengths(plan: BodyPlan, kinds: PartKinds) -> tuple[str, ...]:
+    """The named lengths of the plan's part kinds (``lengths``) and of its ontology
+    (``defaultLength``) that nothing of its kinds uses: no box, place, limit, tube or wheel
+    size names them (a ``foot_plate`` end uses ``foot``; a serial arm, its links). A value
+    given and not used is reported, never dropped in silence."""
+    from kinematics.partkinds import _names
+
+    used: set[str] = set()
+    given: list[str] = []
+
+    def names(*xs) -> None:
+        for x in xs:
+            if x != "":
+                used.update(_names(x))
+
+    def visit(node: PartNode) -> None:
+        kind = _kind(kinds, node)
+        given.extend(k for k in kind.lengths if k not in given)
+        names(*kind.box, *kind.at, *(x for v in kind.at_with.values() for x in v))
+        names(*kind.wheel.values())
+        for j in kind.joints:
+            names(*j.limits)
+            if j.tube_length:
+                used.add(j.tube_length)
+        for m in kind.mounts:
+            names(m.span, m.track, *m.at)
+        if kind.end == "foot_plate":
+            used.add("foot")
+        for c in node.children:
+            visit(c)
+
+    visit(plan.root)
+    for chain in serial_links(plan, kinds):
+        used.update(chain)
+    given.extend(k for k in plan.lengths if k not in given)
+    return tuple(k for k in given if k not in used)
 
 
 def length_defaults(plan: BodyPlan, kinds: PartKinds) -> dict[str, float]:
@@ -394,6 +477,8 @@ class _Walk:
             passive=j.passive,
         )
         rec.module = j.module
+        if rec.end == "wheel" and "width" in kind.wheel:
+            rec.wheel_width = self.ev(kind.wheel["width"], node, "wheel width")
         self.recs.append(rec)
         k = len(self.recs) - 1
         frame = transform(self.L[tube[1]] * tube[2]) if tube else np.eye(4)
@@ -458,6 +543,9 @@ class _Walk:
                 raise ValueError(f"modules must be an integer >= 1, got {m!r}")
             chain = [joints[0]] * int(m)
             joints = chain
+        lifted = self.p.lifted
+        if 0 < lifted < len(chain) and all(_kind(self.kinds, n).role == "module" for n in chain):
+            chain = joints = chain[:lifted]  # the lifted segment of a module chain
         serial_rows = None
         if any(
             _kind(self.kinds, n).joints[0].name == "serial"
@@ -514,6 +602,22 @@ class _Walk:
             self.fixed_end(here, "tip")
 
 
+def _check_unique(plan: BodyPlan, recs: list[_Rec]) -> None:
+    """AssemblyError when two joints or bodies got one name: limbs that no mount of their
+    parent places (each would hang at the same place, named alike)."""
+    seen: set[str] = set()
+    for r in recs:
+        for name in (r.name, r.body):
+            if name in seen:
+                raise AssemblyError(
+                    f"{plan.robot_type}: two parts would make the joint or body {name!r}: "
+                    "several limbs hang on one part that has no mount for them (a part "
+                    "kind's `mounts` places limbs by their class or their role: leg, wheel, "
+                    "arm); give the parent part a mount for them in a part kinds file (--parts)"
+                )
+            seen.add(name)
+
+
 def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Template:
     """The kinematic template of ``plan`` with ``params`` (see ``kinematics.templates``)."""
     p = params
@@ -522,6 +626,7 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
     w = _Walk(plan, kinds, p, lengths)
     root_parts = w.root()
     recs = w.recs
+    _check_unique(plan, recs)
     b = _Builder(plan.robot_type, p, lengths)
     b.add("root", None, "fixed", np.eye(4), root_parts, body=w.root_body)
     feet: list[str] = []
@@ -543,6 +648,12 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
             feet.append(r.body)
             points.append(_frozen(foot))
         elif r.end == "foot_plate":
+            if "foot" not in lengths:
+                raise AssemblyError(
+                    f"{plan.robot_type}: a foot_plate end is a plate of the named length "
+                    "`foot` (its width foot_width_ratio x it), but its part kinds have no "
+                    "length `foot`; add `foot` to the leg kind's `lengths`"
+                )
             sole = p.actuator_size[2] / 2
             c = kinds.constants
             plate = (lengths["foot"], c["foot_width_ratio"] * lengths["foot"], c["foot_plate"])
@@ -592,12 +703,11 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
             rr = p.wheel_radius
             if not (math.isfinite(rr) and rr > 0):
                 raise ValueError(f"wheel_radius must be positive, got {rr}")
-            inertia = tube_inertia(p.wheel_mass, WHEEL_WIDTH, rr, 0, tuple(r.axis))
+            ww = r.wheel_width or p.wheel_width or WHEEL_WIDTH
+            inertia = tube_inertia(p.wheel_mass, ww, rr, 0, tuple(r.axis))
             frame = transform_from(rot_x(-math.pi / 2), (0, 0, 0))
             parts.append(
-                LabelledPart(
-                    r.body, "wheel", p.wheel_mass, np.zeros(3), inertia, frame, (rr, WHEEL_WIDTH)
-                )
+                LabelledPart(r.body, "wheel", p.wheel_mass, np.zeros(3), inertia, frame, (rr, ww))
             )
             wheels.append(r.body)
         elif r.end == "caster":

@@ -45,7 +45,10 @@ A kind (``[[kind]]``):
 - ``order = "side"``: children of pair mounts are joined side by side (left leg, left
   arm, right leg, right arm), not mount by mount;
 - ``link``: the part is a printed tube on the joint before it (a serial arm's
-  LinkModule): ``first`` / ``rest`` directions, ``names`` the length names' prefix.
+  LinkModule): ``first`` / ``rest`` directions, ``names`` the length names' prefix;
+- ``wheel`` (a kind whose ``end`` is a wheel): ``radius`` and ``width`` (expressions, m,
+  e.g. a name of its ``lengths``): the wheel's own size, which sizing then keeps (it is
+  checked, not chosen) and the bundle and the simulation use.
 """
 
 from __future__ import annotations
@@ -204,6 +207,7 @@ class PartKind:
     naming: str = ""
     link: Mapping[str, str] = field(default_factory=dict)
     mass: float = 0.0  # kg: a tool's (end = "tool")
+    wheel: Mapping[str, float | str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -399,6 +403,7 @@ class _Reader:
             "naming",
             "link",
             "mass",
+            "wheel",
         }
         self.only(key, d, allowed)
         cls = self.text(f"{key}.class", d.get("class"))
@@ -446,6 +451,7 @@ class _Reader:
             naming=self.word(f"{key}.naming", d.get("naming", ""), ("", "index")),
             link={k: str(v) for k, v in link.items()},
             mass=self.number(f"{key}.mass", d["mass"]) if "mass" in d else 0.0,
+            wheel=self.wheel(f"{key}.wheel", d.get("wheel", {}), d.get("end", "")),
         )
         if root and not (kind.body and len(kind.box) == 3):
             self.fail(key, f"root part kind {cls} needs a 'body' name and a 'box' [x, y, z]")
@@ -461,6 +467,14 @@ class _Reader:
         if not root and not specs and not link and not tool:
             self.fail(key, f"part kind {cls} has no joints, no link and is not a root")
         return kind
+
+    def wheel(self, key: str, d, end: str) -> Mapping[str, float | str]:
+        if not isinstance(d, dict):
+            self.fail(key, "must be a table: radius, width (expressions, m)")
+        self.only(key, d, {"radius", "width"})
+        if d and end != "wheel":
+            self.fail(key, 'only a kind whose end is "wheel" has a wheel size')
+        return {k: self.expr(f"{key}.{k}", v) for k, v in d.items()}
 
     def joint(self, key: str, d) -> JointSpec:
         if not isinstance(d, dict):

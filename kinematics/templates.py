@@ -195,7 +195,12 @@ class TemplateParams:
     payload: float = 0.0
     trunk_mass: float = 0.25
     modules: int = 3
+    #: build only the first ``lifted`` modules of a module chain (0: all), extensible or
+    #: written out: the unsupported segment its sizing analyses
+    lifted: int = 0
     wheel_radius: float = 0.03
+    #: the wheels' width m when their part kind gives it (None: the catalog's)
+    wheel_width: float | None = None
     foot_mass: float = 0.01
     gripper_mass: float = 0.03
     fingers: int = 2

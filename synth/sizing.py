@@ -25,9 +25,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from adron.catalog import Catalog
-from adron.errors import InfeasibleError
+from adron.errors import InfeasibleError, InputError
 from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics
-from kinematics.templates import Template, build, default_lengths
+from kinematics.templates import Template, TemplateParams, build, default_lengths
 
 if TYPE_CHECKING:  # gaits is imported lazily, when a structure is sized
     from gaits.base import DesignGeometry
@@ -74,6 +74,10 @@ HUMANOID = {
     "upper_arm": 0.17,
     "forearm": 0.19,
 }
+#: The lengths a biped's sizing and its gait (the humanoid gait's maps, fitted on the
+#: shipped BipedLeg and HumanoidTorso) read: the thigh and shank tubes, the foot plate,
+#: the torso's height and hip width.
+BIPED_LENGTHS = ("femur", "tibia", "foot", "trunk_height", "hip_width")
 #: Humanoid: share of the half foot length ahead of and behind the centre of mass over
 #: which the ankle must move the centre of pressure (the open-loop gait's balance margin).
 ANKLE_COP_REACH = 0.5
@@ -101,6 +105,8 @@ class Sizing:
     modules: int = 3
     wheel_radius: float = 0.03
     notes: list[str] = field(default_factory=list)
+    #: the wheels' width m when their part kind gives it (None: the catalog's)
+    wheel_width: float | None = None
 
 
 def _clamp_length(name: str, value: float, catalog: Catalog, why: str) -> float:
@@ -284,6 +290,10 @@ class Family(ABC):
         """Snake modules in the analysed chain (others: unused)."""
         return modules
 
+    def analysis_params(self, tp: TemplateParams, lifted_share: float = 0.5) -> TemplateParams:
+        """The template parameters of the analysed template (a snake: its lifted segment)."""
+        return replace(tp, modules=self.analysis_modules(tp.modules, lifted_share))
+
     def holds(
         self, tmpl: Template, p: Mapping[str, float], catalog: Catalog
     ) -> dict[str, tuple[float, float, str]]:
@@ -388,19 +398,34 @@ class Multipeds(Family):
         d = default_lengths(robot_type)
         h = p["obstacle_height"]
         why = f"obstacle height {h * 100:.1f} cm"
-        femur = (h + STEP_MARGIN) / math.sin(math.pi / 4)
-        tibia = max(h + TRUNK_CLEARANCE, 1.25 * femur)
-        coxa = d["coxa"]
-        reach = coxa + femur
+        shape = leg_shape(robot_type)
+        lengths: dict[str, float] = {}
+        # the lifting tube (the femur of a coxa-femur-tibia leg): the foot lifts h +
+        # STEP_MARGIN with it at 45 degrees; the tubes hanging down (the tibia) clear h
+        # standing and are at least 1.25 x it; the tubes before the first pitch joint (the
+        # coxa) keep their lengths
+        lift = (h + STEP_MARGIN) / math.sin(math.pi / 4) if shape.lift else 0.0
+        down = max(h + TRUNK_CLEARANCE, 1.25 * lift)
+        if not shape.lift:  # a leg that lifts its foot by swinging the tubes hanging down
+            down = max(down, sum(d[k] for k in shape.down))
+        for k in shape.order:
+            if k == shape.lift:
+                lengths[k] = lift
+            elif k in shape.down:
+                lengths[k] = down * d[k] / sum(d[j] for j in shape.down)
+            else:
+                lengths[k] = d[k]
+        reach = sum(lengths[k] for k in shape.across)
         stride = stride_length(reach)
         spacing = stride + LEG_CLEARANCE
         legs_per_side = build(robot_type).legs // 2
-        la1 = spacing * (legs_per_side - 1)
-        la2 = max(d["La2"], catalog.passive.dovetail_face_m * 2)
-        lengths = {"coxa": coxa, "femur": femur, "tibia": tibia, "La1": la1, "La2": la2}
+        if shape.span:
+            lengths[shape.span] = spacing * (legs_per_side - 1)
+        if shape.track:
+            lengths[shape.track] = max(d[shape.track], catalog.passive.dovetail_face_m * 2)
         out = {}
         for k, v in lengths.items():
-            out[k] = v if k in ("La1", "La2") else _clamp_length(k, v, catalog, why)
+            out[k] = v if k in (shape.span, shape.track) else _clamp_length(k, v, catalog, why)
         return Sizing(out, notes=[f"stride {stride * 100:.1f} cm"])
 
     def load_cases(self, tmpl, p, catalog):
@@ -420,13 +445,137 @@ class Multipeds(Family):
 
     def speeds(self, tmpl, p, sizing):
         L = tmpl.lengths
-        reach = L["coxa"] + L["femur"]
+        shape = leg_shape(tmpl.plan)
+        reach = sum(L[k] for k in shape.across)
         stride = stride_length(reach)
         swing_time = stride / p["speed"] * (1 - DUTY) / DUTY
-        lift = math.asin(min(1.0, (p["obstacle_height"] + STEP_MARGIN) / L["femur"]))
+        rise = p["obstacle_height"] + STEP_MARGIN
+        if shape.lift:
+            lift = math.asin(min(1.0, rise / L[shape.lift]))
+        else:  # the tubes hanging down swing out to lift the foot
+            down = sum(L[k] for k in shape.down)
+            lift = math.acos(max(-1.0, 1.0 - rise / down)) if down > 0 else math.pi / 2
         sweep = 2 * COXA_SWING
         w = PEAK_FACTOR * max(sweep, 2 * lift) / swing_time
         return dict.fromkeys(_movable(tmpl), w)
+
+
+def _biped_refusal(robot_type, missing: Sequence[str]) -> str:
+    """Why a biped whose kinds lack ``missing`` of BIPED_LENGTHS is not sized: its kinds'
+    files and what is supported."""
+    from kinematics.partkinds import in_use
+    from kinematics.templates import plan_of
+
+    kinds = in_use()
+    plan = robot_type if hasattr(robot_type, "root") else plan_of(robot_type)
+    where: list[str] = []
+
+    legs = {"femur", "tibia", "foot"} & set(missing)
+
+    def visit(node) -> None:
+        k = kinds.of(node.kinds)
+        mine = (k.role == "leg" and legs) or (k.root and set(missing) - legs) if k else False
+        if mine and f"{k.where}: lengths" not in where:
+            where.append(f"{k.where}: lengths")
+        for c in node.children:
+            visit(c)
+
+    visit(plan.root)
+    return (
+        f"{'; '.join(where) or plan.robot_type}: a biped is sized and walked by the humanoid "
+        "gait, fitted on legs of thigh and shank tubes named femur and tibia over a foot "
+        f"plate `foot`, under a torso of trunk_height and hip_width; these kinds have no "
+        f"{', '.join(missing)}"
+    )
+
+
+def _kind_wheel(
+    robot_type, lengths: dict[str, float], what: str = "radius"
+) -> tuple[float | None, str]:
+    """(the radius (``what``: or width) m the design's wheel kinds give, where) or
+    (None, "") (:func:`kinematics.assemble.wheel_size`)."""
+    from kinematics.assemble import AssemblyError, wheel_size
+    from kinematics.partkinds import in_use
+    from kinematics.templates import plan_of
+
+    plan = robot_type if hasattr(robot_type, "root") else plan_of(robot_type)
+    try:
+        return wheel_size(plan, in_use(), lengths, what)
+    except AssemblyError as e:
+        raise InfeasibleError(str(e)) from None
+
+
+@dataclass(frozen=True)
+class LegShape:
+    """The tubes of a multiped's leg read off its part kind's chain (never by their
+    names): ``order``: every tube's length name, root first; ``across``: the tubes that
+    reach out level from the trunk (along x or y at q = 0: the foot's distance from the
+    first joint's axis); ``lift``: the last level tube after the first pitch joint (a
+    horizontal axis across the leg, y), which lifts the foot ("" when none: a leg whose
+    tubes after that joint hang down); ``down``: the tubes hanging down (along -z: the
+    height the trunk stands at); ``span``, ``track``: the length names of the trunk's
+    mount that spaces the legs (along x, across), "" when it has none."""
+
+    order: tuple[str, ...]
+    across: tuple[str, ...]
+    lift: str
+    down: tuple[str, ...]
+    span: str = ""
+    track: str = ""
+
+
+def leg_shape(robot_type) -> LegShape:
+    """The :class:`LegShape` of a multiped (robot type or body plan): its first leg part's
+    kind; InfeasibleError naming the kind's file when its chain has no joint with a tube
+    hanging down (no foot under the trunk)."""
+    from kinematics.assemble import _ordered_children
+    from kinematics.partkinds import in_use
+    from kinematics.templates import plan_of
+
+    kinds = in_use()
+    plan = robot_type if hasattr(robot_type, "root") else plan_of(robot_type)
+    root_kind = kinds.of(plan.root.kinds)
+    found = None
+    for child, mount in _ordered_children(plan.root, root_kind, kinds):
+        k = kinds.of(child.kinds)
+        if k is not None and k.role == "leg":
+            found = (k, mount)
+            break
+    if found is None:
+        raise InfeasibleError(f"{plan.robot_type}: no leg part on its root part")
+    kind, mount = found
+    order, across, down = [], [], []
+    lift = ""
+    pitched = False
+    for j in kind.joints:
+        if j.axis in ("y", "-y") or any(a in ("y", "-y") for a in j.axes):
+            pitched = True
+        t = j.tube_length
+        if not t:
+            continue
+        if t not in order:
+            order.append(t)
+        if j.tube_along in ("-z", "z"):
+            down.append(t)
+        else:
+            across.append(t)
+            if pitched:
+                lift = t
+    if not down:
+        raise InfeasibleError(
+            f"{plan.robot_type}: its leg kind {kind.cls} ({kind.where}, key `joints`) has "
+            'no tube hanging down (a joint\'s tube `along = "-z"`): parmor sizes and walks '
+            "legs whose last tubes hang down to a point foot, after level tubes reaching out "
+            "from the trunk"
+        )
+    return LegShape(
+        tuple(order),
+        tuple(across),
+        lift if lift not in down else "",
+        tuple(down),
+        mount.span if mount is not None else "",
+        mount.track if mount is not None else "",
+    )
 
 
 class Humanoid(Family):
@@ -519,7 +668,13 @@ class Humanoid(Family):
     def size(self, robot_type, p, catalog):
         H = p["height"]
         why = f"height {H * 100:.0f} cm"
-        lengths = {k: f * H for k, f in HUMANOID.items()}
+        # the proportions of the lengths this body plan has (a biped without arms has no
+        # upper_arm or forearm)
+        have = default_lengths(robot_type)
+        missing = [k for k in BIPED_LENGTHS if k not in have]
+        if missing:
+            raise InputError(_biped_refusal(robot_type, missing))
+        lengths = {k: f * H for k, f in HUMANOID.items() if k in have}
         out = {}
         for k, v in lengths.items():
             tube = k in ("femur", "tibia", "upper_arm", "forearm")
@@ -637,15 +792,22 @@ class Snake(Family):
     def analysis_modules(self, modules: int, lifted_share: float = 0.5) -> int:
         return max(1, math.ceil(modules * lifted_share))
 
+    def analysis_params(self, tp, lifted_share=0.5):
+        # the lifted segment of the chain, whether its modules are extensible (built
+        # ``modules`` long) or written out in the body plan (cut to ``lifted``)
+        k = self.analysis_modules(tp.modules, lifted_share)
+        return replace(tp, modules=k, lifted=k)
+
     def load_cases(self, tmpl, p, catalog):
         model = tmpl.model
         q = np.zeros(model.nv)
         v = np.full(model.nv, SNAKE_SPEED)
         head = HEAD_SHARE * (tmpl.params.trunk_mass + p.get("payload", 0.0))
         tip = model.bodies[-1].name
-        point = forward_kinematics(model, q)[model.body(tip)] @ np.array(
-            [tmpl.lengths["module"], 0.0, 0.0, 1.0]
-        )
+        # the free end of the last module's tube (whatever its kind calls its length)
+        seg = next((s for s in reversed(tmpl.segments) if s.body == tip), None)
+        end = seg.start + seg.direction * seg.length if seg is not None else np.zeros(3)
+        point = forward_kinematics(model, q)[model.body(tip)] @ np.array([*end, 1.0])
         fext = np.zeros((len(model.bodies), 6))
         weight = head * catalog.design.gravity_m_s2
         fext[model.body(tip)] = external_force_at(model, q, tip, point[:3], (0.0, 0.0, -weight))
@@ -681,7 +843,12 @@ class Wheeled(Family):
     def size(self, robot_type, p, catalog):
         area = p["load_area"]
         l1 = math.sqrt(area * CHASSIS_ASPECT)
-        return Sizing({"L1": l1, "L2": area / l1}, wheel_radius=catalog.passive.wheel_min_radius_m)
+        lengths = {"L1": l1, "L2": area / l1}
+        names = {**default_lengths(robot_type), **lengths}
+        own, _ = _kind_wheel(robot_type, names)
+        width, _ = _kind_wheel(robot_type, names, "width")
+        r = own if own is not None else catalog.passive.wheel_min_radius_m
+        return Sizing(lengths, wheel_radius=r, wheel_width=width)
 
     @staticmethod
     def traction(mass: float, p: Mapping[str, float], catalog: Catalog) -> float:
@@ -695,10 +862,13 @@ class Wheeled(Family):
     def update(self, sizing, tmpl, p, catalog):
         n = len(tmpl.wheels)
         rho, width = catalog.material.density_kg_m3, catalog.passive.wheel_width_m
+        width = sizing.wheel_width or width
         wheel_mass = lambda r: math.pi * r * r * width * rho  # noqa: E731 (solid printed disc)
         rest = tmpl.model.total_mass - n * wheel_mass(tmpl.params.wheel_radius)
         r = sizing.wheel_radius
         driven = len(self.driven(tmpl))
+        # a wheel kind that gives its own radius keeps it: checked, not chosen
+        own = _kind_wheel(tmpl.plan, dict(tmpl.lengths))
         for _ in range(50):  # the wheels' own mass depends on their radius: a fixed point
             mass = rest + n * wheel_mass(r)
             new = self._radius(
@@ -708,6 +878,7 @@ class Wheeled(Family):
                 ],
                 p,
                 catalog,
+                own,
             )
             if abs(new - r) <= 1e-12:
                 break
@@ -715,15 +886,23 @@ class Wheeled(Family):
         return replace(sizing, wheel_radius=r)
 
     def _radius(
-        self, points: list[tuple[float, float]], p: Mapping[str, float], catalog: Catalog
+        self,
+        points: list[tuple[float, float]],
+        p: Mapping[str, float],
+        catalog: Catalog,
+        own: tuple[float | None, str] = (None, ""),
     ) -> float:
         """The smallest printable wheel radius with which one servo meets every operating
-        point (rim force N, ground speed m/s; speeds with SPEED_MARGIN)."""
+        point (rim force N, ground speed m/s; speeds with SPEED_MARGIN); ``own``: (the
+        radius m the wheel kind gives, where), which is returned when one servo meets them
+        with it (InfeasibleError naming it and the radii that would work, otherwise)."""
         sf = catalog.design.torque_safety_factor
         r_min, r_max = catalog.passive.wheel_min_radius_m, catalog.passive.wheel_max_radius_m
         servos = catalog.actuators_of("ContinuousRotationServomotor")
         # whichever servo the assignment picks, its case clears the ground
         r_min = max(r_min, self.servo_clearance_radius(servos))
+        if own[0] is not None:
+            return self._own_radius(points, p, catalog, own, servos, r_min)
         best: float | None = None
         for a in servos:
             # at each point, the speed under load w0 (1 - F r / Ts) r must reach v: r at
@@ -752,6 +931,32 @@ class Wheeled(Family):
                 "ask for less speed, payload or slope"
             )
         return best
+
+    def _own_radius(self, points, p, catalog, own, servos, r_min) -> float:
+        """:meth:`_radius` for a wheel kind's own radius: that radius when a catalog
+        servo meets every point with it and its case clears the ground."""
+        r, where = own
+        sf = catalog.design.torque_safety_factor
+        for a in servos:
+            w0, ts = a.no_load_speed_rad_s, a.stall_torque_Nm
+            clear = r >= self.servo_clearance_radius([a]) - 1e-12
+            ok = all(
+                f * r <= ts / sf + 1e-12 and w0 * (1 - f * r / ts) * r >= s * SPEED_MARGIN - 1e-12
+                for f, s in points
+            )
+            if clear and ok:
+                return r
+        force, _ = max(points)
+        try:
+            works = f"; {self._radius(points, p, catalog) * 1000:.1f} mm works"
+        except InfeasibleError:
+            works = ""
+        raise InfeasibleError(
+            f"{where}: no catalog wheel servo drives a wheel of radius {r * 1000:.1f} mm "
+            f"(clearing its case by {self.GROUND_CLEARANCE * 1000:.0f} mm) at "
+            f"{p['speed']:.2f} m/s while pushing {force:.2f} N (climbing a "
+            f"{math.degrees(p['slope']):.0f} deg slope{self.ALSO_LOADED}){works}"
+        )
 
     @classmethod
     def servo_clearance_radius(cls, servos) -> float:
@@ -862,7 +1067,7 @@ class Steered(Wheeled):
         from gaits.steered import wheel_loads
 
         loads = wheel_loads(tmpl, mass * catalog.design.gravity_m_s2)
-        lever = catalog.passive.wheel_width_m / 2
+        lever = (tmpl.params.wheel_width or catalog.passive.wheel_width_m) / 2
         return {j: TYRE_FRICTION * loads[w] * lever for j, w in self.steering_wheels(tmpl).items()}
 
     @staticmethod

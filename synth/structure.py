@@ -31,7 +31,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -321,6 +321,22 @@ class _Requirements:
     points: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
 
 
+def _plate_area(plan, lengths: Mapping[str, float]) -> float | None:
+    """The face m^2 of the root part's plate that carries its modules, when its box is
+    sized (the two sides of that face are expressions of the design's lengths: a trunk's
+    La1 x La2, a torso's shoulder width x height); None for a box of fixed size (numbers,
+    the actuator's size: an arm's base, a snake's head)."""
+    from kinematics.partkinds import _names, evaluate, in_use
+
+    kind = in_use().of(plan.root.kinds)
+    if kind is None or len(kind.box) != 3:
+        return None
+    sides = kind.box[1:] if kind.faces == "back" else kind.box[:2]
+    if not all(isinstance(x, str) and _names(x) and _names(x) <= set(lengths) for x in sides):
+        return None
+    return evaluate(sides[0], lengths) * evaluate(sides[1], lengths)
+
+
 class StructureDesigner:
     """One robot type's co-design loop with its own actuator assigner (grounded once)."""
 
@@ -362,11 +378,15 @@ class StructureDesigner:
             "deflection": catalog.design.max_tip_deflection_m,
             "slope": catalog.design.max_slope_rad,
         }
-        self.values, self.ignored = resolve(
+        self.values, ignored = resolve(
             structure, params, defaults, ontology_defaults(kb, ancestors(kb, candidate.robot_type))
         )
+        from kinematics.assemble import AssemblyError, unused_lengths
+        from kinematics.partkinds import in_use
+
+        # the request's parameters and the kinds' lengths that nothing uses: said
+        self.ignored = tuple(ignored) + unused_lengths(plan, in_use())
         self.modules = max(candidate.dof, 1)
-        from kinematics.assemble import AssemblyError
 
         try:
             probe = build(self.type, TemplateParams(modules=self.modules))
@@ -464,13 +484,8 @@ class StructureDesigner:
         fixed = sum(n * mass for _, _, n, mass, _, _ in self._fixed_modules())
         p = self.catalog.passive
         L = sizing.lengths
-        if "La1" in L:
-            area = L["La1"] * L["La2"]
-        elif "L1" in L and "L2" in L and "L3" not in L:
-            area = L["L1"] * L["L2"]
-        elif "shoulder_width" in L:
-            area = L["shoulder_width"] * L["trunk_height"]
-        else:
+        area = _plate_area(self.plan, L)
+        if area is None:
             area = p.dovetail_face_m**2
         return fixed + area * p.face_thickness_m * self.catalog.material.density_kg_m3
 
@@ -484,7 +499,7 @@ class StructureDesigner:
             foot = side * FOOT_WIDTH_RATIO * side * p.foot_thickness_m * rho
         else:  # a printed pad under a leg's tip
             foot = p.foot_min_side_m**2 * p.foot_thickness_m * rho
-        wheel = cat.wheel_mass_kg(sizing.wheel_radius, WHEEL_BORE)
+        wheel = cat.wheel_mass_kg(sizing.wheel_radius, WHEEL_BORE, sizing.wheel_width)
         # the catalog's jaw and ball caster (a catalog without them: the template's own)
         classes = {q.ontology_class for q in cat.parts}
         extra: dict = {"fingers": self.fingers}
@@ -507,6 +522,7 @@ class StructureDesigner:
             trunk_mass=self._trunk_mass(sizing),
             modules=modules,
             wheel_radius=sizing.wheel_radius,
+            wheel_width=sizing.wheel_width,
             foot_mass=foot,
             wheel_mass=wheel,
             **extra,
@@ -560,7 +576,7 @@ class StructureDesigner:
         converged with; none before it)."""
         analysis = build(
             self.type,
-            replace(tp, modules=self.family.analysis_modules(tp.modules, self.lifted_share)),
+            self.family.analysis_params(tp, self.lifted_share),
         )
         cases: list[LoadCase] = self.family.load_cases(analysis, self.values, self.catalog)
         if actuator_sets is None:
@@ -1279,9 +1295,7 @@ class _TorqueModel:
         behaviour samples' |speeds| (rad/s)."""
         d = self.d
         tp = d._params(sizing, tubes, act_mass, d.modules)
-        analysis = build(
-            d.type, replace(tp, modules=d.family.analysis_modules(tp.modules, d.lifted_share))
-        )
+        analysis = build(d.type, d.family.analysis_params(tp, d.lifted_share))
         m = analysis.model
         if self.cases is None:
             cases = self.cases = d.family.load_cases(analysis, d.values, d.catalog)
