@@ -586,17 +586,29 @@ suite format (TOML; paths are relative to the suite file):
 """
 
 
-def use_parts(files) -> None:
+def use_parts(files, kb=None) -> None:
     """Assemble with the shipped part kinds and ``files`` (``--parts``); InputError (exit
-    2) naming the file and the key of a part kind that cannot be used."""
+    2) naming the file and the key of a part kind that cannot be used, or (given the
+    knowledge base ``kb``) of a user's kind for a class no ontology has."""
     from adron.errors import InputError
-    from kinematics.partkinds import PartKindError, use
+    from kinematics.partkinds import PartKindError, shipped_text, use
     from kinematics.partkinds import load as load_kinds
 
     try:
-        use(load_kinds(files) if files else None)
+        kinds = load_kinds(files) if files else None
     except PartKindError as e:
         raise InputError(str(e)) from None
+    if kinds is not None and kb is not None:
+        known = {a for args in kb.translation.relation("subclass") for a in args[:2]}
+        shipped = shipped_text()[0] + ":"
+        for kind in kinds.kinds.values():
+            if kind.cls not in known and not kind.where.startswith(shipped):
+                raise InputError(
+                    f"{kind.where.rsplit(' (', 1)[0]}.class: {kind.cls!r} is no class of the "
+                    "ontology (a kind for it would never be used; give the file that defines "
+                    "it with --ontology)"
+                )
+    use(kinds)
 
 
 def _with_composed_arm(kb, args: argparse.Namespace):
@@ -630,7 +642,7 @@ def _designer(args: argparse.Namespace, err: TextIO, req=None):
 
     with stage("parse"):
         kb = load(args.ontology)
-        use_parts(getattr(args, "parts", ()))
+        use_parts(getattr(args, "parts", ()), kb)
         kb = _with_composed_arm(kb, args)
     _warn_untranslated(kb, err)
     # checked while the worker filters the ontology (a large one's abilities take a while)
