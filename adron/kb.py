@@ -121,6 +121,10 @@ SHAPES: dict[str, tuple[str, ...]] = {
     "extensiblePart": ("ROBOT", "PART"),
     "defaultLength": ("CLASS", "NAME", "LENGTH"),
     "liftedModuleShare": ("GAIT", "N", "D"),
+    "requiredPartCount": ("ABILITY", "PART", "N"),
+    "connectedTo": ("PART", "PART"),
+    "instance": ("THING", "CLASS"),
+    "defaultParameter": ("CLASS", "NAME", "QUANTITY"),
 }
 
 

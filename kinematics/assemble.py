@@ -131,18 +131,16 @@ def length_defaults(plan: BodyPlan, kinds: PartKinds) -> dict[str, float]:
     them: the root's, then each part's in assembly order; the ontology's
     ``defaultLength`` values (``plan.lengths``) win."""
     out: dict[str, float] = {}
-
-    def visit(node: PartNode) -> None:
+    stack = [plan.root]  # depth first, iterative: a chain of parts is as deep as it is long
+    while stack:
+        node = stack.pop()
         kind = _kind(kinds, node)
         for k, v in kind.lengths.items():
             out.setdefault(k, v)
         for j in kind.joints:
             if j.tube_length and j.tube_length not in out:
                 out[j.tube_length] = kind.lengths.get(j.tube_length, 0.0)
-        for c, _ in _ordered_children(node, kind, kinds):
-            visit(c)
-
-    visit(plan.root)
+        stack.extend(reversed([c for c, _ in _ordered_children(node, kind, kinds)]))
     for chain in serial_links(plan, kinds):  # a serial arm's links, after the parts'
         for k, name in enumerate(chain):
             pick = "first" if k == 0 else "rest"
@@ -646,21 +644,25 @@ def serial_links(plan: BodyPlan, kinds: PartKinds) -> list[list[str]]:
 
 def _chains(plan: BodyPlan, kinds: PartKinds) -> list[list[str]]:
     out: list[list[str]] = []
-
-    def visit(node: PartNode, chain: list[str] | None, prefix: str) -> None:
+    # depth first, iterative (a chain of parts is as deep as it is long); a new chain
+    # (True) is started when its first part is reached, as a recursive walk would
+    stack: list[tuple[PartNode, list[str] | bool | None, str]] = [(plan.root, None, "")]
+    while stack:
+        node, chain, prefix = stack.pop()
+        if chain is True:
+            chain = []
+            out.append(chain)
         kind = _kind(kinds, node)
         if kind.link and chain is not None:
             chain.append(f"{prefix or kind.link.get('names', 'L')}{len(chain) + 1}")
+        todo: list[tuple[PartNode, list[str] | bool | None, str]] = []
         for c, m in _ordered_children(node, kind, kinds):
             if _kind(kinds, c).role in _CHAIN:
                 if chain is None or kind.role not in _CHAIN:
-                    new: list[str] = []
-                    out.append(new)
-                    visit(c, new, m.links if m is not None else "")
+                    todo.append((c, True, m.links if m is not None else ""))
                 else:
-                    visit(c, chain, prefix)
+                    todo.append((c, chain, prefix))
             else:
-                visit(c, None, "")
-
-    visit(plan.root, None, "")
+                todo.append((c, None, ""))
+        stack.extend(reversed(todo))
     return out
