@@ -182,6 +182,22 @@ def key_of(path: tuple[str | int, ...]) -> str:
     return _key(path)
 
 
+#: pydantic's type errors said as parmor says them
+_TYPES = {
+    "model_type": "not a table (an object)",
+    "model_attributes_type": "not a table (an object)",
+    "dict_type": "not a table (an object)",
+    "list_type": "not a list",
+    "tuple_type": "not a list",
+    "string_type": "not a string",
+    "bool_type": "not true or false",
+    "int_type": "not an integer",
+    "float_type": "not a number",
+    "too_short": "too few items",
+    "too_long": "too many items",
+}
+
+
 def _message(error: dict, data: Any) -> str:
     """``key: value why`` for one pydantic error of ``data``."""
     path, value = _data_path(data, tuple(error["loc"]))
@@ -201,6 +217,8 @@ def _message(error: dict, data: Any) -> str:
         why = f"not one of {ctx.get('expected', '')}"
     elif isinstance(cause, ValueError):
         why = str(cause)
+    elif kind in _TYPES:
+        why = _TYPES[kind]
     else:
         why = error["msg"][0].lower() + error["msg"][1:]
         why = why.replace("input should", "should")

@@ -28,6 +28,14 @@ if TYPE_CHECKING:
     from gaits.base import Controller, Trajectory
 
 
+def check_record(record: object, source: str) -> None:
+    """InputError naming ``source``, the key and the value when ``record`` is not a design
+    record of this parmor's format (:mod:`export.record_schema`)."""
+    from export.record_schema import check_record as check
+
+    check(record, source)
+
+
 def bundle_record(folder: str | Path, structure: bool = True) -> dict:
     """The design record (``design.json``) of a bundle folder; InputError naming the file
     when it is missing, unreadable or not a record (or, with ``structure``, a conceptual
@@ -37,8 +45,7 @@ def bundle_record(folder: str | Path, structure: bool = True) -> dict:
     if not path.exists():
         raise InputError(f"{folder}: no design.json (write one with 'parmor design ... --out DIR')")
     record = readers.read_json(path, what="design record")  # nesting and numbers bounded
-    if not isinstance(record, dict):
-        raise InputError(f"{path}: not a design record (expected an object)")
+    check_record(record, str(path))  # the fields readers use, typed (export/record_schema)
     if structure and record.get("template") is None:
         raise InputError(f"{path}: the design has no structure (designed with --conceptual?)")
     return record
@@ -259,6 +266,7 @@ def verify_files(
     raw = files["design.json"]
     text = raw.decode("utf-8") if isinstance(raw, bytes) else raw
     record = readers.parse_json(text, "design.json")
+    check_record(record, "design.json")
     return verify_model(record, load_files_model(files), behaviors)
 
 

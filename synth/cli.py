@@ -1635,16 +1635,16 @@ def _main(argv: list[str], out: TextIO, err: TextIO) -> int:
         out.flush()
         return code
     except ParmorError as e:
-        err.write(f"parmor: error: {_one_line(str(e))}\n")
+        _tell(err, f"parmor: error: {_one_line(str(e))}\n")
         return e.exit_code
     except MemoryError:
         if uncap is None:
             raise
         uncap()
-        err.write(f"parmor: error: {_one_line(str(limits.memory_exceeded()))}\n")
+        _tell(err, f"parmor: error: {_one_line(str(limits.memory_exceeded()))}\n")
         return 1
     except KeyboardInterrupt:
-        err.write("parmor: interrupted\n")
+        _tell(err, "parmor: interrupted\n")
         return 130
     except OSError as e:
         # the output went away (``| head -1``: a broken pipe), is full (``> /dev/full``) or
@@ -1658,7 +1658,7 @@ def _main(argv: list[str], out: TextIO, err: TextIO) -> int:
             return _unexpected(e, err, limited)
         _discard_output(out)
         why = "closed early (broken pipe)" if e.errno == errno.EPIPE else e.strerror
-        err.write(f"parmor: error: cannot write the output: {why}\n")
+        _tell(err, f"parmor: error: cannot write the output: {why}\n")
         return ExportError.exit_code
     except Exception as e:  # noqa: BLE001 - told when a stop caused it, else raised
         return _unexpected(e, err, limited)
