@@ -967,6 +967,9 @@ def parse_catalog(text: str, source: str, folder: Path | None = None, shipped: s
         root = source if folder is None else _file_key(source)
         doc, digest = _resolve(text, source, folder, ((root, source),))
         cat = replace(_build(doc, source), sha256=digest, shipped=shipped)
+        from adron.formats import check  # the file's schema: what the checks above miss
+
+        check("catalog", _toml(text, source), source)
         if path is not None:
             import pickle
 

@@ -128,6 +128,15 @@ class DesignRecord(Open):
     verified: VerifiedRecord | None = None
     notes: list[Any] | dict[str, Any] | None = None
 
+    @field_validator("body_plan")
+    @classmethod
+    def _plan(cls, v: dict[str, Any] | None) -> dict[str, Any] | None:
+        if v is not None:
+            from kinematics.bodyplan import BodyPlan
+
+            BodyPlan.from_dict(v)  # ValueError naming the part: the message
+        return v
+
     @field_validator("format", mode="plain")
     @classmethod
     def _format(cls, v: Any) -> int:
