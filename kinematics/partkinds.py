@@ -551,6 +551,20 @@ class SerialSchema(BaseModel):
             for i, n in enumerate(names):
                 if n in names[:i]:
                     raise At(f"{k}[{i}]", "joint names repeat", n)
+            # an arm's sizing needs its column (the printed link on the first joint) and a
+            # link that reaches out (synth/sizing.py: the column, then the reach)
+            if not rows[0][4]:
+                raise At(
+                    f"{k}[0]",
+                    'the first joint needs the "link" mark: the arm\'s column stands on it',
+                    list(rows[0][:4]),
+                )
+            if sum(r[4] for r in rows) < 2:
+                raise At(
+                    k,
+                    'marks fewer than 2 joints "link": an arm needs its column and a link '
+                    "that reaches out",
+                )
         return self
 
 

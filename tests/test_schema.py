@@ -172,6 +172,16 @@ PARTS = {
         "serial.3[0][4]",
         "'tube'",
     ),
+    "serial column without link": (
+        f'[serial]\n3 = [["a","z","-pi","pi"],{ROWS}]\n',
+        "serial.3[0]",
+        '"link" mark',
+    ),
+    "serial rows with one link": (
+        '[serial]\n3 = [["a","z","-pi","pi","link"],["b","y","-1","1"],["c","y","-1","1"]]\n',
+        "serial.3",
+        "fewer than 2",
+    ),
     "default_lengths 1e308": (
         "[serial]\ndefault_lengths = { first = 1e308, rest = 0.1 }\n",
         "serial.default_lengths.first",
