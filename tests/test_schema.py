@@ -236,6 +236,12 @@ KIF = {
     "connectedTo of 1": ("(connectedTo Foo)", "2 arguments, not 1"),
     "instance of 1": ("(instance Foo)", "2 arguments, not 1"),
     "defaultParameter of 2": ('(defaultParameter HexapodRobot "payload")', "3 arguments, not 2"),
+    "requiredPartCount of a string": (
+        '(requiredPartCount RobotWalking MultipedLeg "x")',
+        "argument 3 (N) is a whole number",
+    ),
+    "connectedTo of a number": ("(connectedTo 3 Foo)", "argument 1 (PART) is a name"),
+    "defaultParameter dof 99": ('(defaultParameter HexapodRobot "dof" "99")', "3 to 7 joints"),
     "defaultLength 1e308 m": ('(defaultLength HexapodRobot "coxa" "1e308 m")', "at most 2 m"),
     "defaultParameter 1e308 kg": (
         '(defaultParameter HexapodRobot "payload" "1e308 kg")',
