@@ -284,7 +284,13 @@ class PerturbationOverrides(Closed):
 # ---- studies and regression suites --------------------------------------------------------
 
 Ability = Name
-Answer = Literal["yes", "no"]
+Answer = Annotated[
+    str,
+    Field(
+        pattern="^\\s*([Yy]([Ee][Ss])?|[Nn][Oo]?|[Tt][Rr][Uu][Ee]|[Ff][Aa][Ll][Ss][Ee])\\s*$",
+        description="yes or no (y, n, true, false; any case), as --answer takes",
+    ),
+]
 
 
 class Query(Closed):
