@@ -21,6 +21,7 @@ from adron.schema import (
     Closed,
     Name,
     StrictBool,
+    _name,
     described,
     json_schema,
     number,
@@ -284,11 +285,18 @@ class PerturbationOverrides(Closed):
 # ---- studies and regression suites --------------------------------------------------------
 
 Ability = Name
+#: an answer: the reader says which it takes (synth/conceptual.py parse_answer, with its
+#: message); the JSON Schema spells them out for an editor
 Answer = Annotated[
     str,
-    Field(
-        pattern="^\\s*([Yy]([Ee][Ss])?|[Nn][Oo]?|[Tt][Rr][Uu][Ee]|[Ff][Aa][Ll][Ss][Ee])\\s*$",
-        description="yes or no (y, n, true, false; any case), as --answer takes",
+    PlainValidator(_name),
+    WithJsonSchema(
+        {
+            "type": "string",
+            "pattern": "^\\s*([Yy]([Ee][Ss])?|[Nn][Oo]?|[Tt][Rr][Uu][Ee]"
+            "|[Ff][Aa][Ll][Ss][Ee])\\s*$",
+            "description": "yes or no (y, n, true, false; any case), as --answer takes",
+        }
     ),
 ]
 
