@@ -284,11 +284,11 @@ class Fuzzer:
             from kinematics.partkinds import PartKindError
 
             if not isinstance(e, InputError | PartKindError):
-                o.tracebacks.append(f"{fmt}: {what}: {traceback.format_exc(limit=-3)}")
+                o.tracebacks.append(f"{fmt}: {what}: {traceback.format_exc(limit=-4)}")
                 return
             status, message = "refused", str(e)
         except BaseException:
-            o.tracebacks.append(f"{fmt}: {what}: {traceback.format_exc(limit=-3)}")
+            o.tracebacks.append(f"{fmt}: {what}: {traceback.format_exc(limit=-4)}")
             return
         finally:
             signal.alarm(0)

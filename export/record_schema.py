@@ -84,7 +84,7 @@ class JointRecord(Open):
     """One actuated joint of the design."""
 
     name: Name
-    no_load_speed_rad_s: NonNegative | None = None
+    no_load_speed_rad_s: NonNegative = described(doc="its actuator's (a wheel's top speed)")
     actuator_torque_Nm: NonNegative | None = None
 
 

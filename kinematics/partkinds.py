@@ -494,7 +494,7 @@ def _serial_row(v: object) -> tuple:
         name = _name(name)
     except ValueError as e:
         raise At("[0]", str(e), name) from None
-    if axis not in AXES:
+    if not isinstance(axis, str) or axis not in AXES:
         raise At("[1]", f"not one of {', '.join(map(repr, AXES))}", axis)
     limits = []
     for i, x in ((2, lower), (3, upper)):

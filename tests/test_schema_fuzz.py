@@ -5,6 +5,7 @@ file and a key, no ``--out`` written by a refused run."""
 from __future__ import annotations
 
 import importlib.util
+import sys
 from pathlib import Path
 
 
@@ -12,6 +13,7 @@ def _bench():
     path = Path(__file__).resolve().parent.parent / "bench" / "fuzz_formats.py"
     spec = importlib.util.spec_from_file_location("fuzz_formats", path)
     module = importlib.util.module_from_spec(spec)
+    sys.modules["fuzz_formats"] = module  # its dataclasses look their module up
     spec.loader.exec_module(module)
     return module
 
