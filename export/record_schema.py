@@ -46,6 +46,18 @@ Finite = Annotated[float, PlainValidator(number), WithJsonSchema({"type": "numbe
 NonNegative = Annotated[
     float, PlainValidator(_non_negative), WithJsonSchema({"type": "number", "minimum": 0})
 ]
+
+
+def _positive(v: Any) -> float:
+    f = number(v)
+    if f <= 0:
+        raise ValueError("out of range: must be more than 0")
+    return f
+
+
+Positive = Annotated[
+    float, PlainValidator(_positive), WithJsonSchema({"type": "number", "exclusiveMinimum": 0})
+]
 Count = Annotated[
     int,
     PlainValidator(_count),
@@ -84,7 +96,7 @@ class JointRecord(Open):
     """One actuated joint of the design."""
 
     name: Name
-    no_load_speed_rad_s: NonNegative = described(doc="its actuator's (a wheel's top speed)")
+    no_load_speed_rad_s: Positive = described(doc="its actuator's (a wheel's top speed)")
     actuator_torque_Nm: NonNegative | None = None
 
 
