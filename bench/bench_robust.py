@@ -40,12 +40,18 @@ def _timed(fn, runs: int) -> tuple[float, float, object]:
     return min(walls), min(cpus), out
 
 
-def bench_robust(k: int = 8, runs: int = 2, only: str | None = None) -> list[str]:
+def bench_robust(k: int = 8, runs: int = 1, only: str | None = None) -> list[str]:
     from bench_sim import default_bundles
 
     from adron.catalog import load_catalog
     from export.perturb import design_table
-    from export.verify import bundle_parts, folder_files, verify_files, verify_robust
+    from export.verify import (
+        bundle_parts,
+        folder_files,
+        physics_check,
+        verify_files,
+        verify_robust,
+    )
 
     catalog = load_catalog()
     lines = [
@@ -60,16 +66,27 @@ def bench_robust(k: int = 8, runs: int = 2, only: str | None = None) -> list[str
             files = folder_files(folder)
             record, xml, _ = bundle_parts(files)
             table = design_table(record, xml, catalog)
-            wn, cn, _ = _timed(lambda f=files: verify_files(f), runs)
+            wn, cn, nominal = _timed(lambda f=files: verify_files(f), runs)
+            # the perturbed runs' step as parmor design chooses it (the check's cost counted)
+            wc, cc, check = _timed(lambda f=files, n=nominal: physics_check(f, n), 1)
+            if check["timestep_s"]:
+                table["timestep_s"] = check["timestep_s"]
             wr, cr, robust = _timed(lambda f=files, t=table: verify_robust(f, k, t), runs)
+            wr, cr = wr + wc, cr + cc
+            step = (
+                f"coarse {check['timestep_s'] * 1000:g} ms: nominal verdicts agree"
+                if check["timestep_s"]
+                else f"fine step: {check['why']}"
+            )
             passed = sum(b["passed"] for b in robust["behaviors"])
             total = sum(b["runs"] for b in robust["behaviors"])
             lines.append(
                 f"  {'ok  ' if wr / wn <= TARGET else 'MISS'} {robot_type:<24} nominal "
                 f"{wn:6.2f} s, robust {wr:6.2f} s: {wr / wn:5.2f} x wall, {cr / cn:5.2f} x CPU "
                 f"(floor {k} x; per run {cr / cn / k:4.2f} x a nominal run; runs passed "
-                f"{passed} of {total})"
+                f"{passed} of {total}; {step})"
             )
+            print(lines[-1], flush=True)
     return lines
 
 

@@ -43,6 +43,8 @@ def _kifs() -> dict[str, str]:
         "octopod": legged_kif("Octopod", 8, "eight-leg-walking"),
         "heavy": HEAVY,
         "mobile": MOBILE,
+        "six-wheels": (REPO / "tests" / "data" / "six_wheel_rover.kif").read_text(),
+        "six-wheels-imu": (REPO / "tests" / "data" / "six_wheel_rover_imu.kif").read_text(),
     }
 
 
@@ -82,6 +84,8 @@ REQUESTS: list[tuple[str, str | None, list[str], list[list[str]]]] = [
     ("heavy", "heavy", ["heavy-walking"], _pay("0", "0.2")),
     ("mobile", "mobile", ["driving", "pick-and-place", "--param", "object_shape=cylinder"],
         [*_pay("0.05", "0.1"), ["--param", "speed=0.2m/s"]]),
+    ("six-wheels", "six-wheels", ["six-wheel-driving"], _pay("0", "0.5", "1")),
+    ("six-wheels-imu", "six-wheels-imu", ["six-wheel-imu-driving"], _pay("0", "0.5", "1")),
 ]  # fmt: skip
 
 

@@ -41,11 +41,16 @@ def nominal(p: dict) -> dict:
     }
 
 
-def replays(folder: str, behavior: str, seed: int) -> tuple[dict, dict[str, dict]]:
+def replays(
+    folder: str, behavior: str, seed: int, open_loop: bool = False
+) -> tuple[dict, dict[str, dict]]:
     """(perturbation ``seed`` of the bundle's table, case -> the run's judged figures):
     the cases ``none`` (every component nominal), ``all`` (the whole perturbation) and one
     per :data:`COMPONENTS` (that component alone). A bundle without a recorded table
-    (designed without --robustness) uses the shipped catalog's."""
+    (designed without --robustness) uses the shipped catalog's. ``open_loop``: the plan
+    without its feedback loop (what the plan alone does)."""
+    from dataclasses import replace
+
     from adron.errors import InputError
     from export.mjcf import load_mjcf
     from export.perturb import draw, perturbed_model
@@ -70,6 +75,8 @@ def replays(folder: str, behavior: str, seed: int) -> tuple[dict, dict[str, dict
     p = draw(table, seed)
     controller = controller_for_model(record, load_mjcf(xml, meshes))
     traj = controller.run(behavior)
+    if open_loop:
+        traj = replace(traj, info={k: v for k, v in traj.info.items() if k != "feedback"})
     cases = {"none": nominal(p), "all": p}
     for name, keys in COMPONENTS.items():
         cases[name] = nominal(p) | {k: p[k] for k in keys}

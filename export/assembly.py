@@ -319,6 +319,14 @@ def _bearing(b: _Builder, lp: LabelledPart) -> PartUse:
     return PartUse(name, "bought", lp.mass, com, inertia, None, "BearingModule", cost)
 
 
+def _tool(lp: LabelledPart) -> PartUse:
+    """A tool without joints at an arm's tip (a probe, a nozzle, a camera): bought, a box
+    of the part kind's size and mass (its price is not in the catalog)."""
+    geom = Geometry("box", lp.placement, lp.dims, name=f"{lp.label}_box")
+    com, inertia = lp.com.copy(), lp.inertia.copy()
+    return PartUse(f"tool on {lp.label}", "bought", lp.mass, com, inertia, geom, "RobotTool")
+
+
 def _trunk_modules(b: _Builder) -> list[Module]:
     """The catalog modules of the root body: the structure's modules that are not joint
     actuators (main module, battery, sensors), one entry per unit, in the record's order."""
@@ -426,6 +434,8 @@ def _part_uses(
         return [_caster(b, lp)]
     if lp.kind == "bearing":
         return [_bearing(b, lp)]
+    if lp.kind == "tool":
+        return [_tool(lp)]
     raise ExportError(f"body '{body}': no exporter for a part of kind '{lp.kind}'")
 
 

@@ -248,9 +248,11 @@ def _trajectories(record: dict) -> dict:
         try:
             out[name] = controller.run(name)
         except ValueError as e:  # e.g. a default target this arm cannot reach: exit 1
+            # no option of a design sets a behaviour's default targets: no such advice
+            why = re.sub(r";\s*choose other targets\b", "", str(e)).strip()
             raise InfeasibleError(
                 f"{record.get('robot_type')}: its behaviour {name!r} cannot be planned with "
-                f"its default parameters: {e}"
+                f"its default parameters: {why}"
             ) from None
     return out
 

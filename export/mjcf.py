@@ -389,8 +389,34 @@ def mjcf_string(assembly: Assembly, mesh_dir: str = "meshes", with_payload: bool
     act = ET.SubElement(root, "actuator")
     for tag, attrs in actuators:
         ET.SubElement(act, tag, attrs)
+    _imu_sensors(root, assembly, elements)
     ET.indent(root, space="  ")
     return ET.tostring(root, "unicode") + "\n"
+
+
+#: the catalog class of an inertial measurement unit (as :data:`gaits.feedback.IMU_CLASS`)
+IMU_CLASS = "IMUSensorModule"
+
+
+def _imu_sensors(root: ET.Element, assembly: Assembly, elements: dict[str, ET.Element]) -> None:
+    """A site at each IMU module's centre (the first is ``imu``; others ``imu_1``...) and its
+    MuJoCo sensors: ``imu_gyro`` (rad/s) and ``imu_accel`` (m/s^2, specific force) in the
+    module's frame (the body's axes). What the feedback loops read (:mod:`gaits.feedback`);
+    the noise is added by the runner from the perturbation table (MuJoCo adds none)."""
+    found = [
+        (body.name, part)
+        for body in assembly.bodies
+        for part in body.parts
+        if part.kind == IMU_CLASS
+    ]
+    if not found:
+        return
+    sensor = ET.SubElement(root, "sensor")
+    for k, (body, part) in enumerate(found):
+        site = "imu" if k == 0 else f"imu_{k}"
+        ET.SubElement(elements[body], "site", name=site, pos=numbers(part.com, SNAP), size="0.005")
+        ET.SubElement(sensor, "gyro", name=f"{site}_gyro", site=site)
+        ET.SubElement(sensor, "accelerometer", name=f"{site}_accel", site=site)
 
 
 def load_mjcf(xml: str, meshes: dict[str, bytes]) -> mujoco.MjModel:

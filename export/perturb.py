@@ -198,6 +198,11 @@ def _resolve(raw: Mapping[str, Any], source: str) -> dict[str, Any]:
         "gears": gears,
         "servos": servos,
         "compliance_scale": ratio("compliance", "scale", 0.0, 1e6),
+        "imu": {
+            "gyro_std_rad_s": q("imu", "gyro_noise", "angular_speed", zero=True),
+            "gyro_bias_rad_s": q("imu", "gyro_bias", "angular_speed", zero=True),
+            "accel_std_m_s2": q("imu", "accel_noise", "acceleration", zero=True),
+        },
         "share": ratio("acceptance", "share", 0.0, 1.0),
         "default_k": int(ratio("acceptance", "default_k", 0, 1000)),
     }
@@ -297,6 +302,8 @@ def design_table(
         "bodies": bodies,
         "servos": servos,
         "share": r["share"],
+        # the IMU's noise where the design carries one (export.mjcf's gyro sensor)
+        **({"imu": r["imu"]} if root.find(".//sensor/gyro") is not None else {}),
     }
 
 
@@ -319,7 +326,19 @@ def draw(table: Mapping[str, Any], seed: int) -> dict[str, Any]:
     for joint, servo in table["servos"].items():
         lo, hi = servo["backlash_rad"]
         play[joint] = float(rng.uniform(lo, hi)) + servo["deadband_rad"]
+    imu = None
+    if table.get("imu"):  # drawn last: the draws above are those of tables without an IMU
+        i = table["imu"]
+        b = float(i["gyro_bias_rad_s"])
+        imu = {
+            "stream": int(table["stream"]),
+            "seed": seed,
+            "gyro_bias_rad_s": [float(x) for x in rng.uniform(-b, b, 3)],
+            "gyro_std_rad_s": float(i["gyro_std_rad_s"]),
+            "accel_std_m_s2": float(i["accel_std_m_s2"]),
+        }
     return {
+        **({"imu": imu} if imu is not None else {}),
         "seed": seed,
         "friction_scale": friction,
         "slope_rad": slope,
@@ -394,6 +413,8 @@ def perturbed_xml(
     if option is None:
         option = ET.SubElement(root, "option")
     g = [float(v) for v in (option.get("gravity") or "0 0 -9.81").split()]
+    if table.get("timestep_s"):  # the perturbed runs' physics (export.verify.physics_check)
+        option.set("timestep", _num(float(table["timestep_s"])))
     timestep = float(option.get("timestep") or 0.002)  # MuJoCo's default
     magnitude = math.sqrt(sum(v * v for v in g))
     a, d = p["slope_rad"], p["slope_direction_rad"]

@@ -68,12 +68,26 @@ def catalog_record(cat: Catalog) -> dict:
     return {"name": cat.name, "version": cat.version, "shipped": cat.shipped, "sha256": cat.sha256}
 
 
+def _part_kinds_record() -> dict:
+    """``part_kinds``: the user's part kinds files (``--parts``) the design was assembled
+    with, each ``{"file": name, "toml": text}``, so that its bundle is rebuilt, simulated
+    and programmed without them (``gaits.base.DesignGeometry.from_record``); nothing for
+    the shipped part kinds alone (the record stays as it was)."""
+    from kinematics.partkinds import in_use
+
+    texts = in_use().texts
+    if not texts:
+        return {}
+    return {"part_kinds": [{"file": name, "toml": text} for name, text in texts]}
+
+
 def structure_record(s: Structure) -> dict:
     """The sized structure: links, joints, modules with models and bus addresses, totals."""
     at = s.bus.address_text
     return {
         "template": s.template.robot_type,
         "body_plan": s.template.plan.to_dict() if s.template.plan is not None else None,
+        **_part_kinds_record(),
         "params": {k: _r(v) for k, v in s.params.items()},
         "ignored_params": list(s.ignored_params),
         "lengths_m": {k: _r(v) for k, v in s.lengths.items()},
@@ -351,6 +365,26 @@ def verification_text(verified: dict | None, indent: str = "  ") -> str:
             f"{indent}robust:     {robust['k']} perturbed runs per behaviour, each must pass "
             f"{robust['required']} (parmor simulate DIR --behavior NAME --perturb SEED)"
         )
+        physics = robust.get("physics") or {}
+        if physics:
+            step = physics.get("timestep_s")
+            out.append(
+                f"{indent}  physics: "
+                + (
+                    f"perturbed runs at a {step * 1000:g} ms step ({physics.get('why')}; "
+                    "--fine replays at the model's own)"
+                    if step
+                    else f"perturbed runs at the model's own step ({physics.get('why')})"
+                )
+            )
+        shown = robust.get("shows") or {}
+        if shown:
+            out.append(
+                f"{indent}  shows: each behaviour succeeds with probability above "
+                f"{math.floor(shown['success_lower_bound'] * 100)} % at "
+                f"{shown['confidence'] * 100:.0f} % confidence ({shown['passed']} of "
+                f"{shown['runs']}, Clopper-Pearson; --certify N runs N)"
+            )
         for b in robust["behaviors"]:
             verdict = "ok" if b["robust"] else "FAILED"
             line = f"{indent}  {b['behavior']:<22} {verdict:<8} passed {b['passed']} of {b['runs']}"

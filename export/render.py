@@ -1,14 +1,19 @@
 """Pictures for the bundle's README: each printed part as printed, and the assembled robot
-at its zero pose (PNG bytes, matplotlib's Agg canvas: no display, deterministic: fixed
-size, fixed view, no metadata that changes from run to run).
+at its zero pose (PNG bytes; deterministic: fixed size, fixed view, no metadata).
 
-Shapes are drawn as flat-shaded triangles (a fixed light from the viewer's upper left),
-sorted back to front by matplotlib's 3-D projection.
+Shapes are drawn as flat-shaded triangles (a fixed light from the viewer's upper left) in an
+orthographic view from ``VIEW`` (elevation, azimuth: matplotlib's 3-D convention), back to
+front (the painter's algorithm: each triangle at its centroid's depth, faces turned away
+culled), with Pillow's polygon fill at twice the size and a Lanczos reduction (smooth
+edges), the title and the shape's extent in millimetres written above. Pillow rather
+than matplotlib's 3-D axes: the same picture costs ~0.05 s instead of ~0.5 s, plus ~1 s of
+importing matplotlib, which made ``parmor design --out`` seconds slower than without.
 """
 
 from __future__ import annotations
 
 import io
+import math
 from collections.abc import Iterable, Sequence
 
 import numpy as np
@@ -17,11 +22,15 @@ from export.model3d import Assembly, Geometry
 
 __all__ = ["assembly_png", "mesh_png", "pieces_png", "triangles_of"]
 
-#: Picture size (inches) and resolution (dots per inch): 480 x 480 pixels.
-SIZE_IN = 4.0
-DPI = 120
-#: View: elevation and azimuth (degrees) of matplotlib's 3-D axes.
+#: Picture size, pixels (square).
+SIZE_PX = 480
+#: Pixels above the drawing for the title and the extent.
+HEADER_PX = 34
+#: View: elevation and azimuth (degrees; matplotlib's 3-D convention).
 VIEW = (25.0, -60.0)
+#: Drawn at this many times the size, then reduced (anti-aliasing).
+SUPERSAMPLE = 2
+BACKGROUND = (255, 255, 255)
 _LIGHT = np.array([-0.4, -0.6, 0.7]) / np.linalg.norm([-0.4, -0.6, 0.7])
 
 
@@ -48,40 +57,66 @@ def triangles_of(g: Geometry, mesh_vertices: dict[str, tuple[np.ndarray, np.ndar
     return v[np.asarray(f, dtype=np.int64)]
 
 
+def _view() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(right, up, towards the viewer) unit vectors of the picture in the world frame."""
+    elev, azim = (math.radians(x) for x in VIEW)
+    eye = np.array(
+        [math.cos(elev) * math.cos(azim), math.cos(elev) * math.sin(azim), math.sin(elev)]
+    )
+    right = np.array([-math.sin(azim), math.cos(azim), 0.0])
+    return right, np.cross(eye, right), eye
+
+
 def _png(items: Iterable[tuple[np.ndarray, Sequence[float]]], title: str) -> bytes:
     """PNG of triangle sets (each (n, 3, 3) m with an RGBA colour)."""
-    import matplotlib
+    from PIL import Image, ImageDraw
 
-    matplotlib.use("Agg")
-    from matplotlib.figure import Figure
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
-
-    fig = Figure(figsize=(SIZE_IN, SIZE_IN), dpi=DPI)
-    ax = fig.add_subplot(projection="3d")
-    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    right, up, eye = _view()
+    tris, colours = [], []
     for tri, rgba in items:
         if not len(tri):
             continue
-        tri = tri * 1000.0  # mm
+        tri = np.asarray(tri, dtype=float) * 1000.0  # mm
         n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         norm = np.linalg.norm(n, axis=1, keepdims=True)
         n = np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
         shade = 0.45 + 0.55 * np.clip(n @ _LIGHT, 0.0, 1.0)
-        colours = np.clip(np.outer(shade, rgba[:3]), 0, 1)
-        colours = np.column_stack([colours, np.full(len(colours), rgba[3])])
-        ax.add_collection3d(Poly3DCollection(tri, facecolors=colours, linewidths=0))
-        lo = np.minimum(lo, tri.reshape(-1, 3).min(axis=0))
-        hi = np.maximum(hi, tri.reshape(-1, 3).max(axis=0))
-    centre, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1.0)
-    for k, setter in enumerate((ax.set_xlim, ax.set_ylim, ax.set_zlim)):
-        setter(centre[k] - half, centre[k] + half)
-    ax.set_box_aspect((1, 1, 1))
-    ax.view_init(*VIEW)
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
-    ax.set_title(title, fontsize=9)
+        rgb = np.clip(np.outer(shade, rgba[:3]), 0, 1)
+        alpha = float(rgba[3]) if len(rgba) > 3 else 1.0
+        rgb = rgb * alpha + (1 - alpha) * np.array(BACKGROUND) / 255.0
+        front = n @ eye >= 0  # faces turned away are hidden behind the solid's others
+        tris.append(tri[front])
+        colours.append(rgb[front])
+    size = SIZE_PX * SUPERSAMPLE
+    image = Image.new("RGB", (size, size), BACKGROUND)
+    draw = ImageDraw.Draw(image)
+    extent = ""
+    if tris:
+        tri = np.concatenate(tris)
+        rgb = np.concatenate(colours)
+        pts = tri.reshape(-1, 3)
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        extent = " x ".join(f"{d:.0f}" for d in hi - lo) + " mm"
+        x, y, depth = tri @ right, tri @ up, (tri @ eye).mean(axis=1)
+        x0, x1, y0, y1 = x.min(), x.max(), y.min(), y.max()
+        room = size - 2 * 12 * SUPERSAMPLE
+        top = HEADER_PX * SUPERSAMPLE
+        scale = min(room / max(x1 - x0, 1e-9), (room - top) / max(y1 - y0, 1e-9))
+        px = size / 2 + (x - (x0 + x1) / 2) * scale
+        py = (size + top) / 2 - (y - (y0 + y1) / 2) * scale
+        fill = np.rint(rgb * 255).astype(int)
+        for k in np.argsort(depth, kind="stable"):  # far ones first
+            draw.polygon(
+                [(px[k, 0], py[k, 0]), (px[k, 1], py[k, 1]), (px[k, 2], py[k, 2])],
+                fill=tuple(fill[k]),
+            )
+    image = image.resize((SIZE_PX, SIZE_PX), Image.Resampling.LANCZOS)
+    text = ImageDraw.Draw(image)
+    text.text((8, 4), title, fill=(0, 0, 0))
+    if extent:
+        text.text((8, 18), f"extent x, y, z: {extent}", fill=(90, 90, 90))
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", metadata={"Software": None})
+    image.save(buf, format="PNG", optimize=False)
     return buf.getvalue()
 
 

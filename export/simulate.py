@@ -462,6 +462,8 @@ def simulate(
     observe_every: float | None = None,
     latency_s: float = 0.0,
     command_period_s: float = 0.0,
+    sensor_noise: Mapping[str, object] | None = None,
+    feedback: bool = True,
 ) -> SimResult:
     """Run ``traj`` on ``model`` (a mujoco.MjModel) for ``seconds`` (default: the
     trajectory's duration; past its end the robot holds its final commanded state: its
@@ -477,7 +479,15 @@ def simulate(
     began. ``progress(fraction)`` is called every :data:`CHUNK_STEPS` steps.
 
     ``latency_s``, ``command_period_s`` (a perturbed run, :mod:`export.perturb`): the
-    servos get the references of ``latency_s`` earlier, held for each command period."""
+    servos get the references of ``latency_s`` earlier, held for each command period.
+
+    A plan that asks for a feedback loop (``traj.info["feedback"]``, :mod:`gaits.feedback`)
+    runs closed: every control period (``command_period_s``, else
+    :data:`gaits.feedback.CONTROL_PERIOD_S`) the loop reads the design's sensors (servo
+    read-back, wheel encoders, the IMU's gyro and accelerometer where the model carries
+    them, with ``sensor_noise``: :func:`imu_noise`) and its correction reaches the servos
+    ``latency_s`` later. ``feedback=False`` runs the plan open loop (what the plan alone
+    does: the comparison the tests make)."""
     import mujoco
 
     from export.verdict import COLLAPSE_HEIGHT, COLLAPSE_TILT, SATURATION_LEVEL, judge
@@ -519,6 +529,15 @@ def simulate(
     every = CHUNK_STEPS
     if observe is not None:
         every = 1 if observe_every is None else max(1, int(round(observe_every / dt)))
+    closed = (
+        _ClosedLoop.of(model, data, traj, columns, latency_s, command_period_s, sensor_noise)
+        if feedback
+        else None
+    )
+    if closed is not None:
+        every = math.gcd(every, closed.period)
+        start_closed(closed, data)
+    observe_steps = 1 if observe_every is None else max(1, int(round(observe_every / dt)))
     # the run goes in blocks of whole observation periods, each measured once it is done:
     # memory stays that of a block whatever the duration
     block = max(1, BLOCK_STEPS // every) * every
@@ -564,9 +583,16 @@ def simulate(
             else:
                 ctrl[:, a] = ref[:, c]
 
-        def after(i: int, offset: int = start_step) -> None:
+        if closed is not None:
+            closed.begin_block(ctrl, start_step, every)
+
+        def after(i: int, offset: int = start_step, rows: np.ndarray = ctrl) -> None:
             done = offset + i
-            if observe is not None:
+            if closed is not None:
+                closed.after(data, done, rows)
+            if observe is not None and (
+                closed is None or done % observe_steps == 0 or done == steps
+            ):
                 observe(done * dt, data)
             if progress is not None and done // CHUNK_STEPS > (done - every) // CHUNK_STEPS:
                 progress(done * dt / seconds)
@@ -694,6 +720,139 @@ def simulate(
     promise = info if result.complete else {}
     result.verdict = judge(result.to_dict(), promise, free and result.complete)
     return result
+
+
+#: the MuJoCo sensors :mod:`export.mjcf` writes for a design's IMU (``IMUSensorModule``)
+IMU_SENSORS = ("imu_gyro", "imu_accel")
+
+
+def imu_sensors(model) -> tuple[int, int] | None:
+    """The sensordata addresses of the model's IMU gyro and accelerometer, or None when the
+    design carries no IMU."""
+    names = {model.sensor(k).name: int(model.sensor_adr[k]) for k in range(model.nsensor)}
+    if not all(n in names for n in IMU_SENSORS):
+        return None
+    return names[IMU_SENSORS[0]], names[IMU_SENSORS[1]]
+
+
+def _level_quat(quat: np.ndarray, gravity: np.ndarray) -> np.ndarray:
+    """The root's attitude (w x y z) in a frame whose z is up against ``gravity``: what the
+    firmware's start-up levelling finds on a tilted floor (the world's yaw kept)."""
+    g = -np.asarray(gravity, dtype=float)
+    n = float(np.linalg.norm(g))
+    if n == 0:
+        return np.asarray(quat, dtype=float)
+    g = g / n
+    axis = np.cross(g, [0.0, 0.0, 1.0])
+    s, c = float(np.linalg.norm(axis)), float(g[2])
+    if s < 1e-12:
+        return np.asarray(quat, dtype=float)
+    half = math.atan2(s, c) / 2
+    tilt = np.array([math.cos(half), *(math.sin(half) * axis / s)])
+    from gaits.feedback import _qmul
+
+    return _qmul(tilt, np.asarray(quat, dtype=float))
+
+
+class _ClosedLoop:
+    """A plan's feedback loop (:mod:`gaits.feedback`) wired to a MuJoCo run: it reads the
+    sensors every ``period`` steps and writes the corrected commands into the block's
+    control rows ahead of the stepping, ``delay`` steps after the reading (the bus)."""
+
+    def __init__(self, model, loop, columns, period: int, delay: int, imu, noise) -> None:
+        self.model, self.loop, self.period, self.delay = model, loop, period, delay
+        self.columns = columns
+        idx = np.array([a for _, a, _ in columns], dtype=int)
+        joints = model.actuator_trnid[idx, 0]
+        self.qadr = model.jnt_qposadr[joints]
+        self.vadr = model.jnt_dofadr[joints]
+        self.imu = imu
+        self.noise = noise
+        self.rng = None
+        if noise:
+            self.rng = np.random.default_rng([int(noise.get("stream", 0)), int(noise["seed"]), 1])
+        self.attitude = None
+        self.pending: list[tuple[int, np.ndarray]] = []  # (first step it acts, offsets)
+        self.now = np.zeros(len(columns))
+        self.base: np.ndarray | None = None
+        self.offset = self.every = 0
+
+    @classmethod
+    def of(cls, model, data, traj, columns, latency_s, command_period_s, noise):
+        from gaits.feedback import CONTROL_PERIOD_S, loop_for
+
+        loop = loop_for(traj)
+        if loop is None:
+            return None
+        imu = imu_sensors(model)
+        if loop.needs_imu and imu is None:
+            raise ValueError(
+                f"{traj.behavior}: its feedback loop reads an IMU the design does not carry"
+            )
+        dt = model.opt.timestep
+        period = max(1, int(round((command_period_s or CONTROL_PERIOD_S) / dt)))
+        delay = max(0, int(round(latency_s / dt)))
+        return cls(model, loop, columns, period, delay, imu, noise)
+
+    def reading(self, data, t: float):
+        from gaits.feedback import Attitude, Reading
+
+        gyro = accel = att = None
+        if self.imu is not None:
+            g, a = self.imu
+            gyro = data.sensordata[g : g + 3].copy()
+            accel = data.sensordata[a : a + 3].copy()
+            if self.noise:
+                gyro += np.asarray(self.noise["gyro_bias_rad_s"], dtype=float)
+                gyro += self.rng.normal(0.0, float(self.noise["gyro_std_rad_s"]), 3)
+                accel += self.rng.normal(0.0, float(self.noise["accel_std_m_s2"]), 3)
+            if self.attitude is None:
+                self.attitude = Attitude()
+                self.attitude.reset(_level_quat(data.qpos[3:7], self.model.opt.gravity))
+                att = self.attitude.q
+            else:
+                att = self.attitude.update(gyro, accel, self.period * self.model.opt.timestep)
+        return Reading(
+            t=t,
+            q=data.qpos[self.qadr].copy(),
+            qd=data.qvel[self.vadr].copy(),
+            gyro=gyro,
+            accel=accel,
+            attitude=None if att is None else att.copy(),
+        )
+
+    def begin_block(self, ctrl: np.ndarray, start: int, every: int) -> None:
+        """A new block of controls (the plan's) from step ``start``, run in chunks of
+        ``every`` steps: its first chunk's rows corrected."""
+        self.base = ctrl.copy()
+        self.offset, self.every = start, every
+        self._fill(ctrl, 0, min(len(ctrl), every))
+
+    def _fill(self, ctrl: np.ndarray, a: int, b: int) -> None:
+        """Rows a..b of the block's controls: the plan's plus the offsets in force."""
+        for row in range(a, b):
+            step = self.offset + row
+            while self.pending and self.pending[0][0] <= step:
+                self.now = self.pending.pop(0)[1]
+            for c, (_, act, _) in enumerate(self.columns):
+                ctrl[row, act] = self.base[row, act] + self.now[c]
+
+    def after(self, data, done: int, ctrl: np.ndarray) -> None:
+        dt = self.model.opt.timestep
+        if done % self.period == 0:
+            r = self.reading(data, done * dt)
+            self.pending.append((done + self.delay, np.asarray(self.loop.correct(r), dtype=float)))
+        a = done - self.offset
+        self._fill(ctrl, a, min(len(ctrl), a + self.every))
+
+
+def start_closed(closed, data) -> None:
+    """The loop's first reading, before the first step."""
+    if closed is None:
+        return
+    r = closed.reading(data, 0.0)
+    closed.loop.reset(r)
+    closed.pending.append((closed.delay, np.asarray(closed.loop.correct(r), dtype=float)))
 
 
 TRACK_SCALE = 0.1  # m: turns a yaw-rate error into a speed error (half a track width)

@@ -14,6 +14,7 @@ run with its default parameters and judged by :mod:`export.verdict`.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -21,7 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from adron import readers
-from adron.errors import InputError
+from adron.errors import InfeasibleError, InputError
 
 if TYPE_CHECKING:
     from export.simulate import SimResult
@@ -208,6 +209,7 @@ def _simulate(
         progress=progress,
         latency_s=float(perturbation["latency_s"]) if perturbation else 0.0,
         command_period_s=float(perturbation["control_period_s"]) if perturbation else 0.0,
+        sensor_noise=perturbation.get("imu") if perturbation else None,
     )
 
 
@@ -225,6 +227,22 @@ def figures(traj: Trajectory, result: SimResult) -> dict:
 VERIFY_THREADS = 2
 
 
+class UnplannedError(InfeasibleError):
+    """A behaviour of the design that cannot be planned with its default parameters on
+    the simulated robot: ``behavior``, the ``ability`` it realises and ``why`` (the
+    planner's reason, without its advice to choose other targets, which no option of a
+    design sets). :mod:`synth.verify` drops a bonus ability for it; a demanded one
+    refuses the request with this message."""
+
+    def __init__(self, record: Mapping, behavior: str, ability: str, error: Exception) -> None:
+        self.behavior, self.ability = behavior, ability
+        self.why = re.sub(r";\s*choose other targets\b", "", str(error))
+        super().__init__(
+            f"{record.get('robot_type')}: its behaviour {behavior!r} cannot be planned with "
+            f"its default parameters on the simulated robot: {self.why}"
+        )
+
+
 def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None) -> list[dict]:
     """Every listed behaviour of the design (default parameters) run and judged: one
     :func:`figures` dict each, in name order.
@@ -238,7 +256,12 @@ def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None)
 
     controller = controller_for_model(record, model)
     names = controller.listed(record.get("abilities", ())) if behaviors is None else list(behaviors)
-    trajs = [controller.run(n) for n in names]
+    trajs = []
+    for n in names:
+        try:
+            trajs.append(controller.run(n))
+        except ValueError as e:  # planned on the simulated model (its base where it stands)
+            raise UnplannedError(record, n, controller.behaviors[n].realises, e) from None
     same: dict[bytes, int] = {}
     first = [same.setdefault(_plan_digest(t), k) for k, t in enumerate(trajs)]
     runs = sorted(set(first))
@@ -338,6 +361,89 @@ def _criteria(fig: Mapping) -> dict[str, float]:
             float(fig["heading_rad"]) - float(fig["planned_heading_rad"])
         )
     return out
+
+
+#: The perturbed runs' time step as a multiple of the model's (2 ms -> 4 ms), used for a
+#: design only where its nominal runs at that step agree with the fine ones
+#: (:func:`physics_check`); a perturbed run then costs about 0.55 of a fine one.
+COARSE_STEP = 2
+#: How far a figure of a coarse nominal run may be from the fine run's (absolute, in the
+#: figure's unit) for the coarse step to be used: a tenth or less of each verdict's margin
+#: (export/verdict.py: saturation 5 % of the run, placing 5 mm, ...), so a verdict the fine
+#: physics gives is not turned by the step. Figures not listed must be equal to 10 %.
+AGREE = {
+    "saturated_fraction": 0.005,
+    "demand_ratio_max": 0.1,
+    "max_torque_ratio": 0.05,
+    "min_height_ratio": 0.02,
+    "max_tilt_rad": 0.02,
+    "distance_ratio": 0.03,
+    "heading_error_rad": 0.03,
+    "final_pose_error_m": 0.003,
+    "drift_m": 0.003,
+    "tracking_error": 0.03,
+    "placing_error_m": 0.0015,
+    "orientation_error_rad": 0.01,
+    "line_lost_s": 0.05,
+    "obstacle_contact_s": 0.02,
+}
+
+
+def coarse_xml(xml: str, factor: int = COARSE_STEP) -> tuple[str, float]:
+    """(MJCF text with its time step ``factor`` x longer, that step in s)."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(xml)
+    option = root.find("option")
+    if option is None:
+        option = ET.SubElement(root, "option")
+    step = float(option.get("timestep") or 0.002) * factor
+    option.set("timestep", f"{step:.12g}")
+    return ET.tostring(root, encoding="unicode"), step
+
+
+def physics_check(
+    files: Mapping[str, str | bytes],
+    fine: Sequence[Mapping] | None = None,
+    behaviors: Sequence[str] | None = None,
+) -> dict:
+    """Whether this design's perturbed runs may use the coarse step (:data:`COARSE_STEP`):
+    its behaviours run nominally at that step give the verdicts of the fine step (``fine``:
+    :func:`verify_model`'s figures when the caller has them) with every figure within
+    :data:`AGREE`. Returns ``{"timestep_s": step or None (the model's own), "coarse_s":
+    the coarse step, "largest": {figure: (difference, behaviour)}, "why": text}``."""
+    from export.mjcf import load_mjcf
+
+    record, xml, meshes = bundle_parts(files)
+    if fine is None:
+        fine = verify_model(record, load_mjcf(xml, meshes), behaviors)
+    wanted = [str(f["behavior"]) for f in fine]
+    text, step = coarse_xml(xml)
+    coarse = {str(f["behavior"]): f for f in verify_model(record, load_mjcf(text, meshes), wanted)}
+    largest: dict[str, tuple[float, str]] = {}
+    why = ""
+    for f in fine:
+        name = str(f["behavior"])
+        c = coarse[name]
+        if (f["verdict"] == "ok") != (c["verdict"] == "ok"):
+            why = why or f"{name}: verdict {f['verdict']} at the fine step, {c['verdict']} coarse"
+        a, b = _criteria(f), _criteria(c)
+        for key in sorted(set(a) | set(b)):
+            if key not in a or key not in b:
+                why = why or f"{name}: {key} measured at one step only"
+                continue
+            d = abs(a[key] - b[key])
+            tol = AGREE.get(key, 0.1 * max(abs(a[key]), 1e-9))
+            if d > largest.get(key, (-1.0, ""))[0]:
+                largest[key] = (float(f"{d:.4g}"), name)
+            if d > tol:
+                why = why or f"{name}: {key} {a[key]:.4g} at the fine step, {b[key]:.4g} coarse"
+    return {
+        "timestep_s": None if why else step,
+        "coarse_s": step,
+        "largest": {k: list(v) for k, v in sorted(largest.items())},
+        "why": why or "every figure of the nominal runs agrees",
+    }
 
 
 def _worse(kind: str, a: float, b: float) -> bool:
@@ -454,7 +560,12 @@ def verify_robust(
     names = controller.listed(record.get("abilities", ())) if behaviors is None else list(behaviors)
     if only is not None:
         names = [n for n in names if n in only]
-    trajs = [controller.run(n) for n in names]
+    trajs = []
+    for n in names:
+        try:
+            trajs.append(controller.run(n))
+        except ValueError as e:  # planned on the simulated model (its base where it stands)
+            raise UnplannedError(record, n, controller.behaviors[n].realises, e) from None
     same: dict[bytes, int] = {}
     first = [same.setdefault(_plan_digest(t), i) for i, t in enumerate(trajs)]
     runs = sorted(set(first))

@@ -29,6 +29,21 @@ from kinematics.bodyplan import BodyPlan
 from kinematics.templates import Template, TemplateParams, build, register_plan
 
 
+def use_recorded_kinds(entries) -> None:
+    """Assemble with the shipped part kinds and the user's ones a design record carries
+    (``part_kinds``: ``{"file", "toml"}`` each): its bundle needs no ``--parts`` file.
+    ValueError (a ``PartKindError``) when they cannot be read."""
+    from kinematics.partkinds import PartKindError, load_texts, use
+
+    try:
+        texts = [(str(e["file"]), str(e["toml"])) for e in entries]
+    except (TypeError, KeyError):
+        raise PartKindError(
+            "design.json: part_kinds must be a list of {file, toml} tables"
+        ) from None
+    use(load_texts(texts))
+
+
 def quat_yaw(quat) -> float:
     """Yaw rad of a (w, x, y, z) quaternion (a free body's ``qpos[3:7]``): the heading every
     controller and verdict measures a robot's turn by."""
@@ -274,6 +289,10 @@ class DesignGeometry:
     #: ``ability_ancestors``, from the ontology's action taxonomy): which behaviours serve
     #: an ability that has none of its own (:func:`serving`); gaits read no ontology
     ancestors: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    #: the catalog classes of the design's sensor modules (the record's ``modules`` whose
+    #: kind is a ``...SensorModule``), sorted: what its feedback loops may read
+    #: (:mod:`gaits.feedback`; an IMU only where the ontology made the design carry one)
+    sensors: tuple[str, ...] = ()
 
     @classmethod
     def from_record(cls, record: Mapping) -> DesignGeometry:
@@ -282,6 +301,8 @@ class DesignGeometry:
         bundle is rebuilt without the ontology that made it."""
         if record.get("template") is None:
             raise ValueError("the design record has no structure (designed with --conceptual?)")
+        if record.get("part_kinds"):  # the user's part kinds it was designed with
+            use_recorded_kinds(record["part_kinds"])
         if record.get("body_plan"):
             register_plan(BodyPlan.from_dict(record["body_plan"]))
         return cls(
@@ -307,6 +328,15 @@ class DesignGeometry:
                 str(k): tuple(str(a) for a in v)
                 for k, v in (record.get("ability_ancestors") or {}).items()
             },
+            sensors=tuple(
+                sorted(
+                    {
+                        str(m["kind"])
+                        for m in record.get("modules") or ()
+                        if str(m.get("kind", "")).endswith("SensorModule")
+                    }
+                )
+            ),
         )
 
     def build(self) -> Template:
@@ -331,7 +361,7 @@ def cache_write(
     renamed over it (concurrent writers write the same bytes, no reader sees half a file),
     then the oldest ``prefix*`` entries beyond ``keep`` deleted; a folder that cannot be
     written only means no cache. (``adron.units.write_cache_file`` and ``prune_cache`` do
-    the same for adron and synth: DESIGN.md has gaits import nothing of adron, and adron
+    the same for adron and synth: docs/architecture.md has gaits import nothing of adron, and adron
     nothing of ours.)"""
     import contextlib
     import tempfile

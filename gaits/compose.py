@@ -116,6 +116,9 @@ FLOOR_GAP = 0.005
 MAX_JUMP = 1e-3
 #: Largest distance m a pick-and-place target may lie from the start.
 FIELD = 5.0
+#: s a ``travel`` stands still after its drive, its feedback loop settling on the distance
+#: (:mod:`gaits.wheel_feedback`)
+TRAVEL_SETTLE_S = 1.0
 
 
 def _role(kinds, node: PartNode) -> str:
@@ -572,9 +575,20 @@ class ComposedController(Controller):
             held, planned = self.hold
             plan = _Legs(self.wheels, self.arm_joints, held, planned)
             speed = float(params["speed"])  # type: ignore[arg-type]
+            profile: dict[str, float] = {}
             if abs(d) > 0:
-                t, q, v = self._drive(self._travel_command(d, speed), speed)
+                cmd = self._travel_command(d, speed)
+                t, q, v = self._drive(cmd, speed)
                 plan.base(t, q, v, self.hold)
+                profile = {"distance": cmd, "seconds": float(t[-1])}
+                # the base stands still while its loop settles on the distance (as a
+                # pick-and-place's base does before its arm moves): a probe measures where
+                # the base comes to rest
+                n = int(round(TRAVEL_SETTLE_S / SAMPLE_DT)) + 1
+                plan.arm(
+                    np.linspace(0.0, TRAVEL_SETTLE_S, n),
+                    *(np.tile(x, (n, 1)) for x in (held, held * 0, planned, held * 0)),
+                )
             else:
                 plan.arm(
                     np.array([0.0, 2 * SAMPLE_DT]),
@@ -592,6 +606,7 @@ class ComposedController(Controller):
                 "planned_positions": pl,
                 "accelerations": acc,
             }
+            info.update(self._base_feedback(profile) if profile else self._hold_feedback())
             return Trajectory(name, t, self.joints, pos, vel, info)
         if name == "turning":  # as calibrated; the promise the angle asked
             angle = float(params["angle"])  # type: ignore[arg-type]
@@ -619,7 +634,24 @@ class ComposedController(Controller):
                 info[key] = np.hstack([still, self._arm_block(t, key)])
         pos = np.hstack([still, self._arm_block(t)])
         vel = np.hstack([still, self._arm_block(t, "velocities")])
+        info.update(self._hold_feedback())
         return Trajectory(name, t.times, self.joints, pos, vel, info)
+
+    def _hold_feedback(self) -> dict[str, object]:
+        """``info["feedback"]`` of a plan whose base stands still while the arm works (or
+        between its drives): the base's wheels hold their encoder angles
+        (:class:`gaits.wheel_feedback.WheelHold`), so the arm's reaction and a slope do not
+        roll it away; empty for a base whose controller offers no wheel loop."""
+        spec = getattr(self.base, "feedback_spec", None)
+        return {"feedback": spec({}, kind="wheel-hold")} if spec is not None else {}
+
+    def _base_feedback(self, profile: Mapping[str, object]) -> dict[str, object]:
+        """``info["feedback"]`` of a plan whose base drives (``profile``: its heading and
+        distance reference, :func:`gaits.wheel_feedback.reference`): heading and distance
+        closed on the wheels (and the IMU where the design carries one), held between the
+        drives; empty for a base whose controller offers no wheel loop."""
+        spec = getattr(self.base, "feedback_spec", None)
+        return {"feedback": spec(profile)} if spec is not None else {}
 
     def _wheel_block(self, t: Trajectory, what: str = "positions") -> np.ndarray:
         src = t.velocities if what == "velocities" else t.positions
@@ -868,6 +900,8 @@ class ComposedController(Controller):
         plan = _Legs(self.wheels, self.arm_joints, *self.hold)
         segments: list[tuple[str, float, float]] = []
 
+        profile: list[dict[str, float]] = []  # the base's legs, for its feedback loop
+
         def base_legs(legs: list, arm_q: np.ndarray) -> None:
             for kind, amount in legs:
                 t0 = plan.now
@@ -881,9 +915,13 @@ class ComposedController(Controller):
                         tr = self.base.run("turning", angle=cmd)
                     wv = self._wheel_block(tr, "velocities")
                     plan.base(tr.times, self._wheel_block(tr), wv, arm_q)
+                    own = tr.info.get("feedback") or {}
+                    profile.append(dict(own.get("profile") or {}) | {"t0": t0})
                 else:
-                    t, q, v = self._drive(self._travel_command(amount, speed), speed)
+                    cmd = self._travel_command(amount, speed)
+                    t, q, v = self._drive(cmd, speed)
                     plan.base(t, q, v, arm_q)
+                    profile.append({"t0": t0, "distance": cmd, "seconds": float(t[-1])})
                 segments.append((kind, t0, plan.now))
 
         def arm_leg(name: str, traj: Trajectory, reverse: bool = False, gripper=None) -> None:
@@ -946,6 +984,7 @@ class ComposedController(Controller):
             "planned_positions": planned,
             "accelerations": acc,
         }
+        info.update(self._base_feedback({"legs": profile}))
         return Trajectory("pick-and-place", t, self.joints, pos, vel, info)
 
 

@@ -139,6 +139,9 @@ RAMP = 0.5
 PROBE_RIM_FRACTIONS = (0.25, 0.15, 0.08)
 PROBE_SECONDS = 2.0
 PROBE_SETTLE = 0.5
+#: s a turn's plan holds still after its heading profile ends, its feedback loop
+#: (:mod:`gaits.wheel_feedback`) bringing the measured heading onto the angle asked
+TURN_SETTLE_S = 1.0
 
 
 def wheel_speeds(v: float, w: float, radius: float, track: float) -> tuple[float, float]:
@@ -587,6 +590,10 @@ class WheeledController(Controller):
                 effective_track=float(cal.get("effective_track_m", self.drive.effective_track)),
                 turn_load_scale=float(cal.get("turn_load_scale", 1.0)),
             )
+        #: m: where a skid-steer turning in place turns about, left of the wheels' middle
+        #: (measured: :func:`_turn_centre`); its turns and arcs drive the chassis forward
+        #: at ``-w centre_y`` more, so that the wheels' middle goes where eq. 5 says
+        self.centre_y = float(cal.get("turn_centre_y_m", 0.0)) if self.drive.skid else 0.0
         self.joints = (*self.drive.left, *self.drive.right)
 
     def calibration_probes(self) -> list[tuple[str, dict[str, object]]]:
@@ -657,10 +664,14 @@ class WheeledController(Controller):
                 t_den += turn * turn
         if den <= 0 or num <= 0 or t_den <= 0:
             return {}
-        return {
+        out = {
             "effective_track_m": round(num / den, 4),
             "turn_load_scale": round(max(t_num / t_den, 0.0), 3),
         }
+        centre = _turn_centre(runs)
+        if centre is not None:
+            out["turn_centre_y_m"] = round(centre, 5)
+        return out
 
     @property
     def v_max(self) -> float:
@@ -823,7 +834,9 @@ class WheeledController(Controller):
             dist = np.where(t < ramp, ramp * min_jerk_integral(t / ramp), ramp / 2 + (t - ramp))
         else:
             s, ds, dist = np.ones_like(t), np.zeros_like(t), t
-        left, right = self.drive.commands(v * s, w * s, v * ds, w * ds)
+        # a skid-steer's wheels drive its measured turn centre's offset out (0: none)
+        u = v - self.centre_y * w
+        left, right = self.drive.commands(u * s, w * s, u * ds, w * ds)
         self.drive.check_commands(left, right, f"driving at ({v:g} m/s, {w:g} rad/s)")
         # the exact end pose: the path is one circle (curvature w / v), travelled for the
         # integral of the profile, D = seconds - ramp / 2
@@ -838,6 +851,7 @@ class WheeledController(Controller):
             "ramp_s": ramp,
             "planned_pose": pose,
             "path_length_m": abs(v) * D,
+            "feedback": self.feedback_spec({"v": u, "w": w, "ramp": ramp, "seconds": seconds}),
         }
         if v == 0 and w == 0:
             info["motion"] = "hold"
@@ -855,8 +869,8 @@ class WheeledController(Controller):
         s, ds, dds = min_jerk(t / seconds)
         w = angle * ds / seconds
         alpha = angle * dds / seconds**2
-        zero = np.zeros_like(t)
-        return t, s, *self.drive.commands(zero, w, zero, alpha)
+        c = self.centre_y  # the measured turn centre's offset, taken out (0: none)
+        return t, s, *self.drive.commands(-c * w, w, -c * alpha, alpha)
 
     def turn_seconds(self, angle: float) -> tuple[float, float]:
         """(the shortest, the design's own) duration s of turning in place by ``angle``
@@ -892,13 +906,45 @@ class WheeledController(Controller):
             )
         t, _, left, right = self._turn_profile(angle, seconds)
         self.drive.check_commands(left, right, f"turning {angle:g} rad in {seconds:g} s")
+        # the settling tail: the wheels' plan stands still, the loop ends the turn on the
+        # measured heading
+        tail = seconds + SAMPLE_DT * np.arange(1, int(round(TURN_SETTLE_S / SAMPLE_DT)) + 1)
+        t = np.concatenate([t, tail])
+        left = np.concatenate([left, np.zeros(len(tail))])
+        right = np.concatenate([right, np.zeros(len(tail))])
         info = {
             "heading_rad": angle,
             "motion": "turn",
             "planned_pose": (0.0, 0.0, angle),
             "path_length_m": 0.0,
+            "feedback": self.feedback_spec(
+                {"angle": angle, "seconds": seconds}
+                | ({"centre_y": self.centre_y} if self.centre_y else {})
+            ),
         }
         return self._trajectory("turning", t, left, right, info)
+
+    def feedback_spec(self, profile: Mapping[str, float], kind: str = "wheel-odometry") -> dict:
+        """The plan's feedback loop (:mod:`gaits.wheel_feedback`): ``kind`` on the drive's
+        wheels, for a ``profile`` (its heading and distance reference); the heading from
+        the IMU where the design carries one (``DesignGeometry.sensors``), else from the
+        wheels' odometry."""
+        from gaits.feedback import has_imu
+
+        d = self.drive
+        spec: dict[str, object] = {
+            "loop": kind,
+            "left": list(d.left),
+            "right": list(d.right),
+            "sign": {n: d.sign[n] for n in (*d.left, *d.right)},
+            "radius_m": d.radius,
+            "track_m": d.effective_track,
+            "max_speed_rad_s": d.max_speed / SPEED_MARGIN,
+        }
+        if kind == "wheel-odometry":
+            spec["profile"] = dict(profile)
+            spec["imu"] = has_imu(self.geometry.sensors)
+        return spec
 
     def _trajectory(
         self,
@@ -921,6 +967,33 @@ class WheeledController(Controller):
             "effective_track_m": self.drive.effective_track,
         }
         return Trajectory(name, t, self.joints, pos, vel, info)
+
+
+def _turn_centre(runs: Sequence[tuple[Trajectory, Mapping[str, np.ndarray]]]) -> float | None:
+    """m: how far left of the wheels' middle (the root) a skid-steer turns about, from its
+    calibration probe in place (``command`` v = 0): the root's path is a circle about that
+    point, ``p(t) - p(0) = (I - R(yaw(t) - yaw(0))) c`` (c in the start's frame; least
+    squares over the probe). Its ``y`` is what eq. 5's common mode can take out (the wheels
+    drive the chassis along x; a centre ahead or behind would need a sideways push). None
+    without an in-place probe that turned."""
+    for traj, series in runs:
+        v, w = (float(x) for x in traj.info.get("command", (1.0, 0.0)))  # type: ignore[union-attr]
+        if v != 0 or w == 0:
+            continue
+        root = np.asarray(series["root"])
+        yaw = np.unwrap([quat_yaw(q) for q in root[:, 3:7]])
+        c0, s0 = math.cos(yaw[0]), math.sin(yaw[0])
+        d = root[:, :2] - root[0, :2]
+        d = np.column_stack([c0 * d[:, 0] + s0 * d[:, 1], -s0 * d[:, 0] + c0 * d[:, 1]])
+        a = yaw - yaw[0]
+        if float(np.ptp(a)) < 0.5:
+            continue
+        ca, sa = np.cos(a), np.sin(a)
+        # rows: x = (1 - cos) cx + sin cy ; y = -sin cx + (1 - cos) cy
+        m = np.vstack([np.column_stack([1 - ca, sa]), np.column_stack([-sa, 1 - ca])])
+        c, *_ = np.linalg.lstsq(m, np.concatenate([d[:, 0], d[:, 1]]), rcond=None)
+        return float(c[1])
+    return None
 
 
 def _grid(seconds: float) -> np.ndarray:

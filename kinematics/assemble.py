@@ -87,6 +87,7 @@ class _Rec:
     on_parent: bool = False
     module: str = ""
     passive: bool = False
+    tool: tuple[float, tuple[float, float, float], float] | None = None  # length, box, kg
 
 
 @dataclass
@@ -195,7 +196,7 @@ class _Walk:
         parts = [_trunk(kind.body, self.p.trunk_mass, box, self.root_at, _FACES[kind.faces])]
         # an arm (a chain of joints ending in a gripper) holds the payload wherever it stands
         roles = {k.role for n in node.walk() if (k := self.kinds.of(n.kinds)) is not None}
-        arm = {"joint", "end_effector"} <= roles
+        arm = "joint" in roles  # a serial arm's chain, whatever ends it
         if kind.payload == "root" and not arm:
             parts.append(_point(kind.body, "payload", self.p.payload, self.root_at))
         else:
@@ -314,6 +315,15 @@ class _Walk:
             )
         if kind.role == "leg":
             self.legs += 1
+        if kind.end == "tool":  # no joints: fixed on the chain's end, its origin the tip
+            if node.children:
+                raise AssemblyError(
+                    f"part {node.children[0].kind}{_where(node.children[0])}: it is connected "
+                    f"to the tool {node.kind}, which ends its chain (a tool has no joints; "
+                    "nothing is mounted on it)"
+                )
+            self.fixed_end(tip, "tool", node, kind)
+            return
         here = tip
         for j in kind.joints:
             here = self.joint(node, kind, j, here, index=None)
@@ -387,6 +397,37 @@ class _Walk:
         frame = transform(self.L[tube[1]] * tube[2]) if tube else np.eye(4)
         return _Tip(k, frame, tip.prefix, forward)
 
+    def fixed_end(
+        self, tip: _Tip, end: str, node: PartNode | None = None, kind: PartKind | None = None
+    ) -> None:
+        """A body fixed on the chain's end at ``tip``: a tool (``end`` "tool": its box
+        reaching along the chain, the body's origin at its far end, the point it places)
+        or the bare end of an arm with nothing at its tip ("tip": the end of its last
+        link)."""
+        frame, tool = tip.frame, None
+        if kind is not None and node is not None:
+            dims = tuple(self.ev(x, node, "box") for x in kind.box)
+            if not all(d > 0 for d in dims):
+                raise AssemblyError(f"part {node.kind}{_where(node)}: its box must be positive")
+            tool = (dims[0], (dims[0], dims[1], dims[2]), kind.mass)
+            frame = frame @ transform(tuple(dims[0] * tip.forward))
+        name = f"{tip.prefix}_{end}" if tip.prefix else end
+        self.recs.append(
+            _Rec(
+                name=name,
+                body=f"{name}_link",
+                parent=tip.rec,
+                kind="fixed",
+                origin=frame,
+                axis=np.array([0.0, 0.0, 1.0]),
+                limits=(0.0, 0.0),
+                group="",
+                end=end,
+                forward=tip.forward,
+                tool=tool,
+            )
+        )
+
     # -- chains of one-joint parts (a snake's modules, an arm's servos and links) -------
     def serial(self, parent: PartNode, first: list[PartNode], tip: _Tip, names: str = "") -> None:
         if len(first) > 1:
@@ -433,6 +474,10 @@ class _Walk:
         i = 0
         links = 0
         pos = 0
+        # a chain of servos that names no printed link (the paper's manipulators): its
+        # links go where the [serial] row marks them, as in an arm composed for N joints
+        implied = _implied_link_kind(self.kinds, serial_rows, chain)
+        hung = False
         while pos < len(chain):
             node = chain[pos]
             kind = _kind(self.kinds, node)
@@ -442,25 +487,29 @@ class _Walk:
                     f"(connected straight to {parent.kind})"
                 )
             link = None
-            if pos + 1 < len(chain) and _kind(self.kinds, chain[pos + 1]).link:
-                lk = _kind(self.kinds, chain[pos + 1])
+            row = serial_rows[i] if serial_rows is not None else None
+            named = pos + 1 < len(chain) and bool(_kind(self.kinds, chain[pos + 1]).link)
+            lk = _kind(self.kinds, chain[pos + 1]) if named else implied
+            if lk is not None and (named or (row is not None and row[4])):
                 links += 1
                 d = np.array(AXES[lk.link.get("first" if links == 1 else "rest", "x")])
                 link = (f"{names or lk.link.get('names', 'L')}{links}", d)
             spec = kind.joints[0]
-            row = serial_rows[i] if serial_rows is not None else None
             index = i + 1 if kind.naming == "index" else None
             here = self.joint(node, kind, spec, here, index, row, link, axis_index=i)
             i += 1
-            pos += 2 if link is not None else 1
+            pos += 2 if named else 1
             # what else hangs on this module (a gripper at the end of an arm)
             rest = [c for c in node.children if _kind(self.kinds, c).role not in _CHAIN]
-            if link is not None:
+            if named:
                 rest += [
                     c for c in chain[pos - 1].children if _kind(self.kinds, c).role not in _CHAIN
                 ]
             for c in rest:
                 self.part(c, here)
+            hung = bool(rest)
+        if serial_rows is not None and not hung:  # an arm with nothing at its tip
+            self.fixed_end(here, "tip")
 
 
 def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Template:
@@ -511,6 +560,31 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
         elif r.end == "gripper":
             payload = p.payload if w.payload_at_effector else 0.0
             parts += _gripper_parts(p, payload, r.body, tuple(r.forward), (0.0, 1.0, 0.0))
+            effectors.append(r.body)
+        elif r.end in ("tool", "tip"):
+            if r.tool is not None:
+                length, dims, mass = r.tool
+                x = np.asarray(r.forward, dtype=float)
+                side = np.array([0.0, 1.0, 0.0])
+                if abs(float(x @ side)) > 0.9:
+                    side = np.array([0.0, 0.0, 1.0])
+                z = np.cross(x, side)
+                z = z / np.linalg.norm(z)
+                R = np.column_stack([x, np.cross(z, x), z])
+                centre = -x * length / 2
+                parts.append(
+                    LabelledPart(
+                        r.body,
+                        "tool",
+                        mass,
+                        centre,
+                        R @ box_inertia(mass, dims) @ R.T,
+                        transform_from(R, centre),
+                        dims,
+                    )
+                )
+            if w.payload_at_effector:  # held at the tip
+                parts.append(_point(r.body, "payload", p.payload, (0.0, 0.0, 0.0)))
             effectors.append(r.body)
         elif r.end == "wheel":
             rr = p.wheel_radius
@@ -611,13 +685,13 @@ def structure_of(plan: BodyPlan, kinds: PartKinds) -> str:
     """What a body plan is, by the roles of its parts (never by its type's name): wheels
     on a chassis ("wheeled"; "steered" when a wheel part turns on a joint that is no
     wheel's: a steering joint), three or more legs ("multiped"), two legs ("biped"), a chain
-    of modules ("module_chain"), a chain of joints ending in an end effector on a fixed
-    base ("serial_arm"), both a chain ending in an end effector and wheels
-    ("mobile_manipulator"); "" for none of these."""
+    of modules ("module_chain"), a chain of joints on a fixed base ending in a gripper, a
+    tool or nothing ("serial_arm"), both such a chain and wheels ("mobile_manipulator");
+    "" for none of these."""
     found = [kinds.of(n.kinds) for n in plan.root.walk()]
     roles = [(k.role if k is not None else "") for k in found]
     legs = roles.count("leg")
-    if "wheel" in roles and "joint" in roles and "end_effector" in roles:
+    if "wheel" in roles and "joint" in roles:  # an arm (whatever ends it) on wheels
         return "mobile_manipulator"
     if "wheel" in roles:
         steered = any(
@@ -631,8 +705,8 @@ def structure_of(plan: BodyPlan, kinds: PartKinds) -> str:
         return "biped"
     if "module" in roles:
         return "module_chain"
-    if "joint" in roles and "end_effector" in roles:
-        return "serial_arm"
+    if "joint" in roles:  # a chain of joints on a fixed base, ending in a gripper, a
+        return "serial_arm"  # tool or nothing
     return ""
 
 
@@ -642,27 +716,58 @@ def serial_links(plan: BodyPlan, kinds: PartKinds) -> list[list[str]]:
     return [c for c in _chains(plan, kinds) if c]
 
 
+def _implied_link_kind(
+    kinds: PartKinds, rows: tuple | None, chain: list[PartNode]
+) -> PartKind | None:
+    """The part kind of a printed link (one with a ``link`` table) to put where the
+    ``[serial]`` ``rows`` mark a link, for a serial ``chain`` that names no link part of
+    its own (the paper's manipulators: servos connectedTo servos); None otherwise."""
+    if rows is None or any(_kind(kinds, n).link for n in chain):
+        return None
+    return next((k for k in kinds.kinds.values() if k.link and not k.joints), None)
+
+
 def _chains(plan: BodyPlan, kinds: PartKinds) -> list[list[str]]:
     out: list[list[str]] = []
-    # depth first, iterative (a chain of parts is as deep as it is long); a new chain
-    # (True) is started when its first part is reached, as a recursive walk would
-    stack: list[tuple[PartNode, list[str] | bool | None, str]] = [(plan.root, None, "")]
+    nodes: list[list[PartNode]] = []  # the parts of each chain
+    prefixes: list[str] = []
+    # depth first, iterative (a chain of parts is as deep as it is long): each entry is a
+    # part, the index of its chain (None: none; _NEW: a chain starts at it, as a recursive
+    # walk would start it when it reaches the part) and the chain's link prefix
+    stack: list[tuple[PartNode, int | None, str]] = [(plan.root, None, "")]
     while stack:
-        node, chain, prefix = stack.pop()
-        if chain is True:
-            chain = []
-            out.append(chain)
+        node, at, prefix = stack.pop()
+        if at == _NEW:
+            out.append([])
+            nodes.append([])
+            prefixes.append(prefix)
+            at = len(out) - 1
         kind = _kind(kinds, node)
+        chain = out[at] if at is not None else None
+        if chain is not None:
+            nodes[at].append(node)
         if kind.link and chain is not None:
             chain.append(f"{prefix or kind.link.get('names', 'L')}{len(chain) + 1}")
-        todo: list[tuple[PartNode, list[str] | bool | None, str]] = []
+        todo: list[tuple[PartNode, int | None, str]] = []
         for c, m in _ordered_children(node, kind, kinds):
             if _kind(kinds, c).role in _CHAIN:
                 if chain is None or kind.role not in _CHAIN:
-                    todo.append((c, True, m.links if m is not None else ""))
+                    todo.append((c, _NEW, m.links if m is not None else ""))
                 else:
-                    todo.append((c, chain, prefix))
+                    todo.append((c, at, prefix))
             else:
                 todo.append((c, None, ""))
         stack.extend(reversed(todo))
+    for chain, parts, prefix in zip(out, nodes, prefixes, strict=True):
+        joints = [n for n in parts if _kind(kinds, n).joints and not _kind(kinds, n).link]
+        serial = any(_kind(kinds, n).joints[0].name == "serial" for n in joints)
+        rows = kinds.serial.get(len(joints)) if serial else None
+        lk = _implied_link_kind(kinds, rows, parts)
+        if lk is not None and rows is not None:
+            marked = sum(1 for r in rows if r[4])
+            chain += [f"{prefix or lk.link.get('names', 'L')}{k + 1}" for k in range(marked)]
     return out
+
+
+#: a part that starts a chain (``_chains``)
+_NEW = -1

@@ -26,7 +26,9 @@ A kind (``[[kind]]``):
   ``<joint>_link``); ``name = "serial"``: one joint of a serial arm, named from
   ``[serial]``;
 - ``end``: what the last joint's body ends in: point_foot, foot_plate, gripper, wheel,
-  caster;
+  caster; or ``tool``: a part without joints at the tip of an arm (a probe, a spray
+  nozzle, a camera), a ``box`` [length along the chain, width, height] (m) of ``mass``
+  (kg) fixed on the chain's end, the point it places or points with at its far end;
 - ``role``: leg, arm, end_effector, wheel, caster, module, joint, link (what a template
   counts: legs, arms, wheels ...);
 - ``mounts``: how its children of a class attach: ``layout`` bilateral (even counts
@@ -67,6 +69,7 @@ from adron.schema import (
     At,
     Closed,
     Length,
+    Mass,
     Name,
     StrictBool,
     StrictStr,
@@ -83,6 +86,7 @@ __all__ = [
     "evaluate",
     "in_use",
     "load",
+    "load_texts",
     "shipped_text",
     "use",
 ]
@@ -96,7 +100,7 @@ AXES = {
     "-z": (0.0, 0.0, -1.0),
 }
 JOINT_KINDS = ("revolute", "continuous", "fixed")
-ENDS = ("point_foot", "foot_plate", "gripper", "wheel", "caster")
+ENDS = ("point_foot", "foot_plate", "gripper", "wheel", "caster", "tool")
 LAYOUTS = ("bilateral", "radial", "pair", "axle", "trailing", "front", "serial", "tip")
 ROLES = ("leg", "arm", "end_effector", "wheel", "caster", "module", "joint", "link", "")
 FACES = ("up", "down", "back")
@@ -217,6 +221,7 @@ class PartKind:
     mounts: tuple[Mount, ...] = ()
     naming: str = ""
     link: Mapping[str, str] = field(default_factory=dict)
+    mass: float = 0.0  # kg: a tool's (end = "tool")
 
 
 @dataclass(frozen=True)
@@ -230,6 +235,9 @@ class PartKinds:
     serial_lengths: Mapping[str, float]
     constants: Mapping[str, float]
     sources: tuple[str, ...] = ()
+    #: (file name, text) of each file read after the shipped one (``--parts``): what a
+    #: design record carries so that its bundle is rebuilt without them (:func:`load_texts`)
+    texts: tuple[tuple[str, str], ...] = ()
 
     def of(self, kinds: Sequence[str]) -> PartKind | None:
         """The kind of a part whose class and ancestors are ``kinds`` (most specific
@@ -261,6 +269,16 @@ def load(extra: Sequence[str | Path] = ()) -> PartKinds:
             sources.append((str(path), p.read_text(encoding="utf-8")))
         except (OSError, UnicodeDecodeError) as e:
             raise PartKindError(f"{path}: cannot read it ({e})") from None
+    return _cached(sources)
+
+
+def load_texts(extra: Sequence[tuple[str, str]]) -> PartKinds:
+    """As :func:`load` with the user's files given as (name, text): a design record's
+    ``part_kinds``."""
+    return _cached([shipped_text(), *((str(n), str(t)) for n, t in extra)])
+
+
+def _cached(sources: list[tuple[str, str]]) -> PartKinds:
     key = tuple(sources)
     if key not in _CACHE:
         _CACHE[key] = _parse(sources)
@@ -453,6 +471,7 @@ class KindSchema(Closed):
     mounts: list[MountSchema] = []
     naming: Literal["", "index"] = ""
     link: LinkSchema | None = None
+    mass: Mass | None = described(None, "kg: a tool's (end = 'tool'), more than 0")
 
     @model_validator(mode="after")
     def _consistent(self) -> KindSchema:
@@ -461,7 +480,18 @@ class KindSchema(Closed):
             raise At("", f"root part kind {cls} needs a 'body' name and a 'box' [x, y, z]")
         if self.root and not self.mounts:
             raise At("mounts", f"root part kind {cls} has no 'mounts': nothing can hang on it")
-        if not self.root and not self.joints and self.link is None:
+        tool = self.end == "tool"
+        if tool and (self.joints or self.root or not self.box or self.mass is None):
+            raise At(
+                "",
+                f"tool part kind {cls} (end = 'tool') has no joints and is not a root; it "
+                "needs a 'box' [length along the chain, width, height] (m) and a 'mass' (kg)",
+            )
+        if self.mass is not None and not tool:
+            raise At("mass", "only a tool (end = 'tool') has a mass of its own", self.mass)
+        if tool and self.mass <= 0:
+            raise At("mass", "out of range: a tool's mass is more than 0 kg", self.mass)
+        if not self.root and not self.joints and self.link is None and not tool:
             raise At("", f"part kind {cls} has no joints, no link and is not a root")
         for i, v in enumerate(self.box or ()):
             _check_range(f"box[{i}]", v, 1e-9, MAX_LENGTH_M, "m")
@@ -622,6 +652,7 @@ def _parse(sources: Sequence[tuple[str, str]]) -> PartKinds:
         MappingProxyType(serial_lengths),
         MappingProxyType(constants),
         tuple(n for n, _ in sources),
+        tuple(sources[1:]),
     )
 
 
@@ -677,4 +708,5 @@ def _kind_of(k: KindSchema, where: str) -> PartKind:
         ),
         naming=k.naming,
         link=k.link.model_dump(exclude_none=True) if k.link else {},
+        mass=k.mass or 0.0,
     )

@@ -317,6 +317,7 @@ PART_KINDS = (
     "wheel",
     "caster",
     "bearing",
+    "tool",
 )
 
 
@@ -344,7 +345,9 @@ class LabelledPart:
     - "wheel": (radius, width) disc centred on the frame origin, its axis the frame's z;
     - "caster": (radius,) ball centred on the frame origin;
     - "bearing": (radius, width) the hub of a passive joint, on the joint's parent at the
-      joint's origin, its frame the joint's.
+      joint's origin, its frame the joint's;
+    - "tool": (x, y, z) box of a tool without joints (a probe, a nozzle, a camera) centred
+      on the frame origin, x along the tool.
     """
 
     label: str

@@ -8,7 +8,7 @@ its own name when None; aliases are skipped), run with its default parameters on
 ``gaits.DesignGeometry`` built from the sizing at hand exactly as ``design.json`` will give
 it (lengths, modules, wheel radius, parameters and abilities rounded as the record rounds
 them; the chosen actuators' no-load speeds). ``synth`` imports ``gaits`` for this, lazily
-(only when a structure is sized): DESIGN.md's dependency list predates it.
+(only when a structure is sized), as docs/architecture.md's layers allow.
 
 **Motion.** Each trajectory gives q and v per sample (the planned positions when the
 controller compensates servo droop); accelerations are ``info["accelerations"]`` or the

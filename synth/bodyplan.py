@@ -192,6 +192,16 @@ def plan_of(kb: KnowledgeBase, robot_type: str, kinds: PartKinds) -> BodyPlan:
     roots = [n for n in nodes if (k := kinds.of(lineage_of[n[0]])) is not None and k.root]
     here = (axioms.get(robot_type) or mine or [None])[0]
     at = here.where if here is not None else robot_type
+    if not roots:  # an arm as the paper writes it: a chain of servos from its first joint
+        base = _arm_base(kb, kinds, nodes, edges, lineage_of)
+        if base is not None:
+            cls, first = base
+            lineage_of[cls] = ancestors(kb, cls)
+            root_node = (cls, 0)
+            nodes.insert(0, root_node)
+            where[root_node] = where[first]
+            edges.append((root_node, first, where[first]))
+            roots = [root_node]
     if not roots:
         named = ", ".join(sorted({n[0] for n in nodes})) or "no structural parts"
         raise OntologyError(
@@ -284,6 +294,46 @@ def _check_lengths_used(
                 f"{where}: defaultLength {args[1]}: no part of {plan.robot_type} has a length "
                 f"of this name (its lengths: {', '.join(used) or 'none'})"
             )
+
+
+def _arm_base(kb, kinds, nodes, edges, lineage_of) -> tuple[str, tuple[str, int]] | None:
+    """(the class of the root part an arm's chain stands on, the chain's first joint) for
+    a body plan with no root part whose parts are one serial chain of joints and printed
+    links that may end in an end effector (the paper's manipulator axioms name no base):
+    the arm is fixed to the world at its first joint, on the root part kind that mounts
+    nothing but a serial chain of that joint's class (the shipped ``ArmBase``: the plate
+    under the first joint carrying the main module and battery). The first joint is the
+    joint no ``connectedTo`` leads to (the chain written from its base), else the one
+    end of the chain that is a joint. None when the plan is no such chain."""
+    roles = {n: (k.role if (k := kinds.of(lineage_of[n[0]])) is not None else "") for n in nodes}
+    if not nodes or "joint" not in roles.values():
+        return None
+    if any(r not in ("joint", "link", "end_effector") for r in roles.values()):
+        return None
+    degree = dict.fromkeys(nodes, 0)
+    targets = set()
+    pairs = {frozenset((a, b)) for a, b, _ in edges}
+    for pair in pairs:
+        for n in pair:
+            degree[n] += 1
+    for _, b, _ in edges:
+        targets.add(b)
+    if len(pairs) != len(nodes) - 1 or any(d > 2 for d in degree.values()):
+        return None  # not one unbranched chain
+    ends = [n for n in nodes if degree[n] <= 1 and roles[n] == "joint"]
+    heads = [n for n in ends if n not in targets]
+    first = heads[0] if len(heads) == 1 else (ends[0] if len(ends) == 1 else None)
+    if first is None:
+        return None
+    bases = [
+        k
+        for k in kinds.kinds.values()
+        if k.root
+        and k.mounts
+        and all(m.layout == "serial" for m in k.mounts)
+        and any(m.child in lineage_of[first[0]] for m in k.mounts)
+    ]
+    return (bases[0].cls, first) if bases else None
 
 
 def _default_lengths(kb: KnowledgeBase, lineage: Sequence[str]) -> dict[str, float]:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import os
+import re
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -106,6 +107,9 @@ class Outcome:
     with_payload: bool = False  # the bundle's models carry the payload (--with-payload)
     calibration: dict[str, float] | None = None  # measured on a run (synth.verify)
     bed: object = None  # the user's printer (export.split.Bed, --bed): parts made to fit it
+    #: bonus abilities dropped before verifying: a behaviour serving them cannot be
+    #: planned with its default parameters (ability -> why; :func:`drop_unplannable`)
+    unplanned: tuple[tuple[str, str], ...] = ()
 
     @property
     def status(self) -> str:
@@ -158,6 +162,11 @@ class Outcome:
             rec["calibration"] = dict(sorted(self.calibration.items()))
         if self.note is not None and self.structure is None:
             rec["no_structure"] = self.note  # why there is none (the request keeps its params)
+        if self.unplanned:
+            rec["notes"] = [
+                *rec.get("notes", []),
+                *(f"dropped {a}: {why}" for a, why in self.unplanned),
+            ]
         v = self.verification
         if v is not None:
             rec["verified"] = v.record()
@@ -205,8 +214,72 @@ def run(designer: Designer, req: Request, opts: StructureOptions) -> Outcome:
         )
     except InfeasibleError as e:
         return Outcome(d, infeasible=str(e), catalog=catalog, with_payload=loaded)
+    d, unplanned = drop_unplannable(designer, d, s)
     if not opts.verify:
-        return Outcome(d, s, catalog=catalog, verify_skipped=True, with_payload=loaded)
+        return Outcome(
+            d, s, catalog=catalog, verify_skipped=True, with_payload=loaded, unplanned=unplanned
+        )
     from synth.verify import verify
 
-    return verify(designer, req, opts, Outcome(d, s, catalog=catalog, with_payload=loaded))
+    return verify(
+        designer,
+        req,
+        opts,
+        Outcome(d, s, catalog=catalog, with_payload=loaded, unplanned=unplanned),
+    )
+
+
+def drop_unplannable(
+    designer: Designer, d: Design, s: Structure
+) -> tuple[Design, tuple[tuple[str, str], ...]]:
+    """``d`` without the bonus abilities (abilities the chosen robot has but the request
+    does not demand) whose behaviours cannot be planned with their default parameters, and
+    (ability, why) for each dropped one; the design's note says so. A bonus ability never
+    sinks a design: its failed plan drops it, as its failed simulation does
+    (:mod:`synth.verify`). A demanded ability's failed plan is left to refuse the request
+    where the bundle is written."""
+    from export.record import design_record
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+    from synth.verify import demanded, served_abilities
+
+    c = d.chosen
+    if c is None:
+        return d, ()
+    record = design_record(d, designer.short, s)
+    try:
+        controller = controller_for(DesignGeometry.from_record(record))
+    except ValueError:  # no controller serves it: nothing is planned (verify refuses it)
+        return d, ()
+    served = served_abilities(record, controller)
+    need = set(demanded(record))
+    need_served = {served.get(a) for a in need} - {None}
+    bonus = [a for a in record["abilities"] if a not in need]
+    dropped: dict[str, str] = {}
+    for name in controller.listed(bonus):
+        realises = controller.behaviors[name].realises
+        if realises in need_served:
+            continue
+        try:
+            controller.run(name)
+        except ValueError as e:
+            why = _without_advice(str(e))
+            for a in bonus:
+                if served.get(a) == realises:
+                    dropped.setdefault(
+                        a,
+                        f"its behaviour {name} cannot be planned with its "
+                        f"default parameters ({why})",
+                    )
+    if not dropped:
+        return d, ()
+    keep = tuple(a for a in c.abilities if designer.short(a) not in dropped)
+    notes = "; ".join(f"dropped the bonus ability {a}: {w}" for a, w in sorted(dropped.items()))
+    note = f"{d.note}; {notes}" if d.note else notes
+    return replace(d, chosen=replace(c, abilities=keep), note=note), tuple(sorted(dropped.items()))
+
+
+def _without_advice(why: str) -> str:
+    """A planner's error without its advice to the caller of a behaviour (``choose other
+    targets``): in a design, no option sets a behaviour's default targets."""
+    return re.sub(r";\s*choose other targets\b", "", why).strip()

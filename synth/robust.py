@@ -20,7 +20,7 @@ SEED`` replays each recorded run to the bit.
 from __future__ import annotations
 
 import json
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -34,20 +34,70 @@ def robust_check(
     k: int,
     only: Collection[str] | None = None,
     files: Mapping[str, str | bytes] | None = None,
+    nominal: Sequence[Mapping] | None = None,
 ) -> dict | None:
     """``verified.robust`` of ``outcome`` (a sized design) under perturbations 1..``k`` of
     its table (of its listed behaviours, those named in ``only`` when given); None when
-    ``k`` is 0. ``files``: its :func:`robust_files` when the caller has them already."""
+    ``k`` is 0. ``files``: its :func:`robust_files` when the caller has them already;
+    ``nominal``: the figures of its nominal runs (``verify_files``) when the caller has
+    them. The runs use the coarse time step where the nominal runs agree at it
+    (:func:`export.verify.physics_check`; ``table["timestep_s"]``, recorded with the
+    table, so a replay uses it too); ``verified.robust.physics`` says which and why."""
     if k <= 0 or outcome.structure is None or outcome.catalog is None:
         return None
     from export.perturb import design_table
-    from export.verify import bundle_parts, verify_robust
+    from export.verify import bundle_parts, physics_check, verify_robust
 
     files = robust_files(designer, outcome) if files is None else files
     record, xml, _ = bundle_parts(files)
+    table = design_table(record, xml, outcome.catalog)
+    # the coarse step where this design's nominal runs agree with the fine ones
+    physics = physics_check(files, nominal)
+    if physics["timestep_s"]:
+        table["timestep_s"] = physics["timestep_s"]
     # through JSON as design.json keeps it: the replay draws from the very same numbers
-    table = json.loads(json.dumps(design_table(record, xml, outcome.catalog)))
-    return verify_robust(files, k, table, only=only)
+    table = json.loads(json.dumps(table))
+    robust = verify_robust(files, k, table, only=only)
+    robust["physics"] = physics
+    robust["shows"] = shows(robust)
+    return robust
+
+
+#: The confidence of the bound :func:`shows` states.
+CONFIDENCE = 0.9
+
+
+def success_bound(passed: int, runs: int, confidence: float = CONFIDENCE) -> float:
+    """The one-sided Clopper-Pearson lower bound of a success probability after ``passed``
+    successes in ``runs`` independent runs: the p below which so many successes would
+    happen with probability under 1 - ``confidence`` ((1 - c)^(1/n) when all passed)."""
+    if runs <= 0 or passed <= 0:
+        return 0.0
+    alpha = 1.0 - confidence
+    if passed == runs:
+        return alpha ** (1.0 / runs)
+    from scipy.stats import beta
+
+    return float(beta.ppf(alpha, passed, runs - passed + 1))
+
+
+def shows(robust: Mapping) -> dict:
+    """What the perturbed runs show (``verified.robust.shows``): for the behaviour with the
+    fewest passes, the lower bound of its success probability over the table's
+    perturbations at :data:`CONFIDENCE` (each behaviour's own is at least that)."""
+    rows = robust.get("behaviors") or []
+    if not rows:
+        return {}
+    worst = min(rows, key=lambda b: (b["passed"] / max(b["runs"], 1), b["behavior"]))
+    bound = success_bound(int(worst["passed"]), int(worst["runs"]))
+    return {
+        "method": "Clopper-Pearson, one-sided",
+        "confidence": CONFIDENCE,
+        "passed": int(worst["passed"]),
+        "runs": int(worst["runs"]),
+        "behavior": worst["behavior"],
+        "success_lower_bound": float(f"{bound:.4g}"),
+    }
 
 
 def robust_files(designer: Designer, outcome: Outcome) -> dict[str, str | bytes]:

@@ -332,7 +332,7 @@ def _verified(
 ) -> Outcome:
     """The loop of the module docstring on ``outcome``, sized for ``params`` (SI)."""
     from export.verdict import explain
-    from export.verify import verify_files
+    from export.verify import UnplannedError, verify_files
     from gaits import controller_for
     from gaits.base import DesignGeometry
     from program.sensing import verify_sensing
@@ -381,13 +381,22 @@ def _verified(
         record = outcome.record(designer)
         models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
         # the behaviours' trajectories, then the sensing abilities' closed loops
-        results = verify_files(files) + verify_sensing(files)
+        try:
+            planned = verify_files(files)
+            results = planned + verify_sensing(files)
+        except UnplannedError as e:  # a bonus ability's plan: dropped, and this round again
+            outcome = _drop_unplanned(designer, outcome, record, e)
+            bundles.clear()
+            rounds -= 1
+            continue
         failing = [r for r in results if r["verdict"] != "ok"]
         # nominally passed: under the perturbations of synth.robust (--robustness K)
         robust = (
             None
             if failing or opts.robustness <= 0
-            else robust_check(designer, outcome, opts.robustness, files=robust_bundle())
+            else robust_check(
+                designer, outcome, opts.robustness, files=robust_bundle(), nominal=planned
+            )
         )
         more = _floors(results + failing_runs(robust), record)
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
@@ -448,7 +457,14 @@ def _verified(
         # what failed nominally drops its bonus abilities or refuses the request (below);
         # what passed must pass under the perturbations too, or no perturbed run is claimed
         passed = {r["behavior"] for r in results if r["verdict"] == "ok"}
-        robust = robust_check(designer, outcome, opts.robustness, passed, robust_bundle())
+        robust = robust_check(
+            designer,
+            outcome,
+            opts.robustness,
+            passed,
+            robust_bundle(),
+            [r for r in planned if r["behavior"] in passed],
+        )
     # which abilities no behaviour serves: the controller alone tells (no model needed)
     controller = controller_for(DesignGeometry.from_record(record))
     served = served_abilities(record, controller)
@@ -515,6 +531,33 @@ def _verified(
     if failure is not None:
         return replace(out, infeasible=failure)
     return out
+
+
+def _drop_unplanned(designer: Designer, outcome: Outcome, record: Mapping, e) -> Outcome:
+    """``outcome`` without the bonus abilities that the behaviour of ``e`` (an
+    ``export.verify.UnplannedError``: it cannot be planned on the simulated robot) serves,
+    with a note; ``e`` itself when it serves a demanded ability (the request is refused)."""
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    served = served_abilities(record, controller_for(DesignGeometry.from_record(record)))
+    needed = set(record.get("needed") or record.get("abilities", ()))
+    mine = {e.ability} | {a for a, s in served.items() if s == e.ability}
+    if mine & needed:
+        raise e
+    d, c = outcome.design, outcome.design.chosen
+    why = f"its behaviour {e.behavior} cannot be planned with its default parameters ({e.why})"
+    keep = tuple(a for a in c.abilities if designer.short(a) not in mine)
+    notes = "; ".join(f"dropped the bonus ability {a}: {why}" for a in sorted(mine))
+    d = replace(
+        d, chosen=replace(c, abilities=keep), note=f"{d.note}; {notes}" if d.note else notes
+    )
+    return replace(
+        outcome,
+        design=d,
+        unplanned=(*outcome.unplanned, *((a, why) for a in sorted(mine))),
+        calibration=None,
+    )
 
 
 def _size_with_less_play(

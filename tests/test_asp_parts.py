@@ -356,6 +356,7 @@ SHIPPED = {
     ],
     "orienting": ["Manipulator6DOF"],
     "pick-and-place": ["Manipulator3DOF", "Manipulator6DOF"],
+    "pointing": [],  # a tool's (RobotTool): no shipped type carries one
     "positioning": ["Manipulator3DOF", "Manipulator6DOF"],
     "rectilinear": ["SnakeRobot"],
     "rolling": ["SnakeRobot"],
@@ -370,7 +371,7 @@ DECLARED = {
     "CarRobot": ("RobotSteeredDriving",),
     "DifferentialDriveRobot": ("RobotDriving",),
     "HexapodRobot": ("RobotRoughTerrainWalking", "RobotRunning", "RobotWalking"),
-    "HumanoidRobot": ("RobotGrasping", "RobotRunning", "RobotWalking"),
+    "HumanoidRobot": ("RobotBalancing", "RobotGrasping", "RobotRunning", "RobotWalking"),
     "Manipulator3DOF": ("RobotGrasping", "RobotPickAndPlace", "RobotPositioning"),
     "Manipulator6DOF": (
         "RobotGrasping",

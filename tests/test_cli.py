@@ -1,6 +1,6 @@
 """Tests of the ``parmor`` command line (synth.cli), run in-process through ``main(argv)``.
 
-Exit codes (DESIGN.md): 0 done; 1 the request cannot be met; 2 bad input; 3 an answer is
+Exit codes (docs/architecture.md): 0 done; 1 the request cannot be met; 2 bad input; 3 an answer is
 needed and input is off.
 """
 
@@ -338,7 +338,8 @@ def test_out_writes_design_json(cli, tmp_path: Path) -> None:
         "trajectories",
     ]
     walks = sorted(p.name for p in (out / "trajectories").iterdir())
-    assert walks == ["grasping.csv", "running.csv", "walking.csv"]
+    # a biped carries an IMU (KIF), so it can keep its balance: that behaviour is listed too
+    assert walks == ["balancing.csv", "grasping.csv", "running.csv", "walking.csv"]
     assert all(p.suffix == ".stl" for p in (out / "meshes").iterdir())
     r = cli(
         "design",

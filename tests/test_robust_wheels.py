@@ -58,15 +58,19 @@ def test_the_nominal_case_neutralises_every_component() -> None:
 
 
 def test_the_replay_names_the_component_that_breaks_the_run(bundle) -> None:
+    """Open loop (the plan alone) the cross slope breaks the drive; closed on the wheels'
+    odometry (gaits.wheel_feedback, what the design runs) the same perturbation passes."""
     import json
 
     from export.verify import verify_bundle
 
-    p, runs = robust_isolate.replays(str(bundle), "driving", SEED)
+    _, closed = robust_isolate.replays(str(bundle), "driving", SEED)
+    assert closed["all"]["verdict"] == "ok", closed["all"]
+    assert abs(closed["all"]["heading_rad"]) < 0.05
     nominal = {r["behavior"]: r for r in verify_bundle(bundle, ["driving"])}["driving"]
-    # every component nominal: the nominal run, figure for figure
     for key in ("heading_rad", "distance_m", "final_pose_error_m", "verdict"):
-        assert runs["none"][key] == nominal[key], key
+        assert closed["none"][key] == nominal[key], key
+    p, runs = robust_isolate.replays(str(bundle), "driving", SEED, open_loop=True)
     assert runs["all"]["verdict"] != "ok"
     # the whole perturbation breaks it; the cross slope alone does, nothing else does
     broke = [c for c in robust_isolate.COMPONENTS if runs[c]["verdict"] != "ok"]
@@ -108,8 +112,8 @@ def test_a_steered_turn_at_its_default_speed_is_robust(monkeypatch) -> None:
 def test_a_turn_in_place_at_its_default_speed_is_robust(tmp_path, monkeypatch) -> None:
     """A differential drive (payload 0.5 kg, 0.1 m/s) turning in place with its rims at 0.5
     of the wheels' top speed passes all 8 perturbed runs; at 0.25 (the former default)
-    the slopes of seeds 1, 3 and 6 turn it off by more than 10 % or off its pose (the case
-    built to fail)."""
+    too, closed on its wheels' odometry; open loop at 0.25 the slopes of seeds 1, 3 and 6
+    turn it off by more than 10 % or off its pose (the case built to fail)."""
     import io
 
     import gaits.base
@@ -133,4 +137,9 @@ def test_a_turn_in_place_at_its_default_speed_is_robust(tmp_path, monkeypatch) -
     assert passed() == 8
     monkeypatch.setattr(gaits.wheeled, "TURN_SPEED_FRACTION", 0.25)
     monkeypatch.setattr(gaits.base, "_PLANNED", type(gaits.base._PLANNED)())  # no old plans
+    # closed on the wheels' odometry (gaits.wheel_feedback) the slow turn holds too
+    assert passed() == 8
+    # open loop (the plan alone, its feedback spec left out) it does not
+    monkeypatch.setattr(gaits.wheeled.WheeledController, "feedback_spec", lambda *a, **k: {})
+    monkeypatch.setattr(gaits.base, "_PLANNED", type(gaits.base._PLANNED)())
     assert passed() < 8

@@ -54,6 +54,20 @@ def bundle(tmp_path_factory) -> dict[str, bytes]:
     return folder_files(folder)
 
 
+@pytest.fixture
+def open_loop(monkeypatch):
+    """The wheeled plans without their feedback loop (gaits.wheel_feedback): what the
+    stiffer servo answers is the open-loop veer; closed on the wheels' odometry the drive
+    holds its heading with the FS90R (test_the_closed_loop_needs_no_stiffer_servo)."""
+    import gaits.base
+    import gaits.wheeled
+
+    monkeypatch.setattr(gaits.wheeled.WheeledController, "feedback_spec", lambda *a, **k: {})
+    monkeypatch.setattr(gaits.base, "_PLANNED", type(gaits.base._PLANNED)())
+    yield
+    monkeypatch.setattr(gaits.base, "_PLANNED", type(gaits.base._PLANNED)())
+
+
 def _table(files, catalog, **override) -> dict:
     from export.perturb import design_table
     from export.verify import bundle_parts
@@ -121,7 +135,9 @@ def test_the_swapped_bundle_is_the_servo_in_both_files(bundle, catalog) -> None:
     assert _record(bundle)["joints"][0]["actuator"] == "FS90R"
 
 
-def test_a_stiffer_wheel_servo_answers_the_veer_on_a_cross_slope(bundle, catalog) -> None:
+def test_a_stiffer_wheel_servo_answers_the_veer_on_a_cross_slope(
+    bundle, catalog, open_loop
+) -> None:
     """The shipped table: driving veers on seeds 1, 3 and 6 (cross slopes of 1.9-2.9 deg);
     replayed with FS5113R wheels, every one passes: the answer excludes the servos less
     stiff than it."""
@@ -150,10 +166,11 @@ def test_a_stiffer_wheel_servo_answers_the_veer_on_a_cross_slope(bundle, catalog
     assert wheel_note(found, "driving") == ""
 
 
-def test_a_floor_no_wheel_servo_holds_is_not_answered(bundle, catalog) -> None:
-    """Built to fail: a floor tilted 20 deg; the robot slides whatever its wheels: none of
-    the stiffer servos makes the failed runs pass, so none is excluded, and the refusal's
-    note names the servos tried."""
+def test_a_floor_no_wheel_servo_holds_is_not_answered(bundle, catalog, open_loop) -> None:
+    """Built to fail: a floor tilted 20 deg; open loop the robot slides whatever its
+    wheels: none of the stiffer servos makes the failed runs pass, so none is excluded,
+    and the refusal's note names the servos tried. (Closed on the wheels' odometry the
+    FS5113R holds it there: the stiffer servo still answers what saturates the loop.)"""
     from export.verify import verify_robust
 
     table = _table(bundle, catalog, max_slope_rad=0.35)
@@ -179,7 +196,7 @@ def test_nothing_to_answer_without_a_failed_run(bundle, catalog) -> None:
     assert wheel_exclusions(bundle, robust, catalog) == ({}, None)
 
 
-def test_the_loop_gives_the_wheels_a_stiffer_servo(tmp_path: Path) -> None:
+def test_the_loop_gives_the_wheels_a_stiffer_servo(tmp_path: Path, open_loop) -> None:
     """End to end: refused before (driving veered on seeds 1, 3, 6), the request is now
     sized with FS5113R wheels and every perturbed run passes."""
     out = tmp_path / "drive"
@@ -198,10 +215,11 @@ def test_the_loop_gives_the_wheels_a_stiffer_servo(tmp_path: Path) -> None:
     assert "stiffer wheel left_wheel: FS90R -> FS5113R" in text
 
 
-def test_the_loop_refuses_naming_the_wheels_when_none_is_as_fast() -> None:
+def test_the_loop_refuses_naming_the_wheels_when_none_is_as_fast(open_loop) -> None:
     """Built to fail: the drive asked for 0.3 m/s has the one servo of the catalog that
-    turns its wheels that fast (FS90R) and veers 16.8 deg on seed 6's 2.9 deg slope: no
-    stiffer servo to try, and the refusal says so."""
+    turns its wheels that fast (FS90R) and, open loop, veers 16.8 deg on seed 6's 2.9 deg
+    slope: no stiffer servo to try, and the refusal says so. (Closed on the wheels'
+    odometry the same request is accepted.)"""
     argv = ("driving", "--param", "payload=0kg", "--param", "speed=0.3m/s", "--no-input")
     code, _, err = _main("design", *argv, "--robustness")
     assert code == 1
@@ -237,3 +255,15 @@ def test_a_kif_only_steered_type_gets_stiffer_wheels(tmp_path: Path, monkeypatch
     monkeypatch.setattr(synth.robust_wheels, "wheel_exclusions", lambda *a, **k: ({}, None))
     code, _, err = _main(*argv)
     assert code == 1 and "turning is not robust" in err, err
+
+
+def test_the_closed_loop_needs_no_stiffer_servo(bundle, catalog) -> None:
+    """Closed on the wheels' odometry (gaits.wheel_feedback) the FS90R drive holds its
+    heading on the cross slopes that veered it open loop (seeds 1, 3, 6): every run
+    passes, nothing to answer."""
+    from export.verify import verify_robust
+
+    table = _table(bundle, catalog)
+    robust = verify_robust(bundle, 8, table, ["driving"])
+    assert robust["behaviors"][0]["robust"], robust["behaviors"][0]["failures"]
+    assert wheel_blame(bundle, robust, catalog) is None
