@@ -241,6 +241,14 @@ class Compliance(Closed):
     scale: _number(0.0, 1e6)
 
 
+class Imu(Closed):
+    """The simulated IMU's noise and bias (a design whose model has one)."""
+
+    gyro_noise: Quantity
+    gyro_bias: Quantity
+    accel_noise: Quantity
+
+
 class Acceptance(Closed):
     share: _number(0.0, 1.0)
     default_k: _integer(0, 1000)
@@ -259,6 +267,7 @@ class PerturbationTable(Closed):
         doc="pulse_span, then per actuator model (and 'default'): gears and dead band"
     )
     compliance: Compliance
+    imu: Imu
     acceptance: Acceptance
 
 
@@ -279,6 +288,7 @@ class PerturbationOverrides(Closed):
     gears: dict[Name, Backlash] | None = None
     servo: dict[Name, ServoEntry | Quantity] | None = None
     compliance: _partial(Compliance) | None = None
+    imu: _partial(Imu) | None = None
     acceptance: _partial(Acceptance) | None = None
 
 
