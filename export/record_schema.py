@@ -104,6 +104,13 @@ class LinkRecord(Open):
     name: Name
 
 
+class ModuleRecord(Open):
+    """A module of the design (its class; a sensor module gives the controller a sensor)."""
+
+    kind: Name
+    count: Count | None = None
+
+
 class VerifiedRecord(Open):
     """The verification's outcome (others add keys to it)."""
 
@@ -131,6 +138,7 @@ class DesignRecord(Open):
     joints: list[JointRecord] = []
     passive_joints: list[Name] | None = None
     links: list[LinkRecord] = []
+    modules: list[ModuleRecord] = []
     mass_kg: NonNegative | None = None
     loaded_mass_kg: NonNegative | None = None
     calibration: dict[Name, Finite] | None = None
