@@ -10,7 +10,7 @@ STAMP  := $(VENV)/.installed
 PACKAGES := asp adron synth kinematics gaits export program
 BYTECODE := $(BIN)/python -m compileall -q $(PACKAGES)
 
-.PHONY: demo test bench lint clean web docs
+.PHONY: demo test bench lint clean web docs schemas
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -51,6 +51,10 @@ test: $(STAMP) $(WEB_STAMP)
 bench: $(STAMP)
 	$(BYTECODE)
 	$(BIN)/python bench/bench.py
+
+# The JSON Schemas of the user file formats (adron/schemas/), written from their models.
+schemas: $(STAMP)
+	$(BIN)/python -m adron.write_schemas
 
 # The documentation site into site/ (git-ignored); `make test` builds it too (tests/test_docs.py).
 docs: $(STAMP)

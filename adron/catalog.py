@@ -859,10 +859,14 @@ def _merge(parent: dict[str, Any], child: dict[str, Any], source: str) -> dict[s
             out[key] = {**out[key], **value}
         elif key in _MERGED_ARRAYS and isinstance(value, list) and key not in replaced:
             entries = list(out.get(key, []))
-            index = {e.get("model"): i for i, e in enumerate(entries) if isinstance(e, dict)}
+            index = {
+                e.get("model"): i
+                for i, e in enumerate(entries)
+                if isinstance(e, dict) and isinstance(e.get("model"), str)
+            }
             for e in value:
                 model = e.get("model") if isinstance(e, dict) else None
-                if model is not None and model in index:
+                if isinstance(model, str) and model in index:
                     entries[index[model]] = e  # same model: the child's entry in its place
                 else:
                     entries.append(e)
@@ -876,7 +880,8 @@ def _merge(parent: dict[str, Any], child: dict[str, Any], source: str) -> dict[s
         out["catalog"] = {
             k: v for k, v in header.items() if k not in ("extends", "replace", "remove")
         }
-    if "bus" in out and "design" in out and "i2c_first_address" in out["design"]:
+    design = out.get("design")
+    if "bus" in out and isinstance(design, dict) and "i2c_first_address" in design:
         del out["design"]["i2c_first_address"]  # the parent's legacy key: [bus] rules
     return out
 
@@ -968,6 +973,9 @@ def parse_catalog(text: str, source: str, folder: Path | None = None, shipped: s
         root = source if folder is None else _file_key(source)
         doc, digest = _resolve(text, source, folder, ((root, source),))
         cat = replace(_build(doc, source), sha256=digest, shipped=shipped)
+        from adron.formats import check  # the file's schema: what the checks above miss
+
+        check("catalog", _toml(text, source), source)
         if path is not None:
             import pickle
 

@@ -121,7 +121,16 @@ SHAPES: dict[str, tuple[str, ...]] = {
     "extensiblePart": ("ROBOT", "PART"),
     "defaultLength": ("CLASS", "NAME", "LENGTH"),
     "liftedModuleShare": ("GAIT", "N", "D"),
+    "requiredPartCount": ("ABILITY", "PART", "N"),
+    "connectedTo": ("PART", "PART"),
+    "instance": ("THING", "CLASS"),
+    "defaultParameter": ("CLASS", "NAME", "QUANTITY"),
 }
+
+
+#: the arguments of :data:`SHAPES` that are counts (whole numbers), and their bound
+_COUNTS = ("N", "D")
+MAX_COUNT = 10_000
 
 
 def check_arities(tr: Translation) -> None:
@@ -129,12 +138,23 @@ def check_arities(tr: Translation) -> None:
     :data:`SHAPES` with another number of arguments; where it is is looked up only then."""
     for relation, shape in SHAPES.items():
         for i, args in enumerate(tr.relation(relation)):
+            why = ""
             if len(args) != len(shape):
+                why = f"{len(shape)} arguments, not {len(args)}"
+            else:
+                for k, (a, kind) in enumerate(zip(args, shape, strict=True), 1):
+                    if kind in _COUNTS:
+                        if isinstance(a, bool) or not isinstance(a, int) or not 0 <= a <= MAX_COUNT:
+                            why = f"argument {k} ({kind}) is a whole number from 0 to {MAX_COUNT}"
+                            break
+                    elif not isinstance(a, str):
+                        why = f"argument {k} ({kind}) is a name or a string"
+                        break
+            if why:
                 where = tr.located(relation)[i][1]
                 shown = " ".join([relation, *map(str, args)])
                 raise OntologyError(
-                    f"{where}: ({shown}): expected ({' '.join([relation, *shape])}), "
-                    f"{len(shape)} arguments, not {len(args)}"
+                    f"{where}: ({shown}): expected ({' '.join([relation, *shape])}), {why}"
                 )
 
 

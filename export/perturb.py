@@ -112,6 +112,10 @@ def ranges(overrides: Mapping[str, Any] | None = None, where: str = "catalog") -
                         f"{where}: [perturbation] unknown key {key}.{sub} "
                         f"(one of {', '.join(sorted(raw[key]))})"
                     )
+        from adron.formats import PerturbationOverrides
+        from adron.schema import validate
+
+        validate(PerturbationOverrides, dict(overrides), f"{where}: [perturbation]")
         raw = _merge(raw, overrides)
         source = f"{where}: [perturbation]"
     return _resolve(raw, source)

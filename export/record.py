@@ -21,6 +21,11 @@ if TYPE_CHECKING:  # the structure stage pulls numpy in: keep it off the concept
 Short = Callable[[str], str]
 
 
+#: The format of the records this parmor writes (``design.json``'s ``format``); a reader
+#: refuses another (export/record_schema.py). Raised when a field's meaning changes.
+RECORD_FORMAT = 1
+
+
 def _counts(pairs: tuple[tuple[str, int], ...]) -> list[dict]:
     return [{"kind": k, "count": n} for k, n in pairs]
 
@@ -192,6 +197,7 @@ def design_record(d: Design, short: Short, structure: Structure | None = None) -
     fields follow (``links``, ``joints``, ``mass_kg``, ``cost``, ``power``, ``metrics``...)."""
     c = d.chosen
     rec: dict = {
+        "format": RECORD_FORMAT,
         "status": d.status,
         "request": {
             "abilities": list(d.request.abilities),

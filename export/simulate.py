@@ -249,6 +249,9 @@ def load_files_model(files: Mapping[str, str | bytes]):
         record = readers.parse_json(
             raw.decode("utf-8") if isinstance(raw, bytes) else raw, "design.json"
         )
+        from export.record_schema import check_record
+
+        check_record(record, "design.json")
         check_agrees(text, record)
         text = carrying_payload(text, record)
     meshes = {

@@ -80,6 +80,8 @@ MAX_ASPECT = 2.0
 ANGLE_STEP_DEG = 0.5
 #: mm: a bed no larger than this (less its skirt margin) holds no piece.
 MIN_BED_MM = MIN_PIECE_MM + 2 * SKIRT_MARGIN
+#: the largest bed side (mm) ``--bed`` takes: beyond any printer (adron.schema.MAX_LENGTH_M)
+MAX_BED_MM = 2000.0
 
 _SIZE = re.compile(r"^\s*([^x×]+?)\s*[x×]\s*([^x×]+?)\s*[x×]\s*([^x×]+?)\s*(mm|cm|m)?\s*$", re.I)
 _UNIT = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}
@@ -114,6 +116,12 @@ def parse_bed(text: str) -> tuple[float, float, float] | None:
                 f"{text!r}: {raw!r} must be a positive length (expected WxDxH, e.g. 180x180x180mm)"
             )
         out.append(v * unit)
+    for raw, v in zip(m.group(1, 2, 3), out, strict=True):
+        if not v * MM <= MAX_BED_MM:  # a bed of 1e308 m is infinite in millimetres
+            raise ValueError(
+                f"{text!r}: a bed side of {raw}{m.group(4) or 'mm'} is beyond any printer "
+                f"(at most {MAX_BED_MM:g} mm; docs/formats-schemas.md)"
+            )
     small = [v for v in out if v * MM <= MIN_BED_MM]
     if small:
         raise ValueError(

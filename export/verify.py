@@ -29,6 +29,14 @@ if TYPE_CHECKING:
     from gaits.base import Controller, Trajectory
 
 
+def check_record(record: object, source: str) -> None:
+    """InputError naming ``source``, the key and the value when ``record`` is not a design
+    record of this parmor's format (:mod:`export.record_schema`)."""
+    from export.record_schema import check_record as check
+
+    check(record, source)
+
+
 def bundle_record(folder: str | Path, structure: bool = True) -> dict:
     """The design record (``design.json``) of a bundle folder; InputError naming the file
     when it is missing, unreadable or not a record (or, with ``structure``, a conceptual
@@ -38,11 +46,37 @@ def bundle_record(folder: str | Path, structure: bool = True) -> dict:
     if not path.exists():
         raise InputError(f"{folder}: no design.json (write one with 'parmor design ... --out DIR')")
     record = readers.read_json(path, what="design record")  # nesting and numbers bounded
-    if not isinstance(record, dict):
-        raise InputError(f"{path}: not a design record (expected an object)")
+    check_record(record, str(path))  # the fields readers use, typed (export/record_schema)
     if structure and record.get("template") is None:
         raise InputError(f"{path}: the design has no structure (designed with --conceptual?)")
+    if structure:
+        check_geometry(record, str(path))
     return record
+
+
+def check_geometry(record: Mapping, source: str) -> None:
+    """InputError naming ``source`` when the record's ``template``, ``body_plan`` and
+    ``lengths_m`` do not make a robot (the one its controller is built for): each field is
+    typed on its own (:func:`check_record`), this is how they fit together."""
+    from gaits.base import DesignGeometry
+
+    try:
+        template = DesignGeometry.from_record(record).build()
+    except (ValueError, KeyError, TypeError) as e:
+        why = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise InputError(
+            f"{source}: template, body_plan, lengths_m: they do not make the design's robot: {why}"
+        ) from None
+    listed = {j["name"] for j in record.get("joints") or ()}
+    listed |= set(record.get("passive_joints") or ())
+    passive = set(getattr(template, "passive", ()) or ())
+    moving = [j.name for j in template.model.joints if j.kind != "fixed" and j.name not in passive]
+    missing = [n for n in moving if n not in listed]
+    if missing:
+        raise InputError(
+            f"{source}: joints: the robot's joint(s) {', '.join(missing[:6])} are not listed "
+            "(a joint's actuator and speed come from its entry)"
+        )
 
 
 def load_bundle(folder: str | Path) -> tuple[dict, object]:
@@ -282,6 +316,7 @@ def verify_files(
     raw = files["design.json"]
     text = raw.decode("utf-8") if isinstance(raw, bytes) else raw
     record = readers.parse_json(text, "design.json")
+    check_record(record, "design.json")
     return verify_model(record, load_files_model(files), behaviors)
 
 

@@ -215,18 +215,16 @@ def length_defaults(plan: BodyPlan, kinds: PartKinds) -> dict[str, float]:
     them: the root's, then each part's in assembly order; the ontology's
     ``defaultLength`` values (``plan.lengths``) win."""
     out: dict[str, float] = {}
-
-    def visit(node: PartNode) -> None:
+    stack = [plan.root]  # depth first, iterative: a chain of parts is as deep as it is long
+    while stack:
+        node = stack.pop()
         kind = _kind(kinds, node)
         for k, v in kind.lengths.items():
             out.setdefault(k, v)
         for j in kind.joints:
             if j.tube_length and j.tube_length not in out:
                 out[j.tube_length] = kind.lengths.get(j.tube_length, 0.0)
-        for c, _ in _ordered_children(node, kind, kinds):
-            visit(c)
-
-    visit(plan.root)
+        stack.extend(reversed([c for c, _ in _ordered_children(node, kind, kinds)]))
     for chain in serial_links(plan, kinds):  # a serial arm's links, after the parts'
         for k, name in enumerate(chain):
             pick = "first" if k == 0 else "rest"
@@ -843,27 +841,33 @@ def _chains(plan: BodyPlan, kinds: PartKinds) -> list[list[str]]:
     out: list[list[str]] = []
     nodes: list[list[PartNode]] = []  # the parts of each chain
     prefixes: list[str] = []
-
-    def visit(node: PartNode, chain: list[str] | None, prefix: str) -> None:
+    # depth first, iterative (a chain of parts is as deep as it is long): each entry is a
+    # part, the index of its chain (None: none; _NEW: a chain starts at it, as a recursive
+    # walk would start it when it reaches the part) and the chain's link prefix
+    stack: list[tuple[PartNode, int | None, str]] = [(plan.root, None, "")]
+    while stack:
+        node, at, prefix = stack.pop()
+        if at == _NEW:
+            out.append([])
+            nodes.append([])
+            prefixes.append(prefix)
+            at = len(out) - 1
         kind = _kind(kinds, node)
+        chain = out[at] if at is not None else None
         if chain is not None:
-            nodes[next(i for i, c in enumerate(out) if c is chain)].append(node)
+            nodes[at].append(node)
         if kind.link and chain is not None:
             chain.append(f"{prefix or kind.link.get('names', 'L')}{len(chain) + 1}")
+        todo: list[tuple[PartNode, int | None, str]] = []
         for c, m in _ordered_children(node, kind, kinds):
             if _kind(kinds, c).role in _CHAIN:
                 if chain is None or kind.role not in _CHAIN:
-                    new: list[str] = []
-                    out.append(new)
-                    nodes.append([])
-                    prefixes.append(m.links if m is not None else "")
-                    visit(c, new, prefixes[-1])
+                    todo.append((c, _NEW, m.links if m is not None else ""))
                 else:
-                    visit(c, chain, prefix)
+                    todo.append((c, at, prefix))
             else:
-                visit(c, None, "")
-
-    visit(plan.root, None, "")
+                todo.append((c, None, ""))
+        stack.extend(reversed(todo))
     for chain, parts, prefix in zip(out, nodes, prefixes, strict=True):
         joints = [n for n in parts if _kind(kinds, n).joints and not _kind(kinds, n).link]
         serial = any(_kind(kinds, n).joints[0].name == "serial" for n in joints)
@@ -873,3 +877,7 @@ def _chains(plan: BodyPlan, kinds: PartKinds) -> list[list[str]]:
             marked = sum(1 for r in rows if r[4])
             chain += [f"{prefix or lk.link.get('names', 'L')}{k + 1}" for k in range(marked)]
     return out
+
+
+#: a part that starts a chain (``_chains``)
+_NEW = -1

@@ -15,7 +15,7 @@ from types import MappingProxyType
 __all__ = ["PLAN_SOURCE", "BodyPlan", "PartNode"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)
 class PartNode:
     """One part of a body plan.
 
@@ -23,6 +23,9 @@ class PartNode:
     specific first (the part kinds' data is matched along it). ``children``: the parts
     connected to it away from the root, in the ontology's order. ``where``: the
     file:line:col of the axiom that declares the part ("" when none).
+
+    Every walk of a tree (comparing, hashing, writing and reading it) is iterative: a
+    chain of thousands of parts is as deep as it is long, deeper than Python's recursion.
     """
 
     kind: str
@@ -34,38 +37,91 @@ class PartNode:
         if not self.kinds:
             object.__setattr__(self, "kinds", (self.kind,))
 
-    def to_dict(self) -> dict:
+    def flat(self) -> tuple[tuple[int, str, tuple[str, ...], str], ...]:
+        """(depth, kind, kinds, where) of every part, depth first: the tree as a list."""
+        out = []
+        stack: list[tuple[PartNode, int]] = [(self, 0)]
+        while stack:
+            n, depth = stack.pop()
+            out.append((depth, n.kind, n.kinds, n.where))
+            stack.extend((c, depth + 1) for c in reversed(n.children))
+        return tuple(out)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, PartNode):
+            return NotImplemented
+        return self is other or self.flat() == other.flat()
+
+    def __hash__(self) -> int:
+        return hash(self.flat())
+
+    def __repr__(self) -> str:
+        n = len(self.flat())
+        return f"PartNode({self.kind!r}, {n} part{'s' if n != 1 else ''})"
+
+    def _own(self) -> dict:
         out: dict = {"kind": self.kind}
         if self.kinds != (self.kind,):
             out["kinds"] = list(self.kinds)
-        if self.children:
-            out["children"] = [c.to_dict() for c in self.children]
         if self.where:
             out["where"] = self.where
         return out
 
+    def to_dict(self) -> dict:
+        top = self._own()
+        stack: list[tuple[PartNode, dict]] = [(self, top)]
+        while stack:
+            n, d = stack.pop()
+            if n.children:
+                kids = [c._own() for c in n.children]
+                # keys in the order they always had: kind, kinds, children, where
+                where = d.pop("where", None)
+                d["children"] = kids
+                if where is not None:
+                    d["where"] = where
+                stack.extend(zip(n.children, kids, strict=True))
+        return top
+
     @classmethod
     def from_dict(cls, d: Mapping) -> PartNode:
-        if not isinstance(d, Mapping) or not isinstance(d.get("kind"), str):
-            raise ValueError(f"a body plan part needs a 'kind' string, got {d!r}")
-        kinds = d.get("kinds", [d["kind"]])
-        children = d.get("children", [])
-        if not isinstance(kinds, list) or not all(isinstance(k, str) for k in kinds):
-            raise ValueError(f"part {d['kind']}: 'kinds' must be a list of class names")
-        if not isinstance(children, list):
-            raise ValueError(f"part {d['kind']}: 'children' must be a list")
-        return cls(
-            d["kind"],
-            tuple(kinds),
-            tuple(cls.from_dict(c) for c in children),
-            str(d.get("where", "")),
-        )
+        def check(d) -> tuple[tuple[str, ...], list]:
+            if not isinstance(d, Mapping) or not isinstance(d.get("kind"), str):
+                raise ValueError(f"a body plan part needs a 'kind' string, got {d!r:.200}")
+            kinds = d.get("kinds", [d["kind"]])
+            children = d.get("children", [])
+            if not isinstance(kinds, list) or not all(isinstance(k, str) for k in kinds):
+                raise ValueError(f"part {d['kind']}: 'kinds' must be a list of class names")
+            if not isinstance(children, list):
+                raise ValueError(f"part {d['kind']}: 'children' must be a list")
+            return tuple(kinds), children
+
+        # parents before children (depth first), then built leaves first
+        order: list[tuple[Mapping, tuple[str, ...]]] = []
+        kids: list[list[int]] = []
+        stack: list[tuple[Mapping, int]] = [(d, -1)]
+        while stack:
+            x, parent = stack.pop()
+            kinds, children = check(x)
+            if parent >= 0:
+                kids[parent].append(len(order))
+            order.append((x, kinds))
+            kids.append([])
+            stack.extend((c, len(order) - 1) for c in reversed(children))
+        built: list[PartNode | None] = [None] * len(order)
+        for i in range(len(order) - 1, -1, -1):
+            x, kinds = order[i]
+            built[i] = cls(
+                x["kind"], kinds, tuple(built[k] for k in kids[i]), str(x.get("where", ""))
+            )
+        return built[0]
 
     def walk(self):
         """This part and every part below it, depth first."""
-        yield self
-        for c in self.children:
-            yield from c.walk()
+        stack: list[PartNode] = [self]
+        while stack:
+            n = stack.pop()
+            yield n
+            stack.extend(reversed(n.children))
 
 
 @dataclass(frozen=True)
@@ -111,7 +167,8 @@ class BodyPlan:
 
     def key(self) -> str:
         """A text that tells plans apart (the template cache's key)."""
-        return repr(self.to_dict())
+        head = {k: v for k, v in self.to_dict().items() if k != "root"}
+        return repr((head, self.root.flat()))
 
 
 #: Where a robot type's body plan comes from when none is registered in this process

@@ -57,12 +57,30 @@ import ast
 import math
 import operator
 import re
-import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from types import MappingProxyType
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, PlainValidator, WithJsonSchema, model_validator
+
+from adron.schema import (
+    MAX_ANGLE_RAD,
+    MAX_LENGTH_M,
+    At,
+    Closed,
+    Length,
+    Mass,
+    Name,
+    StrictBool,
+    StrictStr,
+    _name,
+    described,
+    number,
+    validate,
+)
 
 __all__ = [
     "PartKind",
@@ -287,19 +305,365 @@ def in_use() -> PartKinds:
     return _IN_USE[0] or load()
 
 
+# ---- the schema of a part kinds file -------------------------------------------------------
+
+_MAX_EXPRESSION = 200
+
+
+def _expression(v: object) -> float | str:
+    """A finite number, or the text of an arithmetic expression of names and numbers."""
+    if isinstance(v, str):
+        if len(v) > _MAX_EXPRESSION:
+            raise ValueError(f"longer than {_MAX_EXPRESSION} characters")
+        try:
+            _names(v)
+            evaluate(v, _Unknown())
+        except _NameSeen:
+            return v
+        except (ValueError, SyntaxError, RecursionError, MemoryError, ZeroDivisionError):
+            raise ValueError("not an arithmetic expression of names and numbers") from None
+        except OverflowError:
+            raise ValueError("too large") from None
+        return v
+    return number(v)
+
+
+class _NameSeen(Exception):
+    pass
+
+
+class _Unknown(dict):
+    """Names of an expression that only checks its form: any name stops the evaluation."""
+
+    def __getitem__(self, key):
+        raise _NameSeen(key)
+
+
+def _fixed(v: float | str) -> float | None:
+    """The value of a number or an expression of numbers and ``pi`` alone, else None."""
+    try:
+        return evaluate(v, _Unknown())
+    except (_NameSeen, ZeroDivisionError, OverflowError, ValueError, SyntaxError):
+        return None
+
+
+_EXPR_SCHEMA = {
+    "anyOf": [
+        {"type": "number"},
+        {
+            "type": "string",
+            "maxLength": _MAX_EXPRESSION,
+            "description": "an expression of names, numbers, pi and + - * / ('La1/2', '-5pi/6')",
+        },
+    ]
+}
+#: a number or an expression (``"La1/2"``, ``"-5pi/6"``)
+Expr = Annotated[float | str, PlainValidator(_expression), WithJsonSchema(_EXPR_SCHEMA)]
+Axis = Literal["x", "y", "z", "-x", "-y", "-z"]
+Vec3 = Annotated[list[Expr], Field(min_length=3, max_length=3)]
+
+
+def _check_range(key: str, v: float | str, low: float, high: float, unit: str) -> None:
+    """At ``key`` when ``v`` is known now (no names) and outside [low, high]."""
+    x = _fixed(v)
+    if x is not None and not low <= x <= high:
+        raise At(key, f"out of range: must be within {low:g} and {high:g} {unit}", v)
+
+
+class TubeSchema(Closed):
+    """The printed tube from a joint to the next: its length's name and direction."""
+
+    length: Name = described(doc="the name of a length of the kind's 'lengths'")
+    along: Axis = described("x", "its direction in the joint's frame")
+
+
+class JointSchema(Closed):
+    """One joint of a part kind, at the end of the previous one's tube."""
+
+    name: Name = described(doc="the joint's name ('serial': a serial arm's, from [serial])")
+    kind: Literal["revolute", "continuous", "fixed"] = "revolute"
+    axis: Literal["x", "y", "z", "-x", "-y", "-z", "across"] = described(
+        "z", "its axis ('across': a gripper's, across its jaws)"
+    )
+    axes: list[Axis] = described([], "axes cycled along a chain of such parts")
+    limits: Annotated[list[Expr], Field(min_length=2, max_length=2)] = described(
+        ["-pi", "pi"],
+        f"lower and upper limit (rad, expressions), ordered, within +-{MAX_ANGLE_RAD:.4g}",
+    )
+    group: StrictStr = described("", "actuator group (default: the joint's name)")
+    module: StrictStr = described("", "the catalog class that drives it")
+    actuator_on_parent: StrictBool = described(False, "the servo's case sits on the parent")
+    tube: TubeSchema | None = None
+    body: StrictStr = described("", "its body's name (default <joint>_link)")
+    passive: StrictBool = described(False, "turns freely on a bearing: no actuator")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> JointSchema:
+        for i, v in enumerate(self.limits):
+            _check_range(f"limits[{i}]", v, -MAX_ANGLE_RAD, MAX_ANGLE_RAD, "rad")
+        lower, upper = (_fixed(v) for v in self.limits)
+        if lower is not None and upper is not None and lower >= upper:
+            raise At("limits", "the lower limit is not below the upper one", self.limits)
+        if self.passive and self.kind == "fixed":
+            raise At("passive", "a fixed joint does not move: it cannot be passive", True)
+        if self.passive:
+            given = [
+                k for k in ("module", "group", "actuator_on_parent") if k in self.model_fields_set
+            ]
+            if given:
+                raise At(
+                    given[0],
+                    f"joint {self.name!r} is passive (it turns freely on a bearing, no actuator "
+                    f"drives it): it takes no {given[0]!r}",
+                )
+        return self
+
+
+class MountSchema(Closed):
+    """How a root part's children of a class attach."""
+
+    child: Name = described(doc="the children's class")
+    layout: Literal[LAYOUTS] = described(
+        doc="bilateral, radial, pair, axle, trailing, front, serial, tip"
+    )
+    span: Expr | None = None
+    track: Expr | None = None
+    at: Vec3 = [0.0, 0.0, 0.0]
+    links: Name | None = described(None, "a chain's printed links' name prefix (default L)")
+
+    @model_validator(mode="after")
+    def _needs(self) -> MountSchema:
+        if self.layout in ("bilateral", "radial", "axle") and not (
+            self.span is not None and self.track is not None
+        ):
+            raise At("", f"layout {self.layout} needs 'span' and 'track'")
+        if self.layout in ("trailing", "front") and self.span is None:
+            raise At("", f"layout {self.layout} needs 'span'")
+        for i, v in enumerate(self.at):
+            _check_range(f"at[{i}]", v, -MAX_LENGTH_M, MAX_LENGTH_M, "m")
+        for k in ("span", "track"):
+            if getattr(self, k) is not None:
+                _check_range(k, getattr(self, k), 1e-9, MAX_LENGTH_M, "m")
+        return self
+
+
+class LinkSchema(Closed):
+    """A printed tube on the joint before it (a serial arm's LinkModule)."""
+
+    first: Axis | None = None
+    rest: Axis | None = None
+    names: Name | None = None
+
+
+class WheelSchema(Closed):
+    """A wheel kind's own size (``end = "wheel"``), kept by the sizing."""
+
+    radius: Expr | None = described(None, "the wheel's radius (m, an expression)")
+    width: Expr | None = described(None, "the tyre's width (m, an expression)")
+
+
+class KindSchema(Closed):
+    """One part kind: how a structural part (an ontology class) is built."""
+
+    cls: Name = described(alias="class", doc="the ontology class it realises")
+    doc: StrictStr = ""
+    root: StrictBool = described(False, "a part the others hang on")
+    body: Name | None = None
+    box: Vec3 | None = described(None, "x, y, z of the root's box (m, expressions)")
+    at: Vec3 = [0.0, 0.0, 0.0]
+    at_with: dict[Name, Vec3] = {}
+    faces: Literal[FACES] = "up"
+    payload: Literal[PAYLOAD] = "root"
+    order: Literal["", "side"] = ""
+    lengths: dict[Name, Length] = described({}, "its named lengths with their defaults (m)")
+    joints: list[JointSchema] = []
+    end: Literal["", *ENDS] = ""
+    role: Literal[ROLES] = ""
+    mounts: list[MountSchema] = []
+    naming: Literal["", "index"] = ""
+    link: LinkSchema | None = None
+    mass: Mass | None = described(None, "kg: a tool's (end = 'tool'), more than 0")
+    wheel: WheelSchema | None = described(None, "a wheel kind's own radius and width (m)")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> KindSchema:
+        cls = self.cls
+        if self.wheel is not None and self.end != "wheel":
+            raise At("wheel", 'only a kind whose end is "wheel" has a wheel size')
+        for k in ("radius", "width"):
+            v = getattr(self.wheel, k, None) if self.wheel is not None else None
+            if v is not None:
+                _check_range(f"wheel.{k}", v, 1e-9, MAX_LENGTH_M, "m")
+        if self.root and not (self.body and self.box):
+            raise At("", f"root part kind {cls} needs a 'body' name and a 'box' [x, y, z]")
+        if self.root and not self.mounts:
+            raise At("mounts", f"root part kind {cls} has no 'mounts': nothing can hang on it")
+        tool = self.end == "tool"
+        if tool and (self.joints or self.root or not self.box or self.mass is None):
+            raise At(
+                "",
+                f"tool part kind {cls} (end = 'tool') has no joints and is not a root; it "
+                "needs a 'box' [length along the chain, width, height] (m) and a 'mass' (kg)",
+            )
+        if self.mass is not None and not tool:
+            raise At("mass", "only a tool (end = 'tool') has a mass of its own", self.mass)
+        if tool and self.mass <= 0:
+            raise At("mass", "out of range: a tool's mass is more than 0 kg", self.mass)
+        if not self.root and not self.joints and self.link is None and not tool:
+            raise At("", f"part kind {cls} has no joints, no link and is not a root")
+        for i, v in enumerate(self.box or ()):
+            _check_range(f"box[{i}]", v, 1e-9, MAX_LENGTH_M, "m")
+        for key, vec in [("at", self.at), *((f"at_with.{c}", v) for c, v in self.at_with.items())]:
+            for i, v in enumerate(vec):
+                _check_range(f"{key}[{i}]", v, -MAX_LENGTH_M, MAX_LENGTH_M, "m")
+        seen: dict[str, int] = {}
+        for i, j in enumerate(self.joints):
+            if j.name in seen:
+                raise At(f"joints[{i}].name", f"repeats the name of joints[{seen[j.name]}]", j.name)
+            seen[j.name] = i
+            if j.tube is not None and j.tube.length not in self.lengths:
+                known = ", ".join(sorted(self.lengths)) or "none"
+                raise At(
+                    f"joints[{i}].tube.length",
+                    f"names no length of this kind's 'lengths' (they are: {known})",
+                    j.tube.length,
+                )
+        return self
+
+
+def _serial_row(v: object) -> tuple:
+    """A ``[serial]`` row: [name, axis, lower, upper] or [..., "link"]."""
+    if not isinstance(v, list) or len(v) not in (4, 5):
+        raise ValueError('must be [name, axis, lower, upper] or [..., "link"]')
+    name, axis, lower, upper, *mark = v
+    if mark and mark[0] != "link":
+        raise At("[4]", 'the fifth item may only be "link"', mark[0])
+    try:
+        name = _name(name)
+    except ValueError as e:
+        raise At("[0]", str(e), name) from None
+    if not isinstance(axis, str) or axis not in AXES:
+        raise At("[1]", f"not one of {', '.join(map(repr, AXES))}", axis)
+    limits = []
+    for i, x in ((2, lower), (3, upper)):
+        try:
+            limits.append(_expression(x))
+        except ValueError as e:
+            raise At(f"[{i}]", str(e), x) from None
+        _check_range(f"[{i}]", x, -MAX_ANGLE_RAD, MAX_ANGLE_RAD, "rad")
+    a, b = (_fixed(x) for x in limits)
+    if a is not None and b is not None and a >= b:
+        raise At("", "the lower limit is not below the upper one", v)
+    return (name, axis, limits[0], limits[1], bool(mark))
+
+
+_ROW_SCHEMA = {
+    "type": "array",
+    "minItems": 4,
+    "maxItems": 5,
+    "prefixItems": [
+        {"type": "string", "minLength": 1, "description": "joint name (its actuator group)"},
+        {"enum": list(AXES)},
+        {**_EXPR_SCHEMA, "description": "lower limit (rad)"},
+        {**_EXPR_SCHEMA, "description": "upper limit (rad)"},
+        {"const": "link", "description": "a printed link follows the joint"},
+    ],
+}
+SerialRow = Annotated[tuple, PlainValidator(_serial_row), WithJsonSchema(_ROW_SCHEMA)]
+
+
+class DefaultLengthsSchema(Closed):
+    first: Length | None = None
+    rest: Length | None = None
+
+
+class SerialSchema(BaseModel):
+    """The serial arms' joint table by joint count 1 to 12, and their links' lengths."""
+
+    model_config = ConfigDict(
+        extra="allow",
+        frozen=True,
+        json_schema_extra={"propertyNames": {"pattern": "^(default_lengths|[1-9]|1[0-2])$"}},
+    )
+    __pydantic_extra__: dict[str, list[SerialRow]]
+    default_lengths: DefaultLengthsSchema | None = None
+
+    @model_validator(mode="after")
+    def _rows(self) -> SerialSchema:
+        for k, rows in (self.__pydantic_extra__ or {}).items():
+            if not k.isdigit() or not 1 <= int(k) <= 12:
+                raise At(k, "keys are joint counts 1 to 12 (and default_lengths)")
+            if len(rows) != int(k):
+                raise At(k, f"must list {k} joints [name, axis, lower, upper]", rows)
+            names = [r[0] for r in rows]
+            for i, n in enumerate(names):
+                if n in names[:i]:
+                    raise At(f"{k}[{i}]", "joint names repeat", n)
+            # an arm's sizing needs its column (the printed link on the first joint) and a
+            # link that reaches out (synth/sizing.py: the column, then the reach)
+            if not rows[0][4]:
+                raise At(
+                    f"{k}[0]",
+                    'the first joint needs the "link" mark: the arm\'s column stands on it',
+                    list(rows[0][:4]),
+                )
+            if sum(r[4] for r in rows) < 2:
+                raise At(
+                    k,
+                    'marks fewer than 2 joints "link": an arm needs its column and a link '
+                    "that reaches out",
+                )
+        return self
+
+
+class PartKindsFile(Closed):
+    """A file of part kinds (kinematics/partkinds.toml, ``--parts FILE.toml``)."""
+
+    format: Literal[1] = described(1, "the format's version")
+    constants: dict[Name, Length] = described(
+        {},
+        f"named constants of the expressions (m or a ratio; more than 0, at most {MAX_LENGTH_M:g})",
+    )
+    kind: list[KindSchema] = []
+    serial: SerialSchema | None = None
+
+    @model_validator(mode="after")
+    def _unique(self) -> PartKindsFile:
+        seen: dict[str, int] = {}
+        for i, k in enumerate(self.kind):
+            if k.cls in seen:
+                raise At(
+                    f"kind[{i}].class",
+                    f"repeats the class of kind[{seen[k.cls]}]: which one is used is not said",
+                    k.cls,
+                )
+            seen[k.cls] = i
+        return self
+
+
 def _parse(sources: Sequence[tuple[str, str]]) -> PartKinds:
+    from adron.errors import InputError
+    from adron.readers import parse_toml
+
     kinds: dict[str, PartKind] = {}
     serial: dict[int, tuple] = {}
     serial_lengths: dict[str, float] = {}
     constants: dict[str, float] = {}
     for name, text in sources:
         try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as e:
-            raise PartKindError(f"{name}: not valid TOML: {e}") from None
-        except RecursionError:
-            raise PartKindError(f"{name}: nested too deeply") from None
-        _Reader(name, data, kinds, serial, serial_lengths, constants).read()
+            data = parse_toml(text, name)
+        except InputError as e:
+            raise PartKindError(str(e)) from None
+        f = validate(PartKindsFile, data, name, PartKindError)
+        constants.update(f.constants)
+        for i, k in enumerate(f.kind):
+            kinds[k.cls] = _kind_of(k, f"{name}: kind[{i}] ({k.cls})")
+        if f.serial is not None:
+            if f.serial.default_lengths is not None:
+                given = f.serial.default_lengths.model_dump(exclude_none=True)
+                serial_lengths.update(given)
+            for k, rows in (f.serial.__pydantic_extra__ or {}).items():
+                serial[int(k)] = tuple(rows)
     return PartKinds(
         MappingProxyType(kinds),
         MappingProxyType(serial),
@@ -310,288 +674,58 @@ def _parse(sources: Sequence[tuple[str, str]]) -> PartKinds:
     )
 
 
-class _Reader:
-    """Reads one file into the tables, checking every key."""
-
-    def __init__(self, name, data, kinds, serial, serial_lengths, constants) -> None:
-        self.name, self.data = name, data
-        self.kinds, self.serial = kinds, serial
-        self.serial_lengths, self.constants = serial_lengths, constants
-
-    def fail(self, key: str, why: str):
-        raise PartKindError(f"{self.name}: {key}: {why}")
-
-    def read(self) -> None:
-        d = self.data
-        known = {"format", "constants", "kind", "serial"}
-        self.only("", d, known)
-        if d.get("format", 1) != 1:
-            self.fail("format", f"format {d.get('format')!r} is not 1")
-        consts = d.get("constants", {})
-        if not isinstance(consts, dict):
-            self.fail("constants", "must be a table of numbers")
-        for k, v in consts.items():
-            self.constants[k] = self.number(f"constants.{k}", v, positive=False)
-        kinds = d.get("kind", [])
-        if not isinstance(kinds, list):
-            self.fail("kind", "must be an array of tables ([[kind]])")
-        for i, k in enumerate(kinds):
-            kind = self.kind(f"kind[{i}]", k)
-            self.kinds[kind.cls] = kind
-        if "serial" in d:
-            self.read_serial(d["serial"])
-
-    def only(self, key: str, d: dict, allowed: set[str]) -> None:
-        """Refuse a key of table ``d`` (at ``key``) not in ``allowed``."""
-        for k in d:
-            if k not in allowed:
-                where = f"{key}.{k}" if key else k
-                self.fail(where, f"unknown key (keys: {', '.join(sorted(allowed))})")
-
-    def number(self, key: str, v, positive: bool = True) -> float:
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            self.fail(key, f"{v!r} is not a finite number")
-        if positive and v <= 0:
-            self.fail(key, f"{v!r} must be positive")
-        return float(v)
-
-    def expr(self, key: str, v) -> float | str:
-        if isinstance(v, (int, float)) and not isinstance(v, bool):
-            return self.number(key, v, positive=False)
-        if not isinstance(v, str):
-            self.fail(key, f"{v!r} is not a number or an expression")
-        try:
-            _names(v)
-        except (ValueError, SyntaxError):
-            self.fail(key, f"{v!r} is not an arithmetic expression of names and numbers")
-        return v
-
-    def word(self, key: str, v, choices: Sequence[str]) -> str:
-        if v not in choices:
-            self.fail(key, f"{v!r} is not one of {', '.join(repr(c) for c in choices)}")
-        return v
-
-    def text(self, key: str, v) -> str:
-        if not isinstance(v, str) or not v:
-            self.fail(key, f"{v!r} is not a non-empty string")
-        return v
-
-    def vec(self, key: str, v, n: int = 3) -> tuple:
-        if not isinstance(v, list) or len(v) != n:
-            self.fail(key, f"must be a list of {n} numbers or expressions")
-        return tuple(self.expr(f"{key}[{i}]", x) for i, x in enumerate(v))
-
-    def kind(self, key: str, d) -> PartKind:
-        if not isinstance(d, dict):
-            self.fail(key, "must be a table")
-        allowed = {
-            "class",
-            "doc",
-            "root",
-            "body",
-            "box",
-            "at",
-            "at_with",
-            "faces",
-            "payload",
-            "order",
-            "lengths",
-            "joints",
-            "end",
-            "role",
-            "mounts",
-            "naming",
-            "link",
-            "mass",
-            "wheel",
-        }
-        self.only(key, d, allowed)
-        cls = self.text(f"{key}.class", d.get("class"))
-        where = f"{self.name}: {key} ({cls})"
-        root = d.get("root", False)
-        if not isinstance(root, bool):
-            self.fail(f"{key}.root", "must be true or false")
-        lengths = d.get("lengths", {})
-        if not isinstance(lengths, dict):
-            self.fail(f"{key}.lengths", "must be a table of lengths (m)")
-        lengths = {k: self.number(f"{key}.lengths.{k}", v) for k, v in lengths.items()}
-        joints = d.get("joints", [])
-        if not isinstance(joints, list):
-            self.fail(f"{key}.joints", "must be a list of joint tables")
-        specs = tuple(self.joint(f"{key}.joints[{i}]", j) for i, j in enumerate(joints))
-        mounts = d.get("mounts", [])
-        if not isinstance(mounts, list):
-            self.fail(f"{key}.mounts", "must be a list of mount tables")
-        at_with = d.get("at_with", {})
-        if not isinstance(at_with, dict):
-            self.fail(f"{key}.at_with", "must be a table: child class -> [x, y, z]")
-        link = d.get("link", {})
-        if not isinstance(link, dict):
-            self.fail(f"{key}.link", "must be a table")
-        for k in ("first", "rest"):
-            if k in link:
-                self.word(f"{key}.link.{k}", link[k], tuple(AXES))
-        kind = PartKind(
-            cls=cls,
-            where=where,
-            doc=str(d.get("doc", "")),
-            root=root,
-            body=self.text(f"{key}.body", d["body"]) if "body" in d else "",
-            box=self.vec(f"{key}.box", d["box"]) if "box" in d else (),
-            at=self.vec(f"{key}.at", d["at"]) if "at" in d else (0.0, 0.0, 0.0),
-            at_with={c: self.vec(f"{key}.at_with.{c}", v) for c, v in at_with.items()},
-            faces=self.word(f"{key}.faces", d.get("faces", "up"), FACES),
-            payload=self.word(f"{key}.payload", d.get("payload", "root"), PAYLOAD),
-            order=self.word(f"{key}.order", d.get("order", ""), ("", "side")),
-            lengths=lengths,
-            joints=specs,
-            end=self.word(f"{key}.end", d.get("end", ""), ("", *ENDS)) if "end" in d else "",
-            role=self.word(f"{key}.role", d.get("role", ""), ROLES),
-            mounts=tuple(self.mount(f"{key}.mounts[{i}]", m) for i, m in enumerate(mounts)),
-            naming=self.word(f"{key}.naming", d.get("naming", ""), ("", "index")),
-            link={k: str(v) for k, v in link.items()},
-            mass=self.number(f"{key}.mass", d["mass"]) if "mass" in d else 0.0,
-            wheel=self.wheel(f"{key}.wheel", d.get("wheel", {}), d.get("end", "")),
-        )
-        if root and not (kind.body and len(kind.box) == 3):
-            self.fail(key, f"root part kind {cls} needs a 'body' name and a 'box' [x, y, z]")
-        tool = kind.end == "tool"
-        if tool and (specs or root or len(kind.box) != 3 or "mass" not in d):
-            self.fail(
-                key,
-                f"tool part kind {cls} (end = 'tool') has no joints and is not a root; it "
-                "needs a 'box' [length along the chain, width, height] (m) and a 'mass' (kg)",
+def _kind_of(k: KindSchema, where: str) -> PartKind:
+    """The PartKind of a validated kind."""
+    return PartKind(
+        cls=k.cls,
+        where=where,
+        doc=k.doc,
+        root=k.root,
+        body=k.body or "",
+        box=tuple(k.box) if k.box else (),
+        at=tuple(k.at),
+        at_with={c: tuple(v) for c, v in k.at_with.items()},
+        faces=k.faces,
+        payload=k.payload,
+        order=k.order,
+        lengths=dict(k.lengths),
+        joints=tuple(
+            JointSpec(
+                name=j.name,
+                kind=j.kind,
+                axis=j.axis,
+                axes=tuple(j.axes),
+                limits=(j.limits[0], j.limits[1]),
+                group=j.group,
+                module=j.module
+                or (
+                    "ContinuousRotationServomotor"
+                    if j.kind == "continuous" and not j.passive
+                    else ""
+                ),
+                actuator_on_parent=j.actuator_on_parent,
+                tube_length=j.tube.length if j.tube else "",
+                tube_along=j.tube.along if j.tube else "x",
+                body=j.body,
+                passive=j.passive,
             )
-        if "mass" in d and not tool:
-            self.fail(f"{key}.mass", "only a tool (end = 'tool') has a mass of its own")
-        if not root and not specs and not link and not tool:
-            self.fail(key, f"part kind {cls} has no joints, no link and is not a root")
-        return kind
-
-    def wheel(self, key: str, d, end: str) -> Mapping[str, float | str]:
-        if not isinstance(d, dict):
-            self.fail(key, "must be a table: radius, width (expressions, m)")
-        self.only(key, d, {"radius", "width"})
-        if d and end != "wheel":
-            self.fail(key, 'only a kind whose end is "wheel" has a wheel size')
-        return {k: self.expr(f"{key}.{k}", v) for k, v in d.items()}
-
-    def joint(self, key: str, d) -> JointSpec:
-        if not isinstance(d, dict):
-            self.fail(key, "must be a table")
-        allowed = {
-            "name",
-            "kind",
-            "axis",
-            "axes",
-            "limits",
-            "group",
-            "module",
-            "actuator_on_parent",
-            "tube",
-            "body",
-            "passive",
-        }
-        self.only(key, d, allowed)
-        name = self.text(f"{key}.name", d.get("name"))
-        kind = self.word(f"{key}.kind", d.get("kind", "revolute"), JOINT_KINDS)
-        axis = self.word(f"{key}.axis", d.get("axis", "z"), (*AXES, "across"))
-        axes = d.get("axes", [])
-        if not isinstance(axes, list):
-            self.fail(f"{key}.axes", "must be a list of axes")
-        axes = tuple(self.word(f"{key}.axes[{i}]", a, tuple(AXES)) for i, a in enumerate(axes))
-        limits = self.vec(f"{key}.limits", d["limits"], 2) if "limits" in d else ("-pi", "pi")
-        tube = d.get("tube", {})
-        if not isinstance(tube, dict) or (tube and "length" not in tube):
-            self.fail(f"{key}.tube", "must be a table with a 'length' name and 'along'")
-        aop = d.get("actuator_on_parent", False)
-        if not isinstance(aop, bool):
-            self.fail(f"{key}.actuator_on_parent", "must be true or false")
-        passive = d.get("passive", False)
-        if not isinstance(passive, bool):
-            self.fail(f"{key}.passive", "must be true or false")
-        if passive and kind == "fixed":
-            self.fail(f"{key}.passive", "a fixed joint does not move: it cannot be passive")
-        if passive:
-            given = [k for k in ("module", "group", "actuator_on_parent") if k in d]
-            if given:
-                self.fail(
-                    f"{key}.{given[0]}",
-                    f"joint {name!r} is passive (it turns freely on a bearing, no actuator "
-                    f"drives it): it takes no {given[0]!r}",
-                )
-        default_module = (
-            "ContinuousRotationServomotor" if kind == "continuous" and not passive else ""
-        )
-        return JointSpec(
-            name=name,
-            kind=kind,
-            axis=axis,
-            axes=axes,
-            limits=limits,
-            group=str(d.get("group", "")),
-            module=str(d.get("module", default_module)),
-            actuator_on_parent=aop,
-            tube_length=self.text(f"{key}.tube.length", tube["length"]) if tube else "",
-            tube_along=self.word(f"{key}.tube.along", tube.get("along", "x"), tuple(AXES))
-            if tube
-            else "x",
-            body=str(d.get("body", "")),
-            passive=passive,
-        )
-
-    def mount(self, key: str, d) -> Mount:
-        if not isinstance(d, dict):
-            self.fail(key, "must be a table")
-        allowed = {"child", "layout", "span", "track", "at", "links"}
-        self.only(key, d, allowed)
-        layout = self.word(f"{key}.layout", d.get("layout"), LAYOUTS)
-        span = str(self.expr(f"{key}.span", d["span"])) if "span" in d else ""
-        track = str(self.expr(f"{key}.track", d["track"])) if "track" in d else ""
-        if layout in ("bilateral", "radial", "axle") and not (span and track):
-            self.fail(key, f"layout {layout} needs 'span' and 'track'")
-        if layout in ("trailing", "front") and not span:
-            self.fail(key, f"layout {layout} needs 'span'")
-        return Mount(
-            child=self.text(f"{key}.child", d.get("child")),
-            layout=layout,
-            span=span,
-            track=track,
-            at=self.vec(f"{key}.at", d["at"]) if "at" in d else (0.0, 0.0, 0.0),
-            links=self.text(f"{key}.links", d["links"]) if "links" in d else "",
-        )
-
-    def read_serial(self, d) -> None:
-        if not isinstance(d, dict):
-            self.fail("serial", "must be a table")
-        for k, v in d.items():
-            if k == "default_lengths":
-                if not isinstance(v, dict) or set(v) - {"first", "rest"}:
-                    self.fail("serial.default_lengths", "must be {first = m, rest = m}")
-                for kk, x in v.items():
-                    self.serial_lengths[kk] = self.number(f"serial.default_lengths.{kk}", x)
-                continue
-            if not k.isdigit() or not 1 <= int(k) <= 12:
-                self.fail(f"serial.{k}", "keys are joint counts 1 to 12 (and default_lengths)")
-            if not isinstance(v, list) or len(v) != int(k):
-                self.fail(f"serial.{k}", f"must list {k} joints [name, axis, lower, upper]")
-            rows = []
-            for i, row in enumerate(v):
-                rk = f"serial.{k}[{i}]"
-                if not isinstance(row, list) or len(row) not in (4, 5):
-                    self.fail(rk, 'must be [name, axis, lower, upper] or [..., "link"]')
-                if len(row) == 5 and row[4] != "link":
-                    self.fail(rk, f'the fifth item may only be "link", got {row[4]!r}')
-                rows.append(
-                    (
-                        self.text(rk, row[0]),
-                        self.word(rk, row[1], tuple(AXES)),
-                        self.expr(rk, row[2]),
-                        self.expr(rk, row[3]),
-                        len(row) == 5,
-                    )
-                )
-            names = [r[0] for r in rows]
-            if len(set(names)) != len(names):
-                self.fail(f"serial.{k}", "joint names repeat")
-            self.serial[int(k)] = tuple(rows)
+            for j in k.joints
+        ),
+        end=k.end,
+        role=k.role,
+        mounts=tuple(
+            Mount(
+                child=m.child,
+                layout=m.layout,
+                span="" if m.span is None else str(m.span),
+                track="" if m.track is None else str(m.track),
+                at=tuple(m.at),
+                links=m.links or "",
+            )
+            for m in k.mounts
+        ),
+        naming=k.naming,
+        link=k.link.model_dump(exclude_none=True) if k.link else {},
+        mass=k.mass or 0.0,
+        wheel=k.wheel.model_dump(exclude_none=True) if k.wheel else {},
+    )

@@ -1,7 +1,10 @@
 """The local server of ``parmor blocks DIR --serve``: the block page and its Run button.
 
 It listens on 127.0.0.1 only (a thread per connection, at most :data:`MAX_CONNECTIONS`
-at once, each closed after :data:`SOCKET_TIMEOUT_S` s without traffic), serves the page
+at once, each closed after :data:`SOCKET_TIMEOUT_S` s without traffic or when a request
+takes more than :data:`REQUEST_TIMEOUT_S` s to arrive, its line, headers and body
+together: a client that sends a header line now and then cannot hold a connection),
+serves the page
 (``DIR/blocks/``) and the meshes it animates (``DIR/meshes/``), and answers ``POST /run``:
 the body is a program as JSON (``{"program": [...]}``, see :mod:`program.script`), never
 code, read within bounds (:func:`program.script.parse`). The program is validated against
@@ -16,6 +19,7 @@ keeps serving after every error.
 from __future__ import annotations
 
 import contextlib
+import io
 import json
 import math
 import mimetypes
@@ -57,6 +61,10 @@ MAX_CONNECTIONS = 32
 #: Seconds a connection may stay silent (a request not sent, a reply not read) before the
 #: server closes it.
 SOCKET_TIMEOUT_S = 30.0
+#: Seconds a whole request (its line, its headers and its body) may take to arrive, from
+#: the moment the server waits for it; a keep-alive connection's wait for its next request
+#: counts too.
+REQUEST_TIMEOUT_S = 30.0
 #: Folders of the bundle the server serves files from (read-only).
 SERVED_DIRS = ("blocks", "meshes")
 
@@ -274,6 +282,7 @@ class BlocksServer(ThreadingHTTPServer):
         log: TextIO | None = None,
         max_connections: int = MAX_CONNECTIONS,
         socket_timeout: float = SOCKET_TIMEOUT_S,
+        request_timeout: float = REQUEST_TIMEOUT_S,
     ) -> None:
         """``max_runs`` None: :func:`run_slots`."""
         from program.blocks import bundle_controller, read_record
@@ -288,8 +297,15 @@ class BlocksServer(ThreadingHTTPServer):
         self.runner = Runner(self.bundle, time_limit, run_slots() if max_runs is None else max_runs)
         self.log = log
         self.socket_timeout = socket_timeout
+        self.request_timeout = request_timeout
         self.connections = threading.BoundedSemaphore(max_connections)
         self.max_connections = max_connections
+        #: the server's state, for whoever waits on it (tests: no guess at how long the
+        #: server takes): connections being served now, refused (503) and timed out so far
+        self.state = threading.Condition()
+        self.serving_now = 0
+        self.refused = 0
+        self.timed_out = 0
         super().__init__((HOST, port), Handler)
 
     def validate(self, program: object) -> None:
@@ -298,15 +314,29 @@ class BlocksServer(ThreadingHTTPServer):
 
         validate(program, self.behaviors)
 
+    def count(self, name: str, by: int = 1) -> None:
+        """Change the counter ``name`` of :attr:`state` and wake whoever waits on it."""
+        with self.state:
+            setattr(self, name, getattr(self, name) + by)
+            self.state.notify_all()
+
+    def wait_until(self, predicate, timeout: float | None = None) -> bool:
+        """Wait until ``predicate(self)`` holds (it is checked each time a counter
+        changes); False when ``timeout`` s passed first."""
+        with self.state:
+            return self.state.wait_for(lambda: predicate(self), timeout)
+
     def process_request(self, request: socket.socket, client_address: tuple) -> None:
         """A thread for the connection, or 503 and close when MAX_CONNECTIONS are open."""
         if not self.connections.acquire(blocking=False):
             self._refuse(request)
             return
+        self.count("serving_now")
         try:
             super().process_request(request, client_address)
         except BaseException:
             self.connections.release()
+            self.count("serving_now", -1)
             raise
 
     def process_request_thread(self, request: socket.socket, client_address: tuple) -> None:
@@ -314,6 +344,7 @@ class BlocksServer(ThreadingHTTPServer):
             super().process_request_thread(request, client_address)
         finally:
             self.connections.release()
+            self.count("serving_now", -1)
 
     def _refuse(self, request: socket.socket) -> None:
         body = json.dumps(
@@ -334,6 +365,7 @@ class BlocksServer(ThreadingHTTPServer):
         except OSError:
             pass
         self.shutdown_request(request)
+        self.count("refused")
 
     def handle_error(self, request: object, client_address: tuple) -> None:
         """A connection that failed (reset, timed out): one line in the log, no traceback."""
@@ -358,6 +390,20 @@ class Handler(BaseHTTPRequestHandler):
     def setup(self) -> None:
         self.timeout = self.server.socket_timeout  # StreamRequestHandler sets it on the socket
         super().setup()
+        self.deadline = math.inf
+        self.rfile = io.BufferedReader(_Deadline(self), 65536)
+
+    def handle_one_request(self) -> None:
+        # the whole request (line, headers, body) arrives within request_timeout s
+        self.deadline = time.monotonic() + self.server.request_timeout
+        try:
+            super().handle_one_request()
+        finally:
+            self.deadline = math.inf
+
+    def late(self) -> bool:
+        """Whether the request's time is up (not only one read's silence)."""
+        return time.monotonic() >= self.deadline
 
     def log_message(self, format: str, *args: object) -> None:  # noqa: A002 (the base's name)
         log = self.server.log
@@ -448,9 +494,9 @@ class Handler(BaseHTTPRequestHandler):
             raw = self.rfile.read(length)
         except TimeoutError:
             self.close_connection = True
+            limit = self.server.request_timeout if self.late() else self.server.socket_timeout
             self._error(
-                HTTPStatus.REQUEST_TIMEOUT,
-                f"the program did not arrive within {self.server.socket_timeout:g} s",
+                HTTPStatus.REQUEST_TIMEOUT, f"the program did not arrive within {limit:g} s"
             )
             return
         if len(raw) < length:
@@ -506,6 +552,35 @@ class Handler(BaseHTTPRequestHandler):
             if not chunk:
                 break
             length -= len(chunk)
+
+
+class _Deadline(io.RawIOBase):
+    """The connection's socket read within the handler's deadline: each read waits for
+    the socket timeout at most, and never past the deadline (then TimeoutError, as a
+    silent socket gives); writes keep the socket timeout."""
+
+    def __init__(self, handler: Handler) -> None:
+        self.handler = handler
+        self.sock: socket.socket = handler.connection
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer) -> int:
+        h = self.handler
+        left = h.deadline - time.monotonic()
+        if left <= 0:
+            h.server.count("timed_out")
+            raise TimeoutError("the request took too long to arrive")
+        self.sock.settimeout(min(left, h.server.socket_timeout))
+        try:
+            return self.sock.recv_into(buffer)
+        except TimeoutError:
+            h.server.count("timed_out")
+            raise
+        finally:
+            with contextlib.suppress(OSError):
+                self.sock.settimeout(h.server.socket_timeout)
 
 
 def serve(

@@ -102,6 +102,9 @@ class Session:
         else:
             raw = files["design.json"]
             self.record = json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
+            from export.record_schema import check_record
+
+            check_record(self.record, "design.json")
         xml = files["robot.xml"]
         xml = xml.decode("utf-8") if isinstance(xml, bytes) else xml
         try:

@@ -251,13 +251,19 @@ def plan_of(kb: KnowledgeBase, robot_type: str, kinds: PartKinds) -> BodyPlan:
         parent[n] = root
         order.append(n)
 
-    def node(n: tuple[str, int]) -> PartNode:
-        kids = [m for m in order if parent.get(m) == n]
-        return PartNode(n[0], lineage_of[n[0]], tuple(node(m) for m in kids), where[n])
+    # built leaves first, each node once: linear in the parts and no recursion (a plan of
+    # thousands of parts is as deep as it is long)
+    kids: dict[tuple[str, int], list[tuple[str, int]]] = {n: [] for n in order}
+    for m in order:
+        if parent[m] is not None:
+            kids[parent[m]].append(m)
+    built: dict[tuple[str, int], PartNode] = {}
+    for n in reversed(order):
+        built[n] = PartNode(n[0], lineage_of[n[0]], tuple(built.pop(m) for m in kids[n]), where[n])
 
-    return BodyPlan(
+    plan = BodyPlan(
         robot_type,
-        node(root),
+        built[root],
         _default_lengths(kb, lineage),
         tuple(
             str(args[1])
@@ -265,6 +271,29 @@ def plan_of(kb: KnowledgeBase, robot_type: str, kinds: PartKinds) -> BodyPlan:
             if len(args) == 2 and args[0] in lineage
         ),
     )
+    _check_lengths_used(kb, plan, kinds, lineage)
+    return plan
+
+
+def _check_lengths_used(
+    kb: KnowledgeBase, plan: BodyPlan, kinds: PartKinds, lineage: Sequence[str]
+) -> None:
+    """OntologyError (file:line:col) for a ``defaultLength`` of the type's classes that
+    names a length none of its parts' kinds uses (a typo would pass in silence)."""
+    if not plan.lengths:
+        return
+    from kinematics.assemble import AssemblyError, length_defaults
+
+    try:
+        used = length_defaults(plan, kinds)
+    except AssemblyError:
+        return  # the plan is refused where it is assembled, with its own message
+    for args, where in kb.translation.located("defaultLength"):
+        if len(args) == 3 and args[0] in lineage and args[1] not in used:
+            raise OntologyError(
+                f"{where}: defaultLength {args[1]}: no part of {plan.robot_type} has a length "
+                f"of this name (its lengths: {', '.join(used) or 'none'})"
+            )
 
 
 def _arm_base(kb, kinds, nodes, edges, lineage_of) -> tuple[str, tuple[str, int]] | None:
@@ -308,6 +337,7 @@ def _arm_base(kb, kinds, nodes, edges, lineage_of) -> tuple[str, tuple[str, int]
 
 
 def _default_lengths(kb: KnowledgeBase, lineage: Sequence[str]) -> dict[str, float]:
+    from adron.schema import MAX_LENGTH_M
     from adron.units import quantity
 
     rank = {c: i for i, c in enumerate(lineage)}
@@ -322,7 +352,17 @@ def _default_lengths(kb: KnowledgeBase, lineage: Sequence[str]) -> dict[str, flo
             value = quantity(text, "length", f"{where}: defaultLength {name}")
         except InputError as e:
             raise OntologyError(str(e)) from None
+        if not 0 < value <= MAX_LENGTH_M:
+            raise OntologyError(
+                f"{where}: defaultLength {name} {text!r}: out of range: a length is more "
+                f"than 0 and at most {MAX_LENGTH_M:g} m"
+            )
         r = rank[args[0]]
+        if name in best and r == best[name][0] and value != best[name][1]:
+            raise OntologyError(
+                f"{where}: defaultLength {name} {text!r} contradicts another defaultLength "
+                f"of {args[0]} for {name} ({best[name][1]:g} m): which one holds is not said"
+            )
         if name not in best or r < best[name][0]:
             best[name] = (r, value)
     return {k: v for k, (_, v) in sorted(best.items())}

@@ -608,17 +608,29 @@ suite format (TOML; paths are relative to the suite file):
 """
 
 
-def use_parts(files) -> None:
+def use_parts(files, kb=None) -> None:
     """Assemble with the shipped part kinds and ``files`` (``--parts``); InputError (exit
-    2) naming the file and the key of a part kind that cannot be used."""
+    2) naming the file and the key of a part kind that cannot be used, or (given the
+    knowledge base ``kb``) of a user's kind for a class no ontology has."""
     from adron.errors import InputError
-    from kinematics.partkinds import PartKindError, use
+    from kinematics.partkinds import PartKindError, shipped_text, use
     from kinematics.partkinds import load as load_kinds
 
     try:
-        use(load_kinds(files) if files else None)
+        kinds = load_kinds(files) if files else None
     except PartKindError as e:
         raise InputError(str(e)) from None
+    if kinds is not None and kb is not None:
+        known = {a for args in kb.translation.relation("subclass") for a in args[:2]}
+        shipped = shipped_text()[0] + ":"
+        for kind in kinds.kinds.values():
+            if kind.cls not in known and not kind.where.startswith(shipped):
+                raise InputError(
+                    f"{kind.where.rsplit(' (', 1)[0]}.class: {kind.cls!r} is no class of the "
+                    "ontology (a kind for it would never be used; give the file that defines "
+                    "it with --ontology)"
+                )
+    use(kinds)
 
 
 def _with_composed_arm(kb, args: argparse.Namespace):
@@ -652,7 +664,7 @@ def _designer(args: argparse.Namespace, err: TextIO, req=None):
 
     with stage("parse"):
         kb = load(args.ontology)
-        use_parts(getattr(args, "parts", ()))
+        use_parts(getattr(args, "parts", ()), kb)
         kb = _with_composed_arm(kb, args)
     _warn_untranslated(kb, err)
     # checked while the worker filters the ontology (a large one's abilities take a while)
@@ -1674,16 +1686,16 @@ def _main(argv: list[str], out: TextIO, err: TextIO) -> int:
         out.flush()
         return code
     except ParmorError as e:
-        err.write(f"parmor: error: {_one_line(str(e))}\n")
+        _tell(err, f"parmor: error: {_one_line(str(e))}\n")
         return e.exit_code
     except MemoryError:
         if uncap is None:
             raise
         uncap()
-        err.write(f"parmor: error: {_one_line(str(limits.memory_exceeded()))}\n")
+        _tell(err, f"parmor: error: {_one_line(str(limits.memory_exceeded()))}\n")
         return 1
     except KeyboardInterrupt:
-        err.write("parmor: interrupted\n")
+        _tell(err, "parmor: interrupted\n")
         return 130
     except OSError as e:
         # the output went away (``| head -1``: a broken pipe), is full (``> /dev/full``) or
@@ -1697,7 +1709,7 @@ def _main(argv: list[str], out: TextIO, err: TextIO) -> int:
             return _unexpected(e, err, limited)
         _discard_output(out)
         why = "closed early (broken pipe)" if e.errno == errno.EPIPE else e.strerror
-        err.write(f"parmor: error: cannot write the output: {why}\n")
+        _tell(err, f"parmor: error: cannot write the output: {why}\n")
         return ExportError.exit_code
     except Exception as e:  # noqa: BLE001 - told when a stop caused it, else raised
         return _unexpected(e, err, limited)

@@ -261,7 +261,25 @@ def ontology_defaults(kb, lineage) -> dict[str, float]:
                 f"(known: {', '.join(sorted(BY_NAME))})"
             )
         spec = BY_NAME[name]
-        value = quantity(text, spec.dimension, f"{where}: defaultParameter", allow_zero=True)
+        if spec.dimension == "count":  # dof: a whole number of joints, as --param dof
+            from synth.compose import parse_dof
+
+            try:
+                value = float(parse_dof(str(text)))
+            except InputError as e:
+                raise OntologyError(f"{where}: defaultParameter {e}") from None
+        else:
+            value = quantity(text, spec.dimension, f"{where}: defaultParameter", allow_zero=True)
+        if (
+            name in RANGES and spec.dimension != "count"
+        ):  # the range of --param NAME holds for the ontology's default
+            low, high = bounds(spec)
+            if not low <= value <= high:
+                raise OntologyError(
+                    f"{where}: defaultParameter {name} {text!r}: outside {spec.range[0]} to "
+                    f"{spec.range[1]}, the range where designs make sense ({spec.range_why}; "
+                    f"the range of --param {name})"
+                )
         if name not in best or rank[args[0]] < best[name][0]:
             best[name] = (rank[args[0]], value)
     return {k: v for k, (_, v) in best.items()}

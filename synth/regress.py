@@ -146,6 +146,9 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
                 "params": str_table(q.get("params", {}), f"{where} ({name}): params"),
             }
         )
+    from adron.formats import check  # the file's schema: what the checks above miss
+
+    check("suite", data, str(path))
     return opts, out
 
 

@@ -187,6 +187,9 @@ def load_study(path: Path) -> tuple[dict, list[dict]]:
                     "where": where,
                 }
             )
+    from adron.formats import check  # the file's schema: what the checks above miss
+
+    check("study", data, str(path))
     return opts, out
 
 

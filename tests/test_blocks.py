@@ -706,30 +706,50 @@ def _read_all(s: socket.socket) -> bytes:
 
 def test_connections_are_capped(cart_page) -> None:
     """A case built to fail: 30 idle connections held 30 threads; now 4 are served (a
-    thread each) and the others answered 503 at once and closed."""
+    thread each) and the others answered 503 at once and closed. Checked through the
+    server's counters (``BlocksServer.wait_until``), never against a clock: it passes on a
+    machine running other jobs."""
     with serving(cart_page, max_connections=4) as server:
         address = ("127.0.0.1", server.server_address[1])
-        before = threading.active_count()
-        idle = [socket.create_connection(address, timeout=120) for _ in range(4)]
-        refused = [socket.create_connection(address, timeout=120) for _ in range(26)]
+        idle = [socket.create_connection(address, timeout=600) for _ in range(4)]
+        assert server.wait_until(lambda s: s.serving_now == 4, timeout=600)
+        refused = [socket.create_connection(address, timeout=600) for _ in range(26)]
         for s in refused:
             head, _, body = _read_all(s).partition(b"\r\n\r\n")
             s.close()
             assert head.startswith(b"HTTP/1.1 503"), head
             assert "4 connections open" in json.loads(body)["error"]
-        assert threading.active_count() <= before + 4
+        assert server.wait_until(lambda s: s.refused == 26, timeout=600)
+        assert server.serving_now == 4  # the idle ones, a thread each
         for s in idle:
             s.close()
-        end = time.monotonic() + 120  # their threads see the end and free their slots
-        while time.monotonic() < end:
-            with socket.create_connection(address, timeout=120) as s:
-                s.sendall(
-                    b"GET /blocks/index.html HTTP/1.1\r\nHost: %s:%d\r\n\r\n"
-                    % (address[0].encode(), address[1])
-                )
-                if not s.recv(64).startswith(b"HTTP/1.1 503"):
+        # their threads see the end and free their slots
+        assert server.wait_until(lambda s: s.serving_now == 0, timeout=600)
+        assert page_status(server) == 200
+        log = server.log_text.getvalue()
+    assert "Traceback" not in log, log
+
+
+def test_a_request_trickled_line_by_line_is_cut_at_the_request_time_limit(cart_page) -> None:
+    """A case built to fail: a client that sent a header line now and then held its
+    connection for as long as it went on (the silence timeout was per line). The whole
+    request must now arrive within ``request_timeout``; the client here would take 120 s."""
+    with serving(cart_page, request_timeout=0.5, socket_timeout=60) as server:
+        address = ("127.0.0.1", server.server_address[1])
+        with socket.create_connection(address, timeout=600) as slow:
+            slow.sendall(b"GET /blocks/index.html HTTP/1.1\r\n")
+            closed = False
+            for i in range(600):
+                try:
+                    slow.sendall(b"X-Slow-%d: %d\r\n" % (i, i))
+                except OSError:
+                    closed = True
                     break
-            time.sleep(0.2)
+                if server.timed_out:
+                    break
+                time.sleep(0.2)
+            assert closed or server.wait_until(lambda s: s.timed_out >= 1, timeout=600)
+        assert server.wait_until(lambda s: s.serving_now == 0, timeout=600)
         assert page_status(server) == 200
         log = server.log_text.getvalue()
     assert "Traceback" not in log, log

@@ -233,7 +233,9 @@ def test_a_large_knowledge_base_is_cached_by_a_detached_process(
     monkeypatch.setattr(kbmod, "BACKGROUND_STORE_UNITS", 0)
     src = _kif(tmp_path, RULES)
     first = _load_kb([src])
-    for _ in range(200):  # the grandchild's write, at most 20 s on a loaded machine
+    # the grandchild's write: waited for (the loop ends when it appears), with a bound far
+    # above any machine's load, not a guess at how long it takes (20 s failed under load)
+    for _ in range(6000):
         if list(cache.glob("kb-*.pickle")):
             break
         time.sleep(0.1)

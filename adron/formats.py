@@ -1,0 +1,391 @@
+"""The schemas of the user files read by hand-written readers with checks of their own:
+module catalogs (``adron/catalog.py``), studies (``synth/sweep.py``), regression suites
+(``synth/regress.py``) and perturbation tables (``export/perturb.py``).
+
+Each reader checks a file with its schema (:func:`check`) after its own checks (whose
+messages the users and the tests know): the schema holds what the hand may miss (a key's
+type, a bare number's range, a table where a value goes) and the documentation, and is
+published as JSON Schema (``adron/schemas/``, docs/formats-schemas.md). Quantities with
+units (``"34 g"``) are typed as such here; their units and ranges are the reader's
+(:data:`adron.catalog.CATALOG_MAX`).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import ConfigDict, Field, PlainValidator, WithJsonSchema, create_model
+
+from adron.schema import (
+    MAX_NAME,
+    Closed,
+    Name,
+    StrictBool,
+    _name,
+    described,
+    json_schema,
+    number,
+    validate,
+)
+
+MAX_QUANTITY = 100
+
+
+def _quantity(v: Any) -> float | str:
+    """A quantity: a number (a ratio), or a number with its unit (``"34 g"``)."""
+    if isinstance(v, str):
+        text = v.strip()
+        if not text or len(text) > MAX_QUANTITY or not (text[0].isdigit() or text[0] in "+-."):
+            raise ValueError('not a quantity (a number with its unit, such as "34 g")')
+        return v
+    return number(v)
+
+
+Quantity = Annotated[
+    float | str,
+    PlainValidator(_quantity),
+    WithJsonSchema(
+        {
+            "anyOf": [
+                {"type": "number"},
+                {"type": "string", "maxLength": MAX_QUANTITY, "pattern": "^\\s*[-+.0-9]"},
+            ],
+            "description": 'a number with its unit ("34 g", "1.8 kgf*cm") or a bare ratio',
+        }
+    ),
+]
+Size = Annotated[list[Quantity], Field(min_length=3, max_length=3)]
+
+
+def _number(low: float, high: float):
+    def check(v: Any) -> float:
+        f = number(v)
+        if not low <= f <= high:
+            raise ValueError(f"out of range: must be within {low:g} and {high:g}")
+        return f
+
+    return Annotated[
+        float,
+        PlainValidator(check),
+        WithJsonSchema({"type": "number", "minimum": low, "maximum": high}),
+    ]
+
+
+def _integer(low: int, high: int):
+    def check(v: Any) -> int:
+        if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= high:
+            raise ValueError(f"not a whole number from {low} to {high}")
+        return v
+
+    return Annotated[
+        int,
+        PlainValidator(check),
+        WithJsonSchema({"type": "integer", "minimum": low, "maximum": high}),
+    ]
+
+
+Cost = _number(0.0, 100_000.0)
+Ratio = _number(0.0, 1e6)
+
+
+# ---- module catalogs ------------------------------------------------------------------------
+
+
+def _catalog_models():
+    """The catalog's tables, built from the reader's own key lists (one list of keys)."""
+    from adron import catalog as c
+
+    def table(name: str, fields: dict[str, Any], doc: str) -> type[Closed]:
+        return create_model(name, __base__=Closed, __doc__=doc, **fields)
+
+    opt = (Quantity | None, None)
+    header = table(
+        "CatalogHeader",
+        {
+            "name": (Name, ...),
+            "currency": (
+                Annotated[str, Field(pattern="^[A-Z]{3}$", description="ISO 4217 code")],
+                ...,
+            ),
+            "version": (Annotated[str, Field(max_length=MAX_NAME)] | int, ...),
+            "extends": (Name | None, None),
+            "replace": (list[Name] | None, None),
+            "remove": (list[Name] | None, None),
+        },
+        "The catalog's name, currency and version; 'extends' a shipped or another catalog.",
+    )
+    common = {
+        "model": (Name, ...),
+        "class": (Name | None, Field(None, alias="class")),
+        "mass": opt,
+        "size": (Size | None, None),
+        "cost": (Cost | None, None),
+    }
+    actuator = table(
+        "Actuator",
+        {
+            **common,
+            **{k: opt for k in c._ACTUATOR_KEYS if k not in common and k != "travel_deg"},
+            "torque_class": (Name | None, None),
+            "travel_deg": (_number(0.0, 3600.0) | None, None),
+        },
+        "An actuator module (a servo in its printed housing).",
+    )
+    module = table(
+        "Module",
+        {
+            **common,
+            **{k: opt for k in (*c._MODULE_KEYS, *c._BATTERY_KEYS) if k not in common},
+        },
+        "A module that is no actuator (main, battery, sensor modules).",
+    )
+    part = table(
+        "Part",
+        {**common, "source": (Literal[c._PART_SOURCES] | None, None)},
+        "A passive part, printed or bought.",
+    )
+    tyre = table("Tyre", {k: opt for k in c._TYRE_KEYS} | {"name": (Name | None, None)}, "")
+    printer = table(
+        "Printer", {"model": (Name, ...), "bed": (Size | None, None)}, "A printer and its bed."
+    )
+    passive = table(
+        "Passive",
+        {k: opt for k in c._PASSIVE_LENGTHS}
+        | {"stress_concentration": opt, "printer_bed": (Size | None, None)},
+        "The printed parts' dimensions and limits.",
+    )
+    material = table(
+        "Material",
+        {k: opt for k in c._MATERIAL_KEYS} | {"name": (Name | None, None)},
+        "The printing material.",
+    )
+    design = table(
+        "Design",
+        {k: opt for k in (*c._DESIGN_KEYS, "behaviour_torque_factor", "i2c_first_address")},
+        "Safety factors and the design's environment.",
+    )
+    bus = table(
+        "Bus",
+        {
+            "name": (Name | None, None),
+            "protocol": (Name | None, None),
+            "first_address": (_integer(0, c.MAX_ADDRESS) | None, None),
+            "last_address": (_integer(0, c.MAX_ADDRESS) | None, None),
+            "device_limit": (_integer(1, c.MAX_ADDRESS) | None, None),
+            "address_word": (Name | None, None),
+            "address_format": (Literal[c._ADDRESS_FORMATS] | None, None),
+        },
+        "The bus the active modules share, its addresses and its limit of devices.",
+    )
+    return table(
+        "CatalogFile",
+        {
+            "catalog": (header, ...),
+            "actuator": (list[actuator], []),
+            "module": (list[module], []),
+            "part": (list[part], []),
+            "tyre": (tyre | None, None),
+            "printer": (list[printer], []),
+            "passive": (passive | None, None),
+            "material": (material | None, None),
+            "design": (design | None, None),
+            "bus": (bus | None, None),
+            "perturbation": (PerturbationOverrides | None, None),
+        },
+        "A module catalog (adron/catalog.toml, --catalog FILE.toml).",
+    )
+
+
+# ---- perturbation tables --------------------------------------------------------------------
+
+
+class Draw(Closed):
+    stream: _integer(0, 2**63 - 1) = described(doc="the seed stream")
+
+
+class MassSpread(Closed):
+    spread: _number(0.0, 0.9) = described(doc="each body's mass scaled by 1 + u, |u| <= spread")
+
+
+class Floor(Closed):
+    friction_low: _number(0.0, 10.0)
+    friction_high: _number(0.0, 10.0)
+    max_slope: Quantity
+
+
+class BusLatency(Closed):
+    latency_low: Quantity
+    latency_high: Quantity
+    control_period: Quantity
+
+
+class Battery(Closed):
+    supply: Literal["regulated", "direct"]
+    nominal_per_cell: Quantity
+    cutoff_per_cell: Quantity
+    rail_voltage: Quantity
+    dropout: Quantity
+    rail_resistance_ohm: _number(0.0, 10.0)
+    rated_voltage: Quantity
+
+
+class ServoEntry(Closed):
+    gears: Name
+    deadband: Quantity
+
+
+Backlash = Annotated[list[Quantity], Field(min_length=2, max_length=2)]
+
+
+class Compliance(Closed):
+    scale: _number(0.0, 1e6)
+
+
+class Imu(Closed):
+    """The simulated IMU's noise and bias (a design whose model has one)."""
+
+    gyro_noise: Quantity
+    gyro_bias: Quantity
+    accel_noise: Quantity
+
+
+class Acceptance(Closed):
+    share: _number(0.0, 1.0)
+    default_k: _integer(0, 1000)
+
+
+class PerturbationTable(Closed):
+    """The ranges a robust verification draws from (export/perturb.toml)."""
+
+    draw: Draw
+    mass: MassSpread
+    floor: Floor
+    bus: BusLatency
+    battery: Battery
+    gears: dict[Name, Backlash] = described(doc="backlash [low, high] by gear material")
+    servo: dict[Name, ServoEntry | Quantity] = described(
+        doc="pulse_span, then per actuator model (and 'default'): gears and dead band"
+    )
+    compliance: Compliance
+    imu: Imu
+    acceptance: Acceptance
+
+
+def _partial(model: type[Closed]) -> type[Closed]:
+    """``model`` with every field optional (a catalog overrides some keys)."""
+    fields = {n: (f.annotation | None, None) for n, f in model.model_fields.items()}
+    return create_model(f"{model.__name__}Override", __base__=Closed, **fields)
+
+
+class PerturbationOverrides(Closed):
+    """A catalog's ``[perturbation]``: any keys of the perturbation table."""
+
+    draw: _partial(Draw) | None = None
+    mass: _partial(MassSpread) | None = None
+    floor: _partial(Floor) | None = None
+    bus: _partial(BusLatency) | None = None
+    battery: _partial(Battery) | None = None
+    gears: dict[Name, Backlash] | None = None
+    servo: dict[Name, ServoEntry | Quantity] | None = None
+    compliance: _partial(Compliance) | None = None
+    imu: _partial(Imu) | None = None
+    acceptance: _partial(Acceptance) | None = None
+
+
+# ---- studies and regression suites --------------------------------------------------------
+
+Ability = Name
+#: an answer: the reader says which it takes (synth/conceptual.py parse_answer, with its
+#: message); the JSON Schema spells them out for an editor
+Answer = Annotated[
+    str,
+    PlainValidator(_name),
+    WithJsonSchema(
+        {
+            "type": "string",
+            "pattern": "^\\s*([Yy]([Ee][Ss])?|[Nn][Oo]?|[Tt][Rr][Uu][Ee]"
+            "|[Ff][Aa][Ll][Ss][Ee])\\s*$",
+            "description": "yes or no (y, n, true, false; any case), as --answer takes",
+        }
+    ),
+]
+
+
+class Query(Closed):
+    """A regression suite's query: a design request and its expected outcome's name."""
+
+    name: Name
+    abilities: list[Ability] = []
+    answers: dict[Ability, Answer] = {}
+    params: dict[Name, Annotated[str, Field(max_length=MAX_NAME)]] = {}
+
+
+class SuiteFile(Closed):
+    """A regression suite (``parmor regress SUITE.toml``)."""
+
+    ontology: list[Name] = described([], "KIF files, relative to the suite")
+    rules: list[Name] = described([], "ASP rule files, relative to the suite")
+    catalog: Name | None = described(None, "a shipped catalog's name or a file")
+    conceptual: StrictBool = False
+    verify: StrictBool = False
+    query: list[Query] = described(doc="the queries, each designed and compared")
+
+
+ParamValue = Annotated[str, Field(max_length=MAX_NAME)]
+
+
+class StudyRequest(Closed):
+    """A study's request: lists of parameter values expand into their product."""
+
+    name: Name | None = None
+    abilities: Annotated[list[Ability], Field(min_length=1)]
+    answers: dict[Ability, Answer] = {}
+    params: dict[Name, ParamValue | Annotated[list[ParamValue], Field(min_length=1)]] = {}
+
+
+class StudyFile(Closed):
+    """A parameter study (``parmor sweep STUDY.toml``)."""
+
+    model_config = ConfigDict(extra="forbid", populate_by_name=True, frozen=True)
+
+    ontology: list[Name] = described([], "KIF files, relative to the study")
+    rules: list[Name] = described([], "ASP rule files, relative to the study")
+    catalog: Name | None = described(None, "a shipped catalog's name or a file")
+    robustness: _integer(0, 64) = described(0, "perturbed runs per behaviour")
+    request: list[StudyRequest]
+
+
+_CATALOG: list[type[Closed]] = []
+
+
+def catalog_model() -> type[Closed]:
+    """The catalog file's model (built once, from the reader's key lists)."""
+    if not _CATALOG:
+        _CATALOG.append(_catalog_models())
+    return _CATALOG[0]
+
+
+#: format name -> (model, description) of every user file format with a schema
+def formats() -> dict[str, tuple[type, str]]:
+    from export.record_schema import DesignRecord
+    from kinematics.partkinds import PartKindsFile
+
+    return {
+        "partkinds": (PartKindsFile, "Part kinds (kinematics/partkinds.toml, --parts FILE.toml)"),
+        "catalog": (catalog_model(), "A module catalog (adron/catalog.toml, --catalog FILE)"),
+        "perturb": (PerturbationTable, "Perturbation ranges (export/perturb.toml)"),
+        "study": (StudyFile, "A parameter study (parmor sweep STUDY.toml)"),
+        "suite": (SuiteFile, "A regression suite (parmor regress SUITE.toml)"),
+        "design-record": (DesignRecord, "A design record (design.json)"),
+    }
+
+
+def schemas() -> dict[str, dict]:
+    """format name -> its JSON Schema."""
+    return {name: json_schema(model, name, doc) for name, (model, doc) in formats().items()}
+
+
+def check(name: str, data: Any, source: str) -> Any:
+    """``data`` (a parsed file of the format ``name``) checked against its schema;
+    InputError naming ``source``, the key and the value."""
+    return validate(formats()[name][0], data, source)
