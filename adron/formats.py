@@ -249,6 +249,21 @@ class Imu(Closed):
     accel_noise: Quantity
 
 
+class Infrared(Closed):
+    """The line sensors' readings in a perturbed run (program/sensing.py)."""
+
+    edge_offset: Quantity
+    edge_jitter: Quantity
+
+
+class Ultrasonic(Closed):
+    """The forward ranger's readings in a perturbed run (program/sensing.py)."""
+
+    noise: Quantity
+    resolution: Quantity
+    scale: _number(0.0, 0.5)
+
+
 class Acceptance(Closed):
     share: _number(0.0, 1.0)
     default_k: _integer(0, 1000)
@@ -268,6 +283,8 @@ class PerturbationTable(Closed):
     )
     compliance: Compliance
     imu: Imu
+    infrared: Infrared
+    ultrasonic: Ultrasonic
     acceptance: Acceptance
 
 
@@ -289,6 +306,8 @@ class PerturbationOverrides(Closed):
     servo: dict[Name, ServoEntry | Quantity] | None = None
     compliance: _partial(Compliance) | None = None
     imu: _partial(Imu) | None = None
+    infrared: _partial(Infrared) | None = None
+    ultrasonic: _partial(Ultrasonic) | None = None
     acceptance: _partial(Acceptance) | None = None
 
 
