@@ -37,7 +37,7 @@ class Ability:
 
 
 @dataclass(frozen=True, slots=True)
-class Parameter:
+class ConceptualParameter:
     """A conceptual parameter: command-line name, KIF relation, value name -> KIF term."""
 
     name: str
@@ -55,7 +55,7 @@ class KnowledgeBase:
     files: tuple[str, ...]
     translation: Translation
     abilities: tuple[Ability, ...]
-    parameters: tuple[Parameter, ...]
+    parameters: tuple[ConceptualParameter, ...]
     #: the translation with its ontology-only rules materialised (adron/materialise.py),
     #: what the solver grounds when no rule files are given; ``translation`` itself when
     #: nothing was materialised, and then ``why_not`` says why
@@ -72,7 +72,7 @@ class KnowledgeBase:
     def ability_of_kif(self, kif: str) -> Ability | None:
         return next((a for a in self.abilities if a.kif == kif), None)
 
-    def parameter(self, name: str) -> Parameter | None:
+    def parameter(self, name: str) -> ConceptualParameter | None:
         return next((p for p in self.parameters if p.name == name), None)
 
 
@@ -400,7 +400,7 @@ def _load(sources: Sequence[tuple[str, str]]) -> KnowledgeBase:
     values = facts(tr, "parameterValue", 3)
     for rel, name in facts(tr, "parameterName", 2):
         vals = tuple((v, t) for r, v, t in values if r == rel)
-        params.append(Parameter(name, rel, vals))
+        params.append(ConceptualParameter(name, rel, vals))
     facts(tr, "structuralLimit", 3)  # checked here, used by the structure stage
     # materialised later, where grounding can be interrupted and limited (the reasoner's
     # worker process: synth/solver.py), not here in the parse stage

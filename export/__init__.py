@@ -1,5 +1,7 @@
-"""Exporters of a design: URDF, MJCF, STL, bill of materials, design record."""
+"""Exporters of a design: URDF, MJCF, STL, bill of materials, design record.
 
-# a bundle written before design records kept their body plan is rebuilt from the shipped
-# ontology's (synth.bodyplan.install: cheap, the ontology is read only when asked)
-import synth.bodyplan  # noqa: E402, F401
+Importing the package does nothing else: the shipped ontology's body plans (for a bundle
+written before design records kept their own) are installed by the entry points
+(``synth.bodyplan.install``: ``parmor``'s ``main``, the ROS worker, the block server's
+runs).
+"""

@@ -18,8 +18,8 @@ that as a massless link, which is legal; no artificial inertia is invented. Ever
 geometry becomes a ``<visual>`` and a ``<collision>``; meshes are referenced as
 ``MESH_DIR/NAME.stl`` relative to the URDF file.
 
-The helpers :func:`number`, :func:`mesh_file`, :func:`rpy_from_matrix` and
-:func:`check_assembly` are shared with the MJCF exporter.
+The helpers :func:`number`, :func:`mesh_file` and :func:`check_assembly` are shared with
+the MJCF exporter; roll-pitch-yaw comes from :func:`kinematics.spatial.rpy_from_matrix`.
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ from xml.sax.saxutils import escape
 import numpy as np
 
 from export.model3d import Assembly, BodySpec, Geometry, JointSpec
+from kinematics.spatial import rpy_from_matrix
 
 if TYPE_CHECKING:  # yourdfpy (and trimesh behind it) is imported only when exporting
     import yourdfpy
@@ -99,35 +100,6 @@ def mesh_path(mesh_dir: str, file: str) -> str:
     """``mesh_dir/file`` with a forward slash (URDF and MJCF paths), or ``file`` alone."""
     d = mesh_dir.rstrip("/")
     return f"{d}/{file}" if d else file
-
-
-def rpy_from_matrix(R: np.ndarray) -> np.ndarray:
-    """URDF roll, pitch, yaw (rad) of a rotation (3,3): ``R = Rz(yaw) Ry(pitch) Rx(roll)``.
-
-    Robust at gimbal lock (pitch = +-pi/2: yaw is set to 0 and the whole rotation about z
-    goes into roll); angles in (-pi, pi], float noise below ``SNAP`` snapped to 0.
-    """
-    R = np.asarray(R, dtype=float)
-    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
-        raise ValueError("a rotation must be a finite (3, 3) matrix")
-    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or abs(np.linalg.det(R) - 1.0) > 1e-6:
-        raise ValueError("transform rotation is not orthonormal with determinant +1")
-    cp = math.hypot(R[0, 0], R[1, 0])
-    pitch = math.atan2(-R[2, 0], cp)
-    if cp > 1e-9:
-        roll = math.atan2(R[2, 1], R[2, 2])
-        yaw = math.atan2(R[1, 0], R[0, 0])
-    else:  # gimbal lock: only roll - yaw (pitch = pi/2) or roll + yaw (-pi/2) is defined
-        roll = math.atan2(-R[1, 2], R[1, 1])
-        yaw = 0.0
-    out = []
-    for a in (roll, pitch, yaw):
-        if abs(a) < SNAP:
-            a = 0.0
-        elif a <= -math.pi + SNAP:  # -pi and pi are one angle: write pi
-            a = math.pi
-        out.append(a)
-    return np.array(out)
 
 
 def joint_damping(j: JointSpec) -> float:

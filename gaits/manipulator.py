@@ -115,7 +115,6 @@ __all__ = [
     "ik_dls",
     "min_jerk",
     "peak_torques",
-    "rpy_from_matrix",
     "serial_chain",
     "solve_ik",
 ]
@@ -313,9 +312,14 @@ def ik_6dof(
     return best
 
 
-def rpy_from_matrix(R: np.ndarray) -> np.ndarray:
-    """URDF (roll, pitch, yaw) rad of a rotation (3, 3): ``R = rot_z(y) rot_y(p) rot_x(r)``
-    (pitch in [-pi/2, pi/2]; at pitch = +-pi/2 the roll is 0)."""
+def rpy_yaw_at_gimbal_lock(R: np.ndarray) -> np.ndarray:
+    """(roll, pitch, yaw) rad of a rotation (3, 3), ``R = rot_z(y) rot_y(p) rot_x(r)``, as
+    ``move_to_pose`` records the tool's orientation (``info["orientation_rpy"]``): pitch by
+    ``asin`` in [-pi/2, pi/2]; at pitch = +-pi/2 the roll is 0 and the yaw takes the rotation
+    about z. Not :func:`kinematics.spatial.rpy_from_matrix` (the URDF writer's: at gimbal lock
+    the roll takes it, and its pitch comes from ``atan2``, exact where ``asin`` loses about
+    1e-8 rad near +-pi/2): the recorded orientation errors of shipped designs (6.6e-9 rad on
+    the 6-DOF arm's default pose) stay what they were until that change is made on purpose."""
     R = np.asarray(R, dtype=float)
     p = math.asin(min(1.0, max(-1.0, -R[2, 0])))
     if abs(R[2, 0]) < 1 - 1e-12:
@@ -958,7 +962,7 @@ class ManipulatorController(Controller):
             target = self.gripper_position(q)
             if self.six:
                 info["orientation_rpy"] = tuple(
-                    float(a) for a in rpy_from_matrix(self.tool_rotation(q))
+                    float(a) for a in rpy_yaw_at_gimbal_lock(self.tool_rotation(q))
                 )
             return self._finish(name, plan, info, target)
         P = {k: float(v) for k, v in params.items()}  # type: ignore[arg-type]

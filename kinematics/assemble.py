@@ -23,7 +23,7 @@ from types import MappingProxyType
 import numpy as np
 
 from kinematics.bodyplan import BodyPlan, PartNode
-from kinematics.partkinds import AXES, JointSpec, Mount, PartKind, PartKinds, evaluate
+from kinematics.partkinds import AXES, KindJoint, Mount, PartKind, PartKinds, evaluate
 from kinematics.spatial import (
     box_inertia,
     rot_x,
@@ -416,7 +416,7 @@ class _Walk:
         self,
         node: PartNode,
         kind: PartKind,
-        j: JointSpec,
+        j: KindJoint,
         tip: _Tip,
         index: int | None,
         serial: tuple[str, str, float | str, float | str] | None = None,

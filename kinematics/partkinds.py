@@ -177,7 +177,11 @@ def _names(text: float | str) -> set[str]:
 
 
 @dataclass(frozen=True)
-class JointSpec:
+class KindJoint:
+    """A joint of a part kind as its file declares it (``joints = [...]``): names, an axis
+    or axes, limits as expressions; the assembler turns it into the built robot's joint
+    (``kinematics.model.Joint``; the exporters' ``export.model3d.JointSpec``)."""
+
     name: str
     kind: str = "revolute"
     axis: str = "z"
@@ -218,7 +222,7 @@ class PartKind:
     payload: str = "root"
     order: str = ""
     lengths: Mapping[str, float] = field(default_factory=dict)
-    joints: tuple[JointSpec, ...] = ()
+    joints: tuple[KindJoint, ...] = ()
     end: str = ""
     role: str = ""
     mounts: tuple[Mount, ...] = ()
@@ -690,7 +694,7 @@ def _kind_of(k: KindSchema, where: str) -> PartKind:
         order=k.order,
         lengths=dict(k.lengths),
         joints=tuple(
-            JointSpec(
+            KindJoint(
                 name=j.name,
                 kind=j.kind,
                 axis=j.axis,

@@ -7,6 +7,7 @@ kg m^2, about the centre of mass unless a function says otherwise.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 from math import comb, gamma, pi
 
@@ -49,6 +50,42 @@ def matrix_from_rpy(rpy: ArrayLike) -> np.ndarray:
     """Rotation (3,3) from URDF roll-pitch-yaw (rad): ``rot_z(y) @ rot_y(p) @ rot_x(r)``."""
     r, p, y = _vec3(rpy, "rpy")
     return rot_z(y) @ rot_y(p) @ rot_x(r)
+
+
+#: Angles (rad) below this are float noise: :func:`rpy_from_matrix` gives them as 0.
+RPY_SNAP = 1e-12
+
+
+def rpy_from_matrix(R: ArrayLike) -> np.ndarray:
+    """URDF roll, pitch, yaw (rad) of a rotation (3,3), the inverse of
+    :func:`matrix_from_rpy`: ``R = rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)``, pitch in
+    [-pi/2, pi/2], roll and yaw in (-pi, pi].
+
+    Robust at gimbal lock (pitch = +-pi/2, where only roll - yaw or roll + yaw is defined):
+    yaw is set to 0 and the whole rotation about z goes into roll. Angles below
+    :data:`RPY_SNAP` are snapped to 0, and -pi is given as pi (one angle). ValueError for a
+    matrix that is not a finite rotation (orthonormal with determinant +1, to 1e-6)."""
+    R = np.asarray(R, dtype=float)
+    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+        raise ValueError("a rotation must be a finite (3, 3) matrix")
+    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or abs(np.linalg.det(R) - 1.0) > 1e-6:
+        raise ValueError("transform rotation is not orthonormal with determinant +1")
+    cp = math.hypot(R[0, 0], R[1, 0])
+    pitch = math.atan2(-R[2, 0], cp)
+    if cp > 1e-9:
+        roll = math.atan2(R[2, 1], R[2, 2])
+        yaw = math.atan2(R[1, 0], R[0, 0])
+    else:  # gimbal lock: only roll - yaw (pitch = pi/2) or roll + yaw (-pi/2) is defined
+        roll = math.atan2(-R[1, 2], R[1, 1])
+        yaw = 0.0
+    out = []
+    for a in (roll, pitch, yaw):
+        if abs(a) < RPY_SNAP:
+            a = 0.0
+        elif a <= -pi + RPY_SNAP:  # -pi and pi are one angle: give pi
+            a = pi
+        out.append(a)
+    return np.array(out)
 
 
 def matrix_from_axis_angle(axis: ArrayLike, angle: float) -> np.ndarray:

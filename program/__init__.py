@@ -1,5 +1,6 @@
-"""The programming layer: programs of behaviour calls, ROS services and block pages."""
+"""The programming layer: programs of behaviour calls, ROS services and block pages.
 
-# a bundle written before design records kept their body plan is rebuilt from the shipped
-# ontology's (synth.bodyplan.install: cheap, the ontology is read only when asked)
-import synth.bodyplan  # noqa: E402, F401
+Importing the package does nothing else: the entry points (the ROS worker's ``main``, the
+block server's runs) install the shipped ontology's body plans themselves
+(``synth.bodyplan.install``).
+"""

@@ -268,6 +268,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     _quiet_signals()
     _limit_memory()
+    from synth.bodyplan import install
+
+    install()  # the shipped ontology's body plans (a bundle older than recorded plans)
     try:
         worker = Worker.load(args[0])
         why = worker.mismatch()

@@ -165,6 +165,9 @@ def _child(conn, bundle: str, program: dict) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         from program.session import run_program
+        from synth.bodyplan import install
+
+        install()  # a spawned process: the shipped ontology's body plans (older bundles)
 
         result = run_program(bundle, program)
         reply = {"result": result}

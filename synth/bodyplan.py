@@ -382,7 +382,10 @@ def shipped_plan(robot_type: str) -> BodyPlan | None:
 
 def install() -> None:
     """Let ``kinematics.templates.build`` find the shipped ontology's robot types by name
-    (``kinematics.bodyplan.PLAN_SOURCE``; nothing heavy is imported)."""
+    (``kinematics.bodyplan.PLAN_SOURCE``; nothing heavy is imported): what a bundle
+    written before design records kept their body plan needs. Called by the entry points
+    (``synth.cli`` before a command runs, ``program.rosworker.main``, the block server's
+    runs), never as a side effect of an import; calling it again does nothing."""
     from kinematics.bodyplan import PLAN_SOURCE
 
     if not PLAN_SOURCE:
@@ -412,9 +415,6 @@ def parameter_defaults(kb: KnowledgeBase, robot_type: str) -> dict[str, float | 
     if not structure:
         return {}
     return structure_defaults(structure, ontology_defaults(kb, ancestors(kb, robot_type)))
-
-
-install()
 
 
 def arm_joints(kb: KnowledgeBase, robot_type: str) -> int | None:

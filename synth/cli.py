@@ -19,6 +19,7 @@ from collections.abc import Callable, Sequence
 from typing import TextIO
 
 from adron.errors import AnswerNeeded, ExportError, InputError, ParmorError
+from synth.limits import MAX_ROBUSTNESS
 
 EPILOG = """\
 examples:
@@ -173,8 +174,8 @@ def _limit_value(kind: type):
     return parse
 
 
-#: Most perturbed runs per behaviour ``--robustness`` takes; a seed's largest value.
-MAX_ROBUSTNESS = 64
+#: A seed's largest value (the most perturbed runs, ``MAX_ROBUSTNESS``, is in synth.limits,
+#: where a study's reader finds it too).
 MAX_SEED = 2**31 - 1
 
 
@@ -1662,6 +1663,11 @@ def _main(argv: list[str], out: TextIO, err: TextIO) -> int:
             out.flush()
             return int(e.code or 0)
         handler = cmd_ontology_check if args.command == "ontology" else COMMANDS[args.command]
+        # the shipped ontology's body plans, for a bundle whose record predates body plans
+        # (explicit here: importing export or program installs nothing)
+        from synth.bodyplan import install
+
+        install()
         limited = hasattr(args, "memory_limit")  # every command but blocks (its own limit)
         if limited:
             from synth import limits

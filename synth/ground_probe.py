@@ -27,7 +27,7 @@ import os
 import resource
 import signal
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from multiprocessing.connection import Pipe
 
 #: Seconds the probe may take after the limit was reached: it is added to the limit.
@@ -35,11 +35,18 @@ PROBE_S = 3.0
 ENCODINGS = "parmor's encodings"
 
 
-def pieces(kb, taxonomy: str, rules: Sequence, program: str | None = None) -> list[tuple[str, str]]:
+def pieces(
+    kb,
+    taxonomy: str,
+    rules: Sequence,
+    encodings: str,
+    parse: Callable[[str], Sequence],
+    program: str | None = None,
+) -> list[tuple[str, str]]:
     """(place, program text) of each piece, in grounding order (see the module);
-    ``program``: the translation as it went to the grounder (default: all of it)."""
-    from synth.solver import _parse, conceptual_text
-
+    ``encodings``: parmor's encodings as one text, ``parse``: the solver's parser of a rule
+    file into statements (``synth.solver`` hands both over: this module imports nothing
+    of it); ``program``: the translation as it went to the grounder (default: all of it)."""
     program = kb.translation.program if program is None else program
     lines = program.splitlines()
     facts = [taxonomy] + [line for line in lines if ":-" not in line]
@@ -50,10 +57,10 @@ def pieces(kb, taxonomy: str, rules: Sequence, program: str | None = None) -> li
         for place, text in kif_rules(kb)
         if all(x in grounded for x in text.splitlines() if ":-" in x)
     ]
-    out.append((ENCODINGS, conceptual_text()))
+    out.append((ENCODINGS, encodings))
     for r in rules:
         try:
-            stmts = _parse(r.text)
+            stmts = parse(r.text)
         except RuntimeError:
             continue
         for stmt in stmts:
@@ -92,14 +99,17 @@ def culprit(
     taxonomy: str,
     rules: Sequence,
     memory_mb: int | None,
+    encodings: str,
+    parse: Callable[[str], Sequence],
     budget_s: float = PROBE_S,
     program: str | None = None,
 ) -> str:
     """The place of the statement that grew (see the module), or '' when none did
-    within ``budget_s`` seconds and ``memory_mb`` (None: no memory cap)."""
+    within ``budget_s`` seconds and ``memory_mb`` (None: no memory cap); ``encodings``
+    and ``parse`` as for :func:`pieces`."""
     from adron.kb import builtin_files
 
-    parts = pieces(kb, taxonomy, rules, program)
+    parts = pieces(kb, taxonomy, rules, encodings, parse, program)
     read, write = Pipe(duplex=False)
     pid = os.fork()
     if pid == 0:  # the probe
@@ -171,9 +181,9 @@ def _ground(parts: list[tuple[str, str]], conn, memory_mb: int | None) -> None:
     import clingo
 
     if memory_mb is not None:
-        from synth.solver import _address_space_kb
+        from synth.limits import address_space_kb
 
-        cap = (_address_space_kb() + memory_mb * 1024) * 1024
+        cap = (address_space_kb() + memory_mb * 1024) * 1024
         with contextlib.suppress(ValueError, OSError):
             resource.setrlimit(resource.RLIMIT_AS, (cap, resource.getrlimit(resource.RLIMIT_AS)[1]))
     ctl = clingo.Control(["--warn=none"], logger=lambda c, m: None)
@@ -190,28 +200,3 @@ def _ground(parts: list[tuple[str, str]], conn, memory_mb: int | None) -> None:
             continue  # a piece that does not ground alone (a syntax the whole one reports)
         conn.send((i, len(ctl.symbolic_atoms) - before))
     conn.send("done")
-
-
-def explained(e, kb, rules: Sequence, what: str, focus: str | None = None):
-    """``e`` (a LimitExceeded of the grounding) with the files grounded and, for a time or
-    memory limit, the rule that grew (``culprit``; the size limit names its own)."""
-    from synth import limits
-    from synth.solver import asp_string, relevant, taxonomy_program
-
-    if e.stage != "ground" or not e.limit.startswith(("time", "memory")):
-        return e
-    limits.disarm()  # the time limit's alarm rings again until the run ends: not here
-    detail = [x for x in (e.detail,) if x]
-    if what not in e.detail:
-        detail.append(f"grounding {what}")
-    extra = [f"focus({asp_string(focus)})."] if focus is not None else []
-    try:
-        texts = [r.text for r in rules]
-        program = relevant(kb, focus, texts).program(kb.translation)  # as _Core grounds it
-        program, taxonomy = taxonomy_program(kb, extra, texts, program)
-        found = culprit(kb, taxonomy, rules, limits.current().memory_mb, program=program)
-    except (OSError, RuntimeError, MemoryError):
-        found = ""
-    if found:
-        detail.append(f"{found} grew (the grounding probed one statement at a time)")
-    return limits.LimitExceeded(e.limit, e.stage, "; ".join(detail))

@@ -29,6 +29,10 @@ DEFAULT_MEMORY_MB = 4096
 #: Ground program size, atoms: ADROn grounds to about 5,000; a 100,000-class taxonomy to
 #: about 2 million. Beyond 10 million, solving (and memory) stop being practical.
 DEFAULT_SIZE_ATOMS = 10_000_000
+#: Most perturbed runs per behaviour a design may ask for (``parmor design --robustness``,
+#: ``PARMOR_ROBUSTNESS``, a study's ``robustness``): 64 runs of each behaviour is minutes
+#: to an hour of simulation, and certifying more is ``--certify``'s job.
+MAX_ROBUSTNESS = 64
 
 
 class LimitExceeded(ParmorError):
@@ -205,6 +209,18 @@ def data_bytes() -> int:
     except (OSError, ValueError, IndexError):
         pass
     return 0
+
+
+def address_space_kb() -> int:
+    """This process's address space (virtual memory), KiB; 0 where it cannot be read. The
+    clingo worker and the ground probe cap theirs at this plus their ``memory_mb``."""
+    import resource
+
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[0]) * resource.getpagesize() // 1024
+    except OSError:
+        return 0
 
 
 def cap_memory(memory_mb: int | None) -> Callable[[], None]:

@@ -36,7 +36,7 @@ from adron.materialise import Derivation
 from adron.relevance import Relevance, relevance
 from adron.translate import asp_string, closed_taxonomy
 from adron.units import cache_folder, read_cache_bytes, write_cache_file
-from synth import limits
+from synth import ground_probe, limits
 
 _SCRIPT = re.compile(r"#\s*script", re.IGNORECASE)
 
@@ -857,14 +857,6 @@ def _read_symbol(text: str, sym: clingo.Symbol) -> tuple[str, tuple]:
     )
 
 
-def _address_space_kb() -> int:
-    try:
-        with open("/proc/self/statm") as f:
-            return int(f.read().split()[0]) * resource.getpagesize() // 1024
-    except OSError:
-        return 0
-
-
 def _serve(
     conn: Connection,
     make: Callable[[Connection], _Core],
@@ -881,7 +873,7 @@ def _serve(
         with contextlib.suppress(OSError, AttributeError):
             ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
     if memory_mb is not None:
-        cap = (_address_space_kb() + memory_mb * 1024) * 1024
+        cap = (limits.address_space_kb() + memory_mb * 1024) * 1024
         with contextlib.suppress(ValueError, OSError):
             resource.setrlimit(resource.RLIMIT_AS, (cap, resource.getrlimit(resource.RLIMIT_AS)[1]))
     core = None
@@ -1107,9 +1099,7 @@ class Reasoner:
                         raise
                 externals = self._worker.result("ground")
             except limits.LimitExceeded as e:  # name the files and the rule that grew
-                from synth.ground_probe import explained
-
-                raise explained(e, kb, files, what, focus) from None
+                raise _explained(e, kb, files, what, focus) from None
         self._externals: set[str] = externals  # as text: symbols do not cross processes
         self._robot_types: tuple[str, ...] | None = None
 
@@ -1232,3 +1222,34 @@ class Reasoner:
             ancestors=tuple(sorted(c for rr, c in by.get("ancestor", []) if rr == r)),
         )
         return cand, need, excl
+
+
+def _explained(e: limits.LimitExceeded, kb, rules: Sequence, what: str, focus: str | None):
+    """``e`` (a LimitExceeded of the grounding) with the files grounded and, for a time or
+    memory limit, the rule that grew (``synth.ground_probe.culprit``, given the program as
+    ``_Core`` grounds it, the encodings and the parser; the size limit names its own)."""
+    if e.stage != "ground" or not e.limit.startswith(("time", "memory")):
+        return e
+    limits.disarm()  # the time limit's alarm rings again until the run ends: not here
+    detail = [x for x in (e.detail,) if x]
+    if what not in e.detail:
+        detail.append(f"grounding {what}")
+    extra = [f"focus({asp_string(focus)})."] if focus is not None else []
+    try:
+        texts = [r.text for r in rules]
+        program = relevant(kb, focus, texts).program(kb.translation)  # as _Core grounds it
+        program, taxonomy = taxonomy_program(kb, extra, texts, program)
+        found = ground_probe.culprit(
+            kb,
+            taxonomy,
+            rules,
+            limits.current().memory_mb,
+            conceptual_text(),
+            _parse,
+            program=program,
+        )
+    except (OSError, RuntimeError, MemoryError):
+        found = ""
+    if found:
+        detail.append(f"{found} grew (the grounding probed one statement at a time)")
+    return limits.LimitExceeded(e.limit, e.stage, "; ".join(detail))

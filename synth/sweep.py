@@ -39,6 +39,7 @@ from adron.errors import ExportError, InputError
 from synth import limits
 from synth.backend import Backend, files_digest, tasks
 from synth.backend import code_files as code_files  # re-exported: the files keys depend on
+from synth.limits import MAX_ROBUSTNESS
 from synth.regress import (
     array_tables,
     designer_for,
@@ -197,8 +198,6 @@ def study_robustness(value: object, path: Path) -> int:
     """The study's ``robustness = K`` (perturbed runs per behaviour, as ``parmor design
     --robustness K``; 0, the default, runs none): a whole number from 0 to
     ``MAX_ROBUSTNESS``, else an InputError naming the file and key."""
-    from synth.cli import MAX_ROBUSTNESS
-
     if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_ROBUSTNESS:
         raise InputError(
             f"{path}: robustness: expected a whole number of perturbed runs per behaviour "

@@ -22,10 +22,10 @@ from gaits.manipulator import (
     ik_dls,
     min_jerk,
     peak_torques,
-    rpy_from_matrix,
+    rpy_yaw_at_gimbal_lock,
 )
 from kinematics.dynamics import forward_kinematics, gravity_torques
-from kinematics.spatial import matrix_from_rpy
+from kinematics.spatial import matrix_from_rpy, rpy_from_matrix
 from kinematics.templates import build, default_lengths
 
 PLACE_TOLERANCE = 0.005  # m, the issue's acceptance
@@ -477,3 +477,18 @@ def test_6dof_places_and_orients_in_mujoco(arm6):
         f"orientation error {math.degrees(angle):.2f} deg"
     )
     assert r.placing_error_m < PLACE_TOLERANCE and angle < math.radians(2)
+
+
+@pytest.mark.parametrize(
+    "rpy", [(0.3, 1.0, 0.4), (0.0, math.pi / 2, 0.7), (0.0, -math.pi / 2, -2.0)]
+)
+def test_the_recorded_tool_orientation_is_the_rotation(rpy) -> None:
+    """move_to_pose's ``orientation_rpy`` (yaw at gimbal lock) gives the same rotation as
+    the URDF writer's ``rpy_from_matrix`` (roll at gimbal lock): two conventions, one
+    rotation, and each function's name says which."""
+    R = matrix_from_rpy(rpy)
+    mine, urdf = rpy_yaw_at_gimbal_lock(R), rpy_from_matrix(R)
+    assert np.allclose(matrix_from_rpy(mine), R, atol=1e-7)
+    assert np.allclose(matrix_from_rpy(urdf), R, atol=1e-12)
+    if abs(abs(rpy[1]) - math.pi / 2) < 1e-9:  # at the lock the two differ
+        assert mine[0] == 0.0 and urdf[2] == 0.0

@@ -26,10 +26,10 @@ from export.urdf import (
     PASSIVE_DAMPING,
     number,
     robot_xml,
-    rpy_from_matrix,
     urdf_robot,
     urdf_string,
 )
+from kinematics.spatial import rpy_from_matrix
 from tests.conftest import need
 
 trimesh = pytest.importorskip("trimesh")
