@@ -60,9 +60,11 @@ schemas: $(STAMP)
 docs: $(STAMP)
 	$(BIN)/python -m mkdocs build --strict
 
+# ruff, and the import contracts of pyproject.toml (make test checks them too: tests/test_layers.py)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+	$(BIN)/lint-imports --no-logo
 
 clean:
 	rm -rf $(VENV) build *.egg-info web/node_modules
