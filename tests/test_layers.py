@@ -70,14 +70,16 @@ def _append(path: Path, text: str) -> None:
 
 def test_an_upward_import_or_a_new_circle_breaks_the_contracts(tmp_path: Path) -> None:
     """A copy of the packages with one upward import (kinematics -> export, function-local,
-    as the circles of old were closed) and one new circle (the ground probe importing the
-    solver back): both contracts fail, naming the imports."""
+    as the circles of old were closed), one new circle (the ground probe importing the
+    solver back) and a controller reading the ontology: each contract fails, naming them."""
     root = _copy(tmp_path)
     _append(root / "kinematics" / "spatial.py", "\n\ndef _up():\n    from export import urdf\n")
     _append(root / "synth" / "ground_probe.py", "\n\ndef _back():\n    from synth import solver\n")
+    _append(root / "gaits" / "feedback.py", "\n\ndef _onto():\n    from adron import units\n")
     proc = lint(root)
     assert proc.returncode == 1, proc.stdout[-4000:]
-    assert "Contracts: 0 kept, 2 broken." in proc.stdout
+    assert "Contracts: 0 kept, 3 broken." in proc.stdout
+    assert "gaits is not allowed to import adron" in proc.stdout
     assert "kinematics.spatial -> export.urdf" in proc.stdout
     assert "No cycles are allowed in synth." in proc.stdout
     assert ".solver -> .ground_probe" in proc.stdout
