@@ -26,9 +26,14 @@ if str(REPO) not in sys.path:
 def main(argv: list[str]) -> None:
     from adron.catalog import load_catalog
     from export.mjcf import load_mjcf
-    from export.perturb import design_table, draw, perturbed_model
-    from export.simulate import simulate
-    from export.verify import bundle_parts, controller_for_model, folder_files, recorded_table
+    from synth.verification.perturb import design_table, draw, perturbed_model
+    from synth.verification.runs import (
+        bundle_parts,
+        controller_for_model,
+        folder_files,
+        recorded_table,
+    )
+    from synth.verification.simulate import simulate
 
     folder = argv.pop(0)
     if os.environ.get("BALANCE_WALK") == "robust":  # the walk tuned for perturbed runs

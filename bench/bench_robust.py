@@ -1,6 +1,6 @@
 """Robust verification's cost: each base configuration's default design verified on its
-nominal model (``export.verify.verify_files``, what ``parmor design`` simulates) and under
-K = 8 perturbations (``export.verify.verify_robust``; the issue's target: at most 2.5 x
+nominal model (``synth.verification.runs.verify_files``, what ``parmor design`` simulates) and under
+K = 8 perturbations (``synth.verification.runs.verify_robust``; the issue's target: at most 2.5 x
 the nominal verification's time). Wall time and the process's CPU time (all threads) of
 each, best of ``runs``; on a machine other processes load, the CPU ratio is the steadier
 figure.
@@ -44,8 +44,8 @@ def bench_robust(k: int = 8, runs: int = 1, only: str | None = None) -> list[str
     from bench_sim import default_bundles
 
     from adron.catalog import load_catalog
-    from export.perturb import design_table
-    from export.verify import (
+    from synth.verification.perturb import design_table
+    from synth.verification.runs import (
         bundle_parts,
         folder_files,
         physics_check,

@@ -62,13 +62,13 @@ def _forget_plans() -> None:
 def _in_process(catalog: Path, runs: int) -> list[str]:
     from adron.catalog import load_catalog
     from adron.kb import load
-    from export import verify
     from export.bundle import bundle_files
     from export.record import design_record
-    from export.simulate import load_files_model
     from synth.conceptual import Design, Designer, Request
     from synth.solver import Query, Reasoner
     from synth.structure import design_structure
+    from synth.verification import runs as verify
+    from synth.verification.simulate import load_files_model
 
     kb = load()
     designer = Designer(kb, Reasoner(kb))

@@ -381,7 +381,7 @@ class Fuzzer:
         self._run("catalog", what, call)
 
     def perturbation(self) -> None:
-        from export.perturb import ranges
+        from synth.verification.perturb import ranges
 
         data, what = mutate({"perturbation": self.bases["perturbation"]}, self.rng)
         table = data.get("perturbation")
@@ -426,7 +426,7 @@ class Fuzzer:
         """A mutated design.json read as simulate, run, blocks and ros read it."""
         import shutil
 
-        from export.verify import bundle_record, controller_for_model, load_model
+        from synth.verification.runs import bundle_record, controller_for_model, load_model
 
         base = json.loads((folder / "design.json").read_text(encoding="utf-8"))
         data, what = mutate(base, self.rng)

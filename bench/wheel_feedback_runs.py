@@ -5,7 +5,7 @@ the placing error, and the verdict.
     python bench/wheel_feedback_runs.py DIR [K] [--behaviors a,b] [--open]
 
 The bundle may be designed with ``--robustness 0``: the table is then the design's own
-(:func:`export.perturb.design_table` over the bundle's record and the shipped catalog).
+(:func:`synth.verification.perturb.design_table` over the bundle's record and the shipped catalog).
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ sys.path.insert(0, str(REPO))
 
 def main(argv: list[str]) -> None:
     from adron.catalog import load_catalog
-    from export.perturb import design_table, draw, perturbed_model
-    from export.simulate import load_bundle_model, simulate
-    from export.verify import bundle_parts, controller_for_model, folder_files
+    from synth.verification.perturb import design_table, draw, perturbed_model
+    from synth.verification.runs import bundle_parts, controller_for_model, folder_files
+    from synth.verification.simulate import load_bundle_model, simulate
 
     opts = {"--behaviors": ""}
     for key in opts:

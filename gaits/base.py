@@ -79,7 +79,8 @@ class Trajectory:
     a manipulator places its payload), ``stability_margin_m`` ((N,) for legged gaits),
     ``direction`` ((x, y) unit vector of the intended travel)...
 
-    What the behaviour promises, judged by :mod:`export.verdict` on the simulated outcome:
+    What the behaviour promises, judged by :mod:`synth.verification.verdict` on the simulated
+    outcome:
 
     - ``motion``: ``"straight"`` (travel a line), ``"arc"`` (drive an arc), ``"turn"``
       (turn in place), ``"crawl"`` (a snake gait: progress along ``direction``),

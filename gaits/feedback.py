@@ -8,7 +8,7 @@ command interfaces). The loop is data in the plan (``Trajectory.info["feedback"]
 mapping: ``{"loop": KIND, ...its gains}``), so a cached or re-planned trajectory carries it,
 and every runner of a plan (``parmor design``'s verification, ``parmor simulate``,
 ``parmor run``, the ROS node and the block page through :mod:`program.session`) runs the
-same loop: :func:`loop_for` builds it, :mod:`export.simulate` feeds it.
+same loop: :func:`loop_for` builds it, :mod:`synth.verification.simulate` feeds it.
 
 What a loop may read (:class:`Reading`), as the hardware gives it:
 
@@ -23,7 +23,7 @@ What a loop may read (:class:`Reading`), as the hardware gives it:
 
 What it writes: offsets (rad for position servos, rad/s for wheels) added to the plan's
 commands for the next control period; they reach the servos after the bus's latency. The
-period, the latency and the noise are the runner's (:func:`export.simulate.simulate`).
+period, the latency and the noise are the runner's (:func:`synth.verification.simulate.simulate`).
 
 A loop kind is a class registered with :func:`register`; the controllers (chosen by the
 design's structure, never by a type's name) put the kind and its gains in their plans. Pure

@@ -85,14 +85,14 @@ def _require_web(web: Path) -> None:
 
 def read_record(folder: Path) -> dict:
     """The design record of a bundle folder; InputError when it is not a sized one."""
-    from export.verify import bundle_record
+    from synth.verification.runs import bundle_record
 
     return bundle_record(folder)
 
 
 def bundle_controller(folder: Path, record: Mapping) -> Controller:
     """The design's controller, set up for the bundle's MuJoCo model as a run sets it up."""
-    from export.verify import controller_for_model, load_model
+    from synth.verification.runs import controller_for_model, load_model
 
     model = load_model(folder)
     try:

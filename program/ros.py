@@ -553,7 +553,7 @@ def read_bundle(folder: Path) -> tuple[dict, str, dict[str, bytes]]:
     """(design record, URDF text, the meshes it names) of a bundle folder; RosInputError
     naming what is wrong."""
     from export.urdf import relative_meshes
-    from export.verify import bundle_record
+    from synth.verification.runs import bundle_record
 
     record = bundle_record(folder)
     try:

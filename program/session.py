@@ -70,7 +70,7 @@ class Session:
     ) -> None:
         """The bundle in ``folder``, or held in memory as ``files`` (``Outcome.files``).
 
-        ``perturb``: (table, seed) of :mod:`export.perturb` (a design's
+        ``perturb``: (table, seed) of :mod:`synth.verification.perturb` (a design's
         ``verified.robust.table``): the robot is that perturbation's (masses, floor,
         battery, play, compliance), its commands reach the servos ``latency`` late and
         held for each control period, its plans' feedback loops read the IMU with its noise
@@ -80,9 +80,9 @@ class Session:
         frames (a verification, which shows none, saves a tenth of a walker's run)."""
         import mujoco
 
-        from export.simulate import load_files_model
-        from export.verify import bundle_record, controller_for_model
         from program.sensing import SensorNoise, scene_xml, sensing_behaviors
+        from synth.verification.runs import bundle_record, controller_for_model
+        from synth.verification.simulate import load_files_model
 
         if files is None:
             if folder is None:
@@ -167,9 +167,9 @@ class Session:
         """The robot's model under perturbation ``seed`` of ``table`` (its scene included);
         sets :attr:`perturbation`. InputError when the table cannot be applied."""
         from export.mjcf import load_mjcf
-        from export.perturb import draw, perturbed_xml
-        from export.verify import bundle_parts
         from program.sensing import scene_xml
+        from synth.verification.perturb import draw, perturbed_xml
+        from synth.verification.runs import bundle_parts
 
         _, xml, meshes = bundle_parts(files)
         try:
@@ -186,8 +186,8 @@ class Session:
 
     def do(self, behavior: str, **params: object) -> dict:
         """Run one behaviour from where the robot is; its judged figures."""
-        from export.simulate import simulate
-        from export.verify import figures
+        from synth.verification.runs import figures
+        from synth.verification.simulate import simulate
 
         spec = self.behaviors.get(behavior)
         if spec is None:
@@ -251,8 +251,8 @@ class Session:
 
     def _sense(self, behavior: str, spec, params: Mapping[str, object]) -> dict:
         """Run a sensing behaviour (a closed loop, :mod:`program.sensing`); its figures."""
-        from export.verdict import judge
         from program import sensing
+        from synth.verification.verdict import judge
 
         try:
             resolved = spec.resolve(params)
@@ -479,19 +479,19 @@ class Session:
 
         ``plan``: the trajectory these rows are of (a sensing loop's period): when it asks
         for a feedback loop (``info["feedback"]``) the loop runs around it as
-        :func:`export.simulate.simulate` runs it (its ``_ClosedLoop``: the same readings,
-        control period, latency and IMU noise). On a perturbed robot the commands reach
+        :func:`synth.verification.simulate.simulate` runs it (its ``_ClosedLoop``: the same
+        readings, control period, latency and IMU noise). On a perturbed robot the commands reach
         the servos through the bus (:meth:`_bus`).
 
-        The steps run inside MuJoCo (:func:`export.simulate.step_through`) in chunks of
+        The steps run inside MuJoCo (:func:`synth.verification.simulate.step_through`) in chunks of
         1 / :data:`PATH_HZ` s, the path, the animation and ``on_step`` (a sensing loop) being
         served after each; the fall, the saturated steps and the watched geom's contacts (a
         ``contact`` sensor on it, :func:`program.sensing.scene_xml`) are counted over every
         step from what was recorded."""
         import mujoco
 
-        from export.simulate import ServoLaw, start_closed, step_through
-        from export.verdict import COLLAPSE_TILT, SATURATION_LEVEL
+        from synth.verification.simulate import ServoLaw, start_closed, step_through
+        from synth.verification.verdict import COLLAPSE_TILT, SATURATION_LEVEL
 
         m, d = self.model, self.data
         cols = self._columns(joints)
@@ -561,7 +561,8 @@ class Session:
         now: on a perturbed robot each step's is the command sent ``_delay`` steps earlier,
         held for each control period of ``_hold`` steps (on the session's clock, so it
         carries over from one call to the next; before the first command, that one), as
-        :func:`export.simulate.simulate` delays a plan's; the nominal robot's are ``ctrl``."""
+        :func:`synth.verification.simulate.simulate` delays a plan's; the nominal robot's are
+        ``ctrl``."""
         if self.perturbation is None:
             return ctrl
         d, hold = self._delay, self._hold
@@ -577,11 +578,12 @@ class Session:
         return out
 
     def _closed(self, plan, cols):
-        """The feedback loop of ``plan`` wired to this session's run (``export.simulate``'s
-        ``_ClosedLoop``), or None for no plan or a plan run open loop."""
+        """The feedback loop of ``plan`` wired to this session's run
+        (``synth.verification.simulate``'s ``_ClosedLoop``), or None for no plan or a plan run open
+        loop."""
         if plan is None:
             return None
-        from export.simulate import _ClosedLoop
+        from synth.verification.simulate import _ClosedLoop
 
         p = self.perturbation
         columns = [(k, a, velocity) for k, a, _, velocity in cols]
@@ -718,7 +720,7 @@ def perturbed_session(
     session = Session(folder, progress=progress)
     if perturb is None:
         return session
-    from export.verify import recorded_table
+    from synth.verification.runs import recorded_table
 
     return Session(folder, progress=progress, perturb=(recorded_table(session.record), perturb))
 

@@ -287,8 +287,8 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="K",
         help="run every behaviour that passed under K seeded perturbations too (masses, "
         "floor friction and slope, servo play, bus latency, battery at cut-off, link "
-        "compliance; export/perturb.toml) and accept the design only when each passes in "
-        "all of them (the share in that file). Default: K = 8 (that file's default_k; "
+        "compliance; synth/verification/perturb.toml) and accept the design only when each "
+        "passes in all of them (the share in that file). Default: K = 8 (that file's default_k; "
         "the environment variable PARMOR_ROBUSTNESS=K sets another); 0 turns it off "
         "(nominal model only, about 8-15 x faster)",
     )
@@ -711,8 +711,8 @@ MODEL_MODULES = (
     "export.assembly",
     "export.meshes",
     "export.mjcf",
-    "export.simulate",
-    "synth.verify",
+    "synth.verification.simulate",
+    "synth.verification.loop",
     "export.polymesh",
     "mujoco",
 )
@@ -822,7 +822,7 @@ ROBUSTNESS_ENV = "PARMOR_ROBUSTNESS"
 
 def _robustness(k: int | None, no_verify: bool = False) -> int:
     """``--robustness``'s K: -1 (the option alone) is the table's default
-    (``export/perturb.toml``, ``[acceptance] default_k``); without the option (None) the
+    (``synth/verification/perturb.toml``, ``[acceptance] default_k``); without the option (None) the
     design is robustly verified too, with ``PARMOR_ROBUSTNESS`` when it is set, else that
     default (0 under ``--no-verify``: nothing is simulated)."""
     if k is not None and k >= 0:
@@ -836,7 +836,7 @@ def _robustness(k: int | None, no_verify: bool = False) -> int:
                 return _whole("a number of runs", MAX_ROBUSTNESS)(env.strip())
             except argparse.ArgumentTypeError as e:
                 raise InputError(f"environment variable {ROBUSTNESS_ENV}: {e}") from None
-    from export.perturb import ranges
+    from synth.verification.perturb import ranges
 
     return int(ranges()["default_k"])
 
@@ -1304,7 +1304,7 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     folder = Path(args.dir)
     if args.fine and args.perturb is None:
         raise InputError("--fine sets the step of a perturbed run: add --perturb SEED")
-    from export.verify import controller_for_model, figures, load_bundle, run_behavior
+    from synth.verification.runs import controller_for_model, figures, load_bundle, run_behavior
 
     params: dict[str, str] = {}
     for item in args.set:
@@ -1356,8 +1356,8 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                     model, controller, args.behavior, params, args.seconds, progress
                 )
             else:
-                from export.perturb import summary
-                from export.verify import (
+                from synth.verification.perturb import summary
+                from synth.verification.runs import (
                     bundle_record,
                     folder_files,
                     recorded_table,
@@ -1429,8 +1429,8 @@ def _simulate_sensing(folder, args: argparse.Namespace, params: dict) -> dict | 
     from synth.limits import stage
 
     if args.perturb is not None:
-        from export.perturb import summary
-        from export.verify import recorded_table
+        from synth.verification.perturb import summary
+        from synth.verification.runs import recorded_table
 
         session = Session(folder, perturb=(recorded_table(session.record), args.perturb))
     with stage("simulate"):

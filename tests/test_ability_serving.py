@@ -13,9 +13,9 @@ import json
 
 import pytest
 
-import export.verify
 import synth.sweep
-import synth.verify
+import synth.verification.loop
+import synth.verification.runs
 from adron.kb import load
 from gaits import controller_for
 from gaits.base import DesignGeometry, serving
@@ -209,9 +209,9 @@ def test_each_demanded_ability_is_served_or_refused(
     behaviour serves, shipped requests): which behaviour serves each demanded ability, and
     the refusal exactly for those none serves."""
     rec, controller, out = _sized(grid_designer, Request(abilities, answers, params))
-    served = synth.verify.served_abilities(rec, controller)
+    served = synth.verification.loop.served_abilities(rec, controller)
     assert {a: served[a] for a in expected} == expected
-    unserved = synth.verify._unserved(grid_designer, out)
+    unserved = synth.verification.loop._unserved(grid_designer, out)
     assert sorted(unserved) == sorted(a for a, s in expected.items() if s is None)
     for a, s in expected.items():
         if s is not None and s in {b.realises for b in controller.behaviors.values()}:
@@ -277,9 +277,9 @@ CANS = Request(("can-placing",), params=(("object_shape", "cylinder"),))
 def test_a_failing_behaviour_that_serves_a_demanded_subclass_fails_the_request(
     grid_designer, monkeypatch
 ) -> None:
-    monkeypatch.setattr(synth.verify, "HINT_ROUNDS", 0)
+    monkeypatch.setattr(synth.verification.loop, "HINT_ROUNDS", 0)
     bad = _result("pick-and-place", "pick-and-place", ["placing"], placing_error_m=0.012)
-    monkeypatch.setattr(export.verify, "verify_files", _fake([bad]))
+    monkeypatch.setattr(synth.verification.runs, "verify_files", _fake([bad]))
     out = run(grid_designer, CANS, StructureOptions())
     assert out.status == "infeasible"
     assert out.infeasible.startswith("pick-and-place (serving can-placing) failed in simulation")
@@ -289,7 +289,7 @@ def test_a_failing_bonus_behaviour_is_dropped_not_refused(grid_designer, monkeyp
     """Built to pass where the one above fails: positioning serves no demanded ability."""
     bad = _result("positioning", "positioning", ["placing"], placing_error_m=0.02)
     ok = _result("pick-and-place", "pick-and-place")
-    monkeypatch.setattr(export.verify, "verify_files", _fake([ok, bad]))
+    monkeypatch.setattr(synth.verification.runs, "verify_files", _fake([ok, bad]))
     out = run(grid_designer, CANS, StructureOptions())
     rec = out.record(grid_designer)
     assert out.infeasible is None

@@ -12,11 +12,11 @@ import pytest
 
 from adron.catalog import load_catalog
 from export.mjcf import load_mjcf
-from export.perturb import design_table, draw, perturbed_model
-from export.simulate import simulate
-from export.verify import bundle_parts, controller_for_model, folder_files
 from gaits.balance import GAINS, KIND, Balance, balance_joints
 from gaits.feedback import Reading, has_imu, loop_for
+from synth.verification.perturb import design_table, draw, perturbed_model
+from synth.verification.runs import bundle_parts, controller_for_model, folder_files
+from synth.verification.simulate import simulate
 
 
 @pytest.fixture(scope="module")

@@ -47,8 +47,8 @@ def test_the_quadruped_tibia_is_sized_for_its_walk(quadruped) -> None:
 
 
 def test_predicted_torques_agree_with_mujoco(cli, tmp_path) -> None:
-    from export.simulate import load_bundle_model
-    from export.verify import controller_for_model, run_behavior
+    from synth.verification.runs import controller_for_model, run_behavior
+    from synth.verification.simulate import load_bundle_model
 
     folder = tmp_path / "quad"
     run = cli(

@@ -1,5 +1,5 @@
-"""The feedback framework (gaits/feedback.py, export/simulate.py's closed loop): the attitude
-filter, a loop's corrections reaching the servos after the bus latency, the IMU read only
+"""The feedback framework (gaits/feedback.py, synth/verification/simulate.py's closed loop): the
+attitude filter, a loop's corrections reaching the servos after the bus latency, the IMU read only
 where the design carries one, and the servo read-back loop removing a steady error that the
 open-loop plan leaves."""
 
@@ -59,7 +59,7 @@ register("test-needs-imu")(_NeedsImu)
 
 @pytest.fixture(scope="module")
 def arm(designs):
-    from export.verify import controller_for_model, load_bundle
+    from synth.verification.runs import controller_for_model, load_bundle
 
     folder = designs("positioning", "--answer", "orienting=no", "--no-verify").folder
     record, model = load_bundle(folder)
@@ -73,7 +73,7 @@ def _with(traj, spec):
 def test_corrections_reach_the_servos_after_the_latency(arm) -> None:
     import mujoco
 
-    from export.simulate import simulate
+    from synth.verification.simulate import simulate
 
     model, controller = arm
     traj = controller.run(controller.listed(["positioning"])[0])
@@ -110,8 +110,8 @@ def test_corrections_reach_the_servos_after_the_latency(arm) -> None:
 
 
 def test_an_imu_loop_needs_an_imu(arm, humanoid) -> None:
-    from export.simulate import imu_sensors, simulate
-    from export.verify import controller_for_model, load_bundle
+    from synth.verification.runs import controller_for_model, load_bundle
+    from synth.verification.simulate import imu_sensors, simulate
 
     model, controller = arm
     assert imu_sensors(model) is None  # an arm carries no IMU
@@ -134,7 +134,7 @@ def test_servo_read_back_removes_a_steady_error(arm) -> None:
     open loop)."""
     import mujoco
 
-    from export.simulate import simulate
+    from synth.verification.simulate import simulate
 
     model, controller = arm
     traj = controller.run(controller.listed(["positioning"])[0])

@@ -524,10 +524,10 @@ def design(kb, designer, tmp_path_factory):
     from adron.catalog import load_catalog
     from export.bundle import bundle_files, write_bundle
     from export.record import design_record
-    from export.simulate import load_bundle_model
     from synth.conceptual import Design, Request
     from synth.solver import Query
     from synth.structure import design_structure
+    from synth.verification.simulate import load_bundle_model
 
     cand = next(
         c for c in designer.reasoner.solve(Query()).candidates if c.robot_type == "HumanoidRobot"
@@ -542,7 +542,7 @@ def design(kb, designer, tmp_path_factory):
 
 
 def _verdict(design, name, compensated=True, **params):
-    from export.verify import controller_for_model, figures, run_behavior
+    from synth.verification.runs import controller_for_model, figures, run_behavior
 
     geometry, model, record = design
     if not compensated:  # the open-loop walk of a biped without an IMU (no balance loop)

@@ -14,7 +14,6 @@ import pytest
 from adron.catalog import load_catalog
 from export.bundle import bundle_files, write_bundle
 from export.record import design_record
-from export.simulate import load_bundle_model, simulate
 from gaits.base import DesignGeometry, min_jerk_integral
 from gaits.wheeled import (
     CASTER_FRICTION,
@@ -36,7 +35,8 @@ from synth.conceptual import Design, Request
 from synth.sizing import Wheeled
 from synth.solver import Query
 from synth.structure import design_structure
-from synth.verify import calibrate
+from synth.verification.loop import calibrate
+from synth.verification.simulate import load_bundle_model, simulate
 
 
 def _geometry(robot_type: str, speed: float = 6.0) -> DesignGeometry:
@@ -204,7 +204,7 @@ def test_bad_commands_raise() -> None:
 @pytest.fixture(scope="module")
 def designs(kb, designer, tmp_path_factory):
     """Default design of each wheeled type, calibrated as ``parmor design`` calibrates it
-    (``synth.verify.calibrate``: none for the differential drive): (controller, MuJoCo
+    (``synth.verification.loop.calibrate``: none for the differential drive): (controller, MuJoCo
     model)."""
     catalog = load_catalog()
     out = {}

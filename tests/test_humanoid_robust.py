@@ -1,5 +1,5 @@
 """The humanoid under perturbation (issue 22): the servos' play modelled as a passive hinge
-with end stops (export/perturb.py) must hold its range under the robot's weight.
+with end stops (synth/verification/perturb.py) must hold its range under the robot's weight.
 
 MuJoCo's default limit (time constant 0.02 s) makes a stop's stiffness proportional to the
 inertia behind the hinge: behind an ankle's roll hinge there is only the foot, and the
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from export import perturb
+from synth.verification import perturb
 
 #: Perturbations of the design's table the tuned walk passes whole (of seeds 1-8: the
 #: grid in bench/robust_humanoid.py) and the default one falls in.
@@ -39,8 +39,8 @@ def _run(
 
     from adron.catalog import load_catalog
     from export.mjcf import load_mjcf
-    from export.simulate import simulate
-    from export.verify import bundle_parts, controller_for_model, folder_files
+    from synth.verification.runs import bundle_parts, controller_for_model, folder_files
+    from synth.verification.simulate import simulate
 
     record, xml, meshes = bundle_parts(folder_files(folder))
     table = json.loads(json.dumps(perturb.design_table(record, xml, load_catalog())))
@@ -96,7 +96,7 @@ def test_the_default_soft_stop_bends_far_past_the_play(humanoid, monkeypatch, wi
 
 
 def test_the_play_stop_is_two_physics_steps(humanoid) -> None:
-    from export.verify import bundle_parts, folder_files
+    from synth.verification.runs import bundle_parts, folder_files
 
     record, xml, meshes = bundle_parts(folder_files(humanoid))
     from adron.catalog import load_catalog

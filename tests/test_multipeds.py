@@ -149,9 +149,9 @@ def test_a_statically_unstable_gait_fails_only_the_stability_verdict(cli, tmp_pa
     support triangle's diagonal through the centre of mass (planned margin 0); in MuJoCo
     the trunk tips onto the swinging foot, yet travels, keeps its heading and does not
     fall: only the measured margin tells (the same crawl with its sway passes)."""
-    from export.simulate import simulate
-    from export.verify import controller_for_model, load_bundle
     from gaits.hexapod import MIN_MARGIN
+    from synth.verification.runs import controller_for_model, load_bundle
+    from synth.verification.simulate import simulate
 
     src = tmp_path / "walker4.kif"
     src.write_text(_kif(4))
@@ -177,7 +177,7 @@ def test_a_statically_unstable_gait_fails_only_the_stability_verdict(cli, tmp_pa
     result = simulate(model, bad)
     assert result.verdict == ["stability"], result.to_dict()
     assert result.support_margin_m < 0 and not result.fell
-    from export.verdict import explain
+    from synth.verification.verdict import explain
 
     why = explain(result.to_dict(), result.verdict)
     assert "left the feet's support polygon" in why and "-" in why
@@ -187,8 +187,8 @@ def test_no_contact_is_no_support() -> None:
     """A robot in the air has no support polygon: its margin is minus infinity, reported as
     None, and a promise of static stability then fails."""
     mujoco = pytest.importorskip("mujoco")
-    from export.simulate import support_margin_of
-    from export.verdict import judge
+    from synth.verification.simulate import support_margin_of
+    from synth.verification.verdict import judge
 
     model = mujoco.MjModel.from_xml_string(
         '<mujoco><worldbody><geom type="plane" size="1 1 0.1"/><body pos="0 0 1">'
@@ -219,7 +219,7 @@ def test_the_studies_cover_every_count_with_at_least_30_requests() -> None:
 def test_the_spread_gaits_walk_every_way_in_mujoco(cli, tmp_path, n) -> None:
     """Each gait spread around the trunk (tripod, tetrapod) keeps every verdict walking
     forward, backward, sideways and at an angle (three cycles), and turning both ways."""
-    from export.verify import controller_for_model, figures, load_bundle, run_behavior
+    from synth.verification.runs import controller_for_model, figures, load_bundle, run_behavior
 
     src = tmp_path / f"walker{n}.kif"
     src.write_text(_kif(n))

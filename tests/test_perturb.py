@@ -1,9 +1,10 @@
 """Verification under the variation a printed robot meets (issue 22): seeded perturbations
-of the MuJoCo model (export/perturb.py), the robust verification (export.verify.
-verify_robust), its acceptance rule in the design loop (synth/robust.py) and the replay
-(``parmor simulate DIR --perturb SEED``). Cases built to fail: a design that passes
-nominally and fails with backlash, one that fails at the low battery voltage, a seed
-that reproduces a failure. The robot is an arm of the tests' own KIF (no shipped type)."""
+of the MuJoCo model (synth/verification/perturb.py), the robust verification
+(synth.verification.runs. verify_robust), its acceptance rule in the design loop
+(synth/verification/robust.py) and the replay (``parmor simulate DIR --perturb SEED``). Cases built
+to fail: a design that passes nominally and fails with backlash, one that fails at the low battery
+voltage, a seed that reproduces a failure. The robot is an arm of the tests' own KIF (no shipped
+type)."""
 
 from __future__ import annotations
 
@@ -16,8 +17,9 @@ from pathlib import Path
 import pytest
 
 from adron.errors import InputError
-from export import perturb
-from export.verify import (
+from synth.cli import main
+from synth.verification import perturb
+from synth.verification.runs import (
     bundle_parts,
     controller_for_model,
     figures,
@@ -27,7 +29,6 @@ from export.verify import (
     verify_files,
     verify_robust,
 )
-from synth.cli import main
 
 #: A stationary arm of three position servos, each followed by a printed link, ending in a
 #: gripper (the manipulator axiom's shape), with an ability only it has.
@@ -212,7 +213,7 @@ def test_a_neutral_perturbation_is_the_nominal_run(parts) -> None:
     """Every range closed: the perturbed run is the nominal one, figure for figure (the
     hooks change nothing at their neutral values)."""
     from export.mjcf import load_mjcf
-    from export.verify import run_behavior
+    from synth.verification.runs import run_behavior
 
     files, record, xml, meshes = parts
     table = table_of(parts, NEUTRAL)
@@ -259,7 +260,7 @@ def test_latency_shifts_the_commands(parts) -> None:
     """Zero latency is the nominal run to the bit; half a second of it leaves the gripper
     short of the target when the move ends."""
     from export.mjcf import load_mjcf
-    from export.simulate import simulate
+    from synth.verification.simulate import simulate
 
     _, record, xml, meshes = parts
     model = load_mjcf(xml, meshes)
@@ -376,7 +377,8 @@ def test_a_bad_perturbation_table_in_the_catalog_is_exit_2(kif, tmp_path: Path, 
     assert not out.exists()
 
 
-# --- the design loop's use of the perturbed runs (synth/robust.py), the runs faked --------
+# --- the design loop's use of the perturbed runs (synth/verification/robust.py), the runs faked
+# --------
 
 
 def _robust(behaviors: list[tuple[str, str, list[dict]]]) -> dict:
@@ -414,7 +416,7 @@ def _run(seed: int, verdict="ok", **kw) -> dict:
 def test_a_saturated_perturbed_run_gets_a_stronger_actuator(kif, parts, cli, monkeypatch):
     """The sizing loop strengthens a joint that saturated in a perturbed run, as it does
     for a nominal one, and verifies again."""
-    import export.verify
+    import synth.verification.runs
 
     joint = next(j["name"] for j in parts[1]["joints"] if j["group"] != "gripper")
     answers = [
@@ -440,7 +442,7 @@ def test_a_saturated_perturbed_run_gets_a_stronger_actuator(kif, parts, cli, mon
         calls.append(k)
         return answers[min(len(calls), len(answers)) - 1]
 
-    monkeypatch.setattr(export.verify, "verify_robust", fake)
+    monkeypatch.setattr(synth.verification.runs, "verify_robust", fake)
     r = cli("design", *REQUEST, "--ontology", str(kif), "--robustness", "2", "--json")
     assert r.code == 0, r.err
     rec = json.loads(r.out)
@@ -450,7 +452,7 @@ def test_a_saturated_perturbed_run_gets_a_stronger_actuator(kif, parts, cli, mon
 
 
 def test_a_bonus_ability_not_robust_is_dropped(kif, cli, monkeypatch):
-    import export.verify
+    import synth.verification.runs
 
     answer = _robust(
         [
@@ -458,7 +460,7 @@ def test_a_bonus_ability_not_robust_is_dropped(kif, cli, monkeypatch):
             ("grasping", "grasping", [_run(1), _run(2, ["placing"])]),
         ]
     )
-    monkeypatch.setattr(export.verify, "verify_robust", lambda *a, **kw: answer)
+    monkeypatch.setattr(synth.verification.runs, "verify_robust", lambda *a, **kw: answer)
     r = cli("design", *REQUEST, "--ontology", str(kif), "--robustness", "2", "--json")
     assert r.code == 0, r.err
     rec = json.loads(r.out)
@@ -491,7 +493,7 @@ def test_sweep_reports_nominal_and_robust_pass_rates(kif, tmp_path: Path, cli, m
     ``parmor design --robustness K`` does: a request whose demanded behaviour is not
     robust (built to fail: its second run fails) is refused and counted as nominal ok,
     robust not; the other is both."""
-    import export.verify
+    import synth.verification.runs
 
     calls = []
 
@@ -503,8 +505,8 @@ def test_sweep_reports_nominal_and_robust_pass_rates(kif, tmp_path: Path, cli, m
             [("pick-and-place", "pick-and-place", [_run(1), _run(2, ["placing"] if bad else "ok")])]
         )
 
-    monkeypatch.setattr(export.verify, "verify_robust", fake)
-    monkeypatch.setattr(export.verify, "verify_files", _nominal_ok)
+    monkeypatch.setattr(synth.verification.runs, "verify_robust", fake)
+    monkeypatch.setattr(synth.verification.runs, "verify_files", _nominal_ok)
     study = _study(tmp_path, kif, 2)
     r = cli("sweep", str(study), "--jobs", "1", "--json")
     assert r.code == 0, r.err
@@ -523,13 +525,13 @@ def test_sweep_reports_nominal_and_robust_pass_rates(kif, tmp_path: Path, cli, m
 
 
 def test_sweep_without_robustness_runs_no_perturbation(kif, tmp_path: Path, cli, monkeypatch):
-    import export.verify
+    import synth.verification.runs
 
     def fail(*a, **kw):
         raise AssertionError("perturbed runs in a study without robustness")
 
-    monkeypatch.setattr(export.verify, "verify_robust", fail)
-    monkeypatch.setattr(export.verify, "verify_files", _nominal_ok)
+    monkeypatch.setattr(synth.verification.runs, "verify_robust", fail)
+    monkeypatch.setattr(synth.verification.runs, "verify_files", _nominal_ok)
     study = _study(tmp_path, kif, 0)
     r = cli("sweep", str(study), "--jobs", "1", "--json")
     assert r.code == 0, r.err

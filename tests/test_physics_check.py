@@ -1,4 +1,4 @@
-"""The perturbed runs' coarse time step (export.verify.physics_check): used only where the
+"""The perturbed runs' coarse time step (synth.verification.runs.physics_check): used only where the
 design's nominal runs agree at it, recorded with the table (so a replay uses it), and
 ``simulate --perturb SEED --fine`` runs the model's own step."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from export import verify
+from synth.verification import runs as verify
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +34,7 @@ def test_a_disagreeing_figure_keeps_the_fine_step(arm, monkeypatch) -> None:
 
 def test_the_table_carries_the_step_into_the_perturbed_model(arm) -> None:
     from adron.catalog import load_catalog
-    from export.perturb import design_table, draw, perturbed_model
+    from synth.verification.perturb import design_table, draw, perturbed_model
 
     record, xml, meshes = verify.bundle_parts(verify.folder_files(arm))
     table = design_table(record, xml, load_catalog())
@@ -51,7 +51,7 @@ def test_fine_needs_a_perturbed_run(cli, arm) -> None:
 
 
 def test_what_k_of_k_shows() -> None:
-    from synth.robust import shows, success_bound
+    from synth.verification.robust import shows, success_bound
 
     assert success_bound(8, 8) == pytest.approx(0.1 ** (1 / 8))  # 0.7499: "> 74 %"
     assert success_bound(30, 30) > 0.92

@@ -3,7 +3,7 @@ perturbed runs passed), not the alphabetically first, and the other demanded one
 
 from __future__ import annotations
 
-from synth.robust import not_robust
+from synth.verification.robust import not_robust
 
 
 def _b(name: str, passed: int, runs: int = 8) -> dict:

@@ -24,9 +24,9 @@ import pytest
 import gaits.base
 import gaits.hexapod as hexapod
 import gaits.legged as legged
-from export import perturb
-from export.verify import bundle_parts, folder_files, run_perturbed
 from synth.cli import main
+from synth.verification import perturb
+from synth.verification.runs import bundle_parts, folder_files, run_perturbed
 from tests.test_bodyplan import legged_kif
 
 WORDS = {4: "four", 5: "five", 6: "six", 7: "seven", 8: "eight"}
@@ -137,7 +137,7 @@ def test_every_count_turns_within_its_pace_and_keeps_its_margin(walkers, n) -> N
     their actuators' no-load speeds, walking's within SPEED_MARGIN, both keep MIN_MARGIN,
     and the crawl, whose trunk sways, more than the previous sway's 15 mm."""
     from export.mjcf import load_mjcf
-    from export.verify import controller_for_model
+    from synth.verification.runs import controller_for_model
 
     files = folder_files(walkers[n])
     record, xml, meshes = bundle_parts(files)

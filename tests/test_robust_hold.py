@@ -1,4 +1,4 @@
-"""Perturbed runs that the servos' command hold breaks (issue 22, ``synth.robust_legs``):
+"""Perturbed runs that the servos' command hold breaks (issue 22, ``synth.verification.hold``):
 a position servo gives its stall torque ``export.mjcf.SERVO_BAND`` off its reference, and
 a command held for the bus's control period makes a fast joint's reference jump further
 than that at every frame: the servo saturates with no stronger actuator to answer it.
@@ -14,11 +14,11 @@ from pathlib import Path
 
 import pytest
 
-from export import perturb
 from export.mjcf import SERVO_BAND
-from export.verify import bundle_parts, folder_files, run_perturbed, verify_robust
 from synth.cli import main
-from synth.robust_legs import hold_attribution, hold_blame, hold_note
+from synth.verification import perturb
+from synth.verification.hold import hold_attribution, hold_blame, hold_note
+from synth.verification.runs import bundle_parts, folder_files, run_perturbed, verify_robust
 from tests.test_bodyplan import legged_kif
 
 

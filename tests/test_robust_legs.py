@@ -19,10 +19,10 @@ import pytest
 
 import gaits.base
 import gaits.legged as legged
-from export import perturb
-from export.verify import bundle_parts, folder_files, run_perturbed
 from gaits.hexapod import _advance
 from synth.cli import main
+from synth.verification import perturb
+from synth.verification.runs import bundle_parts, folder_files, run_perturbed
 from tests.test_bodyplan import legged_kif
 
 #: Every perturbation closed at its neutral value except the gears' backlash and the
@@ -144,7 +144,7 @@ def test_nominal_turn_keeps_its_angle(quadruped) -> None:
     """Without any perturbation the turn with the approach still ends at its angle (the
     nominal verification's turn criterion) and its plan records the same heading."""
     from export.mjcf import load_mjcf
-    from export.verify import controller_for_model, verify_files
+    from synth.verification.runs import controller_for_model, verify_files
 
     files = folder_files(quadruped)
     record, xml, meshes = bundle_parts(files)

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from export.perturb import design_table, draw
-from export.verify import bundle_parts, folder_files, robust_missing, verify_robust
 from program.sensing import SensorNoise, run_sensing
+from synth.verification.perturb import design_table, draw
+from synth.verification.runs import bundle_parts, folder_files, robust_missing, verify_robust
 
 #: The demo cart with both sensing abilities, not verified (its runs are made here).
 SENSING_CART = ("driving", "line-tracking", "obstacle-avoidance", "--no-verify")
@@ -115,7 +115,7 @@ def test_a_sensing_loop_missing_from_the_perturbed_runs_is_found(verified) -> No
         b for b in broken["verified"]["robust"]["behaviors"] if b["behavior"] != "line-tracking"
     ]
     assert robust_missing(broken) == ["line-tracking"]
-    from synth.verify import robust_skipped
+    from synth.verification.loop import robust_skipped
 
     assert robust_skipped(broken["verified"]["behaviors"], broken["verified"]["robust"]) == [
         "line-tracking"
@@ -155,7 +155,7 @@ def test_parmor_run_ends_where_the_verification_says(cli, verified, robust, tmp_
 def test_an_impossible_perturbation_fails_the_line_follower(cart, table) -> None:
     """Sensors whose edge jitters by 3 cm (a tape of 19 mm) lose the line; a floor of
     a twentieth of the friction does too. The failure names the sensors' draws."""
-    from export.verify import robust_failure
+    from synth.verification.runs import robust_failure
 
     noisy = dict(table, infrared={"edge_offset_m": 0.0, "edge_jitter_m": 0.03})
     icy = dict(table, friction=[0.05, 0.05])
@@ -186,7 +186,7 @@ def test_the_bus_delays_and_holds_the_commands(cart, table) -> None:
 
 def test_a_sensing_loops_plans_run_their_feedback_loop(cart, monkeypatch) -> None:
     """A plan that asks for a feedback loop is run closed inside a sensing loop too (the
-    session's stepping wires export.simulate's loop): its loop reads the servos at the
+    session's stepping wires synth.verification.simulate's loop): its loop reads the servos at the
     control rate (every 20 ms) and its offsets reach them."""
     from gaits import feedback
     from program.session import Session
@@ -226,7 +226,7 @@ def test_a_bundle_not_verified_under_perturbation_cannot_be_replayed(cli, cart, 
 
 
 def test_parmor_design_lists_the_sensing_loops_in_verified_robust(cli) -> None:
-    """The design loop (synth/verify.py) runs the loops perturbed once the repairs are
+    """The design loop (synth/verification/loop.py) runs the loops perturbed once the repairs are
     done: every behaviour the design lists is in ``verified.robust``."""
     r = cli("design", "driving", "line-tracking", "--robustness", "2", "--no-input", "--json")
     assert r.code == 0, r.err

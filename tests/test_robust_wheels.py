@@ -33,7 +33,7 @@ def bundle(tmp_path_factory) -> Path:
 
 
 def test_the_nominal_case_neutralises_every_component() -> None:
-    from export.perturb import draw
+    from synth.verification.perturb import draw
 
     table = {
         "stream": 1,
@@ -62,7 +62,7 @@ def test_the_replay_names_the_component_that_breaks_the_run(bundle) -> None:
     odometry (gaits.wheel_feedback, what the design runs) the same perturbation passes."""
     import json
 
-    from export.verify import verify_bundle
+    from synth.verification.runs import verify_bundle
 
     _, closed = robust_isolate.replays(str(bundle), "driving", SEED)
     assert closed["all"]["verdict"] == "ok", closed["all"]
@@ -119,9 +119,9 @@ def test_a_turn_in_place_at_its_default_speed_is_robust(tmp_path, monkeypatch) -
     import gaits.base
     import gaits.wheeled
     from adron.catalog import load_catalog
-    from export.perturb import design_table
-    from export.verify import bundle_parts, folder_files, verify_robust
     from synth.cli import main
+    from synth.verification.perturb import design_table
+    from synth.verification.runs import bundle_parts, folder_files, verify_robust
 
     out = tmp_path / "dd"
     argv = ["design", "driving", "--param", "payload=0.5kg", "--param", "speed=0.1m/s"]

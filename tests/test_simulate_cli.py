@@ -95,7 +95,7 @@ def test_a_bundle_is_simulated_carrying_its_payload(cart, tmp_path) -> None:
     verification all run the loaded robot, once: not twice where the models carry it."""
     import shutil
 
-    from export.simulate import carrying_payload, load_bundle_model
+    from synth.verification.simulate import carrying_payload, load_bundle_model
 
     rec = json.loads((cart / "design.json").read_text(encoding="utf-8"))
     pay = rec["payload"]

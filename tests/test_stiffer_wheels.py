@@ -1,4 +1,4 @@
-"""The wheels' answer to a perturbed run they break (issue 22, synth/robust_wheels.py): the
+"""The wheels' answer to a perturbed run they break (issue 22, synth/verification/wheels.py): the
 failed runs replayed with each stiffer wheel servo of the catalog; the first with which
 they all pass is the answer the sizing loop takes (the wheels may have no less stiff
 servo), and a refusal names the servos tried when none helps.
@@ -19,7 +19,7 @@ import pytest
 
 from adron.catalog import load_catalog
 from synth.cli import main
-from synth.robust_wheels import (
+from synth.verification.wheels import (
     kv,
     stiffer_servos,
     swapped_files,
@@ -46,7 +46,7 @@ def catalog():
 @pytest.fixture(scope="module")
 def bundle(tmp_path_factory) -> dict[str, bytes]:
     """The drive sized nominally (not verified), as the bundle's files."""
-    from export.verify import folder_files
+    from synth.verification.runs import folder_files
 
     folder = tmp_path_factory.mktemp("drive") / "bundle"
     code, _, err = _main("design", *REQUEST, "--no-verify", "--out", str(folder))
@@ -69,8 +69,8 @@ def open_loop(monkeypatch):
 
 
 def _table(files, catalog, **override) -> dict:
-    from export.perturb import design_table
-    from export.verify import bundle_parts
+    from synth.verification.perturb import design_table
+    from synth.verification.runs import bundle_parts
 
     record, xml, _ = bundle_parts(files)
     return json.loads(json.dumps(design_table(record, xml, catalog))) | override
@@ -114,7 +114,7 @@ def test_stiffer_servos_the_least_stiff_first_and_only_those_fast_enough(bundle,
 
 def test_the_swapped_bundle_is_the_servo_in_both_files(bundle, catalog) -> None:
     from export.mjcf import load_mjcf
-    from export.verify import bundle_parts, controller_for_model
+    from synth.verification.runs import bundle_parts, controller_for_model
 
     a = next(x for x in catalog.actuators if x.model == "FS5113R")
     files = swapped_files(bundle, ["left_wheel", "right_wheel"], a)
@@ -141,7 +141,7 @@ def test_a_stiffer_wheel_servo_answers_the_veer_on_a_cross_slope(
     """The shipped table: driving veers on seeds 1, 3 and 6 (cross slopes of 1.9-2.9 deg);
     replayed with FS5113R wheels, every one passes: the answer excludes the servos less
     stiff than it."""
-    from export.verify import verify_robust
+    from synth.verification.runs import verify_robust
 
     table = _table(bundle, catalog)
     robust = verify_robust(bundle, 8, table, ["driving"])
@@ -171,7 +171,7 @@ def test_a_floor_no_wheel_servo_holds_is_not_answered(bundle, catalog, open_loop
     wheels: none of the stiffer servos makes the failed runs pass, so none is excluded,
     and the refusal's note names the servos tried. (Closed on the wheels' odometry the
     FS5113R holds it there: the stiffer servo still answers what saturates the loop.)"""
-    from export.verify import verify_robust
+    from synth.verification.runs import verify_robust
 
     table = _table(bundle, catalog, max_slope_rad=0.35)
     robust = verify_robust(bundle, 2, table, ["driving"])
@@ -186,7 +186,7 @@ def test_a_floor_no_wheel_servo_holds_is_not_answered(bundle, catalog, open_loop
 
 
 def test_nothing_to_answer_without_a_failed_run(bundle, catalog) -> None:
-    from export.verify import verify_robust
+    from synth.verification.runs import verify_robust
 
     table = _table(bundle, catalog, max_slope_rad=0.0)
     robust = verify_robust(bundle, 1, table, ["driving"])
@@ -235,7 +235,7 @@ def test_a_kif_only_steered_type_gets_stiffer_wheels(tmp_path: Path, monkeypatch
     front, two driven behind) gets the same answer: with 0.3 kg at 0.1 m/s its FS90R
     wheels under-turn on the slopes; sized with FS5113R it is robust. Without the answer
     (the case built to fail) it is refused."""
-    import synth.robust_wheels
+    import synth.verification.wheels
     from tests.test_steered import CART
 
     kif = tmp_path / "cart.kif"
@@ -252,7 +252,7 @@ def test_a_kif_only_steered_type_gets_stiffer_wheels(tmp_path: Path, monkeypatch
         j: {"from": "FS90R", "to": "FS5113R"} for j in ("left_wheel", "right_wheel")
     }
     assert all(b["passed"] == 8 for b in rec["verified"]["robust"]["behaviors"])
-    monkeypatch.setattr(synth.robust_wheels, "wheel_exclusions", lambda *a, **k: ({}, None))
+    monkeypatch.setattr(synth.verification.wheels, "wheel_exclusions", lambda *a, **k: ({}, None))
     code, _, err = _main(*argv)
     assert code == 1 and "turning is not robust" in err, err
 
@@ -261,7 +261,7 @@ def test_the_closed_loop_needs_no_stiffer_servo(bundle, catalog) -> None:
     """Closed on the wheels' odometry (gaits.wheel_feedback) the FS90R drive holds its
     heading on the cross slopes that veered it open loop (seeds 1, 3, 6): every run
     passes, nothing to answer."""
-    from export.verify import verify_robust
+    from synth.verification.runs import verify_robust
 
     table = _table(bundle, catalog)
     robust = verify_robust(bundle, 8, table, ["driving"])

@@ -268,9 +268,9 @@ def fake_verify(files) -> list[dict]:
 def test_summary_counts_failures_by_criterion(
     cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import export.verify
+    import synth.verification.runs
 
-    monkeypatch.setattr(export.verify, "verify_files", fake_verify)
+    monkeypatch.setattr(synth.verification.runs, "verify_files", fake_verify)
     study = write(
         tmp_path / "s.toml",
         '[[request]]\nname = "snake"\nabilities = ["rolling"]\n'
@@ -315,12 +315,12 @@ def test_summary_counts_failures_by_criterion(
 def test_a_crash_is_reported_not_stored_and_tried_again(
     cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import export.verify
+    import synth.verification.runs
 
     def broken(files):
         raise RuntimeError("simulator exploded")
 
-    monkeypatch.setattr(export.verify, "verify_files", broken)
+    monkeypatch.setattr(synth.verification.runs, "verify_files", broken)
     study = write(tmp_path / "s.toml", '[[request]]\nabilities = ["rolling"]\n')
     r = cli("sweep", str(study), "--jobs", "1")
     assert r.code == 0 and "1 request(s) failed with an error" in r.err
@@ -328,7 +328,7 @@ def test_a_crash_is_reported_not_stored_and_tried_again(
     assert rows(out)[0]["status"] == "error"
     assert "RuntimeError: simulator exploded" in rows(out)[0]["reason"]
     assert not list((out / "requests").glob("*.json"))
-    monkeypatch.setattr(export.verify, "verify_files", fake_verify)
+    monkeypatch.setattr(synth.verification.runs, "verify_files", fake_verify)
     r = cli("sweep", str(study), "--jobs", "1")
     assert r.code == 0 and [g["status"] for g in rows(out)] == ["accepted", "accepted"]
     assert [g["listed"] for g in rows(out)] == ["true", "false"]
@@ -336,7 +336,7 @@ def test_a_crash_is_reported_not_stored_and_tried_again(
 
 def test_simulated_sweep_of_a_differential_drive(cli, tmp_path: Path) -> None:
     """The real harness: every figure of the behaviour's simulation record is a column."""
-    from export.verify import verify_files  # noqa: F401 (the harness this test runs)
+    from synth.verification.runs import verify_files  # noqa: F401 (the harness this test runs)
 
     study = write(tmp_path / "s.toml", '[[request]]\nabilities = ["driving"]\n')
     r = cli("sweep", str(study), "--jobs", "1", "--json")

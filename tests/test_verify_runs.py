@@ -1,4 +1,4 @@
-"""The verification's runs (export/verify.py: verify_model): behaviours with the same plan
+"""The verification's runs (synth/verification/runs.py: verify_model): behaviours with the same plan
 are simulated once, the others on threads, and the figures are those of one run each, in
 name order."""
 
@@ -9,9 +9,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from export import verify
-from export.simulate import SimResult
 from gaits.base import BehaviorSpec, Trajectory
+from synth.verification import runs as verify
+from synth.verification.simulate import SimResult
 
 
 def _traj(name: str, scale: float = 1.0) -> Trajectory:

@@ -51,9 +51,9 @@ def six(tmp_path_factory) -> Path:
 def _perturbed(folder: Path, behavior: str, seed: int, feedback: bool = True):
     """(trajectory, SimResult) of ``behavior`` under the design's perturbation ``seed``."""
     from adron.catalog import load_catalog
-    from export.perturb import design_table, draw, perturbed_model
-    from export.simulate import load_bundle_model, simulate
-    from export.verify import bundle_parts, controller_for_model, folder_files
+    from synth.verification.perturb import design_table, draw, perturbed_model
+    from synth.verification.runs import bundle_parts, controller_for_model, folder_files
+    from synth.verification.simulate import load_bundle_model, simulate
 
     record, xml, meshes = bundle_parts(folder_files(folder))
     table = design_table(record, xml, load_catalog())
@@ -107,9 +107,9 @@ def test_the_imu_heading_only_where_the_design_carries_an_imu(skid, six) -> None
     that would read an IMU is refused on its model."""
     from dataclasses import replace
 
-    from export.simulate import load_bundle_model, simulate
-    from export.verify import bundle_parts, controller_for_model, folder_files
     from gaits.feedback import loop_for
+    from synth.verification.runs import bundle_parts, controller_for_model, folder_files
+    from synth.verification.simulate import load_bundle_model, simulate
 
     for folder, imu in ((skid, True), (six, False)):
         record, _, _ = bundle_parts(folder_files(folder))
@@ -208,8 +208,8 @@ def test_the_base_holds_its_place_while_the_arm_works(mobile) -> None:
     its arm's grasp (more than the verdict's hold drift of 10 % of its length; the
     gripper lands 96 mm off); its wheels held on their encoders it stays within a
     millimetre and places within the verdict's 5 mm."""
-    from export.verdict import HOLD_DRIFT, PLACING
     from gaits.feedback import loop_for
+    from synth.verification.verdict import HOLD_DRIFT, PLACING
 
     traj, closed = _perturbed(mobile, "grasping", 3)
     assert isinstance(loop_for(traj), WheelHold)

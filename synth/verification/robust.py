@@ -1,9 +1,9 @@
 """Robust verification in the design loop: a sized design's behaviours run under K seeded
-perturbations (:mod:`export.perturb`, :func:`export.verify.verify_robust`) once they pass
-on the nominal model, and judged by the acceptance rule: every behaviour passes in at
-least ``share`` x K of its runs (``export/perturb.toml``, ``[acceptance]``).
+perturbations (:mod:`synth.verification.perturb`, :func:`synth.verification.runs.verify_robust`)
+once they pass on the nominal model, and judged by the acceptance rule: every behaviour passes in at
+least ``share`` x K of its runs (``synth/verification/perturb.toml``, ``[acceptance]``).
 
-:mod:`synth.verify` calls :func:`robust_check` where it judges the nominal results: a
+:mod:`synth.verification.loop` calls :func:`robust_check` where it judges the nominal results: a
 perturbed run that failed with an actuator at its limit feeds the same loop as a nominal
 one (:func:`failing_runs`: each saturated joint gets a stronger actuator, the design is
 sized again); a behaviour still not robust then fails a demanded ability (the request is
@@ -50,8 +50,8 @@ def robust_check(
     ``table``: a table already chosen (the sensing loops' runs after the plans')."""
     if k <= 0 or outcome.structure is None or outcome.catalog is None:
         return None
-    from export.perturb import design_table
-    from export.verify import bundle_parts, verify_robust
+    from synth.verification.perturb import design_table
+    from synth.verification.runs import bundle_parts, verify_robust
 
     files = robust_files(designer, outcome) if files is None else files
     checked = None
@@ -76,11 +76,11 @@ def physics(
     nominal: Sequence[Mapping] | None = None,
     sensed: Sequence[Mapping] | None = None,
 ) -> dict:
-    """:func:`export.verify.physics_check` of the plans (``nominal``: their fine runs when
+    """:func:`synth.verification.runs.physics_check` of the plans (``nominal``: their fine runs when
     known), and where they agree at the coarse step, the sensing loops' too (``sensed``:
     their fine nominal runs, ``program.sensing.verify_sensing``; each run again on the
     bundle at the coarse step): one step for every perturbed run of the design."""
-    from export.verify import agreement, coarse_xml, physics_check
+    from synth.verification.runs import agreement, coarse_xml, physics_check
 
     checked = physics_check(files, nominal)
     loops = [r for r in sensed or () if r.get("verdict") is not None]
@@ -170,11 +170,11 @@ BLAMED_RUNS = 3
 
 def play_blame(files: Mapping[str, str | bytes], robust: Mapping | None) -> list[dict]:
     """The failed perturbed runs of the behaviours that are not robust which the joints'
-    play breaks, measured (:func:`export.verify.play_attribution`: each run replayed with
+    play breaks, measured (:func:`synth.verification.runs.play_attribution`: each run replayed with
     the same perturbation less the play): per run its behaviour, seed, failed criteria and
     the joints whose play must go for it to pass (up to ``BLAMED_RUNS`` runs a
     behaviour). A run that still fails without any play is not the play's (none listed)."""
-    from export.verify import play_attribution
+    from synth.verification.runs import play_attribution
 
     return replayed_blame(files, robust, play_attribution, BLAMED_RUNS)
 
@@ -221,7 +221,7 @@ def less_play(
     """The play feedback of the verification loop: for each joint whose play broke a run
     (``blamed``, :func:`play_blame`), the models it may no longer have: its actuator
     (``models``: joint -> model) and every one with as much play (``play``: model -> the
-    largest play, :func:`export.perturb.catalog_play`), when a model that serves it
+    largest play, :func:`synth.verification.perturb.catalog_play`), when a model that serves it
     (``serving``) has less. (joint -> models excluded, new entries only; the blamed joints
     that no model with less play serves)."""
     out: dict[str, frozenset[str]] = {}
@@ -287,12 +287,12 @@ def failing_runs(robust: Mapping | None) -> list[dict]:
 
 
 def not_robust(robust: Mapping | None) -> list[tuple[str, str]]:
-    """(ability, why) of each behaviour that is not robust (:func:`export.verify.
+    """(ability, why) of each behaviour that is not robust (:func:`synth.verification.runs.
     robust_failure`), the worst first: the smallest share of its perturbed runs passed,
     then name order (a refusal names the first that serves a demand)."""
     if not robust:
         return []
-    from export.verify import robust_failure
+    from synth.verification.runs import robust_failure
 
     why = robust_failure(robust)
     bad = [b for b in robust["behaviors"] if not b["robust"]]

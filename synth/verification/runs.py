@@ -8,7 +8,7 @@ program would build it, told where a fixed base stands, its position servos' sti
 ``kv`` plus the joint's damping) and, on a fixed base (manipulators),
 the simulated model's own gravity torques, so that it can compensate the servos' droop
 (controllers that take neither are given neither). Every behaviour whose ability the design lists is
-run with its default parameters and judged by :mod:`export.verdict`.
+run with its default parameters and judged by :mod:`synth.verification.verdict`.
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ from adron import readers
 from adron.errors import InfeasibleError, InputError
 
 if TYPE_CHECKING:
-    from export.simulate import SimResult
     from gaits.base import Controller, Trajectory
+    from synth.verification.simulate import SimResult
 
 
 def check_record(record: object, source: str) -> None:
@@ -88,7 +88,7 @@ def load_bundle(folder: str | Path) -> tuple[dict, object]:
 def load_model(folder: str | Path):
     """The MuJoCo model of a bundle folder (robot.xml and its meshes), checked to hold a
     robot; InputError naming the folder when it cannot be read or holds none."""
-    from export.simulate import load_bundle_model
+    from synth.verification.simulate import load_bundle_model
 
     try:
         model = load_bundle_model(folder)
@@ -191,10 +191,11 @@ def _simulate(
     progress: Callable[[float], None] | None = None,
     perturbation: Mapping | None = None,
 ) -> SimResult:
-    """``traj`` of ``controller`` run on ``model`` and judged (``export.simulate.simulate``
-    told whether the robot can fall and where its gripper is; for a ``perturbation`` of
-    :mod:`export.perturb`, its command latency and control period)."""
-    from export.simulate import simulate
+    """``traj`` of ``controller`` run on ``model`` and judged
+    (``synth.verification.simulate.simulate`` told whether the robot can fall and where its gripper
+    is; for a ``perturbation`` of
+    :mod:`synth.verification.perturb`, its command latency and control period)."""
+    from synth.verification.simulate import simulate
 
     tmpl = controller.template
     body = traj.info.get("tool_body")
@@ -231,7 +232,7 @@ class UnplannedError(InfeasibleError):
     """A behaviour of the design that cannot be planned with its default parameters on
     the simulated robot: ``behavior``, the ``ability`` it realises and ``why`` (the
     planner's reason, without its advice to choose other targets, which no option of a
-    design sets). :mod:`synth.verify` drops a bonus ability for it; a demanded one
+    design sets). :mod:`synth.verification.loop` drops a bonus ability for it; a demanded one
     refuses the request with this message."""
 
     def __init__(self, record: Mapping, behavior: str, ability: str, error: Exception) -> None:
@@ -311,7 +312,7 @@ def verify_files(
     files: Mapping[str, str | bytes], behaviors: Sequence[str] | None = None
 ) -> list[dict]:
     """:func:`verify_model` on a bundle held in memory (``Outcome.files``)."""
-    from export.simulate import load_files_model
+    from synth.verification.simulate import load_files_model
 
     raw = files["design.json"]
     text = raw.decode("utf-8") if isinstance(raw, bytes) else raw
@@ -326,7 +327,8 @@ def verify_bundle(folder: str | Path, behaviors: Sequence[str] | None = None) ->
     return verify_model(record, model, behaviors)
 
 
-# --- robust verification: the behaviours under seeded perturbations (export.perturb) -------
+# --- robust verification: the behaviours under seeded perturbations (synth.verification.perturb)
+# -------
 
 #: Figures of a run whose worst value over the perturbed runs a record keeps: key -> "max"
 #: (larger is worse) or "min"; ``distance_ratio`` (distance / planned, worst: farthest from
@@ -369,7 +371,8 @@ def _criteria(fig: Mapping) -> dict[str, float]:
 COARSE_STEP = 2
 #: How far a figure of a coarse nominal run may be from the fine run's (absolute, in the
 #: figure's unit) for the coarse step to be used: a tenth or less of each verdict's margin
-#: (export/verdict.py: saturation 5 % of the run, placing 5 mm, ...), so a verdict the fine
+#: (synth/verification/verdict.py: saturation 5 % of the run, placing 5 mm, ...), so a verdict the
+# fine
 #: physics gives is not turned by the step. Figures not listed must be equal to 10 %.
 AGREE = {
     "saturated_fraction": 0.005,
@@ -475,9 +478,9 @@ def required_passes(k: int, share: float) -> int:
 
 
 def bundle_parts(files: Mapping[str, str | bytes]) -> tuple[dict, str, dict[str, bytes]]:
-    """(record, robot.xml text carrying the payload as ``export.simulate`` loads it, mesh
-    file name -> bytes) of a bundle held in memory."""
-    from export.simulate import carrying_payload, check_agrees
+    """(record, robot.xml text carrying the payload as ``synth.verification.simulate`` loads it,
+    mesh file name -> bytes) of a bundle held in memory."""
+    from synth.verification.simulate import carrying_payload, check_agrees
 
     def text(v: str | bytes) -> str:
         return v.decode("utf-8") if isinstance(v, bytes) else v
@@ -530,7 +533,7 @@ def run_perturbed(
     controller and its plan are the nominal model's (what the robot's program knows); the
     robot it drives is perturbed."""
     from export.mjcf import load_mjcf
-    from export.perturb import draw, perturbed_model
+    from synth.verification.perturb import draw, perturbed_model
 
     record, xml, meshes = bundle_parts(files)
     table = recorded_table(record) if table is None else table
@@ -554,7 +557,7 @@ def verify_robust(
 ) -> dict:
     """Every listed behaviour of a bundle (default parameters; ``behaviors`` when given,
     the listed ones named in ``only``) run under the perturbations 1..``k`` of ``table``
-    (:mod:`export.perturb`) and judged: the record's ``verified.robust``. A behaviour is
+    (:mod:`synth.verification.perturb`) and judged: the record's ``verified.robust``. A behaviour is
     robust when it passes at least :func:`required_passes` of its runs.
 
     The sensing loops (``line-tracking``, ``obstacle-avoidance``: :mod:`program.sensing`,
@@ -573,9 +576,9 @@ def verify_robust(
     from concurrent.futures import ThreadPoolExecutor
 
     from export.mjcf import load_mjcf
-    from export.perturb import describe, draw, perturbed_model, summary
-    from export.verdict import explain
     from program.sensing import sensing_behaviors
+    from synth.verification.perturb import describe, draw, perturbed_model, summary
+    from synth.verification.verdict import explain
 
     record, xml, meshes = bundle_parts(files)
     controller = controller_for_model(record, load_mjcf(xml, meshes))
@@ -774,7 +777,7 @@ class Replay:
         self, files: Mapping[str, str | bytes], table: Mapping, behavior: str, seed: int
     ) -> None:
         from export.mjcf import load_mjcf
-        from export.perturb import draw
+        from synth.verification.perturb import draw
 
         self.record, self._xml, self._meshes = bundle_parts(files)
         self.table = table
@@ -785,7 +788,7 @@ class Replay:
     def run(self, perturbation: Mapping, plan: Trajectory | None = None) -> dict:
         """The figures of ``plan`` (default: the behaviour's default plan) run under
         ``perturbation``."""
-        from export.perturb import perturbed_model
+        from synth.verification.perturb import perturbed_model
 
         plan = self.plan if plan is None else plan
         model = perturbed_model(self._xml, self._meshes, self.table, perturbation)

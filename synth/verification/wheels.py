@@ -11,15 +11,15 @@ robot veers or turns by another angle. Measured on the designed differential dri
 same runs with the wheels' ``kv`` x 2, 4, 8, 32: 16-25, 8-15, 9, 2 deg. A stiffer servo
 (more torque for its speed) is the answer no plan can give.
 
-:func:`wheel_blame` measures it as :func:`synth.robust.play_blame` measures the play: the
-failed perturbed runs of each behaviour that is not robust (up to
-:data:`synth.robust.BLAMED_RUNS`, the worst first) are replayed under the very same
+:func:`wheel_blame` measures it as :func:`synth.verification.robust.play_blame` measures the play:
+the failed perturbed runs of each behaviour that is not robust (up to
+:data:`synth.verification.robust.BLAMED_RUNS`, the worst first) are replayed under the very same
 perturbation with the wheel servos swapped for each stiffer servo of the catalog that
 serves them (same class, continuous rotation, holding the joint's required torque at its
 required speed; the least stiff first): the first with which every replayed run passes is
 the answer: the next sizing may give the wheels no servo less stiff than it
-(:func:`wheel_exclusions`, as :func:`synth.robust.less_play` excludes servos of too much
-play). The replay is the bundle with the swapped servo in both files:
+(:func:`wheel_exclusions`, as :func:`synth.verification.robust.less_play` excludes servos of too
+much play). The replay is the bundle with the swapped servo in both files:
 ``design.json``'s joint (stall torque, no-load speed: what the controller plans with) and
 ``robot.xml``'s velocity servo (``kv``, ``ctrlrange``, ``forcerange``, the rotor's
 armature), so its plans and its model are those the next sizing gives (less the modules'
@@ -29,7 +29,7 @@ stiffest does not make every run pass: the failure stands, and :func:`wheel_note
 Wheels are read off the structure (a joint whose actuator turns without an end stop);
 no robot type is named.
 
-How :mod:`synth.verify` calls it: where a round's perturbed runs failed and no actuator
+How :mod:`synth.verification.loop` calls it: where a round's perturbed runs failed and no actuator
 saturated (``_floors`` gave nothing new), ``wheel_exclusions(robust_files(designer,
 outcome), robust, outcome.catalog, excluded)`` gives joint -> the models excluded (empty:
 no wheel, or no stiffer wheel servo makes them pass), merged into the round's exclusions
@@ -137,8 +137,8 @@ def swapped_files(
 
 def _failed_runs(robust: Mapping) -> list[tuple[str, int, dict]]:
     """(behaviour, seed, figures) of the failed perturbed runs replayed: those
-    ``play_blame`` replays (``synth.robust.worst_failures``)."""
-    from synth.robust import BLAMED_RUNS, worst_failures
+    ``play_blame`` replays (``synth.verification.robust.worst_failures``)."""
+    from synth.verification.robust import BLAMED_RUNS, worst_failures
 
     return [(b, s, fig or {}) for b, s, fig in worst_failures(robust, BLAMED_RUNS)]
 
@@ -155,7 +155,7 @@ def wheel_blame(
     refusal can say so)."""
     if not robust or not isinstance(robust.get("table"), Mapping):
         return None
-    from export.verify import _criteria, bundle_parts, figures, run_perturbed
+    from synth.verification.runs import _criteria, bundle_parts, figures, run_perturbed
 
     runs = _failed_runs(robust)
     if not runs:

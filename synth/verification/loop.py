@@ -2,8 +2,8 @@
 
 After the structure generator, every behaviour the design will list (its abilities'
 behaviours, default parameters) runs in MuJoCo on the bundle's own model
-(:mod:`export.verify`) and is judged on its outcome (:mod:`export.verdict`). A behaviour
-that failed because an actuator sat at its torque limit feeds back: every joint that
+(:mod:`synth.verification.runs`) and is judged on its outcome (:mod:`synth.verification.verdict`).
+A behaviour that failed because an actuator sat at its torque limit feeds back: every joint that
 saturated must get an actuator stronger than the one it had (a torque floor for the
 structure generator, which sizes again, links included), then everything is simulated
 again, up to ``MAX_ROUNDS`` sizings. What still fails then:
@@ -14,15 +14,15 @@ again, up to ``MAX_ROUNDS`` sizings. What still fails then:
   design's ``abilities``, with a note.
 
 Under ``--robustness K`` the behaviours that passed run under K perturbations too
-(:mod:`synth.robust`): a perturbed run with an actuator at its limit feeds the same torque
-floors; one that the joints' play breaks (measured: replayed with the same perturbation
-less the play, it passes; :func:`synth.robust.play_blame`) excludes, for the joints whose
-play it is, their servo and every servo of the catalog with as much play
-(:func:`synth.robust.less_play`), and the structure is sized again (the servo with less
+(:mod:`synth.verification.robust`): a perturbed run with an actuator at its limit feeds the same
+torque floors; one that the joints' play breaks (measured: replayed with the same perturbation
+less the play, it passes; :func:`synth.verification.robust.play_blame`) excludes, for the joints
+whose play it is, their servo and every servo of the catalog with as much play
+(:func:`synth.verification.robust.less_play`), and the structure is sized again (the servo with less
 play must still hold the joint's torque), up to ``PLAY_ROUNDS`` sizings more; the record's
 ``verified.play`` names each swap and the runs that called for it.
 A failed perturbed run with no actuator saturated on a robot with wheels is replayed with
-stiffer wheel servos (:func:`synth.robust_wheels.wheel_exclusions`): the first with which
+stiffer wheel servos (:func:`synth.verification.wheels.wheel_exclusions`): the first with which
 the runs pass is the answer, the wheels may have no less stiff servo in the next sizing.
 
 The sensing loops (:mod:`program.sensing`: line-tracking, obstacle-avoidance) that passed
@@ -75,7 +75,7 @@ MAX_ROUNDS = 3
 #: A saturated joint's next actuator must give at least this much more usable torque.
 STRONGER = 1.0001
 #: Sizings beyond ``MAX_ROUNDS`` that answer a perturbed run broken by the joints' play
-#: with servos of less play (``synth.robust.less_play``).
+#: with servos of less play (``synth.verification.robust.less_play``).
 PLAY_ROUNDS = 2
 #: A refusal's hint (:func:`best_value`): sizings with verification at most, and the
 #: bisection steps after the floor's test.
@@ -97,7 +97,7 @@ class Verification:
     failure: str | None = None
     #: demanded abilities that no behaviour serves, accepted with --allow-unverified
     accepted_unsimulated: tuple[str, ...] = ()
-    robust: dict | None = None  # the perturbed runs (synth.robust), None when not run
+    robust: dict | None = None  # the perturbed runs (synth.verification.robust), None when not run
     #: the servos swapped for less play (joint -> from, to) and the runs the play broke
     play: dict | None = None
     #: the wheels given stiffer servos (joint -> from, to) and the runs that called for it
@@ -140,10 +140,10 @@ def calibrate(files: Mapping[str, str | bytes]) -> dict[str, float]:
     """The design's ``calibration`` measured on its controller's probe runs in MuJoCo
     (:meth:`gaits.base.Controller.calibration_probes`; a skid-steer's effective track and
     turning load); empty when its controller needs none (no model is compiled then)."""
-    from export.simulate import load_files_model
-    from export.verify import controller_for_model, run_behavior
     from gaits import controller_for
     from gaits.base import DesignGeometry
+    from synth.verification.runs import controller_for_model, run_behavior
+    from synth.verification.simulate import load_files_model
 
     raw = files["design.json"]
     record = json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
@@ -338,12 +338,12 @@ def _verified(
     designer: Designer, params: Mapping[str, float], opts: StructureOptions, outcome: Outcome
 ) -> Outcome:
     """The loop of the module docstring on ``outcome``, sized for ``params`` (SI)."""
-    from export.verdict import explain
-    from export.verify import UnplannedError, verify_files
     from gaits import controller_for
     from gaits.base import DesignGeometry
     from program.sensing import verify_sensing
-    from synth.robust import (
+    from synth.structure import StructureDesigner
+    from synth.verification.hold import hold_blame, hold_note
+    from synth.verification.robust import (
         failing_runs,
         less_play,
         not_robust,
@@ -353,20 +353,25 @@ def _verified(
         robust_files,
         with_sensing,
     )
-    from synth.robust_legs import hold_blame, hold_note
-    from synth.robust_wheels import wheel_exclusions, wheel_joints, wheel_note
-    from synth.structure import StructureDesigner
+    from synth.verification.runs import UnplannedError, verify_files
+    from synth.verification.verdict import explain
+    from synth.verification.wheels import wheel_exclusions, wheel_joints, wheel_note
 
     floors: dict[str, float] = {}
     excluded: dict[str, frozenset[str]] = {}  # joint -> models too loose (their play)
     first_model: dict[str, str] = {}  # joint -> its actuator before its play was answered
-    blamed: list[dict] = []  # the perturbed runs the play broke (synth.robust.play_blame)
+    blamed: list[
+        dict
+    ] = []  # the perturbed runs the play broke (synth.verification.robust.play_blame)
     history: list[dict] = []  # and those of every round, for the record
     blamed_at = 0  # the round (sizing) they were measured on
     torque_done = False  # a stronger actuator was asked for and none could be had
     stuck: list[str] = []  # joints the play broke that no model with less play serves
     play = None
-    wheels_at: tuple[int, dict | None] = (0, None)  # the stiffer wheels tried (synth.robust_wheels)
+    wheels_at: tuple[int, dict | None] = (
+        0,
+        None,
+    )  # the stiffer wheels tried (synth.verification.wheels)
     first_wheel: dict[str, str] = {}  # wheel joint -> its servo before a stiffer one
     wheel_runs: list[dict] = []  # the perturbed runs that called for the stiffer wheels
     bundles: dict[int, dict] = {}  # the round's bundle as the user gets it (robust_files)
@@ -399,7 +404,7 @@ def _verified(
             continue
         results = planned + sensed
         failing = [r for r in results if r["verdict"] != "ok"]
-        # nominally passed: under the perturbations of synth.robust (--robustness K)
+        # nominally passed: under the perturbations of synth.verification.robust (--robustness K)
         robust = (
             None
             if failing or opts.robustness <= 0
@@ -444,7 +449,7 @@ def _verified(
             try:
                 structure = sizer.run()
                 excluded |= stiffer
-                if stiffer:  # synth.robust_wheels: what called for it
+                if stiffer:  # synth.verification.wheels: what called for it
                     wheel_runs += wheels_at[1]["runs"]  # type: ignore[index]
                     for j in stiffer:
                         first_wheel.setdefault(j, models[j])
@@ -453,7 +458,7 @@ def _verified(
         if structure is None and not failing and rounds < MAX_ROUNDS + PLAY_ROUNDS:
             # no stronger actuator answers it: does the joints' play break it? (measured)
             if play is None:
-                from export.perturb import catalog_play
+                from synth.verification.perturb import catalog_play
 
                 play = catalog_play(outcome.catalog)
             runs = play_blame(robust_bundle(), robust)
@@ -575,7 +580,7 @@ def _verified(
 
 def _drop_unplanned(designer: Designer, outcome: Outcome, record: Mapping, e) -> Outcome:
     """``outcome`` without the bonus abilities that the behaviour of ``e`` (an
-    ``export.verify.UnplannedError``: it cannot be planned on the simulated robot) serves,
+    ``synth.verification.runs.UnplannedError``: it cannot be planned on the simulated robot) serves,
     with a note; ``e`` itself when it serves a demanded ability (the request is refused)."""
     from gaits import controller_for
     from gaits.base import DesignGeometry
@@ -603,9 +608,9 @@ def _drop_unplanned(designer: Designer, outcome: Outcome, record: Mapping, e) ->
 def robust_skipped(results: list[dict], robust: Mapping | None) -> list[str]:
     """The behaviours of ``results`` (nominal runs: :func:`_verified` gives it the sensing
     loops', which run by another path than the plans, :class:`program.session.Session`)
-    that passed but that the perturbed runs ``robust`` do not list (:func:`export.verify.
+    that passed but that the perturbed runs ``robust`` do not list (:func:`synth.verification.runs.
     robust_missing`); none when no perturbed run was made."""
-    from export.verify import robust_missing
+    from synth.verification.runs import robust_missing
 
     return robust_missing({"verified": {"behaviors": results, "robust": robust}})
 
@@ -614,7 +619,7 @@ def _size_with_less_play(
     sizer, looser: Mapping[str, frozenset[str]], blamed: list[dict], excluded: Mapping
 ) -> tuple[object | None, dict[str, frozenset[str]]]:
     """The structure ``sizer`` gives with the looser models of the joints the play broke
-    (``looser``, :func:`synth.robust.less_play`) excluded: all of them at once; when no
+    (``looser``, :func:`synth.verification.robust.less_play`) excluded: all of them at once; when no
     assignment holds them all, one joint at a time, the one blamed in most runs first.
     (The structure, None when none sizes; the exclusions it was sized with.)"""
     blame = {j: sum(j in r["joints"] for r in blamed) for j in looser}

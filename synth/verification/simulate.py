@@ -7,7 +7,7 @@ positions, wheel servos its velocities (linear interpolation at every physics st
 Measured (keys of ``SimResult.to_dict``): ``distance_m`` (planar displacement of the root
 body), ``heading_rad`` (change of its yaw), ``fell`` / ``fell_at_s`` (the root dropped
 below ``COLLAPSE_HEIGHT`` of its start height or tilted past ``COLLAPSE_TILT``, see
-:mod:`export.verdict`; never for the snake, whose rolling turns its body over, nor for a
+:mod:`synth.verification.verdict`; never for the snake, whose rolling turns its body over, nor for a
 fixed base), ``max_torque_ratio`` (largest
 |actuator force| / stall torque), ``tracking_error`` (driving: relative error of the mean
 (v, w) over the second half against the commanded ones), ``placing_error_m``
@@ -274,7 +274,7 @@ def support_margin_of(model, data) -> float:
     (the root's subtree) over the ground to the nearest edge of the convex hull of the
     robot's contacts with the world (``gaits.hexapod.support_margin``; negative outside,
     minus infinity with no contact). The centre of mass is projected onto the contacts'
-    plane along gravity: with the gravity turned by a floor's slope (``export.perturb``)
+    plane along gravity: with the gravity turned by a floor's slope (``synth.verification.perturb``)
     the point it stands over moves downhill by its height x tan(slope), which a straight
     drop ignores (5 mm for a 10 cm high body on 3 deg); with gravity straight down the two
     are the same number."""
@@ -469,7 +469,7 @@ def simulate(
     trajectory's duration; past its end the robot holds its final commanded state: its
     servos the last pose, its wheels stopped), measure what the robot did (the tracking
     error over the plan's time) and judge it against what ``traj.info`` promises
-    (:func:`export.verdict.judge`; ``SimResult.verdict`` lists the failed criteria).
+    (:func:`synth.verification.verdict.judge`; ``SimResult.verdict`` lists the failed criteria).
 
     ``data``: a ``mujoco.MjData`` to continue from (a program chaining behaviours): the
     robot is not reset to the trajectory's first pose, and the promise (planned pose,
@@ -478,7 +478,7 @@ def simulate(
     steps; default: after every step) and after the last step, ``t`` s since this run
     began. ``progress(fraction)`` is called every :data:`CHUNK_STEPS` steps.
 
-    ``latency_s``, ``command_period_s`` (a perturbed run, :mod:`export.perturb`): the
+    ``latency_s``, ``command_period_s`` (a perturbed run, :mod:`synth.verification.perturb`): the
     servos get the references of ``latency_s`` earlier, held for each command period.
 
     A plan that asks for a feedback loop (``traj.info["feedback"]``, :mod:`gaits.feedback`)
@@ -490,7 +490,7 @@ def simulate(
     does: the comparison the tests make)."""
     import mujoco
 
-    from export.verdict import COLLAPSE_HEIGHT, COLLAPSE_TILT, SATURATION_LEVEL, judge
+    from synth.verification.verdict import COLLAPSE_HEIGHT, COLLAPSE_TILT, SATURATION_LEVEL, judge
 
     chained = data is not None
     if data is None:

@@ -26,7 +26,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-#: Failed runs of a behaviour replayed (the worst first, as ``synth.robust.BLAMED_RUNS``).
+#: Failed runs of a behaviour replayed (the worst first, as
+# ``synth.verification.robust.BLAMED_RUNS``).
 HOLD_BLAMED_RUNS = 2
 #: Shares of a behaviour's default speed tried, fastest first.
 SPEED_SHARES = (0.9, 0.8, 0.7, 0.6, 0.5)
@@ -57,13 +58,13 @@ def hold_attribution(
     failed: Mapping | None = None,
 ) -> dict | None:
     """Does the command hold break behaviour ``behavior`` of a bundle under perturbation
-    ``seed`` of ``table``? ``failed``: the run's figures when known (``export.verify.
+    ``seed`` of ``table``? ``failed``: the run's figures when known (``synth.verification.runs.
     verify_robust``'s). The run must fail saturated and pass replayed with the control
     period at 0 (everything else as drawn), else None. Then ``{"verdict", "frame_s",
     "joints": {joint: its largest reference step rad a frame}, "speed": the largest of
     SPEED_SHARES x the default speed at which the run passes as perturbed (None: none
     does, or the behaviour has no speed), "default_speed", "unit"}``."""
-    from export.verify import Replay
+    from synth.verification.runs import Replay
 
     replay = Replay(files, table, behavior, seed)
     controller, traj, p, run = replay.controller, replay.plan, replay.perturbation, replay.run
@@ -103,7 +104,7 @@ def hold_blame(files: Mapping[str, str | bytes], robust: Mapping | None) -> list
     """:func:`hold_attribution` of the failed perturbed runs (up to ``HOLD_BLAMED_RUNS`` a
     behaviour, the worst first) of the behaviours that are not robust, each with its
     ``behavior`` and ``seed``: those the command hold breaks."""
-    from synth.robust import replayed_blame
+    from synth.verification.robust import replayed_blame
 
     return replayed_blame(files, robust, hold_attribution, HOLD_BLAMED_RUNS)
 
