@@ -24,7 +24,7 @@ def default_bundles(tmp: Path):
     from synth.solver import Query, Reasoner
     from synth.structure import design_structure
     from synth.verification.runs import controller_for_model
-    from synth.verification.simulate import load_bundle_model
+    from synth.verification.source import Bundle
 
     kb = load()
     designer = Designer(kb, Reasoner(kb))
@@ -36,7 +36,7 @@ def default_bundles(tmp: Path):
         )
         folder = Path(tmp) / cand.robot_type
         write_bundle(folder, bundle_files(rec, s, catalog))
-        model = load_bundle_model(folder)
+        model = Bundle(folder=folder).model()
         yield cand.robot_type, rec, folder, model, controller_for_model(rec, model)
 
 

@@ -105,14 +105,15 @@ def isolate(k: int, argv: list[str], servo: dict | None = None) -> list[str]:
     from adron.catalog import load_catalog
     from export.mjcf import load_mjcf
     from synth.verification.perturb import design_table, draw, perturbed_model
-    from synth.verification.runs import _simulate, bundle_parts, controller_for_model, folder_files
+    from synth.verification.runs import _simulate, controller_for_model
+    from synth.verification.source import Bundle
 
     with tempfile.TemporaryDirectory() as tmp:
         code, why = _design([*argv, "--out", tmp])
         if code:
             return [f"{' '.join(argv)}: not designed: {why.splitlines()[-1]}"]
-        files = folder_files(tmp)
-    record, xml, meshes = bundle_parts(files)
+        files = Bundle.read(tmp)
+    record, xml, meshes = files.record, files.xml, files.meshes
     table = design_table(record, xml, load_catalog(), {"servo": servo} if servo else None)
     nominal = load_mjcf(xml, meshes)
     ctl = controller_for_model(record, nominal)
@@ -163,14 +164,15 @@ def seeds(
     from adron.catalog import load_catalog
     from export.mjcf import load_mjcf
     from synth.verification.perturb import design_table, draw, perturbed_model
-    from synth.verification.runs import _simulate, bundle_parts, controller_for_model, folder_files
+    from synth.verification.runs import _simulate, controller_for_model
+    from synth.verification.source import Bundle
 
     with tempfile.TemporaryDirectory() as tmp:
         code, why = _design([*argv, "--out", tmp])
         if code:
             return [f"{' '.join(argv)}: not designed: {why.splitlines()[-1]}"]
-        files = folder_files(tmp)
-    record, xml, meshes = bundle_parts(files)
+        files = Bundle.read(tmp)
+    record, xml, meshes = files.record, files.xml, files.meshes
     table = design_table(record, xml, load_catalog())
     ctl = controller_for_model(record, load_mjcf(xml, meshes))
     traj = ctl.run("walking")

@@ -54,17 +54,11 @@ def replays(
     from adron.errors import InputError
     from export.mjcf import load_mjcf
     from synth.verification.perturb import draw, perturbed_model
-    from synth.verification.runs import (
-        _simulate,
-        bundle_parts,
-        controller_for_model,
-        figures,
-        folder_files,
-        recorded_table,
-    )
+    from synth.verification.runs import _simulate, controller_for_model, figures, recorded_table
+    from synth.verification.source import Bundle
 
-    files = folder_files(folder)
-    record, xml, meshes = bundle_parts(files)
+    files = Bundle.read(folder)
+    record, xml, meshes = files.record, files.xml, files.meshes
     try:
         table = recorded_table(record)
     except InputError:  # designed without --robustness: the catalog's table

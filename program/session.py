@@ -18,7 +18,6 @@ re-anchored where the robot is after them.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -81,36 +80,21 @@ class Session:
         import mujoco
 
         from program.sensing import SensorNoise, scene_xml, sensing_behaviors
-        from synth.verification.runs import bundle_record, controller_for_model
-        from synth.verification.simulate import load_files_model
+        from synth.verification.runs import controller_for_model
+        from synth.verification.source import Bundle
 
         if files is None:
             if folder is None:
                 raise ValueError("a Session needs a bundle folder or its files")
             folder = Path(folder)
-            self.record = bundle_record(folder)
-            try:
-                files = {
-                    "robot.xml": (folder / "robot.xml").read_bytes(),
-                    "design.json": (folder / "design.json").read_bytes(),
-                }
-                files.update(
-                    {f"meshes/{p.name}": p.read_bytes() for p in (folder / "meshes").glob("*.stl")}
-                )
-            except OSError as e:
-                raise InputError(f"{folder}: cannot read the model: {e}") from None
+            bundle = Bundle.read(folder)
         else:
-            raw = files["design.json"]
-            self.record = json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
-            from export.record_schema import check_record
-
-            check_record(self.record, "design.json")
-        xml = files["robot.xml"]
-        xml = xml.decode("utf-8") if isinstance(xml, bytes) else xml
+            bundle = Bundle(files)
+        self.record = bundle.record
         try:
-            self.model = load_files_model({**files, "robot.xml": scene_xml(xml)})
-        except (ValueError, KeyError) as e:
-            raise InputError(f"{folder or 'bundle'}: cannot load the MuJoCo model: {e}") from None
+            self.model = bundle.compile(scene_xml(bundle.xml))
+        except ValueError as e:  # no worldbody
+            raise InputError(f"{bundle.source}: cannot load the MuJoCo model: {e}") from None
         self.folder = folder
         self.controller = controller_for_model(self.record, self.model)
         #: the perturbation drawn (``perturb``), None for the nominal robot
@@ -118,7 +102,7 @@ class Session:
         #: what the sensing loops' sensors add to the truth (nothing on the nominal robot)
         self.noise = SensorNoise(None)
         if perturb is not None:
-            self.model = self._perturbed(files, *perturb)
+            self.model = self._perturbed(bundle, *perturb)
             self.noise = SensorNoise(self.perturbation.get("sensing"))  # type: ignore[union-attr]
         # the bus (a perturbed robot's): commands reach the servos this many physics steps
         # late, and change once every ``_hold`` steps (the main module's control period)
@@ -163,23 +147,16 @@ class Session:
         self._geoms = self._animated_geoms()
         self._origin = np.zeros(3)
 
-    def _perturbed(self, files: Mapping[str, str | bytes], table: Mapping, seed: int):
-        """The robot's model under perturbation ``seed`` of ``table`` (its scene included);
-        sets :attr:`perturbation`. InputError when the table cannot be applied."""
-        from export.mjcf import load_mjcf
+    def _perturbed(self, bundle, table: Mapping, seed: int):
+        """The robot's model under perturbation ``seed`` of ``table`` (its scene included:
+        :class:`synth.verification.runs.Perturbed`); sets :attr:`perturbation`.
+        InputError when the table cannot be applied."""
         from program.sensing import scene_xml
-        from synth.verification.perturb import draw, perturbed_xml
-        from synth.verification.runs import bundle_parts
+        from synth.verification.runs import Perturbed
 
-        _, xml, meshes = bundle_parts(files)
-        try:
-            p = draw(table, seed)
-            model = load_mjcf(scene_xml(perturbed_xml(xml, table, p)), meshes)
-        except (KeyError, TypeError, ValueError) as e:
-            raise InputError(
-                f"design.json: verified.robust.table: cannot be applied: {e}"
-            ) from None
-        self.perturbation = p
+        robot = Perturbed(bundle, table, seed)
+        model = bundle.compile(scene_xml(robot.xml()))
+        self.perturbation = robot.perturbation
         return model
 
     # -- what a program calls --------------------------------------------------------

@@ -1304,7 +1304,8 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     folder = Path(args.dir)
     if args.fine and args.perturb is None:
         raise InputError("--fine sets the step of a perturbed run: add --perturb SEED")
-    from synth.verification.runs import controller_for_model, figures, load_bundle, run_behavior
+    from synth.verification.runs import figures, run_behavior
+    from synth.verification.source import Bundle
 
     params: dict[str, str] = {}
     for item in args.set:
@@ -1325,9 +1326,10 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     if args.plot:
         _check_writable(folder / "plots", "--plot")
-    record, model = load_bundle(folder)
+    bundle = Bundle.read(folder)
+    record, model = bundle.record, bundle.model()
     try:
-        controller = controller_for_model(record, model)
+        controller = bundle.controller()
         if args.behavior == "help":
             listed = set(controller.listed(record.get("abilities", ())))
             for name, spec in sorted(controller.behaviors.items()):
@@ -1357,19 +1359,14 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                 )
             else:
                 from synth.verification.perturb import summary
-                from synth.verification.runs import (
-                    bundle_record,
-                    folder_files,
-                    recorded_table,
-                    run_perturbed,
-                )
+                from synth.verification.runs import recorded_table, run_perturbed
 
                 table = None
                 if args.fine:  # the recorded table at the model's own step
-                    table = recorded_table(bundle_record(folder))
+                    table = recorded_table(record)
                     table.pop("timestep_s", None)
                 traj, result, drawn = run_perturbed(
-                    folder_files(folder),
+                    bundle,
                     args.behavior,
                     args.perturb,
                     params,

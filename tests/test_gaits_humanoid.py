@@ -527,7 +527,7 @@ def design(kb, designer, tmp_path_factory):
     from synth.conceptual import Design, Request
     from synth.solver import Query
     from synth.structure import design_structure
-    from synth.verification.simulate import load_bundle_model
+    from synth.verification.source import Bundle
 
     cand = next(
         c for c in designer.reasoner.solve(Query()).candidates if c.robot_type == "HumanoidRobot"
@@ -538,7 +538,7 @@ def design(kb, designer, tmp_path_factory):
     )
     folder = tmp_path_factory.mktemp("humanoid") / "bundle"
     write_bundle(folder, bundle_files(rec, s, load_catalog(), with_payload=True, pictures=False))
-    return DesignGeometry.from_record(rec), load_bundle_model(folder), rec
+    return DesignGeometry.from_record(rec), Bundle(folder=folder).model(), rec
 
 
 def _verdict(design, name, compensated=True, **params):

@@ -49,9 +49,9 @@ class Designed:
         return LeggedController(self.geometry, template=self.template)
 
     def model(self):
-        from synth.verification.simulate import load_bundle_model
+        from synth.verification.source import Bundle
 
-        return load_bundle_model(self.folder)
+        return Bundle(folder=self.folder).model()
 
 
 @pytest.fixture(scope="module")

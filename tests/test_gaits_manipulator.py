@@ -54,10 +54,10 @@ def _design(kb, designer, robot_type: str):
 def _bundle_model(rec, s, folder):
     from adron.catalog import load_catalog
     from export.bundle import bundle_files, write_bundle
-    from synth.verification.simulate import load_bundle_model
+    from synth.verification.source import Bundle
 
     write_bundle(folder, bundle_files(rec, s, load_catalog(), with_payload=True, pictures=False))
-    return load_bundle_model(folder)
+    return Bundle(folder=folder).model()
 
 
 @pytest.fixture(scope="module")

@@ -33,7 +33,8 @@ from kinematics.dynamics import forward_kinematics
 from kinematics.spatial import rot_x
 from synth.conceptual import Design, Request
 from synth.structure import design_structure
-from synth.verification.simulate import load_bundle_model, simulate
+from synth.verification.simulate import simulate
+from synth.verification.source import Bundle
 
 ALL = tuple(GAITS)
 
@@ -337,7 +338,7 @@ def snakes(kb, designer, tmp_path_factory):
         write_bundle(folder, bundle_files(rec, s, catalog, with_payload=True, pictures=False))
         c = SnakeController(DesignGeometry.from_record(rec))
         assert c.modules == m
-        out[m] = (c, load_bundle_model(folder))
+        out[m] = (c, Bundle(folder=folder).model())
     return out
 
 

@@ -36,7 +36,8 @@ from synth.sizing import Wheeled
 from synth.solver import Query
 from synth.structure import design_structure
 from synth.verification.loop import calibrate
-from synth.verification.simulate import load_bundle_model, simulate
+from synth.verification.simulate import simulate
+from synth.verification.source import Bundle
 
 
 def _geometry(robot_type: str, speed: float = 6.0) -> DesignGeometry:
@@ -216,7 +217,7 @@ def designs(kb, designer, tmp_path_factory):
             Design("designed", Request(), (cand,), cand, "only candidate"), designer.short, s
         )
         files = bundle_files(rec, s, catalog, with_payload=True, pictures=False)
-        calibration = calibrate(files)  # a skid-steer's, measured as `parmor design` does
+        calibration = calibrate(Bundle(files))  # a skid-steer's, measured as `parmor design` does
         if calibration:
             rec["calibration"] = calibration
             files = bundle_files(rec, s, catalog, with_payload=True, pictures=False)
@@ -224,7 +225,7 @@ def designs(kb, designer, tmp_path_factory):
         write_bundle(folder, files)
         out[robot_type] = (
             WheeledController(DesignGeometry.from_record(rec)),
-            load_bundle_model(folder),
+            Bundle(folder=folder).model(),
         )
     return out
 
@@ -360,7 +361,7 @@ def small_wheels(kb, designer, tmp_path_factory):
         write_bundle(folder, bundle_files(rec, s, catalog, with_payload=True, pictures=False))
         out[robot_type] = (
             WheeledController(DesignGeometry.from_record(rec)),
-            load_bundle_model(folder),
+            Bundle(folder=folder).model(),
         )
     return out
 

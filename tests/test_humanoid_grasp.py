@@ -41,9 +41,12 @@ def fresh_plans():
 def _grasp(folder: Path, seed: int, open_loop=None):
     from adron.catalog import load_catalog
     from export.mjcf import load_mjcf
-    from synth.verification.runs import _simulate, bundle_parts, controller_for_model, folder_files
+    from synth.verification.runs import _simulate, controller_for_model
+    from synth.verification.source import Bundle
 
-    record, xml, meshes = bundle_parts(folder_files(folder))
+    bundle = Bundle.read(folder)
+
+    record, xml, meshes = bundle.record, bundle.xml, bundle.meshes
     table = json.loads(json.dumps(perturb.design_table(record, xml, load_catalog())))
     p = perturb.draw(table, seed)
     model = perturb.perturbed_model(xml, meshes, table, p)

@@ -39,10 +39,13 @@ def _run(
 
     from adron.catalog import load_catalog
     from export.mjcf import load_mjcf
-    from synth.verification.runs import bundle_parts, controller_for_model, folder_files
+    from synth.verification.runs import controller_for_model
     from synth.verification.simulate import simulate
+    from synth.verification.source import Bundle
 
-    record, xml, meshes = bundle_parts(folder_files(folder))
+    bundle = Bundle.read(folder)
+
+    record, xml, meshes = bundle.record, bundle.xml, bundle.meshes
     table = json.loads(json.dumps(perturb.design_table(record, xml, load_catalog())))
     p = perturb.draw(table, seed)
     if not whole:
@@ -96,9 +99,11 @@ def test_the_default_soft_stop_bends_far_past_the_play(humanoid, monkeypatch, wi
 
 
 def test_the_play_stop_is_two_physics_steps(humanoid) -> None:
-    from synth.verification.runs import bundle_parts, folder_files
+    from synth.verification.source import Bundle
 
-    record, xml, meshes = bundle_parts(folder_files(humanoid))
+    bundle = Bundle.read(humanoid)
+
+    record, xml, meshes = bundle.record, bundle.xml, bundle.meshes
     from adron.catalog import load_catalog
 
     table = perturb.design_table(record, xml, load_catalog())

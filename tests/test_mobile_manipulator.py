@@ -109,9 +109,11 @@ def test_simulate_json_passes_every_behaviour(cli, verified) -> None:
 
 
 def _controller(folder: Path, **change):
-    from synth.verification.runs import load_bundle
+    from synth.verification.source import Bundle
 
-    rec, model = load_bundle(folder)
+    bundle = Bundle.read(folder)
+
+    rec, model = bundle.record, bundle.model()
     rec = rec | change
     from synth.verification.runs import controller_for_model
 
@@ -325,7 +327,9 @@ def test_a_skid_steer_base_is_calibrated_as_its_own_controller_would(cli, tmp_pa
         for p in out.rglob("*")
         if p.name in ("robot.xml", "design.json") or p.suffix == ".stl"
     }
-    cal = calibrate(files)
+    from synth.verification.source import Bundle
+
+    cal = calibrate(Bundle(files))
     assert {"effective_track_m", "turn_load_scale", "travel_ratio"} <= set(cal)
 
 

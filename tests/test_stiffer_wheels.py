@@ -22,7 +22,7 @@ from synth.cli import main
 from synth.verification.wheels import (
     kv,
     stiffer_servos,
-    swapped_files,
+    swapped,
     wheel_blame,
     wheel_exclusions,
     wheel_joints,
@@ -44,14 +44,14 @@ def catalog():
 
 
 @pytest.fixture(scope="module")
-def bundle(tmp_path_factory) -> dict[str, bytes]:
-    """The drive sized nominally (not verified), as the bundle's files."""
-    from synth.verification.runs import folder_files
+def bundle(tmp_path_factory):
+    """The drive sized nominally (not verified), its bundle."""
+    from synth.verification.source import Bundle
 
     folder = tmp_path_factory.mktemp("drive") / "bundle"
     code, _, err = _main("design", *REQUEST, "--no-verify", "--out", str(folder))
     assert code == 0, err
-    return folder_files(folder)
+    return Bundle.read(folder)
 
 
 @pytest.fixture
@@ -70,14 +70,13 @@ def open_loop(monkeypatch):
 
 def _table(files, catalog, **override) -> dict:
     from synth.verification.perturb import design_table
-    from synth.verification.runs import bundle_parts
 
-    record, xml, _ = bundle_parts(files)
+    record, xml, _ = files.record, files.xml, files.meshes
     return json.loads(json.dumps(design_table(record, xml, catalog))) | override
 
 
-def _record(files) -> dict:
-    return json.loads(files["design.json"])
+def _record(bundle) -> dict:
+    return json.loads(bundle.files["design.json"])
 
 
 def test_the_wheels_are_the_continuous_servos(bundle, catalog) -> None:
@@ -114,11 +113,11 @@ def test_stiffer_servos_the_least_stiff_first_and_only_those_fast_enough(bundle,
 
 def test_the_swapped_bundle_is_the_servo_in_both_files(bundle, catalog) -> None:
     from export.mjcf import load_mjcf
-    from synth.verification.runs import bundle_parts, controller_for_model
+    from synth.verification.runs import controller_for_model
 
     a = next(x for x in catalog.actuators if x.model == "FS5113R")
-    files = swapped_files(bundle, ["left_wheel", "right_wheel"], a)
-    record, xml, meshes = bundle_parts(files)
+    files = swapped(bundle, ["left_wheel", "right_wheel"], a)
+    record, xml, meshes = files.record, files.xml, files.meshes
     model = load_mjcf(xml, meshes)
     for name in ("left_wheel", "right_wheel"):
         k = model.actuator(name).id
@@ -145,7 +144,7 @@ def test_a_stiffer_wheel_servo_answers_the_veer_on_a_cross_slope(
 
     table = _table(bundle, catalog)
     robust = verify_robust(bundle, 8, table, ["driving"])
-    b = robust["behaviors"][0]
+    b = robust.to_dict()["behaviors"][0]
     assert not b["robust"]
     assert {f["seed"] for f in b["failures"]} == {1, 3, 6}
     assert all(f["verdict"] == ["heading"] for f in b["failures"])
@@ -175,7 +174,7 @@ def test_a_floor_no_wheel_servo_holds_is_not_answered(bundle, catalog, open_loop
 
     table = _table(bundle, catalog, max_slope_rad=0.35)
     robust = verify_robust(bundle, 2, table, ["driving"])
-    assert not robust["behaviors"][0]["robust"]
+    assert not robust.behaviors[0].robust
     found = wheel_blame(bundle, robust, catalog)
     assert found["model"] is None and found["tried"] == ["FS5113R"]
     assert wheel_exclusions(bundle, robust, catalog) == ({}, found)
@@ -190,7 +189,7 @@ def test_nothing_to_answer_without_a_failed_run(bundle, catalog) -> None:
 
     table = _table(bundle, catalog, max_slope_rad=0.0)
     robust = verify_robust(bundle, 1, table, ["driving"])
-    assert robust["behaviors"][0]["robust"]
+    assert robust.behaviors[0].robust
     assert wheel_blame(bundle, robust, catalog) is None
     assert wheel_blame(bundle, None, catalog) is None
     assert wheel_exclusions(bundle, robust, catalog) == ({}, None)
@@ -265,5 +264,5 @@ def test_the_closed_loop_needs_no_stiffer_servo(bundle, catalog) -> None:
 
     table = _table(bundle, catalog)
     robust = verify_robust(bundle, 8, table, ["driving"])
-    assert robust["behaviors"][0]["robust"], robust["behaviors"][0]["failures"]
+    assert robust.behaviors[0].robust, robust.behaviors[0].failures
     assert wheel_blame(bundle, robust, catalog) is None

@@ -52,12 +52,15 @@ def _perturbed(folder: Path, behavior: str, seed: int, feedback: bool = True):
     """(trajectory, SimResult) of ``behavior`` under the design's perturbation ``seed``."""
     from adron.catalog import load_catalog
     from synth.verification.perturb import design_table, draw, perturbed_model
-    from synth.verification.runs import bundle_parts, controller_for_model, folder_files
-    from synth.verification.simulate import load_bundle_model, simulate
+    from synth.verification.runs import controller_for_model
+    from synth.verification.simulate import simulate
+    from synth.verification.source import Bundle
 
-    record, xml, meshes = bundle_parts(folder_files(folder))
+    bundle = Bundle.read(folder)
+
+    record, xml, meshes = bundle.record, bundle.xml, bundle.meshes
     table = design_table(record, xml, load_catalog())
-    controller = controller_for_model(record, load_bundle_model(folder))
+    controller = controller_for_model(record, Bundle(folder=folder).model())
     traj = controller.run(behavior)
     p = draw(table, seed)
     tip = controller.template.end_effectors
@@ -108,13 +111,15 @@ def test_the_imu_heading_only_where_the_design_carries_an_imu(skid, six) -> None
     from dataclasses import replace
 
     from gaits.feedback import loop_for
-    from synth.verification.runs import bundle_parts, controller_for_model, folder_files
-    from synth.verification.simulate import load_bundle_model, simulate
+    from synth.verification.runs import controller_for_model
+    from synth.verification.simulate import simulate
+    from synth.verification.source import Bundle
 
     for folder, imu in ((skid, True), (six, False)):
-        record, _, _ = bundle_parts(folder_files(folder))
+        bundle = Bundle.read(folder)
+        record, _, _ = bundle.record, bundle.xml, bundle.meshes
         assert ("IMUSensorModule" in str(record["modules"])) is imu
-        model = load_bundle_model(folder)
+        model = Bundle(folder=folder).model()
         traj = controller_for_model(record, model).run("turning")
         spec = traj.info["feedback"]
         assert spec["loop"] == "wheel-odometry" and spec["imu"] is imu

@@ -25,9 +25,13 @@ servo's band, the speed that passes).
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
-#: Failed runs of a behaviour replayed (the worst first, as
-# ``synth.verification.robust.BLAMED_RUNS``).
+if TYPE_CHECKING:
+    from synth.verification.results import RobustRuns, Run
+    from synth.verification.source import Bundle
+
+#: Failed runs of a behaviour replayed (the worst first, as ``robust.BLAMED_RUNS``).
 HOLD_BLAMED_RUNS = 2
 #: Shares of a behaviour's default speed tried, fastest first.
 SPEED_SHARES = (0.9, 0.8, 0.7, 0.6, 0.5)
@@ -51,11 +55,11 @@ def _steps(traj, joints, frame: float) -> dict[str, float]:
 
 
 def hold_attribution(
-    files: Mapping[str, str | bytes],
+    bundle: Bundle,
     table: Mapping,
     behavior: str,
     seed: int,
-    failed: Mapping | None = None,
+    failed: Run | None = None,
 ) -> dict | None:
     """Does the command hold break behaviour ``behavior`` of a bundle under perturbation
     ``seed`` of ``table``? ``failed``: the run's figures when known (``synth.verification.runs.
@@ -66,14 +70,14 @@ def hold_attribution(
     does, or the behaviour has no speed), "default_speed", "unit"}``."""
     from synth.verification.runs import Replay
 
-    replay = Replay(files, table, behavior, seed)
+    replay = Replay(bundle, table, behavior, seed)
     controller, traj, p, run = replay.controller, replay.plan, replay.perturbation, replay.run
     frame = float(p.get("control_period_s") or 0.0)
 
-    before = run(p) if failed is None else failed
-    if frame <= 0 or "saturated" not in before["verdict"]:
+    before = run() if failed is None else failed
+    if frame <= 0 or "saturated" not in before.verdict:
         return None
-    if run(dict(p, control_period_s=0.0))["verdict"] != "ok":
+    if not run({"control_period_s": 0.0}).ok:
         return None
     spec = controller.behaviors[behavior]
     speed = next((x for x in spec.params if x.name == "speed"), None)
@@ -86,12 +90,12 @@ def hold_attribution(
                 plan = controller.run(behavior, speed=value)
             except ValueError:
                 continue
-            if run(p, plan)["verdict"] == "ok":
+            if run(plan=plan).ok:
                 found = value
                 break
-    saturated = sorted(before.get("saturated_joints") or {})
+    saturated = sorted(before.saturated_joints)
     return {
-        "verdict": list(before["verdict"]),
+        "verdict": before.verdict,
         "frame_s": frame,
         "joints": _steps(traj, saturated, frame),
         "speed": found,
@@ -100,13 +104,13 @@ def hold_attribution(
     }
 
 
-def hold_blame(files: Mapping[str, str | bytes], robust: Mapping | None) -> list[dict]:
+def hold_blame(bundle: Bundle, robust: RobustRuns | None) -> list[dict]:
     """:func:`hold_attribution` of the failed perturbed runs (up to ``HOLD_BLAMED_RUNS`` a
     behaviour, the worst first) of the behaviours that are not robust, each with its
     ``behavior`` and ``seed``: those the command hold breaks."""
     from synth.verification.robust import replayed_blame
 
-    return replayed_blame(files, robust, hold_attribution, HOLD_BLAMED_RUNS)
+    return replayed_blame(bundle, robust, hold_attribution, HOLD_BLAMED_RUNS)
 
 
 def hold_note(blamed: list[dict], behavior: str) -> str:

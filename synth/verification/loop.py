@@ -53,17 +53,18 @@ downstream, because the pipeline's last step is to check what it built.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from functools import partial
 from typing import TYPE_CHECKING
 
 from adron.errors import InfeasibleError
+from synth.verification.results import RobustRuns, Run
 
 if TYPE_CHECKING:
     from synth.conceptual import Designer, Request
     from synth.pipeline import Outcome, StructureOptions
+    from synth.verification.source import Bundle
 
 #: What a refusal for robustness adds: the design did pass on the nominal model.
 ROBUST_OFF = (
@@ -89,7 +90,7 @@ class Verification:
     it took, the joints it strengthened (joint -> N m floor), the abilities it dropped
     (ability -> why) and, when a demanded ability failed, why the design is infeasible."""
 
-    behaviors: tuple[dict, ...]
+    behaviors: tuple[Run, ...]
     rounds: int
     strengthened: dict[str, float]
     dropped: dict[str, str]
@@ -97,7 +98,7 @@ class Verification:
     failure: str | None = None
     #: demanded abilities that no behaviour serves, accepted with --allow-unverified
     accepted_unsimulated: tuple[str, ...] = ()
-    robust: dict | None = None  # the perturbed runs (synth.verification.robust), None when not run
+    robust: RobustRuns | None = None  # the perturbed runs (robust.py), None when not run
     #: the servos swapped for less play (joint -> from, to) and the runs the play broke
     play: dict | None = None
     #: the wheels given stiffer servos (joint -> from, to) and the runs that called for it
@@ -110,12 +111,12 @@ class Verification:
             "strengthened": {k: round(v, 6) for k, v in sorted(self.strengthened.items())},
             "dropped": dict(sorted(self.dropped.items())),
             "not_simulated": list(self.unsimulated),
-            "behaviors": list(self.behaviors),
+            "behaviors": [r.to_dict() for r in self.behaviors],
         }
         if self.accepted_unsimulated:
             out["accepted_unsimulated"] = list(self.accepted_unsimulated)
         if self.robust is not None:
-            out["robust"] = self.robust
+            out["robust"] = self.robust.to_dict()
         if self.play is not None:
             out["play"] = self.play
         if self.wheels is not None:
@@ -123,34 +124,30 @@ class Verification:
         return out
 
 
-def _floors(results: list[dict], record: dict) -> dict[str, float]:
+def _floors(results: list[Run], record: dict) -> dict[str, float]:
     """Joint -> torque floor for every joint that saturated in a failing behaviour."""
     usable = {j["name"]: float(j["usable_torque_Nm"]) for j in record.get("joints", ())}
     out: dict[str, float] = {}
     for r in results:
-        if r["verdict"] == "ok":
+        if r.ok:
             continue
-        for joint in r.get("saturated_joints") or {}:
+        for joint in r.saturated_joints:
             if joint in usable:
                 out[joint] = max(out.get(joint, 0.0), usable[joint] * STRONGER)
     return out
 
 
-def calibrate(files: Mapping[str, str | bytes]) -> dict[str, float]:
+def calibrate(bundle: Bundle) -> dict[str, float]:
     """The design's ``calibration`` measured on its controller's probe runs in MuJoCo
     (:meth:`gaits.base.Controller.calibration_probes`; a skid-steer's effective track and
     turning load); empty when its controller needs none (no model is compiled then)."""
     from gaits import controller_for
     from gaits.base import DesignGeometry
-    from synth.verification.runs import controller_for_model, run_behavior
-    from synth.verification.simulate import load_files_model
+    from synth.verification.runs import run_behavior
 
-    raw = files["design.json"]
-    record = json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
-    if not controller_for(DesignGeometry.from_record(record)).calibration_probes():
+    if not controller_for(DesignGeometry.from_record(bundle.record)).calibration_probes():
         return {}
-    model = load_files_model(files)
-    controller = controller_for_model(record, model)
+    model, controller = bundle.model(), bundle.controller()
     runs = []
     for name, params in controller.calibration_probes():
         traj, result = run_behavior(model, controller, name, params)
@@ -344,16 +341,15 @@ def _verified(
     from synth.structure import StructureDesigner
     from synth.verification.hold import hold_blame, hold_note
     from synth.verification.robust import (
-        failing_runs,
         less_play,
-        not_robust,
         play_blame,
         play_note,
+        robust_bundle,
         robust_check,
-        robust_files,
         with_sensing,
     )
-    from synth.verification.runs import UnplannedError, verify_files
+    from synth.verification.runs import UnplannedError, verify_nominal
+    from synth.verification.source import Bundle
     from synth.verification.verdict import explain
     from synth.verification.wheels import wheel_exclusions, wheel_joints, wheel_note
 
@@ -374,20 +370,20 @@ def _verified(
     )  # the stiffer wheels tried (synth.verification.wheels)
     first_wheel: dict[str, str] = {}  # wheel joint -> its servo before a stiffer one
     wheel_runs: list[dict] = []  # the perturbed runs that called for the stiffer wheels
-    bundles: dict[int, dict] = {}  # the round's bundle as the user gets it (robust_files)
+    bundles: dict[int, Bundle] = {}  # the round's bundle as the user gets it (robust_bundle)
 
-    def robust_bundle() -> dict:
+    def round_bundle() -> Bundle:
         """The perturbed runs' bundle of the design as it stands, built once a round."""
         if rounds not in bundles:
             bundles.clear()
-            bundles[rounds] = robust_files(designer, outcome)
+            bundles[rounds] = robust_bundle(designer, outcome)
         return bundles[rounds]
 
     rounds = 0
     while True:
         rounds += 1
         files = outcome.files(designer)
-        calibration = calibrate(files)
+        calibration = calibrate(Bundle(files))
         if calibration:
             outcome = replace(outcome, calibration=calibration)
             files = outcome.files(designer)
@@ -395,15 +391,15 @@ def _verified(
         models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
         # the behaviours' trajectories, then the sensing abilities' closed loops
         try:
-            planned = verify_files(files)
-            sensed = verify_sensing(files)
+            planned = verify_nominal(Bundle(files))
+            sensed = [Run.of(r) for r in verify_sensing(files)]
         except UnplannedError as e:  # a bonus ability's plan: dropped, and this round again
             outcome = _drop_unplanned(designer, outcome, record, e)
             bundles.clear()
             rounds -= 1
             continue
         results = planned + sensed
-        failing = [r for r in results if r["verdict"] != "ok"]
+        failing = [r for r in results if not r.ok]
         # nominally passed: under the perturbations of synth.verification.robust (--robustness K)
         robust = (
             None
@@ -412,26 +408,27 @@ def _verified(
                 designer,
                 outcome,
                 opts.robustness,
-                files=robust_bundle(),
+                bundle=round_bundle(),
                 nominal=planned,
                 sensing=False,
                 sensed=sensed,
             )
         )
-        more = _floors(results + failing_runs(robust), record)
+        more = _floors(results + (robust.failing_runs() if robust else []), record)
         new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
         grow = new if rounds < MAX_ROUNDS and not torque_done else {}
         stiffer: dict[str, frozenset[str]] = {}
         if (
             not (grow or failing)
-            and not_robust(robust)
+            and robust is not None
+            and robust.not_robust()
             and rounds < MAX_ROUNDS + PLAY_ROUNDS
             and wheel_joints(record, outcome.catalog)
         ):
             # no actuator saturated: does a stiffer wheel servo answer it? (measured)
-            stiffer, wheels = wheel_exclusions(robust_bundle(), robust, outcome.catalog, excluded)
+            stiffer, wheels = wheel_exclusions(round_bundle(), robust, outcome.catalog, excluded)
             wheels_at = (rounds, wheels)
-        if not (failing or not_robust(robust)):
+        if not (failing or (robust is not None and robust.not_robust())):
             break
         sizer = StructureDesigner(
             designer.kb,
@@ -461,7 +458,7 @@ def _verified(
                 from synth.verification.perturb import catalog_play
 
                 play = catalog_play(outcome.catalog)
-            runs = play_blame(robust_bundle(), robust)
+            runs = play_blame(round_bundle(), robust)
             blamed, blamed_at = runs, rounds
             history += runs
             looser, stuck = less_play(runs, models, sizer.assigner.serving, play, excluded)
@@ -476,15 +473,15 @@ def _verified(
     if robust is None and failing and opts.robustness > 0:
         # what failed nominally drops its bonus abilities or refuses the request (below);
         # what passed must pass under the perturbations too, or no perturbed run is claimed
-        passed = {r["behavior"] for r in results if r["verdict"] == "ok"}
+        passed = {r.behavior for r in results if r.ok}
         robust = robust_check(
             designer,
             outcome,
             opts.robustness,
             passed,
-            robust_bundle(),
-            [r for r in planned if r["behavior"] in passed],
-            sensed=[r for r in sensed if r["behavior"] in passed],
+            round_bundle(),
+            [r for r in planned if r.behavior in passed],
+            sensed=[r for r in sensed if r.behavior in passed],
         )
     # which abilities no behaviour serves: the controller alone tells (no model needed)
     controller = controller_for(DesignGeometry.from_record(record))
@@ -496,17 +493,18 @@ def _verified(
         # repair answers the plans' runs; a loop's run has no saturated joint to feed
         # it), unless a plan's perturbed runs refuse the design already
         refused = any(
-            ({a} | {x for x, s in served.items() if s == a}) & needed for a, _ in not_robust(robust)
+            ({b.ability} | {x for x, s in served.items() if s == b.ability}) & needed
+            for b in robust.not_robust()
         )
-        loops = [r["behavior"] for r in sensed if r["verdict"] == "ok"]
+        loops = [r.behavior for r in sensed if r.ok]
         if loops and not refused:
             more = robust_check(
                 designer,
                 outcome,
                 opts.robustness,
                 set(loops),
-                robust_bundle(),
-                table=robust["table"],
+                round_bundle(),
+                table=robust.table,
             )
             robust = with_sensing(robust, more)
     # a behaviour fails the request when it serves a demanded ability (walking serves a
@@ -514,10 +512,10 @@ def _verified(
     dropped: dict[str, str] = {}
     failure = None
     for r in failing:
-        mine = {r["ability"]} | {a for a, s in served.items() if s == r["ability"]}
-        through = sorted(mine & needed) if r["ability"] not in needed else []
+        mine = {r.ability} | {a for a, s in served.items() if s == r.ability}
+        through = sorted(mine & needed) if r.ability not in needed else []
         serving = f" (serving {', '.join(through)})" if through else ""  # which demand
-        why = f"{r['behavior']}{serving} failed in simulation: {explain(r, r['verdict'])}"
+        why = f"{r.behavior}{serving} failed in simulation: {explain(r.figures, r.verdict)}"
         if mine & needed:
             failure = failure or why
         else:
@@ -525,10 +523,11 @@ def _verified(
                 dropped.setdefault(a, why)
     also = []  # the other demanded behaviours that are not robust, named after the worst
     nominal_failure = failure is not None
-    held = hold_blame(robust_bundle(), robust) if not_robust(robust) else []
-    perturbed = {b["behavior"]: b for b in (robust or {}).get("behaviors", ())}
-    for ability, why in not_robust(robust):
-        behavior = why.split(" is not robust", 1)[0]
+    bad = robust.not_robust() if robust is not None else []
+    held = hold_blame(round_bundle(), robust) if bad else []
+    for b in bad:
+        ability, behavior = b.ability, b.behavior
+        why = b.why_not(robust.required)  # type: ignore[union-attr]
         if blamed_at == rounds:  # measured on the design as it stands
             why += play_note(blamed, behavior, stuck, play or {}, models)
         if wheels_at[0] == rounds:
@@ -539,8 +538,7 @@ def _verified(
             if failure is None:
                 failure = why
             else:
-                b = perturbed[behavior]
-                also.append(f"{behavior} (passed {b['passed']} of {b['runs']})")
+                also.append(f"{behavior} (passed {b.passed} of {b.runs})")
         else:
             for a in sorted(mine):
                 dropped.setdefault(a, why)
@@ -605,14 +603,18 @@ def _drop_unplanned(designer: Designer, outcome: Outcome, record: Mapping, e) ->
     )
 
 
-def robust_skipped(results: list[dict], robust: Mapping | None) -> list[str]:
+def robust_skipped(results: list[Run], robust: RobustRuns | None) -> list[str]:
     """The behaviours of ``results`` (nominal runs: :func:`_verified` gives it the sensing
     loops', which run by another path than the plans, :class:`program.session.Session`)
     that passed but that the perturbed runs ``robust`` do not list (:func:`synth.verification.runs.
     robust_missing`); none when no perturbed run was made."""
     from synth.verification.runs import robust_missing
 
-    return robust_missing({"verified": {"behaviors": results, "robust": robust}})
+    verified = {
+        "behaviors": [r.to_dict() for r in results],
+        "robust": None if robust is None else robust.to_dict(),
+    }
+    return robust_missing({"verified": verified})
 
 
 def _size_with_less_play(

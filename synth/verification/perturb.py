@@ -75,8 +75,7 @@ NOSLIP_ITERATIONS = 10
 #: The sensor module classes whose readings a sensing loop (:mod:`program.sensing`) takes,
 #: and the table's key of their noise (``perturb.toml``'s section of that name).
 SENSING_MODULES = {"InfraredSensorModule": "infrared", "UltrasonicSensorModule": "ultrasonic"}
-#: Prefix of the payload's bodies (:func:`synth.verification.simulate.carrying_payload`): not
-# scaled.
+#: Prefix of the payload's bodies (:func:`.simulate.carrying_payload`): not scaled.
 PAYLOAD_PREFIX = "payload_"
 
 
@@ -470,9 +469,7 @@ def perturbed_xml(
     if option is None:
         option = ET.SubElement(root, "option")
     g = [float(v) for v in (option.get("gravity") or "0 0 -9.81").split()]
-    if table.get(
-        "timestep_s"
-    ):  # the perturbed runs' physics (synth.verification.runs.physics_check)
+    if table.get("timestep_s"):  # the perturbed runs' physics (runs.physics_check)
         option.set("timestep", _num(float(table["timestep_s"])))
     timestep = float(option.get("timestep") or 0.002)  # MuJoCo's default
     magnitude = math.sqrt(sum(v * v for v in g))

@@ -21,11 +21,15 @@ from __future__ import annotations
 
 import json
 from collections.abc import Collection, Mapping, Sequence
+from dataclasses import replace
 from typing import TYPE_CHECKING
+
+from synth.verification.results import RobustRuns, Run
 
 if TYPE_CHECKING:
     from synth.conceptual import Designer
     from synth.pipeline import Outcome
+    from synth.verification.source import Bundle
 
 
 def robust_check(
@@ -33,48 +37,44 @@ def robust_check(
     outcome: Outcome,
     k: int,
     only: Collection[str] | None = None,
-    files: Mapping[str, str | bytes] | None = None,
-    nominal: Sequence[Mapping] | None = None,
+    bundle: Bundle | None = None,
+    nominal: Sequence[Run] | None = None,
     sensing: bool = True,
-    sensed: Sequence[Mapping] | None = None,
+    sensed: Sequence[Run] | None = None,
     table: Mapping | None = None,
-) -> dict | None:
+) -> RobustRuns | None:
     """``verified.robust`` of ``outcome`` (a sized design) under perturbations 1..``k`` of
     its table (of its listed behaviours, those named in ``only`` when given; its sensing
-    loops unless ``sensing`` is false); None when ``k`` is 0. ``files``: its
-    :func:`robust_files` when the caller has them already; ``nominal``, ``sensed``: the
-    figures of its nominal runs (``verify_files``, ``verify_sensing``) when the caller has
-    them. The runs use the coarse time step where the nominal runs, sensing loops
-    included, agree at it (:func:`physics`; ``table["timestep_s"]``, recorded with the
-    table, so a replay uses it too); ``verified.robust.physics`` says which and why.
-    ``table``: a table already chosen (the sensing loops' runs after the plans')."""
+    loops unless ``sensing`` is false); None when ``k`` is 0. ``bundle``: its
+    :func:`robust_bundle` when the caller has it already; ``nominal``, ``sensed``: its
+    nominal runs (``verify_nominal``, ``verify_sensing``) when the caller has them. The
+    runs use the coarse time step where the nominal runs, sensing loops included, agree
+    at it (:func:`physics`; ``table["timestep_s"]``, recorded with the table, so a replay
+    uses it too); ``verified.robust.physics`` says which and why. ``table``: a table
+    already chosen (the sensing loops' runs after the plans')."""
     if k <= 0 or outcome.structure is None or outcome.catalog is None:
         return None
     from synth.verification.perturb import design_table
-    from synth.verification.runs import bundle_parts, verify_robust
+    from synth.verification.runs import verify_robust
 
-    files = robust_files(designer, outcome) if files is None else files
+    bundle = robust_bundle(designer, outcome) if bundle is None else bundle
     checked = None
     if table is None:
-        record, xml, _ = bundle_parts(files)
-        table = design_table(record, xml, outcome.catalog)
+        table = design_table(bundle.record, bundle.xml, outcome.catalog)
         # the coarse step where this design's nominal runs agree with the fine ones
-        checked = physics(files, nominal, sensed)
+        checked = physics(bundle, nominal, sensed)
         if checked["timestep_s"]:
             table["timestep_s"] = checked["timestep_s"]
     # through JSON as design.json keeps it: the replay draws from the very same numbers
     table = json.loads(json.dumps(table))
-    robust = verify_robust(files, k, table, only=only, sensing=sensing)
-    if checked is not None:
-        robust["physics"] = checked
-    robust["shows"] = shows(robust)
-    return robust
+    robust = verify_robust(bundle, k, table, only=only, sensing=sensing)
+    return replace(robust, physics=checked, shows=shows(robust))
 
 
 def physics(
-    files: Mapping[str, str | bytes],
-    nominal: Sequence[Mapping] | None = None,
-    sensed: Sequence[Mapping] | None = None,
+    bundle: Bundle,
+    nominal: Sequence[Run] | None = None,
+    sensed: Sequence[Run] | None = None,
 ) -> dict:
     """:func:`synth.verification.runs.physics_check` of the plans (``nominal``: their fine runs when
     known), and where they agree at the coarse step, the sensing loops' too (``sensed``:
@@ -82,15 +82,15 @@ def physics(
     bundle at the coarse step): one step for every perturbed run of the design."""
     from synth.verification.runs import agreement, coarse_xml, physics_check
 
-    checked = physics_check(files, nominal)
-    loops = [r for r in sensed or () if r.get("verdict") is not None]
+    checked = physics_check(bundle, nominal)
+    loops = [r.to_dict() for r in sensed or () if r.figures.get("verdict") is not None]
     if not checked["timestep_s"] or not loops:
         return checked
     from program.sensing import verify_sensing
 
-    raw = files["robot.xml"]
+    raw = bundle.files["robot.xml"]
     text, _ = coarse_xml(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
-    coarse = verify_sensing({**files, "robot.xml": text})
+    coarse = verify_sensing({**bundle.files, "robot.xml": text})
     largest = dict(checked["largest"])
     why = agreement(loops, coarse, largest)
     return dict(
@@ -119,47 +119,49 @@ def success_bound(passed: int, runs: int, confidence: float = CONFIDENCE) -> flo
     return float(beta.ppf(alpha, passed, runs - passed + 1))
 
 
-def shows(robust: Mapping) -> dict:
+def shows(robust: RobustRuns) -> dict:
     """What the perturbed runs show (``verified.robust.shows``): for the behaviour with the
     fewest passes, the lower bound of its success probability over the table's
     perturbations at :data:`CONFIDENCE` (each behaviour's own is at least that)."""
-    rows = robust.get("behaviors") or []
+    rows = robust.behaviors
     if not rows:
         return {}
-    worst = min(rows, key=lambda b: (b["passed"] / max(b["runs"], 1), b["behavior"]))
-    bound = success_bound(int(worst["passed"]), int(worst["runs"]))
+    worst = min(rows, key=lambda b: (b.share, b.behavior))
+    bound = success_bound(worst.passed, worst.runs)
     return {
         "method": "Clopper-Pearson, one-sided",
         "confidence": CONFIDENCE,
-        "passed": int(worst["passed"]),
-        "runs": int(worst["runs"]),
-        "behavior": worst["behavior"],
+        "passed": worst.passed,
+        "runs": worst.runs,
+        "behavior": worst.behavior,
         "success_lower_bound": float(f"{bound:.4g}"),
     }
 
 
-def with_sensing(robust: dict, more: Mapping | None) -> dict:
+def with_sensing(robust: RobustRuns, more: RobustRuns | None) -> RobustRuns:
     """``robust`` (the plans' perturbed runs) with the sensing loops' of ``more`` (the same
     table and seeds) after them."""
     if not more:
         return robust
-    out = dict(robust, behaviors=[*robust["behaviors"], *more["behaviors"]])
-    out["shows"] = shows(out)
-    return out
+    out = robust.with_behaviors(more.behaviors)
+    return replace(out, shows=shows(out))
 
 
-def robust_files(designer: Designer, outcome: Outcome) -> dict[str, str | bytes]:
+def robust_bundle(designer: Designer, outcome: Outcome) -> Bundle:
     """The bundle the perturbed runs use (as the user gets it: robot.xml without the
     payload, which design.json places)."""
     from export.bundle import bundle_files
+    from synth.verification.source import Bundle
 
-    return bundle_files(
-        outcome.record(designer),
-        outcome.structure,
-        outcome.catalog,
-        with_payload=outcome.with_payload,
-        pictures=False,
-        simulated_only=True,
+    return Bundle(
+        bundle_files(
+            outcome.record(designer),
+            outcome.structure,
+            outcome.catalog,
+            with_payload=outcome.with_payload,
+            pictures=False,
+            simulated_only=True,
+        )
     )
 
 
@@ -168,46 +170,40 @@ def robust_files(designer: Designer, outcome: Outcome) -> dict[str, str | bytes]
 BLAMED_RUNS = 3
 
 
-def play_blame(files: Mapping[str, str | bytes], robust: Mapping | None) -> list[dict]:
+def play_blame(bundle: Bundle, robust: RobustRuns | None) -> list[dict]:
     """The failed perturbed runs of the behaviours that are not robust which the joints'
-    play breaks, measured (:func:`synth.verification.runs.play_attribution`: each run replayed with
+    play breaks, measured (:func:`play_attribution`: each run replayed with
     the same perturbation less the play): per run its behaviour, seed, failed criteria and
     the joints whose play must go for it to pass (up to ``BLAMED_RUNS`` runs a
     behaviour). A run that still fails without any play is not the play's (none listed)."""
-    from synth.verification.runs import play_attribution
-
-    return replayed_blame(files, robust, play_attribution, BLAMED_RUNS)
+    return replayed_blame(bundle, robust, play_attribution, BLAMED_RUNS)
 
 
-def replayed_blame(
-    files: Mapping[str, str | bytes], robust: Mapping | None, attribution, most: int
-) -> list[dict]:
+def replayed_blame(bundle: Bundle, robust: RobustRuns | None, attribution, most: int) -> list[dict]:
     """The failed perturbed runs of the behaviours that are not robust (up to ``most`` a
     behaviour, the worst first: most criteria failed, then the lowest seed) for which
-    ``attribution(files, table, behavior, seed, figures)`` (a replay of that run with one
-    cause taken away, given the run's recorded figures) finds the cause: each its
-    ``behavior`` and ``seed`` with what ``attribution`` returned; none without a table."""
-    if not robust or not isinstance(robust.get("table"), Mapping):
+    ``attribution(bundle, table, behavior, seed, run)`` (a replay of that run with one
+    cause taken away, given the run as recorded) finds the cause: each its ``behavior``
+    and ``seed`` with what ``attribution`` returned; none without a table."""
+    if not robust or not isinstance(robust.table, Mapping) or not robust.table:
         return []  # no table: nothing to replay
     out = []
-    for behavior, seed, figures in worst_failures(robust, most):
-        found = attribution(files, robust["table"], behavior, seed, figures)
+    for behavior, seed, run in worst_failures(robust, most):
+        found = attribution(bundle, robust.table, behavior, seed, run)
         if found is not None:
             out.append({"behavior": behavior, "seed": seed} | found)
     return out
 
 
-def worst_failures(robust: Mapping, most: int) -> list[tuple[str, int, dict | None]]:
-    """(behaviour, seed, the run's recorded figures or None) of the failed perturbed runs
-    of each behaviour that is not robust, up to ``most`` a behaviour, the worst first (most
+def worst_failures(robust: RobustRuns, most: int) -> list[tuple[str, int, Run | None]]:
+    """(behaviour, seed, the run as recorded or None) of the failed perturbed runs of each
+    behaviour that is not robust, up to ``most`` a behaviour, the worst first (most
     criteria failed, then the lowest seed): the runs the loop replays for a cause."""
     out = []
-    for b in robust.get("behaviors", ()):
-        if b["robust"] or b.get("loop") == "sensing":
+    for b in robust.behaviors:
+        if b.robust or b.loop == "sensing":
             continue  # (a sensing loop is no plan to replay with one cause taken away)
-        worst = sorted(b["failures"], key=lambda f: (-len(f["verdict"]), f["seed"]))
-        runs = {fig.get("seed"): fig for fig in b.get("figures", ())}
-        out += [(b["behavior"], f["seed"], runs.get(f["seed"])) for f in worst[:most]]
+        out += [(b.behavior, f.seed, b.run(f.seed)) for f in b.worst_failures(most)]
     return out
 
 
@@ -272,29 +268,51 @@ def play_note(
     return f"; the play of {servos} breaks it ({which} with their play removed){tail}"
 
 
-def failing_runs(robust: Mapping | None) -> list[dict]:
-    """The failed perturbed runs of the behaviours that are not robust (figures with
-    ``verdict`` and ``saturated_joints``, as the nominal results)."""
-    if not robust:
-        return []
-    return [
-        f
-        for b in robust["behaviors"]
-        if not b["robust"]
-        for f in b["figures"]
-        if f["verdict"] != "ok"
-    ]
+def play_attribution(
+    bundle: Bundle,
+    table: Mapping,
+    behavior: str,
+    seed: int,
+    failed: Run | None = None,
+) -> dict | None:
+    """Does the joints' play break behaviour ``behavior`` of a bundle under perturbation
+    ``seed`` of ``table``? ``failed``: that run when it is known already
+    (:func:`synth.verification.runs.verify_robust`'s, to the bit: it is not simulated
+    again). Measured by replays of that very perturbation: with every position servo's
+    play removed (the rest unchanged) the run must pass, else None (the
+    play alone does not break it; None too when the run passes as it is). Then the play
+    of each symmetry group of joints (the record's ``group``: alike joints get alike
+    servos) is put back, the smallest play first, and kept when the run still passes: the
+    groups left are those whose play must go. ``{"verdict": [...], "joints": [...],
+    "figures": {"with": ..., "without": ...}}`` (the failed criteria, the joints whose
+    play breaks it, the :func:`_criteria` figures of the run with and without play)."""
+    from synth.verification.runs import Replay
 
+    replay = Replay(bundle, table, behavior, seed)
+    record, p = replay.record, replay.perturbation
+    full = dict(p["play_rad"])
 
-def not_robust(robust: Mapping | None) -> list[tuple[str, str]]:
-    """(ability, why) of each behaviour that is not robust (:func:`synth.verification.runs.
-    robust_failure`), the worst first: the smallest share of its perturbed runs passed,
-    then name order (a refusal names the first that serves a demand)."""
-    if not robust:
-        return []
-    from synth.verification.runs import robust_failure
+    def run(removed: set[str]) -> Run:
+        return replay.run({"play_rad": {j: (0.0 if j in removed else v) for j, v in full.items()}})
 
-    why = robust_failure(robust)
-    bad = [b for b in robust["behaviors"] if not b["robust"]]
-    bad.sort(key=lambda b: (b["passed"] / max(b["runs"], 1), b["behavior"]))
-    return [(b["ability"], why[b["behavior"]]) for b in bad]
+    before = run(set()) if failed is None else failed
+    if before.ok:
+        return None
+    without = run(set(full))
+    if not without.ok:
+        return None
+    group_of = {j["name"]: j.get("group") or j["name"] for j in record.get("joints", ())}
+    groups: dict[str, list[str]] = {}
+    for j in full:
+        groups.setdefault(group_of.get(j, j), []).append(j)
+    order = sorted(groups, key=lambda g: (max(full[j] for j in groups[g]), g))
+    removed = set(full)
+    for g in order:
+        trial = removed - set(groups[g])
+        if run(trial).ok:
+            removed = trial
+    return {
+        "verdict": before.verdict,
+        "joints": sorted(removed),
+        "figures": {"with": before.criteria(), "without": without.criteria()},
+    }

@@ -1,14 +1,19 @@
 """The design's behaviours run in MuJoCo: the harness shared by ``parmor simulate``,
 ``parmor design``'s verification and ``parmor sweep``.
 
-A bundle (on disk or in memory) gives the record (``design.json``) and the MuJoCo model
-(``robot.xml`` with its meshes). The controller is built from the record as a user's
-program would build it, told where a fixed base stands, its position servos' stiffness
-(``stiffness``: joint -> N m/rad, the MJCF's ``kp``; ``damping``: joint -> N m s/rad, its
-``kv`` plus the joint's damping) and, on a fixed base (manipulators),
-the simulated model's own gravity torques, so that it can compensate the servos' droop
-(controllers that take neither are given neither). Every behaviour whose ability the design lists is
-run with its default parameters and judged by :mod:`synth.verification.verdict`.
+A bundle (:class:`synth.verification.source.Bundle`, on disk or in memory) gives the record
+(``design.json``) and the MuJoCo model (``robot.xml`` with its meshes). The controller is
+built from the record as a user's program would build it, told where a fixed base stands,
+its position servos' stiffness (``stiffness``: joint -> N m/rad, the MJCF's ``kp``;
+``damping``: joint -> N m s/rad, its ``kv`` plus the joint's damping) and, on a fixed base
+(manipulators), the simulated model's own gravity torques, so that it can compensate the
+servos' droop (controllers that take neither are given neither). Every behaviour whose
+ability the design lists is run with its default parameters and judged by
+:mod:`synth.verification.verdict`: nominally (:func:`verify_nominal`) and under the
+perturbations of :mod:`synth.verification.perturb` (:func:`verify_robust`), each perturbed
+robot set up once by :class:`Perturbed` (the replay of a recorded run, ``parmor simulate
+--perturb``, a program's perturbed session and the loop's replays with one cause changed
+all go through it). The results are typed (:mod:`synth.verification.results`).
 """
 
 from __future__ import annotations
@@ -16,90 +21,24 @@ from __future__ import annotations
 import os
 import re
 from collections.abc import Callable, Collection, Mapping, Sequence
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from adron import readers
 from adron.errors import InfeasibleError, InputError
+from synth.verification.results import (
+    BehaviorRuns,
+    Failure,
+    RobustRuns,
+    Run,
+    criteria,
+    required_passes,
+)
 
 if TYPE_CHECKING:
     from gaits.base import Controller, Trajectory
     from synth.verification.simulate import SimResult
-
-
-def check_record(record: object, source: str) -> None:
-    """InputError naming ``source``, the key and the value when ``record`` is not a design
-    record of this parmor's format (:mod:`export.record_schema`)."""
-    from export.record_schema import check_record as check
-
-    check(record, source)
-
-
-def bundle_record(folder: str | Path, structure: bool = True) -> dict:
-    """The design record (``design.json``) of a bundle folder; InputError naming the file
-    when it is missing, unreadable or not a record (or, with ``structure``, a conceptual
-    design with no structure to run)."""
-    folder = Path(folder)
-    path = folder / "design.json"
-    if not path.exists():
-        raise InputError(f"{folder}: no design.json (write one with 'parmor design ... --out DIR')")
-    record = readers.read_json(path, what="design record")  # nesting and numbers bounded
-    check_record(record, str(path))  # the fields readers use, typed (export/record_schema)
-    if structure and record.get("template") is None:
-        raise InputError(f"{path}: the design has no structure (designed with --conceptual?)")
-    if structure:
-        check_geometry(record, str(path))
-    return record
-
-
-def check_geometry(record: Mapping, source: str) -> None:
-    """InputError naming ``source`` when the record's ``template``, ``body_plan`` and
-    ``lengths_m`` do not make a robot (the one its controller is built for): each field is
-    typed on its own (:func:`check_record`), this is how they fit together."""
-    from gaits.base import DesignGeometry
-
-    try:
-        template = DesignGeometry.from_record(record).build()
-    except (ValueError, KeyError, TypeError) as e:
-        why = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-        raise InputError(
-            f"{source}: template, body_plan, lengths_m: they do not make the design's robot: {why}"
-        ) from None
-    listed = {j["name"] for j in record.get("joints") or ()}
-    listed |= set(record.get("passive_joints") or ())
-    passive = set(getattr(template, "passive", ()) or ())
-    moving = [j.name for j in template.model.joints if j.kind != "fixed" and j.name not in passive]
-    missing = [n for n in moving if n not in listed]
-    if missing:
-        raise InputError(
-            f"{source}: joints: the robot's joint(s) {', '.join(missing[:6])} are not listed "
-            "(a joint's actuator and speed come from its entry)"
-        )
-
-
-def load_bundle(folder: str | Path) -> tuple[dict, object]:
-    """(record, MuJoCo model) of a bundle folder; InputError when either cannot be read."""
-    record = bundle_record(folder)
-    return record, load_model(folder)
-
-
-def load_model(folder: str | Path):
-    """The MuJoCo model of a bundle folder (robot.xml and its meshes), checked to hold a
-    robot; InputError naming the folder when it cannot be read or holds none."""
-    from synth.verification.simulate import load_bundle_model
-
-    try:
-        model = load_bundle_model(folder)
-    except InputError as e:  # its design.json
-        raise InputError(f"{Path(folder) / str(e)}") from None
-    except (OSError, ValueError, KeyError, SyntaxError) as e:  # xml.etree's ParseError too
-        why = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-        raise InputError(f"{folder}: cannot load the MuJoCo model robot.xml: {why}") from None
-    if model.nbody < 2:
-        raise InputError(f"{folder}/robot.xml: no robot body (not a model parmor wrote)")
-    return model
+    from synth.verification.source import Bundle
 
 
 def _fixed_base(model) -> bool:
@@ -244,9 +183,31 @@ class UnplannedError(InfeasibleError):
         )
 
 
-def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None) -> list[dict]:
-    """Every listed behaviour of the design (default parameters) run and judged: one
-    :func:`figures` dict each, in name order.
+def _plans(record: Mapping, controller: Controller, names: Sequence[str]) -> list[Trajectory]:
+    """The default plans of behaviours ``names`` (:class:`UnplannedError` for one that
+    cannot be planned on the simulated robot, its base where it stands)."""
+    out = []
+    for n in names:
+        try:
+            out.append(controller.run(n))
+        except ValueError as e:
+            raise UnplannedError(record, n, controller.behaviors[n].realises, e) from None
+    return out
+
+
+def verify_nominal(bundle: Bundle, behaviors: Sequence[str] | None = None) -> list[Run]:
+    """Every listed behaviour of the design (default parameters; ``behaviors`` when given)
+    run on its nominal model and judged: one :class:`Run` each, in name order
+    (:func:`nominal_runs`)."""
+    return nominal_runs(bundle.record, bundle.model(), behaviors, bundle.controller())
+
+
+def nominal_runs(
+    record: Mapping, model, behaviors: Sequence[str] | None = None, controller=None
+) -> list[Run]:
+    """Every listed behaviour of the design in ``record`` (``behaviors`` when given) run on
+    ``model`` (the nominal one, or another build of it: at the coarse step) with
+    ``controller`` (default: the one set up for ``model``) and judged.
 
     The behaviours are planned one after another, then simulated on up to
     ``VERIFY_THREADS`` threads; behaviours with the same plan (the same trajectory and
@@ -255,14 +216,10 @@ def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None)
     import dataclasses
     from concurrent.futures import ThreadPoolExecutor
 
-    controller = controller_for_model(record, model)
+    if controller is None:
+        controller = controller_for_model(record, model)
     names = controller.listed(record.get("abilities", ())) if behaviors is None else list(behaviors)
-    trajs = []
-    for n in names:
-        try:
-            trajs.append(controller.run(n))
-        except ValueError as e:  # planned on the simulated model (its base where it stands)
-            raise UnplannedError(record, n, controller.behaviors[n].realises, e) from None
+    trajs = _plans(record, controller, names)
     same: dict[bytes, int] = {}
     first = [same.setdefault(_plan_digest(t), k) for k, t in enumerate(trajs)]
     runs = sorted(set(first))
@@ -276,8 +233,7 @@ def verify_model(record: Mapping, model, behaviors: Sequence[str] | None = None)
     out = []
     for k, n in enumerate(names):
         result = dataclasses.replace(results[first[k]], behavior=trajs[k].behavior)
-        fig = figures(trajs[k], result)
-        out.append({"behavior": n, "ability": controller.behaviors[n].realises} | fig)
+        out.append(Run(n, figures(trajs[k], result), controller.behaviors[n].realises))
     return out
 
 
@@ -308,71 +264,13 @@ def _plan_digest(traj: Trajectory) -> bytes:
     return h.digest()
 
 
-def verify_files(
-    files: Mapping[str, str | bytes], behaviors: Sequence[str] | None = None
-) -> list[dict]:
-    """:func:`verify_model` on a bundle held in memory (``Outcome.files``)."""
-    from synth.verification.simulate import load_files_model
-
-    raw = files["design.json"]
-    text = raw.decode("utf-8") if isinstance(raw, bytes) else raw
-    record = readers.parse_json(text, "design.json")
-    check_record(record, "design.json")
-    return verify_model(record, load_files_model(files), behaviors)
-
-
-def verify_bundle(folder: str | Path, behaviors: Sequence[str] | None = None) -> list[dict]:
-    """:func:`verify_model` on a bundle folder written by ``parmor design --out``."""
-    record, model = load_bundle(folder)
-    return verify_model(record, model, behaviors)
-
-
-# --- robust verification: the behaviours under seeded perturbations (synth.verification.perturb)
-# -------
-
-#: Figures of a run whose worst value over the perturbed runs a record keeps: key -> "max"
-#: (larger is worse) or "min"; ``distance_ratio`` (distance / planned, worst: farthest from
-#: 1) and ``heading_error_rad`` (|heading - planned|) are derived (:func:`_criteria`).
-WORST = {
-    "saturated_fraction": "max",
-    "demand_ratio_max": "max",
-    "max_torque_ratio": "max",
-    "min_height_ratio": "min",
-    "max_tilt_rad": "max",
-    "distance_ratio": "dev",
-    "heading_error_rad": "max",
-    "final_pose_error_m": "max",
-    "drift_m": "max",
-    "tracking_error": "max",
-    "placing_error_m": "max",
-    "orientation_error_rad": "max",
-    "line_lost_s": "max",
-    "line_progress_m": "min",
-    "obstacle_contact_s": "max",
-}
-
-
-def _criteria(fig: Mapping) -> dict[str, float]:
-    """The :data:`WORST` figures of one run (those it has)."""
-    out = {k: float(fig[k]) for k in WORST if fig.get(k) is not None}
-    planned = fig.get("planned_distance_m")
-    if planned and fig.get("distance_m") is not None:
-        out["distance_ratio"] = float(fig["distance_m"]) / float(planned)
-    if fig.get("planned_heading_rad") is not None and fig.get("heading_rad") is not None:
-        out["heading_error_rad"] = abs(
-            float(fig["heading_rad"]) - float(fig["planned_heading_rad"])
-        )
-    return out
-
-
 #: The perturbed runs' time step as a multiple of the model's (2 ms -> 4 ms), used for a
 #: design only where its nominal runs at that step agree with the fine ones
 #: (:func:`physics_check`); a perturbed run then costs about 0.55 of a fine one.
 COARSE_STEP = 2
 #: How far a figure of a coarse nominal run may be from the fine run's (absolute, in the
 #: figure's unit) for the coarse step to be used: a tenth or less of each verdict's margin
-#: (synth/verification/verdict.py: saturation 5 % of the run, placing 5 mm, ...), so a verdict the
-# fine
+#: (verdict.py: saturation 5 % of the run, placing 5 mm, ...), so a verdict the fine
 #: physics gives is not turned by the step. Figures not listed must be equal to 10 %.
 AGREE = {
     "saturated_fraction": 0.005,
@@ -406,25 +304,22 @@ def coarse_xml(xml: str, factor: int = COARSE_STEP) -> tuple[str, float]:
 
 
 def physics_check(
-    files: Mapping[str, str | bytes],
-    fine: Sequence[Mapping] | None = None,
+    bundle: Bundle,
+    fine: Sequence[Run] | None = None,
     behaviors: Sequence[str] | None = None,
 ) -> dict:
     """Whether this design's perturbed runs may use the coarse step (:data:`COARSE_STEP`):
     its behaviours run nominally at that step give the verdicts of the fine step (``fine``:
-    :func:`verify_model`'s figures when the caller has them) with every figure within
+    :func:`verify_nominal`'s runs when the caller has them) with every figure within
     :data:`AGREE`. Returns ``{"timestep_s": step or None (the model's own), "coarse_s":
     the coarse step, "largest": {figure: (difference, behaviour)}, "why": text}``."""
-    from export.mjcf import load_mjcf
-
-    record, xml, meshes = bundle_parts(files)
     if fine is None:
-        fine = verify_model(record, load_mjcf(xml, meshes), behaviors)
-    wanted = [str(f["behavior"]) for f in fine]
-    text, step = coarse_xml(xml)
-    coarse = verify_model(record, load_mjcf(text, meshes), wanted)
+        fine = verify_nominal(bundle, behaviors)
+    wanted = [f.behavior for f in fine]
+    text, step = coarse_xml(bundle.xml)
+    coarse = nominal_runs(bundle.record, bundle.compile(text), wanted)
     largest: dict[str, list] = {}
-    why = agreement(fine, coarse, largest)
+    why = agreement([f.to_dict() for f in fine], [c.to_dict() for c in coarse], largest)
     return {
         "timestep_s": None if why else step,
         "coarse_s": step,
@@ -447,7 +342,7 @@ def agreement(fine: Sequence[Mapping], coarse: Sequence[Mapping], largest: dict)
             continue
         if (f["verdict"] == "ok") != (c["verdict"] == "ok"):
             why = why or f"{name}: verdict {f['verdict']} at the fine step, {c['verdict']} coarse"
-        a, b = _criteria(f), _criteria(c)
+        a, b = criteria(f), criteria(c)
         for key in sorted(set(a) | set(b)):
             if key not in a or key not in b:
                 why = why or f"{name}: {key} measured at one step only"
@@ -459,51 +354,6 @@ def agreement(fine: Sequence[Mapping], coarse: Sequence[Mapping], largest: dict)
             if d > tol:
                 why = why or f"{name}: {key} {a[key]:.4g} at the fine step, {b[key]:.4g} coarse"
     return why
-
-
-def _worse(kind: str, a: float, b: float) -> bool:
-    """Is ``a`` worse than ``b`` for a figure of kind ``kind`` (:data:`WORST`)?"""
-    if kind == "min":
-        return a < b
-    if kind == "dev":
-        return abs(a - 1.0) > abs(b - 1.0)
-    return a > b
-
-
-def required_passes(k: int, share: float) -> int:
-    """Perturbed runs of K a behaviour must pass: ceil(share x K) (at least 1 when K > 0)."""
-    import math
-
-    return min(k, max(1 if k else 0, math.ceil(share * k - 1e-9)))
-
-
-def bundle_parts(files: Mapping[str, str | bytes]) -> tuple[dict, str, dict[str, bytes]]:
-    """(record, robot.xml text carrying the payload as ``synth.verification.simulate`` loads it,
-    mesh file name -> bytes) of a bundle held in memory."""
-    from synth.verification.simulate import carrying_payload, check_agrees
-
-    def text(v: str | bytes) -> str:
-        return v.decode("utf-8") if isinstance(v, bytes) else v
-
-    record = readers.parse_json(text(files["design.json"]), "design.json")
-    xml = text(files["robot.xml"])
-    check_agrees(xml, record)
-    xml = carrying_payload(xml, record)
-    meshes = {
-        Path(k).name: (v.encode() if isinstance(v, str) else v)
-        for k, v in sorted(files.items())
-        if k.endswith(".stl")
-    }
-    return record, xml, meshes
-
-
-def folder_files(folder: str | Path) -> dict[str, bytes]:
-    """design.json, robot.xml and meshes/*.stl of a bundle folder (what a run reads)."""
-    folder = Path(folder)
-    files = {f"meshes/{p.name}": p.read_bytes() for p in sorted((folder / "meshes").glob("*.stl"))}
-    for name in ("design.json", "robot.xml"):
-        files[name] = (folder / name).read_bytes()
-    return files
 
 
 def recorded_table(record: Mapping) -> dict:
@@ -519,8 +369,91 @@ def recorded_table(record: Mapping) -> dict:
     return dict(table)
 
 
+class Perturbed:
+    """The robot of ``bundle`` under perturbation ``seed`` of ``table`` (or the variant
+    ``perturbation`` of it: a replay with one cause changed): the perturbation drawn, its
+    MuJoCo model (:meth:`xml`, :meth:`model`: compiled once) and runs of the nominal
+    model's plans on it (:meth:`run`: the controller is the nominal model's, what the
+    robot's program knows). The one set-up of a perturbed run: the robust verification,
+    ``parmor simulate --perturb``, a program's perturbed session and the loop's replays.
+    InputError when the table cannot be applied."""
+
+    def __init__(
+        self, bundle: Bundle, table: Mapping, seed: int, perturbation: Mapping | None = None
+    ) -> None:
+        from synth.verification.perturb import draw
+
+        self.bundle, self.table, self.seed = bundle, table, seed
+        if perturbation is None:
+            try:
+                perturbation = draw(table, seed)
+            except (KeyError, TypeError, ValueError) as e:
+                raise _unapplicable(e) from None
+        self.perturbation: dict = dict(perturbation)
+        self._model = None
+
+    def varied(self, **changes: object) -> Perturbed:
+        """The same robot with some of the perturbation's draws changed (``play_rad``,
+        ``control_period_s``...)."""
+        return Perturbed(self.bundle, self.table, self.seed, {**self.perturbation, **changes})
+
+    def xml(self) -> str:
+        """The perturbed robot's MJCF text."""
+        from synth.verification.perturb import perturbed_xml
+
+        try:
+            return perturbed_xml(self.bundle.xml, self.table, self.perturbation)
+        except (KeyError, TypeError, ValueError) as e:
+            raise _unapplicable(e) from None
+
+    def model(self):
+        if self._model is None:
+            self._model = self.bundle.compile(self.xml())
+        return self._model
+
+    def simulate(
+        self,
+        plan: Trajectory,
+        seconds: float | None = None,
+        progress: Callable[[float], None] | None = None,
+    ) -> SimResult:
+        """``plan`` run on this robot and judged."""
+        controller = self.bundle.controller()
+        return _simulate(self.model(), controller, plan, seconds, progress, self.perturbation)
+
+    def run(self, plan: Trajectory) -> Run:
+        """``plan`` run on this robot: its judged figures (with this run's seed)."""
+        return Run(plan.behavior, figures(plan, self.simulate(plan)), seed=self.seed)
+
+
+def _unapplicable(e: Exception) -> InputError:
+    return InputError(f"design.json: verified.robust.table: cannot be applied: {e}")
+
+
+class Replay:
+    """A perturbed run of a bundle set up to be replayed with one cause changed: the
+    nominal model's controller and its plan of ``behavior`` (what the robot's program
+    knows), and the robot of perturbation ``seed`` of ``table`` (``robot``, its draws
+    ``perturbation``). :meth:`run` simulates a variant of that perturbation (and of the
+    plan) and gives the run."""
+
+    def __init__(self, bundle: Bundle, table: Mapping, behavior: str, seed: int) -> None:
+        self.bundle = bundle
+        self.record = bundle.record
+        self.controller = bundle.controller()
+        self.plan = self.controller.run(behavior)
+        self.robot = Perturbed(bundle, table, seed)
+        self.perturbation = self.robot.perturbation
+
+    def run(self, perturbation: Mapping | None = None, plan: Trajectory | None = None) -> Run:
+        """The run of ``plan`` (default: the behaviour's default plan) under
+        ``perturbation`` (default: the run's own)."""
+        robot = self.robot if perturbation is None else self.robot.varied(**perturbation)
+        return robot.run(self.plan if plan is None else plan)
+
+
 def run_perturbed(
-    files: Mapping[str, str | bytes],
+    bundle: Bundle,
     name: str,
     seed: int,
     params: Mapping[str, object] | None = None,
@@ -529,36 +462,25 @@ def run_perturbed(
     progress: Callable[[float], None] | None = None,
 ) -> tuple[Trajectory, SimResult, dict]:
     """Behaviour ``name`` of a bundle run under its perturbation ``seed`` (the record's
-    table unless ``table`` is given): (trajectory, judged result, the perturbation). The
-    controller and its plan are the nominal model's (what the robot's program knows); the
-    robot it drives is perturbed."""
-    from export.mjcf import load_mjcf
-    from synth.verification.perturb import draw, perturbed_model
-
-    record, xml, meshes = bundle_parts(files)
-    table = recorded_table(record) if table is None else table
-    try:
-        p = draw(table, seed)
-        model = perturbed_model(xml, meshes, table, p)
-    except (KeyError, TypeError, ValueError) as e:
-        raise InputError(f"design.json: verified.robust.table: cannot be applied: {e}") from None
-    controller = controller_for_model(record, load_mjcf(xml, meshes))
-    traj = controller.run(name, **dict(params or {}))
-    return traj, _simulate(model, controller, traj, seconds, progress, p), p
+    table unless ``table`` is given): (trajectory, judged result, the perturbation)."""
+    robot = Perturbed(bundle, recorded_table(bundle.record) if table is None else table, seed)
+    robot.model()  # a table that cannot be applied is said before the plan is made
+    traj = bundle.controller().run(name, **dict(params or {}))
+    return traj, robot.simulate(traj, seconds, progress), robot.perturbation
 
 
 def verify_robust(
-    files: Mapping[str, str | bytes],
+    bundle: Bundle,
     k: int,
     table: Mapping,
     behaviors: Sequence[str] | None = None,
     only: Collection[str] | None = None,
     sensing: bool = True,
-) -> dict:
+) -> RobustRuns:
     """Every listed behaviour of a bundle (default parameters; ``behaviors`` when given,
     the listed ones named in ``only``) run under the perturbations 1..``k`` of ``table``
-    (:mod:`synth.verification.perturb`) and judged: the record's ``verified.robust``. A behaviour is
-    robust when it passes at least :func:`required_passes` of its runs.
+    (:mod:`synth.verification.perturb`) and judged: the record's ``verified.robust``. A
+    behaviour is robust when it passes at least :func:`required_passes` of its runs.
 
     The sensing loops (``line-tracking``, ``obstacle-avoidance``: :mod:`program.sensing`,
     as :func:`program.sensing.verify_sensing` runs them nominally) run on each perturbed
@@ -568,20 +490,19 @@ def verify_robust(
     leaves them out).
 
     The plans are the nominal model's, made once; behaviours with the same plan are run
-    once per perturbation (as :func:`verify_model`); the K x runs go on
+    once per perturbation (as :func:`verify_nominal`); the K x runs go on
     ``VERIFY_THREADS`` threads (MuJoCo steps without Python's lock), the sensing loops'
     on as many forked processes (:func:`_sensing_runs`). The results do not depend on
     the threads or processes."""
     import dataclasses
     from concurrent.futures import ThreadPoolExecutor
 
-    from export.mjcf import load_mjcf
     from program.sensing import sensing_behaviors
-    from synth.verification.perturb import describe, draw, perturbed_model, summary
+    from synth.verification.perturb import describe, summary
     from synth.verification.verdict import explain
 
-    record, xml, meshes = bundle_parts(files)
-    controller = controller_for_model(record, load_mjcf(xml, meshes))
+    record = bundle.record
+    controller = bundle.controller()
     # the sensing loops (program.sensing) the design's verification runs, by name
     sensed = sorted(sensing_behaviors(controller.behaviors, tuple(record.get("abilities", ()))))
     if behaviors is None:
@@ -594,28 +515,24 @@ def verify_robust(
         sensed = [n for n in sensed if n in only]
     if not sensing:
         sensed = []
-    trajs = []
-    for n in names:
-        try:
-            trajs.append(controller.run(n))
-        except ValueError as e:  # planned on the simulated model (its base where it stands)
-            raise UnplannedError(record, n, controller.behaviors[n].realises, e) from None
+    trajs = _plans(record, controller, names)
     same: dict[bytes, int] = {}
     first = [same.setdefault(_plan_digest(t), i) for i, t in enumerate(trajs)]
     runs = sorted(set(first))
     seeds = list(range(1, k + 1))
-    perturbations = {s: draw(table, s) for s in seeds}
-    models = {s: perturbed_model(xml, meshes, table, perturbations[s]) for s in seeds}
+    robots = {s: Perturbed(bundle, table, s) for s in seeds}
+    for robot in robots.values():
+        robot.model()  # compiled here, not on the threads
     # the sensing loops on the perturbed robots, from a fresh start: Python most of their
     # time, so on processes of their own (threads would wait on each other's lock)
     sensing_jobs = [(s, n) for s in seeds for n in sensed]
     workers = min(VERIFY_THREADS, len(sensing_jobs), os.cpu_count() or 1)
-    sensing = _sensing_runs(files, table, sensing_jobs, workers)
+    wait = _sensing_runs(bundle.files, table, sensing_jobs, workers)
     jobs: list[tuple] = [(s, r) for s in seeds for r in runs]
 
     def one(job: tuple) -> SimResult:
         s, r = job
-        return _simulate(models[s], controller, trajs[r], None, None, perturbations[s])
+        return robots[s].simulate(trajs[r])
 
     threads = min(VERIFY_THREADS, len(jobs), os.cpu_count() or 1)
     try:
@@ -625,56 +542,40 @@ def verify_robust(
         else:
             done = {job: one(job) for job in jobs}
     except BaseException:  # (a time limit, Ctrl-C): the sensing runs are not waited for
-        sensing(cancel=True)
+        wait(cancel=True)
         raise
-    done |= sensing()
+    done |= wait()
     need = required_passes(k, float(table["share"]))
     out = []
     for i, n in enumerate([*names, *sensed]):
-        figs = []
         loop = i >= len(names)  # a sensing loop
+        figs = []
         for s in seeds:
             if loop:
-                figs.append({"seed": s} | done[(s, n)])  # type: ignore[operator]
+                figs.append(Run(n, done[(s, n)], seed=s))
                 continue
-            result = dataclasses.replace(done[(s, first[i])], behavior=trajs[i].behavior)  # type: ignore[arg-type]
-            figs.append({"seed": s} | figures(trajs[i], result))
-        worst: dict[str, dict] = {}
-        for fig in figs:
-            for key, value in _criteria(fig).items():
-                w = worst.get(key)
-                if w is None or _worse(WORST[key], value, w["value"]):
-                    worst[key] = {"value": float(f"{value:.6g}"), "seed": fig["seed"]}
-        failed = [f for f in figs if f["verdict"] != "ok"]
-        passed = len(figs) - len(failed)
-        entry = {
-            "behavior": n,
-            "ability": n if loop else controller.behaviors[n].realises,
-            **({"loop": "sensing"} if loop else {}),
-            "passed": passed,
-            "runs": len(figs),
-            "robust": passed >= need,
-            "worst": dict(sorted(worst.items())),
-            "failures": [
-                {
-                    "seed": f["seed"],
-                    "verdict": f["verdict"],
-                    "why": explain(f, f["verdict"]),
-                    "perturbation": describe(perturbations[f["seed"]], sensors=loop),
-                }
-                for f in failed
-            ],
-            "figures": figs,
-        }
-        out.append(entry)
-    return {
-        "k": k,
-        "required": need,
-        "share": float(table["share"]),
-        "perturbations": [summary(perturbations[s]) for s in seeds],
-        "behaviors": out,
-        "table": dict(table),
-    }
+            result = dataclasses.replace(done[(s, first[i])], behavior=trajs[i].behavior)
+            figs.append(Run(n, figures(trajs[i], result), seed=s))
+
+        def failure(run: Run, loop: bool = loop) -> Failure:
+            fig = run.figures
+            p = robots[run.seed].perturbation  # type: ignore[index]
+            return Failure(
+                run.seed, fig["verdict"], explain(fig, fig["verdict"]), describe(p, sensors=loop)
+            )  # type: ignore[arg-type]
+
+        ability = n if loop else controller.behaviors[n].realises
+        out.append(
+            BehaviorRuns.judged(n, ability, figs, need, failure, "sensing" if loop else None)
+        )
+    return RobustRuns(
+        k,
+        need,
+        float(table["share"]),
+        tuple(summary(robots[s].perturbation) for s in seeds),
+        tuple(out),
+        dict(table),
+    )
 
 
 def _sensing_run(job: tuple) -> dict:
@@ -748,98 +649,3 @@ def robust_missing(record: Mapping) -> list[str]:
             if b.get("verdict") == "ok" and b["behavior"] not in ran
         }
     )
-
-
-def robust_failure(robust: Mapping) -> dict[str, str]:
-    """Behaviour -> why it is not robust (``verify_robust``'s record): passed k of K, the
-    perturbation that broke it worst (most criteria failed, then the lowest seed) and its
-    figures against the thresholds."""
-    out = {}
-    for b in robust.get("behaviors", ()):
-        if b["robust"]:
-            continue
-        worst = max(b["failures"], key=lambda f: (len(f["verdict"]), -f["seed"]))
-        out[b["behavior"]] = (
-            f"{b['behavior']} is not robust: passed {b['passed']} of {b['runs']} perturbed runs "
-            f"(needs {robust['required']}); {worst['perturbation']} broke it: {worst['why']}"
-        )
-    return out
-
-
-class Replay:
-    """A failed perturbed run of a bundle set up to be replayed with one cause changed:
-    the record, the nominal model's controller and its plan of ``behavior`` (what the
-    robot's program knows), and perturbation ``seed`` of ``table`` drawn
-    (``perturbation``). :meth:`run` simulates a variant of that perturbation on the
-    perturbed robot and gives the run's :func:`figures`."""
-
-    def __init__(
-        self, files: Mapping[str, str | bytes], table: Mapping, behavior: str, seed: int
-    ) -> None:
-        from export.mjcf import load_mjcf
-        from synth.verification.perturb import draw
-
-        self.record, self._xml, self._meshes = bundle_parts(files)
-        self.table = table
-        self.controller = controller_for_model(self.record, load_mjcf(self._xml, self._meshes))
-        self.plan = self.controller.run(behavior)
-        self.perturbation = draw(table, seed)
-
-    def run(self, perturbation: Mapping, plan: Trajectory | None = None) -> dict:
-        """The figures of ``plan`` (default: the behaviour's default plan) run under
-        ``perturbation``."""
-        from synth.verification.perturb import perturbed_model
-
-        plan = self.plan if plan is None else plan
-        model = perturbed_model(self._xml, self._meshes, self.table, perturbation)
-        return figures(plan, _simulate(model, self.controller, plan, None, None, perturbation))
-
-
-def play_attribution(
-    files: Mapping[str, str | bytes],
-    table: Mapping,
-    behavior: str,
-    seed: int,
-    failed: Mapping | None = None,
-) -> dict | None:
-    """Does the joints' play break behaviour ``behavior`` of a bundle under perturbation
-    ``seed`` of ``table``? ``failed``: that run's figures when they are known already
-    (:func:`verify_robust`'s, to the bit: the run is not simulated again). Measured by
-    replays of that very perturbation: with every
-    position servo's play removed (the rest unchanged) the run must pass, else None (the
-    play alone does not break it; None too when the run passes as it is). Then the play
-    of each symmetry group of joints (the record's ``group``: alike joints get alike
-    servos) is put back, the smallest play first, and kept when the run still passes: the
-    groups left are those whose play must go. ``{"verdict": [...], "joints": [...],
-    "figures": {"with": ..., "without": ...}}`` (the failed criteria, the joints whose
-    play breaks it, the :func:`_criteria` figures of the run with and without play)."""
-    replay = Replay(files, table, behavior, seed)
-    record, p = replay.record, replay.perturbation
-    full = dict(p["play_rad"])
-
-    def run(removed: set[str]) -> dict:
-        return replay.run(
-            dict(p, play_rad={j: (0.0 if j in removed else v) for j, v in full.items()})
-        )
-
-    before = run(set()) if failed is None else failed
-    if before["verdict"] == "ok":
-        return None
-    without = run(set(full))
-    if without["verdict"] != "ok":
-        return None
-    group_of = {j["name"]: j.get("group") or j["name"] for j in record.get("joints", ())}
-    groups: dict[str, list[str]] = {}
-    for j in full:
-        groups.setdefault(group_of.get(j, j), []).append(j)
-    order = sorted(groups, key=lambda g: (max(full[j] for j in groups[g]), g))
-    removed = set(full)
-    for g in order:
-        trial = removed - set(groups[g])
-        if run(trial)["verdict"] == "ok":
-            removed = trial
-    return {
-        "verdict": list(before["verdict"]),
-        "joints": sorted(removed),
-        "figures": {"with": _criteria(before), "without": _criteria(without)},
-    }

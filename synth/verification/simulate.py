@@ -57,7 +57,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -128,17 +127,6 @@ class SimResult:
             m = self.support_margin_m
             out["support_margin_m"] = r(m) if math.isfinite(m) else None
         return out
-
-
-def load_bundle_model(folder: str | Path):
-    """The MuJoCo model of a bundle folder (robot.xml with its meshes), carrying the
-    design's payload (:func:`carrying_payload`)."""
-    folder = Path(folder)
-    files = {p.name: p.read_bytes() for p in sorted((folder / "meshes").glob("*.stl"))}
-    files["robot.xml"] = (folder / "robot.xml").read_bytes()
-    if (folder / "design.json").is_file():
-        files["design.json"] = (folder / "design.json").read_bytes()
-    return load_files_model(files)
 
 
 def check_agrees(xml: str, record: object) -> None:
@@ -232,34 +220,6 @@ CHUNK_STEPS = 500
 #: Physics steps measured at a time (20 s at 2 ms): the recorded states of a block (a few
 #: MB) are all a run holds, whatever its duration.
 BLOCK_STEPS = 10_000
-
-
-def load_files_model(files: Mapping[str, str | bytes]):
-    """The MuJoCo model of a bundle held in memory: ``robot.xml`` and ``meshes/*.stl`` (keys
-    relative to the bundle folder; bare mesh names are accepted too), carrying the payload
-    of ``design.json`` where it is given (:func:`carrying_payload`)."""
-    from export.mjcf import load_mjcf
-
-    xml = files["robot.xml"]
-    text = xml.decode("utf-8") if isinstance(xml, bytes) else xml
-    raw = files.get("design.json")
-    if raw is not None:
-        from adron import readers
-
-        record = readers.parse_json(
-            raw.decode("utf-8") if isinstance(raw, bytes) else raw, "design.json"
-        )
-        from export.record_schema import check_record
-
-        check_record(record, "design.json")
-        check_agrees(text, record)
-        text = carrying_payload(text, record)
-    meshes = {
-        Path(k).name: (v.encode() if isinstance(v, str) else v)
-        for k, v in sorted(files.items())
-        if k.endswith(".stl")
-    }
-    return load_mjcf(text, meshes)
 
 
 def _tilt(quat: np.ndarray) -> float:

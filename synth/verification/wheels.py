@@ -44,6 +44,8 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from adron.catalog import Actuator, Catalog
+    from synth.verification.results import RobustRuns, Run
+    from synth.verification.source import Bundle
 
 #: A stiffer servo's kv must exceed the wheel's by this factor (else it is the same motor line).
 STIFFER = 1.0001
@@ -97,12 +99,10 @@ def stiffer_servos(record: Mapping, catalog: Catalog) -> list[Actuator]:
     return sorted(out, key=lambda a: (kv(a), a.cost, a.model))
 
 
-def swapped_files(
-    files: Mapping[str, str | bytes], joints: list[str], actuator: Actuator
-) -> dict[str, str | bytes]:
-    """The bundle ``files`` with ``actuator`` driving ``joints`` (wheels): the record's
-    stall torque and no-load speed, the MJCF's velocity servo (``kv``, ``ctrlrange``,
-    ``forcerange``) and the joint's armature, as ``export.mjcf`` writes them."""
+def swapped(bundle: Bundle, joints: list[str], actuator: Actuator) -> Bundle:
+    """``bundle`` with ``actuator`` driving ``joints`` (wheels): the record's stall torque
+    and no-load speed, the MJCF's velocity servo (``kv``, ``ctrlrange``, ``forcerange``)
+    and the joint's armature, as ``export.mjcf`` writes them."""
     import xml.etree.ElementTree as ET
 
     from export.mjcf import servo_gains
@@ -112,6 +112,7 @@ def swapped_files(
         return v.decode("utf-8") if isinstance(v, bytes) else v
 
     names = set(joints)
+    files = bundle.files
     record = json.loads(text(files["design.json"]))
     for j in record.get("joints", ()):
         if j["name"] in names:
@@ -129,23 +130,20 @@ def swapped_files(
     for joint in root.iter("joint"):
         if joint.get("name") in names:
             joint.set("armature", number(armature))
-    out = dict(files)
-    out["design.json"] = json.dumps(record)
-    out["robot.xml"] = ET.tostring(root, encoding="unicode")
-    return out
+    return bundle.with_files(
+        {"design.json": json.dumps(record), "robot.xml": ET.tostring(root, encoding="unicode")}
+    )
 
 
-def _failed_runs(robust: Mapping) -> list[tuple[str, int, dict]]:
-    """(behaviour, seed, figures) of the failed perturbed runs replayed: those
+def _failed_runs(robust: RobustRuns) -> list[tuple[str, int, Run | None]]:
+    """(behaviour, seed, the run) of the failed perturbed runs replayed: those
     ``play_blame`` replays (``synth.verification.robust.worst_failures``)."""
     from synth.verification.robust import BLAMED_RUNS, worst_failures
 
-    return [(b, s, fig or {}) for b, s, fig in worst_failures(robust, BLAMED_RUNS)]
+    return worst_failures(robust, BLAMED_RUNS)
 
 
-def wheel_blame(
-    files: Mapping[str, str | bytes], robust: Mapping | None, catalog: Catalog
-) -> dict | None:
+def wheel_blame(bundle: Bundle, robust: RobustRuns | None, catalog: Catalog) -> dict | None:
     """Does a stiffer wheel servo make the failed perturbed runs pass? Measured (module
     docstring): ``{"model": the first servo of :func:`stiffer_servos` with which every
     replayed run passes, "from": the wheels' servo, "joints": the wheels, "runs": [{behavior,
@@ -153,34 +151,36 @@ def wheel_blame(
     "stiffer": the replay's}}]}``; None without wheels, without a failed run, or when
     none of them makes every run pass (``{"model": None, "tried": [...]}`` then, so that a
     refusal can say so)."""
-    if not robust or not isinstance(robust.get("table"), Mapping):
+    if not robust or not robust.table:
         return None
-    from synth.verification.runs import _criteria, bundle_parts, figures, run_perturbed
+    from synth.verification.runs import Perturbed
 
     runs = _failed_runs(robust)
     if not runs:
         return None
-    record, _, _ = bundle_parts(files)
+    record = bundle.record
     wheels = wheel_joints(record, catalog)
     if not wheels:
         return None
     candidates = stiffer_servos(record, catalog)
     joints = sorted(wheels)
-    table = robust["table"]
+    table = robust.table
     for a in candidates:
-        trial = swapped_files(files, joints, a)
+        trial = swapped(bundle, joints, a)
         replays = []
         for behavior, seed, failed in runs:
-            traj, result, _ = run_perturbed(trial, behavior, seed, table=table)
-            fig = figures(traj, result)
-            if fig["verdict"] != "ok":
+            run = Perturbed(trial, table, seed).run(trial.controller().run(behavior))
+            if not run.ok:
                 break
             replays.append(
                 {
                     "behavior": behavior,
                     "seed": seed,
-                    "verdict": list(failed.get("verdict") or ()),
-                    "figures": {"with": _criteria(failed), "stiffer": _criteria(fig)},
+                    "verdict": failed.verdict if failed else [],
+                    "figures": {
+                        "with": failed.criteria() if failed else {},
+                        "stiffer": run.criteria(),
+                    },
                 }
             )
         else:
@@ -199,8 +199,8 @@ def wheel_blame(
 
 
 def wheel_exclusions(
-    files: Mapping[str, str | bytes],
-    robust: Mapping | None,
+    bundle: Bundle,
+    robust: RobustRuns | None,
     catalog: Catalog,
     excluded: Mapping[str, frozenset[str]] | None = None,
 ) -> tuple[dict[str, frozenset[str]], dict | None]:
@@ -211,7 +211,7 @@ def wheel_exclusions(
     :func:`wheel_blame` found (None: no wheel or no failed run). Empty when no stiffer
     wheel servo makes the failed runs pass."""
     excluded = excluded or {}
-    found = wheel_blame(files, robust, catalog)
+    found = wheel_blame(bundle, robust, catalog)
     if not found or found["model"] is None:
         return {}, found
     answer = next(x for x in catalog.actuators if x.model == found["model"])
