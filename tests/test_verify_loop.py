@@ -221,7 +221,7 @@ def test_a_dropped_bonus_ability_does_not_skip_the_robust_runs(designer, monkeyp
     """A design whose bonus behaviour failed nominally still has its other behaviours run
     under perturbation (a design accepted with no perturbed run was the bug), and one
     that is not robust there refuses the request."""
-    import synth.verification.robust
+    import synth.verification.play
 
     monkeypatch.setattr(synth.verification.loop, "HINT_ROUNDS", 0)
     bad = _result("positioning", "positioning", ["placing"], placing_error_m=0.02)
@@ -256,7 +256,7 @@ def test_a_dropped_bonus_ability_does_not_skip_the_robust_runs(designer, monkeyp
         )
 
     monkeypatch.setattr(synth.verification.runs, "verify_robust", robust)
-    monkeypatch.setattr(synth.verification.robust, "play_blame", lambda files, r: [])
+    monkeypatch.setattr(synth.verification.play, "play_blame", lambda bundle, r: [])
     asked_to_fail = False
     out = run(designer, ARM, StructureOptions(robustness=2))
     assert out.infeasible is None

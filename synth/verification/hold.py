@@ -27,6 +27,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
+from synth.verification.causes import Remedy, Round
+
 if TYPE_CHECKING:
     from synth.verification.results import RobustRuns, Run
     from synth.verification.source import Bundle
@@ -143,3 +145,29 @@ def hold_note(blamed: list[dict], behavior: str) -> str:
             f"{'they pass' if len(runs) > 1 else 'it passes'} as perturbed"
         )
     return out
+
+
+class Hold:
+    """The servos' command hold as a cause of the loop (:class:`synth.verification.causes.
+    Cause`): measured on the design the loop ends with (:func:`hold_blame`), for a refusal
+    to name; no sizing answers it (a lower speed does, which the design's plans do not
+    choose), so it changes nothing."""
+
+    name = "command hold"
+
+    def __init__(self) -> None:
+        self.at = 0
+        self.held: list[dict] = []
+
+    def explains(self, now: Round) -> Remedy | None:
+        self.held, self.at = hold_blame(now.bundle(), now.robust), now.number
+        return None
+
+    def taken(self, now: Round, sizing: Mapping[str, frozenset[str]]) -> None:
+        return None
+
+    def note(self, behavior: str, final: int) -> str:
+        return hold_note(self.held, behavior) if self.at == final else ""
+
+    def record(self, models: Mapping[str, str]) -> dict | None:
+        return None

@@ -1,12 +1,14 @@
-"""Closing the loop: a sized design's behaviours simulated, and failures fed back.
+"""Closing the loop: a sized design's behaviours simulated, and failures fed back
+(:class:`Strengthening`, a round at a time).
 
 After the structure generator, every behaviour the design will list (its abilities'
 behaviours, default parameters) runs in MuJoCo on the bundle's own model
-(:mod:`synth.verification.runs`) and is judged on its outcome (:mod:`synth.verification.verdict`).
-A behaviour that failed because an actuator sat at its torque limit feeds back: every joint that
-saturated must get an actuator stronger than the one it had (a torque floor for the
-structure generator, which sizes again, links included), then everything is simulated
-again, up to ``MAX_ROUNDS`` sizings. What still fails then:
+(:mod:`synth.verification.runs`) and is judged on its outcome
+(:mod:`synth.verification.verdict`). A behaviour that failed because an actuator sat at
+its torque limit feeds back: every joint that saturated must get an actuator stronger than
+the one it had (a torque floor for the structure generator, which sizes again, links
+included), then everything is simulated again, up to ``MAX_ROUNDS`` sizings. What still
+fails then:
 
 - a behaviour of an ability the request demands (``needed``) fails the request: the
   design is infeasible, naming the behaviour, the criterion and the figure;
@@ -14,16 +16,24 @@ again, up to ``MAX_ROUNDS`` sizings. What still fails then:
   design's ``abilities``, with a note.
 
 Under ``--robustness K`` the behaviours that passed run under K perturbations too
-(:mod:`synth.verification.robust`): a perturbed run with an actuator at its limit feeds the same
-torque floors; one that the joints' play breaks (measured: replayed with the same perturbation
-less the play, it passes; :func:`synth.verification.robust.play_blame`) excludes, for the joints
-whose play it is, their servo and every servo of the catalog with as much play
-(:func:`synth.verification.robust.less_play`), and the structure is sized again (the servo with less
-play must still hold the joint's torque), up to ``PLAY_ROUNDS`` sizings more; the record's
-``verified.play`` names each swap and the runs that called for it.
-A failed perturbed run with no actuator saturated on a robot with wheels is replayed with
-stiffer wheel servos (:func:`synth.verification.wheels.wheel_exclusions`): the first with which
-the runs pass is the answer, the wheels may have no less stiff servo in the next sizing.
+(:mod:`synth.verification.robust`): a perturbed run with an actuator at its limit feeds
+the same torque floors. One with none at its limit is put to the causes of
+:mod:`synth.verification.causes`, each measured by replays of the failed runs with its
+part of the perturbation changed, in this order:
+
+- on a robot with wheels, the wheels' servos (:class:`synth.verification.wheels.Wheels`):
+  the first stiffer servo with which the runs pass is the answer, the wheels may have no
+  less stiff servo in the next sizing;
+- when no stronger actuator answers it, the joints' play
+  (:class:`synth.verification.play.Play`): the joints whose play breaks it may have no
+  servo with as much play (a new sizing; the servo with less play must still hold the
+  joint's torque), up to ``PLAY_ROUNDS`` sizings more; ``verified.play`` names each swap
+  and the runs that called for it;
+- on the design the loop ends with, the command hold
+  (:class:`synth.verification.hold.Hold`), which no sizing answers: a refusal names the
+  speed at which the runs pass.
+
+A refusal names what each cause measured and tried on the design as it stands.
 
 The sensing loops (:mod:`program.sensing`: line-tracking, obstacle-avoidance) that passed
 nominally run under the same K perturbations once the repairs are done, on the design as
@@ -38,16 +48,17 @@ track and turning load) has its probe runs simulated and the design's ``calibrat
 measured (:func:`calibrate`); the behaviours are then planned with it and verified. The
 verdicts judge the outcome with it, unchanged.
 
-Feedback other than stronger actuators (a larger wheel, a slower or lower gait, more
-modules lifting) is each family's sizing rule, not this loop's: no failure class was found
-that such a remedy fixes (measured on 96 requests off the shipped study's grid and on its
-51 wheeled ones: none refused by simulation once a skid-steer is calibrated; the failures
-left, a snake's bonus ``rolling`` with 0.3-0.5 kg on its strongest servos, which no
-rolling frequency fixes either, and a skid-steer under 0.5 kg drifting while it turns in
-place, worse when slower, have no remedy in that list), so there is no remedy table.
+Feedback other than stronger actuators and the causes' answers (a larger wheel, a slower
+or lower gait, more modules lifting) is each family's sizing rule, not this loop's: no
+failure class was found that such a remedy fixes (measured on 96 requests off the shipped
+study's grid and on its 51 wheeled ones: none refused by simulation once a skid-steer is
+calibrated; the failures left, a snake's bonus ``rolling`` with 0.3-0.5 kg on its
+strongest servos, which no rolling frequency fixes either, and a skid-steer under 0.5 kg
+drifting while it turns in place, worse when slower, have no remedy in that list), so
+there is no remedy table.
 
-The record keeps each behaviour's figures (``verified``). This module runs the simulator,
-so it imports ``export`` and ``gaits`` (lazily): it is the one place where ``synth`` looks
+The record keeps each behaviour's figures (``verified``). This package runs the
+simulator, so it imports ``export`` and ``gaits`` (lazily): it is where ``synth`` looks
 downstream, because the pipeline's last step is to check what it built.
 """
 
@@ -64,6 +75,7 @@ from synth.verification.results import RobustRuns, Run
 if TYPE_CHECKING:
     from synth.conceptual import Designer, Request
     from synth.pipeline import Outcome, StructureOptions
+    from synth.verification.causes import Round
     from synth.verification.source import Bundle
 
 #: What a refusal for robustness adds: the design did pass on the nominal model.
@@ -76,7 +88,7 @@ MAX_ROUNDS = 3
 #: A saturated joint's next actuator must give at least this much more usable torque.
 STRONGER = 1.0001
 #: Sizings beyond ``MAX_ROUNDS`` that answer a perturbed run broken by the joints' play
-#: with servos of less play (``synth.verification.robust.less_play``).
+#: with servos of less play (``synth.verification.play.less_play``).
 PLAY_ROUNDS = 2
 #: A refusal's hint (:func:`best_value`): sizings with verification at most, and the
 #: bisection steps after the floor's test.
@@ -167,7 +179,7 @@ def verify(designer: Designer, req: Request, opts: StructureOptions, outcome: Ou
     if unserved and not opts.allow_unverified:
         robot = outcome.design.chosen.robot_type if outcome.design.chosen else "the design"
         return replace(outcome, infeasible=unserved_message(robot, unserved))
-    out = _verified(designer, params, opts, outcome)
+    out = Strengthening(designer, params, opts, outcome).run()
     if unserved and out.verification is not None:
         accepted = tuple(sorted(unserved))
         out = replace(out, verification=replace(out.verification, accepted_unsimulated=accepted))
@@ -316,7 +328,7 @@ def best_value(
             except InfeasibleError:
                 return False
             trial = replace(outcome, structure=structure, calibration=None, bundle=None)
-            return _verified(designer, values, opts, trial).infeasible is None
+            return Strengthening(designer, values, opts, trial).run().infeasible is None
 
         low = floor * asked
         if not ok(low):
@@ -331,249 +343,303 @@ def best_value(
     return None
 
 
-def _verified(
-    designer: Designer, params: Mapping[str, float], opts: StructureOptions, outcome: Outcome
-) -> Outcome:
-    """The loop of the module docstring on ``outcome``, sized for ``params`` (SI)."""
-    from gaits import controller_for
-    from gaits.base import DesignGeometry
-    from program.sensing import verify_sensing
-    from synth.structure import StructureDesigner
-    from synth.verification.hold import hold_blame, hold_note
-    from synth.verification.robust import (
-        less_play,
-        play_blame,
-        play_note,
-        robust_bundle,
-        robust_check,
-        with_sensing,
-    )
-    from synth.verification.runs import UnplannedError, verify_nominal
-    from synth.verification.source import Bundle
-    from synth.verification.verdict import explain
-    from synth.verification.wheels import wheel_exclusions, wheel_joints, wheel_note
+@dataclass(frozen=True)
+class Simulated:
+    """One round's simulation of the design as it stands: its bundle's files and record,
+    each joint's actuator, the nominal runs (the plans' and the sensing loops'), those
+    that failed, and the perturbed runs (None when not run: a nominal failure, or K = 0)."""
 
-    floors: dict[str, float] = {}
-    excluded: dict[str, frozenset[str]] = {}  # joint -> models too loose (their play)
-    first_model: dict[str, str] = {}  # joint -> its actuator before its play was answered
-    blamed: list[
-        dict
-    ] = []  # the perturbed runs the play broke (synth.verification.robust.play_blame)
-    history: list[dict] = []  # and those of every round, for the record
-    blamed_at = 0  # the round (sizing) they were measured on
-    torque_done = False  # a stronger actuator was asked for and none could be had
-    stuck: list[str] = []  # joints the play broke that no model with less play serves
-    play = None
-    wheels_at: tuple[int, dict | None] = (
-        0,
-        None,
-    )  # the stiffer wheels tried (synth.verification.wheels)
-    first_wheel: dict[str, str] = {}  # wheel joint -> its servo before a stiffer one
-    wheel_runs: list[dict] = []  # the perturbed runs that called for the stiffer wheels
-    bundles: dict[int, Bundle] = {}  # the round's bundle as the user gets it (robust_bundle)
+    files: dict
+    record: dict
+    models: dict[str, str]
+    planned: list[Run]
+    sensed: list[Run]
+    failing: list[Run]
+    robust: RobustRuns | None
 
-    def round_bundle() -> Bundle:
-        """The perturbed runs' bundle of the design as it stands, built once a round."""
-        if rounds not in bundles:
-            bundles.clear()
-            bundles[rounds] = robust_bundle(designer, outcome)
-        return bundles[rounds]
+    @property
+    def results(self) -> list[Run]:
+        return self.planned + self.sensed
 
-    rounds = 0
-    while True:
-        rounds += 1
-        files = outcome.files(designer)
+    def not_robust(self) -> list:
+        return self.robust.not_robust() if self.robust is not None else []
+
+
+class Strengthening:
+    """The loop of the module docstring on ``outcome``, sized for ``params`` (SI): each
+    round simulates the design as it stands (:meth:`simulate`), answers what failed
+    (:meth:`answer`: a stronger actuator for each joint that saturated, then the causes of
+    :mod:`synth.verification.causes` in turn) and sizes it again, until everything passes
+    or nothing answers what fails; :meth:`judge` then gives the outcome."""
+
+    def __init__(
+        self,
+        designer: Designer,
+        params: Mapping[str, float],
+        opts: StructureOptions,
+        outcome: Outcome,
+    ) -> None:
+        from synth.verification.hold import Hold
+        from synth.verification.play import Play
+        from synth.verification.wheels import Wheels
+
+        self.designer, self.params, self.opts, self.outcome = designer, params, opts, outcome
+        self.rounds = 0  # rounds of simulation
+        self.floors: dict[str, float] = {}  # joint -> the torque it must be sized for
+        self.excluded: dict[str, frozenset[str]] = {}  # joint -> models it may not have
+        self.torque_done = False  # a stronger actuator was asked for and none could be had
+        self.wheels, self.play, self.hold = Wheels(), Play(), Hold()
+        self._bundle: tuple[int, Bundle] | None = None
+
+    @property
+    def sizings(self) -> int:
+        """The sizings so far (one a round)."""
+        return self.rounds
+
+    def bundle(self) -> Bundle:
+        """The perturbed runs' bundle of the design as it stands (as the user gets it),
+        built once a round."""
+        from synth.verification.robust import robust_bundle
+
+        if self._bundle is None or self._bundle[0] != self.rounds:
+            self._bundle = (self.rounds, robust_bundle(self.designer, self.outcome))
+        return self._bundle[1]
+
+    def run(self) -> Outcome:
+        while True:
+            self.rounds += 1
+            now = self.simulate()
+            if now is None:  # a bonus ability's plan was dropped: this round again
+                self.rounds -= 1
+                self._bundle = None
+                continue
+            structure = self.answer(now)
+            if structure is None:
+                break  # everything passed, or nothing answers what fails
+            self.outcome = replace(self.outcome, structure=structure, calibration=None)
+        return self.judge(now)
+
+    def simulate(self) -> Simulated | None:
+        """The round's runs: the calibration probes where the controller has them, the
+        behaviours' plans and the sensing loops nominally, and, when they all passed, the
+        plans under the perturbations; None when a bonus ability's behaviour cannot be
+        planned (it is dropped: :func:`_drop_unplanned`)."""
+        from program.sensing import verify_sensing
+        from synth.verification.robust import robust_check
+        from synth.verification.runs import UnplannedError, verify_nominal
+        from synth.verification.source import Bundle
+
+        designer = self.designer
+        files = self.outcome.files(designer)
         calibration = calibrate(Bundle(files))
         if calibration:
-            outcome = replace(outcome, calibration=calibration)
-            files = outcome.files(designer)
-        record = outcome.record(designer)
+            self.outcome = replace(self.outcome, calibration=calibration)
+            files = self.outcome.files(designer)
+        record = self.outcome.record(designer)
         models = {j["name"]: j["actuator"] for j in record.get("joints", ())}
         # the behaviours' trajectories, then the sensing abilities' closed loops
         try:
             planned = verify_nominal(Bundle(files))
             sensed = [Run.of(r) for r in verify_sensing(files)]
-        except UnplannedError as e:  # a bonus ability's plan: dropped, and this round again
-            outcome = _drop_unplanned(designer, outcome, record, e)
-            bundles.clear()
-            rounds -= 1
-            continue
-        results = planned + sensed
-        failing = [r for r in results if not r.ok]
-        # nominally passed: under the perturbations of synth.verification.robust (--robustness K)
+        except UnplannedError as e:
+            self.outcome = _drop_unplanned(designer, self.outcome, record, e)
+            return None
+        failing = [r for r in planned + sensed if not r.ok]
+        k = self.opts.robustness
+        # nominally passed: under the perturbations (robust.py, --robustness K)
         robust = (
             None
-            if failing or opts.robustness <= 0
+            if failing or k <= 0
             else robust_check(
                 designer,
-                outcome,
-                opts.robustness,
-                bundle=round_bundle(),
+                self.outcome,
+                k,
+                bundle=self.bundle(),
                 nominal=planned,
                 sensing=False,
                 sensed=sensed,
             )
         )
-        more = _floors(results + (robust.failing_runs() if robust else []), record)
-        new = {j: f for j, f in more.items() if f > floors.get(j, 0.0)}
-        grow = new if rounds < MAX_ROUNDS and not torque_done else {}
-        stiffer: dict[str, frozenset[str]] = {}
-        if (
-            not (grow or failing)
-            and robust is not None
-            and robust.not_robust()
-            and rounds < MAX_ROUNDS + PLAY_ROUNDS
-            and wheel_joints(record, outcome.catalog)
-        ):
-            # no actuator saturated: does a stiffer wheel servo answer it? (measured)
-            stiffer, wheels = wheel_exclusions(round_bundle(), robust, outcome.catalog, excluded)
-            wheels_at = (rounds, wheels)
-        if not (failing or (robust is not None and robust.not_robust())):
-            break
-        sizer = StructureDesigner(
-            designer.kb,
-            outcome.design.chosen,
-            outcome.catalog,
-            dict(params),
-            opts.symmetric,
-            opts.objective,
+        return Simulated(files, record, models, planned, sensed, failing, robust)
+
+    def _round(self, now: Simulated) -> Round:
+        from synth.verification.causes import Round
+
+        return Round(
+            self.rounds,
+            now.record,
+            now.models,
+            self.outcome.catalog,
+            now.robust,
+            self.bundle,
+            dict(self.excluded),
         )
+
+    def answer(self, now: Simulated):
+        """The structure sized again to answer what failed in round ``now``; None when
+        everything passed or nothing answers it. A joint that saturated (nominally or in a
+        perturbed run) must get a stronger actuator (up to ``MAX_ROUNDS`` sizings); a
+        perturbed failure with none saturated is put to the wheels (a robot with wheels),
+        then, when no stronger actuator answers it, to the play (up to ``PLAY_ROUNDS``
+        sizings more)."""
+        from synth.structure import StructureDesigner
+
+        more = _floors(now.results + (now.robust.failing_runs() if now.robust else []), now.record)
+        new = {j: f for j, f in more.items() if f > self.floors.get(j, 0.0)}
+        grow = new if self.sizings < MAX_ROUNDS and not self.torque_done else {}
+        state = self._round(now)
+        causes_left = self.sizings < MAX_ROUNDS + PLAY_ROUNDS
+        stiffer: Mapping[str, frozenset[str]] = {}
+        wheels = not (grow or now.failing) and now.not_robust() and causes_left
+        if wheels and self.wheels.applies(state):  # none saturated: a stiffer wheel servo?
+            remedy = self.wheels.explains(state)
+            stiffer = remedy.sizings[0] if remedy else {}
+        if not (now.failing or now.not_robust()):
+            return None
+        o = self.outcome
+        sizer = StructureDesigner(
+            self.designer.kb,
+            o.design.chosen,
+            o.catalog,
+            dict(self.params),
+            self.opts.symmetric,
+            self.opts.objective,
+        )
+        state.sizer = sizer
         structure = None
         if grow or stiffer:
-            floors |= grow
-            sizer.torque_floor = dict(floors)
-            sizer.excluded = dict(excluded) | stiffer
+            self.floors |= grow
+            sizer.torque_floor = dict(self.floors)
+            sizer.excluded = dict(self.excluded) | dict(stiffer)
             try:
                 structure = sizer.run()
-                excluded |= stiffer
-                if stiffer:  # synth.verification.wheels: what called for it
-                    wheel_runs += wheels_at[1]["runs"]  # type: ignore[index]
-                    for j in stiffer:
-                        first_wheel.setdefault(j, models[j])
+                self.excluded |= stiffer
+                if stiffer:
+                    self.wheels.taken(state, stiffer)
             except InfeasibleError:
-                torque_done = True  # no stronger actuator: is it the play? (below)
-        if structure is None and not failing and rounds < MAX_ROUNDS + PLAY_ROUNDS:
+                self.torque_done = True  # no stronger actuator: is it the play? (below)
+        if structure is None and not now.failing and causes_left:
             # no stronger actuator answers it: does the joints' play break it? (measured)
-            if play is None:
-                from synth.verification.perturb import catalog_play
+            state.excluded = dict(self.excluded)
+            remedy = self.play.explains(state)
+            sizer.torque_floor = dict(self.floors)
+            for trial in remedy.sizings if remedy else ():
+                sizer.excluded = {**self.excluded, **trial}
+                try:
+                    structure = sizer.run()
+                except InfeasibleError:
+                    continue
+                self.play.taken(state, trial)
+                self.excluded |= trial
+                break
+        return structure
 
-                play = catalog_play(outcome.catalog)
-            runs = play_blame(round_bundle(), robust)
-            blamed, blamed_at = runs, rounds
-            history += runs
-            looser, stuck = less_play(runs, models, sizer.assigner.serving, play, excluded)
-            sizer.torque_floor = dict(floors)
-            structure, trial = _size_with_less_play(sizer, looser, runs, excluded)
-            for j in trial:
-                first_model.setdefault(j, models[j])
-            excluded |= trial
-        if structure is None:
-            break  # no stronger actuator, none with less play: the failure below stands
-        outcome = replace(outcome, structure=structure, calibration=None)
-    if robust is None and failing and opts.robustness > 0:
-        # what failed nominally drops its bonus abilities or refuses the request (below);
-        # what passed must pass under the perturbations too, or no perturbed run is claimed
-        passed = {r.behavior for r in results if r.ok}
-        robust = robust_check(
-            designer,
-            outcome,
-            opts.robustness,
-            passed,
-            round_bundle(),
-            [r for r in planned if r.behavior in passed],
-            sensed=[r for r in sensed if r.behavior in passed],
-        )
-    # which abilities no behaviour serves: the controller alone tells (no model needed)
-    controller = controller_for(DesignGeometry.from_record(record))
-    served = served_abilities(record, controller)
-    unsimulated = tuple(a for a in record.get("abilities", ()) if served.get(a) is None)
-    needed = set(record.get("needed") or record.get("abilities", ()))
-    if robust is not None and not failing:
-        # the sensing loops under the perturbations: once, on the design as it stands (a
-        # repair answers the plans' runs; a loop's run has no saturated joint to feed
-        # it), unless a plan's perturbed runs refuse the design already
-        refused = any(
-            ({b.ability} | {x for x, s in served.items() if s == b.ability}) & needed
-            for b in robust.not_robust()
-        )
-        loops = [r.behavior for r in sensed if r.ok]
-        if loops and not refused:
-            more = robust_check(
+    def judge(self, now: Simulated) -> Outcome:
+        """The outcome of the last round ``now``: what failed nominally drops a bonus
+        ability or refuses the request, as does a behaviour not robust under the
+        perturbations (its refusal names what each cause measured and tried)."""
+        from gaits import controller_for
+        from gaits.base import DesignGeometry
+        from synth.verification.robust import robust_check, with_sensing
+        from synth.verification.verdict import explain
+
+        designer, opts, outcome = self.designer, self.opts, self.outcome
+        record, results, failing, robust = now.record, now.results, now.failing, now.robust
+        sensed = now.sensed
+        if robust is None and failing and opts.robustness > 0:
+            # what failed nominally drops its bonus abilities or refuses the request (below);
+            # what passed must pass under the perturbations too, or no perturbed run is claimed
+            passed = {r.behavior for r in results if r.ok}
+            robust = robust_check(
                 designer,
                 outcome,
                 opts.robustness,
-                set(loops),
-                round_bundle(),
-                table=robust.table,
+                passed,
+                self.bundle(),
+                [r for r in now.planned if r.behavior in passed],
+                sensed=[r for r in sensed if r.behavior in passed],
             )
-            robust = with_sensing(robust, more)
-    # a behaviour fails the request when it serves a demanded ability (walking serves a
-    # demanded heavy-walking); else the abilities it serves are dropped
-    dropped: dict[str, str] = {}
-    failure = None
-    for r in failing:
-        mine = {r.ability} | {a for a, s in served.items() if s == r.ability}
-        through = sorted(mine & needed) if r.ability not in needed else []
-        serving = f" (serving {', '.join(through)})" if through else ""  # which demand
-        why = f"{r.behavior}{serving} failed in simulation: {explain(r.figures, r.verdict)}"
-        if mine & needed:
-            failure = failure or why
-        else:
-            for a in sorted(mine):
-                dropped.setdefault(a, why)
-    also = []  # the other demanded behaviours that are not robust, named after the worst
-    nominal_failure = failure is not None
-    bad = robust.not_robust() if robust is not None else []
-    held = hold_blame(round_bundle(), robust) if bad else []
-    for b in bad:
-        ability, behavior = b.ability, b.behavior
-        why = b.why_not(robust.required)  # type: ignore[union-attr]
-        if blamed_at == rounds:  # measured on the design as it stands
-            why += play_note(blamed, behavior, stuck, play or {}, models)
-        if wheels_at[0] == rounds:
-            why += wheel_note(wheels_at[1], behavior)
-        why += hold_note(held, behavior)
-        mine = {ability} | {a for a, s in served.items() if s == ability}
-        if mine & needed:
-            if failure is None:
-                failure = why
+        # which abilities no behaviour serves: the controller alone tells (no model needed)
+        controller = controller_for(DesignGeometry.from_record(record))
+        served = served_abilities(record, controller)
+        unsimulated = tuple(a for a in record.get("abilities", ()) if served.get(a) is None)
+        needed = set(record.get("needed") or record.get("abilities", ()))
+
+        def serves(ability: str) -> set[str]:
+            return {ability} | {a for a, s in served.items() if s == ability}
+
+        if robust is not None and not failing:
+            # the sensing loops under the perturbations: once, on the design as it stands (a
+            # repair answers the plans' runs; a loop's run has no saturated joint to feed
+            # it), unless a plan's perturbed runs refuse the design already
+            refused = any(serves(b.ability) & needed for b in robust.not_robust())
+            loops = [r.behavior for r in sensed if r.ok]
+            if loops and not refused:
+                more = robust_check(
+                    designer,
+                    outcome,
+                    opts.robustness,
+                    set(loops),
+                    self.bundle(),
+                    table=robust.table,
+                )
+                robust = with_sensing(robust, more)
+        # a behaviour fails the request when it serves a demanded ability (walking serves a
+        # demanded heavy-walking); else the abilities it serves are dropped
+        dropped: dict[str, str] = {}
+        failure = None
+        for r in failing:
+            mine = serves(r.ability)  # type: ignore[arg-type]
+            through = sorted(mine & needed) if r.ability not in needed else []
+            serving = f" (serving {', '.join(through)})" if through else ""  # which demand
+            why = f"{r.behavior}{serving} failed in simulation: {explain(r.figures, r.verdict)}"
+            if mine & needed:
+                failure = failure or why
             else:
-                also.append(f"{behavior} (passed {b.passed} of {b.runs})")
-        else:
-            for a in sorted(mine):
-                dropped.setdefault(a, why)
-    if also:
-        failure += f"; also not robust: {', '.join(also)}"
-    skipped = robust_skipped(sensed, robust)
-    if skipped and failure is None:  # (a bug, never a design's fault: said, not passed)
-        failure = (
-            f"{', '.join(skipped)} passed on the nominal model but did not run under the "
-            "perturbations: every behaviour the design lists must"
+                for a in sorted(mine):
+                    dropped.setdefault(a, why)
+        also = []  # the other demanded behaviours that are not robust, named after the worst
+        nominal_failure = failure is not None
+        bad = robust.not_robust() if robust is not None else []
+        if bad:  # the command hold: measured on the design as it stands, for the refusal
+            self.hold.explains(replace(self._round(now), robust=robust))
+        for b in bad:
+            why = b.why_not(robust.required)  # type: ignore[union-attr]
+            for cause in (self.play, self.wheels, self.hold):
+                why += cause.note(b.behavior, self.rounds)
+            if serves(b.ability) & needed:
+                if failure is None:
+                    failure = why
+                else:
+                    also.append(f"{b.behavior} (passed {b.passed} of {b.runs})")
+            else:
+                for a in sorted(serves(b.ability)):
+                    dropped.setdefault(a, why)
+        if also:
+            failure += f"; also not robust: {', '.join(also)}"  # type: ignore[operator]
+        skipped = robust_skipped(sensed, robust)
+        if skipped and failure is None:  # (a bug, never a design's fault: said, not passed)
+            failure = (
+                f"{', '.join(skipped)} passed on the nominal model but did not run under the "
+                "perturbations: every behaviour the design lists must"
+            )
+        if failure is not None and not nominal_failure:  # it passed on the nominal model
+            failure += f"; {ROBUST_OFF}"
+        v = Verification(
+            tuple(results),
+            self.sizings,
+            {j: self.floors[j] for j in sorted(self.floors)},
+            dropped,
+            unsimulated,
+            failure,
+            robust=robust,
+            play=self.play.record(now.models),
+            wheels=self.wheels.record(now.models),
         )
-    if failure is not None and not nominal_failure:  # it passed on the nominal model
-        failure += f"; {ROBUST_OFF}"
-    v = Verification(
-        tuple(results),
-        rounds,
-        {j: floors[j] for j in sorted(floors)},
-        dropped,
-        unsimulated,
-        failure,
-        robust=robust,
-        play=_play_record(first_model, models, play or {}, history) if history else None,
-        wheels={
-            "swapped": {
-                j: {"from": m, "to": models.get(j)} for j, m in sorted(first_wheel.items())
-            },
-            "runs": wheel_runs,
-        }
-        if first_wheel
-        else None,
-    )
-    out = replace(outcome, verification=v, bundle=files)
-    if failure is not None:
-        return replace(out, infeasible=failure)
-    return out
+        out = replace(outcome, verification=v, bundle=now.files)
+        if failure is not None:
+            return replace(out, infeasible=failure)
+        return out
 
 
 def _drop_unplanned(designer: Designer, outcome: Outcome, record: Mapping, e) -> Outcome:
@@ -604,10 +670,10 @@ def _drop_unplanned(designer: Designer, outcome: Outcome, record: Mapping, e) ->
 
 
 def robust_skipped(results: list[Run], robust: RobustRuns | None) -> list[str]:
-    """The behaviours of ``results`` (nominal runs: :func:`_verified` gives it the sensing
-    loops', which run by another path than the plans, :class:`program.session.Session`)
-    that passed but that the perturbed runs ``robust`` do not list (:func:`synth.verification.runs.
-    robust_missing`); none when no perturbed run was made."""
+    """The behaviours of ``results`` (nominal runs: :meth:`Strengthening.judge` gives it
+    the sensing loops', which run by another path than the plans, :class:`program.session.
+    Session`) that passed but that the perturbed runs ``robust`` do not list
+    (:func:`synth.verification.runs.robust_missing`); none when no perturbed run was made."""
     from synth.verification.runs import robust_missing
 
     verified = {
@@ -615,46 +681,3 @@ def robust_skipped(results: list[Run], robust: RobustRuns | None) -> list[str]:
         "robust": None if robust is None else robust.to_dict(),
     }
     return robust_missing({"verified": verified})
-
-
-def _size_with_less_play(
-    sizer, looser: Mapping[str, frozenset[str]], blamed: list[dict], excluded: Mapping
-) -> tuple[object | None, dict[str, frozenset[str]]]:
-    """The structure ``sizer`` gives with the looser models of the joints the play broke
-    (``looser``, :func:`synth.verification.robust.less_play`) excluded: all of them at once; when no
-    assignment holds them all, one joint at a time, the one blamed in most runs first.
-    (The structure, None when none sizes; the exclusions it was sized with.)"""
-    blame = {j: sum(j in r["joints"] for r in blamed) for j in looser}
-    tries = [dict(looser)] if looser else []
-    if len(looser) > 1:
-        tries += [{j: looser[j]} for j in sorted(looser, key=lambda j: (-blame[j], j))]
-    for trial in tries:
-        sizer.excluded = {**excluded, **trial}
-        try:
-            return sizer.run(), trial
-        except InfeasibleError:
-            continue
-    return None, {}
-
-
-def _play_record(
-    first: Mapping[str, str],
-    models: Mapping[str, str],
-    play: Mapping[str, float],
-    blamed: list[dict],
-) -> dict:
-    """``verified.play``: each joint whose servo was swapped for one of less play (from,
-    to, their largest play in deg) and the perturbed runs the play broke (behaviour, seed,
-    failed criteria, the joints whose play broke it, the figures with and without play)."""
-    import math
-
-    def deg(m: str) -> float:
-        return round(math.degrees(play.get(m, 0.0)), 4)
-
-    return {
-        "swapped": {
-            j: {"from": m, "to": models.get(j), "play_deg": [deg(m), deg(models.get(j, ""))]}
-            for j, m in sorted(first.items())
-        },
-        "blamed": blamed,
-    }

@@ -1,16 +1,17 @@
 """Robust verification in the design loop: a sized design's behaviours run under K seeded
-perturbations (:mod:`synth.verification.perturb`, :func:`synth.verification.runs.verify_robust`)
-once they pass on the nominal model, and judged by the acceptance rule: every behaviour passes in at
-least ``share`` x K of its runs (``synth/verification/perturb.toml``, ``[acceptance]``).
+perturbations (:mod:`synth.verification.perturb`, :func:`synth.verification.runs.
+verify_robust`) once they pass on the nominal model, and judged by the acceptance rule:
+every behaviour passes in at least ``share`` x K of its runs
+(``synth/verification/perturb.toml``, ``[acceptance]``).
 
-:mod:`synth.verification.loop` calls :func:`robust_check` where it judges the nominal results: a
-perturbed run that failed with an actuator at its limit feeds the same loop as a nominal
-one (:func:`failing_runs`: each saturated joint gets a stronger actuator, the design is
-sized again); a behaviour still not robust then fails a demanded ability (the request is
-refused naming the behaviour, the perturbation that broke it and its figures against the
-thresholds) or drops a bonus one (:func:`not_robust`). A failed perturbed run that the
-joints' play breaks (:func:`play_blame`, measured by replays) gets servos of less play for
-those joints (:func:`less_play`); a refusal then names them (:func:`play_note`).
+:mod:`synth.verification.loop` calls :func:`robust_check` where it judges the nominal
+results: a perturbed run that failed with an actuator at its limit feeds the same loop as
+a nominal one (each saturated joint gets a stronger actuator, the design is sized again);
+the other failures are put to the causes (:mod:`synth.verification.causes`), which
+replay the worst failed runs (:func:`worst_failures`, :func:`replayed_blame`) with one
+cause taken away. A behaviour still not robust then fails a demanded ability (the request
+is refused naming the behaviour, the perturbation that broke it and its figures against
+the thresholds) or drops a bonus one. :func:`shows` states what K of K shows.
 
 The runs use the bundle as the user gets it (robot.xml without the payload, which
 design.json places as ``parmor simulate`` does), so that ``parmor simulate DIR --perturb
@@ -170,15 +171,6 @@ def robust_bundle(designer: Designer, outcome: Outcome) -> Bundle:
 BLAMED_RUNS = 3
 
 
-def play_blame(bundle: Bundle, robust: RobustRuns | None) -> list[dict]:
-    """The failed perturbed runs of the behaviours that are not robust which the joints'
-    play breaks, measured (:func:`play_attribution`: each run replayed with
-    the same perturbation less the play): per run its behaviour, seed, failed criteria and
-    the joints whose play must go for it to pass (up to ``BLAMED_RUNS`` runs a
-    behaviour). A run that still fails without any play is not the play's (none listed)."""
-    return replayed_blame(bundle, robust, play_attribution, BLAMED_RUNS)
-
-
 def replayed_blame(bundle: Bundle, robust: RobustRuns | None, attribution, most: int) -> list[dict]:
     """The failed perturbed runs of the behaviours that are not robust (up to ``most`` a
     behaviour, the worst first: most criteria failed, then the lowest seed) for which
@@ -205,114 +197,3 @@ def worst_failures(robust: RobustRuns, most: int) -> list[tuple[str, int, Run | 
             continue  # (a sensing loop is no plan to replay with one cause taken away)
         out += [(b.behavior, f.seed, b.run(f.seed)) for f in b.worst_failures(most)]
     return out
-
-
-def less_play(
-    blamed: list[dict],
-    models: Mapping[str, str],
-    serving: Mapping[str, tuple[str, ...]],
-    play: Mapping[str, float],
-    excluded: Mapping[str, frozenset[str]],
-) -> tuple[dict[str, frozenset[str]], list[str]]:
-    """The play feedback of the verification loop: for each joint whose play broke a run
-    (``blamed``, :func:`play_blame`), the models it may no longer have: its actuator
-    (``models``: joint -> model) and every one with as much play (``play``: model -> the
-    largest play, :func:`synth.verification.perturb.catalog_play`), when a model that serves it
-    (``serving``) has less. (joint -> models excluded, new entries only; the blamed joints
-    that no model with less play serves)."""
-    out: dict[str, frozenset[str]] = {}
-    stuck = []
-    for joint in sorted({j for run in blamed for j in run["joints"]}):
-        model = models.get(joint)
-        if model not in play:
-            continue
-        worse = frozenset(m for m in play if play[m] >= play[model])
-        better = [m for m in serving.get(joint, ()) if m not in worse]
-        if not better:
-            stuck.append(joint)
-            continue
-        ex = excluded.get(joint, frozenset()) | worse
-        if ex != excluded.get(joint):
-            out[joint] = ex
-    return out, stuck
-
-
-def play_note(
-    blamed: list[dict],
-    behavior: str,
-    stuck: list[str],
-    play: Mapping[str, float],
-    models: Mapping[str, str],
-) -> str:
-    """What a refusal adds when the play broke ``behavior``: the joints whose play it is
-    (measured), their actuators and play, and that the catalog has none with less play
-    that holds their torque; "" when the play did not break it."""
-    import math
-
-    runs = [r for r in blamed if r["behavior"] == behavior]
-    if not runs:
-        return ""
-    joints = sorted({j for r in runs for j in r["joints"]})
-    seeds = ", ".join(str(r["seed"]) for r in runs)
-    servos = ", ".join(
-        f"{j} ({models.get(j)}, up to {math.degrees(play.get(models.get(j), 0.0)):.2g} deg)"
-        for j in joints
-    )
-    left = [j for j in joints if j in stuck]
-    tail = (
-        f"; the catalog has no actuator with less play for {', '.join(left)}"
-        if left
-        else "; no actuator of the catalog with less play holds their torque and makes it pass"
-    )
-    which = f"seeds {seeds} pass" if len(runs) > 1 else f"seed {seeds} passes"
-    return f"; the play of {servos} breaks it ({which} with their play removed){tail}"
-
-
-def play_attribution(
-    bundle: Bundle,
-    table: Mapping,
-    behavior: str,
-    seed: int,
-    failed: Run | None = None,
-) -> dict | None:
-    """Does the joints' play break behaviour ``behavior`` of a bundle under perturbation
-    ``seed`` of ``table``? ``failed``: that run when it is known already
-    (:func:`synth.verification.runs.verify_robust`'s, to the bit: it is not simulated
-    again). Measured by replays of that very perturbation: with every position servo's
-    play removed (the rest unchanged) the run must pass, else None (the
-    play alone does not break it; None too when the run passes as it is). Then the play
-    of each symmetry group of joints (the record's ``group``: alike joints get alike
-    servos) is put back, the smallest play first, and kept when the run still passes: the
-    groups left are those whose play must go. ``{"verdict": [...], "joints": [...],
-    "figures": {"with": ..., "without": ...}}`` (the failed criteria, the joints whose
-    play breaks it, the :func:`_criteria` figures of the run with and without play)."""
-    from synth.verification.runs import Replay
-
-    replay = Replay(bundle, table, behavior, seed)
-    record, p = replay.record, replay.perturbation
-    full = dict(p["play_rad"])
-
-    def run(removed: set[str]) -> Run:
-        return replay.run({"play_rad": {j: (0.0 if j in removed else v) for j, v in full.items()}})
-
-    before = run(set()) if failed is None else failed
-    if before.ok:
-        return None
-    without = run(set(full))
-    if not without.ok:
-        return None
-    group_of = {j["name"]: j.get("group") or j["name"] for j in record.get("joints", ())}
-    groups: dict[str, list[str]] = {}
-    for j in full:
-        groups.setdefault(group_of.get(j, j), []).append(j)
-    order = sorted(groups, key=lambda g: (max(full[j] for j in groups[g]), g))
-    removed = set(full)
-    for g in order:
-        trial = removed - set(groups[g])
-        if run(trial).ok:
-            removed = trial
-    return {
-        "verdict": before.verdict,
-        "joints": sorted(removed),
-        "figures": {"with": before.criteria(), "without": without.criteria()},
-    }

@@ -42,6 +42,8 @@ import json
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
+from synth.verification.causes import Remedy, Round
+
 if TYPE_CHECKING:
     from adron.catalog import Actuator, Catalog
     from synth.verification.results import RobustRuns, Run
@@ -236,3 +238,44 @@ def wheel_note(found: Mapping | None, behavior: str) -> str:
     if not tried:
         return f"; the catalog has no stiffer servo that drives the wheels {wheels} as fast"
     return f"; stiffer servos for the wheels {wheels}, {', '.join(tried)}, do not make it pass"
+
+
+class Wheels:
+    """The wheels' servos as a cause of the loop (:class:`synth.verification.causes.
+    Cause`): on a robot with wheels, the failed runs replayed with each stiffer wheel servo
+    (:func:`wheel_exclusions`); the answer is a sizing without the servos less stiff."""
+
+    name = "wheels"
+
+    def __init__(self) -> None:
+        self.at = 0  # the round it was last measured on, and what it found there
+        self.found: dict | None = None
+        self.first: dict[str, str] = {}  # wheel joint -> its servo before a stiffer one
+        self.runs: list[dict] = []  # the perturbed runs that called for the stiffer wheels
+
+    def applies(self, now: Round) -> bool:
+        """The design has wheels (:func:`wheel_joints`)."""
+        return bool(wheel_joints(now.record, now.catalog))
+
+    def explains(self, now: Round) -> Remedy | None:
+        stiffer, self.found = wheel_exclusions(now.bundle(), now.robust, now.catalog, now.excluded)
+        self.at = now.number
+        return Remedy((stiffer,)) if stiffer else None
+
+    def taken(self, now: Round, sizing: Mapping[str, frozenset[str]]) -> None:
+        self.runs += (self.found or {}).get("runs", [])
+        for j in sizing:
+            self.first.setdefault(j, now.models[j])
+
+    def note(self, behavior: str, final: int) -> str:
+        return wheel_note(self.found, behavior) if self.at == final else ""
+
+    def record(self, models: Mapping[str, str]) -> dict | None:
+        """``verified.wheels``: each wheel's servo swapped (from, to) and the runs that
+        called for it; None when none was."""
+        if not self.first:
+            return None
+        return {
+            "swapped": {j: {"from": m, "to": models.get(j)} for j, m in sorted(self.first.items())},
+            "runs": self.runs,
+        }
