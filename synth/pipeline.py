@@ -106,6 +106,9 @@ class Outcome:
     bundle: dict[str, str | bytes] | None = None  # the files the verification simulated
     with_payload: bool = False  # the bundle's models carry the payload (--with-payload)
     calibration: dict[str, float] | None = None  # measured on a run (synth.verification.loop)
+    #: behaviour -> the scale of its feedback loop's gains the robust verification chose
+    #: (synth.verification.gains); the record's ``feedback_gains``, which its controller reads
+    feedback_gains: dict[str, float] | None = None
     bed: object = None  # the user's printer (export.split.Bed, --bed): parts made to fit it
     #: bonus abilities dropped before verifying: a behaviour serving them cannot be
     #: planned with its default parameters (ability -> why; :func:`drop_unplannable`)
@@ -160,6 +163,8 @@ class Outcome:
             rec["payload"] = payload_record(self.structure, self.with_payload)
         if self.calibration:
             rec["calibration"] = dict(sorted(self.calibration.items()))
+        if self.feedback_gains:
+            rec["feedback_gains"] = dict(sorted(self.feedback_gains.items()))
         if self.note is not None and self.structure is None:
             rec["no_structure"] = self.note  # why there is none (the request keeps its params)
         if self.unplanned:

@@ -79,7 +79,7 @@ def hold_attribution(
     before = run() if failed is None else failed
     if frame <= 0 or "saturated" not in before.verdict:
         return None
-    if not run({"control_period_s": 0.0}).ok:
+    if not run({"control_period_s": 0.0}, stop_on_failure=True).ok:
         return None
     spec = controller.behaviors[behavior]
     speed = next((x for x in spec.params if x.name == "speed"), None)
@@ -92,7 +92,7 @@ def hold_attribution(
                 plan = controller.run(behavior, speed=value)
             except ValueError:
                 continue
-            if run(plan=plan).ok:
+            if run(plan=plan, stop_on_failure=True).ok:
                 found = value
                 break
     saturated = sorted(before.saturated_joints)

@@ -379,22 +379,24 @@ class Strengthening:
         opts: StructureOptions,
         outcome: Outcome,
     ) -> None:
+        from synth.verification.gains import Gains
         from synth.verification.hold import Hold
         from synth.verification.play import Play
         from synth.verification.wheels import Wheels
 
         self.designer, self.params, self.opts, self.outcome = designer, params, opts, outcome
         self.rounds = 0  # rounds of simulation
+        self.regains = 0  # of them, rounds that verified other gains (no new sizing)
         self.floors: dict[str, float] = {}  # joint -> the torque it must be sized for
         self.excluded: dict[str, frozenset[str]] = {}  # joint -> models it may not have
         self.torque_done = False  # a stronger actuator was asked for and none could be had
-        self.wheels, self.play, self.hold = Wheels(), Play(), Hold()
+        self.wheels, self.play, self.hold, self.gains = Wheels(), Play(), Hold(), Gains()
         self._bundle: tuple[int, Bundle] | None = None
 
     @property
     def sizings(self) -> int:
-        """The sizings so far (one a round)."""
-        return self.rounds
+        """The sizings so far (the rounds less those that only changed gains)."""
+        return self.rounds - self.regains
 
     def bundle(self) -> Bundle:
         """The perturbed runs' bundle of the design as it stands (as the user gets it),
@@ -416,6 +418,8 @@ class Strengthening:
             structure = self.answer(now)
             if structure is None:
                 break  # everything passed, or nothing answers what fails
+            if structure is self.outcome.structure:  # other gains, the same structure
+                continue
             self.outcome = replace(self.outcome, structure=structure, calibration=None)
         return self.judge(now)
 
@@ -446,6 +450,7 @@ class Strengthening:
             return None
         failing = [r for r in planned + sensed if not r.ok]
         k = self.opts.robustness
+        decisive = None if failing or k <= 0 else self._decisive(record, planned + sensed)
         # nominally passed: under the perturbations (robust.py, --robustness K)
         robust = (
             None
@@ -458,6 +463,7 @@ class Strengthening:
                 nominal=planned,
                 sensing=False,
                 sensed=sensed,
+                decisive=decisive,
             )
         )
         return Simulated(files, record, models, planned, sensed, failing, robust)
@@ -473,7 +479,27 @@ class Strengthening:
             now.robust,
             self.bundle,
             dict(self.excluded),
+            gains=dict(self.outcome.feedback_gains or {}),
+            demanded=self._demanded(now),
         )
+
+    def _demanded(self, now: Simulated) -> frozenset[str]:
+        """The behaviours of round ``now`` that serve a demanded ability."""
+        return _demanded(now.record, now.results)
+
+    def _decisive(self, record: dict, results: list[Run]) -> frozenset[str] | None:
+        """When no repair can follow this round's perturbed runs (the sizings the loop may
+        make are made, and no closed loop serving a demand has gains left to try): the
+        behaviours whose failure refuses the design (their runs may then stop at the
+        first that fails); None while a repair may follow."""
+        if self.sizings < MAX_ROUNDS + PLAY_ROUNDS:
+            return None
+        demanded = _demanded(record, results)
+        controller = self.bundle().controller()
+        for name in demanded - self.gains.done:
+            if name in controller.behaviors and controller.run(name).info.get("feedback"):
+                return None
+        return demanded
 
     def answer(self, now: Simulated):
         """The structure sized again to answer what failed in round ``now``; None when
@@ -481,7 +507,8 @@ class Strengthening:
         perturbed run) must get a stronger actuator (up to ``MAX_ROUNDS`` sizings); a
         perturbed failure with none saturated is put to the wheels (a robot with wheels),
         then, when no stronger actuator answers it, to the play (up to ``PLAY_ROUNDS``
-        sizings more)."""
+        sizings more), then, when no sizing answers it, to a closed loop's gains (the
+        same structure returned: the outcome has the gains)."""
         from synth.structure import StructureDesigner
 
         more = _floors(now.results + (now.robust.failing_runs() if now.robust else []), now.record)
@@ -532,6 +559,14 @@ class Strengthening:
                 self.play.taken(state, trial)
                 self.excluded |= trial
                 break
+        if structure is None and not now.failing:
+            # no sizing answers it: do other gains of a closed loop? (measured)
+            remedy = self.gains.explains(state)
+            if remedy and remedy.gains:
+                self.gains.chose(remedy.gains)
+                self.outcome = replace(self.outcome, feedback_gains=dict(remedy.gains))
+                self.regains += 1
+                return self.outcome.structure
         return structure
 
     def judge(self, now: Simulated) -> Outcome:
@@ -550,6 +585,9 @@ class Strengthening:
             # what failed nominally drops its bonus abilities or refuses the request (below);
             # what passed must pass under the perturbations too, or no perturbed run is claimed
             passed = {r.behavior for r in results if r.ok}
+            # a demanded behaviour failed: the request is refused whatever these runs give,
+            # so they stop at the first that fails (the worst-looking first)
+            refused = bool(_demanded(record, failing))
             robust = robust_check(
                 designer,
                 outcome,
@@ -558,6 +596,7 @@ class Strengthening:
                 self.bundle(),
                 [r for r in now.planned if r.behavior in passed],
                 sensed=[r for r in sensed if r.behavior in passed],
+                decisive=passed if refused else None,
             )
         # which abilities no behaviour serves: the controller alone tells (no model needed)
         controller = controller_for(DesignGeometry.from_record(record))
@@ -604,8 +643,8 @@ class Strengthening:
         if bad:  # the command hold: measured on the design as it stands, for the refusal
             self.hold.explains(replace(self._round(now), robust=robust))
         for b in bad:
-            why = b.why_not(robust.required)  # type: ignore[union-attr]
-            for cause in (self.play, self.wheels, self.hold):
+            why = b.why_not(robust.required, robust.k)  # type: ignore[union-attr]
+            for cause in (self.play, self.wheels, self.gains, self.hold):
                 why += cause.note(b.behavior, self.rounds)
             if serves(b.ability) & needed:
                 if failure is None:
@@ -625,6 +664,9 @@ class Strengthening:
             )
         if failure is not None and not nominal_failure:  # it passed on the nominal model
             failure += f"; {ROBUST_OFF}"
+        gains = self.gains.record()
+        if robust is not None and gains is not None:  # what was tried, in verified.robust
+            robust = replace(robust, gains=gains)
         v = Verification(
             tuple(results),
             self.sizings,
@@ -640,6 +682,23 @@ class Strengthening:
         if failure is not None:
             return replace(out, infeasible=failure)
         return out
+
+
+def _demanded(record: Mapping, results: list[Run]) -> frozenset[str]:
+    """The behaviours of ``results`` that serve a demanded ability of the design in
+    ``record`` (:func:`served_abilities`)."""
+    from gaits import controller_for
+    from gaits.base import DesignGeometry
+
+    served = served_abilities(record, controller_for(DesignGeometry.from_record(record)))
+    needed = set(record.get("needed") or record.get("abilities", ()))
+    out = set()
+    for r in results:
+        if r.ability is None:
+            continue
+        if ({r.ability} | {a for a, s in served.items() if s == r.ability}) & needed:
+            out.add(r.behavior)
+    return frozenset(out)
 
 
 def _drop_unplanned(designer: Designer, outcome: Outcome, record: Mapping, e) -> Outcome:

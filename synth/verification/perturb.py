@@ -389,6 +389,39 @@ def draw(table: Mapping[str, Any], seed: int) -> dict[str, Any]:
     }
 
 
+def severity(table: Mapping[str, Any], p: Mapping[str, Any]) -> float:
+    """How adverse perturbation ``p`` of ``table`` looks before it is run, in [0, 1]: the
+    mean of where each of its draws lies in its range, 0 at the benign end and 1 at the
+    adverse one: the floor's friction (low is adverse), its slope (steep), the bus latency
+    (long), the heaviest body's mass factor (heavy) and the servos' play (each servo's
+    backlash across its range, averaged; wide). The runs that can only refuse a design go
+    in this order, the worst-looking first (:func:`worst_first`)."""
+
+    def where(x: float, lo: float, hi: float) -> float:
+        return min(1.0, max(0.0, (x - lo) / (hi - lo))) if hi > lo else 0.0
+
+    lo, hi = table["friction"]
+    parts = [1.0 - where(p["friction_scale"], lo, hi)]
+    parts.append(where(p["slope_rad"], 0.0, float(table["max_slope_rad"])))
+    lo, hi = table["latency_s"]
+    parts.append(where(p["latency_s"], lo, hi))
+    spread = float(table["mass_spread"])
+    masses = list(p["mass_scale"].values())
+    parts.append(where(max(masses), 1.0 - spread, 1.0 + spread) if masses else 0.0)
+    plays = []
+    for joint, servo in table["servos"].items():
+        lo, hi = servo["backlash_rad"]
+        plays.append(where(p["play_rad"][joint] - servo["deadband_rad"], lo, hi))
+    parts.append(sum(plays) / len(plays) if plays else 0.0)
+    return sum(parts) / len(parts)
+
+
+def worst_first(table: Mapping[str, Any], seeds: list[int]) -> list[int]:
+    """``seeds`` ordered by :func:`severity` of their perturbations, the worst-looking
+    first (ties: the lower seed first)."""
+    return sorted(seeds, key=lambda s: (-severity(table, draw(table, s)), s))
+
+
 def summary(p: Mapping[str, Any]) -> dict[str, Any]:
     """A perturbation in a few figures (records, messages): its seed, the floor, the bus,
     the battery, the range of the mass factors and the largest play."""

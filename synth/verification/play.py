@@ -186,7 +186,8 @@ def play_attribution(
     full = dict(p["play_rad"])
 
     def run(removed: set[str]) -> Run:
-        return replay.run({"play_rad": {j: (0.0 if j in removed else v) for j, v in full.items()}})
+        play = {"play_rad": {j: (0.0 if j in removed else v) for j, v in full.items()}}
+        return replay.run(play, stop_on_failure=bool(removed) and removed != set(full))
 
     before = run(set()) if failed is None else failed
     if before.ok:

@@ -212,12 +212,20 @@ class BehaviorRuns:
         """Its run under perturbation ``seed``."""
         return next((r for r in self.figures if r.seed == seed), None)
 
-    def why_not(self, required: int) -> str:
+    def why_not(self, required: int, k: int | None = None) -> str:
         """Why it is not robust: passed k of K, the perturbation that broke it worst (most
-        criteria failed, then the lowest seed) and its figures against the thresholds."""
+        criteria failed, then the lowest seed) and its figures against the thresholds;
+        for runs that stopped once it could no longer pass (fewer than ``k``), the runs
+        made."""
         worst = max(self.failures, key=lambda f: (len(f.verdict), -f.seed))
+        made = f"{self.runs} perturbed runs"
+        if k is not None and self.runs < k:
+            made = (
+                f"the {self.runs} perturbed runs made before it could not pass (the "
+                "worst-looking first)"
+            )
         return (
-            f"{self.behavior} is not robust: passed {self.passed} of {self.runs} perturbed runs "
+            f"{self.behavior} is not robust: passed {self.passed} of {made} "
             f"(needs {required}); {worst.perturbation} broke it: {worst.why}"
         )
 
@@ -241,7 +249,9 @@ class RobustRuns:
     must pass ``required`` (``share`` x K), the perturbations' summaries, each behaviour's
     runs, the table they were drawn from; the physics they ran at (``physics``, where it
     was chosen: :func:`synth.verification.robust.physics`), what they show (``shows``)
-    and the gains the loop chose (``gains``, :mod:`synth.verification.gains`)."""
+    the gains the loop tried and chose (``gains``, :mod:`synth.verification.gains`) and,
+    for runs that stopped once their verdict was known, how (``stopped``:
+    :func:`synth.verification.runs.verify_robust`'s ``decisive``)."""
 
     k: int
     required: int
@@ -252,13 +262,14 @@ class RobustRuns:
     physics: Mapping[str, Any] | None = None
     shows: Mapping[str, Any] | None = None
     gains: Mapping[str, Any] | None = None
+    stopped: Mapping[str, Any] | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)
 
     @classmethod
     def of(cls, d: Mapping[str, Any]) -> RobustRuns:
         """A recorded ``verified.robust`` (missing counts: those of its behaviours)."""
         known = {"k", "required", "share", "perturbations", "behaviors", "table", "physics"}
-        known |= {"shows", "gains"}
+        known |= {"shows", "gains", "stopped"}
         k = int(d["k"])
         return cls(
             k,
@@ -270,6 +281,7 @@ class RobustRuns:
             d.get("physics"),
             d.get("shows"),
             d.get("gains"),
+            d.get("stopped"),
             {key: v for key, v in d.items() if key not in known},
         )
 
@@ -305,4 +317,6 @@ class RobustRuns:
             out["shows"] = dict(self.shows)
         if self.gains is not None:
             out["gains"] = dict(self.gains)
+        if self.stopped is not None:
+            out["stopped"] = dict(self.stopped)
         return out | dict(self.extra)

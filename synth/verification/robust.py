@@ -43,6 +43,7 @@ def robust_check(
     sensing: bool = True,
     sensed: Sequence[Run] | None = None,
     table: Mapping | None = None,
+    decisive: Collection[str] | None = None,
 ) -> RobustRuns | None:
     """``verified.robust`` of ``outcome`` (a sized design) under perturbations 1..``k`` of
     its table (of its listed behaviours, those named in ``only`` when given; its sensing
@@ -52,7 +53,9 @@ def robust_check(
     runs use the coarse time step where the nominal runs, sensing loops included, agree
     at it (:func:`physics`; ``table["timestep_s"]``, recorded with the table, so a replay
     uses it too); ``verified.robust.physics`` says which and why. ``table``: a table
-    already chosen (the sensing loops' runs after the plans')."""
+    already chosen (the sensing loops' runs after the plans'). ``decisive``: the
+    behaviours whose failure refuses the design when no repair can follow: the runs stop
+    once one of them cannot pass (:func:`synth.verification.runs.verify_robust`)."""
     if k <= 0 or outcome.structure is None or outcome.catalog is None:
         return None
     from synth.verification.perturb import design_table
@@ -68,7 +71,8 @@ def robust_check(
             table["timestep_s"] = checked["timestep_s"]
     # through JSON as design.json keeps it: the replay draws from the very same numbers
     table = json.loads(json.dumps(table))
-    robust = verify_robust(bundle, k, table, only=only, sensing=sensing)
+    early = {} if decisive is None else {"decisive": decisive}
+    robust = verify_robust(bundle, k, table, only=only, sensing=sensing, **early)
     return replace(robust, physics=checked, shows=shows(robust))
 
 

@@ -129,6 +129,7 @@ def _simulate(
     seconds: float | None = None,
     progress: Callable[[float], None] | None = None,
     perturbation: Mapping | None = None,
+    stop_on_failure: bool = False,
 ) -> SimResult:
     """``traj`` of ``controller`` run on ``model`` and judged
     (``synth.verification.simulate.simulate`` told whether the robot can fall and where its gripper
@@ -150,6 +151,7 @@ def _simulate(
         latency_s=float(perturbation["latency_s"]) if perturbation else 0.0,
         command_period_s=float(perturbation["control_period_s"]) if perturbation else 0.0,
         sensor_noise=perturbation.get("imu") if perturbation else None,
+        stop_on_failure=stop_on_failure,
     )
 
 
@@ -416,14 +418,18 @@ class Perturbed:
         plan: Trajectory,
         seconds: float | None = None,
         progress: Callable[[float], None] | None = None,
+        stop_on_failure: bool = False,
     ) -> SimResult:
-        """``plan`` run on this robot and judged."""
+        """``plan`` run on this robot and judged (stopped as soon as it has failed, with
+        ``stop_on_failure``: :func:`synth.verification.simulate.simulate`)."""
         controller = self.bundle.controller()
-        return _simulate(self.model(), controller, plan, seconds, progress, self.perturbation)
+        p = self.perturbation
+        return _simulate(self.model(), controller, plan, seconds, progress, p, stop_on_failure)
 
-    def run(self, plan: Trajectory) -> Run:
+    def run(self, plan: Trajectory, stop_on_failure: bool = False) -> Run:
         """``plan`` run on this robot: its judged figures (with this run's seed)."""
-        return Run(plan.behavior, figures(plan, self.simulate(plan)), seed=self.seed)
+        result = self.simulate(plan, stop_on_failure=stop_on_failure)
+        return Run(plan.behavior, figures(plan, result), seed=self.seed)
 
 
 def _unapplicable(e: Exception) -> InputError:
@@ -445,11 +451,18 @@ class Replay:
         self.robot = Perturbed(bundle, table, seed)
         self.perturbation = self.robot.perturbation
 
-    def run(self, perturbation: Mapping | None = None, plan: Trajectory | None = None) -> Run:
+    def run(
+        self,
+        perturbation: Mapping | None = None,
+        plan: Trajectory | None = None,
+        stop_on_failure: bool = False,
+    ) -> Run:
         """The run of ``plan`` (default: the behaviour's default plan) under
-        ``perturbation`` (default: the run's own)."""
+        ``perturbation`` (default: the run's own changed by these draws); with
+        ``stop_on_failure`` (a replay asked only whether it passes), stopped as soon as it
+        has failed."""
         robot = self.robot if perturbation is None else self.robot.varied(**perturbation)
-        return robot.run(self.plan if plan is None else plan)
+        return robot.run(self.plan if plan is None else plan, stop_on_failure)
 
 
 def run_perturbed(
@@ -476,6 +489,7 @@ def verify_robust(
     behaviors: Sequence[str] | None = None,
     only: Collection[str] | None = None,
     sensing: bool = True,
+    decisive: Collection[str] | None = None,
 ) -> RobustRuns:
     """Every listed behaviour of a bundle (default parameters; ``behaviors`` when given,
     the listed ones named in ``only``) run under the perturbations 1..``k`` of ``table``
@@ -493,12 +507,21 @@ def verify_robust(
     once per perturbation (as :func:`verify_nominal`); the K x runs go on
     ``VERIFY_THREADS`` threads (MuJoCo steps without Python's lock), the sensing loops'
     on as many forked processes (:func:`_sensing_runs`). The results do not depend on
-    the threads or processes."""
+    the threads or processes.
+
+    ``decisive``: the behaviours whose failure decides what is asked of these runs (a
+    refusal, a gain scale rejected). Then the runs go a batch at a time, the
+    worst-looking perturbations first (:func:`synth.verification.perturb.worst_first`),
+    a run of a decisive behaviour stops as soon as it has failed, and they all stop once
+    a decisive behaviour has failed more runs than it may (K less the required passes):
+    only the behaviours so decided are listed, with the runs made (``stopped`` says the
+    order, the runs made and those behaviours). When none is decided, every run is made
+    and the result is the one without ``decisive``, to the bit."""
     import dataclasses
     from concurrent.futures import ThreadPoolExecutor
 
     from program.sensing import sensing_behaviors
-    from synth.verification.perturb import describe, summary
+    from synth.verification.perturb import describe, summary, worst_first
     from synth.verification.verdict import explain
 
     record = bundle.record
@@ -523,34 +546,60 @@ def verify_robust(
     robots = {s: Perturbed(bundle, table, s) for s in seeds}
     for robot in robots.values():
         robot.model()  # compiled here, not on the threads
+    need = required_passes(k, float(table["share"]))
     # the sensing loops on the perturbed robots, from a fresh start: Python most of their
     # time, so on processes of their own (threads would wait on each other's lock)
     sensing_jobs = [(s, n) for s in seeds for n in sensed]
     workers = min(VERIFY_THREADS, len(sensing_jobs), os.cpu_count() or 1)
-    wait = _sensing_runs(bundle.files, table, sensing_jobs, workers)
-    jobs: list[tuple] = [(s, r) for s in seeds for r in runs]
+    early = decisive is not None
+    order = worst_first(table, seeds) if early else seeds
+    jobs: list[tuple] = [(s, r) for s in order for r in runs]
+    deciding = {first[i] for i, n in enumerate(names) if early and n in decisive}  # type: ignore[operator]
 
     def one(job: tuple) -> SimResult:
         s, r = job
-        return robots[s].simulate(trajs[r])
+        return robots[s].simulate(trajs[r], stop_on_failure=r in deciding)
 
     threads = min(VERIFY_THREADS, len(jobs), os.cpu_count() or 1)
-    try:
-        if threads > 1:
-            with ThreadPoolExecutor(threads) as pool:
-                done: dict = dict(zip(jobs, pool.map(one, jobs), strict=True))
-        else:
-            done = {job: one(job) for job in jobs}
-    except BaseException:  # (a time limit, Ctrl-C): the sensing runs are not waited for
-        wait(cancel=True)
-        raise
-    done |= wait()
-    need = required_passes(k, float(table["share"]))
+    done: dict = {}
+    decided: set[int] = set()  # the plans that can no longer pass (early only)
+    if not early:
+        wait = _sensing_runs(bundle.files, table, sensing_jobs, workers)
+        try:
+            if threads > 1:
+                with ThreadPoolExecutor(threads) as pool:
+                    done = dict(zip(jobs, pool.map(one, jobs), strict=True))
+            else:
+                done = {job: one(job) for job in jobs}
+        except BaseException:  # (a time limit, Ctrl-C): the sensing runs are not waited for
+            wait(cancel=True)
+            raise
+        done |= wait()
+    else:
+        # a batch of runs at a time, the worst-looking perturbations first, until one of
+        # the deciding plans has failed more runs than it may
+        failed: dict[int, int] = {}
+        with ThreadPoolExecutor(max(threads, 1)) as pool:
+            for a in range(0, len(jobs), max(threads, 1)):
+                batch = jobs[a : a + max(threads, 1)]
+                for job, result in zip(batch, pool.map(one, batch), strict=True):
+                    done[job] = result
+                    if job[1] in deciding and not result.ok:
+                        failed[job[1]] = failed.get(job[1], 0) + 1
+                decided = {r for r, f in failed.items() if f > k - need}
+                if decided:
+                    break
+        if not decided and sensing_jobs:
+            done |= _sensing_runs(bundle.files, table, sensing_jobs, workers)()
     out = []
     for i, n in enumerate([*names, *sensed]):
         loop = i >= len(names)  # a sensing loop
+        if decided and (loop or first[i] not in decided):
+            continue  # stopped before its verdict was known
         figs = []
         for s in seeds:
+            if decided and (s, first[i]) not in done:
+                continue
             if loop:
                 figs.append(Run(n, done[(s, n)], seed=s))
                 continue
@@ -575,6 +624,13 @@ def verify_robust(
         tuple(summary(robots[s].perturbation) for s in seeds),
         tuple(out),
         dict(table),
+        stopped=None
+        if not decided
+        else {
+            "order": list(order),
+            "runs": len(done),
+            "decided": sorted(names[i] for i in range(len(names)) if first[i] in decided),
+        },
     )
 
 

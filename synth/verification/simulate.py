@@ -217,6 +217,9 @@ PAYLOAD_INERTIA = 0.03**2
 #: reported this often (1 s simulated at 2 ms), and a call's own cost (tens of
 #: microseconds) is under 1 % of the stepping it does.
 CHUNK_STEPS = 500
+#: Physics steps between two looks at a run that may stop at its failure (``simulate``'s
+#: ``stop_on_failure``): half a second at 2 ms.
+STOP_CHECK_STEPS = 250
 #: Physics steps measured at a time (20 s at 2 ms): the recorded states of a block (a few
 #: MB) are all a run holds, whatever its duration.
 BLOCK_STEPS = 10_000
@@ -424,6 +427,7 @@ def simulate(
     command_period_s: float = 0.0,
     sensor_noise: Mapping[str, object] | None = None,
     feedback: bool = True,
+    stop_on_failure: bool = False,
 ) -> SimResult:
     """Run ``traj`` on ``model`` (a mujoco.MjModel) for ``seconds`` (default: the
     trajectory's duration; past its end the robot holds its final commanded state: its
@@ -447,10 +451,24 @@ def simulate(
     read-back, wheel encoders, the IMU's gyro and accelerometer where the model carries
     them, with ``sensor_noise``: :func:`imu_noise`) and its correction reaches the servos
     ``latency_s`` later. ``feedback=False`` runs the plan open loop (what the plan alone
-    does: the comparison the tests make)."""
+    does: the comparison the tests make).
+
+    ``stop_on_failure``: the run stops as soon as its verdict is known to fail: the robot
+    fell, or more than the verdict's share of the whole run's steps had an actuator at its
+    limit (checked every :data:`STOP_CHECK_STEPS` steps); it is then judged on what it
+    did up to there (``complete`` false: falling and saturation, the latter over the
+    steps run). Only a run whose failure is all that is asked of it (a replay with one
+    cause changed, a run that can only refuse) is stopped: a run that passes is the same
+    to the bit either way."""
     import mujoco
 
-    from synth.verification.verdict import COLLAPSE_HEIGHT, COLLAPSE_TILT, SATURATION_LEVEL, judge
+    from synth.verification.verdict import (
+        COLLAPSE_HEIGHT,
+        COLLAPSE_TILT,
+        MAX_SATURATED_FRACTION,
+        SATURATION_LEVEL,
+        judge,
+    )
 
     chained = data is not None
     if data is None:
@@ -500,7 +518,9 @@ def simulate(
     observe_steps = 1 if observe_every is None else max(1, int(round(observe_every / dt)))
     # the run goes in blocks of whole observation periods, each measured once it is done:
     # memory stays that of a block whatever the duration
-    block = max(1, BLOCK_STEPS // every) * every
+    block = max(1, (STOP_CHECK_STEPS if stop_on_failure else BLOCK_STEPS) // every) * every
+    limit_steps = MAX_SATURATED_FRACTION * steps  # more saturated steps: it has failed
+    done = steps
     full = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
     last = np.empty(mujoco.mj_stateSize(model, full))  # the state before the next step
     mujoco.mj_getState(model, data, last, full)
@@ -602,6 +622,11 @@ def simulate(
         series["q_ref"].append(ref[rows])
         series["force"].append(force[rows])
         series["demand"].append(demand_each[rows])
+        if stop_on_failure and (fell_at is not None or saturated_steps > limit_steps):
+            done = start_step + n  # the verdict is known: it failed
+            break
+    if done < steps:
+        seconds = done * dt
     root = np.concatenate(series["root"])
     end = data.qpos[:3].copy() if free else np.zeros(3)
     heading = 0.0
@@ -616,9 +641,9 @@ def simulate(
         fell_at,
         ratio,
         demand_ratio_max=demand,
-        saturated_fraction=saturated_steps / steps,
+        saturated_fraction=saturated_steps / done,
         saturated_joints={
-            model.actuator(k).name: float(saturated_each[k] / steps)
+            model.actuator(k).name: float(saturated_each[k] / done)
             for k in range(model.nu)
             if saturated_each[k]
         },

@@ -171,7 +171,8 @@ def wheel_blame(bundle: Bundle, robust: RobustRuns | None, catalog: Catalog) -> 
         trial = swapped(bundle, joints, a)
         replays = []
         for behavior, seed, failed in runs:
-            run = Perturbed(trial, table, seed).run(trial.controller().run(behavior))
+            plan = trial.controller().run(behavior)
+            run = Perturbed(trial, table, seed).run(plan, stop_on_failure=True)
             if not run.ok:
                 break
             replays.append(
