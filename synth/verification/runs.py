@@ -554,7 +554,7 @@ def verify_robust(
     early = decisive is not None
     order = worst_first(table, seeds) if early else seeds
     jobs: list[tuple] = [(s, r) for s in order for r in runs]
-    deciding = {first[i] for i, n in enumerate(names) if early and n in decisive}  # type: ignore[operator]
+    deciding = {first[i] for i, n in enumerate(names) if n in (decisive or ())}
 
     def one(job: tuple) -> SimResult:
         s, r = job

@@ -29,11 +29,12 @@ stiffest does not make every run pass: the failure stands, and :func:`wheel_note
 Wheels are read off the structure (a joint whose actuator turns without an end stop);
 no robot type is named.
 
-How :mod:`synth.verification.loop` calls it: where a round's perturbed runs failed and no actuator
-saturated (``_floors`` gave nothing new), ``wheel_exclusions(robust_files(designer,
-outcome), robust, outcome.catalog, excluded)`` gives joint -> the models excluded (empty:
-no wheel, or no stiffer wheel servo makes them pass), merged into the round's exclusions
-before it sizes again.
+How the loop (:mod:`synth.verification.loop`) asks it: :class:`Wheels`, a cause
+(:mod:`synth.verification.causes`): where a round's perturbed runs failed and no actuator
+saturated, :func:`wheel_exclusions` on the round's bundle gives joint -> the models
+excluded (empty: no wheel, or no stiffer wheel servo makes them pass), merged into the
+round's exclusions before it sizes again. The replays stop at a failure: whether they pass
+is all that is asked.
 """
 
 from __future__ import annotations
