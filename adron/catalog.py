@@ -260,7 +260,7 @@ class Catalog:
     #: the shipped catalog's name ("default", "dynamixel"), or "" for a user's file
     shipped: str = ""
     #: the catalog's [perturbation] table as JSON text ("" when it has none): overrides of
-    #: export/perturb.toml's ranges, read and checked by export.perturb
+    #: synth/verification/perturb.toml's ranges, read and checked by synth.verification.perturb
     perturbation: str = ""
 
     def printer_bed(self, printer: str) -> Size | None:
@@ -1027,7 +1027,7 @@ def _cached_catalog(path: Path | None) -> Catalog | None:
 
 def _perturbation(doc: dict[str, Any], source: str) -> str:
     """The [perturbation] table as JSON text ("" without one); its keys and values are
-    export.perturb's to check (``ranges``)."""
+    synth.verification.perturb's to check (``ranges``)."""
     if "perturbation" not in doc:
         return ""
     table = doc["perturbation"]

@@ -1,6 +1,6 @@
 """The schemas of the user files read by hand-written readers with checks of their own:
 module catalogs (``adron/catalog.py``), studies (``synth/sweep.py``), regression suites
-(``synth/regress.py``) and perturbation tables (``export/perturb.py``).
+(``synth/regress.py``) and perturbation tables (``synth/verification/perturb.py``).
 
 Each reader checks a file with its schema (:func:`check`) after its own checks (whose
 messages the users and the tests know): the schema holds what the hand may miss (a key's
@@ -270,7 +270,7 @@ class Acceptance(Closed):
 
 
 class PerturbationTable(Closed):
-    """The ranges a robust verification draws from (export/perturb.toml)."""
+    """The ranges a robust verification draws from (synth/verification/perturb.toml)."""
 
     draw: Draw
     mass: MassSpread
@@ -392,7 +392,7 @@ def formats() -> dict[str, tuple[type, str]]:
     return {
         "partkinds": (PartKindsFile, "Part kinds (kinematics/partkinds.toml, --parts FILE.toml)"),
         "catalog": (catalog_model(), "A module catalog (adron/catalog.toml, --catalog FILE)"),
-        "perturb": (PerturbationTable, "Perturbation ranges (export/perturb.toml)"),
+        "perturb": (PerturbationTable, "Perturbation ranges (synth/verification/perturb.toml)"),
         "study": (StudyFile, "A parameter study (parmor sweep STUDY.toml)"),
         "suite": (SuiteFile, "A regression suite (parmor regress SUITE.toml)"),
         "design-record": (DesignRecord, "A design record (design.json)"),

@@ -26,9 +26,10 @@ if str(REPO) not in sys.path:
 def main(argv: list[str]) -> None:
     from adron.catalog import load_catalog
     from export.mjcf import load_mjcf
-    from export.perturb import design_table, draw, perturbed_model
-    from export.simulate import simulate
-    from export.verify import bundle_parts, controller_for_model, folder_files, recorded_table
+    from synth.verification.perturb import design_table, draw, perturbed_model
+    from synth.verification.runs import controller_for_model, recorded_table
+    from synth.verification.simulate import simulate
+    from synth.verification.source import Bundle
 
     folder = argv.pop(0)
     if os.environ.get("BALANCE_WALK") == "robust":  # the walk tuned for perturbed runs
@@ -48,7 +49,8 @@ def main(argv: list[str]) -> None:
     modes = [m for m in ("open", "closed") if f"--{m}" in argv] or ["open", "closed"]
     argv = [a for a in argv if not a.startswith("--")]
     k = int(argv[0]) if argv else 8
-    record, xml, meshes = bundle_parts(folder_files(folder))
+    bundle = Bundle.read(folder)
+    record, xml, meshes = bundle.record, bundle.xml, bundle.meshes
     try:
         table = recorded_table(record)
     except Exception:  # noqa: BLE001 - a nominal bundle: the design's table

@@ -1,7 +1,7 @@
 """Robust verification's cost: each base configuration's default design verified on its
-nominal model (``export.verify.verify_files``, what ``parmor design`` simulates) and under
-K = 8 perturbations (``export.verify.verify_robust``; the issue's target: at most 2.5 x
-the nominal verification's time). Wall time and the process's CPU time (all threads) of
+nominal model (``synth.verification.runs.verify_nominal``, what ``parmor design`` simulates) and
+under K = 8 perturbations (``synth.verification.runs.verify_robust``; the issue's target: at most
+2.5 x the nominal verification's time). Wall time and the process's CPU time (all threads) of
 each, best of ``runs``; on a machine other processes load, the CPU ratio is the steadier
 figure.
 
@@ -44,14 +44,9 @@ def bench_robust(k: int = 8, runs: int = 1, only: str | None = None) -> list[str
     from bench_sim import default_bundles
 
     from adron.catalog import load_catalog
-    from export.perturb import design_table
-    from export.verify import (
-        bundle_parts,
-        folder_files,
-        physics_check,
-        verify_files,
-        verify_robust,
-    )
+    from synth.verification.perturb import design_table
+    from synth.verification.runs import physics_check, verify_nominal, verify_robust
+    from synth.verification.source import Bundle
 
     catalog = load_catalog()
     lines = [
@@ -63,10 +58,10 @@ def bench_robust(k: int = 8, runs: int = 1, only: str | None = None) -> list[str
         for robot_type, _, folder, _, _ in default_bundles(Path(tmp)):
             if only and robot_type != only:
                 continue
-            files = folder_files(folder)
-            record, xml, _ = bundle_parts(files)
+            files = Bundle.read(folder)
+            record, xml, _ = files.record, files.xml, files.meshes
             table = design_table(record, xml, catalog)
-            wn, cn, nominal = _timed(lambda f=files: verify_files(f), runs)
+            wn, cn, nominal = _timed(lambda f=files: verify_nominal(f), runs)
             # the perturbed runs' step as parmor design chooses it (the check's cost counted)
             wc, cc, check = _timed(lambda f=files, n=nominal: physics_check(f, n), 1)
             if check["timestep_s"]:
@@ -78,8 +73,8 @@ def bench_robust(k: int = 8, runs: int = 1, only: str | None = None) -> list[str
                 if check["timestep_s"]
                 else f"fine step: {check['why']}"
             )
-            passed = sum(b["passed"] for b in robust["behaviors"])
-            total = sum(b["runs"] for b in robust["behaviors"])
+            passed = sum(b.passed for b in robust.behaviors)
+            total = sum(b.runs for b in robust.behaviors)
             lines.append(
                 f"  {'ok  ' if wr / wn <= TARGET else 'MISS'} {robot_type:<24} nominal "
                 f"{wn:6.2f} s, robust {wr:6.2f} s: {wr / wn:5.2f} x wall, {cr / cn:5.2f} x CPU "

@@ -20,11 +20,11 @@ def default_bundles(tmp: Path):
     from adron.kb import load
     from export.bundle import bundle_files, write_bundle
     from export.record import design_record
-    from export.simulate import load_bundle_model
-    from export.verify import controller_for_model
     from synth.conceptual import Design, Designer, Request
     from synth.solver import Query, Reasoner
     from synth.structure import design_structure
+    from synth.verification.runs import controller_for_model
+    from synth.verification.source import Bundle
 
     kb = load()
     designer = Designer(kb, Reasoner(kb))
@@ -36,12 +36,12 @@ def default_bundles(tmp: Path):
         )
         folder = Path(tmp) / cand.robot_type
         write_bundle(folder, bundle_files(rec, s, catalog))
-        model = load_bundle_model(folder)
+        model = Bundle(folder=folder).model()
         yield cand.robot_type, rec, folder, model, controller_for_model(rec, model)
 
 
 def bench_sim(seconds: float = 5.0) -> list[str]:
-    from export.simulate import simulate
+    from synth.verification.simulate import simulate
 
     lines = [f"MuJoCo, {seconds:g} simulated s of a default behaviour (target >= 50x real time)"]
     with tempfile.TemporaryDirectory() as tmp:

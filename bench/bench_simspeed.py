@@ -62,9 +62,9 @@ def _raw_loop(model, traj, seconds: float) -> float:
 def bench_simspeed(seconds: float = SECONDS, runs: int = RUNS) -> list[str]:
     from bench_sim import default_bundles
 
-    from export.simulate import simulate
-    from export.verify import controller_for_model
     from gaits.base import _PLANNED
+    from synth.verification.runs import controller_for_model
+    from synth.verification.simulate import simulate
 
     load_avg = ", ".join(f"{x:.2f}" for x in os.getloadavg())
     lines = [
@@ -81,7 +81,7 @@ def bench_simspeed(seconds: float = SECONDS, runs: int = RUNS) -> list[str]:
             raw, sim = [], []
             tmpl = ctl.template
             body = traj.info.get("tool_body") or (tmpl.end_effectors or [None])[0]
-            for _ in range(runs):  # as export.verify.run_behavior calls it
+            for _ in range(runs):  # as synth.verification.runs.run_behavior calls it
                 raw.append(_raw_loop(model, traj, seconds))
                 t0 = time.perf_counter()
                 simulate(

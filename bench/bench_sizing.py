@@ -62,13 +62,13 @@ def _forget_plans() -> None:
 def _in_process(catalog: Path, runs: int) -> list[str]:
     from adron.catalog import load_catalog
     from adron.kb import load
-    from export import verify
     from export.bundle import bundle_files
     from export.record import design_record
-    from export.simulate import load_files_model
     from synth.conceptual import Design, Designer, Request
     from synth.solver import Query, Reasoner
     from synth.structure import design_structure
+    from synth.verification import runs as verify
+    from synth.verification.source import Bundle
 
     kb = load()
     designer = Designer(kb, Reasoner(kb))
@@ -87,7 +87,7 @@ def _in_process(catalog: Path, runs: int) -> list[str]:
         Design("designed", Request(), (cand,), cand, "only candidate"), designer.short, s
     )
     files = bundle_files(rec, s, cat, pictures=False)
-    verify.verify_files(files)  # warm-up: the model compiled once, the plans made
+    verify.verify_nominal(Bundle(files))  # warm-up: the model compiled once, the plans made
     timings = {}
     for threads in (verify.VERIFY_THREADS, 1):
         best = float("inf")
@@ -96,12 +96,12 @@ def _in_process(catalog: Path, runs: int) -> list[str]:
             try:
                 t0 = time.perf_counter()
                 if threads == 1:  # the old way: every behaviour simulated, one by one
-                    m = load_files_model(files)
+                    m = Bundle(files).model()
                     c = verify.controller_for_model(rec, m)
                     for n in c.listed(rec["abilities"]):
                         verify.run_behavior(m, c, n)
                 else:
-                    verify.verify_files(files)
+                    verify.verify_nominal(Bundle(files))
                 best = min(best, time.perf_counter() - t0)
             finally:
                 verify.VERIFY_THREADS = old

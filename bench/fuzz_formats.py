@@ -381,7 +381,7 @@ class Fuzzer:
         self._run("catalog", what, call)
 
     def perturbation(self) -> None:
-        from export.perturb import ranges
+        from synth.verification.perturb import ranges
 
         data, what = mutate({"perturbation": self.bases["perturbation"]}, self.rng)
         table = data.get("perturbation")
@@ -426,7 +426,8 @@ class Fuzzer:
         """A mutated design.json read as simulate, run, blocks and ros read it."""
         import shutil
 
-        from export.verify import bundle_record, controller_for_model, load_model
+        from synth.verification.runs import controller_for_model
+        from synth.verification.source import Bundle
 
         base = json.loads((folder / "design.json").read_text(encoding="utf-8"))
         data, what = mutate(base, self.rng)
@@ -445,9 +446,8 @@ class Fuzzer:
             from adron.errors import InputError
 
             try:
-                record = bundle_record(b)
-                model = load_model(b)
-                controller_for_model(record, model)
+                bundle = Bundle.read(b)
+                controller_for_model(bundle.record, bundle.model())
             except InputError as e:
                 return "refused", f"{src}\x01{e}" if "design.json" in str(e) else "\x00"
             return "ok", None

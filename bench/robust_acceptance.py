@@ -95,11 +95,13 @@ def requests() -> list[tuple[str, str | None, list[str]]]:
 
 def design(job: tuple[str, str | None, list[str], int]) -> dict:
     """One request designed with ``--robustness k``, in-process (no hint search)."""
-    import synth.verify
+    import synth.verification.loop
     from synth.cli import main
 
     label, kif, argv, k = job
-    synth.verify.best_value = lambda *a, **kw: None  # a refusal's hint only names a value
+    synth.verification.loop.best_value = lambda *a, **kw: (
+        None
+    )  # a refusal's hint only names a value
     with tempfile.TemporaryDirectory() as tmp:
         extra = []
         if kif:

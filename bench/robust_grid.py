@@ -76,10 +76,10 @@ def arm_requests(folder: Path) -> dict[str, list[list[str]]]:
 def grid(k: int = 8, jsonl: str | None = None, arms: bool = False) -> list[str]:
     import tempfile
 
-    import synth.verify
+    import synth.verification.loop
     from bench import TYPE_REQUESTS
 
-    synth.verify.best_value = lambda *a, **kw: None  # no hint search
+    synth.verification.loop.best_value = lambda *a, **kw: None  # no hint search
     rows = []
     sink = open(jsonl, "w") if jsonl else None  # noqa: SIM115
     tmp = tempfile.TemporaryDirectory()

@@ -8,7 +8,7 @@ the bus latency alone, ...; ``all``: the whole draw, what ``--robustness`` runs)
 play of one joint group at a time (``GROUPS``). ``--servo MODEL=GEARS:DEADBAND`` overrides
 the perturbation table's servo entry (e.g. ``SG90=metal:5us``: what a metal-geared servo
 with a smaller dead band would give), ``--play-stop-steps N`` the play hinges' end-stop
-time constant (``export.perturb.PLAY_STOP_STEPS``; 10 is MuJoCo's default 0.02 s);
+time constant (``synth.verification.perturb.PLAY_STOP_STEPS``; 10 is MuJoCo's default 0.02 s);
 ``--walk robust``: walking is ``gaits.humanoid.ROBUST_WALK`` (tuned for the perturbed
 runs) instead of the default walk, in the designs' sizing too.
 
@@ -66,8 +66,8 @@ PAYLOADS = (
 
 
 def neutral(p: dict, keep: str, joints: str | None = None) -> dict:
-    """Perturbation ``p`` (``export.perturb.draw``) with all but ``keep`` at their neutral
-    values; ``joints``: only the play of joints matching it is kept."""
+    """Perturbation ``p`` (``synth.verification.perturb.draw``) with all but ``keep`` at their
+    neutral values; ``joints``: only the play of joints matching it is kept."""
     p = copy.deepcopy(p)
     kept = set(KEEP[1:7]) if keep == "all" else {keep}
     if keep == "all-but-play":
@@ -104,15 +104,16 @@ def isolate(k: int, argv: list[str], servo: dict | None = None) -> list[str]:
     criteria the others failed."""
     from adron.catalog import load_catalog
     from export.mjcf import load_mjcf
-    from export.perturb import design_table, draw, perturbed_model
-    from export.verify import _simulate, bundle_parts, controller_for_model, folder_files
+    from synth.verification.perturb import design_table, draw, perturbed_model
+    from synth.verification.runs import _simulate, controller_for_model
+    from synth.verification.source import Bundle
 
     with tempfile.TemporaryDirectory() as tmp:
         code, why = _design([*argv, "--out", tmp])
         if code:
             return [f"{' '.join(argv)}: not designed: {why.splitlines()[-1]}"]
-        files = folder_files(tmp)
-    record, xml, meshes = bundle_parts(files)
+        files = Bundle.read(tmp)
+    record, xml, meshes = files.record, files.xml, files.meshes
     table = design_table(record, xml, load_catalog(), {"servo": servo} if servo else None)
     nominal = load_mjcf(xml, meshes)
     ctl = controller_for_model(record, nominal)
@@ -162,15 +163,16 @@ def seeds(
 
     from adron.catalog import load_catalog
     from export.mjcf import load_mjcf
-    from export.perturb import design_table, draw, perturbed_model
-    from export.verify import _simulate, bundle_parts, controller_for_model, folder_files
+    from synth.verification.perturb import design_table, draw, perturbed_model
+    from synth.verification.runs import _simulate, controller_for_model
+    from synth.verification.source import Bundle
 
     with tempfile.TemporaryDirectory() as tmp:
         code, why = _design([*argv, "--out", tmp])
         if code:
             return [f"{' '.join(argv)}: not designed: {why.splitlines()[-1]}"]
-        files = folder_files(tmp)
-    record, xml, meshes = bundle_parts(files)
+        files = Bundle.read(tmp)
+    record, xml, meshes = files.record, files.xml, files.meshes
     table = design_table(record, xml, load_catalog())
     ctl = controller_for_model(record, load_mjcf(xml, meshes))
     traj = ctl.run("walking")
@@ -214,17 +216,17 @@ FLOOR_SHARE = 0.01
 
 
 def needed_floors() -> None:
-    """The robust loop's torque floors (``synth.verify._floors``) taken only from the runs
-    of behaviours that serve a demanded ability (a bonus one that fails is dropped, not
+    """The robust loop's torque floors (``synth.verification.loop._floors``) taken only from the
+    runs of behaviours that serve a demanded ability (a bonus one that fails is dropped, not
     sized for) and only for the joints saturated at least ``FLOOR_SHARE`` of a run: what
     ``--floors needed`` measures (the shipped loop floors every saturated joint of every
     failed run, and the bonus ``running`` saturates joints no catalog servo strengthens,
     so the sizing is infeasible and the hip yaw never gets its stronger servo)."""
-    import synth.verify
+    import synth.verification.loop
     from gaits import controller_for
     from gaits.base import DesignGeometry
 
-    plain = synth.verify._floors
+    plain = synth.verification.loop._floors
 
     def floors(results: list[dict], record: dict) -> dict[str, float]:
         ctl = controller_for(DesignGeometry.from_record(record))
@@ -241,15 +243,15 @@ def needed_floors() -> None:
             )
         return plain(kept, record)
 
-    synth.verify._floors = floors
+    synth.verification.loop._floors = floors
 
 
 def grid(k: int) -> list[str]:
     from robust_grid import design
 
-    import synth.verify
+    import synth.verification.loop
 
-    synth.verify.best_value = lambda *a, **kw: None  # no hint search
+    synth.verification.loop.best_value = lambda *a, **kw: None  # no hint search
     lines = [f"Humanoid requests, K = {k}: accepted nominal -> robust, perturbed runs passed"]
     for req in REQUESTS:
         for payload in PAYLOADS:
@@ -280,10 +282,10 @@ if __name__ == "__main__":
         servo[model] = {"gears": gears, "deadband": dead.replace("us", " us")}
         del args[i : i + 2]
     if "--play-stop-steps" in args:
-        import export.perturb
+        import synth.verification.perturb
 
         i = args.index("--play-stop-steps")
-        export.perturb.PLAY_STOP_STEPS = float(args[i + 1])
+        synth.verification.perturb.PLAY_STOP_STEPS = float(args[i + 1])
         del args[i : i + 2]
     if "--walk" in args:
         i = args.index("--walk")

@@ -16,7 +16,7 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-#: component -> the keys of a perturbation (export.perturb.draw) it sets.
+#: component -> the keys of a perturbation (synth.verification.perturb.draw) it sets.
 COMPONENTS = {
     "friction": ("friction_scale",),
     "slope": ("slope_rad", "slope_direction_rad"),
@@ -53,23 +53,17 @@ def replays(
 
     from adron.errors import InputError
     from export.mjcf import load_mjcf
-    from export.perturb import draw, perturbed_model
-    from export.verify import (
-        _simulate,
-        bundle_parts,
-        controller_for_model,
-        figures,
-        folder_files,
-        recorded_table,
-    )
+    from synth.verification.perturb import draw, perturbed_model
+    from synth.verification.runs import _simulate, controller_for_model, figures, recorded_table
+    from synth.verification.source import Bundle
 
-    files = folder_files(folder)
-    record, xml, meshes = bundle_parts(files)
+    files = Bundle.read(folder)
+    record, xml, meshes = files.record, files.xml, files.meshes
     try:
         table = recorded_table(record)
     except InputError:  # designed without --robustness: the catalog's table
         from adron.catalog import load_catalog
-        from export.perturb import design_table
+        from synth.verification.perturb import design_table
 
         table = design_table(record, xml, load_catalog())
     p = draw(table, seed)
@@ -89,8 +83,8 @@ def replays(
 
 def isolate(folder: str, behavior: str, seed: int) -> list[str]:
     """:func:`replays` as lines: each case's heading, distance, pose error and verdict."""
-    from export.perturb import describe
-    from export.verdict import explain
+    from synth.verification.perturb import describe
+    from synth.verification.verdict import explain
 
     p, runs = replays(folder, behavior, seed)
     lines = [f"{behavior} under {describe(p)}"]

@@ -5,7 +5,7 @@ designed as ``parmor design`` does (nominal verification) and with ``--robustnes
 Prints per type the requests accepted nominal -> robust and the perturbed runs passed;
 ``--jsonl FILE`` keeps one row per request (the failures' seeds, criteria and
 perturbations). The refusals' hint search is left out. ``--no-stiffer-wheels``: the
-sizing loop without its stiffer wheel servos (``synth/robust_wheels.py``), for the
+sizing loop without its stiffer wheel servos (``synth/verification/wheels.py``), for the
 figures before it.
 
     python bench/robust_wheel_grid.py [K] [--jsonl FILE] [--only TYPE] [--no-stiffer-wheels]
@@ -63,12 +63,12 @@ def run(
 ) -> list[str]:
     from robust_grid import design
 
-    import synth.robust_wheels
-    import synth.verify
+    import synth.verification.loop
+    import synth.verification.wheels
 
-    synth.verify.best_value = lambda *a, **kw: None  # no hint search
+    synth.verification.loop.best_value = lambda *a, **kw: None  # no hint search
     if not stiffer:  # the loop without the stiffer wheels' answer (the figures before it)
-        synth.robust_wheels.wheel_exclusions = lambda *a, **kw: ({}, None)
+        synth.verification.wheels.wheel_exclusions = lambda *a, **kw: ({}, None)
     rows = []
     sink = open(jsonl, "w") if jsonl else None  # noqa: SIM115
     with tempfile.TemporaryDirectory() as tmp:

@@ -5,7 +5,7 @@ the placing error, and the verdict.
     python bench/wheel_feedback_runs.py DIR [K] [--behaviors a,b] [--open]
 
 The bundle may be designed with ``--robustness 0``: the table is then the design's own
-(:func:`export.perturb.design_table` over the bundle's record and the shipped catalog).
+(:func:`synth.verification.perturb.design_table` over the bundle's record and the shipped catalog).
 """
 
 from __future__ import annotations
@@ -21,9 +21,10 @@ sys.path.insert(0, str(REPO))
 
 def main(argv: list[str]) -> None:
     from adron.catalog import load_catalog
-    from export.perturb import design_table, draw, perturbed_model
-    from export.simulate import load_bundle_model, simulate
-    from export.verify import bundle_parts, controller_for_model, folder_files
+    from synth.verification.perturb import design_table, draw, perturbed_model
+    from synth.verification.runs import controller_for_model
+    from synth.verification.simulate import simulate
+    from synth.verification.source import Bundle
 
     opts = {"--behaviors": ""}
     for key in opts:
@@ -35,12 +36,12 @@ def main(argv: list[str]) -> None:
     argv = [a for a in argv if a != "--open"]
     folder = argv[0]
     k = int(argv[1]) if len(argv) > 1 else 8
-    files = folder_files(folder)
-    record, xml, meshes = bundle_parts(files)
+    files = Bundle.read(folder)
+    record, xml, meshes = files.record, files.xml, files.meshes
     table = ((record.get("verified") or {}).get("robust") or {}).get("table")
     if not table:
         table = design_table(record, xml, load_catalog())
-    controller = controller_for_model(record, load_bundle_model(folder))
+    controller = controller_for_model(record, Bundle(folder=folder).model())
     names = (
         opts["--behaviors"].split(",")
         if opts["--behaviors"]

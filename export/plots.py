@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from export.simulate import SimResult
 from gaits.base import Trajectory
+from synth.verification.simulate import SimResult
 
 
 def write_plots(folder: Path, traj: Trajectory, result: SimResult) -> list[str]:

@@ -348,6 +348,13 @@ def verification_text(verified: dict | None, indent: str = "  ") -> str:
             f"{indent}  stiffer wheel {j}: {sw['from']} -> {sw['to']}: its motor line's droop "
             f"broke {', '.join(broke) or 'a behaviour'} under perturbation"
         )
+    gains = (verified.get("robust") or {}).get("gains") or {}
+    for name, scale in gains.get("chosen", {}).items():
+        loop = next((t["loop"] for t in gains.get("tried", ()) if t["behavior"] == name), "")
+        out.append(
+            f"{indent}  gains {name}: its {loop} loop's gains x{scale:g}: with its own, "
+            "perturbed runs failed; with these every one passes"
+        )
     for a, why in verified.get("dropped", {}).items():
         out.append(f"{indent}  dropped {a}: {why}")
     if verified.get("not_simulated"):

@@ -142,6 +142,9 @@ class DesignRecord(Open):
     mass_kg: NonNegative | None = None
     loaded_mass_kg: NonNegative | None = None
     calibration: dict[Name, Finite] | None = None
+    feedback_gains: dict[Name, Positive] | None = described(
+        None, "behaviour -> the scale of its feedback loop's gains (robust verification)"
+    )
     power: dict[str, Any] | None = None
     bus: dict[str, Any] | None = None
     payload: PayloadRecord | None = None

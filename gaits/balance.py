@@ -156,14 +156,12 @@ class Balance(Loop):
     """The trunk kept upright from the IMU (module docstring)."""
 
     needs_imu = True
+    #: the feedback gains of :data:`GAINS` (its limits, filters and timing are not)
+    GAINS = ("kp_ankle", "kd_ankle", "kp_hip", "kd_hip", "kp_yaw", "k_slope", "k_level")
 
     def __init__(self, traj, spec: Mapping[str, object]) -> None:
         super().__init__(traj, spec)
-
-        def f(key: str) -> float:
-            return float(spec.get(key, GAINS[key]))  # type: ignore[arg-type]
-
-        self.g = {k: f(k) for k in GAINS}
+        self.g = {k: self.gain(k, GAINS[k]) for k in GAINS}
         index = {j: k for k, j in enumerate(self.joints)}
 
         def rows(role: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -19,7 +19,7 @@ import os
 from abc import ABC, abstractmethod
 from collections import OrderedDict
 from collections.abc import Callable, Collection, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import BinaryIO
 
@@ -79,7 +79,8 @@ class Trajectory:
     a manipulator places its payload), ``stability_margin_m`` ((N,) for legged gaits),
     ``direction`` ((x, y) unit vector of the intended travel)...
 
-    What the behaviour promises, judged by :mod:`export.verdict` on the simulated outcome:
+    What the behaviour promises, judged by :mod:`synth.verification.verdict` on the simulated
+    outcome:
 
     - ``motion``: ``"straight"`` (travel a line), ``"arc"`` (drive an arc), ``"turn"``
       (turn in place), ``"crawl"`` (a snake gait: progress along ``direction``),
@@ -293,6 +294,10 @@ class DesignGeometry:
     #: kind is a ``...SensorModule``), sorted: what its feedback loops may read
     #: (:mod:`gaits.feedback`; an IMU only where the ontology made the design carry one)
     sensors: tuple[str, ...] = ()
+    #: behaviour -> the scale of its feedback loop's gains (the record's ``feedback_gains``:
+    #: chosen by the robust verification, :mod:`synth.verification.gains`); a plan of that
+    #: behaviour carries it in ``info["feedback"]["gain_scale"]``
+    feedback_gains: Mapping[str, float] = field(default_factory=dict)
 
     @classmethod
     def from_record(cls, record: Mapping) -> DesignGeometry:
@@ -324,6 +329,9 @@ class DesignGeometry:
                 for j in record.get("joints", [])
             },
             calibration={k: float(v) for k, v in (record.get("calibration") or {}).items()},
+            feedback_gains={
+                str(k): float(v) for k, v in (record.get("feedback_gains") or {}).items()
+            },
             ancestors={
                 str(k): tuple(str(a) for a in v)
                 for k, v in (record.get("ability_ancestors") or {}).items()
@@ -513,7 +521,14 @@ class Controller(ABC):
                 f"{self.geometry.robot_type} has no behaviour {name!r} "
                 f"(behaviours: {', '.join(sorted(self.behaviors))})"
             )
-        return self._planned(name, spec.planned(spec.resolve(params)))
+        traj = self._planned(name, spec.planned(spec.resolve(params)))
+        scale = self.geometry.feedback_gains.get(name)
+        feedback = traj.info.get("feedback")
+        if scale is None or not feedback:
+            return traj
+        # the loop's gains the design's verification chose: in the plan, so that every
+        # runner of it (simulate, run, the ROS node, the block page) runs them
+        return replace(traj, info={**traj.info, "feedback": {**feedback, "gain_scale": scale}})
 
     def _planned(self, name: str, resolved: Mapping[str, object]) -> Trajectory:
         """The trajectory of behaviour ``name`` with ``resolved`` values (``own``

@@ -30,7 +30,7 @@ puts the object down: ``positioning`` above it, then the reverse of ``grasping``
 onto the target, open, up and back). A target the arm reaches from where the base stands
 needs no drive. The arm accelerates gently (``ARM_ACCELERATION``): the wheels only hold
 their speed, and a quick arm's reaction turns the base under it. ``info["placed_at_s"]``
-is when the gripper has opened on the target: :mod:`export.verdict` measures the
+is when the gripper has opened on the target: :mod:`synth.verification.verdict` measures the
 gripper's distance from the world target there, on the outcome, so a base that slipped or
 drove short fails ``placing``.
 

@@ -8,7 +8,7 @@ command interfaces). The loop is data in the plan (``Trajectory.info["feedback"]
 mapping: ``{"loop": KIND, ...its gains}``), so a cached or re-planned trajectory carries it,
 and every runner of a plan (``parmor design``'s verification, ``parmor simulate``,
 ``parmor run``, the ROS node and the block page through :mod:`program.session`) runs the
-same loop: :func:`loop_for` builds it, :mod:`export.simulate` feeds it.
+same loop: :func:`loop_for` builds it, :mod:`synth.verification.simulate` feeds it.
 
 What a loop may read (:class:`Reading`), as the hardware gives it:
 
@@ -23,7 +23,7 @@ What a loop may read (:class:`Reading`), as the hardware gives it:
 
 What it writes: offsets (rad for position servos, rad/s for wheels) added to the plan's
 commands for the next control period; they reach the servos after the bus's latency. The
-period, the latency and the noise are the runner's (:func:`export.simulate.simulate`).
+period, the latency and the noise are the runner's (:func:`synth.verification.simulate.simulate`).
 
 A loop kind is a class registered with :func:`register`; the controllers (chosen by the
 design's structure, never by a type's name) put the kind and its gains in their plans. Pure
@@ -125,15 +125,29 @@ def roll_pitch_yaw(q: np.ndarray) -> tuple[float, float, float]:
 
 class Loop(ABC):
     """One feedback loop around one plan. ``joints`` are the plan's joints, ``spec`` its
-    ``info["feedback"]``; ``times``/``positions``/``velocities`` the plan's samples."""
+    ``info["feedback"]``; ``times``/``positions``/``velocities`` the plan's samples.
+
+    ``spec["gain_scale"]`` (default 1) multiplies every gain the loop names in
+    :attr:`GAINS` (:meth:`gain`): the scale a design's robust verification chose for it
+    (``design.json`` ``feedback_gains``, :mod:`synth.verification.gains`), put in the plan
+    by its controller so that every runner of the plan runs the same gains."""
 
     #: True when the loop reads the IMU: a design without one is refused it
     needs_imu: bool = False
+    #: the spec keys that are the loop's gains (what ``gain_scale`` multiplies)
+    GAINS: tuple[str, ...] = ()
 
     def __init__(self, traj, spec: Mapping[str, object]) -> None:
         self.traj = traj
         self.spec = spec
         self.joints: tuple[str, ...] = tuple(traj.joints)
+        self.gain_scale = float(spec.get("gain_scale", 1.0))  # type: ignore[arg-type]
+
+    def gain(self, key: str, default: float) -> float:
+        """The spec's ``key`` (``default`` when it has none), times ``gain_scale`` for a
+        key of :attr:`GAINS`."""
+        value = float(self.spec.get(key, default))  # type: ignore[arg-type]
+        return value * self.gain_scale if key in self.GAINS else value
 
     def reset(self, first: Reading) -> None:  # noqa: B027 (optional hook)
         """Called once with the first reading, before any correction."""
@@ -206,9 +220,11 @@ class JointHold(Loop):
     fast (|planned speed| above ``moving_rad_s``) is left to its servo: the integral is
     frozen so it does not wind up on the servo's lag."""
 
+    GAINS = ("ki",)
+
     def __init__(self, traj, spec: Mapping[str, object]) -> None:
         super().__init__(traj, spec)
-        self.ki = float(spec.get("ki", 4.0))  # type: ignore[arg-type]
+        self.ki = self.gain("ki", 4.0)
         self.limit = float(spec.get("limit_rad", 0.15))  # type: ignore[arg-type]
         self.moving = float(spec.get("moving_rad_s", 0.5))  # type: ignore[arg-type]
         names = spec.get("joints")

@@ -54,8 +54,8 @@ obstacle for most of its way. With an **approach** angle a (``plan_gait(approach
 the turns of ``gaits.legged``) the straight line stops short of the foothold by a x the
 foot's distance from its coxa axis and the foot covers that last bit in a second, slow
 minimum-jerk move (the last ``APPROACH_SHARE`` of the swing's horizontal motion, before
-the descent). Why: the play of a geared hip servo (``export/perturb.toml``) is free about
-the vertical coxa axis (gravity does not take it up); a single move ends decelerating,
+the descent). Why: the play of a geared hip servo (``synth/verification/perturb.toml``) is free
+about the vertical coxa axis (gravity does not take it up); a single move ends decelerating,
 the leg's inertia carries it across the play, and each landing locks in the offset the
 play then has: in MuJoCo a quadruped's turn in place drifted 10-14 % past its angle on
 every perturbed run, 3-4 % with the slow approach (the hexapod's 5-8 % past it).

@@ -39,7 +39,7 @@ steps (12 % of the leg), a high foot lift, and 80 % of the lateral sway to the s
 ankle (a full sway rolls the ankle's actuator box onto the floor). The standing
 behaviours (grasping, balancing) use that crouch.
 
-The walk under perturbation (``parmor design --robustness``, ``export.perturb``): it
+The walk under perturbation (``parmor design --robustness``, ``synth.verification.perturb``): it
 fell in 34 of 48 perturbed runs of the default design and passed 3. Replayed one
 perturbation at a time (``bench/robust_humanoid.py``), the servos' play alone broke it;
 a high foot lift and a fast step rocked the robot sideways over its ankles' and hips'
@@ -94,7 +94,7 @@ reference under a load ``tau`` and lags a moving reference by ``(kv + damping) /
 then went 1.31 x the distance its joint angles command (its stance foot rolled forward
 about 3 mm per step and its steps landed long; the joints' tracking error was mostly
 that lag, 30 mrad rms at the hip pitch); with 20 x stiffer servos it went 1.02 x. Given the
-servos' ``stiffness`` and ``damping`` (``export.verify`` passes the MJCF's), the
+servos' ``stiffness`` and ``damping`` (``synth.verification.runs`` passes the MJCF's), the
 controller commands ``q + (tau + damping q') / kp`` with ``tau`` the stance loads of
 :func:`stance_torques` (the template's masses with the design's payload): 1.02 x. The
 plan (``planned_pose``, ``info["planned_positions"]``) stays the bare angles ``q``.

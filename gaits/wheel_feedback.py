@@ -154,15 +154,17 @@ class WheelOdometry(_Wheels):
     :func:`reference`), ``imu`` (bool: the heading from the IMU), gains ``kp_heading``,
     ``ki_heading``, ``kp_distance``, ``ki_distance``."""
 
+    GAINS = ("kp_heading", "ki_heading", "kp_distance", "ki_distance", "ki_still")
+
     def __init__(self, traj, spec: Mapping[str, object]) -> None:
         super().__init__(traj, spec)
         self.needs_imu = bool(spec.get("imu", False))
         self.profile: Mapping[str, object] = spec["profile"]  # type: ignore[assignment]
-        self.kp_h = float(spec.get("kp_heading", KP_HEADING))  # type: ignore[arg-type]
-        self.ki_h = float(spec.get("ki_heading", KI_HEADING))  # type: ignore[arg-type]
-        self.kp_d = float(spec.get("kp_distance", KP_DISTANCE))  # type: ignore[arg-type]
-        self.ki_d = float(spec.get("ki_distance", KI_DISTANCE))  # type: ignore[arg-type]
-        self.ki_still = float(spec.get("ki_still", KI_STILL))  # type: ignore[arg-type]
+        self.kp_h = self.gain("kp_heading", KP_HEADING)
+        self.ki_h = self.gain("ki_heading", KI_HEADING)
+        self.kp_d = self.gain("kp_distance", KP_DISTANCE)
+        self.ki_d = self.gain("ki_distance", KI_DISTANCE)
+        self.ki_still = self.gain("ki_still", KI_STILL)
         self.int_h = self.int_d = 0.0
         self.yaw0 = self.last_yaw = 0.0
         self.turns = 0.0
@@ -215,10 +217,12 @@ class WheelHold(_Wheels):
     """Each wheel held at its encoder angle while the plan holds the wheels still (module
     docstring). Spec keys besides :class:`_Wheels`': ``k`` 1/s, ``still_rad_s``."""
 
+    GAINS = ("k", "ki")
+
     def __init__(self, traj, spec: Mapping[str, object]) -> None:
         super().__init__(traj, spec)
-        self.k = float(spec.get("k", K_HOLD))  # type: ignore[arg-type]
-        self.ki = float(spec.get("ki", KI_HOLD))  # type: ignore[arg-type]
+        self.k = self.gain("k", K_HOLD)
+        self.ki = self.gain("ki", KI_HOLD)
         self.still = float(spec.get("still_rad_s", STILL_RAD_S))  # type: ignore[arg-type]
         self.anchor: np.ndarray | None = None
         self.acc = np.zeros(len(self.joints))

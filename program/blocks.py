@@ -85,16 +85,17 @@ def _require_web(web: Path) -> None:
 
 def read_record(folder: Path) -> dict:
     """The design record of a bundle folder; InputError when it is not a sized one."""
-    from export.verify import bundle_record
+    from synth.verification.source import Bundle
 
-    return bundle_record(folder)
+    return Bundle.read(folder).record
 
 
 def bundle_controller(folder: Path, record: Mapping) -> Controller:
     """The design's controller, set up for the bundle's MuJoCo model as a run sets it up."""
-    from export.verify import controller_for_model, load_model
+    from synth.verification.runs import controller_for_model
+    from synth.verification.source import Bundle
 
-    model = load_model(folder)
+    model = Bundle(folder=folder, record=dict(record)).model()
     try:
         return controller_for_model(record, model)
     except ValueError as e:

@@ -553,9 +553,9 @@ def read_bundle(folder: Path) -> tuple[dict, str, dict[str, bytes]]:
     """(design record, URDF text, the meshes it names) of a bundle folder; RosInputError
     naming what is wrong."""
     from export.urdf import relative_meshes
-    from export.verify import bundle_record
+    from synth.verification.source import Bundle
 
-    record = bundle_record(folder)
+    record = Bundle.read(folder).record
     try:
         urdf = relative_meshes((folder / "robot.urdf").read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError) as e:

@@ -30,7 +30,7 @@ The sensors, as the ontology's sensing abilities and the catalog's modules give 
 The trunk's front edge is the furthest point of its geoms along the direction the
 steerable behaviour drives forward.
 
-What each promises, judged on the outcome (:func:`export.verdict.judge`):
+What each promises, judged on the outcome (:func:`synth.verification.verdict.judge`):
 
 - ``line-tracking`` (motion ``follow-line``): the line never leaves the span of the two
   sensors for longer than ``LINE_LOST_S``, and the robot covers ``LINE_PROGRESS`` of the
@@ -238,13 +238,13 @@ def scene_xml(xml: str) -> str:
 
 
 class SensorNoise:
-    """What the sensing loops' sensors read on a perturbed robot (``export/perturb.toml``'s
-    ``[infrared]`` and ``[ultrasonic]``, a perturbation's ``sensing`` draws): an infrared
-    sensor sees the line when it is within the tape's half width moved by that sensor's
-    edge offset and a fresh jitter; the ranger reads the distance x the run's scale plus a
-    fresh noise, rounded to its resolution. The fresh draws come from a generator seeded
-    with (stream, seed, 2) in the order the loop reads: a run is replayed to the bit.
-    ``None`` (the nominal robot): exact readings, nothing drawn."""
+    """What the sensing loops' sensors read on a perturbed robot
+    (``synth/verification/perturb.toml``'s ``[infrared]`` and ``[ultrasonic]``, a perturbation's
+    ``sensing`` draws): an infrared sensor sees the line when it is within the tape's half width
+    moved by that sensor's edge offset and a fresh jitter; the ranger reads the distance x the
+    run's scale plus a fresh noise, rounded to its resolution. The fresh draws come from a
+    generator seeded with (stream, seed, 2) in the order the loop reads: a run is replayed to the
+    bit. ``None`` (the nominal robot): exact readings, nothing drawn."""
 
     def __init__(self, drawn: Mapping | None) -> None:
         drawn = drawn or {}
@@ -418,7 +418,7 @@ class Course:
 
 def run(session: Session, name: str, params: Mapping[str, object]) -> tuple[dict, dict]:
     """Run sensing behaviour ``name`` on ``session`` from where the robot is: (figures,
-    info) for :func:`export.verdict.judge`."""
+    info) for :func:`synth.verification.verdict.judge`."""
     steer = steering(session.controller.behaviors)
     assert steer is not None
     if steer.strides:
@@ -632,7 +632,7 @@ def _line_outcome(
     seconds: float, state: Mapping, length: float, params: Mapping
 ) -> tuple[dict, dict]:
     """A line-tracking run's figures (from the reader's ``state``, :func:`_line_reader`)
-    and what it promised, for :func:`export.verdict.judge`."""
+    and what it promised, for :func:`synth.verification.verdict.judge`."""
     fig = {
         "seconds": seconds,
         "line_progress_m": state["s"],
@@ -1286,7 +1286,7 @@ def run_sensing(
     perturb: tuple[Mapping, int] | None = None,
 ) -> dict:
     """Sensing behaviour ``name`` of the design in ``files`` run on a fresh robot (under
-    perturbation ``perturb`` = (table, seed) of :mod:`export.perturb` when given) and
+    perturbation ``perturb`` = (table, seed) of :mod:`synth.verification.perturb` when given) and
     judged: its figures (``verdict`` and the loop's figures)."""
     from program.session import Session
 

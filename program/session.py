@@ -18,7 +18,6 @@ re-anchored where the robot is after them.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -70,7 +69,7 @@ class Session:
     ) -> None:
         """The bundle in ``folder``, or held in memory as ``files`` (``Outcome.files``).
 
-        ``perturb``: (table, seed) of :mod:`export.perturb` (a design's
+        ``perturb``: (table, seed) of :mod:`synth.verification.perturb` (a design's
         ``verified.robust.table``): the robot is that perturbation's (masses, floor,
         battery, play, compliance), its commands reach the servos ``latency`` late and
         held for each control period, its plans' feedback loops read the IMU with its noise
@@ -80,37 +79,22 @@ class Session:
         frames (a verification, which shows none, saves a tenth of a walker's run)."""
         import mujoco
 
-        from export.simulate import load_files_model
-        from export.verify import bundle_record, controller_for_model
         from program.sensing import SensorNoise, scene_xml, sensing_behaviors
+        from synth.verification.runs import controller_for_model
+        from synth.verification.source import Bundle
 
         if files is None:
             if folder is None:
                 raise ValueError("a Session needs a bundle folder or its files")
             folder = Path(folder)
-            self.record = bundle_record(folder)
-            try:
-                files = {
-                    "robot.xml": (folder / "robot.xml").read_bytes(),
-                    "design.json": (folder / "design.json").read_bytes(),
-                }
-                files.update(
-                    {f"meshes/{p.name}": p.read_bytes() for p in (folder / "meshes").glob("*.stl")}
-                )
-            except OSError as e:
-                raise InputError(f"{folder}: cannot read the model: {e}") from None
+            bundle = Bundle.read(folder)
         else:
-            raw = files["design.json"]
-            self.record = json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
-            from export.record_schema import check_record
-
-            check_record(self.record, "design.json")
-        xml = files["robot.xml"]
-        xml = xml.decode("utf-8") if isinstance(xml, bytes) else xml
+            bundle = Bundle(files)
+        self.record = bundle.record
         try:
-            self.model = load_files_model({**files, "robot.xml": scene_xml(xml)})
-        except (ValueError, KeyError) as e:
-            raise InputError(f"{folder or 'bundle'}: cannot load the MuJoCo model: {e}") from None
+            self.model = bundle.compile(scene_xml(bundle.xml))
+        except ValueError as e:  # no worldbody
+            raise InputError(f"{bundle.source}: cannot load the MuJoCo model: {e}") from None
         self.folder = folder
         self.controller = controller_for_model(self.record, self.model)
         #: the perturbation drawn (``perturb``), None for the nominal robot
@@ -118,7 +102,7 @@ class Session:
         #: what the sensing loops' sensors add to the truth (nothing on the nominal robot)
         self.noise = SensorNoise(None)
         if perturb is not None:
-            self.model = self._perturbed(files, *perturb)
+            self.model = self._perturbed(bundle, *perturb)
             self.noise = SensorNoise(self.perturbation.get("sensing"))  # type: ignore[union-attr]
         # the bus (a perturbed robot's): commands reach the servos this many physics steps
         # late, and change once every ``_hold`` steps (the main module's control period)
@@ -163,31 +147,24 @@ class Session:
         self._geoms = self._animated_geoms()
         self._origin = np.zeros(3)
 
-    def _perturbed(self, files: Mapping[str, str | bytes], table: Mapping, seed: int):
-        """The robot's model under perturbation ``seed`` of ``table`` (its scene included);
-        sets :attr:`perturbation`. InputError when the table cannot be applied."""
-        from export.mjcf import load_mjcf
-        from export.perturb import draw, perturbed_xml
-        from export.verify import bundle_parts
+    def _perturbed(self, bundle, table: Mapping, seed: int):
+        """The robot's model under perturbation ``seed`` of ``table`` (its scene included:
+        :class:`synth.verification.runs.Perturbed`); sets :attr:`perturbation`.
+        InputError when the table cannot be applied."""
         from program.sensing import scene_xml
+        from synth.verification.runs import Perturbed
 
-        _, xml, meshes = bundle_parts(files)
-        try:
-            p = draw(table, seed)
-            model = load_mjcf(scene_xml(perturbed_xml(xml, table, p)), meshes)
-        except (KeyError, TypeError, ValueError) as e:
-            raise InputError(
-                f"design.json: verified.robust.table: cannot be applied: {e}"
-            ) from None
-        self.perturbation = p
+        robot = Perturbed(bundle, table, seed)
+        model = bundle.compile(scene_xml(robot.xml()))
+        self.perturbation = robot.perturbation
         return model
 
     # -- what a program calls --------------------------------------------------------
 
     def do(self, behavior: str, **params: object) -> dict:
         """Run one behaviour from where the robot is; its judged figures."""
-        from export.simulate import simulate
-        from export.verify import figures
+        from synth.verification.runs import figures
+        from synth.verification.simulate import simulate
 
         spec = self.behaviors.get(behavior)
         if spec is None:
@@ -251,8 +228,8 @@ class Session:
 
     def _sense(self, behavior: str, spec, params: Mapping[str, object]) -> dict:
         """Run a sensing behaviour (a closed loop, :mod:`program.sensing`); its figures."""
-        from export.verdict import judge
         from program import sensing
+        from synth.verification.verdict import judge
 
         try:
             resolved = spec.resolve(params)
@@ -479,19 +456,19 @@ class Session:
 
         ``plan``: the trajectory these rows are of (a sensing loop's period): when it asks
         for a feedback loop (``info["feedback"]``) the loop runs around it as
-        :func:`export.simulate.simulate` runs it (its ``_ClosedLoop``: the same readings,
-        control period, latency and IMU noise). On a perturbed robot the commands reach
+        :func:`synth.verification.simulate.simulate` runs it (its ``_ClosedLoop``: the same
+        readings, control period, latency and IMU noise). On a perturbed robot the commands reach
         the servos through the bus (:meth:`_bus`).
 
-        The steps run inside MuJoCo (:func:`export.simulate.step_through`) in chunks of
+        The steps run inside MuJoCo (:func:`synth.verification.simulate.step_through`) in chunks of
         1 / :data:`PATH_HZ` s, the path, the animation and ``on_step`` (a sensing loop) being
         served after each; the fall, the saturated steps and the watched geom's contacts (a
         ``contact`` sensor on it, :func:`program.sensing.scene_xml`) are counted over every
         step from what was recorded."""
         import mujoco
 
-        from export.simulate import ServoLaw, start_closed, step_through
-        from export.verdict import COLLAPSE_TILT, SATURATION_LEVEL
+        from synth.verification.simulate import ServoLaw, start_closed, step_through
+        from synth.verification.verdict import COLLAPSE_TILT, SATURATION_LEVEL
 
         m, d = self.model, self.data
         cols = self._columns(joints)
@@ -561,7 +538,8 @@ class Session:
         now: on a perturbed robot each step's is the command sent ``_delay`` steps earlier,
         held for each control period of ``_hold`` steps (on the session's clock, so it
         carries over from one call to the next; before the first command, that one), as
-        :func:`export.simulate.simulate` delays a plan's; the nominal robot's are ``ctrl``."""
+        :func:`synth.verification.simulate.simulate` delays a plan's; the nominal robot's are
+        ``ctrl``."""
         if self.perturbation is None:
             return ctrl
         d, hold = self._delay, self._hold
@@ -577,11 +555,12 @@ class Session:
         return out
 
     def _closed(self, plan, cols):
-        """The feedback loop of ``plan`` wired to this session's run (``export.simulate``'s
-        ``_ClosedLoop``), or None for no plan or a plan run open loop."""
+        """The feedback loop of ``plan`` wired to this session's run
+        (``synth.verification.simulate``'s ``_ClosedLoop``), or None for no plan or a plan run open
+        loop."""
         if plan is None:
             return None
-        from export.simulate import _ClosedLoop
+        from synth.verification.simulate import _ClosedLoop
 
         p = self.perturbation
         columns = [(k, a, velocity) for k, a, _, velocity in cols]
@@ -718,7 +697,7 @@ def perturbed_session(
     session = Session(folder, progress=progress)
     if perturb is None:
         return session
-    from export.verify import recorded_table
+    from synth.verification.runs import recorded_table
 
     return Session(folder, progress=progress, perturb=(recorded_table(session.record), perturb))
 

@@ -288,8 +288,8 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="K",
         help="run every behaviour that passed under K seeded perturbations too (masses, "
         "floor friction and slope, servo play, bus latency, battery at cut-off, link "
-        "compliance; export/perturb.toml) and accept the design only when each passes in "
-        "all of them (the share in that file). Default: K = 8 (that file's default_k; "
+        "compliance; synth/verification/perturb.toml) and accept the design only when each "
+        "passes in all of them (the share in that file). Default: K = 8 (that file's default_k; "
         "the environment variable PARMOR_ROBUSTNESS=K sets another); 0 turns it off "
         "(nominal model only, about 8-15 x faster)",
     )
@@ -712,8 +712,8 @@ MODEL_MODULES = (
     "export.assembly",
     "export.meshes",
     "export.mjcf",
-    "export.simulate",
-    "synth.verify",
+    "synth.verification.simulate",
+    "synth.verification.loop",
     "export.polymesh",
     "mujoco",
 )
@@ -823,7 +823,7 @@ ROBUSTNESS_ENV = "PARMOR_ROBUSTNESS"
 
 def _robustness(k: int | None, no_verify: bool = False) -> int:
     """``--robustness``'s K: -1 (the option alone) is the table's default
-    (``export/perturb.toml``, ``[acceptance] default_k``); without the option (None) the
+    (``synth/verification/perturb.toml``, ``[acceptance] default_k``); without the option (None) the
     design is robustly verified too, with ``PARMOR_ROBUSTNESS`` when it is set, else that
     default (0 under ``--no-verify``: nothing is simulated)."""
     if k is not None and k >= 0:
@@ -837,7 +837,7 @@ def _robustness(k: int | None, no_verify: bool = False) -> int:
                 return _whole("a number of runs", MAX_ROBUSTNESS)(env.strip())
             except argparse.ArgumentTypeError as e:
                 raise InputError(f"environment variable {ROBUSTNESS_ENV}: {e}") from None
-    from export.perturb import ranges
+    from synth.verification.perturb import ranges
 
     return int(ranges()["default_k"])
 
@@ -1305,7 +1305,8 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     folder = Path(args.dir)
     if args.fine and args.perturb is None:
         raise InputError("--fine sets the step of a perturbed run: add --perturb SEED")
-    from export.verify import controller_for_model, figures, load_bundle, run_behavior
+    from synth.verification.runs import figures, run_behavior
+    from synth.verification.source import Bundle
 
     params: dict[str, str] = {}
     for item in args.set:
@@ -1326,9 +1327,10 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     if args.plot:
         _check_writable(folder / "plots", "--plot")
-    record, model = load_bundle(folder)
+    bundle = Bundle.read(folder)
+    record, model = bundle.record, bundle.model()
     try:
-        controller = controller_for_model(record, model)
+        controller = bundle.controller()
         if args.behavior == "help":
             listed = set(controller.listed(record.get("abilities", ())))
             for name, spec in sorted(controller.behaviors.items()):
@@ -1357,20 +1359,15 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                     model, controller, args.behavior, params, args.seconds, progress
                 )
             else:
-                from export.perturb import summary
-                from export.verify import (
-                    bundle_record,
-                    folder_files,
-                    recorded_table,
-                    run_perturbed,
-                )
+                from synth.verification.perturb import summary
+                from synth.verification.runs import recorded_table, run_perturbed
 
                 table = None
                 if args.fine:  # the recorded table at the model's own step
-                    table = recorded_table(bundle_record(folder))
+                    table = recorded_table(record)
                     table.pop("timestep_s", None)
                 traj, result, drawn = run_perturbed(
-                    folder_files(folder),
+                    bundle,
                     args.behavior,
                     args.perturb,
                     params,
@@ -1430,8 +1427,8 @@ def _simulate_sensing(folder, args: argparse.Namespace, params: dict) -> dict | 
     from synth.limits import stage
 
     if args.perturb is not None:
-        from export.perturb import summary
-        from export.verify import recorded_table
+        from synth.verification.perturb import summary
+        from synth.verification.runs import recorded_table
 
         session = Session(folder, perturb=(recorded_table(session.record), args.perturb))
     with stage("simulate"):

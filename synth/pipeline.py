@@ -16,14 +16,14 @@ from synth.conceptual import Design, Designer, Request
 if TYPE_CHECKING:  # numpy-heavy: imported only when a structure is sized
     from adron.catalog import Catalog
     from synth.structure import Structure
-    from synth.verify import Verification
+    from synth.verification.loop import Verification
 
 
 @dataclass(frozen=True, slots=True)
 class StructureOptions:
     """How to size the structure: catalog file (None: the shipped one), whether to stop at
     the conceptual design, symmetry of alike joints, the actuator objective order, and
-    whether to simulate every behaviour of the sized design (``synth.verify``)."""
+    whether to simulate every behaviour of the sized design (``synth.verification.loop``)."""
 
     catalog: str | None = None
     conceptual: bool = False
@@ -32,9 +32,9 @@ class StructureOptions:
     verify: bool = True
     with_payload: bool = False  # robot.urdf / robot.xml carry the payload (--with-payload)
     #: accept a demanded ability that no behaviour serves, unsimulated (--allow-unverified;
-    #: otherwise the verification refuses it: ``synth.verify``)
+    #: otherwise the verification refuses it: ``synth.verification.loop``)
     allow_unverified: bool = False
-    robustness: int = 0  # perturbed runs per behaviour (--robustness K; synth.robust)
+    robustness: int = 0  # perturbed runs per behaviour (--robustness K; synth.verification.robust)
 
 
 def parse_objective(text: str) -> tuple[str, ...]:
@@ -105,7 +105,10 @@ class Outcome:
     verify_skipped: bool = False  # sized but not simulated (--no-verify)
     bundle: dict[str, str | bytes] | None = None  # the files the verification simulated
     with_payload: bool = False  # the bundle's models carry the payload (--with-payload)
-    calibration: dict[str, float] | None = None  # measured on a run (synth.verify)
+    calibration: dict[str, float] | None = None  # measured on a run (synth.verification.loop)
+    #: behaviour -> the scale of its feedback loop's gains the robust verification chose
+    #: (synth.verification.gains); the record's ``feedback_gains``, which its controller reads
+    feedback_gains: dict[str, float] | None = None
     bed: object = None  # the user's printer (export.split.Bed, --bed): parts made to fit it
     #: bonus abilities dropped before verifying: a behaviour serving them cannot be
     #: planned with its default parameters (ability -> why; :func:`drop_unplannable`)
@@ -132,8 +135,8 @@ class Outcome:
         # the verification's own call: no pictures; afterwards the same design (its meshes
         # and trajectories reused) with them. Both carry the payload as the user's bundle
         # does (in the models only ``with_payload``, else placed from design.json by
-        # ``export.simulate.carrying_payload``), so that ``parmor simulate`` on the bundle
-        # reproduces the verification's figures exactly
+        # ``synth.verification.simulate.carrying_payload``), so that ``parmor simulate`` on the
+        # bundle reproduces the verification's figures exactly
         simulating = self.verification is None and not self.verify_skipped
         return bundle_files(
             rec,
@@ -160,6 +163,8 @@ class Outcome:
             rec["payload"] = payload_record(self.structure, self.with_payload)
         if self.calibration:
             rec["calibration"] = dict(sorted(self.calibration.items()))
+        if self.feedback_gains:
+            rec["feedback_gains"] = dict(sorted(self.feedback_gains.items()))
         if self.note is not None and self.structure is None:
             rec["no_structure"] = self.note  # why there is none (the request keeps its params)
         if self.unplanned:
@@ -219,7 +224,7 @@ def run(designer: Designer, req: Request, opts: StructureOptions) -> Outcome:
         return Outcome(
             d, s, catalog=catalog, verify_skipped=True, with_payload=loaded, unplanned=unplanned
         )
-    from synth.verify import verify
+    from synth.verification.loop import verify
 
     return verify(
         designer,
@@ -236,12 +241,12 @@ def drop_unplannable(
     does not demand) whose behaviours cannot be planned with their default parameters, and
     (ability, why) for each dropped one; the design's note says so. A bonus ability never
     sinks a design: its failed plan drops it, as its failed simulation does
-    (:mod:`synth.verify`). A demanded ability's failed plan is left to refuse the request
+    (:mod:`synth.verification.loop`). A demanded ability's failed plan is left to refuse the request
     where the bundle is written."""
     from export.record import design_record
     from gaits import controller_for
     from gaits.base import DesignGeometry
-    from synth.verify import demanded, served_abilities
+    from synth.verification.loop import demanded, served_abilities
 
     c = d.chosen
     if c is None:

@@ -1165,7 +1165,7 @@ def bisect_largest(
     test failed. ``snap`` moves each midpoint onto a grid (e.g. :func:`rounded_down`), so
     that the value returned is one that was tested (or ``lo``); the bisection stops when the
     grid has no point left between the bounds. One bisection for every refusal hint: the
-    sizing's (:func:`largest_value`) and the simulation's (``synth.verify``)."""
+    sizing's (:func:`largest_value`) and the simulation's (``synth.verification.loop``)."""
     for _ in range(steps):
         mid = 0.5 * (lo + hi)
         if snap is not None:

@@ -5,8 +5,9 @@ A study is a TOML file of ``[[request]]`` tables (``abilities``, optional ``name
 a table expands into the product of its lists. Each expanded request is designed as
 ``parmor design --no-input`` would: sized and (unless ``--no-simulate``, which designs
 as ``--no-verify`` does) every behaviour it lists simulated with default parameters and fed
-back (``synth.verify``). The figures of each simulated behaviour (``export.verify``, the
-records of ``parmor simulate --json``) become the rows of ``results.csv``.
+back (``synth.verification.loop``). The figures of each simulated behaviour
+(``synth.verification.runs``, the records of ``parmor simulate --json``) become the rows of
+``results.csv``.
 
 The requests run on local worker processes, or on a Ray cluster with ``--backend ray``
 (``synth.backend``); the results are the same either way. Each finished request is stored as
@@ -336,13 +337,13 @@ def design_one(q: dict, designer, sopts, simulate: bool) -> dict:
             )
         v = outcome.verification
         if simulate and v is not None:
-            res["behaviors"] = [dict(b) for b in v.behaviors]
+            res["behaviors"] = [b.to_dict() for b in v.behaviors]
             res["dropped"] = dict(sorted(v.dropped.items()))
             res["sizings"] = v.rounds
-            if v.robust is not None:  # each behaviour's perturbed runs (synth.robust)
+            if v.robust is not None:  # each behaviour's perturbed runs (synth.verification.robust)
                 res["robust"] = [
-                    {k: b[k] for k in ("behavior", "ability", "passed", "runs", "robust")}
-                    for b in v.robust["behaviors"]
+                    {k: getattr(b, k) for k in ("behavior", "ability", "passed", "runs", "robust")}
+                    for b in v.robust.behaviors
                 ]
     except Exception as e:  # noqa: BLE001 - a sweep records a crash and goes on
         res["status"], res["reason"] = "error", f"{type(e).__name__}: {e}"

@@ -13,9 +13,9 @@ import json
 
 import pytest
 
-import export.verify
 import synth.sweep
-import synth.verify
+import synth.verification.loop
+import synth.verification.runs
 from adron.kb import load
 from gaits import controller_for
 from gaits.base import DesignGeometry, serving
@@ -209,9 +209,9 @@ def test_each_demanded_ability_is_served_or_refused(
     behaviour serves, shipped requests): which behaviour serves each demanded ability, and
     the refusal exactly for those none serves."""
     rec, controller, out = _sized(grid_designer, Request(abilities, answers, params))
-    served = synth.verify.served_abilities(rec, controller)
+    served = synth.verification.loop.served_abilities(rec, controller)
     assert {a: served[a] for a in expected} == expected
-    unserved = synth.verify._unserved(grid_designer, out)
+    unserved = synth.verification.loop._unserved(grid_designer, out)
     assert sorted(unserved) == sorted(a for a, s in expected.items() if s is None)
     for a, s in expected.items():
         if s is not None and s in {b.realises for b in controller.behaviors.values()}:
@@ -261,14 +261,18 @@ def test_no_verify_does_not_refuse_it(cli, tmp_path) -> None:
 
 
 def _result(behavior, ability, verdict="ok", **kw):
-    return {"behavior": behavior, "ability": ability, "verdict": verdict, "seconds": 1.0} | kw
+    from synth.verification.results import Run
+
+    return Run.of(
+        {"behavior": behavior, "ability": ability, "verdict": verdict, "seconds": 1.0} | kw
+    )
 
 
 def _fake(results):
-    def verify_files(files, behaviors=None):
+    def verify_nominal(bundle, behaviors=None):
         return results
 
-    return verify_files
+    return verify_nominal
 
 
 CANS = Request(("can-placing",), params=(("object_shape", "cylinder"),))
@@ -277,9 +281,9 @@ CANS = Request(("can-placing",), params=(("object_shape", "cylinder"),))
 def test_a_failing_behaviour_that_serves_a_demanded_subclass_fails_the_request(
     grid_designer, monkeypatch
 ) -> None:
-    monkeypatch.setattr(synth.verify, "HINT_ROUNDS", 0)
+    monkeypatch.setattr(synth.verification.loop, "HINT_ROUNDS", 0)
     bad = _result("pick-and-place", "pick-and-place", ["placing"], placing_error_m=0.012)
-    monkeypatch.setattr(export.verify, "verify_files", _fake([bad]))
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", _fake([bad]))
     out = run(grid_designer, CANS, StructureOptions())
     assert out.status == "infeasible"
     assert out.infeasible.startswith("pick-and-place (serving can-placing) failed in simulation")
@@ -289,7 +293,7 @@ def test_a_failing_bonus_behaviour_is_dropped_not_refused(grid_designer, monkeyp
     """Built to pass where the one above fails: positioning serves no demanded ability."""
     bad = _result("positioning", "positioning", ["placing"], placing_error_m=0.02)
     ok = _result("pick-and-place", "pick-and-place")
-    monkeypatch.setattr(export.verify, "verify_files", _fake([ok, bad]))
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", _fake([ok, bad]))
     out = run(grid_designer, CANS, StructureOptions())
     rec = out.record(grid_designer)
     assert out.infeasible is None

@@ -365,9 +365,10 @@ def test_pointing_places_better_with_its_joint_hold_loop_than_open_loop(cli, tmp
     """Under the servos' play, the probe arm's pointing ends nearer its target with the
     joint-hold loop its plan asks for than open loop (:data:`POINTING_FEEDBACK`)."""
     from export.mjcf import load_mjcf
-    from export.perturb import draw, perturbed_model
-    from export.simulate import simulate
-    from export.verify import bundle_parts, controller_for_model, folder_files, recorded_table
+    from synth.verification.perturb import draw, perturbed_model
+    from synth.verification.runs import controller_for_model, recorded_table
+    from synth.verification.simulate import simulate
+    from synth.verification.source import Bundle
 
     kif = _write(tmp_path, "probe.kif", PROBE)
     r, out = _design(
@@ -375,8 +376,8 @@ def test_pointing_places_better_with_its_joint_hold_loop_than_open_loop(cli, tmp
         "--robustness", "8",
     )  # fmt: skip
     assert r.code == 0, r.err
-    files = folder_files(out)
-    record, xml, meshes = bundle_parts(files)
+    files = Bundle.read(out)
+    record, xml, meshes = files.record, files.xml, files.meshes
     table = recorded_table(record)
     closed, opened = [], []
     for seed in (1, 2, 3):

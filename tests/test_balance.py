@@ -12,16 +12,18 @@ import pytest
 
 from adron.catalog import load_catalog
 from export.mjcf import load_mjcf
-from export.perturb import design_table, draw, perturbed_model
-from export.simulate import simulate
-from export.verify import bundle_parts, controller_for_model, folder_files
 from gaits.balance import GAINS, KIND, Balance, balance_joints
 from gaits.feedback import Reading, has_imu, loop_for
+from synth.verification.perturb import design_table, draw, perturbed_model
+from synth.verification.runs import controller_for_model
+from synth.verification.simulate import simulate
+from synth.verification.source import Bundle
 
 
 @pytest.fixture(scope="module")
 def bundle(humanoid):
-    record, xml, meshes = bundle_parts(folder_files(humanoid))
+    bundle = Bundle.read(humanoid)
+    record, xml, meshes = bundle.record, bundle.xml, bundle.meshes
     nominal = load_mjcf(xml, meshes)
     return record, xml, meshes, nominal, design_table(record, xml, load_catalog())
 

@@ -47,8 +47,8 @@ def test_the_quadruped_tibia_is_sized_for_its_walk(quadruped) -> None:
 
 
 def test_predicted_torques_agree_with_mujoco(cli, tmp_path) -> None:
-    from export.simulate import load_bundle_model
-    from export.verify import controller_for_model, run_behavior
+    from synth.verification.runs import controller_for_model, run_behavior
+    from synth.verification.source import Bundle
 
     folder = tmp_path / "quad"
     run = cli(
@@ -65,7 +65,7 @@ def test_predicted_torques_agree_with_mujoco(cli, tmp_path) -> None:
     )
     assert run.code == 0, run.err
     rec = json.loads((folder / "design.json").read_text())
-    model = load_bundle_model(folder)
+    model = Bundle(folder=folder).model()
     _, res = run_behavior(model, controller_for_model(rec, model), "walking")
     assert not res.fell
     assert res.saturated_fraction <= 0.05

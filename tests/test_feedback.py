@@ -1,5 +1,5 @@
-"""The feedback framework (gaits/feedback.py, export/simulate.py's closed loop): the attitude
-filter, a loop's corrections reaching the servos after the bus latency, the IMU read only
+"""The feedback framework (gaits/feedback.py, synth/verification/simulate.py's closed loop): the
+attitude filter, a loop's corrections reaching the servos after the bus latency, the IMU read only
 where the design carries one, and the servo read-back loop removing a steady error that the
 open-loop plan leaves."""
 
@@ -59,10 +59,12 @@ register("test-needs-imu")(_NeedsImu)
 
 @pytest.fixture(scope="module")
 def arm(designs):
-    from export.verify import controller_for_model, load_bundle
+    from synth.verification.runs import controller_for_model
+    from synth.verification.source import Bundle
 
     folder = designs("positioning", "--answer", "orienting=no", "--no-verify").folder
-    record, model = load_bundle(folder)
+    bundle = Bundle.read(folder)
+    record, model = bundle.record, bundle.model()
     return model, controller_for_model(record, model)
 
 
@@ -73,7 +75,7 @@ def _with(traj, spec):
 def test_corrections_reach_the_servos_after_the_latency(arm) -> None:
     import mujoco
 
-    from export.simulate import simulate
+    from synth.verification.simulate import simulate
 
     model, controller = arm
     traj = controller.run(controller.listed(["positioning"])[0])
@@ -110,15 +112,17 @@ def test_corrections_reach_the_servos_after_the_latency(arm) -> None:
 
 
 def test_an_imu_loop_needs_an_imu(arm, humanoid) -> None:
-    from export.simulate import imu_sensors, simulate
-    from export.verify import controller_for_model, load_bundle
+    from synth.verification.runs import controller_for_model
+    from synth.verification.simulate import imu_sensors, simulate
+    from synth.verification.source import Bundle
 
     model, controller = arm
     assert imu_sensors(model) is None  # an arm carries no IMU
     traj = controller.run(controller.listed(["positioning"])[0])
     with pytest.raises(ValueError, match="IMU the design does not carry"):
         simulate(model, _with(traj, {"loop": "test-needs-imu"}), seconds=0.1)
-    record, hmodel = load_bundle(humanoid)
+    bundle = Bundle.read(humanoid)
+    record, hmodel = bundle.record, bundle.model()
     assert imu_sensors(hmodel) is not None  # a biped carries one (KIF)
     hc = controller_for_model(record, hmodel)
     assert feedback.has_imu(hc.geometry.sensors)
@@ -134,7 +138,7 @@ def test_servo_read_back_removes_a_steady_error(arm) -> None:
     open loop)."""
     import mujoco
 
-    from export.simulate import simulate
+    from synth.verification.simulate import simulate
 
     model, controller = arm
     traj = controller.run(controller.listed(["positioning"])[0])

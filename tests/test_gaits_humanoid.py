@@ -524,10 +524,10 @@ def design(kb, designer, tmp_path_factory):
     from adron.catalog import load_catalog
     from export.bundle import bundle_files, write_bundle
     from export.record import design_record
-    from export.simulate import load_bundle_model
     from synth.conceptual import Design, Request
     from synth.solver import Query
     from synth.structure import design_structure
+    from synth.verification.source import Bundle
 
     cand = next(
         c for c in designer.reasoner.solve(Query()).candidates if c.robot_type == "HumanoidRobot"
@@ -538,11 +538,11 @@ def design(kb, designer, tmp_path_factory):
     )
     folder = tmp_path_factory.mktemp("humanoid") / "bundle"
     write_bundle(folder, bundle_files(rec, s, load_catalog(), with_payload=True, pictures=False))
-    return DesignGeometry.from_record(rec), load_bundle_model(folder), rec
+    return DesignGeometry.from_record(rec), Bundle(folder=folder).model(), rec
 
 
 def _verdict(design, name, compensated=True, **params):
-    from export.verify import controller_for_model, figures, run_behavior
+    from synth.verification.runs import controller_for_model, figures, run_behavior
 
     geometry, model, record = design
     if not compensated:  # the open-loop walk of a biped without an IMU (no balance loop)

@@ -49,9 +49,9 @@ class Designed:
         return LeggedController(self.geometry, template=self.template)
 
     def model(self):
-        from export.simulate import load_bundle_model
+        from synth.verification.source import Bundle
 
-        return load_bundle_model(self.folder)
+        return Bundle(folder=self.folder).model()
 
 
 @pytest.fixture(scope="module")
@@ -465,7 +465,7 @@ def test_hexapod_tripod_walks_a_body_length_in_10_s(designs):
     """Issue 5: the default hexapod's tripod gait moves forward at least one body length
     (La1, the trunk's length between the front and rear leg mounts) in 10 s without
     falling."""
-    from export.simulate import simulate
+    from synth.verification.simulate import simulate
 
     d = designs["HexapodRobot"]
     traj = d.controller().run("walking", gait="tripod", seconds=10)
@@ -480,7 +480,7 @@ def test_hexapod_tripod_walks_a_body_length_in_10_s(designs):
 
 def test_quadruped_crawls_forward(designs):
     """Issue 5: the default quadruped crawls forward without falling."""
-    from export.simulate import simulate
+    from synth.verification.simulate import simulate
 
     d = designs["QuadrupedRobot"]
     traj = d.controller().run("walking", gait="crawl", steps=2)
@@ -563,7 +563,7 @@ def test_running_keeps_its_promise(rt, designs):
     """Issue 8: the default designs run (two cycles) by the verdict's criteria in MuJoCo:
     upright, no servo at its limit for more than 5 % of the time, the planned distance
     and heading, half a body length per 10 s."""
-    from export.verify import run_behavior
+    from synth.verification.runs import run_behavior
 
     d = designs[rt]
     _, result = run_behavior(d.model(), d.controller(), "running", {"steps": 2})

@@ -54,10 +54,10 @@ def _design(kb, designer, robot_type: str):
 def _bundle_model(rec, s, folder):
     from adron.catalog import load_catalog
     from export.bundle import bundle_files, write_bundle
-    from export.simulate import load_bundle_model
+    from synth.verification.source import Bundle
 
     write_bundle(folder, bundle_files(rec, s, load_catalog(), with_payload=True, pictures=False))
-    return load_bundle_model(folder)
+    return Bundle(folder=folder).model()
 
 
 @pytest.fixture(scope="module")
@@ -425,7 +425,7 @@ def test_3dof_places_its_payload_within_5_mm(arm3):
     The MJCF carries the payload as a point mass fixed on gripper_link, so the placing
     error is the gripper's distance from the target when the gripper has opened there
     (``placed_at_s``; the retreat afterwards lifts the gripper, not a released payload)."""
-    from export.simulate import simulate
+    from synth.verification.simulate import simulate
 
     rec, s, mj = arm3
     geo = DesignGeometry.from_record(rec)
@@ -452,7 +452,7 @@ def test_3dof_places_its_payload_within_5_mm(arm3):
 
 
 def test_6dof_places_and_orients_in_mujoco(arm6):
-    from export.simulate import simulate
+    from synth.verification.simulate import simulate
 
     rec, s, mj = arm6
     c = ManipulatorController(

@@ -13,7 +13,6 @@ import pytest
 from adron.catalog import load_catalog
 from export.bundle import bundle_files, write_bundle
 from export.record import design_record
-from export.simulate import load_bundle_model, simulate
 from gaits.base import DesignGeometry, Trajectory
 from gaits.snake import (
     ARCH_MODULES,
@@ -34,6 +33,8 @@ from kinematics.dynamics import forward_kinematics
 from kinematics.spatial import rot_x
 from synth.conceptual import Design, Request
 from synth.structure import design_structure
+from synth.verification.simulate import simulate
+from synth.verification.source import Bundle
 
 ALL = tuple(GAITS)
 
@@ -337,7 +338,7 @@ def snakes(kb, designer, tmp_path_factory):
         write_bundle(folder, bundle_files(rec, s, catalog, with_payload=True, pictures=False))
         c = SnakeController(DesignGeometry.from_record(rec))
         assert c.modules == m
-        out[m] = (c, load_bundle_model(folder))
+        out[m] = (c, Bundle(folder=folder).model())
     return out
 
 
@@ -358,7 +359,8 @@ def judge(c: SnakeController, model, gait: str, **params) -> tuple[float, float]
         yaw = _yaws(root)
         done = float(yaw[-1] - yaw[0]) * traj.info["turn"]
     else:
-        # the whole body's progress along the direction (export.simulate, as the verdict)
+        # the whole body's progress along the direction (synth.verification.simulate, as the
+        # verdict)
         done = r.distance_m / traj.info["body_length_m"]
     return done * 10.0 / traj.duration, saturated
 

@@ -14,7 +14,6 @@ import pytest
 from adron.catalog import load_catalog
 from export.bundle import bundle_files, write_bundle
 from export.record import design_record
-from export.simulate import load_bundle_model, simulate
 from gaits.base import DesignGeometry, min_jerk_integral
 from gaits.wheeled import (
     CASTER_FRICTION,
@@ -36,7 +35,9 @@ from synth.conceptual import Design, Request
 from synth.sizing import Wheeled
 from synth.solver import Query
 from synth.structure import design_structure
-from synth.verify import calibrate
+from synth.verification.loop import calibrate
+from synth.verification.simulate import simulate
+from synth.verification.source import Bundle
 
 
 def _geometry(robot_type: str, speed: float = 6.0) -> DesignGeometry:
@@ -204,7 +205,7 @@ def test_bad_commands_raise() -> None:
 @pytest.fixture(scope="module")
 def designs(kb, designer, tmp_path_factory):
     """Default design of each wheeled type, calibrated as ``parmor design`` calibrates it
-    (``synth.verify.calibrate``: none for the differential drive): (controller, MuJoCo
+    (``synth.verification.loop.calibrate``: none for the differential drive): (controller, MuJoCo
     model)."""
     catalog = load_catalog()
     out = {}
@@ -216,7 +217,7 @@ def designs(kb, designer, tmp_path_factory):
             Design("designed", Request(), (cand,), cand, "only candidate"), designer.short, s
         )
         files = bundle_files(rec, s, catalog, with_payload=True, pictures=False)
-        calibration = calibrate(files)  # a skid-steer's, measured as `parmor design` does
+        calibration = calibrate(Bundle(files))  # a skid-steer's, measured as `parmor design` does
         if calibration:
             rec["calibration"] = calibration
             files = bundle_files(rec, s, catalog, with_payload=True, pictures=False)
@@ -224,7 +225,7 @@ def designs(kb, designer, tmp_path_factory):
         write_bundle(folder, files)
         out[robot_type] = (
             WheeledController(DesignGeometry.from_record(rec)),
-            load_bundle_model(folder),
+            Bundle(folder=folder).model(),
         )
     return out
 
@@ -360,7 +361,7 @@ def small_wheels(kb, designer, tmp_path_factory):
         write_bundle(folder, bundle_files(rec, s, catalog, with_payload=True, pictures=False))
         out[robot_type] = (
             WheeledController(DesignGeometry.from_record(rec)),
-            load_bundle_model(folder),
+            Bundle(folder=folder).model(),
         )
     return out
 

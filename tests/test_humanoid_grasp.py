@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from export import perturb
 from synth.cli import main
+from synth.verification import perturb
 
 REQUEST = ("walking", "--answer", "grasping=yes", "--param", "payload=0.3kg")
 SEED = 8
@@ -41,9 +41,12 @@ def fresh_plans():
 def _grasp(folder: Path, seed: int, open_loop=None):
     from adron.catalog import load_catalog
     from export.mjcf import load_mjcf
-    from export.verify import _simulate, bundle_parts, controller_for_model, folder_files
+    from synth.verification.runs import _simulate, controller_for_model
+    from synth.verification.source import Bundle
 
-    record, xml, meshes = bundle_parts(folder_files(folder))
+    bundle = Bundle.read(folder)
+
+    record, xml, meshes = bundle.record, bundle.xml, bundle.meshes
     table = json.loads(json.dumps(perturb.design_table(record, xml, load_catalog())))
     p = perturb.draw(table, seed)
     model = perturb.perturbed_model(xml, meshes, table, p)

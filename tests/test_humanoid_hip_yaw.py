@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from export import perturb
+from synth.verification import perturb
 
 #: Perturbations of the design's table (seeds 1-8) that break the tuned walk by the hips'
 #: yaw (lateral slopes of 2.9 and 0.3 deg).
@@ -32,9 +32,12 @@ def _walk(folder: Path, seed: int, stronger_yaw: bool, open_loop=None):
 
     from adron.catalog import load_catalog
     from export.mjcf import load_mjcf
-    from export.verify import _simulate, bundle_parts, controller_for_model, folder_files
+    from synth.verification.runs import _simulate, controller_for_model
+    from synth.verification.source import Bundle
 
-    record, xml, meshes = bundle_parts(folder_files(folder))
+    bundle = Bundle.read(folder)
+
+    record, xml, meshes = bundle.record, bundle.xml, bundle.meshes
     table = json.loads(json.dumps(perturb.design_table(record, xml, load_catalog())))
     p = perturb.draw(table, seed)
     model = perturb.perturbed_model(xml, meshes, table, p)

@@ -1,5 +1,5 @@
 """The humanoid under perturbation (issue 22): the servos' play modelled as a passive hinge
-with end stops (export/perturb.py) must hold its range under the robot's weight.
+with end stops (synth/verification/perturb.py) must hold its range under the robot's weight.
 
 MuJoCo's default limit (time constant 0.02 s) makes a stop's stiffness proportional to the
 inertia behind the hinge: behind an ankle's roll hinge there is only the foot, and the
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from export import perturb
+from synth.verification import perturb
 
 #: Perturbations of the design's table the tuned walk passes whole (of seeds 1-8: the
 #: grid in bench/robust_humanoid.py) and the default one falls in.
@@ -39,10 +39,13 @@ def _run(
 
     from adron.catalog import load_catalog
     from export.mjcf import load_mjcf
-    from export.simulate import simulate
-    from export.verify import bundle_parts, controller_for_model, folder_files
+    from synth.verification.runs import controller_for_model
+    from synth.verification.simulate import simulate
+    from synth.verification.source import Bundle
 
-    record, xml, meshes = bundle_parts(folder_files(folder))
+    bundle = Bundle.read(folder)
+
+    record, xml, meshes = bundle.record, bundle.xml, bundle.meshes
     table = json.loads(json.dumps(perturb.design_table(record, xml, load_catalog())))
     p = perturb.draw(table, seed)
     if not whole:
@@ -96,9 +99,11 @@ def test_the_default_soft_stop_bends_far_past_the_play(humanoid, monkeypatch, wi
 
 
 def test_the_play_stop_is_two_physics_steps(humanoid) -> None:
-    from export.verify import bundle_parts, folder_files
+    from synth.verification.source import Bundle
 
-    record, xml, meshes = bundle_parts(folder_files(humanoid))
+    bundle = Bundle.read(humanoid)
+
+    record, xml, meshes = bundle.record, bundle.xml, bundle.meshes
     from adron.catalog import load_catalog
 
     table = perturb.design_table(record, xml, load_catalog())

@@ -19,9 +19,12 @@ ARC = 5.0  # rad/m
 
 def _parts(folder: Path, calibration: dict | None = None):
     from export.mjcf import load_mjcf
-    from export.verify import bundle_parts, controller_for_model, folder_files
+    from synth.verification.runs import controller_for_model
+    from synth.verification.source import Bundle
 
-    record, xml, meshes = bundle_parts(folder_files(folder))
+    bundle = Bundle.read(folder)
+
+    record, xml, meshes = bundle.record, bundle.xml, bundle.meshes
     if calibration is not None:
         record = {**record, "calibration": calibration}
     model = load_mjcf(xml, meshes)
@@ -41,9 +44,12 @@ def test_the_default_walk_asks_for_no_probe(humanoid, without_imu) -> None:
     design with its IMU walks ``ROBUST_WALK`` and asks for one."""
 
     from export.mjcf import load_mjcf
-    from export.verify import bundle_parts, controller_for_model, folder_files
+    from synth.verification.runs import controller_for_model
+    from synth.verification.source import Bundle
 
-    record, xml, meshes = bundle_parts(folder_files(humanoid))
+    bundle = Bundle.read(humanoid)
+
+    record, xml, meshes = bundle.record, bundle.xml, bundle.meshes
     bare = controller_for_model(without_imu(record), load_mjcf(xml, meshes))
     assert bare.calibration_probes() == []
     _, _, ctl = _parts(humanoid)
@@ -62,7 +68,7 @@ def test_the_gain_is_the_planned_turn_over_the_measured_one(humanoid, robust_wal
 
 
 def test_a_calibrated_arc_turns_as_planned(humanoid, robust_walk) -> None:
-    from export.verify import run_behavior
+    from synth.verification.runs import run_behavior
 
     record, model, ctl = _parts(humanoid)
     probes = ctl.calibration_probes()
@@ -78,7 +84,7 @@ def test_a_calibrated_arc_turns_as_planned(humanoid, robust_walk) -> None:
 
 def test_an_uncalibrated_arc_turns_short(humanoid, robust_walk) -> None:
     """Built to fail: the tuned walk's arc without the measured gain."""
-    from export.verify import run_behavior
+    from synth.verification.runs import run_behavior
 
     _, model, ctl = _parts(humanoid)
     _, r = run_behavior(model, ctl, "walking", {"curvature": ARC})

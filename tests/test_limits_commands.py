@@ -108,12 +108,12 @@ def test_simulate_time_limit(cart: Path) -> None:
 
 
 def test_simulate_memory_limit_names_the_stage(cart: Path, monkeypatch) -> None:
-    import export.verify
+    import synth.verification.runs
 
     def hungry(*args, **kwargs):
         raise MemoryError
 
-    monkeypatch.setattr(export.verify, "run_behavior", hungry)
+    monkeypatch.setattr(synth.verification.runs, "run_behavior", hungry)
     code, err = run("simulate", str(cart), "--behavior", "driving", "--seconds", "1")
     assert code == 1
     assert "memory limit (4096 MB, --memory-limit) reached while in stage simulate" in one_line(err)

@@ -91,7 +91,7 @@ def test_the_mobile_manipulator_verifies_every_ability(verified) -> None:
 
 
 def test_simulate_json_passes_every_behaviour(cli, verified) -> None:
-    from export.verdict import MAX_SATURATED_FRACTION, PLACING
+    from synth.verification.verdict import MAX_SATURATED_FRACTION, PLACING
 
     rec = _record(verified)
     for b in rec["verified"]["behaviors"]:
@@ -109,11 +109,13 @@ def test_simulate_json_passes_every_behaviour(cli, verified) -> None:
 
 
 def _controller(folder: Path, **change):
-    from export.verify import load_bundle
+    from synth.verification.source import Bundle
 
-    rec, model = load_bundle(folder)
+    bundle = Bundle.read(folder)
+
+    rec, model = bundle.record, bundle.model()
     rec = rec | change
-    from export.verify import controller_for_model
+    from synth.verification.runs import controller_for_model
 
     return rec, model, controller_for_model(rec, model)
 
@@ -175,8 +177,8 @@ def test_a_base_not_calibrated_places_off_and_the_verdict_says_so(verified) -> N
     target: the verdict, measured on the outcome, fails ``placing``. (Closed on its wheels'
     odometry, gaits.wheel_feedback, the base reaches the commanded wheel travel whatever
     resists it: what is left is the tyres' slip.)"""
-    from export.simulate import simulate
-    from export.verify import run_behavior
+    from synth.verification.runs import run_behavior
+    from synth.verification.simulate import simulate
 
     _, model, c = _controller(verified, calibration={})
     traj = c.run("pick-and-place")
@@ -289,7 +291,7 @@ def test_a_program_picks_and_places_after_the_base_has_moved(verified) -> None:
 
 
 def test_a_target_aside_makes_the_base_turn_and_still_places_within_5_mm(verified) -> None:
-    from export.verify import run_behavior
+    from synth.verification.runs import run_behavior
 
     _, model, c = _controller(verified)
     traj, result = run_behavior(model, c, "pick-and-place", {"place_y": 2 * c.arm.reach})
@@ -300,7 +302,7 @@ def test_a_target_aside_makes_the_base_turn_and_still_places_within_5_mm(verifie
 def test_a_skid_steer_base_is_calibrated_as_its_own_controller_would(cli, tmp_path) -> None:
     """Four drive wheels and no caster: the base's own probes (a skid-steer's effective
     track) are measured on its wheels' columns, then the composition's."""
-    from synth.verify import calibrate
+    from synth.verification.loop import calibrate
 
     kif = MOBILE.replace("(instance ?CASTER CasterWheel)", "(instance ?CASTER DriveWheel)")
     kif = kif.replace(
@@ -325,7 +327,9 @@ def test_a_skid_steer_base_is_calibrated_as_its_own_controller_would(cli, tmp_pa
         for p in out.rglob("*")
         if p.name in ("robot.xml", "design.json") or p.suffix == ".stl"
     }
-    cal = calibrate(files)
+    from synth.verification.source import Bundle
+
+    cal = calibrate(Bundle(files))
     assert {"effective_track_m", "turn_load_scale", "travel_ratio"} <= set(cal)
 
 

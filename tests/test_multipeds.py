@@ -149,9 +149,10 @@ def test_a_statically_unstable_gait_fails_only_the_stability_verdict(cli, tmp_pa
     support triangle's diagonal through the centre of mass (planned margin 0); in MuJoCo
     the trunk tips onto the swinging foot, yet travels, keeps its heading and does not
     fall: only the measured margin tells (the same crawl with its sway passes)."""
-    from export.simulate import simulate
-    from export.verify import controller_for_model, load_bundle
     from gaits.hexapod import MIN_MARGIN
+    from synth.verification.runs import controller_for_model
+    from synth.verification.simulate import simulate
+    from synth.verification.source import Bundle
 
     src = tmp_path / "walker4.kif"
     src.write_text(_kif(4))
@@ -161,7 +162,8 @@ def test_a_statically_unstable_gait_fails_only_the_stability_verdict(cli, tmp_pa
         "--out", str(out),
     )  # fmt: skip
     assert r.code == 0, r.err
-    record, model = load_bundle(out)
+    bundle = Bundle.read(out)
+    record, model = bundle.record, bundle.model()
     c = controller_for_model(record, model)
     good = c.run("walking", steps=2)
     assert good.info["min_stability_margin_m"] >= MIN_MARGIN
@@ -177,7 +179,7 @@ def test_a_statically_unstable_gait_fails_only_the_stability_verdict(cli, tmp_pa
     result = simulate(model, bad)
     assert result.verdict == ["stability"], result.to_dict()
     assert result.support_margin_m < 0 and not result.fell
-    from export.verdict import explain
+    from synth.verification.verdict import explain
 
     why = explain(result.to_dict(), result.verdict)
     assert "left the feet's support polygon" in why and "-" in why
@@ -187,8 +189,8 @@ def test_no_contact_is_no_support() -> None:
     """A robot in the air has no support polygon: its margin is minus infinity, reported as
     None, and a promise of static stability then fails."""
     mujoco = pytest.importorskip("mujoco")
-    from export.simulate import support_margin_of
-    from export.verdict import judge
+    from synth.verification.simulate import support_margin_of
+    from synth.verification.verdict import judge
 
     model = mujoco.MjModel.from_xml_string(
         '<mujoco><worldbody><geom type="plane" size="1 1 0.1"/><body pos="0 0 1">'
@@ -219,7 +221,8 @@ def test_the_studies_cover_every_count_with_at_least_30_requests() -> None:
 def test_the_spread_gaits_walk_every_way_in_mujoco(cli, tmp_path, n) -> None:
     """Each gait spread around the trunk (tripod, tetrapod) keeps every verdict walking
     forward, backward, sideways and at an angle (three cycles), and turning both ways."""
-    from export.verify import controller_for_model, figures, load_bundle, run_behavior
+    from synth.verification.runs import controller_for_model, figures, run_behavior
+    from synth.verification.source import Bundle
 
     src = tmp_path / f"walker{n}.kif"
     src.write_text(_kif(n))
@@ -230,7 +233,8 @@ def test_the_spread_gaits_walk_every_way_in_mujoco(cli, tmp_path, n) -> None:
         "--no-verify", "--out", str(out), *extra,
     )  # fmt: skip
     assert r.code == 0, r.err
-    record, model = load_bundle(out)
+    bundle = Bundle.read(out)
+    record, model = bundle.record, bundle.model()
     c = controller_for_model(record, model)
     spread = [g for g in c.gaits if g in STANCE_NAMES.values()]
     assert spread

@@ -1,9 +1,10 @@
 """Verification under the variation a printed robot meets (issue 22): seeded perturbations
-of the MuJoCo model (export/perturb.py), the robust verification (export.verify.
-verify_robust), its acceptance rule in the design loop (synth/robust.py) and the replay
-(``parmor simulate DIR --perturb SEED``). Cases built to fail: a design that passes
-nominally and fails with backlash, one that fails at the low battery voltage, a seed
-that reproduces a failure. The robot is an arm of the tests' own KIF (no shipped type)."""
+of the MuJoCo model (synth/verification/perturb.py), the robust verification
+(synth.verification.runs. verify_robust), its acceptance rule in the design loop
+(synth/verification/robust.py) and the replay (``parmor simulate DIR --perturb SEED``). Cases built
+to fail: a design that passes nominally and fails with backlash, one that fails at the low battery
+voltage, a seed that reproduces a failure. The robot is an arm of the tests' own KIF (no shipped
+type)."""
 
 from __future__ import annotations
 
@@ -16,18 +17,17 @@ from pathlib import Path
 import pytest
 
 from adron.errors import InputError
-from export import perturb
-from export.verify import (
-    bundle_parts,
+from synth.cli import main
+from synth.verification import perturb
+from synth.verification.results import RobustRuns, Run
+from synth.verification.runs import (
     controller_for_model,
     figures,
-    folder_files,
     required_passes,
-    robust_failure,
-    verify_files,
+    verify_nominal,
     verify_robust,
 )
-from synth.cli import main
+from synth.verification.source import Bundle
 
 #: A stationary arm of three position servos, each followed by a printed link, ending in a
 #: gripper (the manipulator axiom's shape), with an ability only it has.
@@ -98,8 +98,8 @@ def arm(tmp_path_factory, kif) -> Path:
 
 @pytest.fixture(scope="module")
 def parts(arm):
-    files = folder_files(arm)
-    return files, *bundle_parts(files)
+    bundle = Bundle.read(arm)
+    return bundle, bundle.record, bundle.xml, bundle.meshes
 
 
 def table_of(parts, overrides) -> dict:
@@ -212,11 +212,11 @@ def test_a_neutral_perturbation_is_the_nominal_run(parts) -> None:
     """Every range closed: the perturbed run is the nominal one, figure for figure (the
     hooks change nothing at their neutral values)."""
     from export.mjcf import load_mjcf
-    from export.verify import run_behavior
+    from synth.verification.runs import run_behavior
 
     files, record, xml, meshes = parts
     table = table_of(parts, NEUTRAL)
-    robust = verify_robust(files, 1, table, ["pick-and-place"])
+    robust = verify_robust(files, 1, table, ["pick-and-place"]).to_dict()
     model = load_mjcf(xml, meshes)
     traj, result = run_behavior(model, controller_for_model(record, model), "pick-and-place")
     assert robust["behaviors"][0]["figures"][0] == {"seed": 1} | figures(traj, result)
@@ -224,17 +224,18 @@ def test_a_neutral_perturbation_is_the_nominal_run(parts) -> None:
 
 def test_backlash_breaks_a_design_that_passes_nominally(parts) -> None:
     files = parts[0]
-    assert all(r["verdict"] == "ok" for r in verify_files(files))
+    assert all(r.ok for r in verify_nominal(files))
     names = ["pick-and-place", "positioning"]
-    tight = verify_robust(files, 2, table_of(parts, NEUTRAL), names)
+    tight = verify_robust(files, 2, table_of(parts, NEUTRAL), names).to_dict()
     assert all(b["robust"] and b["passed"] == 2 for b in tight["behaviors"])
     play = {"plastic": ["5 deg", "6 deg"], "metal": ["5 deg", "6 deg"]}
-    loose = verify_robust(files, 2, table_of(parts, with_(gears=play)), names)
+    got = verify_robust(files, 2, table_of(parts, with_(gears=play)), names)
+    loose = got.to_dict()
     for b in loose["behaviors"]:
         assert not b["robust"] and b["passed"] == 0
         assert all("placing" in f["verdict"] for f in b["failures"])
         assert b["worst"]["placing_error_m"]["value"] > 0.005
-    why = robust_failure(loose)["pick-and-place"]
+    why = got.behavior("pick-and-place").why_not(got.required)
     assert why.startswith("pick-and-place is not robust: passed 0 of 2 perturbed runs (needs 2)")
     assert "play up to" in why and "placing (placing error" in why
 
@@ -242,14 +243,14 @@ def test_backlash_breaks_a_design_that_passes_nominally(parts) -> None:
 def test_the_low_battery_breaks_a_design_that_passes_nominally(parts) -> None:
     files = parts[0]
     names = ["pick-and-place"]
-    full = verify_robust(files, 1, table_of(parts, NEUTRAL), names)
+    full = verify_robust(files, 1, table_of(parts, NEUTRAL), names).to_dict()
     assert full["behaviors"][0]["robust"]
     # the servos straight on a 3S pack, their figures rated at 30 V: a third of the torque
     low = with_(battery={"supply": "direct", "rated_voltage": "30 V"})
     table = table_of(parts, low)
     peak = parts[1]["power"]["peak_current_A"]
     assert table["battery_scale"] == pytest.approx((9.9 - 0.1 * peak) / 30)
-    weak = verify_robust(files, 1, table, names)
+    weak = verify_robust(files, 1, table, names).to_dict()
     b = weak["behaviors"][0]
     assert not b["robust"]
     assert {"saturated", "placing"} & set(b["failures"][0]["verdict"])
@@ -259,7 +260,7 @@ def test_latency_shifts_the_commands(parts) -> None:
     """Zero latency is the nominal run to the bit; half a second of it leaves the gripper
     short of the target when the move ends."""
     from export.mjcf import load_mjcf
-    from export.simulate import simulate
+    from synth.verification.simulate import simulate
 
     _, record, xml, meshes = parts
     model = load_mjcf(xml, meshes)
@@ -281,7 +282,7 @@ def test_a_seed_reproduces_a_failure(arm, parts, tmp_path: Path, cli) -> None:
     SEED --json`` gives, from the bundle alone."""
     files = parts[0]
     play = {"plastic": ["3 deg", "7 deg"], "metal": ["3 deg", "7 deg"]}
-    robust = verify_robust(files, 3, table_of(parts, with_(gears=play)), ["positioning"])
+    robust = verify_robust(files, 3, table_of(parts, with_(gears=play)), ["positioning"]).to_dict()
     folder = tmp_path / "bundle"
     shutil.copytree(arm, folder)
     record = json.loads((folder / "design.json").read_text())
@@ -376,10 +377,11 @@ def test_a_bad_perturbation_table_in_the_catalog_is_exit_2(kif, tmp_path: Path, 
     assert not out.exists()
 
 
-# --- the design loop's use of the perturbed runs (synth/robust.py), the runs faked --------
+# --- the design loop's use of the perturbed runs (synth/verification/robust.py), the runs faked
+# --------
 
 
-def _robust(behaviors: list[tuple[str, str, list[dict]]]) -> dict:
+def _robust(behaviors: list[tuple[str, str, list[dict]]]) -> RobustRuns:
     """A verify_robust answer: (behaviour, ability, each run's figures) -> its record."""
     out = []
     for name, ability, runs in behaviors:
@@ -404,7 +406,9 @@ def _robust(behaviors: list[tuple[str, str, list[dict]]]) -> dict:
                 "figures": runs,
             }
         )
-    return {"k": 2, "required": 2, "share": 1.0, "perturbations": [], "behaviors": out}
+    return RobustRuns.of(
+        {"k": 2, "required": 2, "share": 1.0, "perturbations": [], "behaviors": out}
+    )
 
 
 def _run(seed: int, verdict="ok", **kw) -> dict:
@@ -414,7 +418,7 @@ def _run(seed: int, verdict="ok", **kw) -> dict:
 def test_a_saturated_perturbed_run_gets_a_stronger_actuator(kif, parts, cli, monkeypatch):
     """The sizing loop strengthens a joint that saturated in a perturbed run, as it does
     for a nominal one, and verifies again."""
-    import export.verify
+    import synth.verification.runs
 
     joint = next(j["name"] for j in parts[1]["joints"] if j["group"] != "gripper")
     answers = [
@@ -440,7 +444,7 @@ def test_a_saturated_perturbed_run_gets_a_stronger_actuator(kif, parts, cli, mon
         calls.append(k)
         return answers[min(len(calls), len(answers)) - 1]
 
-    monkeypatch.setattr(export.verify, "verify_robust", fake)
+    monkeypatch.setattr(synth.verification.runs, "verify_robust", fake)
     r = cli("design", *REQUEST, "--ontology", str(kif), "--robustness", "2", "--json")
     assert r.code == 0, r.err
     rec = json.loads(r.out)
@@ -450,7 +454,7 @@ def test_a_saturated_perturbed_run_gets_a_stronger_actuator(kif, parts, cli, mon
 
 
 def test_a_bonus_ability_not_robust_is_dropped(kif, cli, monkeypatch):
-    import export.verify
+    import synth.verification.runs
 
     answer = _robust(
         [
@@ -458,7 +462,7 @@ def test_a_bonus_ability_not_robust_is_dropped(kif, cli, monkeypatch):
             ("grasping", "grasping", [_run(1), _run(2, ["placing"])]),
         ]
     )
-    monkeypatch.setattr(export.verify, "verify_robust", lambda *a, **kw: answer)
+    monkeypatch.setattr(synth.verification.runs, "verify_robust", lambda *a, **kw: answer)
     r = cli("design", *REQUEST, "--ontology", str(kif), "--robustness", "2", "--json")
     assert r.code == 0, r.err
     rec = json.loads(r.out)
@@ -471,8 +475,8 @@ def test_a_bonus_ability_not_robust_is_dropped(kif, cli, monkeypatch):
 # --- parmor sweep with robustness = K ---------------------------------------------------
 
 
-def _nominal_ok(files, behaviors=None) -> list[dict]:
-    return [_run(0, behavior="pick-and-place", ability="pick-and-place")]
+def _nominal_ok(bundle, behaviors=None) -> list[Run]:
+    return [Run.of({"behavior": "pick-and-place", "ability": "pick-and-place", "verdict": "ok"})]
 
 
 def _study(folder: Path, kif: Path, robustness: object) -> Path:
@@ -491,20 +495,20 @@ def test_sweep_reports_nominal_and_robust_pass_rates(kif, tmp_path: Path, cli, m
     ``parmor design --robustness K`` does: a request whose demanded behaviour is not
     robust (built to fail: its second run fails) is refused and counted as nominal ok,
     robust not; the other is both."""
-    import export.verify
+    import synth.verification.runs
 
     calls = []
 
-    def fake(files, k, table, behaviors=None, only=None, sensing=True):
+    def fake(bundle, k, table, behaviors=None, only=None, sensing=True):
         calls.append(k)
-        record = json.loads(files["design.json"])
+        record = bundle.record
         bad = record["request"]["params"].get("payload") == "0.02kg"
         return _robust(
             [("pick-and-place", "pick-and-place", [_run(1), _run(2, ["placing"] if bad else "ok")])]
         )
 
-    monkeypatch.setattr(export.verify, "verify_robust", fake)
-    monkeypatch.setattr(export.verify, "verify_files", _nominal_ok)
+    monkeypatch.setattr(synth.verification.runs, "verify_robust", fake)
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", _nominal_ok)
     study = _study(tmp_path, kif, 2)
     r = cli("sweep", str(study), "--jobs", "1", "--json")
     assert r.code == 0, r.err
@@ -523,13 +527,13 @@ def test_sweep_reports_nominal_and_robust_pass_rates(kif, tmp_path: Path, cli, m
 
 
 def test_sweep_without_robustness_runs_no_perturbation(kif, tmp_path: Path, cli, monkeypatch):
-    import export.verify
+    import synth.verification.runs
 
     def fail(*a, **kw):
         raise AssertionError("perturbed runs in a study without robustness")
 
-    monkeypatch.setattr(export.verify, "verify_robust", fail)
-    monkeypatch.setattr(export.verify, "verify_files", _nominal_ok)
+    monkeypatch.setattr(synth.verification.runs, "verify_robust", fail)
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", _nominal_ok)
     study = _study(tmp_path, kif, 0)
     r = cli("sweep", str(study), "--jobs", "1", "--json")
     assert r.code == 0, r.err

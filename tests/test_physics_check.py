@@ -1,4 +1,4 @@
-"""The perturbed runs' coarse time step (export.verify.physics_check): used only where the
+"""The perturbed runs' coarse time step (synth.verification.runs.physics_check): used only where the
 design's nominal runs agree at it, recorded with the table (so a replay uses it), and
 ``simulate --perturb SEED --fine`` runs the model's own step."""
 
@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import pytest
 
-from export import verify
+from synth.verification import runs as verify
+from synth.verification.results import RobustRuns
+from synth.verification.source import Bundle
 
 
 @pytest.fixture(scope="module")
@@ -15,7 +17,7 @@ def arm(designs):
 
 
 def test_the_coarse_step_is_used_where_the_nominal_runs_agree(arm) -> None:
-    files = verify.folder_files(arm)
+    files = Bundle.read(arm)
     check = verify.physics_check(files)
     assert check["timestep_s"] == pytest.approx(0.002 * verify.COARSE_STEP)
     assert check["largest"]  # what was compared is reported
@@ -25,7 +27,7 @@ def test_the_coarse_step_is_used_where_the_nominal_runs_agree(arm) -> None:
 def test_a_disagreeing_figure_keeps_the_fine_step(arm, monkeypatch) -> None:
     """Built to fail: with no tolerance at all on the placing error, the two steps' last
     digits disagree and the fine step is kept, naming the figure."""
-    files = verify.folder_files(arm)
+    files = Bundle.read(arm)
     monkeypatch.setattr(verify, "AGREE", {**verify.AGREE, "placing_error_m": 0.0})
     check = verify.physics_check(files)
     assert check["timestep_s"] is None
@@ -34,9 +36,10 @@ def test_a_disagreeing_figure_keeps_the_fine_step(arm, monkeypatch) -> None:
 
 def test_the_table_carries_the_step_into_the_perturbed_model(arm) -> None:
     from adron.catalog import load_catalog
-    from export.perturb import design_table, draw, perturbed_model
+    from synth.verification.perturb import design_table, draw, perturbed_model
 
-    record, xml, meshes = verify.bundle_parts(verify.folder_files(arm))
+    bundle = Bundle.read(arm)
+    record, xml, meshes = bundle.record, bundle.xml, bundle.meshes
     table = design_table(record, xml, load_catalog())
     p = draw(table, 1)
     assert perturbed_model(xml, meshes, table, p).opt.timestep == pytest.approx(0.002)
@@ -51,7 +54,7 @@ def test_fine_needs_a_perturbed_run(cli, arm) -> None:
 
 
 def test_what_k_of_k_shows() -> None:
-    from synth.robust import shows, success_bound
+    from synth.verification.robust import shows, success_bound
 
     assert success_bound(8, 8) == pytest.approx(0.1 ** (1 / 8))  # 0.7499: "> 74 %"
     assert success_bound(30, 30) > 0.92
@@ -59,12 +62,15 @@ def test_what_k_of_k_shows() -> None:
     assert success_bound(7, 8) == pytest.approx(0.5938, abs=1e-4)
     assert success_bound(0, 8) == 0.0
     s = shows(
-        {
-            "behaviors": [
-                {"behavior": "walking", "passed": 8, "runs": 8},
-                {"behavior": "turning", "passed": 7, "runs": 8},
-            ]
-        }
+        RobustRuns.of(
+            {
+                "k": 8,
+                "behaviors": [
+                    {"behavior": "walking", "passed": 8, "runs": 8, "robust": True},
+                    {"behavior": "turning", "passed": 7, "runs": 8, "robust": False},
+                ],
+            }
+        )
     )
     assert s["behavior"] == "turning" and s["success_lower_bound"] == pytest.approx(0.5938)
 

@@ -24,9 +24,10 @@ import pytest
 import gaits.base
 import gaits.hexapod as hexapod
 import gaits.legged as legged
-from export import perturb
-from export.verify import bundle_parts, folder_files, run_perturbed
 from synth.cli import main
+from synth.verification import perturb
+from synth.verification.runs import run_perturbed
+from synth.verification.source import Bundle
 from tests.test_bodyplan import legged_kif
 
 WORDS = {4: "four", 5: "five", 6: "six", 7: "seven", 8: "eight"}
@@ -74,8 +75,8 @@ def _runs(folder: Path, behavior: str, seeds=SEEDS) -> list[tuple[float, float, 
     """(planned margin m, measured margin m, failed criteria) under each seed."""
     from adron.catalog import load_catalog
 
-    files = folder_files(folder)
-    record, xml, _ = bundle_parts(files)
+    files = Bundle.read(folder)
+    record, xml, _ = files.record, files.xml, files.meshes
     table = json.loads(json.dumps(perturb.design_table(record, xml, load_catalog())))
     out = []
     for seed in seeds:
@@ -137,10 +138,10 @@ def test_every_count_turns_within_its_pace_and_keeps_its_margin(walkers, n) -> N
     their actuators' no-load speeds, walking's within SPEED_MARGIN, both keep MIN_MARGIN,
     and the crawl, whose trunk sways, more than the previous sway's 15 mm."""
     from export.mjcf import load_mjcf
-    from export.verify import controller_for_model
+    from synth.verification.runs import controller_for_model
 
-    files = folder_files(walkers[n])
-    record, xml, meshes = bundle_parts(files)
+    files = Bundle.read(walkers[n])
+    record, xml, meshes = files.record, files.xml, files.meshes
     ctl = controller_for_model(record, load_mjcf(xml, meshes))
     m = ctl.template.model
     top = np.array([ctl.geometry.joint_speed[m.joints[i].name] for i in m.q_joints])

@@ -13,7 +13,7 @@ from synth.cli import ROBUSTNESS_ENV, _robustness
 
 
 def test_without_the_option_the_tables_default(monkeypatch) -> None:
-    from export.perturb import ranges
+    from synth.verification.perturb import ranges
 
     monkeypatch.delenv(ROBUSTNESS_ENV, raising=False)
     k = int(ranges()["default_k"])

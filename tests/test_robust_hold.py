@@ -1,4 +1,4 @@
-"""Perturbed runs that the servos' command hold breaks (issue 22, ``synth.robust_legs``):
+"""Perturbed runs that the servos' command hold breaks (issue 22, ``synth.verification.hold``):
 a position servo gives its stall torque ``export.mjcf.SERVO_BAND`` off its reference, and
 a command held for the bus's control period makes a fast joint's reference jump further
 than that at every frame: the servo saturates with no stronger actuator to answer it.
@@ -14,11 +14,12 @@ from pathlib import Path
 
 import pytest
 
-from export import perturb
 from export.mjcf import SERVO_BAND
-from export.verify import bundle_parts, folder_files, run_perturbed, verify_robust
 from synth.cli import main
-from synth.robust_legs import hold_attribution, hold_blame, hold_note
+from synth.verification import perturb
+from synth.verification.hold import hold_attribution, hold_blame, hold_note
+from synth.verification.runs import run_perturbed, verify_robust
+from synth.verification.source import Bundle
 from tests.test_bodyplan import legged_kif
 
 
@@ -50,7 +51,9 @@ def walker(tmp_path_factory) -> Path:
 def _table(folder: Path, ranges: dict) -> dict:
     from adron.catalog import load_catalog
 
-    record, xml, _ = bundle_parts(folder_files(folder))
+    bundle = Bundle.read(folder)
+
+    record, xml, _ = bundle.record, bundle.xml, bundle.meshes
     return json.loads(json.dumps(perturb.design_table(record, xml, load_catalog(), ranges)))
 
 
@@ -58,7 +61,7 @@ def test_a_long_hold_saturates_the_walk_and_a_lower_speed_answers_it(walker) -> 
     """Built to fail: held 40 ms, every joint's reference steps further than the servo's
     band a frame and the walk fails saturated; replayed with the commands applied as sent
     it passes, and the speed named makes the same perturbed run pass."""
-    files = folder_files(walker)
+    files = Bundle.read(walker)
     table = _table(walker, _closed("40 ms"))
     traj, result, p = run_perturbed(files, "walking", 1, table=table)
     assert p["control_period_s"] == pytest.approx(0.04)
@@ -77,7 +80,7 @@ def test_a_long_hold_saturates_the_walk_and_a_lower_speed_answers_it(walker) -> 
 def test_what_the_hold_does_not_break_is_not_blamed_on_it(walker) -> None:
     """A run that passes, a run with no hold, and a run that a weak battery breaks with or
     without the hold (its servos at a quarter of their torque) are not the hold's."""
-    files = folder_files(walker)
+    files = Bundle.read(walker)
     assert hold_attribution(files, _table(walker, _closed("10 ms")), "walking", 1) is None
     assert hold_attribution(files, _table(walker, _closed("0 ms")), "walking", 1) is None
     weak = _table(walker, _closed("20 ms", "40 V"))
@@ -90,10 +93,10 @@ def test_what_the_hold_does_not_break_is_not_blamed_on_it(walker) -> None:
 def test_hold_blame_reads_the_robust_record(walker) -> None:
     """On ``verify_robust``'s record: the failed runs of the behaviour that is not robust,
     each with its seed, and none for a record of runs that all passed."""
-    files = folder_files(walker)
+    files = Bundle.read(walker)
     robust = verify_robust(files, 2, _table(walker, _closed("40 ms")), behaviors=["walking"])
-    assert not robust["behaviors"][0]["robust"]
+    assert not robust.behaviors[0].robust
     blamed = hold_blame(files, robust)
     assert [(r["behavior"], r["seed"]) for r in blamed] == [("walking", 1), ("walking", 2)]
     fine = verify_robust(files, 1, _table(walker, _closed("10 ms")), behaviors=["walking"])
-    assert fine["behaviors"][0]["robust"] and hold_blame(files, fine) == []
+    assert fine.behaviors[0].robust and hold_blame(files, fine) == []

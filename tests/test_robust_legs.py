@@ -19,10 +19,11 @@ import pytest
 
 import gaits.base
 import gaits.legged as legged
-from export import perturb
-from export.verify import bundle_parts, folder_files, run_perturbed
 from gaits.hexapod import _advance
 from synth.cli import main
+from synth.verification import perturb
+from synth.verification.runs import run_perturbed
+from synth.verification.source import Bundle
 from tests.test_bodyplan import legged_kif
 
 #: Every perturbation closed at its neutral value except the gears' backlash and the
@@ -72,7 +73,9 @@ def quadruped(tmp_path_factory) -> Path:
 def _table(folder: Path, ranges: dict = PLAY_ONLY) -> dict:
     from adron.catalog import load_catalog
 
-    record, xml, _ = bundle_parts(folder_files(folder))
+    bundle = Bundle.read(folder)
+
+    record, xml, _ = bundle.record, bundle.xml, bundle.meshes
     return json.loads(json.dumps(perturb.design_table(record, xml, load_catalog(), ranges)))
 
 
@@ -87,7 +90,7 @@ def _turns(
     folder: Path, angle: float, seeds=SEEDS, ranges: dict = PLAY_ONLY
 ) -> list[tuple[float, list[str]]]:
     """(turned / planned, failed criteria) of the turn under each seed's play."""
-    files = folder_files(folder)
+    files = Bundle.read(folder)
     table = _table(folder, ranges)
     out = []
     for seed in seeds:
@@ -144,12 +147,12 @@ def test_nominal_turn_keeps_its_angle(quadruped) -> None:
     """Without any perturbation the turn with the approach still ends at its angle (the
     nominal verification's turn criterion) and its plan records the same heading."""
     from export.mjcf import load_mjcf
-    from export.verify import controller_for_model, verify_files
+    from synth.verification.runs import controller_for_model, verify_nominal
 
-    files = folder_files(quadruped)
-    record, xml, meshes = bundle_parts(files)
+    files = Bundle.read(quadruped)
+    record, xml, meshes = files.record, files.xml, files.meshes
     ctl = controller_for_model(record, load_mjcf(xml, meshes))
     traj = ctl.run("turning")
     assert traj.info["heading_rad"] == pytest.approx(math.pi / 2)
-    results = {r["behavior"]: r for r in verify_files(files, ["turning"])}
-    assert results["turning"]["verdict"] == "ok", results
+    results = {r.behavior: r for r in verify_nominal(files, ["turning"])}
+    assert results["turning"].ok, results

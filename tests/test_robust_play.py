@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from synth.robust import less_play, play_note
+from synth.verification.play import less_play, play_note
 
 # the arm's fixtures (kif, arm, parts) are tests/test_perturb.py's
 from tests.test_perturb import NEUTRAL, REQUEST, arm, kif, parts, table_of, with_  # noqa: F401
@@ -120,7 +120,7 @@ def test_a_failure_the_play_does_not_cause_is_not_blamed(parts):  # noqa: F811
     """At a third of its voltage the arm fails with or without play: no joint is blamed;
     with 6-7 deg of play and nothing else, the play is blamed and only on joints whose
     play moves the gripper (never the gripper's own)."""
-    from export.verify import play_attribution
+    from synth.verification.play import play_attribution
 
     files = parts[0]
     weak = table_of(parts, with_(battery={"supply": "direct", "rated_voltage": "30 V"}))
@@ -161,7 +161,7 @@ def test_the_dynamixel_catalog_perturbs_its_own_servos(name) -> None:
     0.25 deg of backlash and one encoder step of dead band, less play than its plastic
     ones; its servos run from the pack directly."""
     from adron.catalog import load_catalog
-    from export.perturb import catalog_play, ranges
+    from synth.verification.perturb import catalog_play, ranges
 
     cat = load_catalog(name)
     play = {m: math.degrees(v) for m, v in catalog_play(cat).items()}

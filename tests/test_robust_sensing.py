@@ -14,9 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from export.perturb import design_table, draw
-from export.verify import bundle_parts, folder_files, robust_missing, verify_robust
 from program.sensing import SensorNoise, run_sensing
+from synth.verification.perturb import design_table, draw
+from synth.verification.runs import robust_missing, verify_robust
+from synth.verification.source import Bundle
 
 #: The demo cart with both sensing abilities, not verified (its runs are made here).
 SENSING_CART = ("driving", "line-tracking", "obstacle-avoidance", "--no-verify")
@@ -30,14 +31,15 @@ def cart(designs) -> Path:
 
 @pytest.fixture(scope="module")
 def table(cart, catalog) -> dict:
-    record, xml, _ = bundle_parts(folder_files(cart))
+    bundle = Bundle.read(cart)
+    record, xml, _ = bundle.record, bundle.xml, bundle.meshes
     return json.loads(json.dumps(design_table(record, xml, catalog)))
 
 
 @pytest.fixture(scope="module")
 def robust(cart, table) -> dict:
     """Two perturbed runs of every behaviour of the cart, its sensing loops included."""
-    return verify_robust(folder_files(cart), 2, table)
+    return verify_robust(Bundle.read(cart), 2, table).to_dict()
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +54,7 @@ def verified(cart, table, robust, tmp_path_factory) -> Path:
     shutil.copytree(cart, out)
     record = json.loads((out / "design.json").read_text())
     nominal = [{"behavior": b["behavior"], "verdict": "ok"} for b in robust["behaviors"]]
-    assert [r["verdict"] for r in verify_sensing(folder_files(cart))] == ["ok", "ok"]
+    assert [r["verdict"] for r in verify_sensing(Bundle.read(cart).files)] == ["ok", "ok"]
     record["verified"] = {"behaviors": nominal, "robust": robust}
     (out / "design.json").write_text(json.dumps(record))
     return out
@@ -115,11 +117,11 @@ def test_a_sensing_loop_missing_from_the_perturbed_runs_is_found(verified) -> No
         b for b in broken["verified"]["robust"]["behaviors"] if b["behavior"] != "line-tracking"
     ]
     assert robust_missing(broken) == ["line-tracking"]
-    from synth.verify import robust_skipped
+    from synth.verification.loop import robust_skipped
+    from synth.verification.results import RobustRuns, Run
 
-    assert robust_skipped(broken["verified"]["behaviors"], broken["verified"]["robust"]) == [
-        "line-tracking"
-    ]
+    runs = [Run.of(b) for b in broken["verified"]["behaviors"]]
+    assert robust_skipped(runs, RobustRuns.of(broken["verified"]["robust"])) == ["line-tracking"]
     assert robust_missing({"verified": {"behaviors": record["verified"]["behaviors"]}}) == []
 
 
@@ -133,7 +135,7 @@ def test_a_perturbed_sensing_run_is_replayed_exactly(cli, verified, robust) -> N
     got = json.loads(r.out)
     assert got.pop("perturbation")["seed"] == 2
     assert got == recorded
-    again = run_sensing(folder_files(verified), "line-tracking", perturb=(robust["table"], 2))
+    again = run_sensing(Bundle.read(verified).files, "line-tracking", perturb=(robust["table"], 2))
     assert again == recorded
 
 
@@ -155,18 +157,16 @@ def test_parmor_run_ends_where_the_verification_says(cli, verified, robust, tmp_
 def test_an_impossible_perturbation_fails_the_line_follower(cart, table) -> None:
     """Sensors whose edge jitters by 3 cm (a tape of 19 mm) lose the line; a floor of
     a twentieth of the friction does too. The failure names the sensors' draws."""
-    from export.verify import robust_failure
-
     noisy = dict(table, infrared={"edge_offset_m": 0.0, "edge_jitter_m": 0.03})
     icy = dict(table, friction=[0.05, 0.05])
-    files = folder_files(cart)
+    files = Bundle.read(cart)
     for bad in (noisy, icy):
         got = verify_robust(files, 1, bad, behaviors=["line-tracking"])
-        (b,) = got["behaviors"]
+        (b,) = got.to_dict()["behaviors"]
         assert (b["behavior"], b["passed"], b["robust"]) == ("line-tracking", 0, False), b
         (f,) = b["failures"]
         assert "line edges" in f["perturbation"] and f["why"]
-        why = robust_failure(got)["line-tracking"]
+        why = got.behavior("line-tracking").why_not(got.required)
         assert why.startswith("line-tracking is not robust: passed 0 of 1")
 
 
@@ -186,7 +186,7 @@ def test_the_bus_delays_and_holds_the_commands(cart, table) -> None:
 
 def test_a_sensing_loops_plans_run_their_feedback_loop(cart, monkeypatch) -> None:
     """A plan that asks for a feedback loop is run closed inside a sensing loop too (the
-    session's stepping wires export.simulate's loop): its loop reads the servos at the
+    session's stepping wires synth.verification.simulate's loop): its loop reads the servos at the
     control rate (every 20 ms) and its offsets reach them."""
     from gaits import feedback
     from program.session import Session
@@ -226,7 +226,7 @@ def test_a_bundle_not_verified_under_perturbation_cannot_be_replayed(cli, cart, 
 
 
 def test_parmor_design_lists_the_sensing_loops_in_verified_robust(cli) -> None:
-    """The design loop (synth/verify.py) runs the loops perturbed once the repairs are
+    """The design loop (synth/verification/loop.py) runs the loops perturbed once the repairs are
     done: every behaviour the design lists is in ``verified.robust``."""
     r = cli("design", "driving", "line-tracking", "--robustness", "2", "--no-input", "--json")
     assert r.code == 0, r.err

@@ -33,7 +33,7 @@ def bundle(tmp_path_factory) -> Path:
 
 
 def test_the_nominal_case_neutralises_every_component() -> None:
-    from export.perturb import draw
+    from synth.verification.perturb import draw
 
     table = {
         "stream": 1,
@@ -62,12 +62,15 @@ def test_the_replay_names_the_component_that_breaks_the_run(bundle) -> None:
     odometry (gaits.wheel_feedback, what the design runs) the same perturbation passes."""
     import json
 
-    from export.verify import verify_bundle
+    from synth.verification.runs import verify_nominal
 
     _, closed = robust_isolate.replays(str(bundle), "driving", SEED)
     assert closed["all"]["verdict"] == "ok", closed["all"]
     assert abs(closed["all"]["heading_rad"]) < 0.05
-    nominal = {r["behavior"]: r for r in verify_bundle(bundle, ["driving"])}["driving"]
+    from synth.verification.source import Bundle
+
+    runs = verify_nominal(Bundle.read(bundle), ["driving"])
+    nominal = {r.behavior: r.to_dict() for r in runs}["driving"]
     for key in ("heading_rad", "distance_m", "final_pose_error_m", "verdict"):
         assert closed["none"][key] == nominal[key], key
     p, runs = robust_isolate.replays(str(bundle), "driving", SEED, open_loop=True)
@@ -119,20 +122,21 @@ def test_a_turn_in_place_at_its_default_speed_is_robust(tmp_path, monkeypatch) -
     import gaits.base
     import gaits.wheeled
     from adron.catalog import load_catalog
-    from export.perturb import design_table
-    from export.verify import bundle_parts, folder_files, verify_robust
     from synth.cli import main
+    from synth.verification.perturb import design_table
+    from synth.verification.runs import verify_robust
+    from synth.verification.source import Bundle
 
     out = tmp_path / "dd"
     argv = ["design", "driving", "--param", "payload=0.5kg", "--param", "speed=0.1m/s"]
     err = io.StringIO()
     assert main([*argv, "--no-input", "--out", str(out)], io.StringIO(), err) == 0, err.getvalue()
-    files = folder_files(out)
-    record, xml, _ = bundle_parts(files)
+    files = Bundle.read(out)
+    record, xml, _ = files.record, files.xml, files.meshes
     table = design_table(record, xml, load_catalog())
 
     def passed() -> int:
-        return verify_robust(files, 8, table, ["turning"])["behaviors"][0]["passed"]
+        return verify_robust(files, 8, table, ["turning"]).behaviors[0].passed
 
     assert passed() == 8
     monkeypatch.setattr(gaits.wheeled, "TURN_SPEED_FRACTION", 0.25)

@@ -64,7 +64,7 @@ def _shipped() -> list[tuple[str, list[Path]]]:
             [ROOT / "adron/catalog.toml", *sorted((ROOT / "adron/catalogs").glob("*.toml"))],
         ),
         ("partkinds", [ROOT / "kinematics/partkinds.toml"]),
-        ("perturb", [ROOT / "export/perturb.toml"]),
+        ("perturb", [ROOT / "synth/verification/perturb.toml"]),
         ("study", sorted((ROOT / "studies").glob("*.toml"))),
     ]
 

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from export.verdict import judge
 from program import sensing
+from synth.verification.verdict import judge
 
 #: A cart with both sensing abilities, not verified (its runs are judged here).
 SENSING_CART = ("driving", "line-tracking", "obstacle-avoidance", "--no-verify")

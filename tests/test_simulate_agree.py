@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from adron.errors import InputError
-from export.simulate import check_agrees
 from synth.cli import main
+from synth.verification.simulate import check_agrees
 
 
 def design(folder: Path, *args: str) -> Path:

@@ -93,18 +93,19 @@ def test_simulate_needs_a_bundle(cli, tmp_path) -> None:
 def test_a_bundle_is_simulated_carrying_its_payload(cart, tmp_path) -> None:
     """robot.xml leaves the payload out (design.json keeps it); simulate, run and the
     verification all run the loaded robot, once: not twice where the models carry it."""
-    import shutil
 
-    from export.simulate import carrying_payload, load_bundle_model
+    from synth.verification.simulate import carrying_payload
+    from synth.verification.source import Bundle
 
     rec = json.loads((cart / "design.json").read_text(encoding="utf-8"))
     pay = rec["payload"]
     assert pay["mass_kg"] > 0 and pay["in_models"] is False
-    bare = tmp_path / "bare"
-    shutil.copytree(cart, bare)
-    (bare / "design.json").unlink()
-    empty = float(sum(load_bundle_model(bare).body_mass))
-    loaded = float(sum(load_bundle_model(cart).body_mass))
+    from export.mjcf import load_mjcf
+
+    bundle = Bundle.read(cart)
+    bare = load_mjcf((cart / "robot.xml").read_text(encoding="utf-8"), bundle.meshes)
+    empty = float(sum(bare.body_mass))  # robot.xml alone: without the payload
+    loaded = float(sum(bundle.model().body_mass))
     assert loaded == pytest.approx(empty + pay["mass_kg"], rel=1e-9)
     xml = (cart / "robot.xml").read_text(encoding="utf-8")
     assert carrying_payload(xml, {"payload": {**pay, "in_models": True}}) == xml

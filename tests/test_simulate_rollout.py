@@ -1,6 +1,6 @@
-"""The simulation steps inside MuJoCo (``export.simulate.step_through``, ``mujoco.rollout``)
-and measures the run afterwards (``ServoLaw``): both must be what a plain ``mj_step``
-loop reading ``MjData`` at every step gives, to the bit."""
+"""The simulation steps inside MuJoCo (``synth.verification.simulate.step_through``,
+``mujoco.rollout``) and measures the run afterwards (``ServoLaw``): both must be what a plain
+``mj_step`` loop reading ``MjData`` at every step gives, to the bit."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from export.simulate import ServoLaw, simulate, step_through
 from gaits.base import Trajectory
+from synth.verification.simulate import ServoLaw, simulate, step_through
 
 # a free two-link body on a floor, one servo of each kind parmor writes and two it does not
 XML = """
@@ -180,7 +180,7 @@ def test_an_observed_run_is_the_same_run_and_is_deterministic():
 
 def test_a_run_measured_block_by_block_is_the_same_run(monkeypatch):
     """Long runs are stepped and measured in blocks (memory): the blocks' seams do not show."""
-    import export.simulate as sim
+    import synth.verification.simulate as sim
 
     model = _model()
     traj = _trajectory(model)

@@ -1,4 +1,4 @@
-"""The wheels' answer to a perturbed run they break (issue 22, synth/robust_wheels.py): the
+"""The wheels' answer to a perturbed run they break (issue 22, synth/verification/wheels.py): the
 failed runs replayed with each stiffer wheel servo of the catalog; the first with which
 they all pass is the answer the sizing loop takes (the wheels may have no less stiff
 servo), and a refusal names the servos tried when none helps.
@@ -19,10 +19,10 @@ import pytest
 
 from adron.catalog import load_catalog
 from synth.cli import main
-from synth.robust_wheels import (
+from synth.verification.wheels import (
     kv,
     stiffer_servos,
-    swapped_files,
+    swapped,
     wheel_blame,
     wheel_exclusions,
     wheel_joints,
@@ -44,14 +44,14 @@ def catalog():
 
 
 @pytest.fixture(scope="module")
-def bundle(tmp_path_factory) -> dict[str, bytes]:
-    """The drive sized nominally (not verified), as the bundle's files."""
-    from export.verify import folder_files
+def bundle(tmp_path_factory):
+    """The drive sized nominally (not verified), its bundle."""
+    from synth.verification.source import Bundle
 
     folder = tmp_path_factory.mktemp("drive") / "bundle"
     code, _, err = _main("design", *REQUEST, "--no-verify", "--out", str(folder))
     assert code == 0, err
-    return folder_files(folder)
+    return Bundle.read(folder)
 
 
 @pytest.fixture
@@ -69,15 +69,14 @@ def open_loop(monkeypatch):
 
 
 def _table(files, catalog, **override) -> dict:
-    from export.perturb import design_table
-    from export.verify import bundle_parts
+    from synth.verification.perturb import design_table
 
-    record, xml, _ = bundle_parts(files)
+    record, xml, _ = files.record, files.xml, files.meshes
     return json.loads(json.dumps(design_table(record, xml, catalog))) | override
 
 
-def _record(files) -> dict:
-    return json.loads(files["design.json"])
+def _record(bundle) -> dict:
+    return json.loads(bundle.files["design.json"])
 
 
 def test_the_wheels_are_the_continuous_servos(bundle, catalog) -> None:
@@ -114,11 +113,11 @@ def test_stiffer_servos_the_least_stiff_first_and_only_those_fast_enough(bundle,
 
 def test_the_swapped_bundle_is_the_servo_in_both_files(bundle, catalog) -> None:
     from export.mjcf import load_mjcf
-    from export.verify import bundle_parts, controller_for_model
+    from synth.verification.runs import controller_for_model
 
     a = next(x for x in catalog.actuators if x.model == "FS5113R")
-    files = swapped_files(bundle, ["left_wheel", "right_wheel"], a)
-    record, xml, meshes = bundle_parts(files)
+    files = swapped(bundle, ["left_wheel", "right_wheel"], a)
+    record, xml, meshes = files.record, files.xml, files.meshes
     model = load_mjcf(xml, meshes)
     for name in ("left_wheel", "right_wheel"):
         k = model.actuator(name).id
@@ -141,11 +140,11 @@ def test_a_stiffer_wheel_servo_answers_the_veer_on_a_cross_slope(
     """The shipped table: driving veers on seeds 1, 3 and 6 (cross slopes of 1.9-2.9 deg);
     replayed with FS5113R wheels, every one passes: the answer excludes the servos less
     stiff than it."""
-    from export.verify import verify_robust
+    from synth.verification.runs import verify_robust
 
     table = _table(bundle, catalog)
     robust = verify_robust(bundle, 8, table, ["driving"])
-    b = robust["behaviors"][0]
+    b = robust.to_dict()["behaviors"][0]
     assert not b["robust"]
     assert {f["seed"] for f in b["failures"]} == {1, 3, 6}
     assert all(f["verdict"] == ["heading"] for f in b["failures"])
@@ -171,11 +170,11 @@ def test_a_floor_no_wheel_servo_holds_is_not_answered(bundle, catalog, open_loop
     wheels: none of the stiffer servos makes the failed runs pass, so none is excluded,
     and the refusal's note names the servos tried. (Closed on the wheels' odometry the
     FS5113R holds it there: the stiffer servo still answers what saturates the loop.)"""
-    from export.verify import verify_robust
+    from synth.verification.runs import verify_robust
 
     table = _table(bundle, catalog, max_slope_rad=0.35)
     robust = verify_robust(bundle, 2, table, ["driving"])
-    assert not robust["behaviors"][0]["robust"]
+    assert not robust.behaviors[0].robust
     found = wheel_blame(bundle, robust, catalog)
     assert found["model"] is None and found["tried"] == ["FS5113R"]
     assert wheel_exclusions(bundle, robust, catalog) == ({}, found)
@@ -186,11 +185,11 @@ def test_a_floor_no_wheel_servo_holds_is_not_answered(bundle, catalog, open_loop
 
 
 def test_nothing_to_answer_without_a_failed_run(bundle, catalog) -> None:
-    from export.verify import verify_robust
+    from synth.verification.runs import verify_robust
 
     table = _table(bundle, catalog, max_slope_rad=0.0)
     robust = verify_robust(bundle, 1, table, ["driving"])
-    assert robust["behaviors"][0]["robust"]
+    assert robust.behaviors[0].robust
     assert wheel_blame(bundle, robust, catalog) is None
     assert wheel_blame(bundle, None, catalog) is None
     assert wheel_exclusions(bundle, robust, catalog) == ({}, None)
@@ -235,7 +234,7 @@ def test_a_kif_only_steered_type_gets_stiffer_wheels(tmp_path: Path, monkeypatch
     front, two driven behind) gets the same answer: with 0.3 kg at 0.1 m/s its FS90R
     wheels under-turn on the slopes; sized with FS5113R it is robust. Without the answer
     (the case built to fail) it is refused."""
-    import synth.robust_wheels
+    import synth.verification.wheels
     from tests.test_steered import CART
 
     kif = tmp_path / "cart.kif"
@@ -252,7 +251,7 @@ def test_a_kif_only_steered_type_gets_stiffer_wheels(tmp_path: Path, monkeypatch
         j: {"from": "FS90R", "to": "FS5113R"} for j in ("left_wheel", "right_wheel")
     }
     assert all(b["passed"] == 8 for b in rec["verified"]["robust"]["behaviors"])
-    monkeypatch.setattr(synth.robust_wheels, "wheel_exclusions", lambda *a, **k: ({}, None))
+    monkeypatch.setattr(synth.verification.wheels, "wheel_exclusions", lambda *a, **k: ({}, None))
     code, _, err = _main(*argv)
     assert code == 1 and "turning is not robust" in err, err
 
@@ -261,9 +260,9 @@ def test_the_closed_loop_needs_no_stiffer_servo(bundle, catalog) -> None:
     """Closed on the wheels' odometry (gaits.wheel_feedback) the FS90R drive holds its
     heading on the cross slopes that veered it open loop (seeds 1, 3, 6): every run
     passes, nothing to answer."""
-    from export.verify import verify_robust
+    from synth.verification.runs import verify_robust
 
     table = _table(bundle, catalog)
     robust = verify_robust(bundle, 8, table, ["driving"])
-    assert robust["behaviors"][0]["robust"], robust["behaviors"][0]["failures"]
+    assert robust.behaviors[0].robust, robust.behaviors[0].failures
     assert wheel_blame(bundle, robust, catalog) is None

@@ -1,5 +1,5 @@
 """The measured support margin on a slope: the centre of mass is projected onto the feet's
-plane along gravity (``export.perturb`` turns gravity by the floor's slope), so a tilt
+plane along gravity (``synth.verification.perturb`` turns gravity by the floor's slope), so a tilt
 towards the nearest edge takes height x tan(slope) off the margin."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import math
 import mujoco
 import pytest
 
-from export.simulate import support_margin_of
+from synth.verification.simulate import support_margin_of
 
 #: A 0.3 m high body on four feet at x, y = +-0.1 m: margin 0.1 m with gravity straight down.
 XML = """<mujoco><option gravity="{g}"/><worldbody><geom type="plane" size="1 1 .1"/>

@@ -13,6 +13,7 @@ import pytest
 
 import synth.sweep
 from synth.sweep import code_files, default_out, load_study, request_key
+from synth.verification.results import Run
 
 # cheap designs: a snake, a differential drive, one too fast to size, a request no robot can
 # meet and one that needs an answer
@@ -244,15 +245,15 @@ def test_an_interrupted_sweep_resumes_to_the_same_bytes(
     assert outputs(cut) == outputs(whole)
 
 
-def fake_verify(files) -> list[dict]:
+def fake_verify(bundle) -> list[Run]:
     """Two behaviours of every design: one ok, one built to fail two criteria, with a figure
     the real records do not have. The failing one realises a bonus ability (dropped from the
     design) unless the payload is 50 g, where it realises the demanded one (the request is
     refused)."""
-    record = json.loads(files["design.json"])
-    assert "robot.xml" in files
+    record = bundle.record
+    assert "robot.xml" in bundle.files
     demanded = record["request"]["params"].get("payload") == "0.05kg"
-    return [
+    runs = [
         {"behavior": "a-ok", "ability": "rolling", "verdict": "ok", "saturated_fraction": 0.0},
         {
             "behavior": "b-bad",
@@ -263,14 +264,15 @@ def fake_verify(files) -> list[dict]:
             "new_figure": 1.5,
         },
     ]
+    return [Run.of(r) for r in runs]
 
 
 def test_summary_counts_failures_by_criterion(
     cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import export.verify
+    import synth.verification.runs
 
-    monkeypatch.setattr(export.verify, "verify_files", fake_verify)
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", fake_verify)
     study = write(
         tmp_path / "s.toml",
         '[[request]]\nname = "snake"\nabilities = ["rolling"]\n'
@@ -315,12 +317,12 @@ def test_summary_counts_failures_by_criterion(
 def test_a_crash_is_reported_not_stored_and_tried_again(
     cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import export.verify
+    import synth.verification.runs
 
-    def broken(files):
+    def broken(bundle):
         raise RuntimeError("simulator exploded")
 
-    monkeypatch.setattr(export.verify, "verify_files", broken)
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", broken)
     study = write(tmp_path / "s.toml", '[[request]]\nabilities = ["rolling"]\n')
     r = cli("sweep", str(study), "--jobs", "1")
     assert r.code == 0 and "1 request(s) failed with an error" in r.err
@@ -328,7 +330,7 @@ def test_a_crash_is_reported_not_stored_and_tried_again(
     assert rows(out)[0]["status"] == "error"
     assert "RuntimeError: simulator exploded" in rows(out)[0]["reason"]
     assert not list((out / "requests").glob("*.json"))
-    monkeypatch.setattr(export.verify, "verify_files", fake_verify)
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", fake_verify)
     r = cli("sweep", str(study), "--jobs", "1")
     assert r.code == 0 and [g["status"] for g in rows(out)] == ["accepted", "accepted"]
     assert [g["listed"] for g in rows(out)] == ["true", "false"]
@@ -336,7 +338,7 @@ def test_a_crash_is_reported_not_stored_and_tried_again(
 
 def test_simulated_sweep_of_a_differential_drive(cli, tmp_path: Path) -> None:
     """The real harness: every figure of the behaviour's simulation record is a column."""
-    from export.verify import verify_files  # noqa: F401 (the harness this test runs)
+    from synth.verification.runs import verify_nominal  # noqa: F401 (the harness this test runs)
 
     study = write(tmp_path / "s.toml", '[[request]]\nabilities = ["driving"]\n')
     r = cli("sweep", str(study), "--jobs", "1", "--json")
@@ -364,7 +366,7 @@ def test_the_key_follows_request_mode_and_files() -> None:
     assert key != request_key(q, True, "e")  # the study's files or parmor's own changed
     assert key != request_key({**q, "params": {"x": "2kg"}}, True, "d")
     names = {p.name for p in code_files()}
-    assert {"sweep.py", "catalog.toml", "verify.py"} <= names and any(
+    assert {"sweep.py", "catalog.toml", "loop.py", "perturb.toml"} <= names and any(
         n.endswith(".kif") for n in names
     )
 

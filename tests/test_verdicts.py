@@ -2,7 +2,7 @@
 
 Simulated cases use a tiny MJCF of their own (a trunk on a sliding leg held by a position
 servo), so that an overloaded servo and a collapse happen for sure; the thresholds of
-``export.verdict`` are checked with figures on both sides of each.
+``synth.verification.verdict`` are checked with figures on both sides of each.
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from export.verdict import judge
 from gaits.base import Trajectory
+from synth.verification.verdict import judge
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -41,7 +41,7 @@ STAND = """
 
 
 def _stand(force: float, seconds: float = 2.0, info: dict | None = None):
-    from export.simulate import simulate
+    from synth.verification.simulate import simulate
 
     model = mujoco.MjModel.from_xml_string(STAND.format(f=force))
     t = np.array([0.0, seconds])

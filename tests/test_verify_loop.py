@@ -1,4 +1,4 @@
-"""The verification loop of ``parmor design`` (synth/verify.py).
+"""The verification loop of ``parmor design`` (synth/verification/loop.py).
 
 The loop's decisions are checked with the simulator's answers replaced (a saturated joint,
 a failing bonus ability, a failing demanded one); one design is verified for real.
@@ -10,28 +10,31 @@ import json
 
 import pytest
 
-import export.verify
-import synth.verify
+import synth.verification.loop
+import synth.verification.runs
 from synth.conceptual import Request
 from synth.pipeline import StructureOptions, run
+from synth.verification.results import RobustRuns, Run
 
 ARM = Request(abilities=("pick-and-place",), params=(("object_shape", "cylinder"),))
 
 
 def _fake(results_by_round):
-    """A stand-in for export.verify.verify_files answering round by round."""
+    """A stand-in for synth.verification.runs.verify_nominal answering round by round."""
     calls = []
 
-    def verify_files(files, behaviors=None):
-        record = json.loads(files["design.json"])
+    def verify_nominal(bundle, behaviors=None):
+        record = bundle.record
         calls.append(record)
         return results_by_round[min(len(calls), len(results_by_round)) - 1]
 
-    return verify_files, calls
+    return verify_nominal, calls
 
 
 def _result(behavior, ability, verdict="ok", **kw):
-    return {"behavior": behavior, "ability": ability, "verdict": verdict, "seconds": 1.0} | kw
+    return Run.of(
+        {"behavior": behavior, "ability": ability, "verdict": verdict, "seconds": 1.0} | kw
+    )
 
 
 def _saturated(joint, fraction):
@@ -71,7 +74,7 @@ def test_a_saturated_joint_gets_a_stronger_actuator(designer, monkeypatch):
     before = {j["name"]: j for j in base["joints"]}
     sat = _saturated("elbow_pitch", 0.3)
     fake, calls = _fake([[sat], [_result("pick-and-place", "pick-and-place")]])
-    monkeypatch.setattr(export.verify, "verify_files", fake)
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", fake)
     out = run(designer, ARM, StructureOptions())
     rec = out.record(designer)
     after = {j["name"]: j for j in rec["joints"]}
@@ -82,10 +85,12 @@ def test_a_saturated_joint_gets_a_stronger_actuator(designer, monkeypatch):
 
 
 def test_a_failing_demanded_ability_fails_the_request(designer, monkeypatch):
-    monkeypatch.setattr(synth.verify, "HINT_ROUNDS", 0)  # the loop's own simulations only
+    monkeypatch.setattr(
+        synth.verification.loop, "HINT_ROUNDS", 0
+    )  # the loop's own simulations only
     bad = _result("pick-and-place", "pick-and-place", ["placing"], placing_error_m=0.012)
     fake, calls = _fake([[bad]])
-    monkeypatch.setattr(export.verify, "verify_files", fake)
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", fake)
     out = run(designer, ARM, StructureOptions())
     assert len(calls) == 1  # nothing saturated: nothing to strengthen
     assert out.status == "infeasible"
@@ -99,7 +104,7 @@ def test_a_failing_bonus_ability_is_dropped_with_a_note(designer, monkeypatch):
     bad = _result("positioning", "positioning", ["placing"], placing_error_m=0.02)
     ok = _result("pick-and-place", "pick-and-place")
     fake, _ = _fake([[ok, bad]])
-    monkeypatch.setattr(export.verify, "verify_files", fake)
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", fake)
     out = run(designer, ARM, StructureOptions())
     rec = out.record(designer)
     assert out.infeasible is None
@@ -111,25 +116,29 @@ def test_a_failing_bonus_ability_is_dropped_with_a_note(designer, monkeypatch):
 
 
 def test_no_stronger_actuator_leaves_the_failure_standing(designer, monkeypatch):
-    monkeypatch.setattr(synth.verify, "HINT_ROUNDS", 0)  # the loop's own simulations only
+    monkeypatch.setattr(
+        synth.verification.loop, "HINT_ROUNDS", 0
+    )  # the loop's own simulations only
     # the shoulder already has the catalog's strongest servo
     sat = _saturated("shoulder_pitch", 0.2)
     fake, calls = _fake([[sat]])
-    monkeypatch.setattr(export.verify, "verify_files", fake)
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", fake)
     out = run(designer, ARM, StructureOptions())
     assert len(calls) == 1 and out.status == "infeasible"
 
 
 @pytest.mark.parametrize("rounds", [3])
 def test_the_loop_stops_after_its_rounds(designer, monkeypatch, rounds):
-    monkeypatch.setattr(synth.verify, "HINT_ROUNDS", 0)  # the loop's own simulations only
+    monkeypatch.setattr(
+        synth.verification.loop, "HINT_ROUNDS", 0
+    )  # the loop's own simulations only
 
     def sat(k):  # every round a different joint saturates: the loop must still stop
         joint = ["base_yaw", "elbow_pitch", "base_yaw", "elbow_pitch"][k]
         return [_saturated(joint, 0.5)]
 
     fake, calls = _fake([sat(0), sat(1), sat(2), sat(3)])
-    monkeypatch.setattr(export.verify, "verify_files", fake)
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", fake)
     out = run(designer, ARM, StructureOptions())
     assert len(calls) == rounds and out.status == "infeasible"
     assert "saturated (saturated_fraction 0.5 > 0.05)" in out.infeasible
@@ -140,31 +149,37 @@ def _fails_above(limit_kg):
     carries more than ``limit_kg`` of payload (the case built to fail), and passes below."""
     calls = []
 
-    def verify_files(files, behaviors=None):
-        record = json.loads(files["design.json"])
+    def verify_nominal(bundle, behaviors=None):
+        record = bundle.record
         payload = record["params"]["payload"]
         calls.append(payload)
         if payload > limit_kg:
             return [_result("pick-and-place", "pick-and-place", ["placing"], placing_error_m=0.02)]
         return [_result("pick-and-place", "pick-and-place")]
 
-    return verify_files, calls
+    return verify_nominal, calls
 
 
 def test_a_refusal_by_simulation_names_the_largest_payload_that_verifies(designer, monkeypatch):
     fake, calls = _fails_above(0.12)
-    monkeypatch.setattr(export.verify, "verify_files", fake)
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", fake)
     req = Request(ARM.abilities, params=(*ARM.params, ("payload", "0.2kg")))
     out = run(designer, req, StructureOptions())
     assert out.status == "infeasible"
     msg = out.infeasible
     assert msg.startswith("pick-and-place failed in simulation: placing (placing error 20 mm")
-    assert synth.verify.ROBUST_OFF not in msg  # failed on the nominal model: no such design
+    assert (
+        synth.verification.loop.ROBUST_OFF not in msg
+    )  # failed on the nominal model: no such design
     # on the grid of the grams shown: 0.1 ok, 0.15 and 0.125 fail, 0.112 ok
     assert msg.endswith("; the largest payload that works here is 0.112 kg")
     assert calls[-1] == pytest.approx(0.112)  # the value named was tested
     # bounded: the request, the floor (0 kg) and HINT_BISECTIONS halvings
-    assert len(calls) == 1 + 1 + synth.verify.HINT_BISECTIONS <= 1 + synth.verify.HINT_ROUNDS
+    assert (
+        len(calls)
+        == 1 + 1 + synth.verification.loop.HINT_BISECTIONS
+        <= 1 + synth.verification.loop.HINT_ROUNDS
+    )
     # the named value designs and verifies
     named = Request(ARM.abilities, params=(*ARM.params, ("payload", "0.112kg")))
     assert run(designer, named, StructureOptions()).status == "designed"
@@ -172,7 +187,7 @@ def test_a_refusal_by_simulation_names_the_largest_payload_that_verifies(designe
 
 def test_a_refusal_without_a_working_value_names_none(designer, monkeypatch):
     fake, calls = _fails_above(-1.0)  # fails whatever the payload
-    monkeypatch.setattr(export.verify, "verify_files", fake)
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", fake)
     out = run(designer, ARM, StructureOptions())
     assert out.status == "infeasible" and "largest" not in out.infeasible
     assert len(calls) == 2  # the request and the floor: the payload is not the limit
@@ -206,40 +221,42 @@ def test_a_dropped_bonus_ability_does_not_skip_the_robust_runs(designer, monkeyp
     """A design whose bonus behaviour failed nominally still has its other behaviours run
     under perturbation (a design accepted with no perturbed run was the bug), and one
     that is not robust there refuses the request."""
-    import synth.robust
+    import synth.verification.play
 
-    monkeypatch.setattr(synth.verify, "HINT_ROUNDS", 0)
+    monkeypatch.setattr(synth.verification.loop, "HINT_ROUNDS", 0)
     bad = _result("positioning", "positioning", ["placing"], placing_error_m=0.02)
     ok = _result("pick-and-place", "pick-and-place")
     fake, _ = _fake([[ok, bad]])
-    monkeypatch.setattr(export.verify, "verify_files", fake)
+    monkeypatch.setattr(synth.verification.runs, "verify_nominal", fake)
     asked = []
 
-    def robust(files, k, table, behaviors=None, only=None, sensing=True):
+    def robust(bundle, k, table, behaviors=None, only=None, sensing=True):
         asked.append(sorted(only or ()))
         passed = 0 if asked_to_fail else k
         fig = {"seed": 1, "verdict": [] if passed else ["placing"], "placing_error_m": 0.02}
         failure = {"seed": 1, "verdict": ["placing"], "why": "placing", "perturbation": "p"}
-        return {
-            "k": k,
-            "required": k,
-            "behaviors": [
-                {
-                    "behavior": "pick-and-place",
-                    "ability": "pick-and-place",
-                    "passed": passed,
-                    "runs": k,
-                    "robust": bool(passed),
-                    "worst": {},
-                    "failures": [] if passed else [failure],
-                    "figures": [fig | {"verdict": "ok"}] if passed else [fig],
-                }
-            ],
-            "table": table,
-        }
+        return RobustRuns.of(
+            {
+                "k": k,
+                "required": k,
+                "behaviors": [
+                    {
+                        "behavior": "pick-and-place",
+                        "ability": "pick-and-place",
+                        "passed": passed,
+                        "runs": k,
+                        "robust": bool(passed),
+                        "worst": {},
+                        "failures": [] if passed else [failure],
+                        "figures": [fig | {"verdict": "ok"}] if passed else [fig],
+                    }
+                ],
+                "table": table,
+            }
+        )
 
-    monkeypatch.setattr(export.verify, "verify_robust", robust)
-    monkeypatch.setattr(synth.robust, "play_blame", lambda files, r: [])
+    monkeypatch.setattr(synth.verification.runs, "verify_robust", robust)
+    monkeypatch.setattr(synth.verification.play, "play_blame", lambda bundle, r: [])
     asked_to_fail = False
     out = run(designer, ARM, StructureOptions(robustness=2))
     assert out.infeasible is None
@@ -251,4 +268,6 @@ def test_a_dropped_bonus_ability_does_not_skip_the_robust_runs(designer, monkeyp
     asked_to_fail = True  # built to fail: not robust -> the demanded ability refuses it
     out = run(designer, ARM, StructureOptions(robustness=2))
     assert out.infeasible is not None and "pick-and-place is not robust" in out.infeasible
-    assert synth.verify.ROBUST_OFF in out.infeasible  # it passed nominally: say how to get it
+    assert (
+        synth.verification.loop.ROBUST_OFF in out.infeasible
+    )  # it passed nominally: say how to get it

@@ -1,5 +1,5 @@
-"""The verification's runs (export/verify.py: verify_model): behaviours with the same plan
-are simulated once, the others on threads, and the figures are those of one run each, in
+"""The verification's runs (synth/verification/runs.py: nominal_runs): behaviours with the same
+plan are simulated once, the others on threads, and the figures are those of one run each, in
 name order."""
 
 from __future__ import annotations
@@ -9,9 +9,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from export import verify
-from export.simulate import SimResult
 from gaits.base import BehaviorSpec, Trajectory
+from synth.verification import runs as verify
+from synth.verification.simulate import SimResult
 
 
 def _traj(name: str, scale: float = 1.0) -> Trajectory:
@@ -53,10 +53,10 @@ def test_alike_plans_are_simulated_once_and_the_figures_keep_their_names(
     monkeypatch.setattr(verify, "controller_for_model", lambda record, model: _Controller())
     monkeypatch.setattr(verify, "_simulate", fake)
     monkeypatch.setattr(verify, "VERIFY_THREADS", threads)
-    out = verify.verify_model({"abilities": []}, model=None)
-    assert [r["behavior"] for r in out] == ["running", "turning", "walking"]
+    out = verify.nominal_runs({"abilities": []}, model=None)
+    assert [r.behavior for r in out] == ["running", "turning", "walking"]
     assert sorted(seen) == ["running", "turning"]  # walking planned as running: not run again
-    assert [r["distance_m"] for r in out] == [1.0, 2.0, 1.0]
+    assert [r.figures["distance_m"] for r in out] == [1.0, 2.0, 1.0]
 
 
 def test_a_plan_differing_in_its_promise_only_is_simulated_again() -> None:

@@ -51,13 +51,16 @@ def six(tmp_path_factory) -> Path:
 def _perturbed(folder: Path, behavior: str, seed: int, feedback: bool = True):
     """(trajectory, SimResult) of ``behavior`` under the design's perturbation ``seed``."""
     from adron.catalog import load_catalog
-    from export.perturb import design_table, draw, perturbed_model
-    from export.simulate import load_bundle_model, simulate
-    from export.verify import bundle_parts, controller_for_model, folder_files
+    from synth.verification.perturb import design_table, draw, perturbed_model
+    from synth.verification.runs import controller_for_model
+    from synth.verification.simulate import simulate
+    from synth.verification.source import Bundle
 
-    record, xml, meshes = bundle_parts(folder_files(folder))
+    bundle = Bundle.read(folder)
+
+    record, xml, meshes = bundle.record, bundle.xml, bundle.meshes
     table = design_table(record, xml, load_catalog())
-    controller = controller_for_model(record, load_bundle_model(folder))
+    controller = controller_for_model(record, Bundle(folder=folder).model())
     traj = controller.run(behavior)
     p = draw(table, seed)
     tip = controller.template.end_effectors
@@ -107,14 +110,16 @@ def test_the_imu_heading_only_where_the_design_carries_an_imu(skid, six) -> None
     that would read an IMU is refused on its model."""
     from dataclasses import replace
 
-    from export.simulate import load_bundle_model, simulate
-    from export.verify import bundle_parts, controller_for_model, folder_files
     from gaits.feedback import loop_for
+    from synth.verification.runs import controller_for_model
+    from synth.verification.simulate import simulate
+    from synth.verification.source import Bundle
 
     for folder, imu in ((skid, True), (six, False)):
-        record, _, _ = bundle_parts(folder_files(folder))
+        bundle = Bundle.read(folder)
+        record, _, _ = bundle.record, bundle.xml, bundle.meshes
         assert ("IMUSensorModule" in str(record["modules"])) is imu
-        model = load_bundle_model(folder)
+        model = Bundle(folder=folder).model()
         traj = controller_for_model(record, model).run("turning")
         spec = traj.info["feedback"]
         assert spec["loop"] == "wheel-odometry" and spec["imu"] is imu
@@ -208,8 +213,8 @@ def test_the_base_holds_its_place_while_the_arm_works(mobile) -> None:
     its arm's grasp (more than the verdict's hold drift of 10 % of its length; the
     gripper lands 96 mm off); its wheels held on their encoders it stays within a
     millimetre and places within the verdict's 5 mm."""
-    from export.verdict import HOLD_DRIFT, PLACING
     from gaits.feedback import loop_for
+    from synth.verification.verdict import HOLD_DRIFT, PLACING
 
     traj, closed = _perturbed(mobile, "grasping", 3)
     assert isinstance(loop_for(traj), WheelHold)

@@ -7,7 +7,7 @@ positions, wheel servos its velocities (linear interpolation at every physics st
 Measured (keys of ``SimResult.to_dict``): ``distance_m`` (planar displacement of the root
 body), ``heading_rad`` (change of its yaw), ``fell`` / ``fell_at_s`` (the root dropped
 below ``COLLAPSE_HEIGHT`` of its start height or tilted past ``COLLAPSE_TILT``, see
-:mod:`export.verdict`; never for the snake, whose rolling turns its body over, nor for a
+:mod:`synth.verification.verdict`; never for the snake, whose rolling turns its body over, nor for a
 fixed base), ``max_torque_ratio`` (largest
 |actuator force| / stall torque), ``tracking_error`` (driving: relative error of the mean
 (v, w) over the second half against the commanded ones), ``placing_error_m``
@@ -57,7 +57,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -128,17 +127,6 @@ class SimResult:
             m = self.support_margin_m
             out["support_margin_m"] = r(m) if math.isfinite(m) else None
         return out
-
-
-def load_bundle_model(folder: str | Path):
-    """The MuJoCo model of a bundle folder (robot.xml with its meshes), carrying the
-    design's payload (:func:`carrying_payload`)."""
-    folder = Path(folder)
-    files = {p.name: p.read_bytes() for p in sorted((folder / "meshes").glob("*.stl"))}
-    files["robot.xml"] = (folder / "robot.xml").read_bytes()
-    if (folder / "design.json").is_file():
-        files["design.json"] = (folder / "design.json").read_bytes()
-    return load_files_model(files)
 
 
 def check_agrees(xml: str, record: object) -> None:
@@ -229,37 +217,12 @@ PAYLOAD_INERTIA = 0.03**2
 #: reported this often (1 s simulated at 2 ms), and a call's own cost (tens of
 #: microseconds) is under 1 % of the stepping it does.
 CHUNK_STEPS = 500
+#: Physics steps between two looks at a run that may stop at its failure (``simulate``'s
+#: ``stop_on_failure``): half a second at 2 ms.
+STOP_CHECK_STEPS = 250
 #: Physics steps measured at a time (20 s at 2 ms): the recorded states of a block (a few
 #: MB) are all a run holds, whatever its duration.
 BLOCK_STEPS = 10_000
-
-
-def load_files_model(files: Mapping[str, str | bytes]):
-    """The MuJoCo model of a bundle held in memory: ``robot.xml`` and ``meshes/*.stl`` (keys
-    relative to the bundle folder; bare mesh names are accepted too), carrying the payload
-    of ``design.json`` where it is given (:func:`carrying_payload`)."""
-    from export.mjcf import load_mjcf
-
-    xml = files["robot.xml"]
-    text = xml.decode("utf-8") if isinstance(xml, bytes) else xml
-    raw = files.get("design.json")
-    if raw is not None:
-        from adron import readers
-
-        record = readers.parse_json(
-            raw.decode("utf-8") if isinstance(raw, bytes) else raw, "design.json"
-        )
-        from export.record_schema import check_record
-
-        check_record(record, "design.json")
-        check_agrees(text, record)
-        text = carrying_payload(text, record)
-    meshes = {
-        Path(k).name: (v.encode() if isinstance(v, str) else v)
-        for k, v in sorted(files.items())
-        if k.endswith(".stl")
-    }
-    return load_mjcf(text, meshes)
 
 
 def _tilt(quat: np.ndarray) -> float:
@@ -274,7 +237,7 @@ def support_margin_of(model, data) -> float:
     (the root's subtree) over the ground to the nearest edge of the convex hull of the
     robot's contacts with the world (``gaits.hexapod.support_margin``; negative outside,
     minus infinity with no contact). The centre of mass is projected onto the contacts'
-    plane along gravity: with the gravity turned by a floor's slope (``export.perturb``)
+    plane along gravity: with the gravity turned by a floor's slope (``synth.verification.perturb``)
     the point it stands over moves downhill by its height x tan(slope), which a straight
     drop ignores (5 mm for a 10 cm high body on 3 deg); with gravity straight down the two
     are the same number."""
@@ -464,12 +427,13 @@ def simulate(
     command_period_s: float = 0.0,
     sensor_noise: Mapping[str, object] | None = None,
     feedback: bool = True,
+    stop_on_failure: bool = False,
 ) -> SimResult:
     """Run ``traj`` on ``model`` (a mujoco.MjModel) for ``seconds`` (default: the
     trajectory's duration; past its end the robot holds its final commanded state: its
     servos the last pose, its wheels stopped), measure what the robot did (the tracking
     error over the plan's time) and judge it against what ``traj.info`` promises
-    (:func:`export.verdict.judge`; ``SimResult.verdict`` lists the failed criteria).
+    (:func:`synth.verification.verdict.judge`; ``SimResult.verdict`` lists the failed criteria).
 
     ``data``: a ``mujoco.MjData`` to continue from (a program chaining behaviours): the
     robot is not reset to the trajectory's first pose, and the promise (planned pose,
@@ -478,7 +442,7 @@ def simulate(
     steps; default: after every step) and after the last step, ``t`` s since this run
     began. ``progress(fraction)`` is called every :data:`CHUNK_STEPS` steps.
 
-    ``latency_s``, ``command_period_s`` (a perturbed run, :mod:`export.perturb`): the
+    ``latency_s``, ``command_period_s`` (a perturbed run, :mod:`synth.verification.perturb`): the
     servos get the references of ``latency_s`` earlier, held for each command period.
 
     A plan that asks for a feedback loop (``traj.info["feedback"]``, :mod:`gaits.feedback`)
@@ -487,10 +451,24 @@ def simulate(
     read-back, wheel encoders, the IMU's gyro and accelerometer where the model carries
     them, with ``sensor_noise``: :func:`imu_noise`) and its correction reaches the servos
     ``latency_s`` later. ``feedback=False`` runs the plan open loop (what the plan alone
-    does: the comparison the tests make)."""
+    does: the comparison the tests make).
+
+    ``stop_on_failure``: the run stops as soon as its verdict is known to fail: the robot
+    fell, or more than the verdict's share of the whole run's steps had an actuator at its
+    limit (checked every :data:`STOP_CHECK_STEPS` steps); it is then judged on what it
+    did up to there (``complete`` false: falling and saturation, the latter over the
+    steps run). Only a run whose failure is all that is asked of it (a replay with one
+    cause changed, a run that can only refuse) is stopped: a run that passes is the same
+    to the bit either way."""
     import mujoco
 
-    from export.verdict import COLLAPSE_HEIGHT, COLLAPSE_TILT, SATURATION_LEVEL, judge
+    from synth.verification.verdict import (
+        COLLAPSE_HEIGHT,
+        COLLAPSE_TILT,
+        MAX_SATURATED_FRACTION,
+        SATURATION_LEVEL,
+        judge,
+    )
 
     chained = data is not None
     if data is None:
@@ -540,7 +518,9 @@ def simulate(
     observe_steps = 1 if observe_every is None else max(1, int(round(observe_every / dt)))
     # the run goes in blocks of whole observation periods, each measured once it is done:
     # memory stays that of a block whatever the duration
-    block = max(1, BLOCK_STEPS // every) * every
+    block = max(1, (STOP_CHECK_STEPS if stop_on_failure else BLOCK_STEPS) // every) * every
+    limit_steps = MAX_SATURATED_FRACTION * steps  # more saturated steps: it has failed
+    done = steps
     full = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
     last = np.empty(mujoco.mj_stateSize(model, full))  # the state before the next step
     mujoco.mj_getState(model, data, last, full)
@@ -642,6 +622,11 @@ def simulate(
         series["q_ref"].append(ref[rows])
         series["force"].append(force[rows])
         series["demand"].append(demand_each[rows])
+        if stop_on_failure and (fell_at is not None or saturated_steps > limit_steps):
+            done = start_step + n  # the verdict is known: it failed
+            break
+    if done < steps:
+        seconds = done * dt
     root = np.concatenate(series["root"])
     end = data.qpos[:3].copy() if free else np.zeros(3)
     heading = 0.0
@@ -656,9 +641,9 @@ def simulate(
         fell_at,
         ratio,
         demand_ratio_max=demand,
-        saturated_fraction=saturated_steps / steps,
+        saturated_fraction=saturated_steps / done,
         saturated_joints={
-            model.actuator(k).name: float(saturated_each[k] / steps)
+            model.actuator(k).name: float(saturated_each[k] / done)
             for k in range(model.nu)
             if saturated_each[k]
         },

@@ -3,8 +3,8 @@
 A behaviour declares what it promises in its trajectory's ``info`` (see
 :class:`gaits.base.Trajectory`: ``motion``, ``planned_pose``, ``direction``,
 ``body_length_m``, ``target``...); :func:`judge` compares the figures measured in MuJoCo
-(:func:`export.simulate.simulate`) with that promise and returns the criteria that failed.
-Every threshold is here and in the README's *Verdicts* table.
+(:func:`synth.verification.simulate.simulate`) with that promise and returns the criteria that
+failed. Every threshold is here and in the README's *Verdicts* table.
 
 Criteria (names as they appear in ``verdict``):
 
@@ -17,7 +17,7 @@ Criteria (names as they appear in ``verdict``):
   none) let the robot's centre of mass leave the support polygon of its
   contacts with the ground by more than ``SUPPORT_MARGIN`` at a sampled instant, or had
   no contact (``support_margin_m``, measured in MuJoCo, see
-  :func:`export.simulate.support_margin_of`).
+  :func:`synth.verification.simulate.support_margin_of`).
 - ``unplanned``: a free-moving robot's behaviour that does not say what it promises.
 - ``distance``, ``heading``: straight travel covered ``STRAIGHT_DISTANCE`` x the planned
   distance along the planned direction, and kept its heading within ``STRAIGHT_HEADING``.

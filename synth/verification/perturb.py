@@ -2,8 +2,8 @@
 model: the perturbed runs of a robust verification (``parmor design --robustness K``) and
 ``parmor simulate DIR --perturb SEED``.
 
-The ranges are data: ``export/perturb.toml`` (documented there), whose tables a catalog's
-``[perturbation]`` table may override key by key. For a design they are resolved once
+The ranges are data: ``synth/verification/perturb.toml`` (documented there), whose tables a
+catalog's ``[perturbation]`` table may override key by key. For a design they are resolved once
 into its **table** (:func:`design_table`: plain SI numbers, JSON), which names every body
 and position servo the draws apply to, each servo's backlash range and dead band, each
 printed link's bending stiffness and the battery's scale; the record keeps it
@@ -32,7 +32,7 @@ text, then compiled as any bundle model):
   bending stiffness k: ``kp k / (kp + k)``;
 - **command latency and control rate**: not a model edit; the run's references are
   those of ``latency`` s earlier, held for each control period
-  (:func:`export.simulate.simulate`'s ``latency_s``, ``command_period_s``);
+  (:func:`synth.verification.simulate.simulate`'s ``latency_s``, ``command_period_s``);
 - **sensors**: not a model edit; the IMU's noise and gyro bias (``imu``) reach the plans'
   feedback loops, the line sensors' edge offsets and jitter and the ranger's scale, noise
   and resolution (``sensing``, drawn after the IMU's) the sensing loops
@@ -75,7 +75,7 @@ NOSLIP_ITERATIONS = 10
 #: The sensor module classes whose readings a sensing loop (:mod:`program.sensing`) takes,
 #: and the table's key of their noise (``perturb.toml``'s section of that name).
 SENSING_MODULES = {"InfraredSensorModule": "infrared", "UltrasonicSensorModule": "ultrasonic"}
-#: Prefix of the payload's bodies (:func:`export.simulate.carrying_payload`): not scaled.
+#: Prefix of the payload's bodies (:func:`.simulate.carrying_payload`): not scaled.
 PAYLOAD_PREFIX = "payload_"
 
 
@@ -93,7 +93,7 @@ def ranges(overrides: Mapping[str, Any] | None = None, where: str = "catalog") -
     """The perturbation ranges in SI: the shipped table with ``overrides`` (a catalog's
     ``[perturbation]`` table, tables merged key by key) applied. InputError naming
     ``where`` and the key for an unknown key or a bad value."""
-    text = (resources.files("export") / TABLE_FILE).read_text(encoding="utf-8")
+    text = (resources.files("synth.verification") / TABLE_FILE).read_text(encoding="utf-8")
     raw = tomllib.loads(text)
     source = TABLE_FILE
     if overrides:
@@ -389,6 +389,39 @@ def draw(table: Mapping[str, Any], seed: int) -> dict[str, Any]:
     }
 
 
+def severity(table: Mapping[str, Any], p: Mapping[str, Any]) -> float:
+    """How adverse perturbation ``p`` of ``table`` looks before it is run, in [0, 1]: the
+    mean of where each of its draws lies in its range, 0 at the benign end and 1 at the
+    adverse one: the floor's friction (low is adverse), its slope (steep), the bus latency
+    (long), the heaviest body's mass factor (heavy) and the servos' play (each servo's
+    backlash across its range, averaged; wide). The runs that can only refuse a design go
+    in this order, the worst-looking first (:func:`worst_first`)."""
+
+    def where(x: float, lo: float, hi: float) -> float:
+        return min(1.0, max(0.0, (x - lo) / (hi - lo))) if hi > lo else 0.0
+
+    lo, hi = table["friction"]
+    parts = [1.0 - where(p["friction_scale"], lo, hi)]
+    parts.append(where(p["slope_rad"], 0.0, float(table["max_slope_rad"])))
+    lo, hi = table["latency_s"]
+    parts.append(where(p["latency_s"], lo, hi))
+    spread = float(table["mass_spread"])
+    masses = list(p["mass_scale"].values())
+    parts.append(where(max(masses), 1.0 - spread, 1.0 + spread) if masses else 0.0)
+    plays = []
+    for joint, servo in table["servos"].items():
+        lo, hi = servo["backlash_rad"]
+        plays.append(where(p["play_rad"][joint] - servo["deadband_rad"], lo, hi))
+    parts.append(sum(plays) / len(plays) if plays else 0.0)
+    return sum(parts) / len(parts)
+
+
+def worst_first(table: Mapping[str, Any], seeds: list[int]) -> list[int]:
+    """``seeds`` ordered by :func:`severity` of their perturbations, the worst-looking
+    first (ties: the lower seed first)."""
+    return sorted(seeds, key=lambda s: (-severity(table, draw(table, s)), s))
+
+
 def summary(p: Mapping[str, Any]) -> dict[str, Any]:
     """A perturbation in a few figures (records, messages): its seed, the floor, the bus,
     the battery, the range of the mass factors and the largest play."""
@@ -469,7 +502,7 @@ def perturbed_xml(
     if option is None:
         option = ET.SubElement(root, "option")
     g = [float(v) for v in (option.get("gravity") or "0 0 -9.81").split()]
-    if table.get("timestep_s"):  # the perturbed runs' physics (export.verify.physics_check)
+    if table.get("timestep_s"):  # the perturbed runs' physics (runs.physics_check)
         option.set("timestep", _num(float(table["timestep_s"])))
     timestep = float(option.get("timestep") or 0.002)  # MuJoCo's default
     magnitude = math.sqrt(sum(v * v for v in g))

@@ -25,8 +25,15 @@ servo's band, the speed that passes).
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
-#: Failed runs of a behaviour replayed (the worst first, as ``synth.robust.BLAMED_RUNS``).
+from synth.verification.causes import Remedy, Round
+
+if TYPE_CHECKING:
+    from synth.verification.results import RobustRuns, Run
+    from synth.verification.source import Bundle
+
+#: Failed runs of a behaviour replayed (the worst first, as ``robust.BLAMED_RUNS``).
 HOLD_BLAMED_RUNS = 2
 #: Shares of a behaviour's default speed tried, fastest first.
 SPEED_SHARES = (0.9, 0.8, 0.7, 0.6, 0.5)
@@ -50,29 +57,29 @@ def _steps(traj, joints, frame: float) -> dict[str, float]:
 
 
 def hold_attribution(
-    files: Mapping[str, str | bytes],
+    bundle: Bundle,
     table: Mapping,
     behavior: str,
     seed: int,
-    failed: Mapping | None = None,
+    failed: Run | None = None,
 ) -> dict | None:
     """Does the command hold break behaviour ``behavior`` of a bundle under perturbation
-    ``seed`` of ``table``? ``failed``: the run's figures when known (``export.verify.
+    ``seed`` of ``table``? ``failed``: the run's figures when known (``synth.verification.runs.
     verify_robust``'s). The run must fail saturated and pass replayed with the control
     period at 0 (everything else as drawn), else None. Then ``{"verdict", "frame_s",
     "joints": {joint: its largest reference step rad a frame}, "speed": the largest of
     SPEED_SHARES x the default speed at which the run passes as perturbed (None: none
     does, or the behaviour has no speed), "default_speed", "unit"}``."""
-    from export.verify import Replay
+    from synth.verification.runs import Replay
 
-    replay = Replay(files, table, behavior, seed)
+    replay = Replay(bundle, table, behavior, seed)
     controller, traj, p, run = replay.controller, replay.plan, replay.perturbation, replay.run
     frame = float(p.get("control_period_s") or 0.0)
 
-    before = run(p) if failed is None else failed
-    if frame <= 0 or "saturated" not in before["verdict"]:
+    before = run() if failed is None else failed
+    if frame <= 0 or "saturated" not in before.verdict:
         return None
-    if run(dict(p, control_period_s=0.0))["verdict"] != "ok":
+    if not run({"control_period_s": 0.0}, stop_on_failure=True).ok:
         return None
     spec = controller.behaviors[behavior]
     speed = next((x for x in spec.params if x.name == "speed"), None)
@@ -85,12 +92,12 @@ def hold_attribution(
                 plan = controller.run(behavior, speed=value)
             except ValueError:
                 continue
-            if run(p, plan)["verdict"] == "ok":
+            if run(plan=plan, stop_on_failure=True).ok:
                 found = value
                 break
-    saturated = sorted(before.get("saturated_joints") or {})
+    saturated = sorted(before.saturated_joints)
     return {
-        "verdict": list(before["verdict"]),
+        "verdict": before.verdict,
         "frame_s": frame,
         "joints": _steps(traj, saturated, frame),
         "speed": found,
@@ -99,13 +106,13 @@ def hold_attribution(
     }
 
 
-def hold_blame(files: Mapping[str, str | bytes], robust: Mapping | None) -> list[dict]:
+def hold_blame(bundle: Bundle, robust: RobustRuns | None) -> list[dict]:
     """:func:`hold_attribution` of the failed perturbed runs (up to ``HOLD_BLAMED_RUNS`` a
     behaviour, the worst first) of the behaviours that are not robust, each with its
     ``behavior`` and ``seed``: those the command hold breaks."""
-    from synth.robust import replayed_blame
+    from synth.verification.robust import replayed_blame
 
-    return replayed_blame(files, robust, hold_attribution, HOLD_BLAMED_RUNS)
+    return replayed_blame(bundle, robust, hold_attribution, HOLD_BLAMED_RUNS)
 
 
 def hold_note(blamed: list[dict], behavior: str) -> str:
@@ -138,3 +145,29 @@ def hold_note(blamed: list[dict], behavior: str) -> str:
             f"{'they pass' if len(runs) > 1 else 'it passes'} as perturbed"
         )
     return out
+
+
+class Hold:
+    """The servos' command hold as a cause of the loop (:class:`synth.verification.causes.
+    Cause`): measured on the design the loop ends with (:func:`hold_blame`), for a refusal
+    to name; no sizing answers it (a lower speed does, which the design's plans do not
+    choose), so it changes nothing."""
+
+    name = "command hold"
+
+    def __init__(self) -> None:
+        self.at = 0
+        self.held: list[dict] = []
+
+    def explains(self, now: Round) -> Remedy | None:
+        self.held, self.at = hold_blame(now.bundle(), now.robust), now.number
+        return None
+
+    def taken(self, now: Round, sizing: Mapping[str, frozenset[str]]) -> None:
+        return None
+
+    def note(self, behavior: str, final: int) -> str:
+        return hold_note(self.held, behavior) if self.at == final else ""
+
+    def record(self, models: Mapping[str, str]) -> dict | None:
+        return None

@@ -11,15 +11,15 @@ robot veers or turns by another angle. Measured on the designed differential dri
 same runs with the wheels' ``kv`` x 2, 4, 8, 32: 16-25, 8-15, 9, 2 deg. A stiffer servo
 (more torque for its speed) is the answer no plan can give.
 
-:func:`wheel_blame` measures it as :func:`synth.robust.play_blame` measures the play: the
-failed perturbed runs of each behaviour that is not robust (up to
-:data:`synth.robust.BLAMED_RUNS`, the worst first) are replayed under the very same
+:func:`wheel_blame` measures it as :func:`synth.verification.robust.play_blame` measures the play:
+the failed perturbed runs of each behaviour that is not robust (up to
+:data:`synth.verification.robust.BLAMED_RUNS`, the worst first) are replayed under the very same
 perturbation with the wheel servos swapped for each stiffer servo of the catalog that
 serves them (same class, continuous rotation, holding the joint's required torque at its
 required speed; the least stiff first): the first with which every replayed run passes is
 the answer: the next sizing may give the wheels no servo less stiff than it
-(:func:`wheel_exclusions`, as :func:`synth.robust.less_play` excludes servos of too much
-play). The replay is the bundle with the swapped servo in both files:
+(:func:`wheel_exclusions`, as :func:`synth.verification.robust.less_play` excludes servos of too
+much play). The replay is the bundle with the swapped servo in both files:
 ``design.json``'s joint (stall torque, no-load speed: what the controller plans with) and
 ``robot.xml``'s velocity servo (``kv``, ``ctrlrange``, ``forcerange``, the rotor's
 armature), so its plans and its model are those the next sizing gives (less the modules'
@@ -29,11 +29,12 @@ stiffest does not make every run pass: the failure stands, and :func:`wheel_note
 Wheels are read off the structure (a joint whose actuator turns without an end stop);
 no robot type is named.
 
-How :mod:`synth.verify` calls it: where a round's perturbed runs failed and no actuator
-saturated (``_floors`` gave nothing new), ``wheel_exclusions(robust_files(designer,
-outcome), robust, outcome.catalog, excluded)`` gives joint -> the models excluded (empty:
-no wheel, or no stiffer wheel servo makes them pass), merged into the round's exclusions
-before it sizes again.
+How the loop (:mod:`synth.verification.loop`) asks it: :class:`Wheels`, a cause
+(:mod:`synth.verification.causes`): where a round's perturbed runs failed and no actuator
+saturated, :func:`wheel_exclusions` on the round's bundle gives joint -> the models
+excluded (empty: no wheel, or no stiffer wheel servo makes them pass), merged into the
+round's exclusions before it sizes again. The replays stop at a failure: whether they pass
+is all that is asked.
 """
 
 from __future__ import annotations
@@ -42,8 +43,12 @@ import json
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
+from synth.verification.causes import Remedy, Round
+
 if TYPE_CHECKING:
     from adron.catalog import Actuator, Catalog
+    from synth.verification.results import RobustRuns, Run
+    from synth.verification.source import Bundle
 
 #: A stiffer servo's kv must exceed the wheel's by this factor (else it is the same motor line).
 STIFFER = 1.0001
@@ -97,12 +102,10 @@ def stiffer_servos(record: Mapping, catalog: Catalog) -> list[Actuator]:
     return sorted(out, key=lambda a: (kv(a), a.cost, a.model))
 
 
-def swapped_files(
-    files: Mapping[str, str | bytes], joints: list[str], actuator: Actuator
-) -> dict[str, str | bytes]:
-    """The bundle ``files`` with ``actuator`` driving ``joints`` (wheels): the record's
-    stall torque and no-load speed, the MJCF's velocity servo (``kv``, ``ctrlrange``,
-    ``forcerange``) and the joint's armature, as ``export.mjcf`` writes them."""
+def swapped(bundle: Bundle, joints: list[str], actuator: Actuator) -> Bundle:
+    """``bundle`` with ``actuator`` driving ``joints`` (wheels): the record's stall torque
+    and no-load speed, the MJCF's velocity servo (``kv``, ``ctrlrange``, ``forcerange``)
+    and the joint's armature, as ``export.mjcf`` writes them."""
     import xml.etree.ElementTree as ET
 
     from export.mjcf import servo_gains
@@ -112,6 +115,7 @@ def swapped_files(
         return v.decode("utf-8") if isinstance(v, bytes) else v
 
     names = set(joints)
+    files = bundle.files
     record = json.loads(text(files["design.json"]))
     for j in record.get("joints", ()):
         if j["name"] in names:
@@ -129,23 +133,20 @@ def swapped_files(
     for joint in root.iter("joint"):
         if joint.get("name") in names:
             joint.set("armature", number(armature))
-    out = dict(files)
-    out["design.json"] = json.dumps(record)
-    out["robot.xml"] = ET.tostring(root, encoding="unicode")
-    return out
+    return bundle.with_files(
+        {"design.json": json.dumps(record), "robot.xml": ET.tostring(root, encoding="unicode")}
+    )
 
 
-def _failed_runs(robust: Mapping) -> list[tuple[str, int, dict]]:
-    """(behaviour, seed, figures) of the failed perturbed runs replayed: those
-    ``play_blame`` replays (``synth.robust.worst_failures``)."""
-    from synth.robust import BLAMED_RUNS, worst_failures
+def _failed_runs(robust: RobustRuns) -> list[tuple[str, int, Run | None]]:
+    """(behaviour, seed, the run) of the failed perturbed runs replayed: those
+    ``play_blame`` replays (``synth.verification.robust.worst_failures``)."""
+    from synth.verification.robust import BLAMED_RUNS, worst_failures
 
-    return [(b, s, fig or {}) for b, s, fig in worst_failures(robust, BLAMED_RUNS)]
+    return worst_failures(robust, BLAMED_RUNS)
 
 
-def wheel_blame(
-    files: Mapping[str, str | bytes], robust: Mapping | None, catalog: Catalog
-) -> dict | None:
+def wheel_blame(bundle: Bundle, robust: RobustRuns | None, catalog: Catalog) -> dict | None:
     """Does a stiffer wheel servo make the failed perturbed runs pass? Measured (module
     docstring): ``{"model": the first servo of :func:`stiffer_servos` with which every
     replayed run passes, "from": the wheels' servo, "joints": the wheels, "runs": [{behavior,
@@ -153,34 +154,37 @@ def wheel_blame(
     "stiffer": the replay's}}]}``; None without wheels, without a failed run, or when
     none of them makes every run pass (``{"model": None, "tried": [...]}`` then, so that a
     refusal can say so)."""
-    if not robust or not isinstance(robust.get("table"), Mapping):
+    if not robust or not robust.table:
         return None
-    from export.verify import _criteria, bundle_parts, figures, run_perturbed
+    from synth.verification.runs import Perturbed
 
     runs = _failed_runs(robust)
     if not runs:
         return None
-    record, _, _ = bundle_parts(files)
+    record = bundle.record
     wheels = wheel_joints(record, catalog)
     if not wheels:
         return None
     candidates = stiffer_servos(record, catalog)
     joints = sorted(wheels)
-    table = robust["table"]
+    table = robust.table
     for a in candidates:
-        trial = swapped_files(files, joints, a)
+        trial = swapped(bundle, joints, a)
         replays = []
         for behavior, seed, failed in runs:
-            traj, result, _ = run_perturbed(trial, behavior, seed, table=table)
-            fig = figures(traj, result)
-            if fig["verdict"] != "ok":
+            plan = trial.controller().run(behavior)
+            run = Perturbed(trial, table, seed).run(plan, stop_on_failure=True)
+            if not run.ok:
                 break
             replays.append(
                 {
                     "behavior": behavior,
                     "seed": seed,
-                    "verdict": list(failed.get("verdict") or ()),
-                    "figures": {"with": _criteria(failed), "stiffer": _criteria(fig)},
+                    "verdict": failed.verdict if failed else [],
+                    "figures": {
+                        "with": failed.criteria() if failed else {},
+                        "stiffer": run.criteria(),
+                    },
                 }
             )
         else:
@@ -199,8 +203,8 @@ def wheel_blame(
 
 
 def wheel_exclusions(
-    files: Mapping[str, str | bytes],
-    robust: Mapping | None,
+    bundle: Bundle,
+    robust: RobustRuns | None,
     catalog: Catalog,
     excluded: Mapping[str, frozenset[str]] | None = None,
 ) -> tuple[dict[str, frozenset[str]], dict | None]:
@@ -211,7 +215,7 @@ def wheel_exclusions(
     :func:`wheel_blame` found (None: no wheel or no failed run). Empty when no stiffer
     wheel servo makes the failed runs pass."""
     excluded = excluded or {}
-    found = wheel_blame(files, robust, catalog)
+    found = wheel_blame(bundle, robust, catalog)
     if not found or found["model"] is None:
         return {}, found
     answer = next(x for x in catalog.actuators if x.model == found["model"])
@@ -236,3 +240,44 @@ def wheel_note(found: Mapping | None, behavior: str) -> str:
     if not tried:
         return f"; the catalog has no stiffer servo that drives the wheels {wheels} as fast"
     return f"; stiffer servos for the wheels {wheels}, {', '.join(tried)}, do not make it pass"
+
+
+class Wheels:
+    """The wheels' servos as a cause of the loop (:class:`synth.verification.causes.
+    Cause`): on a robot with wheels, the failed runs replayed with each stiffer wheel servo
+    (:func:`wheel_exclusions`); the answer is a sizing without the servos less stiff."""
+
+    name = "wheels"
+
+    def __init__(self) -> None:
+        self.at = 0  # the round it was last measured on, and what it found there
+        self.found: dict | None = None
+        self.first: dict[str, str] = {}  # wheel joint -> its servo before a stiffer one
+        self.runs: list[dict] = []  # the perturbed runs that called for the stiffer wheels
+
+    def applies(self, now: Round) -> bool:
+        """The design has wheels (:func:`wheel_joints`)."""
+        return bool(wheel_joints(now.record, now.catalog))
+
+    def explains(self, now: Round) -> Remedy | None:
+        stiffer, self.found = wheel_exclusions(now.bundle(), now.robust, now.catalog, now.excluded)
+        self.at = now.number
+        return Remedy((stiffer,)) if stiffer else None
+
+    def taken(self, now: Round, sizing: Mapping[str, frozenset[str]]) -> None:
+        self.runs += (self.found or {}).get("runs", [])
+        for j in sizing:
+            self.first.setdefault(j, now.models[j])
+
+    def note(self, behavior: str, final: int) -> str:
+        return wheel_note(self.found, behavior) if self.at == final else ""
+
+    def record(self, models: Mapping[str, str]) -> dict | None:
+        """``verified.wheels``: each wheel's servo swapped (from, to) and the runs that
+        called for it; None when none was."""
+        if not self.first:
+            return None
+        return {
+            "swapped": {j: {"from": m, "to": models.get(j)} for j, m in sorted(self.first.items())},
+            "runs": self.runs,
+        }
