@@ -4,11 +4,14 @@ torques, and (legged gaits) the static stability margin. matplotlib, imported he
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from gaits.base import Trajectory
-from synth.verification.simulate import SimResult
+
+if TYPE_CHECKING:  # the result's type only: export sits below the verification
+    from synth.verification.simulate import SimResult
 
 
 def write_plots(folder: Path, traj: Trajectory, result: SimResult) -> list[str]:
