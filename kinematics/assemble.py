@@ -278,10 +278,13 @@ class _Walk:
         self.root_at = tuple(self.ev(x, node, "at") for x in at)
         box = tuple(self.ev(x, node, "box") for x in kind.box)
         parts = [_trunk(kind.body, self.p.trunk_mass, box, self.root_at, _FACES[kind.faces])]
-        # an arm (a chain of joints ending in a gripper) holds the payload wherever it stands
-        roles = {k.role for n in node.walk() if (k := self.kinds.of(n.kinds)) is not None}
-        arm = "joint" in roles  # a serial arm's chain, whatever ends it
-        if kind.payload == "root" and not arm:
+        # an arm's gripper holds the payload wherever the arm stands (each gripper of a
+        # plan with several); a chain ending in a tool or nothing (a head) carries it only
+        # on a base that says so (an arm's base), else it rides on the root
+        grips = any(
+            k.end == "gripper" for n in node.walk() if (k := self.kinds.of(n.kinds)) is not None
+        )
+        if kind.payload == "root" and not grips:
             parts.append(_point(kind.body, "payload", self.p.payload, self.root_at))
         else:
             self.payload_at_effector = True
@@ -876,6 +879,8 @@ STRUCTURES = (
     "wheeled",
     "steered",
     "mobile_manipulator",
+    "legged_manipulator",
+    "multi_arm",
 )
 
 
@@ -884,12 +889,15 @@ def structure_of(plan: BodyPlan, kinds: PartKinds) -> str:
     on a chassis ("wheeled"; "steered" when a wheel part turns on a joint that is no
     wheel's: a steering joint), three or more legs ("multiped"), two legs ("biped"), a chain
     of modules ("module_chain"), a chain of joints on a fixed base ending in a gripper, a
-    tool or nothing ("serial_arm"), both such a chain and wheels ("mobile_manipulator");
-    "" for none of these."""
+    tool or nothing ("serial_arm"; several such chains: "multi_arm"), such chains on
+    wheels ("mobile_manipulator") or on three or more legs ("legged_manipulator": a head
+    or an arm on a multiped's trunk); "" for none of these (chains on two legs or on a
+    module chain)."""
     found = [kinds.of(n.kinds) for n in plan.root.walk()]
     roles = [(k.role if k is not None else "") for k in found]
     legs = roles.count("leg")
-    if "wheel" in roles and "joint" in roles:  # an arm (whatever ends it) on wheels
+    chains = "joint" in roles  # arms, heads, tails: chains of joints, whatever ends them
+    if "wheel" in roles and chains:  # arms on wheels
         return "mobile_manipulator"
     if "wheel" in roles:
         steered = any(
@@ -898,14 +906,29 @@ def structure_of(plan: BodyPlan, kinds: PartKinds) -> str:
         )
         return "steered" if steered else "wheeled"
     if legs >= 3:
-        return "multiped"
+        return "legged_manipulator" if chains else "multiped"
     if legs == 2:
-        return "biped"
+        return "" if chains else "biped"
     if "module" in roles:
-        return "module_chain"
-    if "joint" in roles:  # a chain of joints on a fixed base, ending in a gripper, a
-        return "serial_arm"  # tool or nothing
+        return "" if chains else "module_chain"
+    if chains:  # chains of joints on a fixed base, ending in a gripper, a tool or nothing
+        return "multi_arm" if len(chain_starts(plan, kinds)) > 1 else "serial_arm"
     return ""
+
+
+def chain_starts(plan: BodyPlan, kinds: PartKinds) -> list[PartNode]:
+    """The first part of each chain of joints and links (an arm, a head, a tail), in the
+    plan's depth-first order: a part of role joint or link whose parent has neither."""
+    out: list[PartNode] = []
+    stack: list[tuple[PartNode, bool]] = [(plan.root, False)]
+    while stack:
+        node, inside = stack.pop()
+        k = kinds.of(node.kinds)
+        here = k is not None and k.role in ("joint", "link")
+        if here and not inside:
+            out.append(node)
+        stack.extend((c, here) for c in reversed(node.children))
+    return out
 
 
 def serial_links(plan: BodyPlan, kinds: PartKinds) -> list[list[str]]:
