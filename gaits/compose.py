@@ -697,8 +697,9 @@ class ComposedController(Controller):
             "drive to the object, pick it, drive to the place target and put it down "
             "(the base turns and drives, the arm stands by; world frame)",
             (
-                *xyz("pick_", "object", ahead, 0.0),
-                *xyz("place_", "place target", ahead + 1.5 * reach, 0.5 * reach),
+                # in front of the arm (one of several stands aside on the base)
+                *xyz("pick_", "object", ahead, 0.0 + float(self.mount[1])),
+                *xyz("place_", "place target", ahead + 1.5 * reach, 0.5 * reach + float(self.mount[1])),
                 Parameter(
                     "clearance",
                     "float",
