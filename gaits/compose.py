@@ -2,6 +2,18 @@
 manipulator) offers the behaviours of both, and a ``pick-and-place`` that drives to the
 object, picks it, drives on and places it.
 
+Any number of chains (arms, heads: chains of joints and links, whatever ends them) on any
+base compose so (issue 31, item 4): on wheels (``mobile_manipulator``), on a multiped's
+legs (``legged_manipulator``: the legs' behaviours with the chains held, a chain's with
+the legs standing as the design starts, at zero) or on a stationary base (``multi_arm``).
+With several chains each is planned by a view of this controller focused on it (the
+others held in their ready poses, in its tipping checks too), and its behaviours carry
+its name: ``left-grasping``, ``right-pick-and-place`` (the assembler's place: l, r of a
+pair or of two chains side by side across a serial mount; ``ARM_NAMES``); the base's
+behaviours (``driving``, ``walking`` ...) hold every chain. A single chain's behaviours
+keep their names. A chain on a root part the root carries (arms on a torso on a chassis)
+is split off the carried part as it is off the root.
+
 The body plan is split into its sub-structures (:func:`split`): the root's children whose
 subtree is a serial chain ending in an end effector (roles ``joint``/``link``/
 ``end_effector`` of the part kinds) make the arm, the rest the base. The arm becomes a body
@@ -53,9 +65,9 @@ safe side); the simulation decides the rest (``fell``).
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Mapping, Sequence
-import copy
 from dataclasses import replace
 from functools import cached_property
 
@@ -152,7 +164,9 @@ def split(plan: BodyPlan, kinds) -> tuple[BodyPlan, list[tuple[BodyPlan, int]]]:
             k
             for k in kinds.kinds.values()
             if k.root
-            and any(m.child in child.kinds and m.layout == "serial" and not m.links for m in k.mounts)
+            and any(
+                m.child in child.kinds and m.layout == "serial" and not m.links for m in k.mounts
+            )
         ]
         if not stand:
             raise ValueError(
@@ -223,7 +237,7 @@ class ComposedController(Controller):
     ) -> None:
         super().__init__(geometry)
         from gaits import CONTROLLERS, controller_for
-        from kinematics.assemble import serial_links, structure_of
+        from kinematics.assemble import structure_of
         from kinematics.partkinds import in_use
         from kinematics.templates import build, plan_of, register_plan
 
@@ -236,7 +250,9 @@ class ComposedController(Controller):
         fixed = not kind and not any(
             _role(kinds, n) for n in base_plan.root.walk() if n is not base_plan.root
         )
-        if not fixed and (kind in ("mobile_manipulator", "legged_manipulator") or kind not in CONTROLLERS):
+        if not fixed and (
+            kind in ("mobile_manipulator", "legged_manipulator") or kind not in CONTROLLERS
+        ):
             raise ValueError(
                 f"{geometry.robot_type}: its base's structure {kind!r} has no controller"
             )
@@ -256,7 +272,6 @@ class ComposedController(Controller):
                 raise ValueError(
                     f"{geometry.robot_type}: its base ({kind}) has no drive to carry an arm with"
                 )
-        full_links = serial_links(plan, kinds)
         q_names = self.template.model.q_names
         chains: list[_Chain] = []
         used: set[str] = set()
@@ -271,8 +286,7 @@ class ComposedController(Controller):
                 for q in q_names
                 if (q == own[0] or q.endswith("_" + own[0]))
                 and all(
-                    (f"{q[: -len(own[0]) - 1]}_{j}" if q != own[0] else j) in q_names
-                    for j in own
+                    (f"{q[: -len(own[0]) - 1]}_{j}" if q != own[0] else j) in q_names for j in own
                 )
             ]
             free = [p for p in prefixes if p not in used]
@@ -283,14 +297,12 @@ class ComposedController(Controller):
             design = tuple(f"{prefix}_{j}" if prefix else j for j in own)
             # the arm's lengths: its links' as the design names them
             segs = {s.body: s.length_name for s in self.template.segments}
-            rename = {
-                s.length_name: segs[f"{prefix}_{s.body}" if prefix else s.body]
-                for s in probe.segments
-                if (f"{prefix}_{s.body}" if prefix else s.body) in segs
+            bodies = {
+                s.length_name: f"{prefix}_{s.body}" if prefix else s.body for s in probe.segments
             }
-            if len(rename) != len(serial_links(arm_plan, kinds)[0] if probe.segments else []):
-                if not full_links:
-                    raise ValueError(f"{geometry.robot_type}: cannot match its arm's links")
+            if any(b not in segs for b in bodies.values()):
+                raise ValueError(f"{geometry.robot_type}: cannot match its arm's links")
+            rename = {own_name: segs[b] for own_name, b in bodies.items()}
             lengths = {k: float(geometry.lengths[v]) for k, v in rename.items()}
             arm_geometry = replace(
                 geometry,
@@ -299,8 +311,16 @@ class ComposedController(Controller):
                 lengths=lengths,
                 modules=1,
                 calibration={},
-                joint_speed={j: geometry.joint_speed[d] for j, d in zip(own, design, strict=True) if d in geometry.joint_speed},
-                joint_torque={j: geometry.joint_torque[d] for j, d in zip(own, design, strict=True) if d in geometry.joint_torque},
+                joint_speed={
+                    j: geometry.joint_speed[d]
+                    for j, d in zip(own, design, strict=True)
+                    if d in geometry.joint_speed
+                },
+                joint_torque={
+                    j: geometry.joint_torque[d]
+                    for j, d in zip(own, design, strict=True)
+                    if d in geometry.joint_torque
+                },
             )
             arm_template = build(arm_plan.robot_type, _params(arm_geometry))
             mount = _joint_origin(self.template, design[0]) - _joint_origin(arm_template, own[0])
@@ -309,7 +329,9 @@ class ComposedController(Controller):
                 options["max_acceleration"] = ARM_ACCELERATION
             if stiffness is not None:
                 options["stiffness"] = {
-                    j: float(stiffness[d]) for j, d in zip(own, design, strict=True) if d in stiffness
+                    j: float(stiffness[d])
+                    for j, d in zip(own, design, strict=True)
+                    if d in stiffness
                 }
             arm_kind = structure_of(arm_plan, kinds)
             if arm_kind != "serial_arm":
@@ -361,7 +383,9 @@ class ComposedController(Controller):
         self.arm_joints = chain.joints
         self.arm_own = chain.own
         self.mount = chain.mount
-        self.joints = (*self.base_joints, *chain.joints) if len(self.chains) > 1 else self.all_joints
+        self.joints = (
+            (*self.base_joints, *chain.joints) if len(self.chains) > 1 else self.all_joints
+        )
 
     def _view(self, chain: _Chain) -> ComposedController:
         view = copy.copy(self)
@@ -699,7 +723,12 @@ class ComposedController(Controller):
             (
                 # in front of the arm (one of several stands aside on the base)
                 *xyz("pick_", "object", ahead, 0.0 + float(self.mount[1])),
-                *xyz("place_", "place target", ahead + 1.5 * reach, 0.5 * reach + float(self.mount[1])),
+                *xyz(
+                    "place_",
+                    "place target",
+                    ahead + 1.5 * reach,
+                    0.5 * reach + float(self.mount[1]),
+                ),
                 Parameter(
                     "clearance",
                     "float",
@@ -802,14 +831,20 @@ class ComposedController(Controller):
             mine = dict(zip(self.arm_joints, zip(held, planned, strict=True), strict=True))
             n = len(t.times)
             pos = np.column_stack(
-                [np.full(n, mine[j][0]) if j in mine else t.positions[:, cols[j]] for j in self.joints]
+                [
+                    np.full(n, mine[j][0]) if j in mine else t.positions[:, cols[j]]
+                    for j in self.joints
+                ]
             )
             vel = np.column_stack(
                 [np.zeros(n) if j in mine else t.velocities[:, cols[j]] for j in self.joints]
             )
             info = dict(t.info)
             info["planned_positions"] = np.column_stack(
-                [np.full(n, mine[j][1]) if j in mine else t.positions[:, cols[j]] for j in self.joints]
+                [
+                    np.full(n, mine[j][1]) if j in mine else t.positions[:, cols[j]]
+                    for j in self.joints
+                ]
             )
             return Trajectory(name, t.times, self.joints, pos, vel, info)
         t = self.arm.run(name, **params)

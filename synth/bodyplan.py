@@ -8,7 +8,9 @@ axiom declares, and a more specific class (``MyLeg`` where an ancestor says
 are the same parts, in order (the humanoid's trunk, named by ``HumanoidRobot`` and by
 ``BipedalRobot``, is one trunk). ``connectedTo`` between witnesses joins parts; the tree
 is rooted at the one part whose part kind is a root (a trunk, a chassis, an arm's base)
-and grows away from it. Parts the axioms do not connect to anything hang on the root (the
+and grows away from it. A plan with several root parts joined by ``connectedTo`` (a torso
+on a chassis) is one tree rooted at the one whose part kind mounts the others (a ``top``
+mount) and none of theirs it. Parts the axioms do not connect to anything hang on the root (the
 part kinds' mount patterns place them). Only parts with a part kind (or structural parts,
 which must have one) enter the plan: the main module, the battery and sensors ride on
 the root and are counted by the conceptual design.
@@ -18,7 +20,8 @@ subclasses (the nearest class's wins); ``extensiblePart`` marks the classes whos
 grow with the design (a snake's modules).
 
 Refusals (``OntologyError``, exit 2) name the part and the axiom's file:line:col: a part
-kind no data describes, a ``connectedTo`` cycle, a body plan with no root or two, parts
+kind no data describes, a ``connectedTo`` cycle, a body plan with no root, root parts
+that no ``connectedTo`` joins or whose kinds do not say which carries the others, parts
 not connected to the root.
 """
 

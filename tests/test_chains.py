@@ -237,9 +237,7 @@ def test_each_arm_has_its_own_behaviours_and_the_others_hold(cli, tmp_path) -> N
     from gaits import controller_for
     from gaits.base import DesignGeometry
 
-    r, out = _design(
-        cli, tmp_path, "driving", "pick-and-place", "--ontology", DUAL, "--no-verify"
-    )
+    r, out = _design(cli, tmp_path, "driving", "pick-and-place", "--ontology", DUAL, "--no-verify")
     assert r.code == 0, r.err
     rec = _record(out)
     c = controller_for(DesignGeometry.from_record(rec))
