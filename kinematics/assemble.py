@@ -892,11 +892,13 @@ def structure_of(plan: BodyPlan, kinds: PartKinds) -> str:
     tool or nothing ("serial_arm"; several such chains: "multi_arm"), such chains on
     wheels ("mobile_manipulator") or on three or more legs ("legged_manipulator": a head
     or an arm on a multiped's trunk); "" for none of these (chains on two legs or on a
-    module chain)."""
+    module chain, arm parts of role "arm" anywhere but on a biped's torso)."""
     found = [kinds.of(n.kinds) for n in plan.root.walk()]
     roles = [(k.role if k is not None else "") for k in found]
     legs = roles.count("leg")
     chains = "joint" in roles  # arms, heads, tails: chains of joints, whatever ends them
+    if "arm" in roles and legs != 2:  # a limb part of role arm (a HumanoidArm): only a
+        return ""  # biped's torso carries one (its controller swings them)
     if "wheel" in roles and chains:  # arms on wheels
         return "mobile_manipulator"
     if "wheel" in roles:

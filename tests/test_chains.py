@@ -197,15 +197,40 @@ BIPED_ARM = """
 """
 
 
-def test_a_chain_on_a_biped_is_refused_naming_what_is_sized(cli, tmp_path) -> None:
-    src = tmp_path / "biped.kif"
-    src.write_text(BIPED_ARM)
-    r = cli(
-        "design", "walking", "pick-and-place", "--ontology", str(src), "--no-input", "--no-verify"
-    )
+#: a torso on a chassis with the humanoid's arm parts (role arm: its controller swings them)
+ARMED_CART = """
+(subclass ArmedCart WheeledRobot)
+(instance ArmedCart BaseConfiguration)
+(=> (instance ?ROB ArmedCart)
+  (exists (?L ?R ?C ?CH ?T ?A1 ?A2 ?H1 ?H2)
+    (and (instance ?L DriveWheel) (instance ?R DriveWheel) (instance ?C CasterWheel)
+      (instance ?CH RobotChassis) (instance ?T HumanoidTorso)
+      (instance ?A1 HumanoidArm) (instance ?A2 HumanoidArm)
+      (instance ?H1 RoboticGripper) (instance ?H2 RoboticGripper)
+      (robotPart ?L ?ROB) (robotPart ?R ?ROB) (robotPart ?C ?ROB) (robotPart ?CH ?ROB)
+      (robotPart ?T ?ROB) (robotPart ?A1 ?ROB) (robotPart ?A2 ?ROB) (robotPart ?H1 ?ROB)
+      (robotPart ?H2 ?ROB)
+      (connectedTo ?L ?CH) (connectedTo ?R ?CH) (connectedTo ?C ?CH) (connectedTo ?T ?CH)
+      (connectedTo ?A1 ?T) (connectedTo ?A2 ?T) (connectedTo ?H1 ?A1) (connectedTo ?H2 ?A2))))
+"""
+
+
+@pytest.mark.parametrize(
+    ("text", "robot", "abilities"),
+    [
+        (BIPED_ARM, "ArmedBiped", ("walking", "pick-and-place")),
+        (ARMED_CART, "ArmedCart", ("driving", "grasping")),
+    ],
+)
+def test_a_shape_parmor_does_not_size_is_refused_naming_what_it_sizes(
+    cli, tmp_path, text, robot, abilities
+) -> None:
+    src = tmp_path / "robot.kif"
+    src.write_text(text)
+    r = cli("design", *abilities, "--ontology", str(src), "--no-input", "--no-verify")
     assert r.code == 2, r.err
-    assert "ArmedBiped has no sizing rules" in r.err and "legged_manipulator" in r.err
-    assert "Traceback" not in r.err
+    assert f"{robot} has no sizing rules" in r.err and "legged_manipulator" in r.err
+    assert "on three or more legs" in r.err and "Traceback" not in r.err
 
 
 def test_two_three_joint_arms_are_not_a_six_joint_chain(cli) -> None:
