@@ -250,6 +250,7 @@ class _Walk:
         self.recs: list[_Rec] = []
         self.legs = 0
         self.payload_at_effector = False
+        self.grips = False
         self.link_index = 0
 
     def ev(self, x, node: PartNode, what: str) -> float:
@@ -281,10 +282,11 @@ class _Walk:
         # an arm's gripper holds the payload wherever the arm stands (each gripper of a
         # plan with several); a chain ending in a tool or nothing (a head) carries it only
         # on a base that says so (an arm's base), else it rides on the root
-        grips = any(
-            k.end == "gripper" for n in node.walk() if (k := self.kinds.of(n.kinds)) is not None
-        )
-        if kind.payload == "root" and not grips:
+        found = [k for n in node.walk() if (k := self.kinds.of(n.kinds)) is not None]
+        chains = any(k.role == "joint" for k in found)
+        #: the plan's chains hold grippers: they hold the payload (a tool's tip does not)
+        self.grips = chains and any(k.end == "gripper" for k in found)
+        if kind.payload == "root" and not self.grips:
             parts.append(_point(kind.body, "payload", self.p.payload, self.root_at))
         else:
             self.payload_at_effector = True
@@ -783,7 +785,7 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
                         dims,
                     )
                 )
-            if w.payload_at_effector:  # held at the tip
+            if w.payload_at_effector and not w.grips:  # held at the tip
                 parts.append(_point(r.body, "payload", p.payload, (0.0, 0.0, 0.0)))
             effectors.append(r.body)
         elif r.end == "plate" and r.plate is not None:
