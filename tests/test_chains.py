@@ -299,7 +299,10 @@ def test_the_ros_package_addresses_each_arm(cli, tmp_path) -> None:
 
 
 def test_two_arms_on_a_fixed_base_are_designed_and_robust(cli, tmp_path) -> None:
-    r, out = _design(cli, tmp_path, "two-handed-grasping", "pick-and-place", "--ontology", STATION)
+    r, out = _design(
+        cli, tmp_path, "two-handed-grasping", "pick-and-place", "--ontology", STATION,
+        "--robustness", "8",
+    )  # fmt: skip
     assert r.code == 0, r.err
     rec = _record(out)
     assert rec["robot_type"] == "TwoArmStation"
@@ -317,7 +320,7 @@ def test_two_arms_on_a_fixed_base_are_designed_and_robust(cli, tmp_path) -> None
 
 
 def test_a_quadruped_with_a_head_walks_with_it_held_and_points_its_camera(cli, tmp_path):
-    r, out = _design(cli, tmp_path, "walking", "pointing", "--ontology", HEAD)
+    r, out = _design(cli, tmp_path, "walking", "pointing", "--ontology", HEAD, "--robustness", "8")
     assert r.code == 0, r.err
     rec = _record(out)
     joints = [j["name"] for j in rec["joints"]]
