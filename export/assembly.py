@@ -412,6 +412,24 @@ def _trunk(b: _Builder, lp: LabelledPart, body: str) -> list[PartUse]:
     return out
 
 
+def _plate(b: _Builder, lp: LabelledPart, body: str) -> list[PartUse]:
+    """A root part carried by another (a torso on a chassis): a printed plate of the
+    template's mass, ``face_thickness_m`` thick, its footprint the part's box face scaled
+    to that area (as a root body's plate; its modules are the carrier's)."""
+    t = b.catalog.passive.face_thickness_m
+    if lp.mass <= _MIN_PLATE_KG:
+        return []
+    area = lp.mass / (b.rho * t)
+    lx, ly = lp.dims[0], lp.dims[1]
+    px = float(np.sqrt(area * lx / ly))
+    py = area / px
+    name = f"{body}_plate"
+    d = b.design(
+        ("plate", name, px, py, t), name, "plate", lambda: meshes.plate_mesh(px, py, t), px * py * t
+    )
+    return [b.printed(d, lp.placement @ transform((0.0, 0.0, -t / 2)))]
+
+
 def _part_uses(
     b: _Builder, lp: LabelledPart, body: str, axis: np.ndarray, models: dict, tmpl: Template
 ) -> list[PartUse]:
@@ -425,6 +443,8 @@ def _part_uses(
         return _wheel(b, lp)
     if lp.kind == "trunk":
         return _trunk(b, lp, body)
+    if lp.kind == "plate":
+        return _plate(b, lp, body)
     if lp.mass <= 0.0:
         return []
     if lp.kind == "payload":

@@ -22,6 +22,8 @@ CONTROLLERS: dict[str, tuple[str, str]] = {
     "multiped": ("gaits.legged", "LeggedController"),
     "biped": ("gaits.humanoid", "HumanoidController"),
     "mobile_manipulator": ("gaits.compose", "ComposedController"),
+    "legged_manipulator": ("gaits.compose", "ComposedController"),
+    "multi_arm": ("gaits.compose", "ComposedController"),
 }
 
 

@@ -2,6 +2,18 @@
 manipulator) offers the behaviours of both, and a ``pick-and-place`` that drives to the
 object, picks it, drives on and places it.
 
+Any number of chains (arms, heads: chains of joints and links, whatever ends them) on any
+base compose so (issue 31, item 4): on wheels (``mobile_manipulator``), on a multiped's
+legs (``legged_manipulator``: the legs' behaviours with the chains held, a chain's with
+the legs standing as the design starts, at zero) or on a stationary base (``multi_arm``).
+With several chains each is planned by a view of this controller focused on it (the
+others held in their ready poses, in its tipping checks too), and its behaviours carry
+its name: ``left-grasping``, ``right-pick-and-place`` (the assembler's place: l, r of a
+pair or of two chains side by side across a serial mount; ``ARM_NAMES``); the base's
+behaviours (``driving``, ``walking`` ...) hold every chain. A single chain's behaviours
+keep their names. A chain on a root part the root carries (arms on a torso on a chassis)
+is split off the carried part as it is off the root.
+
 The body plan is split into its sub-structures (:func:`split`): the root's children whose
 subtree is a serial chain ending in an end effector (roles ``joint``/``link``/
 ``end_effector`` of the part kinds) make the arm, the rest the base. The arm becomes a body
@@ -53,6 +65,7 @@ safe side); the simulation decides the rest (``fell``).
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
@@ -78,6 +91,10 @@ __all__ = ["ComposedController", "split"]
 SAMPLE_DT = 0.01
 #: Roles of the part kinds that make a serial arm (a chain ending in an end effector).
 ARM_ROLES = frozenset({"joint", "link", "end_effector"})
+#: The name an arm's behaviours carry on a design with several, by the prefix of where it
+#: stands (``kinematics.assemble``: l, r of a pair or of two chains side by side; l, m, r
+#: of three); other prefixes (c1, c2 ...) as they are.
+ARM_NAMES = {"l": "left", "r": "right", "m": "middle"}
 #: Fraction of the base's top speed that a pick-and-place drive peaks at: slow enough for
 #: the drive's load model to be accurate (the arm places within millimetres of where the
 #: base was planned to stand).
@@ -127,43 +144,54 @@ def _role(kinds, node: PartNode) -> str:
 
 
 def _is_arm(kinds, node: PartNode) -> bool:
+    """Whether ``node`` starts a chain of joints and links (an arm, a head), whatever ends
+    it (a gripper, a tool, nothing)."""
     roles = {_role(kinds, n) for n in node.walk()}
-    return "end_effector" in roles and roles <= ARM_ROLES | {""}
+    return _role(kinds, node) in ("joint", "link") and roles <= ARM_ROLES | {""}
 
 
 def split(plan: BodyPlan, kinds) -> tuple[BodyPlan, list[tuple[BodyPlan, int]]]:
-    """(the base's plan, [(an arm's plan, its index among the root's children)]) of a
-    composed body plan: the root's children whose parts are all of a serial arm's roles
-    and end in an end effector are arms, each rooted at a stationary root kind that mounts
-    its first part as the plan's root does (same layout, links without a prefix); the
-    rest is the base. ValueError when an arm has no such root kind."""
+    """(the base's plan, [(an arm's plan, the index among the root's children of the part
+    it hangs on)]) of a composed body plan: the chains of joints and links on the root
+    part or on a root part it carries (a torso on a chassis) are arms, each rooted at a
+    stationary root kind that mounts its first part with a serial mount (links without a
+    prefix); the rest is the base. ValueError when an arm has no such root kind."""
     root = plan.root
-    rk = kinds.of(root.kinds)
     arms: list[tuple[BodyPlan, int]] = []
-    base_children = []
-    for i, child in enumerate(root.children):
-        if not _is_arm(kinds, child):
-            base_children.append(child)
-            continue
-        layouts = {m.layout for m in (rk.mounts if rk else ()) if m.child in child.kinds}
+
+    def arm(child: PartNode, parent: PartNode, i: int) -> None:
         stand = [
             k
             for k in kinds.kinds.values()
             if k.root
-            and k.cls not in root.kinds
             and any(
-                m.child in child.kinds and m.layout in layouts and not m.links for m in k.mounts
+                m.child in child.kinds and m.layout == "serial" and not m.links for m in k.mounts
             )
         ]
         if not stand:
             raise ValueError(
                 f"{plan.robot_type}: no stationary root part kind mounts its arm's "
-                f"{child.kind} (a 'root' kind with a {'/'.join(sorted(layouts)) or 'serial'} "
-                "mount of it)"
+                f"{child.kind} (a 'root' kind with a serial mount of it)"
             )
         k = sorted(stand, key=lambda k: k.cls)[0]
         arm_root = PartNode(k.cls, (k.cls,), (child,))
         arms.append((BodyPlan(f"{plan.robot_type}.arm{len(arms) + 1}", arm_root), i))
+
+    base_children = []
+    for i, child in enumerate(root.children):
+        ck = kinds.of(child.kinds)
+        if _is_arm(kinds, child):
+            arm(child, root, i)
+        elif ck is not None and ck.root:  # a part it carries: its arms are the robot's
+            keep = []
+            for g in child.children:
+                if _is_arm(kinds, g):
+                    arm(g, child, i)
+                else:
+                    keep.append(g)
+            base_children.append(replace(child, children=tuple(keep)))
+        else:
+            base_children.append(child)
     base = BodyPlan(
         f"{plan.robot_type}.base",
         replace(root, children=tuple(base_children)),
@@ -173,13 +201,33 @@ def split(plan: BodyPlan, kinds) -> tuple[BodyPlan, list[tuple[BodyPlan, int]]]:
     return base, arms
 
 
+class _Chain:
+    """One arm of a composition: its controller (on its own plan, joints named as a
+    stationary arm's), its joints' names in the design (``joints``; its own: ``own``), the
+    name its behaviours carry (``name``: "" for a design's only arm; left, right, middle
+    or the assembler's prefix), where its first joint stands on the base (``mount``, root
+    frame) and the design's name of each of its bodies (``body``)."""
+
+    def __init__(self, controller, own, joints, prefix: str, mount: np.ndarray) -> None:
+        self.controller = controller
+        self.own = tuple(own)
+        self.joints = tuple(joints)
+        self.prefix = prefix
+        self.name = ARM_NAMES.get(prefix, prefix)
+        self.mount = mount
+
+    def body(self, own: str) -> str:
+        return f"{self.prefix}_{own}" if self.prefix else own
+
+
 class ComposedController(Controller):
-    """The behaviours of a locomotion base carrying an arm (see the module docstring).
+    """The behaviours of chains of joints (arms, heads) on a base: a locomotion base
+    (wheels, legs) or a stationary one (see the module docstring).
 
     ``base_position`` (3,) m: where the base's root stands in the world at the start (the
-    MJCF's root body position; default: at the origin, standing on its wheels);
+    MJCF's root body position; default: at the origin, standing on its wheels or feet);
     ``stiffness``: joint -> servo stiffness N m/rad (the MJCF's ``kp``), passed on to the
-    arm's controller for its droop compensation."""
+    arms' controllers for their droop compensation."""
 
     def __init__(
         self,
@@ -189,75 +237,123 @@ class ComposedController(Controller):
     ) -> None:
         super().__init__(geometry)
         from gaits import CONTROLLERS, controller_for
-        from kinematics.assemble import serial_links, structure_of
+        from kinematics.assemble import structure_of
         from kinematics.partkinds import in_use
         from kinematics.templates import build, plan_of, register_plan
 
         kinds = in_use()
         plan = plan_of(geometry.template)
         base_plan, arms = split(plan, kinds)
-        if len(arms) != 1:
-            raise ValueError(
-                f"{geometry.robot_type}: a composition drives one arm on a base, "
-                f"its body plan has {len(arms)}"
-            )
-        arm_plan, _ = arms[0]
+        if not arms:
+            raise ValueError(f"{geometry.robot_type}: a composition drives arms, it has none")
         kind = structure_of(base_plan, kinds)
-        if kind == "mobile_manipulator" or kind not in CONTROLLERS:
+        fixed = not kind and not any(
+            _role(kinds, n) for n in base_plan.root.walk() if n is not base_plan.root
+        )
+        if not fixed and (
+            kind in ("mobile_manipulator", "legged_manipulator") or kind not in CONTROLLERS
+        ):
             raise ValueError(
                 f"{geometry.robot_type}: its base's structure {kind!r} has no controller"
             )
-        arm_kind = structure_of(arm_plan, kinds)
-        if arm_kind not in CONTROLLERS or arm_kind == "mobile_manipulator":
-            raise ValueError(
-                f"{geometry.robot_type}: its arm's structure {arm_kind!r} has no controller"
-            )
-        if base_position is None:  # standing on its wheels at the origin (as the MJCF)
+        #: how the base moves: "wheels" (it drives), "legs" (it walks) or "" (it stands)
+        self.locomotion = "" if fixed else ("legs" if self.template.feet else "wheels")
+        if base_position is None:  # standing on its wheels or feet at the origin (as the MJCF)
             base_position = (0.0, 0.0, _standing_height(self.template))
         self.base_position = np.array(base_position, dtype=float)
-        # the base's controller on the whole design: it carries the arm and the payload
-        module, name = CONTROLLERS[kind]
-        from importlib import import_module
+        # the base's controller on the whole design: it carries the arms and the payload
+        self.base = None
+        if not fixed:
+            from importlib import import_module
 
-        self.base = getattr(import_module(module), name)(geometry)
-        if not hasattr(self.base, "drive"):
-            raise ValueError(
-                f"{geometry.robot_type}: its base ({kind}) has no drive to carry an arm with"
-            )
-        # the arm's lengths: the chain's links renamed as a stationary arm names them
-        register_plan(arm_plan)
-        full_links = serial_links(plan, kinds)
-        own_links = serial_links(arm_plan, kinds)
-        rename = {}
-        if own_links:
-            chain = next((c for c in full_links if len(c) == len(own_links[0])), None)
-            if chain is None:
+            module, name = CONTROLLERS[kind]
+            self.base = getattr(import_module(module), name)(geometry)
+            if self.locomotion == "wheels" and not hasattr(self.base, "drive"):
+                raise ValueError(
+                    f"{geometry.robot_type}: its base ({kind}) has no drive to carry an arm with"
+                )
+        q_names = self.template.model.q_names
+        chains: list[_Chain] = []
+        used: set[str] = set()
+        for arm_plan, _ in arms:
+            register_plan(arm_plan)
+            probe = build(arm_plan.robot_type)
+            own = probe.model.q_names
+            # its joints in the design: the same names, or with the prefix of where it
+            # stands (two arms of one mount: l_base_yaw, r_base_yaw)
+            prefixes = [
+                q[: -len(own[0]) - 1] if q != own[0] else ""
+                for q in q_names
+                if (q == own[0] or q.endswith("_" + own[0]))
+                and all(
+                    (f"{q[: -len(own[0]) - 1]}_{j}" if q != own[0] else j) in q_names for j in own
+                )
+            ]
+            free = [p for p in prefixes if p not in used]
+            if not free:
+                raise ValueError(f"{geometry.robot_type}: cannot find its arm's joints {own}")
+            prefix = free[0]
+            used.add(prefix)
+            design = tuple(f"{prefix}_{j}" if prefix else j for j in own)
+            # the arm's lengths: its links' as the design names them
+            segs = {s.body: s.length_name for s in self.template.segments}
+            bodies = {
+                s.length_name: f"{prefix}_{s.body}" if prefix else s.body for s in probe.segments
+            }
+            if any(b not in segs for b in bodies.values()):
                 raise ValueError(f"{geometry.robot_type}: cannot match its arm's links")
-            rename = dict(zip(chain, own_links[0], strict=True))
-        lengths = {rename[k]: v for k, v in geometry.lengths.items() if k in rename}
-        arm_geometry = replace(
-            geometry,
-            robot_type=arm_plan.robot_type,
-            template=arm_plan.robot_type,
-            lengths=lengths,
-            modules=1,
-            calibration={},
-        )
-        arm_template = build(arm_plan.robot_type, _params(arm_geometry))
-        # where the arm's first joint stands on the base (root frame) and on its own base
-        first = arm_template.model.q_names[0]
-        self.mount = _joint_origin(self.template, first) - _joint_origin(arm_template, first)
-        options: dict[str, object] = {
-            "base_position": tuple(self.base_position + self.mount),
-            "max_acceleration": ARM_ACCELERATION,
-        }
-        if stiffness is not None:
-            options["stiffness"] = dict(stiffness)
-        self.arm = controller_for(arm_geometry, **options)
-        self.wheels = tuple(self.base.joints)
-        self.arm_joints = tuple(self.arm.joints)
-        self.joints = (*self.wheels, *self.arm_joints)
-        missing = set(self.joints) - set(self.template.model.q_names)
+            rename = {own_name: segs[b] for own_name, b in bodies.items()}
+            lengths = {k: float(geometry.lengths[v]) for k, v in rename.items()}
+            arm_geometry = replace(
+                geometry,
+                robot_type=arm_plan.robot_type,
+                template=arm_plan.robot_type,
+                lengths=lengths,
+                modules=1,
+                calibration={},
+                joint_speed={
+                    j: geometry.joint_speed[d]
+                    for j, d in zip(own, design, strict=True)
+                    if d in geometry.joint_speed
+                },
+                joint_torque={
+                    j: geometry.joint_torque[d]
+                    for j, d in zip(own, design, strict=True)
+                    if d in geometry.joint_torque
+                },
+            )
+            arm_template = build(arm_plan.robot_type, _params(arm_geometry))
+            mount = _joint_origin(self.template, design[0]) - _joint_origin(arm_template, own[0])
+            options: dict[str, object] = {"base_position": tuple(self.base_position + mount)}
+            if self.locomotion:  # gentle: its reaction must not move the base under it
+                options["max_acceleration"] = ARM_ACCELERATION
+            if stiffness is not None:
+                options["stiffness"] = {
+                    j: float(stiffness[d])
+                    for j, d in zip(own, design, strict=True)
+                    if d in stiffness
+                }
+            arm_kind = structure_of(arm_plan, kinds)
+            if arm_kind != "serial_arm":
+                raise ValueError(
+                    f"{geometry.robot_type}: its arm's structure {arm_kind!r} has no controller"
+                )
+            chains.append(
+                _Chain(controller_for(arm_geometry, **options), own, design, prefix, mount)
+            )
+        # in the design's joint order
+        chains.sort(key=lambda c: q_names.index(c.joints[0]))
+        if len(chains) > 1 and len({c.name for c in chains}) != len(chains):
+            raise ValueError(f"{geometry.robot_type}: two of its arms have one name")
+        self.chains = tuple(chains)
+        mine = {j for c in chains for j in c.joints}
+        if self.locomotion == "wheels":
+            self.base_joints = tuple(self.base.joints)
+        else:  # the legs' joints (a legged plan lists every movable joint), or none
+            self.base_joints = tuple(j for j in self.movable_joints() if j not in mine)
+        self.wheels = self.base_joints
+        self.all_joints = (*self.base_joints, *(j for c in chains for j in c.joints))
+        missing = set(self.all_joints) - set(q_names)
         if missing:
             raise ValueError(
                 f"{geometry.robot_type}: joints {sorted(missing)} are not the design's"
@@ -266,12 +362,58 @@ class ComposedController(Controller):
             geometry.template,
             _params(geometry, float(geometry.params.get("payload", 0.0))),
         )
+        self._focus(chains[0])
+        #: one view of this controller per arm (each plans with its own arm, the others
+        #: held): the behaviours of a design with several arms
+        self.views: tuple[ComposedController, ...] = (self,)
+        #: the whole of a design with several arms (its behaviours: each arm's, each planned
+        #: by the view of that arm, the others held; the base's by the first view)
+        self.whole = False
+        if len(chains) > 1:
+            self.views = tuple(self._view(c) for c in chains)
+            for view in self.views:
+                view.views = self.views
+            self.joints = self.all_joints
+            self.whole = True
+
+    def _focus(self, chain: _Chain) -> None:
+        """Plan with ``chain``'s arm (the others held in their ready poses)."""
+        self.chain = chain
+        self.arm = chain.controller
+        self.arm_joints = chain.joints
+        self.arm_own = chain.own
+        self.mount = chain.mount
+        self.joints = (
+            (*self.base_joints, *chain.joints) if len(self.chains) > 1 else self.all_joints
+        )
+
+    def _view(self, chain: _Chain) -> ComposedController:
+        view = copy.copy(self)
+        for cached in ("hold", "_behaviors", "rest"):
+            view.__dict__.pop(cached, None)
+        view._focus(chain)
+        view.identity = None if self.identity is None else (*self.identity, chain.name)
+        return view
+
+    @cached_property
+    def rest(self) -> np.ndarray:
+        """(nv,) rad: the design's configuration with every other arm in its ready pose
+        (planned) and the base at zero: where :meth:`tip_margin` puts what this arm's plan
+        does not move."""
+        m = self.template.model
+        q = np.zeros(m.nv)
+        for view in self.views:
+            if view.chain is not self.chain:
+                q[[m.q_names.index(j) for j in view.chain.joints]] = view.hold[1]
+        return q
 
     # --- the pieces ------------------------------------------------------------------
 
     def calibration_probes(self) -> list[tuple[str, dict[str, object]]]:
-        """The base's own probes, then ``travel`` over two distances and ``turning`` by two
-        angles at the defaults (:meth:`calibrate`)."""
+        """The base's own probes, then (a base on wheels) ``travel`` over two distances and
+        ``turning`` by two angles at the defaults (:meth:`calibrate`)."""
+        if self.locomotion != "wheels":
+            return list(self.base.calibration_probes()) if self.base is not None else []
         return [*self.base.calibration_probes(), *self._probes()]
 
     def _probes(self) -> list[tuple[str, dict[str, object]]]:
@@ -304,6 +446,8 @@ class ComposedController(Controller):
         a nearly constant speed, which ``travel_ratio`` measures at one speed
         (:meth:`_travel_command` scales it to others), as Mandow et al. calibrate a real
         base."""
+        if self.locomotion != "wheels":
+            return dict(self.base.calibrate(runs)) if self.base is not None and runs else {}
         nb = len(runs) - len(self._probes())
         # the base's own probes, seen as the base planned them: its wheels' columns
         nw = len(self.wheels)
@@ -413,8 +557,10 @@ class ComposedController(Controller):
     @cached_property
     def hold(self) -> tuple[np.ndarray, np.ndarray]:
         """The arm's ready pose (commanded: droop compensated, as its trajectories command
-        it; planned): the first sample of its ``positioning``."""
-        t = self.arm.run("positioning")
+        it; planned): the first sample of its ``positioning`` (of a chain that only points
+        its tool: of its first behaviour)."""
+        behaviours = self.arm.behaviors
+        t = self.arm.run("positioning" if "positioning" in behaviours else min(behaviours))
         return self._arm_block(t)[0], self._arm_block(t, "planned")[0]
 
     @cached_property
@@ -436,7 +582,7 @@ class ComposedController(Controller):
         q_arm = np.atleast_2d(q_arm)
 
         def moments(model) -> tuple[float, np.ndarray]:
-            Q = np.zeros((len(q_arm), model.nv))
+            Q = np.tile(self.rest, (len(q_arm), 1))  # the other arms held
             Q[:, [model.q_names.index(j) for j in self.arm_joints]] = q_arm
             T = forward_kinematics(model, Q)  # (N, nb, 4, 4)
             mass = np.array([b.mass for b in model.bodies])
@@ -476,6 +622,29 @@ class ComposedController(Controller):
 
     @cached_property
     def _behaviors(self) -> dict[str, BehaviorSpec]:
+        if self.whole:  # several arms: each its own behaviours
+            out: dict[str, BehaviorSpec] = {}
+            self._route: dict[str, tuple[ComposedController, str]] = {}
+            for view in self.views:
+                mine = set(view.arm.behaviors) | {"pick-and-place"}
+                for n, spec in view._behaviors.items():
+                    if n not in mine:  # the base's: with every arm held
+                        if view is self.views[0]:
+                            out[n], self._route[n] = spec, (view, n)
+                        continue
+                    name = f"{view.chain.name}-{n}"
+                    alias = spec.alias_of
+                    out[name] = replace(
+                        spec,
+                        name=name,
+                        doc=f"{spec.doc} ({view.chain.name} arm)",
+                        ability=spec.realises,
+                        alias_of=f"{view.chain.name}-{alias}" if alias in mine else alias,
+                    )
+                    self._route[name] = (view, n)
+            return out
+        if self.locomotion != "wheels":  # the base's (if any) with the arm held, the arm's
+            return {**self.arm.behaviors, **(self.base.behaviors if self.base else {})}
         out = {**self.arm.behaviors, **self.base.behaviors}
         if "pick-and-place" in out:
             out["pick-and-place"] = self._pick_and_place_spec()
@@ -552,8 +721,14 @@ class ComposedController(Controller):
             "drive to the object, pick it, drive to the place target and put it down "
             "(the base turns and drives, the arm stands by; world frame)",
             (
-                *xyz("pick_", "object", ahead, 0.0),
-                *xyz("place_", "place target", ahead + 1.5 * reach, 0.5 * reach),
+                # in front of the arm (one of several stands aside on the base)
+                *xyz("pick_", "object", ahead, 0.0 + float(self.mount[1])),
+                *xyz(
+                    "place_",
+                    "place target",
+                    ahead + 1.5 * reach,
+                    0.5 * reach + float(self.mount[1]),
+                ),
                 Parameter(
                     "clearance",
                     "float",
@@ -568,6 +743,12 @@ class ComposedController(Controller):
         )
 
     def _run(self, name: str, params: Mapping[str, object]) -> Trajectory:
+        if self.whole:  # one arm's, or the base's
+            _ = self._behaviors
+            view, own = self._route[name]
+            return self._widen(view._run(own, params), name)
+        if self.locomotion != "wheels":
+            return self._standing(name, params)
         if name == "pick-and-place":
             return self._pick_and_place(params)
         if name == "travel":
@@ -628,6 +809,8 @@ class ComposedController(Controller):
         n = len(t.times)
         still = np.zeros((n, len(self.wheels)))
         info = dict(t.info) | {"locomotion": "wheeled", "body_length_m": self.base.body_length}
+        if "tool_body" in info:
+            info["tool_body"] = self.chain.body(str(info["tool_body"]))
         # the arm's own per-joint series, widened to the design's joints (wheels still)
         for key in ("planned_positions", "accelerations"):
             if key in info:
@@ -636,6 +819,76 @@ class ComposedController(Controller):
         vel = np.hstack([still, self._arm_block(t, "velocities")])
         info.update(self._hold_feedback())
         return Trajectory(name, t.times, self.joints, pos, vel, info)
+
+    def _standing(self, name: str, params: Mapping[str, object]) -> Trajectory:
+        """A behaviour of a design whose base walks or stands: the base's (its legs') with
+        the arm held in its ready pose, or the arm's with the legs standing (at zero, as
+        the design stands when it starts) or on a stationary base."""
+        held, planned = self.hold
+        if self.base is not None and name in self.base.behaviors:
+            t = self.base.run(name, **params)
+            cols = {j: i for i, j in enumerate(t.joints)}
+            mine = dict(zip(self.arm_joints, zip(held, planned, strict=True), strict=True))
+            n = len(t.times)
+            pos = np.column_stack(
+                [
+                    np.full(n, mine[j][0]) if j in mine else t.positions[:, cols[j]]
+                    for j in self.joints
+                ]
+            )
+            vel = np.column_stack(
+                [np.zeros(n) if j in mine else t.velocities[:, cols[j]] for j in self.joints]
+            )
+            info = dict(t.info)
+            info["planned_positions"] = np.column_stack(
+                [
+                    np.full(n, mine[j][1]) if j in mine else t.positions[:, cols[j]]
+                    for j in self.joints
+                ]
+            )
+            return Trajectory(name, t.times, self.joints, pos, vel, info)
+        t = self.arm.run(name, **params)
+        n = len(t.times)
+        still = np.zeros((n, len(self.base_joints)))
+        info = dict(t.info)
+        for key in ("planned_positions", "accelerations"):
+            if key in info:
+                info[key] = np.hstack([still, self._arm_block(t, key)])
+        if "tool_body" in info:
+            info["tool_body"] = self.chain.body(str(info["tool_body"]))
+        if self.base is not None:
+            info |= {"locomotion": "legged", "body_length_m": self.base.body_length}
+        pos = np.hstack([still, self._arm_block(t)])
+        vel = np.hstack([still, self._arm_block(t, "velocities")])
+        return Trajectory(name, t.times, self.joints, pos, vel, info)
+
+    def _widen(self, t: Trajectory, name: str) -> Trajectory:
+        """``t`` (the base's and one arm's joints) as behaviour ``name`` of the whole design:
+        every other arm held in its ready pose."""
+        cols = {j: i for i, j in enumerate(t.joints)}
+        held: dict[str, tuple[float, float]] = {}
+        for view in self.views:
+            cmd, planned = view.hold
+            held |= dict(zip(view.chain.joints, zip(cmd, planned, strict=True), strict=True))
+        n = len(t.times)
+
+        def widen(src: np.ndarray, fill: int | None) -> np.ndarray:
+            return np.column_stack(
+                [
+                    src[:, cols[j]]
+                    if j in cols
+                    else (np.zeros(n) if fill is None else np.full(n, held[j][fill]))
+                    for j in self.all_joints
+                ]
+            )
+
+        info = dict(t.info)
+        info["planned_positions"] = widen(np.asarray(info.get("planned_positions", t.positions)), 1)
+        if "accelerations" in info:
+            info["accelerations"] = widen(np.asarray(info["accelerations"]), None)
+        return Trajectory(
+            name, t.times, self.all_joints, widen(t.positions, 0), widen(t.velocities, None), info
+        )
 
     def _hold_feedback(self) -> dict[str, object]:
         """``info["feedback"]`` of a plan whose base stands still while the arm works (or
@@ -671,7 +924,7 @@ class ComposedController(Controller):
             src = np.gradient(t.velocities, t.times, axis=0)
         else:
             src = t.positions
-        return np.column_stack([src[:, t.joints.index(j)] for j in self.arm_joints])
+        return np.column_stack([src[:, t.joints.index(j)] for j in self.arm_own])
 
     # --- pick-and-place ------------------------------------------------------------------
 
@@ -818,7 +1071,7 @@ class ComposedController(Controller):
         m = self.arm.template.model
         q_arm = np.atleast_2d(q_arm)[:: max(1, len(np.atleast_2d(q_arm)) // 100)]
         Q = np.zeros((len(q_arm), m.nv))
-        Q[:, [m.q_names.index(j) for j in self.arm_joints]] = q_arm
+        Q[:, [m.q_names.index(j) for j in self.arm_own]] = q_arm
         T = forward_kinematics(m, Q)
         z = np.full(len(q_arm), np.inf)
         for k, corners in self._arm_corners:
@@ -973,7 +1226,7 @@ class ComposedController(Controller):
             "target": tuple(float(c) for c in place),
             "pick": tuple(float(c) for c in pick),
             "placed_at_s": round(placed_at, 9),
-            "tool_body": put.info.get("tool_body", "gripper_link"),
+            "tool_body": self.chain.body(str(put.info.get("tool_body", "gripper_link"))),
             "segments": tuple(segments),
             "base_end_pose": tuple(float(c) for c in pose),
             "locomotion": "wheeled",
@@ -1053,11 +1306,17 @@ class _Legs:
 
 
 def _standing_height(template) -> float:
-    """m: the root's height above the floor when the wheels stand on it (their lowest rim
-    points on z = 0, as the MJCF spawns the robot)."""
+    """m: the root's height above the floor when the wheels (or the feet) stand on it
+    (their lowest rim points, or the foot points, on z = 0, as the MJCF spawns the robot);
+    0 for a stationary base."""
     m = template.model
     T = forward_kinematics(m, np.zeros(m.nv))
     r = float(template.params.wheel_radius)
+    if template.feet and not template.wheels:
+        return max(
+            -float((T[m.body(f)] @ np.append(p, 1.0))[2])
+            for f, p in zip(template.feet, template.foot_points, strict=True)
+        )
     return max((r - float(T[m.body(w), 2, 3]) for w in template.wheels), default=0.0)
 
 

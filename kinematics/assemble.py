@@ -17,7 +17,7 @@ Errors are :class:`AssemblyError` (a ValueError) naming the part and the ontolog
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 
 import numpy as np
@@ -92,6 +92,7 @@ class _Rec:
     passive: bool = False
     tool: tuple[float, tuple[float, float, float], float] | None = None  # length, box, kg
     wheel_width: float | None = None  # the wheel kind's own width, m
+    plate: LabelledPart | None = None  # a carried root part's plate (end "plate")
 
 
 @dataclass
@@ -249,6 +250,7 @@ class _Walk:
         self.recs: list[_Rec] = []
         self.legs = 0
         self.payload_at_effector = False
+        self.grips = False
         self.link_index = 0
 
     def ev(self, x, node: PartNode, what: str) -> float:
@@ -277,10 +279,14 @@ class _Walk:
         self.root_at = tuple(self.ev(x, node, "at") for x in at)
         box = tuple(self.ev(x, node, "box") for x in kind.box)
         parts = [_trunk(kind.body, self.p.trunk_mass, box, self.root_at, _FACES[kind.faces])]
-        # an arm (a chain of joints ending in a gripper) holds the payload wherever it stands
-        roles = {k.role for n in node.walk() if (k := self.kinds.of(n.kinds)) is not None}
-        arm = "joint" in roles  # a serial arm's chain, whatever ends it
-        if kind.payload == "root" and not arm:
+        # an arm's gripper holds the payload wherever the arm stands (each gripper of a
+        # plan with several); a chain ending in a tool or nothing (a head) carries it only
+        # on a base that says so (an arm's base), else it rides on the root
+        found = [k for n in node.walk() if (k := self.kinds.of(n.kinds)) is not None]
+        chains = any(k.role == "joint" for k in found)
+        #: the plan's chains hold grippers: they hold the payload (a tool's tip does not)
+        self.grips = chains and any(k.end == "gripper" for k in found)
+        if kind.payload == "root" and not self.grips:
             parts.append(_point(kind.body, "payload", self.p.payload, self.root_at))
         else:
             self.payload_at_effector = True
@@ -304,8 +310,12 @@ class _Walk:
             by_mount.setdefault(key, []).append(c)
             mounts[key] = m
         order = 0
+        riders: list[tuple[PartNode, Mount]] = []  # root parts standing on this one
         for key, group in by_mount.items():
             m = mounts[key]
+            if placed and m is not None and m.layout == "top":
+                riders += [(c, m) for c in group]
+                continue
             if placed and m is not None and m.layout not in ("serial", "tip"):
                 places = self.layout(m, group, node)
             else:
@@ -317,12 +327,49 @@ class _Walk:
             jobs.sort(key=lambda j: (-j[0], j[1]))
         for _, _, c, t in jobs:
             self.part(c, t)
-        if chain:
-            m = next((m for c, m in ordered if c is chain[0]), None)
-            if placed and m is not None:  # where a chain starts on a root part
-                at = tuple(self.ev(x, node, "mount at") for x in m.at)
-                tip = _Tip(tip.rec, transform(at), tip.prefix, tip.forward)
-            self.serial(node, chain, tip, m.links if m is not None else "")
+        for c, m in riders:
+            self.rider(c, m, node, tip)
+        # the chains, by the mount that places them: one chain where the mount's ``at``
+        # says; several spread across the part (a serial mount) or where its layout puts
+        # them (a pair: at the shoulders), each named with its place's prefix
+        groups: dict[int, tuple[Mount | None, list[PartNode]]] = {}
+        for c in chain:
+            m = next((m for c2, m in ordered if c2 is c), None)
+            groups.setdefault(id(m) if m is not None else 0, (m, []))[1].append(c)
+        for m, group in groups.values():
+            if not (placed and m is not None):
+                self.serial(node, group, tip, m.links if m is not None else "")
+                continue
+            if m.layout == "serial":
+                places = self.spread(m, group, node)
+            else:
+                places = [(prefix, frame) for _, prefix, frame in self.layout(m, group, node)]
+            for c, (prefix, frame) in zip(group, places, strict=True):
+                name = f"{tip.prefix}_{prefix}" if tip.prefix and prefix else prefix or tip.prefix
+                self.serial(node, [c], _Tip(tip.rec, tip.frame @ frame, name, tip.forward), m.links)
+
+    def spread(self, m: Mount, group: list[PartNode], parent: PartNode):
+        """(name prefix, frame on the parent) of each chain a serial mount carries: one at
+        the mount's ``at``; several side by side across the part (y), the first on the
+        left, ``track`` apart from the first to the last, named l, r (two), l, m, r (three)
+        or c1, c2 ... (more)."""
+        at = tuple(self.ev(x, parent, "mount at") for x in m.at)
+        n = len(group)
+        if n == 1:
+            return [("", transform(at))]
+        if not m.track:
+            raise AssemblyError(
+                f"part {group[1].kind}{_where(group[1])}: {parent.kind} carries {n} chains "
+                f"on one serial mount of {m.child}, which has no `track` to spread them "
+                "across the part; give the mount a track (m) in a part kinds file (--parts)"
+            )
+        track = self.ev(m.track, parent, "mount track")
+        words = {2: ("l", "r"), 3: ("l", "m", "r")}.get(n, tuple(f"c{i + 1}" for i in range(n)))
+        out = []
+        for i in range(n):
+            y = track / 2 - track * i / (n - 1)
+            out.append((words[i], transform((at[0], at[1] + y, at[2]))))
+        return out
 
     def layout(self, m: Mount, group: list[PartNode], parent: PartNode):
         """(side, name prefix, frame on the parent) of each child of a mount."""
@@ -387,6 +434,48 @@ class _Walk:
         else:  # pragma: no cover (LAYOUTS is checked when the data is read)
             raise AssertionError(m.layout)
         return out
+
+    # -- a root part carried by another (a torso on a chassis) -------------------------
+    def rider(self, node: PartNode, m: Mount, parent: PartNode, tip: _Tip) -> None:
+        """A root part standing on its carrier at the ``top`` mount's ``at``: its body fixed
+        there (a printed plate of its box's face, as the root's: ``faces`` says which),
+        its children attached by its own mounts."""
+        kind = _kind(self.kinds, node)
+        if not kind.root:
+            raise AssemblyError(
+                f"part {node.kind}{_where(node)}: a top mount carries a root part (a torso "
+                "on a chassis); this one has no root part kind"
+            )
+        at = kind.at
+        for c in node.children:
+            for cls, v in kind.at_with.items():
+                if cls in c.kinds:
+                    at = v
+        centre = tuple(self.ev(x, node, "at") for x in at)
+        box = tuple(self.ev(x, node, "box") for x in kind.box)
+        R = _FACES[kind.faces]
+        plate = _trunk(kind.body, 0.0, box, centre, R)
+        dims = plate.dims
+        mass = float(dims[0] * dims[1] * self.p.face_thickness * self.p.density)
+        plate = replace(_trunk(kind.body, mass, box, centre, R), kind="plate")
+        frame = tip.frame @ transform(tuple(self.ev(x, parent, "mount at") for x in m.at))
+        self.recs.append(
+            _Rec(
+                name=f"{kind.body}_mount",
+                body=kind.body,
+                parent=tip.rec,
+                kind="fixed",
+                origin=frame,
+                axis=np.array([0.0, 0.0, 1.0]),
+                limits=(0.0, 0.0),
+                group="",
+                end="plate",
+                forward=tip.forward,
+                plate=plate,
+            )
+        )
+        here = _Tip(len(self.recs) - 1, np.eye(4), tip.prefix, tip.forward)
+        self.children(node, kind, here, placed=True)
 
     # -- a part with joints -----------------------------------------------------------
     def part(self, node: PartNode, tip: _Tip) -> None:
@@ -456,8 +545,8 @@ class _Walk:
             )
             tube = (seg, j.tube_length, d)
             forward = d
-        elif link is not None:
-            tube = (link[0], link[0], link[1])
+        elif link is not None:  # a chain's printed link: its length shared by alike chains
+            tube = (f"{tip.prefix}_{link[0]}" if tip.prefix else link[0], link[0], link[1])
             forward = link[1]
         rec = _Rec(
             name=name,
@@ -518,7 +607,9 @@ class _Walk:
         if len(first) > 1:
             raise AssemblyError(
                 f"part {first[1].kind}{_where(first[1])}: {parent.kind} has more than one "
-                "chain of modules connected to it; a chain starts at one connector"
+                "chain of modules connected to it; a chain starts at one connector (only a "
+                "root part's mount carries several chains: a serial mount with a track, or "
+                "a pair)"
             )
         chain: list[PartNode] = []
         node = first[0]
@@ -694,9 +785,11 @@ def assemble(plan: BodyPlan, params: TemplateParams, kinds: PartKinds) -> Templa
                         dims,
                     )
                 )
-            if w.payload_at_effector:  # held at the tip
+            if w.payload_at_effector and not w.grips:  # held at the tip
                 parts.append(_point(r.body, "payload", p.payload, (0.0, 0.0, 0.0)))
             effectors.append(r.body)
+        elif r.end == "plate" and r.plate is not None:
+            parts.append(r.plate)
         elif r.end == "wheel":
             rr = p.wheel_radius
             if not (math.isfinite(rr) and rr > 0):
@@ -788,6 +881,8 @@ STRUCTURES = (
     "wheeled",
     "steered",
     "mobile_manipulator",
+    "legged_manipulator",
+    "multi_arm",
 )
 
 
@@ -796,12 +891,17 @@ def structure_of(plan: BodyPlan, kinds: PartKinds) -> str:
     on a chassis ("wheeled"; "steered" when a wheel part turns on a joint that is no
     wheel's: a steering joint), three or more legs ("multiped"), two legs ("biped"), a chain
     of modules ("module_chain"), a chain of joints on a fixed base ending in a gripper, a
-    tool or nothing ("serial_arm"), both such a chain and wheels ("mobile_manipulator");
-    "" for none of these."""
+    tool or nothing ("serial_arm"; several such chains: "multi_arm"), such chains on
+    wheels ("mobile_manipulator") or on three or more legs ("legged_manipulator": a head
+    or an arm on a multiped's trunk); "" for none of these (chains on two legs or on a
+    module chain, arm parts of role "arm" anywhere but on a biped's torso)."""
     found = [kinds.of(n.kinds) for n in plan.root.walk()]
     roles = [(k.role if k is not None else "") for k in found]
     legs = roles.count("leg")
-    if "wheel" in roles and "joint" in roles:  # an arm (whatever ends it) on wheels
+    chains = "joint" in roles  # arms, heads, tails: chains of joints, whatever ends them
+    if "arm" in roles and legs != 2:  # a limb part of role arm (a HumanoidArm): only a
+        return ""  # biped's torso carries one (its controller swings them)
+    if "wheel" in roles and chains:  # arms on wheels
         return "mobile_manipulator"
     if "wheel" in roles:
         steered = any(
@@ -810,14 +910,29 @@ def structure_of(plan: BodyPlan, kinds: PartKinds) -> str:
         )
         return "steered" if steered else "wheeled"
     if legs >= 3:
-        return "multiped"
+        return "legged_manipulator" if chains else "multiped"
     if legs == 2:
-        return "biped"
+        return "" if chains else "biped"
     if "module" in roles:
-        return "module_chain"
-    if "joint" in roles:  # a chain of joints on a fixed base, ending in a gripper, a
-        return "serial_arm"  # tool or nothing
+        return "" if chains else "module_chain"
+    if chains:  # chains of joints on a fixed base, ending in a gripper, a tool or nothing
+        return "multi_arm" if len(chain_starts(plan, kinds)) > 1 else "serial_arm"
     return ""
+
+
+def chain_starts(plan: BodyPlan, kinds: PartKinds) -> list[PartNode]:
+    """The first part of each chain of joints and links (an arm, a head, a tail), in the
+    plan's depth-first order: a part of role joint or link whose parent has neither."""
+    out: list[PartNode] = []
+    stack: list[tuple[PartNode, bool]] = [(plan.root, False)]
+    while stack:
+        node, inside = stack.pop()
+        k = kinds.of(node.kinds)
+        here = k is not None and k.role in ("joint", "link")
+        if here and not inside:
+            out.append(node)
+        stack.extend((c, here) for c in reversed(node.children))
+    return out
 
 
 def serial_links(plan: BodyPlan, kinds: PartKinds) -> list[list[str]]:

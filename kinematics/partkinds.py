@@ -38,8 +38,11 @@ A kind (``[[kind]]``):
   ground level), front (one wheel on the middle line or a pair ``track`` apart at the
   plate's front edge, ``span`` its length: steered wheels), serial (a chain of joints
   and links starting at ``at`` on a root part, its printed links named ``links`` 1, 2
-  ... instead of L1, L2 ...: an arm on a chassis whose own lengths are L1 and L2) or tip
-  (at the end of the part's chain);
+  ... instead of L1, L2 ...: an arm on a chassis whose own lengths are L1 and L2;
+  several chains side by side across the part, ``track`` apart from the first to the
+  last; a pair layout puts two chains at its mirrored ``at``), tip (at the end of the
+  part's chain) or top (another root part standing on this one at ``at``: a torso on a
+  chassis; the body plan's root is the root part whose kind mounts the others);
 - ``naming = "index"``: joints and bodies of a chain of such parts are numbered
   (``joint_1``, ``module_1``);
 - ``order = "side"``: children of pair mounts are joined side by side (left leg, left
@@ -104,7 +107,7 @@ AXES = {
 }
 JOINT_KINDS = ("revolute", "continuous", "fixed")
 ENDS = ("point_foot", "foot_plate", "gripper", "wheel", "caster", "tool")
-LAYOUTS = ("bilateral", "radial", "pair", "axle", "trailing", "front", "serial", "tip")
+LAYOUTS = ("bilateral", "radial", "pair", "axle", "trailing", "front", "serial", "tip", "top")
 ROLES = ("leg", "arm", "end_effector", "wheel", "caster", "module", "joint", "link", "")
 FACES = ("up", "down", "back")
 PAYLOAD = ("root", "end_effector")
@@ -428,7 +431,7 @@ class MountSchema(Closed):
 
     child: Name = described(doc="the children's class")
     layout: Literal[LAYOUTS] = described(
-        doc="bilateral, radial, pair, axle, trailing, front, serial, tip"
+        doc="bilateral, radial, pair, axle, trailing, front, serial, tip, top"
     )
     span: Expr | None = None
     track: Expr | None = None

@@ -324,6 +324,7 @@ PART_KINDS = (
     "caster",
     "bearing",
     "tool",
+    "plate",
 )
 
 
@@ -353,7 +354,10 @@ class LabelledPart:
     - "bearing": (radius, width) the hub of a passive joint, on the joint's parent at the
       joint's origin, its frame the joint's;
     - "tool": (x, y, z) box of a tool without joints (a probe, a nozzle, a camera) centred
-      on the frame origin, x along the tool.
+      on the frame origin, x along the tool;
+    - "plate": (x, y, z) box of a root part carried by another (a torso on a chassis),
+      framed as a "trunk": a printed plate of its mass over the box's x-y face, with no
+      modules (the carrier's root part holds them).
     """
 
     label: str

@@ -8,7 +8,9 @@ axiom declares, and a more specific class (``MyLeg`` where an ancestor says
 are the same parts, in order (the humanoid's trunk, named by ``HumanoidRobot`` and by
 ``BipedalRobot``, is one trunk). ``connectedTo`` between witnesses joins parts; the tree
 is rooted at the one part whose part kind is a root (a trunk, a chassis, an arm's base)
-and grows away from it. Parts the axioms do not connect to anything hang on the root (the
+and grows away from it. A plan with several root parts joined by ``connectedTo`` (a torso
+on a chassis) is one tree rooted at the one whose part kind mounts the others (a ``top``
+mount) and none of theirs it. Parts the axioms do not connect to anything hang on the root (the
 part kinds' mount patterns place them). Only parts with a part kind (or structural parts,
 which must have one) enter the plan: the main module, the battery and sensors ride on
 the root and are counted by the conceptual design.
@@ -18,7 +20,8 @@ subclasses (the nearest class's wins); ``extensiblePart`` marks the classes whos
 grow with the design (a snake's modules).
 
 Refusals (``OntologyError``, exit 2) name the part and the axiom's file:line:col: a part
-kind no data describes, a ``connectedTo`` cycle, a body plan with no root or two, parts
+kind no data describes, a ``connectedTo`` cycle, a body plan with no root, root parts
+that no ``connectedTo`` joins or whose kinds do not say which carries the others, parts
 not connected to the root.
 """
 
@@ -210,10 +213,7 @@ def plan_of(kb: KnowledgeBase, robot_type: str, kinds: PartKinds) -> BodyPlan:
             "root = true)"
         )
     if len(roots) > 1:
-        raise OntologyError(
-            f"{where[roots[1]]}: the body plan of {robot_type} has {len(roots)} root parts "
-            f"({', '.join(r[0] for r in roots)}); one part carries the rest"
-        )
+        roots = [_carrier(robot_type, kinds, roots, nodes, edges, lineage_of, where)]
     adj: dict[tuple[str, int], list[tuple[tuple[str, int], str]]] = {n: [] for n in nodes}
     seen_edges = set()
     for a, b, w in edges:
@@ -294,6 +294,45 @@ def _check_lengths_used(
                 f"{where}: defaultLength {args[1]}: no part of {plan.robot_type} has a length "
                 f"of this name (its lengths: {', '.join(used) or 'none'})"
             )
+
+
+def _carrier(robot_type, kinds, roots, nodes, edges, lineage_of, where) -> tuple[str, int]:
+    """The root part that carries the plan's other root parts (a chassis carrying a torso):
+    they must be joined to it through ``connectedTo`` (one tree), and its part kind must
+    mount each of them (a mount whose child is their class or a class above it) while
+    none of theirs mounts it. OntologyError (file:line:col) naming the parts otherwise."""
+    adj: dict[tuple[str, int], set[tuple[str, int]]] = {n: set() for n in nodes}
+    for a, b, _ in edges:
+        adj[a].add(b)
+        adj[b].add(a)
+    seen, queue = {roots[0]}, deque([roots[0]])
+    while queue:
+        for m in adj[queue.popleft()]:
+            if m not in seen:
+                seen.add(m)
+                queue.append(m)
+    names = ", ".join(f"{r[0]} #{r[1] + 1}" if r[1] else r[0] for r in roots)
+    apart = [r for r in roots if r not in seen]
+    if apart:
+        raise OntologyError(
+            f"{where[apart[0]]}: the body plan of {robot_type} has {len(roots)} root parts "
+            f"({names}) that no connectedTo joins; one part carries the rest (connect the "
+            "others to it)"
+        )
+
+    def mounts(a: tuple[str, int], b: tuple[str, int]) -> bool:
+        k = kinds.of(lineage_of[a[0]])
+        return k is not None and any(m.child in lineage_of[b[0]] for m in k.mounts)
+
+    carriers = [r for r in roots if all(mounts(r, o) and not mounts(o, r) for o in roots if o != r)]
+    if len(carriers) != 1:
+        raise OntologyError(
+            f"{where[roots[1]]}: the body plan of {robot_type} has {len(roots)} root parts "
+            f"({names}) connected to each other, but the part kinds do not say which carries "
+            "the others: the carrier's part kind needs a mount of the others' class (layout "
+            "top), and theirs none of it"
+        )
+    return carriers[0]
 
 
 def _arm_base(kb, kinds, nodes, edges, lineage_of) -> tuple[str, tuple[str, int]] | None:

@@ -17,6 +17,8 @@ section" (``deflection``, ``slope``).
 | deflection | length | every structure | catalog max_tip_deflection | 0.01 mm-10 cm |
 | slope | angle | wheeled, steered | catalog max_slope | 0-45 deg |
 | (mobile_manipulator) | | payload, reach, speed, load_area, deflection, slope | | |
+| (legged_manipulator) | | payload, reach, speed, obstacle_height, deflection | | |
+| (multi_arm) | | as serial_arm | | |
 | dof | count | serial_arm (composes the arm, synth/compose.py) | the arm's own | 3-7 |
 
 The range is where a design of ParMoR-like modules makes sense (see RANGES); a value
@@ -34,12 +36,14 @@ from adron.errors import InputError
 # Parameters apply by the design's structure (``kinematics.assemble.structure_of``), never
 # by a robot type's name; a type may change a default with the ontology's
 # ``(defaultParameter TYPE "name" "quantity")`` (the nearest class's wins).
-MANIPULATORS = ("serial_arm",)
+MANIPULATORS = ("serial_arm", "multi_arm")
 LEGGED = ("multiped",)
 WHEELED = ("wheeled", "steered")
 #: a serial arm on a wheeled base takes the parameters of both
 MOBILE = ("mobile_manipulator",)
-ALL = (*MANIPULATORS, *LEGGED, "biped", "module_chain", *WHEELED, *MOBILE)
+#: chains (a head, an arm) on a multiped's trunk: the legs' parameters and the reach
+LEGGED_ARM = ("legged_manipulator",)
+ALL = (*MANIPULATORS, *LEGGED, "biped", "module_chain", *WHEELED, *MOBILE, *LEGGED_ARM)
 
 
 @dataclass(frozen=True, slots=True)
@@ -106,9 +110,9 @@ PARAMS: tuple[ParamSpec, ...] = (
         "mass",
         "mass carried: at the gripper (manipulators), on the trunk (mobile robots)",
         {
-            "serial_arm": 0.2,
+            **_for(MANIPULATORS, 0.2),
             **_for(MOBILE, 0.2),
-            **_for(LEGGED, 0.1),
+            **_for((*LEGGED, *LEGGED_ARM), 0.1),
             "biped": 0.05,
             "module_chain": 0.0,
             **_for(WHEELED, 0.5),
@@ -118,7 +122,7 @@ PARAMS: tuple[ParamSpec, ...] = (
         "reach",
         "length",
         "horizontal reach from the shoulder axis to the gripper",
-        _for((*MANIPULATORS, *MOBILE), 0.25),
+        _for((*MANIPULATORS, *MOBILE, *LEGGED_ARM), 0.25),
     ),
     ParamSpec(
         "speed",
@@ -127,7 +131,7 @@ PARAMS: tuple[ParamSpec, ...] = (
         {
             **_for(MANIPULATORS, 0.2),
             **_for(MOBILE, 0.2),
-            **_for(LEGGED, 0.05),
+            **_for((*LEGGED, *LEGGED_ARM), 0.05),
             "biped": 0.05,
             **_for(WHEELED, 0.3),
         },
@@ -136,7 +140,7 @@ PARAMS: tuple[ParamSpec, ...] = (
         "obstacle_height",
         "length",
         "height of the obstacles the legs must step over",
-        _for(LEGGED, 0.03),
+        _for((*LEGGED, *LEGGED_ARM), 0.03),
     ),
     ParamSpec(
         "load_area", "area", "area of the load platform (L1 x L2)", _for((*WHEELED, *MOBILE), 0.03)

@@ -218,14 +218,35 @@ def alternate_feet(tmpl: Template) -> list[str]:
 
 
 def _arm_links(tmpl_or_type) -> list[str]:
-    """The length names of a design's serial arm's printed links, column first."""
+    """The length names of a design's serial arm's printed links, column first (its first
+    chain's)."""
+    chains = _arm_chains(tmpl_or_type)
+    return chains[0] if chains else []
+
+
+def _arm_chains(tmpl_or_type) -> list[list[str]]:
+    """The length names of the printed links of each of a design's chains (arms, heads),
+    column first; alike chains (two arms of one mount share their lengths) once."""
     from kinematics.assemble import serial_links
     from kinematics.partkinds import in_use
     from kinematics.templates import plan_of
 
     plan = tmpl_or_type.plan if isinstance(tmpl_or_type, Template) else plan_of(tmpl_or_type)
-    chains = serial_links(plan, in_use())
-    return chains[0] if chains else []
+    out: list[list[str]] = []
+    for chain in serial_links(plan, in_use()):
+        if chain not in out:
+            out.append(chain)
+    return out
+
+
+def _chain_reach(tmpl: Template, joint: str, chains: Sequence[Sequence[str]]) -> float:
+    """m: the reach of the chain ``joint`` moves (its links after the column), the first
+    chain's for a joint that moves none of them."""
+    m = tmpl.model
+    below = set(m.subtree(m.joints[m.joint(joint)].child)) if len(chains) > 1 else set()
+    names = {s.length_name for s in tmpl.segments if m.body(s.body) in below}
+    chain = next((c for c in chains if names & set(c)), chains[0])
+    return sum(tmpl.lengths[k] for k in tmpl.lengths if k in chain[1:])
 
 
 class Family(ABC):
@@ -331,18 +352,21 @@ class Manipulators(Family):
         by two, or with three or more the last (the wrist) gets its default up to a
         quarter of the reach and the rest share what remains."""
         d = default_lengths(robot_type)
-        links = _arm_links(robot_type)
         reach = p["reach"]
         why = f"reach {reach * 100:.0f} cm"
-        column, rest = links[0], links[1:]
-        lengths = {column: d[column]}
-        if len(rest) >= 3:
-            wrist = min(d[rest[-1]], reach / 4)
-            arm = (reach - wrist) / (len(rest) - 1)
-            lengths.update({k: arm for k in rest[:-1]})
-            lengths[rest[-1]] = wrist
-        else:
-            lengths.update({k: reach / len(rest) for k in rest})
+        lengths: dict[str, float] = {}
+        for links in _arm_chains(robot_type):  # each chain (arm, head) reaches as far
+            column, rest = links[0], links[1:]
+            lengths.setdefault(column, d[column])
+            if len(rest) >= 3:
+                wrist = min(d[rest[-1]], reach / 4)
+                arm = (reach - wrist) / (len(rest) - 1)
+                for k in rest[:-1]:
+                    lengths.setdefault(k, arm)
+                lengths.setdefault(rest[-1], wrist)
+            else:
+                for k in rest:
+                    lengths.setdefault(k, reach / len(rest))
         return Sizing({k: _clamp_length(k, v, catalog, why) for k, v in lengths.items()})
 
     def load_cases(self, tmpl, p, catalog):
@@ -378,12 +402,15 @@ class Manipulators(Family):
         }
 
     def speeds(self, tmpl, p, sizing):
-        links = _arm_links(tmpl)
-        reach = sum(tmpl.lengths[k] for k in tmpl.lengths if k in links[1:])
-        w = p["speed"] / reach
+        chains = _arm_chains(tmpl)
         grip = "GripperServomotor"
         return {
-            j: (GRIPPER_SPEED if tmpl.modules.get(j) == grip else w) for j in self.movable(tmpl)
+            j: (
+                GRIPPER_SPEED
+                if tmpl.modules.get(j) == grip
+                else p["speed"] / _chain_reach(tmpl, j, chains)
+            )
+            for j in self.movable(tmpl)
         }
 
 
@@ -441,6 +468,7 @@ class Multipeds(Family):
             catalog.design.max_joint_acceleration_rad_s2,
             fext,
             f"standing on {len(support)} legs",
+            self.mask(tmpl),
         )
 
     def speeds(self, tmpl, p, sizing):
@@ -457,7 +485,7 @@ class Multipeds(Family):
             lift = math.acos(max(-1.0, 1.0 - rise / down)) if down > 0 else math.pi / 2
         sweep = 2 * COXA_SWING
         w = PEAK_FACTOR * max(sweep, 2 * lift) / swing_time
-        return dict.fromkeys(_movable(tmpl), w)
+        return dict.fromkeys(self.movable(tmpl), w)
 
 
 def _biped_refusal(robot_type, missing: Sequence[str]) -> str:
@@ -1138,6 +1166,40 @@ class MobileManipulator(Family):
         return {**self.base.holds(tmpl, p, catalog), **self.arm.holds(tmpl, p, catalog)}
 
 
+class LeggedManipulator(Family):
+    """Chains of joints (a head, an arm) on a multiped's trunk: the legs sized as
+    ``Multipeds`` (the whole robot on its minimum support, the chains standing still) and
+    each chain as ``Manipulators`` (stretched at full reach, the legs standing still), each
+    on its own joints of the one template; the legs' lengths and the chains' (head_L1 ...)
+    are apart."""
+
+    def __init__(self) -> None:
+        self.base = Multipeds()
+        self.arm = Manipulators()
+        self.base.joints = lambda t: [j for j in _movable(t) if _leg_joint(t, j)]
+        self.arm.joints = lambda t: [j for j in _movable(t) if not _leg_joint(t, j)]
+
+    def size(self, robot_type, p, catalog):
+        b, a = self.base.size(robot_type, p, catalog), self.arm.size(robot_type, p, catalog)
+        return replace(b, lengths={**b.lengths, **a.lengths}, notes=[*b.notes, *a.notes])
+
+    def load_cases(self, tmpl, p, catalog):
+        return [*self.base.load_cases(tmpl, p, catalog), *self.arm.load_cases(tmpl, p, catalog)]
+
+    def speeds(self, tmpl, p, sizing):
+        return {**self.base.speeds(tmpl, p, sizing), **self.arm.speeds(tmpl, p, sizing)}
+
+    def holds(self, tmpl, p, catalog):
+        return {**self.base.holds(tmpl, p, catalog), **self.arm.holds(tmpl, p, catalog)}
+
+
+def _leg_joint(tmpl: Template, joint: str) -> bool:
+    """Whether ``joint`` moves one of ``tmpl``'s feet."""
+    m = tmpl.model
+    below = set(m.subtree(m.joints[m.joint(joint)].child))
+    return any(m.body(f) in below for f in tmpl.feet)
+
+
 def _wheel_joint(tmpl: Template, joint: str) -> bool:
     """Whether ``joint`` turns one of ``tmpl``'s wheels."""
     m = tmpl.model
@@ -1154,4 +1216,6 @@ FAMILIES: dict[str, Family] = {
     "wheeled": Wheeled(),
     "steered": Steered(),
     "mobile_manipulator": MobileManipulator(),
+    "legged_manipulator": LeggedManipulator(),
+    "multi_arm": Manipulators(),
 }

@@ -358,7 +358,9 @@ class StructureDesigner:
             raise InputError(
                 f"{plan.root.where or candidate.robot_type}: {candidate.robot_type} has no "
                 "sizing rules: its body plan is none of the structures parmor sizes "
-                f"({', '.join(STRUCTURES)}); see README 'Extending parmor'"
+                f"({', '.join(STRUCTURES)}: chains of joints and links on a fixed base, on "
+                "wheels or on three or more legs; arm parts of role arm, such as "
+                "HumanoidArm, only on a biped's torso); see README 'Extending parmor'"
             )
         register_plan(plan)
         self.plan, self.structure = plan, structure
