@@ -392,7 +392,7 @@ class ComposedController(Controller):
         for cached in ("hold", "_behaviors", "rest"):
             view.__dict__.pop(cached, None)
         view._focus(chain)
-        view.identity = None if self.identity is None else (*self.identity, chain.name)
+        view.identity = None  # its plans are remembered by the whole's (``run``)
         return view
 
     @cached_property
