@@ -175,11 +175,31 @@ def path_is_tag(part: str) -> bool:
     return "[" in part or part in ("float", "int", "str", "bool", "list", "dict", "tuple")
 
 
-def key_of(path: tuple[str | int, ...]) -> str:
-    """``kind[2].joints[1].limits``: a key path as messages write it."""
+def key_of(
+    path: tuple[str | int, ...], data: Any = None, labels: tuple[str, ...] = ()
+) -> str:
+    """``kind[2].joints[1].limits``: a key path as messages write it; with ``labels``,
+    each list entry of ``data`` on the path that is a table holding one of those keys as a
+    string is followed by it: ``actuator[1] (MG996R).mass``."""
     from adron.readers import _key
 
-    return _key(path)
+    if not labels:
+        return _key(path)
+    out = ""
+    here = data
+    for part in path:
+        out += _key((part,)) if isinstance(part, int) or not out else "." + _key((part,))
+        try:
+            here = here[part]
+        except (KeyError, IndexError, TypeError):
+            here = None
+        if isinstance(part, int) and isinstance(here, dict):
+            label = next((here[k] for k in labels if isinstance(here.get(k), str)), None)
+            if label and label.isprintable() and len(label) <= MAX_NAME:
+                out += f" ({label})"
+        if len(out) > 300:
+            return _key(path)
+    return out or "(the top level)"
 
 
 #: pydantic's type errors said as parmor says them
@@ -198,8 +218,8 @@ _TYPES = {
 }
 
 
-def _message(error: dict, data: Any) -> str:
-    """``key: value why`` for one pydantic error of ``data``."""
+def _message(error: dict, data: Any, labels: tuple[str, ...] = ()) -> str:
+    """``key = value: why`` for one pydantic error of ``data``."""
     path, value = _data_path(data, tuple(error["loc"]))
     ctx = error.get("ctx") or {}
     cause = ctx.get("error")
@@ -222,7 +242,7 @@ def _message(error: dict, data: Any) -> str:
     else:
         why = error["msg"][0].lower() + error["msg"][1:]
         why = why.replace("input should", "should")
-    key = key_of(path) if path else ""
+    key = key_of(path, data, labels) if path else ""
     if suffix:
         key = f"{key}{suffix}" if suffix.startswith("[") or not key else f"{key}.{suffix}"
     key = key or "(the top level)"
@@ -263,11 +283,16 @@ def validate(
     data: Any,
     source: str,
     error: Callable[[str], Exception] = InputError,
+    labels: tuple[str, ...] = (),
+    context: dict[str, Any] | None = None,
 ) -> Model:
-    """``data`` (a parsed file) as ``model``; ``error("source: key: value why")`` raised
-    for the first violation (with how many more there are)."""
+    """``data`` (a parsed file) as ``model``; ``error("source: key = value: why")`` raised
+    for the first violation (with how many more there are). ``source`` '' leaves the
+    file out (a program sent to the block server). ``labels``: keys whose string value
+    names a list entry in the key path (``actuator[1] (MG996R)``: its ``model``).
+    ``context`` is handed to the model's validators (pydantic's validation context)."""
     try:
-        return model.model_validate(data)
+        return model.model_validate(data, context=context)
     except ValidationError as e:
         errors = e.errors(include_url=False)
         first = errors[0]
@@ -276,7 +301,8 @@ def validate(
             if keys:
                 first = {**first, "ctx": {**(first.get("ctx") or {}), "keys": keys}}
         more = f" (and {len(errors) - 1} more problems)" if len(errors) > 1 else ""
-        raise error(f"{source}: {_message(first, data)}{more}") from None
+        where = f"{source}: " if source else ""
+        raise error(f"{where}{_message(first, data, labels)}{more}") from None
 
 
 def json_schema(model: type[BaseModel], title: str, doc: str) -> dict:
