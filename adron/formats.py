@@ -386,8 +386,10 @@ def catalog_model() -> type[Closed]:
 
 #: format name -> (model, description) of every user file format with a schema
 def formats() -> dict[str, tuple[type, str]]:
+    from export.manifest import Manifest
     from export.record_schema import DesignRecord
     from kinematics.partkinds import PartKindsFile
+    from program.script import ProgramFile
 
     return {
         "partkinds": (PartKindsFile, "Part kinds (kinematics/partkinds.toml, --parts FILE.toml)"),
@@ -396,6 +398,8 @@ def formats() -> dict[str, tuple[type, str]]:
         "study": (StudyFile, "A parameter study (parmor sweep STUDY.toml)"),
         "suite": (SuiteFile, "A regression suite (parmor regress SUITE.toml)"),
         "design-record": (DesignRecord, "A design record (design.json)"),
+        "program": (ProgramFile, "A program (parmor run PROGRAM.json DIR, the block page's)"),
+        "manifest": (Manifest, "The files parmor wrote into a folder (.parmor)"),
     }
 
 

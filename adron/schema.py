@@ -221,6 +221,8 @@ _TYPES = {
 def _message(error: dict, data: Any, labels: tuple[str, ...] = ()) -> str:
     """``key = value: why`` for one pydantic error of ``data``."""
     path, value = _data_path(data, tuple(error["loc"]))
+    if error["loc"] and error["loc"][-1] == "[key]":  # a table's key: the key is the value
+        value = error.get("input", value)
     ctx = error.get("ctx") or {}
     cause = ctx.get("error")
     kind = error["type"]
@@ -305,9 +307,28 @@ def validate(
         raise error(f"{where}{_message(first, data, labels)}{more}") from None
 
 
+def _keys_checked(node: Any) -> Any:
+    """``node`` (a JSON Schema) with every table whose keys have a pattern (pydantic writes
+    a ``dict[Name, X]`` as ``patternProperties``, which lets a key that does not match pass
+    unchecked) written as ``propertyNames`` holding the pattern and
+    ``additionalProperties`` the values' schema: a key that breaks the pattern fails."""
+    if isinstance(node, list):
+        return [_keys_checked(x) for x in node]
+    if not isinstance(node, dict):
+        return node
+    out = {k: _keys_checked(v) for k, v in node.items()}
+    patterns = out.get("patternProperties")
+    if isinstance(patterns, dict) and len(patterns) == 1 and "additionalProperties" not in out:
+        (pattern, values), *_ = patterns.items()
+        del out["patternProperties"]
+        out["propertyNames"] = {**out.get("propertyNames", {}), "pattern": pattern}
+        out["additionalProperties"] = values
+    return out
+
+
 def json_schema(model: type[BaseModel], title: str, doc: str) -> dict:
     """The JSON Schema (draft 2020-12) of ``model`` as a file of its own."""
-    schema = model.model_json_schema(by_alias=True, mode="validation")
+    schema = _keys_checked(model.model_json_schema(by_alias=True, mode="validation"))
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "$id": f"https://parmor.invalid/schemas/{title}.schema.json",

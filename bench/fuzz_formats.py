@@ -250,7 +250,7 @@ class Fuzzer:
                     },
                 ],
             },
-            "program": {"program": [{"do": "driving", "v": 0.1}, {"wait": 0.1}]},
+            "program": {"program": [{"do": "driving", "params": {"v": 0.1}}, {"wait": 0.1}]},
             "kif": [
                 ["defaultLength", "HexapodRobot", '"tibia"', '"12 cm"'],
                 ["defaultParameter", "HexapodRobot", '"payload"', '"0.1 kg"'],

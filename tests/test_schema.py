@@ -66,6 +66,7 @@ def _shipped() -> list[tuple[str, list[Path]]]:
         ("partkinds", [ROOT / "kinematics/partkinds.toml"]),
         ("perturb", [ROOT / "export/perturb.toml"]),
         ("study", sorted((ROOT / "studies").glob("*.toml"))),
+        ("program", [ROOT / "examples/square.json", ROOT / "docs/examples/walk.json"]),
     ]
 
 
@@ -102,17 +103,65 @@ def test_a_written_design_record_passes_its_schema(written_record: Path) -> None
     assert r.returncode == 0, r.stdout + r.stderr
 
 
-def test_the_schemas_refuse_what_the_readers_refuse(tmp_path: Path) -> None:
-    """The control case: the validator is not one that passes anything."""
-    exe = _check_jsonschema()
-    bad = tmp_path / "bad.toml"
-    bad.write_text("[constants]\ntrunk_thickness = -0.03\n", encoding="utf-8")
-    r = subprocess.run(
-        [exe, "--schemafile", str(ROOT / "adron/schemas/partkinds.schema.json"), str(bad)],
+def _validates(schema: str, *paths: Path) -> subprocess.CompletedProcess:
+    """``check-jsonschema`` of ``paths`` (JSON unless their suffix says TOML) against the
+    format ``schema``."""
+    return subprocess.run(
+        [
+            _check_jsonschema(),
+            "--default-filetype",
+            "json",
+            "--schemafile",
+            str(ROOT / f"adron/schemas/{schema}.schema.json"),
+            *map(str, paths),
+        ],
         capture_output=True,
         text=True,
         timeout=600,
     )
+
+
+def test_every_manifest_of_a_written_bundle_passes_its_schema(written_record: Path) -> None:
+    """``.parmor`` (no suffix: read as JSON), in the bundle and in each folder below that
+    holds one."""
+    manifests = sorted(written_record.parent.rglob(".parmor"))
+    assert manifests
+    r = _validates("manifest", *manifests)
+    assert r.returncode == 0, r.stdout + r.stderr
+
+
+def test_the_block_pages_folder_passes_its_schemas(written_record: Path, tmp_path: Path) -> None:
+    """What ``make demo`` writes after the design: ``parmor blocks DIR`` (the page's own
+    ``.parmor``), and the programs the page shows run as JSON."""
+    from program.blocks import MAKE_TARGET, web_dir, write_page
+    from tests.conftest import need
+
+    need(web_dir() is not None, f"the npm files are absent ({MAKE_TARGET})")
+    folder = tmp_path / "cart"
+    shutil.copytree(written_record.parent, folder)
+    page = write_page(folder)
+    r = _validates("manifest", *sorted(folder.rglob(".parmor")))
+    assert r.returncode == 0 and (page.parent / ".parmor").is_file(), r.stdout + r.stderr
+    r = _validates("design-record", folder / "design.json")
+    assert r.returncode == 0, r.stdout + r.stderr
+
+
+BAD = {
+    "partkinds": ("bad.toml", "[constants]\ntrunk_thickness = -0.03\n"),
+    "program": ("bad.json", '{"program": [{"wait": 61}]}'),
+    "manifest": (".parmor", '{"format": "parmor-files-1", "files": {"../x": "sha256:00"}}'),
+    "catalog": ("bad.toml", '[catalog]\nname = "x"\ncurrency = "euro"\nversion = "1"\n'),
+    "study": ("bad.toml", '[[request]]\nabilities = []\n'),
+}
+
+
+@pytest.mark.parametrize("schema", sorted(BAD))
+def test_the_schemas_refuse_what_the_readers_refuse(tmp_path: Path, schema: str) -> None:
+    """The control cases: the validator is not one that passes anything."""
+    name, text = BAD[schema]
+    bad = tmp_path / name
+    bad.write_text(text, encoding="utf-8")
+    r = _validates(schema, bad)
     assert r.returncode == 1, r.stdout + r.stderr
 
 
@@ -297,7 +346,7 @@ def test_a_record_of_the_wrong_type_is_refused_naming_the_field(
     path = folder / "design.json"
     path.write_text(json.dumps(record), encoding="utf-8")
     program = tmp_path / "p.json"
-    program.write_text('{"program": [{"do": "driving", "v": 0.1}]}', encoding="utf-8")
+    program.write_text('{"program": [{"do": "driving", "params": {"v": 0.1}}]}', encoding="utf-8")
     argv = {
         "simulate": ["simulate", str(folder), "--behavior", "driving", "--seconds", "0.2"],
         "simulate --perturb": [
