@@ -12,16 +12,17 @@ units (``"34 g"``) are typed as such here; their units and ranges are the reader
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any, Literal
 
-from pydantic import ConfigDict, Field, PlainValidator, WithJsonSchema, create_model
+from pydantic import Field, PlainValidator, WithJsonSchema, create_model, model_validator
 
 from adron.schema import (
     MAX_NAME,
+    At,
     Closed,
     Name,
     StrictBool,
-    _name,
     described,
     json_schema,
     number,
@@ -314,11 +315,20 @@ class PerturbationOverrides(Closed):
 # ---- studies and regression suites --------------------------------------------------------
 
 Ability = Name
-#: an answer: the reader says which it takes (synth/conceptual.py parse_answer, with its
-#: message); the JSON Schema spells them out for an editor
+#: the answers --answer takes (any case)
+ANSWERS = ("yes", "no", "y", "n", "true", "false")
+
+
+def _answer(v: Any) -> str:
+    if not isinstance(v, str) or v.strip().lower() not in ANSWERS:
+        raise ValueError("not yes or no (y, n, true, false; any case), as --answer takes")
+    return v
+
+
+#: an answer: yes or no, as ``--answer`` takes it
 Answer = Annotated[
     str,
-    PlainValidator(_name),
+    PlainValidator(_answer),
     WithJsonSchema(
         {
             "type": "string",
@@ -328,50 +338,168 @@ Answer = Annotated[
         }
     ),
 ]
+#: a parameter's value as ``--param`` takes it, with its unit (``"0.2kg"``)
+ParamValue = Annotated[str, Field(max_length=MAX_NAME)]
+#: the most perturbed runs per behaviour (``--robustness``; synth/cli.py MAX_ROBUSTNESS)
+MAX_ROBUSTNESS = 64
+#: The most requests a study may expand to: counted before anything is expanded, a larger
+#: study is refused (exit 2). Checking a request costs about 1 ms and designing one with
+#: simulation seconds to a minute, so 10,000 is already hours of a 2-core machine's work
+#: (a day's on a small Ray cluster); a larger range is split into several studies.
+MAX_STUDY_REQUESTS = 10_000
 
 
 class Query(Closed):
     """A regression suite's query: a design request and its expected outcome's name."""
 
-    name: Name
+    name: Name = described(doc="the query's name (unique in the suite)")
     abilities: list[Ability] = []
     answers: dict[Ability, Answer] = {}
-    params: dict[Name, Annotated[str, Field(max_length=MAX_NAME)]] = {}
+    params: dict[Name, ParamValue] = described({}, "name -> value with its unit, as --param")
 
 
 class SuiteFile(Closed):
-    """A regression suite (``parmor regress SUITE.toml``)."""
+    """A regression suite (``parmor regress SUITE.toml``).
+
+    What the schema cannot say is checked by the reader (synth/regress.py): the files
+    ``ontology``, ``rules`` and ``catalog`` name exist inside the suite's folder, and each
+    query's abilities, answers and parameters are the knowledge base's."""
 
     ontology: list[Name] = described([], "KIF files, relative to the suite")
     rules: list[Name] = described([], "ASP rule files, relative to the suite")
     catalog: Name | None = described(None, "a shipped catalog's name or a file")
     conceptual: StrictBool = False
-    verify: StrictBool = False
-    query: list[Query] = described(doc="the queries, each designed and compared")
+    verify: StrictBool = described(False, "simulate every behaviour of each design")
+    query: Annotated[list[Query], Field(min_length=1)] = described(
+        doc="the queries, each designed and compared"
+    )
+
+    @model_validator(mode="after")
+    def _unique(self) -> SuiteFile:
+        seen: dict[str, int] = {}
+        for i, q in enumerate(self.query):
+            if q.name in seen:
+                raise At(f"query[{i}].name", f"repeats the name of query[{seen[q.name]}]", q.name)
+            seen[q.name] = i
+        return self
 
 
-ParamValue = Annotated[str, Field(max_length=MAX_NAME)]
+def _values(v: Any) -> str | list[str]:
+    """A study's ``params`` entry: a value, or a non-empty list of distinct values."""
+    if isinstance(v, list) and v and all(isinstance(x, str) for x in v):
+        seen: dict[str, int] = {}
+        for i, x in enumerate(v):
+            if len(x) > MAX_NAME:
+                raise At(f"[{i}]", f"longer than {MAX_NAME} characters", x)
+            if x in seen:
+                raise At(f"[{i}]", f"listed twice (also [{seen[x]}])", x)
+            seen[x] = i
+        return list(v)
+    if isinstance(v, str) and len(v) <= MAX_NAME:
+        return v
+    raise ValueError('not a value with its unit ("0.2kg") or a non-empty list of them')
+
+
+Values = Annotated[
+    str | list[str],
+    PlainValidator(_values),
+    WithJsonSchema(
+        {
+            "anyOf": [
+                {"type": "string", "maxLength": MAX_NAME},
+                {
+                    "type": "array",
+                    "items": {"type": "string", "maxLength": MAX_NAME},
+                    "minItems": 1,
+                    "uniqueItems": True,
+                },
+            ],
+            "description": 'a value with its unit ("0.2kg"), or a list of them: one request '
+            "for each",
+        }
+    ),
+]
 
 
 class StudyRequest(Closed):
     """A study's request: lists of parameter values expand into their product."""
 
-    name: Name | None = None
+    name: Name | None = described(None, "default: its abilities joined by '+'")
     abilities: Annotated[list[Ability], Field(min_length=1)]
     answers: dict[Ability, Answer] = {}
-    params: dict[Name, ParamValue | Annotated[list[ParamValue], Field(min_length=1)]] = {}
+    params: dict[Name, Values] = described(
+        {}, "name -> a value with its unit, or a list of values (their product is studied)"
+    )
 
 
 class StudyFile(Closed):
-    """A parameter study (``parmor sweep STUDY.toml``)."""
+    """A parameter study (``parmor sweep STUDY.toml``).
 
-    model_config = ConfigDict(extra="forbid", populate_by_name=True, frozen=True)
+    Beyond what the JSON Schema says, the model holds the study's size: its requests,
+    counted from the lists' lengths before anything is expanded, are at most
+    :data:`MAX_STUDY_REQUESTS`. What no schema can say is checked by the reader
+    (synth/sweep.py): the files it names exist inside its folder, and each request's
+    abilities, answers and parameters are the knowledge base's (and no request is given
+    twice, its values compared in SI units)."""
 
     ontology: list[Name] = described([], "KIF files, relative to the study")
     rules: list[Name] = described([], "ASP rule files, relative to the study")
     catalog: Name | None = described(None, "a shipped catalog's name or a file")
-    robustness: _integer(0, 64) = described(0, "perturbed runs per behaviour")
-    request: list[StudyRequest]
+    robustness: _integer(0, MAX_ROBUSTNESS) = described(
+        0, "perturbed runs per behaviour (as parmor design --robustness)"
+    )
+    request: Annotated[list[StudyRequest], Field(min_length=1)]
+
+    @model_validator(mode="after")
+    def _size(self) -> StudyFile:
+        sizes = [
+            _study_size([len(v) for v in r.params.values() if isinstance(v, list)])
+            for r in self.request
+        ]
+        total = _total(sizes)
+        if total is not None and total <= MAX_STUDY_REQUESTS:
+            return self
+        k = max(range(len(sizes)), key=lambda i: sizes[i][1])
+        lists = " x ".join(
+            f"{name} {len(v)}" for name, v in self.request[k].params.items() if isinstance(v, list)
+        )
+        raise At(
+            "request",
+            f"the study expands to {_size_text(sizes)} requests, more than the "
+            f"{MAX_STUDY_REQUESTS:,} a study may have (the most from request[{k}]: params "
+            f"{lists} = {_size_text([sizes[k]])}); split it into smaller studies",
+        )
+
+
+#: Sizes up to this are written exactly in messages, larger ones as a power of ten.
+_EXACT = 10**15
+
+
+def _study_size(lengths: list[int]) -> tuple[int | None, float]:
+    """(the product of ``lengths`` when at most :data:`_EXACT`, else None; its log10),
+    without making a huge integer (a 1 KB study can name 10^300 requests)."""
+    if 0 in lengths:
+        return 0, -math.inf
+    lg = sum(math.log10(n) for n in lengths)
+    return (math.prod(lengths) if lg <= 15.5 else None), lg
+
+
+def _total(sizes: list[tuple[int | None, float]]) -> int | None:
+    """The sum of ``sizes`` (see :func:`_study_size`), None past :data:`_EXACT`."""
+    total = 0
+    for n, _ in sizes:
+        if n is None or total + n > _EXACT:
+            return None
+        total += n
+    return total
+
+
+def _size_text(sizes: list[tuple[int | None, float]]) -> str:
+    """``1,000,000``, or ``about 10^40`` past :data:`_EXACT`, for the sum of ``sizes``."""
+    total = _total(sizes)
+    if total is not None:
+        return f"{total:,}"
+    return f"about 10^{int(max(lg for _, lg in sizes))}"
 
 
 _CATALOG: list[type[Closed]] = []

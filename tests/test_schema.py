@@ -443,3 +443,47 @@ def test_a_body_plan_of_600_parts_is_refused_by_the_bus_not_a_traceback(cli, tmp
     r = cli("design", "long-rolling", "--ontology", str(f), "--no-input", "--no-verify")
     assert r.code == 1 and "Traceback" not in r.err
     assert "602 active modules, over the limit" in r.err
+
+
+# ---- studies and suites: the schema is where their rules live ----------------------------
+
+
+def test_the_study_schemas_bound_is_the_command_lines() -> None:
+    from adron.formats import MAX_ROBUSTNESS
+    from synth.cli import MAX_ROBUSTNESS as CLI_MAX
+
+    assert MAX_ROBUSTNESS == CLI_MAX
+
+
+STUDIES = {
+    "robustness 65": ("robustness = 65\n[[request]]\nabilities = ['driving']\n", "robustness = 65"),
+    "answer maybe": (
+        "[[request]]\nabilities = ['walking']\nanswers = { grasping = 'maybe' }\n",
+        "request[0].answers.grasping = 'maybe'",
+    ),
+    "a value twice": (
+        "[[request]]\nabilities = ['rolling']\nparams = { payload = ['1kg', '2kg', '1kg'] }\n",
+        "request[0].params.payload[2] = '1kg'",
+    ),
+    "a name of 300 characters": (
+        f"[[request]]\nname = '{'n' * 300}'\nabilities = ['rolling']\n",
+        "request[0].name = ",
+    ),
+    "ontology not a list": ("ontology = 'a.kif'\n[[request]]\nabilities = ['x']\n", "ontology = "),
+}
+
+
+@pytest.mark.parametrize("case", sorted(STUDIES))
+def test_a_study_is_refused_by_its_schema_naming_file_key_and_value(
+    tmp_path: Path, case: str
+) -> None:
+    """Cases built to fail the schema alone (nothing of the knowledge base is read)."""
+    from adron.errors import InputError
+    from synth.sweep import load_study
+
+    text, key = STUDIES[case]
+    path = tmp_path / "s.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(InputError) as e:
+        load_study(path)
+    assert str(e.value).startswith(f"{path}: {key}"), str(e.value)
