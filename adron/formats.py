@@ -1,13 +1,16 @@
-"""The schemas of the user files read by hand-written readers with checks of their own:
-module catalogs (``adron/catalog.py``), studies (``synth/sweep.py``), regression suites
-(``synth/regress.py``) and perturbation tables (``export/perturb.py``).
+"""The registry of every user file format with a schema (:func:`formats`, :func:`check`,
+:func:`schemas`, which ``python -m adron.write_schemas`` writes into ``adron/schemas/``),
+and the schemas of the formats that have no module of their own: studies
+(``synth/sweep.py``), regression suites (``synth/regress.py``) and perturbation tables
+(``export/perturb.py``, a catalog's ``[perturbation]``).
 
-Each reader checks a file with its schema (:func:`check`) after its own checks (whose
-messages the users and the tests know): the schema holds what the hand may miss (a key's
-type, a bare number's range, a table where a value goes) and the documentation, and is
-published as JSON Schema (``adron/schemas/``, docs/formats-schemas.md). Quantities with
-units (``"34 g"``) are typed as such here; their units and ranges are the reader's
-(:data:`adron.catalog.CATALOG_MAX`).
+The other formats' models live beside their readers: module catalogs in
+``adron/catalog_schema.py``, part kinds in ``kinematics/partkinds.py``, design records in
+``export/record_schema.py``, programs in ``program/script.py`` and the ``.parmor`` list in
+``export/manifest.py``. Each reader validates a file with its model before it uses it;
+the model holds the rules (types, ranges, the rules that tie keys together) and the
+documentation, and what no schema of one file can say (another file, the knowledge base,
+the design a program runs on) is the reader's, said in its docstring.
 """
 
 from __future__ import annotations
@@ -87,114 +90,6 @@ def _integer(low: int, high: int):
 
 Cost = _number(0.0, 100_000.0)
 Ratio = _number(0.0, 1e6)
-
-
-# ---- module catalogs ------------------------------------------------------------------------
-
-
-def _catalog_models():
-    """The catalog's tables, built from the reader's own key lists (one list of keys)."""
-    from adron import catalog as c
-
-    def table(name: str, fields: dict[str, Any], doc: str) -> type[Closed]:
-        return create_model(name, __base__=Closed, __doc__=doc, **fields)
-
-    opt = (Quantity | None, None)
-    header = table(
-        "CatalogHeader",
-        {
-            "name": (Name, ...),
-            "currency": (
-                Annotated[str, Field(pattern="^[A-Z]{3}$", description="ISO 4217 code")],
-                ...,
-            ),
-            "version": (Annotated[str, Field(max_length=MAX_NAME)] | int, ...),
-            "extends": (Name | None, None),
-            "replace": (list[Name] | None, None),
-            "remove": (list[Name] | None, None),
-        },
-        "The catalog's name, currency and version; 'extends' a shipped or another catalog.",
-    )
-    common = {
-        "model": (Name, ...),
-        "class": (Name | None, Field(None, alias="class")),
-        "mass": opt,
-        "size": (Size | None, None),
-        "cost": (Cost | None, None),
-    }
-    actuator = table(
-        "Actuator",
-        {
-            **common,
-            **{k: opt for k in c._ACTUATOR_KEYS if k not in common and k != "travel_deg"},
-            "torque_class": (Name | None, None),
-            "travel_deg": (_number(0.0, 3600.0) | None, None),
-        },
-        "An actuator module (a servo in its printed housing).",
-    )
-    module = table(
-        "Module",
-        {
-            **common,
-            **{k: opt for k in (*c._MODULE_KEYS, *c._BATTERY_KEYS) if k not in common},
-        },
-        "A module that is no actuator (main, battery, sensor modules).",
-    )
-    part = table(
-        "Part",
-        {**common, "source": (Literal[c._PART_SOURCES] | None, None)},
-        "A passive part, printed or bought.",
-    )
-    tyre = table("Tyre", {k: opt for k in c._TYRE_KEYS} | {"name": (Name | None, None)}, "")
-    printer = table(
-        "Printer", {"model": (Name, ...), "bed": (Size | None, None)}, "A printer and its bed."
-    )
-    passive = table(
-        "Passive",
-        {k: opt for k in c._PASSIVE_LENGTHS}
-        | {"stress_concentration": opt, "printer_bed": (Size | None, None)},
-        "The printed parts' dimensions and limits.",
-    )
-    material = table(
-        "Material",
-        {k: opt for k in c._MATERIAL_KEYS} | {"name": (Name | None, None)},
-        "The printing material.",
-    )
-    design = table(
-        "Design",
-        {k: opt for k in (*c._DESIGN_KEYS, "behaviour_torque_factor", "i2c_first_address")},
-        "Safety factors and the design's environment.",
-    )
-    bus = table(
-        "Bus",
-        {
-            "name": (Name | None, None),
-            "protocol": (Name | None, None),
-            "first_address": (_integer(0, c.MAX_ADDRESS) | None, None),
-            "last_address": (_integer(0, c.MAX_ADDRESS) | None, None),
-            "device_limit": (_integer(1, c.MAX_ADDRESS) | None, None),
-            "address_word": (Name | None, None),
-            "address_format": (Literal[c._ADDRESS_FORMATS] | None, None),
-        },
-        "The bus the active modules share, its addresses and its limit of devices.",
-    )
-    return table(
-        "CatalogFile",
-        {
-            "catalog": (header, ...),
-            "actuator": (list[actuator], []),
-            "module": (list[module], []),
-            "part": (list[part], []),
-            "tyre": (tyre | None, None),
-            "printer": (list[printer], []),
-            "passive": (passive | None, None),
-            "material": (material | None, None),
-            "design": (design | None, None),
-            "bus": (bus | None, None),
-            "perturbation": (PerturbationOverrides | None, None),
-        },
-        "A module catalog (adron/catalog.toml, --catalog FILE.toml).",
-    )
 
 
 # ---- perturbation tables --------------------------------------------------------------------
@@ -291,7 +186,9 @@ class PerturbationTable(Closed):
 
 def _partial(model: type[Closed]) -> type[Closed]:
     """``model`` with every field optional (a catalog overrides some keys)."""
-    fields = {n: (f.annotation | None, None) for n, f in model.model_fields.items()}
+    from adron.catalog_schema import optional
+
+    fields = {n: (optional(f), None) for n, f in model.model_fields.items()}
     return create_model(f"{model.__name__}Override", __base__=Closed, **fields)
 
 
@@ -502,18 +399,9 @@ def _size_text(sizes: list[tuple[int | None, float]]) -> str:
     return f"about 10^{int(max(lg for _, lg in sizes))}"
 
 
-_CATALOG: list[type[Closed]] = []
-
-
-def catalog_model() -> type[Closed]:
-    """The catalog file's model (built once, from the reader's key lists)."""
-    if not _CATALOG:
-        _CATALOG.append(_catalog_models())
-    return _CATALOG[0]
-
-
 #: format name -> (model, description) of every user file format with a schema
 def formats() -> dict[str, tuple[type, str]]:
+    from adron.catalog_schema import CatalogFile
     from export.manifest import Manifest
     from export.record_schema import DesignRecord
     from kinematics.partkinds import PartKindsFile
@@ -521,7 +409,7 @@ def formats() -> dict[str, tuple[type, str]]:
 
     return {
         "partkinds": (PartKindsFile, "Part kinds (kinematics/partkinds.toml, --parts FILE.toml)"),
-        "catalog": (catalog_model(), "A module catalog (adron/catalog.toml, --catalog FILE)"),
+        "catalog": (CatalogFile, "A module catalog (adron/catalog.toml, --catalog FILE)"),
         "perturb": (PerturbationTable, "Perturbation ranges (export/perturb.toml)"),
         "study": (StudyFile, "A parameter study (parmor sweep STUDY.toml)"),
         "suite": (SuiteFile, "A regression suite (parmor regress SUITE.toml)"),
@@ -533,7 +421,11 @@ def formats() -> dict[str, tuple[type, str]]:
 
 def schemas() -> dict[str, dict]:
     """format name -> its JSON Schema."""
-    return {name: json_schema(model, name, doc) for name, (model, doc) in formats().items()}
+    from adron import catalog_schema
+
+    out = {name: json_schema(model, name, doc) for name, (model, doc) in formats().items()}
+    out["catalog"] = catalog_schema.json_schema()  # complete, or extending another
+    return out
 
 
 def check(name: str, data: Any, source: str) -> Any:

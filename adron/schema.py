@@ -17,6 +17,7 @@ message still names the exact key.
 
 from __future__ import annotations
 
+import difflib
 import math
 from collections.abc import Callable
 from typing import Annotated, Any, TypeVar
@@ -175,9 +176,7 @@ def path_is_tag(part: str) -> bool:
     return "[" in part or part in ("float", "int", "str", "bool", "list", "dict", "tuple")
 
 
-def key_of(
-    path: tuple[str | int, ...], data: Any = None, labels: tuple[str, ...] = ()
-) -> str:
+def key_of(path: tuple[str | int, ...], data: Any = None, labels: tuple[str, ...] = ()) -> str:
     """``kind[2].joints[1].limits``: a key path as messages write it; with ``labels``,
     each list entry of ``data`` on the path that is a table holding one of those keys as a
     string is followed by it: ``actuator[1] (MG996R).mass``."""
@@ -230,7 +229,11 @@ def _message(error: dict, data: Any, labels: tuple[str, ...] = ()) -> str:
     if isinstance(cause, At):
         suffix, why, value = cause.key, cause.message, cause.value
     elif kind == "extra_forbidden":
-        why = "unknown key" + (f" (keys: {ctx['keys']})" if "keys" in ctx else "")
+        keys = ctx.get("keys", "")
+        close = difflib.get_close_matches(str(path[-1]) if path else "", keys.split(", "), 1, 0.6)
+        why = "unknown key" + (
+            f" (did you mean '{close[0]}'?)" if close else f" (keys: {keys})" if keys else ""
+        )
         value = ...
     elif kind == "missing":
         why = "missing (it is required)"
@@ -297,7 +300,8 @@ def validate(
         return model.model_validate(data, context=context)
     except ValidationError as e:
         errors = e.errors(include_url=False)
-        first = errors[0]
+        # an unknown key first: a misspelt key is also a missing one, and explains it
+        first = next((x for x in errors if x["type"] == "extra_forbidden"), errors[0])
         if first["type"] == "extra_forbidden":
             keys = _allowed(model, tuple(first["loc"]))
             if keys:
