@@ -151,7 +151,7 @@ BAD = {
     "program": ("bad.json", '{"program": [{"wait": 61}]}'),
     "manifest": (".parmor", '{"format": "parmor-files-1", "files": {"../x": "sha256:00"}}'),
     "catalog": ("bad.toml", '[catalog]\nname = "x"\ncurrency = "euro"\nversion = "1"\n'),
-    "study": ("bad.toml", '[[request]]\nabilities = []\n'),
+    "study": ("bad.toml", "[[request]]\nabilities = []\n"),
 }
 
 
@@ -487,3 +487,88 @@ def test_a_study_is_refused_by_its_schema_naming_file_key_and_value(
     with pytest.raises(InputError) as e:
         load_study(path)
     assert str(e.value).startswith(f"{path}: {key}"), str(e.value)
+
+
+# ---- catalogs: the schema is where their rules live --------------------------------------
+
+CATALOG = (ROOT / "adron/catalog.toml").read_text(encoding="utf-8")
+
+
+def _catalog(old: str, new: str) -> str:
+    assert CATALOG.count(old) == 1, old
+    return CATALOG.replace(old, new)
+
+
+HEAD = '[catalog]\nname = "c"\ncurrency = "EUR"\nversion = "1"\nextends = "{parent}"\n'
+
+#: (catalog text, the key path and value its refusal names); each was accepted (or a
+#: traceback in the sizing) before the bound, or is a rule only the schema now holds
+CATALOGS = {
+    "gravity 1e300": (
+        _catalog('gravity = "9.81 m/s^2"', 'gravity = "1e300 m/s^2"'),
+        "design.gravity = '1e300 m/s^2': above 100 m/s^2",
+    ),
+    "modulus 1e290 GPa": (
+        _catalog('youngs_modulus = "2.3 GPa"', 'youngs_modulus = "1e290 GPa"'),
+        "material.youngs_modulus = '1e290 GPa': above 1000 GPa",
+    ),
+    "c rating 1e9": (
+        _catalog("c_rating = 20", "c_rating = 1e9"),
+        "module[1] (LiPo-3S-1500).c_rating = 1000000000.0: out of range",
+    ),
+    "safety factor 1e9": (
+        _catalog("torque_safety_factor = 1.5", "torque_safety_factor = 1e9"),
+        "design.torque_safety_factor = 1000000000.0: out of range",
+    ),
+    "version a list": (_catalog('version = "1"', "version = [1]"), "catalog.version = [1]"),
+    "model with a newline": (
+        _catalog('model = "SG90"', 'model = "SG\\n90"'),
+        "actuator[0].model = 'SG\\n90': holds the control character U+000A",
+    ),
+    "perturbation spread 5": (
+        CATALOG + "\n[perturbation.mass]\nspread = 5\n",
+        "perturbation.mass.spread = 5: out of range",
+    ),
+    "extension: a wrong unit, its parent absent": (
+        HEAD.format(parent="nowhere.toml") + '[passive]\nmin_wall = "1 kg"\n',
+        "passive.min_wall = '1 kg': expected a length",
+    ),
+    "extension: rules after the merge": (
+        HEAD.format(parent="default") + '[passive]\nmin_wall = "25 mm"\n',
+        "passive.min_wall = '25 mm': leaves no hole",
+    ),
+    "a partial catalog that extends nothing": (
+        '[catalog]\nname = "c"\ncurrency = "EUR"\nversion = "1"\n[design]\ngravity = "9 m/s^2"\n',
+        "actuator: missing",
+    ),
+    "replace without extends": (
+        _catalog('version = "1"', 'version = "1"\nreplace = ["actuator"]'),
+        "catalog.replace = ['actuator']: only for a catalog that extends another",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CATALOGS))
+def test_a_catalog_is_refused_by_its_schema_naming_file_key_and_value(
+    tmp_path: Path, case: str
+) -> None:
+    from adron.catalog import load_catalog
+    from adron.errors import InputError
+
+    text, words = CATALOGS[case]
+    path = tmp_path / "mine.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(InputError) as e:
+        load_catalog(path)
+    assert str(e.value).startswith(f"{path}: {words}"), str(e.value)
+
+
+def test_an_extending_catalog_passes_its_json_schema_and_a_partial_one_does_not(
+    tmp_path: Path,
+) -> None:
+    child = tmp_path / "child.toml"
+    child.write_text(HEAD.format(parent="default") + "[design]\ngravity = '9 m/s^2'\n")
+    assert _validates("catalog", child).returncode == 0
+    alone = tmp_path / "alone.toml"
+    alone.write_text(child.read_text().replace('extends = "default"\n', ""))
+    assert _validates("catalog", alone).returncode == 1
