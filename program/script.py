@@ -458,24 +458,32 @@ def holds(value: float, op: str, than: float) -> bool:
     }[op]
 
 
-def execute(program: Mapping, robot: Robot) -> None:
-    """Run a validated program on ``robot``, statement by statement."""
-    _run(program["program"], robot)
+def execute(program: Mapping, robot: Robot, source: str = "") -> None:
+    """Run a validated program on ``robot``, statement by statement. A ProgramError the
+    robot raises (a behaviour that cannot run with these values together, the simulated
+    time used up) names ``source`` (when given) and the statement's JSON path."""
+    _run(program["program"], robot, "program", f"{source}: " if source else "")
 
 
-def _run(body: Sequence[Mapping], robot: Robot) -> None:
-    for st in body:
-        if "do" in st:
-            robot.do(st["do"], **dict(st.get("params", {})))
-        elif "wait" in st:
-            robot.wait(float(st["wait"]))
-        elif "repeat" in st:
+def _run(body: Sequence[Mapping], robot: Robot, path: str, where: str) -> None:
+    for i, st in enumerate(body):
+        here = f"{path}[{i}]"
+        try:
+            if "do" in st:
+                robot.do(st["do"], **dict(st.get("params", {})))
+            elif "wait" in st:
+                robot.wait(float(st["wait"]))
+            elif "if" in st:
+                c = st["if"]
+                taken = holds(robot.report(c["report"]), c["op"], float(c["value"]))
+        except ProgramError as e:
+            raise ProgramError(f"{where}{here}: {e}") from None
+        if "repeat" in st:
             for _ in range(int(st["repeat"])):
-                _run(st.get("body", []), robot)
-        else:
-            c = st["if"]
-            taken = holds(robot.report(c["report"]), c["op"], float(c["value"]))
-            _run(st.get("then" if taken else "else", []), robot)
+                _run(st.get("body", []), robot, f"{here}.body", where)
+        elif "if" in st:
+            branch = "then" if taken else "else"
+            _run(st.get(branch, []), robot, f"{here}.{branch}", where)
 
 
 def number_text(x: float) -> str:

@@ -735,7 +735,7 @@ def run_program(
     ``perturb`` of its table: :func:`perturbed_session`); :meth:`Session.result`."""
     session = perturbed_session(folder, progress, perturb)
     validate(program, session.behaviors, source)
-    execute(program, session)
+    execute(program, session, source)
     return session.result()
 
 

@@ -539,3 +539,17 @@ def test_parmor_run_stops_a_program_at_its_time_limit_and_reports_odd_exits(
     exits.write_text("import sys\n\ndef main(robot):\n    sys.exit(3)\n")
     r = cli("run", str(exits), str(cart))
     assert r.code == 2 and "exits.py:4: SystemExit: 3" in r.err, r.err
+
+
+def test_a_behaviour_that_cannot_run_names_the_file_and_the_statement(cli, cart, tmp_path):
+    """A case built to fail: each value is within its range, but the drive is shorter than
+    its ramp; the refusal (exit 2) named neither the program nor the statement."""
+    js = tmp_path / "p.json"
+    js.write_text(
+        '{"program": [{"wait": 0.1}, {"repeat": 2, "body": '
+        '[{"do": "driving", "params": {"seconds": 0.2}}]}]}'
+    )
+    r = cli("run", str(js), str(cart))
+    assert r.code == 2, r.err
+    assert f"{js}: program[1].body[0]: driving: ramp" in r.err, r.err
+    assert "Traceback" not in r.err
