@@ -63,11 +63,33 @@ def _shipped() -> list[tuple[str, list[Path]]]:
             "catalog",
             [ROOT / "adron/catalog.toml", *sorted((ROOT / "adron/catalogs").glob("*.toml"))],
         ),
-        ("partkinds", [ROOT / "kinematics/partkinds.toml"]),
+        (
+            "partkinds",
+            [
+                ROOT / "kinematics/partkinds.toml",
+                ROOT / "docs/examples/stilt_leg.toml",
+                *sorted((ROOT / "tests/data/any_part_kind").glob("*.toml")),
+            ],
+        ),
         ("perturb", [ROOT / "export/perturb.toml"]),
-        ("study", sorted((ROOT / "studies").glob("*.toml"))),
+        ("study", [*sorted((ROOT / "studies").glob("*.toml")), ROOT / "docs/examples/wheels.toml"]),
         ("program", [ROOT / "examples/square.json", ROOT / "docs/examples/walk.json"]),
     ]
+
+
+def test_every_data_file_parmor_ships_has_its_schema_here() -> None:
+    """A new catalog, part kinds file, study or program in the tree is validated below
+    (or this test names it)."""
+    covered = {p for _, paths in _shipped() for p in paths}
+    folders = ("adron", "kinematics", "export", "studies", "examples", "docs/examples")
+    found = {
+        p
+        for folder in folders
+        for pattern in ("*.toml", "*.json")
+        for p in (ROOT / folder).rglob(pattern)
+        if "schemas" not in p.parts
+    }
+    assert found - covered == set()
 
 
 @pytest.mark.parametrize(("schema", "paths"), _shipped(), ids=[s for s, _ in _shipped()])
