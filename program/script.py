@@ -389,8 +389,14 @@ def _walk(body: Sequence[Any], path: str, depth: int, count: list[int]) -> int:
 def check(program: object, source: str = "") -> ProgramFile:
     """``program`` (parsed JSON) checked against :class:`ProgramFile`; ProgramError naming
     ``source`` (when given), the JSON path of the first problem and its value."""
+    from adron.schema import _show
     from adron.schema import validate as against
 
+    if not isinstance(program, Mapping):
+        raise ProgramError(
+            f"{source + ': ' if source else ''}(the top level) = {_show(program)}: not a "
+            'program (an object {"program": [statement, ...]})'
+        )
     return against(ProgramFile, program, source, ProgramError)
 
 

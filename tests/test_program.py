@@ -74,7 +74,7 @@ def test_a_program_validates_and_reads_as_python() -> None:
 @pytest.mark.parametrize(
     "program, where",
     [
-        ([], "(the top level) = []: not a table"),
+        ([], "(the top level) = []: not a program (an object"),
         ({"program": {}}, "program = an empty table: not a list"),
         ({"program": [walk()], "x": 1}, "x: unknown key (keys: program)"),
         ({"program": [{"jump": 1}]}, "program[0] = a table: not a statement"),
