@@ -166,6 +166,7 @@ class Outcome:
     unnamed: list[str] = field(default_factory=list)
     written: list[str] = field(default_factory=list)
     by_format: Counter = field(default_factory=Counter)
+    refused_by_format: Counter = field(default_factory=Counter)
 
     def figures(self) -> dict:
         return {
@@ -175,8 +176,10 @@ class Outcome:
             "tracebacks": len(self.tracebacks),
             "hangs": len(self.hangs),
             "refusals not naming file and key": len(self.unnamed),
-            "--out written by a refused run": len(self.written),
-            "by format": dict(sorted(self.by_format.items())),
+            "files written by a refused run": len(self.written),
+            "by format (cases, refused)": {
+                k: (n, self.refused_by_format[k]) for k, n in sorted(self.by_format.items())
+            },
         }
 
 
@@ -343,6 +346,7 @@ class Fuzzer:
             o.accepted += 1
         elif status == "refused":
             o.refused += 1
+            o.refused_by_format[fmt] += 1
             if message is not None and not message.startswith("\x00"):
                 src = message.split("\x01")[0] if "\x01" in message else None
                 text = message.split("\x01")[-1]
