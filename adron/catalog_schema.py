@@ -62,6 +62,14 @@ CATALOG_MAX: dict[str, str] = {
     "angular_acceleration": "10000 rad/s^2",
     "volume_flow": "0.001 m^3/s",
 }
+#: Smallest catalog quantity of the dimensions the ASP facts count in integers (mg, mN*m,
+#: mrad/s, mA): anything less is 0 there (a zero current is written 0 A and allowed).
+CATALOG_MIN: dict[str, str] = {
+    "mass": "1 mg",
+    "torque": "1 mN*m",
+    "angular_speed": "0.001 rad/s",
+    "current": "1 mA",
+}
 #: Largest cost of one module (and of a metre of tyre), in the catalog's currency (cents
 #: must fit clingo's integers).
 MAX_COST = 100_000.0
@@ -128,11 +136,12 @@ def quantity(
     doc: str = "",
 ) -> Any:
     """A quantity of ``dimension`` with its unit, as SI float: more than 0 (or ``zero``:
-    at least 0), at most ``top`` (default :data:`CATALOG_MAX` of the dimension), or less
-    than ``below``."""
+    at least 0; at least :data:`CATALOG_MIN` of the dimension), at most ``top`` (default
+    :data:`CATALOG_MAX` of the dimension), or less than ``below``."""
     from adron.units import DIMENSIONS
 
     top = top if top is not None or below is not None else CATALOG_MAX.get(dimension)
+    low = None if zero else CATALOG_MIN.get(dimension)
 
     def check(v: Any) -> float:
         from adron.units import quantity as read
@@ -143,19 +152,22 @@ def quantity(
             raise ValueError(str(e).removeprefix(": ")) from None
         if top is not None and x > _si(top, dimension):
             raise ValueError(f"above {top}, the largest accepted")
+        if low is not None and x < _si(low, dimension):
+            raise ValueError(f"below {low}, the smallest accepted")
         if below is not None and x >= _si(below, dimension):
             raise ValueError(f"not less than {below}")
         return x
 
     example = DIMENSIONS[dimension].example
     bound = f", at most {top}" if top else f", less than {below}" if below else ""
+    bound = f", at least {low}{bound}" if low else bound
     schema = {
         "type": "string",
         "maxLength": _QUANTITY_TEXT,
         "pattern": "^\\s*[+]?([0-9]+\\.?[0-9]*|\\.[0-9]+)([eE][-+]?[0-9]+)?\\s*[^\\s0-9.]",
         "description": (doc + "; " if doc else "")
         + f"{dimension.replace('_', ' ')} with its unit, such as '{example}'"
-        + (", 0 or more" if zero else ", more than 0")
+        + (", 0 or more" if zero else ", more than 0" if not low else "")
         + bound,
     }
     return Annotated[float, PlainValidator(check), WithJsonSchema(schema)]

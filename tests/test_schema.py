@@ -274,6 +274,9 @@ PARTS = {
         "'NoSuchClass'",
     ),
     "two kinds of one class": (leg() + leg(), "kind[1].class", "'MultipedLeg'"),
+    # found by a fresh fuzzing (seed 3434): a limit naming what no file defines (the
+    # constants may come from another file: checked when the robot is assembled)
+    "a limit naming PI": (leg('"-PI/3"'), "kind[0] (MultipedLeg)", "'PI'"),
 }
 WALKING = ["design", "walking", "--answer", "grasping=no", "--answer", "rough-terrain-walking=no"]
 
@@ -351,6 +354,18 @@ RECORDS = {
     "held_by x": (lambda r: r["payload"].__setitem__("held_by", "x"), "payload.held_by"),
     "joints empty": (lambda r: r.__setitem__("joints", ""), "joints"),
     "format 2": (lambda r: r.__setitem__("format", 2), "format"),
+    # found by a fresh fuzzing (seed 3434): each was a traceback or an unnamed refusal
+    "params.payload a table": (lambda r: r["params"].__setitem__("payload", {"x": 1}), "params"),
+    "params.payload 1e6": (lambda r: r["params"].__setitem__("payload", 1e6), "params.payload"),
+    "loaded_mass_kg 1e-300": (lambda r: r.__setitem__("loaded_mass_kg", 1e-300), "loaded_mass"),
+    "actuator torque 1e-300": (
+        lambda r: r["joints"][0].__setitem__("actuator_torque_Nm", 1e-300),
+        "joints[0].actuator_torque_Nm",
+    ),
+    "a body plan no controller drives": (
+        lambda r: r["body_plan"]["root"].__setitem__("children", []),
+        "body_plan",
+    ),
     "format text": (lambda r: r.__setitem__("format", "1"), "format"),
 }
 
@@ -562,6 +577,10 @@ CATALOGS = {
     "a partial catalog that extends nothing": (
         '[catalog]\nname = "c"\ncurrency = "EUR"\nversion = "1"\n[design]\ngravity = "9 m/s^2"\n',
         "actuator: missing",
+    ),
+    "a torque below the facts' unit": (
+        _catalog('stall_torque = "1.8 kgf*cm"', 'stall_torque = "1e-300 N*m"'),
+        "actuator[0] (SG90).stall_torque = '1e-300 N*m': below 1 mN*m",
     ),
     "replace without extends": (
         _catalog('version = "1"', 'version = "1"\nreplace = ["actuator"]'),
