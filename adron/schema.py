@@ -289,15 +289,13 @@ def validate(
     source: str,
     error: Callable[[str], Exception] = InputError,
     labels: tuple[str, ...] = (),
-    context: dict[str, Any] | None = None,
 ) -> Model:
     """``data`` (a parsed file) as ``model``; ``error("source: key = value: why")`` raised
     for the first violation (with how many more there are). ``source`` '' leaves the
     file out (a program sent to the block server). ``labels``: keys whose string value
-    names a list entry in the key path (``actuator[1] (MG996R)``: its ``model``).
-    ``context`` is handed to the model's validators (pydantic's validation context)."""
+    names a list entry in the key path (``actuator[1] (MG996R)``: its ``model``)."""
     try:
-        return model.model_validate(data, context=context)
+        return model.model_validate(data)
     except ValidationError as e:
         errors = e.errors(include_url=False)
         # an unknown key first: a misspelt key is also a missing one, and explains it
@@ -306,7 +304,8 @@ def validate(
             keys = _allowed(model, tuple(first["loc"]))
             if keys:
                 first = {**first, "ctx": {**(first.get("ctx") or {}), "keys": keys}}
-        more = f" (and {len(errors) - 1} more problems)" if len(errors) > 1 else ""
+        n = len(errors) - 1
+        more = f" (and {n} more problem{'s' if n > 1 else ''})" if n else ""
         where = f"{source}: " if source else ""
         raise error(f"{where}{_message(first, data, labels)}{more}") from None
 
