@@ -33,7 +33,7 @@ from pydantic import (
     model_validator,
 )
 
-from adron.catalog import BATTERY_CLASS, MAIN_CLASS, TORQUE_CLASSES  # noqa: E402
+from adron.catalog import BATTERY_CLASS, MAIN_CLASS, TORQUE_CLASSES
 from adron.errors import InputError
 from adron.schema import MAX_NAME, At, Closed, described
 
@@ -46,8 +46,8 @@ MAX_ADDRESS = 65535
 #: Largest catalog quantity of each dimension parmor accepts, with its unit. Beyond them no
 #: module of a modular robot makes sense, and the ASP facts (integers: milligrams, cents,
 #: mN*m, mrad/s, mA; clingo's are 32-bit) of a few tens of modules would overflow; the
-#: material's and the design's figures are bounded above what any printable material or
-#: any robot on Earth (or the Moon) has.
+#: material's and the design's figures are bounded far above any printable material and
+#: any robot's environment.
 CATALOG_MAX: dict[str, str] = {
     "mass": "50 kg",
     "length": "10 m",
