@@ -1,10 +1,13 @@
 """The ParMoR module catalog: actuators, active modules, passive templates, material, rules.
 
 The catalog is a TOML file (the shipped one is ``adron/catalog.toml``; a user passes their
-own with ``--catalog``). :func:`load_catalog` validates it and returns frozen dataclasses
-of SI floats; every problem is an InputError that names the file and the key path, e.g.
-``my.toml: actuator[2] (MG996R): missing key 'stall_torque'``. Entry numbers count the
-``[[actuator]]`` / ``[[module]]`` tables from 1, in file order.
+own with ``--catalog``). :func:`load_catalog` validates it against its schema
+(``adron/catalog_schema.py``, where every rule of one file lives) and returns frozen
+dataclasses of SI floats; every problem is an InputError that names the file, the key path
+and the value, e.g. ``my.toml: actuator[1] (MG996R).stall_torque: missing (it is
+required)``. Entries are counted from 0 in file order and named by their model. This
+module keeps what one file cannot say: the catalog it extends, and the ontology's
+classes (:meth:`Catalog.check_classes`).
 
 :func:`catalog_facts` writes the actuators and modules as integer ASP facts for clingo.
 
