@@ -1,10 +1,13 @@
 """The ParMoR module catalog: actuators, active modules, passive templates, material, rules.
 
 The catalog is a TOML file (the shipped one is ``adron/catalog.toml``; a user passes their
-own with ``--catalog``). :func:`load_catalog` validates it and returns frozen dataclasses
-of SI floats; every problem is an InputError that names the file and the key path, e.g.
-``my.toml: actuator[2] (MG996R): missing key 'stall_torque'``. Entry numbers count the
-``[[actuator]]`` / ``[[module]]`` tables from 1, in file order.
+own with ``--catalog``). :func:`load_catalog` validates it against its schema
+(``adron/catalog_schema.py``, where every rule of one file lives) and returns frozen
+dataclasses of SI floats; every problem is an InputError that names the file, the key path
+and the value, e.g. ``my.toml: actuator[1] (MG996R).stall_torque: missing (it is
+required)``. Entries are counted from 0 in file order and named by their model. This
+module keeps what one file cannot say: the catalog it extends, and the ontology's
+classes (:meth:`Catalog.check_classes`).
 
 :func:`catalog_facts` writes the actuators and modules as integer ASP facts for clingo.
 
@@ -17,7 +20,6 @@ from __future__ import annotations
 import difflib
 import json
 import math
-import re
 from collections.abc import Collection, Iterable
 from dataclasses import dataclass, replace
 from decimal import ROUND_HALF_UP, Decimal
@@ -28,7 +30,6 @@ from typing import Any
 from adron import readers
 from adron.errors import InputError
 from adron.translate import asp_string
-from adron.units import quantity
 
 __all__ = [
     "BATTERY_CLASS",
@@ -316,21 +317,19 @@ class Catalog:
         return self.module_of(MAIN_CLASS)
 
     def check_classes(self, known: Collection[str]) -> None:
-        """InputError if an entry names an ontology class not in ``known``.
+        """InputError if an entry names an ontology class not in ``known`` (a reference to
+        another file, the ontology, that the catalog's schema cannot check).
 
         The catalog cannot see the ontology (adron.catalog imports no knowledge base);
         the caller passes the class names of the loaded ontology.
         """
         entries = [
-            (f"actuator[{i}] ({a.model})", a.ontology_class)
-            for i, a in enumerate(self.actuators, 1)
+            (f"actuator[{i}] ({a.model})", a.ontology_class) for i, a in enumerate(self.actuators)
         ]
         entries += [
-            (f"module[{i}] ({m.model})", m.ontology_class) for i, m in enumerate(self.modules, 1)
+            (f"module[{i}] ({m.model})", m.ontology_class) for i, m in enumerate(self.modules)
         ]
-        entries += [
-            (f"part[{i}] ({p.model})", p.ontology_class) for i, p in enumerate(self.parts, 1)
-        ]
+        entries += [(f"part[{i}] ({p.model})", p.ontology_class) for i, p in enumerate(self.parts)]
         for path, cls in entries:
             if cls not in known:
                 raise InputError(
@@ -341,458 +340,17 @@ class Catalog:
 
 # ---- Loading -----------------------------------------------------------------------------
 
-_ACTUATOR_KEYS = (
-    "model",
-    "class",
-    "torque_class",
-    "mass",
-    "size",
-    "stall_torque",
-    "no_load_speed",
-    "stall_current",
-    "cost",
-    "travel_deg",
-)
-_MODULE_KEYS = ("model", "class", "mass", "size", "cost", "current")
-_BATTERY_KEYS = ("capacity", "voltage", "c_rating")
-_PASSIVE_LENGTHS = (
-    "dovetail_face",
-    "face_thickness",
-    "min_wall",
-    "max_outer_radius",
-    "fillet_radius",
-    "min_link_length",
-    "max_link_length",
-    "wheel_min_radius",
-    "wheel_max_radius",
-    "wheel_width",
-    "foot_min_side",
-    "foot_max_side",
-    "foot_thickness",
-    "print_clearance",
-)
-_PASSIVE_KEYS = (*_PASSIVE_LENGTHS, "stress_concentration", "printer_bed")
-_MATERIAL_KEYS = ("name", "youngs_modulus", "yield_strength", "density")
-_DESIGN_KEYS = (
-    "torque_safety_factor",
-    "stress_safety_factor",
-    "max_tip_deflection",
-    "max_joint_acceleration",
-    "gravity",
-    "max_slope",
-    "rolling_resistance",
-)
-_PART_KEYS = ("model", "class", "source", "size", "cost")
-_PART_SOURCES = ("printed", "bought")
-_TYRE_KEYS = ("name", "thickness", "density", "cost_per_m")
-_TOP_KEYS = (
-    "catalog",
-    "actuator",
-    "module",
-    "part",
-    "tyre",
-    "printer",
-    "passive",
-    "material",
-    "design",
-    "bus",
-    "perturbation",
-)
-_BUS_KEYS = ("name", "protocol", "first_address", "last_address")
-_BUS_OPTIONAL = ("device_limit", "address_word", "address_format")
-_ADDRESS_FORMATS = ("hex", "decimal")
-#: Largest address (ID) a bus may name; any real bus is far below.
-MAX_ADDRESS = 65535
-#: Tables merged key by key and arrays of tables merged by model when a catalog extends
-#: another (see :func:`parse_catalog`).
-_MERGED_TABLES = ("passive", "material", "design", "tyre")  # [bus] is replaced whole
+#: Tables merged key by key when a catalog extends another (see :func:`parse_catalog`);
+#: [bus] is replaced whole, and the arrays of tables are merged by model.
+_MERGED_TABLES = ("passive", "material", "design", "tyre")
 _MERGED_ARRAYS = ("actuator", "module", "part", "printer")
 #: Longest chain of catalogs extending one another.
 MAX_EXTENDS = 8
-_CLASS_NAME = re.compile(r"[A-Z][A-Za-z0-9]*")
-_CURRENCY = re.compile(r"[A-Z]{3}")
-
-#: Largest catalog quantity of each dimension parmor accepts, with its unit. Beyond them no
-#: module of a modular robot makes sense, and the ASP facts (integers: milligrams, cents,
-#: mN*m, mrad/s, mA; clingo's are 32-bit) of a few tens of modules would overflow.
-CATALOG_MAX: dict[str, str] = {
-    "mass": "50 kg",
-    "length": "10 m",
-    "torque": "1000 N*m",
-    "angular_speed": "1000 rad/s",
-    "current": "1000 A",
-    "voltage": "1000 V",
-    "charge": "1000 Ah",
-}
-#: Largest cost of one module, in the catalog's currency (cents must fit clingo's integers).
-MAX_COST = 100_000.0
 
 
 def _suggest(word: str, choices: Iterable[str]) -> str:
     close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
     return f" (did you mean '{close[0]}'?)" if close else ""
-
-
-def _kind(value: Any) -> str:
-    if isinstance(value, bool):
-        return "a boolean"
-    if isinstance(value, dict):
-        return "a table"
-    if isinstance(value, list):
-        return "an array"
-    if isinstance(value, str):
-        return f"the string '{value}'"
-    return f"the number {value}"
-
-
-class _Table:
-    """One TOML table being read: its data, its key path, and typed getters."""
-
-    def __init__(self, data: dict[str, Any], path: str, file: str) -> None:
-        self.data, self.path, self.file = data, path, file
-
-    def fail(self, message: str, key: str | None = None) -> InputError:
-        where = self.path if key is None else f"{self.path}.{key}"
-        return InputError(f"{self.file}: {where}: {message}")
-
-    def where(self, key: str) -> str:
-        return f"{self.file}: {self.path}.{key}"
-
-    def check_keys(self, required: Iterable[str], optional: Iterable[str] = ()) -> None:
-        required = tuple(required)
-        allowed = (*required, *optional)
-        for key in self.data:
-            if key not in allowed:
-                raise self.fail(f"unknown key '{key}'{_suggest(key, allowed)}")
-        for key in required:
-            if key not in self.data:
-                raise self.fail(f"missing key '{key}'")
-
-    def text(self, key: str) -> str:
-        value = self.data[key]
-        if not isinstance(value, str) or not value.strip():
-            raise self.fail(f"expected a non-empty string, got {_kind(value)}", key)
-        bad = next((c for c in value if not c.isprintable()), None)
-        if bad is not None:
-            # A newline or NUL in a name breaks the ASP facts, the BOM's CSV and the URDF.
-            raise self.fail(
-                f"{value!r} contains the control character U+{ord(bad):04X}; expected one line "
-                "of printable text",
-                key,
-            )
-        return value
-
-    def class_name(self, key: str = "class") -> str:
-        value = self.text(key)
-        if not _CLASS_NAME.fullmatch(value):
-            raise self.fail(f"'{value}' is not an ontology class name (like 'MainModule')", key)
-        return value
-
-    def q(self, key: str, dimension: str, **flags: bool) -> float:
-        value = quantity(self.data[key], dimension, self.where(key), **flags)
-        if dimension in CATALOG_MAX:
-            top = CATALOG_MAX[dimension]
-            if value > quantity(top, dimension, "CATALOG_MAX"):
-                raise self.fail(f"'{self.data[key]}' is above {top}, the largest accepted", key)
-        return value
-
-    def number(
-        self,
-        key: str,
-        *,
-        minimum: float = 0.0,
-        allow_equal: bool = True,
-        maximum: float = math.inf,
-    ) -> float:
-        value = self.data[key]
-        if isinstance(value, str):
-            value = quantity(value, "dimensionless", self.where(key), allow_negative=True)
-        elif isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.fail(f"expected a number, got {_kind(value)}", key)
-        value = float(value)
-        if not math.isfinite(value):
-            raise self.fail(f"expected a finite number, got {value}", key)
-        if value < minimum or (value == minimum and not allow_equal):
-            bound = "at least" if allow_equal else "greater than"
-            raise self.fail(f"must be {bound} {minimum:g}, got {value:g}", key)
-        if value > maximum:
-            raise self.fail(f"must be at most {maximum:g}, got {value:g}", key)
-        return value
-
-    def integer(self, key: str, low: int, high: int) -> int:
-        value = self.data[key]
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.fail(f"expected an integer, got {_kind(value)}", key)
-        if not low <= value <= high:
-            raise self.fail(f"must be between {low} and {high}, got {value}", key)
-        return value
-
-    def lengths(self, key: str) -> Size:
-        value = self.data[key]
-        if not isinstance(value, list) or len(value) != 3:
-            raise self.fail(
-                f"expected an array of 3 lengths such as ['50 mm', '50 mm', '40 mm'], "
-                f"got {_kind(value)}" + (f" of {len(value)}" if isinstance(value, list) else ""),
-                key,
-            )
-        x, y, z = (quantity(v, "length", f"{self.where(key)}[{i}]") for i, v in enumerate(value, 1))
-        if max(x, y, z) > quantity(CATALOG_MAX["length"], "length", "CATALOG_MAX"):
-            raise self.fail(f"a side is above {CATALOG_MAX['length']}, the largest accepted", key)
-        return (x, y, z)
-
-
-def _section(doc: dict[str, Any], key: str, file: str) -> _Table:
-    if key not in doc:
-        raise InputError(f"{file}: missing table [{key}]")
-    value = doc[key]
-    if not isinstance(value, dict):
-        raise InputError(f"{file}: {key}: expected a table [{key}], got {_kind(value)}")
-    return _Table(value, key, file)
-
-
-def _entries(doc: dict[str, Any], key: str, file: str, required: bool = True) -> list[_Table]:
-    value = doc.get(key)
-    if not required and value is None:
-        return []
-    if value is None or value == []:
-        raise InputError(f"{file}: no [[{key}]] entries; the catalog needs at least one")
-    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-        raise InputError(f"{file}: {key}: expected an array of tables [[{key}]]")
-    tables = []
-    for i, data in enumerate(value, 1):
-        model = data.get("model")
-        named = isinstance(model, str) and model and model.isprintable()
-        label = f"{key}[{i}] ({model})" if named else f"{key}[{i}]"
-        tables.append(_Table(data, label, file))
-    return tables
-
-
-def _actuator(t: _Table) -> Actuator:
-    t.check_keys(_ACTUATOR_KEYS)
-    torque_class = t.text("torque_class")
-    if torque_class not in TORQUE_CLASSES:
-        raise t.fail(
-            f"'{torque_class}' is not one of {', '.join(TORQUE_CLASSES)}"
-            + _suggest(torque_class, TORQUE_CLASSES),
-            "torque_class",
-        )
-    return Actuator(
-        model=t.text("model"),
-        ontology_class=t.class_name(),
-        torque_class=torque_class,
-        mass_kg=t.q("mass", "mass"),
-        size_m=t.lengths("size"),
-        stall_torque_Nm=t.q("stall_torque", "torque"),
-        no_load_speed_rad_s=t.q("no_load_speed", "angular_speed"),
-        stall_current_A=t.q("stall_current", "current"),
-        cost=t.number("cost", maximum=MAX_COST),
-        travel_rad=math.radians(_travel(t)),
-    )
-
-
-def _travel(t: _Table) -> float:
-    """Degrees the servo turns end to end: more than 0, at most 360 (continuous)."""
-    deg = t.number("travel_deg", allow_equal=False)
-    if deg > 360:
-        raise t.fail(f"must be at most 360 (continuous rotation), got {deg:g}", "travel_deg")
-    return deg
-
-
-def _part(t: _Table, density: float) -> Part:
-    source = t.data.get("source")
-    if source not in _PART_SOURCES:
-        t.check_keys(_PART_KEYS, ("mass",))
-        raise t.fail(f"expected one of {', '.join(_PART_SOURCES)}, got {_kind(source)}", "source")
-    t.check_keys((*_PART_KEYS, "mass") if source == "bought" else _PART_KEYS)
-    size = t.lengths("size")
-    # printed solid: the box's volume times the material's density
-    mass = size[0] * size[1] * size[2] * density if source == "printed" else t.q("mass", "mass")
-    return Part(
-        model=t.text("model"),
-        ontology_class=t.class_name(),
-        source=source,
-        mass_kg=mass,
-        size_m=size,
-        cost=t.number("cost", maximum=MAX_COST),
-    )
-
-
-def _tyre(t: _Table) -> Tyre:
-    t.check_keys(_TYRE_KEYS)
-    return Tyre(
-        name=t.text("name"),
-        thickness_m=t.q("thickness", "length"),
-        density_kg_m3=t.q("density", "density"),
-        cost_per_m=t.number("cost_per_m"),
-    )
-
-
-def _module(t: _Table) -> Module:
-    cls = t.data.get("class")
-    battery = cls == BATTERY_CLASS
-    if battery:
-        t.check_keys((*_MODULE_KEYS, *_BATTERY_KEYS))
-    else:
-        for key in _BATTERY_KEYS:
-            if key in t.data:
-                raise t.fail(f"'{key}' is only for modules of class '{BATTERY_CLASS}'", key)
-        t.check_keys(_MODULE_KEYS)
-    capacity = voltage = max_current = None
-    if battery:
-        capacity = t.q("capacity", "charge") / 3600.0  # C -> Ah
-        voltage = t.q("voltage", "voltage")
-        max_current = t.number("c_rating", allow_equal=False) * capacity  # (1/h) * Ah = A
-    return Module(
-        model=t.text("model"),
-        ontology_class=t.class_name(),
-        mass_kg=t.q("mass", "mass"),
-        size_m=t.lengths("size"),
-        cost=t.number("cost", maximum=MAX_COST),
-        current_A=t.q("current", "current", allow_zero=True),
-        capacity_Ah=capacity,
-        voltage_V=voltage,
-        max_current_A=max_current,
-    )
-
-
-def _passive(t: _Table) -> Passive:
-    t.check_keys(_PASSIVE_KEYS, ("print_speed",))
-    v = {key: t.q(key, "length") for key in _PASSIVE_LENGTHS}
-    bed = t.lengths("printer_bed")
-    p = Passive(
-        dovetail_face_m=v["dovetail_face"],
-        face_thickness_m=v["face_thickness"],
-        min_wall_m=v["min_wall"],
-        max_outer_radius_m=v["max_outer_radius"],
-        fillet_radius_m=v["fillet_radius"],
-        stress_concentration=t.number("stress_concentration", minimum=1.0),
-        min_link_length_m=v["min_link_length"],
-        max_link_length_m=v["max_link_length"],
-        wheel_min_radius_m=v["wheel_min_radius"],
-        wheel_max_radius_m=v["wheel_max_radius"],
-        wheel_width_m=v["wheel_width"],
-        foot_min_side_m=v["foot_min_side"],
-        foot_max_side_m=v["foot_max_side"],
-        foot_thickness_m=v["foot_thickness"],
-        printer_bed_m=bed,
-        print_speed_m3_s=t.q("print_speed", "volume_flow") if "print_speed" in t.data else 0.0,
-        print_clearance_m=v["print_clearance"],
-    )
-
-    def mm(x: float) -> str:
-        return f"{x * 1e3:g} mm"
-
-    if p.min_wall_m >= p.max_outer_radius_m:
-        raise t.fail(
-            f"min_wall {mm(p.min_wall_m)} leaves no hole in a tube of outer radius "
-            f"{mm(p.max_outer_radius_m)}",
-            "min_wall",
-        )
-    if 2 * (p.max_outer_radius_m + p.fillet_radius_m) > p.dovetail_face_m:
-        raise t.fail(
-            f"a tube of radius {mm(p.max_outer_radius_m)} with its "
-            f"{mm(p.fillet_radius_m)} fillet does not fit the {mm(p.dovetail_face_m)} "
-            "dovetail face",
-            "max_outer_radius",
-        )
-    for low, high in (
-        ("min_link_length", "max_link_length"),
-        ("wheel_min_radius", "wheel_max_radius"),
-        ("foot_min_side", "foot_max_side"),
-    ):
-        if v[low] > v[high]:
-            raise t.fail(f"{mm(v[low])} is more than {high} = {mm(v[high])}", low)
-    if p.max_link_length_m > max(bed):
-        raise t.fail(
-            f"{mm(p.max_link_length_m)} does not fit the printer bed "
-            f"({' x '.join(mm(b) for b in bed)})",
-            "max_link_length",
-        )
-    flat = min(bed[0], bed[1])
-    if 2 * p.wheel_max_radius_m > flat:
-        raise t.fail(
-            f"a wheel of radius {mm(p.wheel_max_radius_m)} does not fit the printer bed",
-            "wheel_max_radius",
-        )
-    if p.foot_max_side_m > flat:
-        raise t.fail(f"{mm(p.foot_max_side_m)} does not fit the printer bed", "foot_max_side")
-    return p
-
-
-def _material(t: _Table) -> Material:
-    t.check_keys(_MATERIAL_KEYS)
-    return Material(
-        name=t.text("name"),
-        youngs_modulus_Pa=t.q("youngs_modulus", "pressure"),
-        yield_strength_Pa=t.q("yield_strength", "pressure"),
-        density_kg_m3=t.q("density", "density"),
-    )
-
-
-def _bus(t: _Table) -> Bus:
-    t.check_keys(_BUS_KEYS, _BUS_OPTIONAL)
-    first = t.integer("first_address", 0, MAX_ADDRESS)
-    last = t.integer("last_address", first, MAX_ADDRESS)
-    limit = t.integer("device_limit", 2, MAX_ADDRESS + 2) if "device_limit" in t.data else None
-    fmt = t.text("address_format") if "address_format" in t.data else "hex"
-    if fmt not in _ADDRESS_FORMATS:
-        raise t.fail(f"'{fmt}' is not one of {', '.join(_ADDRESS_FORMATS)}", "address_format")
-    return Bus(
-        name=t.text("name"),
-        protocol=t.text("protocol"),
-        first_address=first,
-        last_address=last,
-        device_limit=limit,
-        address_word=t.text("address_word") if "address_word" in t.data else "address",
-        address_format=fmt,
-    )
-
-
-def _legacy_bus(t: _Table) -> Bus:
-    """The bus of a catalog without [bus]: I2C, from [design] i2c_first_address if given
-    (catalogs before [bus] existed)."""
-    if "i2c_first_address" not in t.data:
-        return I2C_DEFAULT
-    # 7-bit I2C: 0x00-0x07 and 0x78-0x7F are reserved.
-    first = t.integer("i2c_first_address", 0x08, 0x77)
-    return replace(I2C_DEFAULT, first_address=first)
-
-
-def _design(t: _Table) -> DesignRules:
-    t.check_keys(_DESIGN_KEYS, ("behaviour_torque_factor", "i2c_first_address"))
-    slope = t.q("max_slope", "angle", allow_zero=True)
-    if slope >= math.pi / 2:
-        raise t.fail(f"'{t.data['max_slope']}' is not less than 90 deg", "max_slope")
-    rolling = t.number("rolling_resistance")
-    if rolling >= 1:
-        raise t.fail(f"must be less than 1, got {rolling:g}", "rolling_resistance")
-    return DesignRules(
-        torque_safety_factor=t.number("torque_safety_factor", minimum=1.0),
-        stress_safety_factor=t.number("stress_safety_factor", minimum=1.0),
-        max_tip_deflection_m=t.q("max_tip_deflection", "length"),
-        max_joint_acceleration_rad_s2=t.q("max_joint_acceleration", "angular_acceleration"),
-        gravity_m_s2=t.q("gravity", "acceleration"),
-        max_slope_rad=slope,
-        rolling_resistance=rolling,
-        behaviour_torque_factor=(
-            t.number("behaviour_torque_factor", minimum=1.0)
-            if "behaviour_torque_factor" in t.data
-            else 0.0
-        ),
-    )
-
-
-def _header(t: _Table) -> tuple[str, str, str]:
-    t.check_keys(("name", "currency", "version"), ("extends", "replace", "remove"))
-    currency = t.text("currency")
-    if not _CURRENCY.fullmatch(currency):
-        raise t.fail(f"'{currency}' is not a currency code such as 'EUR'", "currency")
-    version = t.data["version"]
-    if isinstance(version, int) and not isinstance(version, bool):
-        version = str(version)
-    else:
-        version = t.text("version")
-    return t.text("name"), currency, version
 
 
 #: The catalogs shipped with parmor, by the name ``--catalog NAME`` takes: file names
@@ -822,24 +380,16 @@ def _read_text(path: Path, source: str) -> str:
 
 
 def _toml(text: str, source: str) -> dict[str, Any]:
-    doc = readers.parse_toml(text, source)  # nesting and numbers bounded
-    for key in doc:
-        if key not in _TOP_KEYS:
-            raise InputError(f"{source}: unknown key '{key}'{_suggest(key, _TOP_KEYS)}")
-    return doc
+    return readers.parse_toml(text, source)  # nesting and numbers bounded
 
 
 def _merge(parent: dict[str, Any], child: dict[str, Any], source: str) -> dict[str, Any]:
-    """``child`` over ``parent`` (see :func:`parse_catalog` for the rules)."""
-    header = child.get("catalog", {})
+    """``child`` over ``parent`` (see :func:`parse_catalog` for the rules); ``child`` is
+    an extension its schema accepted. InputError when ``remove`` names a model the
+    parent does not have (what no schema of the child can know)."""
+    header = child["catalog"]  # checked by the extension's schema: replace, remove typed
     replaced = header.get("replace", [])
-    if not isinstance(replaced, list) or not all(r in _MERGED_ARRAYS for r in replaced):
-        raise InputError(
-            f"{source}: catalog.replace: expected an array of {', '.join(_MERGED_ARRAYS)}"
-        )
     removed = header.get("remove", [])
-    if not isinstance(removed, list) or not all(isinstance(r, str) for r in removed):
-        raise InputError(f"{source}: catalog.remove: expected an array of model names")
     out = {k: v for k, v in parent.items() if k != "catalog"}
     for model in removed:
         found = False
@@ -899,23 +449,22 @@ def _resolve(
     text: str, source: str, folder: Path | None, chain: tuple[tuple[str, str], ...]
 ) -> tuple[dict[str, Any], str]:
     """The merged TOML document of ``text`` and every catalog it extends, and the sha256
-    of those texts; each parent is validated on its own first (its errors name it).
+    of those texts; each parent is validated on its own first (its errors name it), and a
+    file that extends another is checked against the extension's schema first. What no
+    schema of one file can say is checked here: the parent exists and is no cycle, the
+    chain is at most :data:`MAX_EXTENDS` deep, the currency is the parent's.
     ``chain``: (key, name) of the catalogs that extend this one, this one last."""
     import hashlib
+
+    from adron.catalog_schema import check
 
     doc = _toml(text, source)
     digest = hashlib.sha256(text.encode("utf-8"))
     header = doc.get("catalog")
     parent_name = header.get("extends") if isinstance(header, dict) else None
-    if parent_name is None:
-        for key in ("replace", "remove"):
-            if isinstance(header, dict) and key in header:
-                raise InputError(
-                    f"{source}: catalog.{key}: only for a catalog that extends another"
-                )
+    if parent_name is None:  # a complete catalog: its schema is checked by _build
         return doc, digest.hexdigest()
-    if not isinstance(parent_name, str) or not parent_name.strip():
-        raise InputError(f"{source}: catalog.extends: expected a catalog name or a file path")
+    check(doc, source, extension=True)  # this file's keys, before any other file is read
     if parent_name in SHIPPED:
         ptext, psource = _shipped_text(parent_name)
         pfolder: Path | None = None
@@ -943,8 +492,8 @@ def _resolve(
         )
     parent_doc, parent_digest = _resolve(ptext, psource, pfolder, (*chain, (key, psource)))
     parent = _build(parent_doc, psource)  # the parent must be a valid catalog on its own
-    currency = header.get("currency")
-    if isinstance(currency, str) and currency != parent.currency:
+    currency = header["currency"]
+    if currency != parent.currency:
         raise InputError(
             f"{source}: catalog.currency: '{currency}' differs from '{parent.currency}' of the "
             f"catalog it extends ({parent_name}); costs of both are added up"
@@ -973,9 +522,6 @@ def parse_catalog(text: str, source: str, folder: Path | None = None, shipped: s
         root = source if folder is None else _file_key(source)
         doc, digest = _resolve(text, source, folder, ((root, source),))
         cat = replace(_build(doc, source), sha256=digest, shipped=shipped)
-        from adron.formats import check  # the file's schema: what the checks above miss
-
-        check("catalog", _toml(text, source), source)
         if path is not None:
             import pickle
 
@@ -1012,7 +558,9 @@ def _cache_path(text: str, source: str, folder: Path | None, shipped: str) -> Pa
     for part in (text, source, str(folder), shipped):
         b = part.encode("utf-8", "surrogatepass")
         h.update(len(b).to_bytes(8, "little") + b)
-    for module in (__file__, units.__file__):
+    from adron import catalog_schema, schema
+
+    for module in (__file__, units.__file__, catalog_schema.__file__, schema.__file__):
         h.update(Path(module).read_bytes())
     return folder_ / f"catalog-{h.hexdigest()[:32]}.pickle"
 
@@ -1025,83 +573,125 @@ def _cached_catalog(path: Path | None) -> Catalog | None:
     return cat if isinstance(cat, Catalog) else None
 
 
-def _perturbation(doc: dict[str, Any], source: str) -> str:
-    """The [perturbation] table as JSON text ("" without one); its keys and values are
-    synth.verification.perturb's to check (``ranges``)."""
-    if "perturbation" not in doc:
-        return ""
-    table = doc["perturbation"]
-    if not isinstance(table, dict):
-        raise InputError(f"{source}: perturbation: expected a table, got {_kind(table)}")
-    return json.dumps(table, sort_keys=True)
-
-
 def _build(doc: dict[str, Any], source: str) -> Catalog:
-    """The validated catalog of a (merged) TOML document."""
-    name, currency, version = _header(_section(doc, "catalog", source))
-    actuators = tuple(_actuator(t) for t in _entries(doc, "actuator", source))
-    modules = tuple(_module(t) for t in _entries(doc, "module", source))
-    seen: dict[str, str] = {}
-    labelled = [(f"actuator[{i}]", a.model) for i, a in enumerate(actuators, 1)]
-    labelled += [(f"module[{i}]", m.model) for i, m in enumerate(modules, 1)]
-    for label, model in labelled:
-        if model in seen:
-            raise InputError(
-                f"{source}: {label} ({model}): duplicate model '{model}' (also {seen[model]})"
-            )
-        seen[model] = label
-    material = _material(_section(doc, "material", source))
-    passive = _passive(_section(doc, "passive", source))
-    parts = tuple(
-        _part(t, material.density_kg_m3) for t in _entries(doc, "part", source, required=False)
-    )
-    labelled += [(f"part[{i}]", p.model) for i, p in enumerate(parts, 1)]
-    for label, model in labelled[len(actuators) + len(modules) :]:
-        if model in seen:
-            raise InputError(
-                f"{source}: {label} ({model}): duplicate model '{model}' (also {seen[model]})"
-            )
-        seen[model] = label
-    tyre = _tyre(_section(doc, "tyre", source)) if "tyre" in doc else None
-    printers = []
-    for t in _entries(doc, "printer", source, required=False):
-        t.check_keys(("model", "bed"))
-        printers.append(Printer(t.text("model"), t.lengths("bed")))
-    if tyre is not None and tyre.thickness_m >= passive.wheel_min_radius_m:
-        raise InputError(
-            f"{source}: tyre.thickness: {tyre.thickness_m * 1e3:g} mm leaves no rim in the "
-            f"smallest wheel (radius {passive.wheel_min_radius_m * 1e3:g} mm)"
+    """The catalog of a (merged) TOML document, checked against its schema
+    (:class:`adron.catalog_schema.CatalogFile`: InputError naming ``source``, the key and
+    the value), in SI units."""
+    from adron.catalog_schema import check
+
+    f = check(doc, source)
+
+    def size(v: list[float]) -> Size:
+        return (v[0], v[1], v[2])
+
+    density = f.material.density
+    p = f.passive
+    bus = I2C_DEFAULT
+    if f.bus is not None:
+        b = f.bus
+        bus = Bus(
+            b.name,
+            b.protocol,
+            b.first_address,
+            b.last_address,
+            b.device_limit,
+            b.address_word,
+            b.address_format,
         )
-    if "bus" in doc:
-        design_data = doc.get("design")
-        if isinstance(design_data, dict) and "i2c_first_address" in design_data:
-            raise InputError(
-                f"{source}: design.i2c_first_address: the catalog has a [bus] table; give "
-                "bus.first_address instead"
+    elif f.design.i2c_first_address is not None:  # a catalog from before [bus]
+        bus = replace(I2C_DEFAULT, first_address=f.design.i2c_first_address)
+    modules = []
+    for m in f.module:
+        capacity = None if m.capacity is None else m.capacity / 3600.0  # C -> Ah
+        modules.append(
+            Module(
+                model=m.model,
+                ontology_class=m.cls,
+                mass_kg=m.mass,
+                size_m=size(m.size),
+                cost=m.cost,
+                current_A=m.current,
+                capacity_Ah=capacity,
+                voltage_V=m.voltage,
+                max_current_A=None if capacity is None else m.c_rating * capacity,  # A
             )
-        bus = _bus(_section(doc, "bus", source))
-    else:
-        bus = _legacy_bus(_section(doc, "design", source))
-    catalog = Catalog(
-        name=name,
-        currency=currency,
-        version=version,
-        actuators=actuators,
-        modules=modules,
-        passive=passive,
-        material=material,
-        design=_design(_section(doc, "design", source)),
+        )
+    d = f.design
+    return Catalog(
+        name=f.catalog.name,
+        currency=f.catalog.currency,
+        version=str(f.catalog.version),
+        actuators=tuple(
+            Actuator(
+                model=a.model,
+                ontology_class=a.cls,
+                torque_class=a.torque_class,
+                mass_kg=a.mass,
+                size_m=size(a.size),
+                stall_torque_Nm=a.stall_torque,
+                no_load_speed_rad_s=a.no_load_speed,
+                stall_current_A=a.stall_current,
+                cost=a.cost,
+                travel_rad=math.radians(a.travel_deg),
+            )
+            for a in f.actuator
+        ),
+        modules=tuple(modules),
+        passive=Passive(
+            dovetail_face_m=p.dovetail_face,
+            face_thickness_m=p.face_thickness,
+            min_wall_m=p.min_wall,
+            max_outer_radius_m=p.max_outer_radius,
+            fillet_radius_m=p.fillet_radius,
+            stress_concentration=p.stress_concentration,
+            min_link_length_m=p.min_link_length,
+            max_link_length_m=p.max_link_length,
+            wheel_min_radius_m=p.wheel_min_radius,
+            wheel_max_radius_m=p.wheel_max_radius,
+            wheel_width_m=p.wheel_width,
+            foot_min_side_m=p.foot_min_side,
+            foot_max_side_m=p.foot_max_side,
+            foot_thickness_m=p.foot_thickness,
+            printer_bed_m=size(p.printer_bed),
+            print_speed_m3_s=p.print_speed or 0.0,
+            print_clearance_m=p.print_clearance,
+        ),
+        material=Material(
+            f.material.name, f.material.youngs_modulus, f.material.yield_strength, density
+        ),
+        design=DesignRules(
+            torque_safety_factor=d.torque_safety_factor,
+            stress_safety_factor=d.stress_safety_factor,
+            max_tip_deflection_m=d.max_tip_deflection,
+            max_joint_acceleration_rad_s2=d.max_joint_acceleration,
+            gravity_m_s2=d.gravity,
+            max_slope_rad=d.max_slope,
+            rolling_resistance=d.rolling_resistance,
+            behaviour_torque_factor=d.behaviour_torque_factor or 0.0,
+        ),
         source=source,
-        parts=parts,
-        tyre=tyre,
-        printers=tuple(printers),
+        parts=tuple(
+            Part(
+                model=x.model,
+                ontology_class=x.cls,
+                source=x.source,
+                # a printed solid: the box's volume times the material's density
+                mass_kg=math.prod(x.size) * density if x.source == "printed" else x.mass,
+                size_m=size(x.size),
+                cost=x.cost,
+            )
+            for x in f.part
+        ),
+        tyre=None
+        if f.tyre is None
+        else Tyre(f.tyre.name, f.tyre.thickness, f.tyre.density, f.tyre.cost_per_m),
+        printers=tuple(Printer(x.model, size(x.bed)) for x in f.printer),
         bus=bus,
-        perturbation=_perturbation(doc, source),
+        # overrides of synth/verification/perturb.toml's ranges, read by synth.verification.perturb
+        perturbation=json.dumps(doc["perturbation"], sort_keys=True)
+        if "perturbation" in doc
+        else "",
     )
-    for cls, what in ((MAIN_CLASS, "the main module"), (BATTERY_CLASS, "a battery")):
-        if not catalog.modules_of(cls):
-            raise InputError(f"{source}: no [[module]] of class '{cls}'; every design needs {what}")
-    return catalog
 
 
 def load_catalog(path: str | Path | None = None) -> Catalog:

@@ -1,27 +1,31 @@
-"""The schemas of the user files read by hand-written readers with checks of their own:
-module catalogs (``adron/catalog.py``), studies (``synth/sweep.py``), regression suites
-(``synth/regress.py``) and perturbation tables (``synth/verification/perturb.py``).
+"""The registry of every user file format with a schema (:func:`formats`, :func:`check`,
+:func:`schemas`, which ``python -m adron.write_schemas`` writes into ``adron/schemas/``),
+and the schemas of the formats that have no module of their own: studies
+(``synth/sweep.py``), regression suites (``synth/regress.py``) and perturbation tables
+(``synth/verification/perturb.py``, a catalog's ``[perturbation]``).
 
-Each reader checks a file with its schema (:func:`check`) after its own checks (whose
-messages the users and the tests know): the schema holds what the hand may miss (a key's
-type, a bare number's range, a table where a value goes) and the documentation, and is
-published as JSON Schema (``adron/schemas/``, docs/formats-schemas.md). Quantities with
-units (``"34 g"``) are typed as such here; their units and ranges are the reader's
-(:data:`adron.catalog.CATALOG_MAX`).
+The other formats' models live beside their readers: module catalogs in
+``adron/catalog_schema.py``, part kinds in ``kinematics/partkinds.py``, design records in
+``export/record_schema.py``, programs in ``program/script.py`` and the ``.parmor`` list in
+``export/manifest.py``. Each reader validates a file with its model before it uses it;
+the model holds the rules (types, ranges, the rules that tie keys together) and the
+documentation, and what no schema of one file can say (another file, the knowledge base,
+the design a program runs on) is the reader's, said in its docstring.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any, Literal
 
-from pydantic import ConfigDict, Field, PlainValidator, WithJsonSchema, create_model
+from pydantic import Field, PlainValidator, WithJsonSchema, create_model, model_validator
 
 from adron.schema import (
     MAX_NAME,
+    At,
     Closed,
     Name,
     StrictBool,
-    _name,
     described,
     json_schema,
     number,
@@ -86,114 +90,6 @@ def _integer(low: int, high: int):
 
 Cost = _number(0.0, 100_000.0)
 Ratio = _number(0.0, 1e6)
-
-
-# ---- module catalogs ------------------------------------------------------------------------
-
-
-def _catalog_models():
-    """The catalog's tables, built from the reader's own key lists (one list of keys)."""
-    from adron import catalog as c
-
-    def table(name: str, fields: dict[str, Any], doc: str) -> type[Closed]:
-        return create_model(name, __base__=Closed, __doc__=doc, **fields)
-
-    opt = (Quantity | None, None)
-    header = table(
-        "CatalogHeader",
-        {
-            "name": (Name, ...),
-            "currency": (
-                Annotated[str, Field(pattern="^[A-Z]{3}$", description="ISO 4217 code")],
-                ...,
-            ),
-            "version": (Annotated[str, Field(max_length=MAX_NAME)] | int, ...),
-            "extends": (Name | None, None),
-            "replace": (list[Name] | None, None),
-            "remove": (list[Name] | None, None),
-        },
-        "The catalog's name, currency and version; 'extends' a shipped or another catalog.",
-    )
-    common = {
-        "model": (Name, ...),
-        "class": (Name | None, Field(None, alias="class")),
-        "mass": opt,
-        "size": (Size | None, None),
-        "cost": (Cost | None, None),
-    }
-    actuator = table(
-        "Actuator",
-        {
-            **common,
-            **{k: opt for k in c._ACTUATOR_KEYS if k not in common and k != "travel_deg"},
-            "torque_class": (Name | None, None),
-            "travel_deg": (_number(0.0, 3600.0) | None, None),
-        },
-        "An actuator module (a servo in its printed housing).",
-    )
-    module = table(
-        "Module",
-        {
-            **common,
-            **{k: opt for k in (*c._MODULE_KEYS, *c._BATTERY_KEYS) if k not in common},
-        },
-        "A module that is no actuator (main, battery, sensor modules).",
-    )
-    part = table(
-        "Part",
-        {**common, "source": (Literal[c._PART_SOURCES] | None, None)},
-        "A passive part, printed or bought.",
-    )
-    tyre = table("Tyre", {k: opt for k in c._TYRE_KEYS} | {"name": (Name | None, None)}, "")
-    printer = table(
-        "Printer", {"model": (Name, ...), "bed": (Size | None, None)}, "A printer and its bed."
-    )
-    passive = table(
-        "Passive",
-        {k: opt for k in c._PASSIVE_LENGTHS}
-        | {"stress_concentration": opt, "printer_bed": (Size | None, None)},
-        "The printed parts' dimensions and limits.",
-    )
-    material = table(
-        "Material",
-        {k: opt for k in c._MATERIAL_KEYS} | {"name": (Name | None, None)},
-        "The printing material.",
-    )
-    design = table(
-        "Design",
-        {k: opt for k in (*c._DESIGN_KEYS, "behaviour_torque_factor", "i2c_first_address")},
-        "Safety factors and the design's environment.",
-    )
-    bus = table(
-        "Bus",
-        {
-            "name": (Name | None, None),
-            "protocol": (Name | None, None),
-            "first_address": (_integer(0, c.MAX_ADDRESS) | None, None),
-            "last_address": (_integer(0, c.MAX_ADDRESS) | None, None),
-            "device_limit": (_integer(1, c.MAX_ADDRESS) | None, None),
-            "address_word": (Name | None, None),
-            "address_format": (Literal[c._ADDRESS_FORMATS] | None, None),
-        },
-        "The bus the active modules share, its addresses and its limit of devices.",
-    )
-    return table(
-        "CatalogFile",
-        {
-            "catalog": (header, ...),
-            "actuator": (list[actuator], []),
-            "module": (list[module], []),
-            "part": (list[part], []),
-            "tyre": (tyre | None, None),
-            "printer": (list[printer], []),
-            "passive": (passive | None, None),
-            "material": (material | None, None),
-            "design": (design | None, None),
-            "bus": (bus | None, None),
-            "perturbation": (PerturbationOverrides | None, None),
-        },
-        "A module catalog (adron/catalog.toml, --catalog FILE.toml).",
-    )
 
 
 # ---- perturbation tables --------------------------------------------------------------------
@@ -290,7 +186,9 @@ class PerturbationTable(Closed):
 
 def _partial(model: type[Closed]) -> type[Closed]:
     """``model`` with every field optional (a catalog overrides some keys)."""
-    fields = {n: (f.annotation | None, None) for n, f in model.model_fields.items()}
+    from adron.catalog_schema import optional
+
+    fields = {n: (optional(f), None) for n, f in model.model_fields.items()}
     return create_model(f"{model.__name__}Override", __base__=Closed, **fields)
 
 
@@ -314,11 +212,20 @@ class PerturbationOverrides(Closed):
 # ---- studies and regression suites --------------------------------------------------------
 
 Ability = Name
-#: an answer: the reader says which it takes (synth/conceptual.py parse_answer, with its
-#: message); the JSON Schema spells them out for an editor
+#: the answers --answer takes (any case)
+ANSWERS = ("yes", "no", "y", "n", "true", "false")
+
+
+def _answer(v: Any) -> str:
+    if not isinstance(v, str) or v.strip().lower() not in ANSWERS:
+        raise ValueError("not yes or no (y, n, true, false; any case), as --answer takes")
+    return v
+
+
+#: an answer: yes or no, as ``--answer`` takes it
 Answer = Annotated[
     str,
-    PlainValidator(_name),
+    PlainValidator(_answer),
     WithJsonSchema(
         {
             "type": "string",
@@ -328,80 +235,199 @@ Answer = Annotated[
         }
     ),
 ]
+#: a parameter's value as ``--param`` takes it, with its unit (``"0.2kg"``)
+ParamValue = Annotated[str, Field(max_length=MAX_NAME)]
+#: the most perturbed runs per behaviour (``--robustness``): the same number as
+#: synth.limits.MAX_ROBUSTNESS, which the command line reads without importing pydantic
+#: (tests/test_schema.py holds the two together)
+MAX_ROBUSTNESS = 64
+#: The most requests a study may expand to: counted before anything is expanded, a larger
+#: study is refused (exit 2). Checking a request costs about 1 ms and designing one with
+#: simulation seconds to a minute, so 10,000 is already hours of a 2-core machine's work
+#: (a day's on a small Ray cluster); a larger range is split into several studies.
+MAX_STUDY_REQUESTS = 10_000
 
 
 class Query(Closed):
     """A regression suite's query: a design request and its expected outcome's name."""
 
-    name: Name
+    name: Name = described(doc="the query's name (unique in the suite)")
     abilities: list[Ability] = []
     answers: dict[Ability, Answer] = {}
-    params: dict[Name, Annotated[str, Field(max_length=MAX_NAME)]] = {}
+    params: dict[Name, ParamValue] = described({}, "name -> value with its unit, as --param")
 
 
 class SuiteFile(Closed):
-    """A regression suite (``parmor regress SUITE.toml``)."""
+    """A regression suite (``parmor regress SUITE.toml``).
+
+    What the schema cannot say is checked by the reader (synth/regress.py): the files
+    ``ontology``, ``rules`` and ``catalog`` name exist inside the suite's folder, and each
+    query's abilities, answers and parameters are the knowledge base's."""
 
     ontology: list[Name] = described([], "KIF files, relative to the suite")
     rules: list[Name] = described([], "ASP rule files, relative to the suite")
     catalog: Name | None = described(None, "a shipped catalog's name or a file")
     conceptual: StrictBool = False
-    verify: StrictBool = False
-    query: list[Query] = described(doc="the queries, each designed and compared")
+    verify: StrictBool = described(False, "simulate every behaviour of each design")
+    query: Annotated[list[Query], Field(min_length=1)] = described(
+        doc="the queries, each designed and compared"
+    )
+
+    @model_validator(mode="after")
+    def _unique(self) -> SuiteFile:
+        seen: dict[str, int] = {}
+        for i, q in enumerate(self.query):
+            if q.name in seen:
+                raise At(f"query[{i}].name", f"repeats the name of query[{seen[q.name]}]", q.name)
+            seen[q.name] = i
+        return self
 
 
-ParamValue = Annotated[str, Field(max_length=MAX_NAME)]
+def _values(v: Any) -> str | list[str]:
+    """A study's ``params`` entry: a value, or a non-empty list of distinct values."""
+    if isinstance(v, list) and v and all(isinstance(x, str) for x in v):
+        seen: dict[str, int] = {}
+        for i, x in enumerate(v):
+            if len(x) > MAX_NAME:
+                raise At(f"[{i}]", f"longer than {MAX_NAME} characters", x)
+            if x in seen:
+                raise At(f"[{i}]", f"listed twice (also [{seen[x]}])", x)
+            seen[x] = i
+        return list(v)
+    if isinstance(v, str) and len(v) <= MAX_NAME:
+        return v
+    raise ValueError('not a value with its unit ("0.2kg") or a non-empty list of them')
+
+
+Values = Annotated[
+    str | list[str],
+    PlainValidator(_values),
+    WithJsonSchema(
+        {
+            "anyOf": [
+                {"type": "string", "maxLength": MAX_NAME},
+                {
+                    "type": "array",
+                    "items": {"type": "string", "maxLength": MAX_NAME},
+                    "minItems": 1,
+                    "uniqueItems": True,
+                },
+            ],
+            "description": 'a value with its unit ("0.2kg"), or a list of them: one request '
+            "for each",
+        }
+    ),
+]
 
 
 class StudyRequest(Closed):
     """A study's request: lists of parameter values expand into their product."""
 
-    name: Name | None = None
+    name: Name | None = described(None, "default: its abilities joined by '+'")
     abilities: Annotated[list[Ability], Field(min_length=1)]
     answers: dict[Ability, Answer] = {}
-    params: dict[Name, ParamValue | Annotated[list[ParamValue], Field(min_length=1)]] = {}
+    params: dict[Name, Values] = described(
+        {}, "name -> a value with its unit, or a list of values (their product is studied)"
+    )
 
 
 class StudyFile(Closed):
-    """A parameter study (``parmor sweep STUDY.toml``)."""
+    """A parameter study (``parmor sweep STUDY.toml``).
 
-    model_config = ConfigDict(extra="forbid", populate_by_name=True, frozen=True)
+    Beyond what the JSON Schema says, the model holds the study's size: its requests,
+    counted from the lists' lengths before anything is expanded, are at most
+    :data:`MAX_STUDY_REQUESTS`. What no schema can say is checked by the reader
+    (synth/sweep.py): the files it names exist inside its folder, and each request's
+    abilities, answers and parameters are the knowledge base's (and no request is given
+    twice, its values compared in SI units)."""
 
     ontology: list[Name] = described([], "KIF files, relative to the study")
     rules: list[Name] = described([], "ASP rule files, relative to the study")
     catalog: Name | None = described(None, "a shipped catalog's name or a file")
-    robustness: _integer(0, 64) = described(0, "perturbed runs per behaviour")
-    request: list[StudyRequest]
+    robustness: _integer(0, MAX_ROBUSTNESS) = described(
+        0, "perturbed runs per behaviour (as parmor design --robustness)"
+    )
+    request: Annotated[list[StudyRequest], Field(min_length=1)]
+
+    @model_validator(mode="after")
+    def _size(self) -> StudyFile:
+        sizes = [
+            _study_size([len(v) for v in r.params.values() if isinstance(v, list)])
+            for r in self.request
+        ]
+        total = _total(sizes)
+        if total is not None and total <= MAX_STUDY_REQUESTS:
+            return self
+        k = max(range(len(sizes)), key=lambda i: sizes[i][1])
+        lists = " x ".join(
+            f"{name} {len(v)}" for name, v in self.request[k].params.items() if isinstance(v, list)
+        )
+        raise At(
+            "request",
+            f"the study expands to {_size_text(sizes)} requests, more than the "
+            f"{MAX_STUDY_REQUESTS:,} a study may have (the most from request[{k}]: params "
+            f"{lists} = {_size_text([sizes[k]])}); split it into smaller studies",
+        )
 
 
-_CATALOG: list[type[Closed]] = []
+#: Sizes up to this are written exactly in messages, larger ones as a power of ten.
+_EXACT = 10**15
 
 
-def catalog_model() -> type[Closed]:
-    """The catalog file's model (built once, from the reader's key lists)."""
-    if not _CATALOG:
-        _CATALOG.append(_catalog_models())
-    return _CATALOG[0]
+def _study_size(lengths: list[int]) -> tuple[int | None, float]:
+    """(the product of ``lengths`` when at most :data:`_EXACT`, else None; its log10),
+    without making a huge integer (a 1 KB study can name 10^300 requests)."""
+    if 0 in lengths:
+        return 0, -math.inf
+    lg = sum(math.log10(n) for n in lengths)
+    return (math.prod(lengths) if lg <= 15.5 else None), lg
+
+
+def _total(sizes: list[tuple[int | None, float]]) -> int | None:
+    """The sum of ``sizes`` (see :func:`_study_size`), None past :data:`_EXACT`."""
+    total = 0
+    for n, _ in sizes:
+        if n is None or total + n > _EXACT:
+            return None
+        total += n
+    return total
+
+
+def _size_text(sizes: list[tuple[int | None, float]]) -> str:
+    """``1,000,000``, or ``about 10^40`` past :data:`_EXACT`, for the sum of ``sizes``."""
+    total = _total(sizes)
+    if total is not None:
+        return f"{total:,}"
+    return f"about 10^{int(max(lg for _, lg in sizes))}"
 
 
 #: format name -> (model, description) of every user file format with a schema
 def formats() -> dict[str, tuple[type, str]]:
+    from adron.catalog_schema import CatalogFile
+    from export.manifest import Manifest
     from export.record_schema import DesignRecord
     from kinematics.partkinds import PartKindsFile
+    from program.script import ProgramFile
 
     return {
         "partkinds": (PartKindsFile, "Part kinds (kinematics/partkinds.toml, --parts FILE.toml)"),
-        "catalog": (catalog_model(), "A module catalog (adron/catalog.toml, --catalog FILE)"),
+        "catalog": (CatalogFile, "A module catalog (adron/catalog.toml, --catalog FILE)"),
         "perturb": (PerturbationTable, "Perturbation ranges (synth/verification/perturb.toml)"),
         "study": (StudyFile, "A parameter study (parmor sweep STUDY.toml)"),
         "suite": (SuiteFile, "A regression suite (parmor regress SUITE.toml)"),
         "design-record": (DesignRecord, "A design record (design.json)"),
+        "program": (ProgramFile, "A program (parmor run PROGRAM.json DIR, the block page's)"),
+        "manifest": (Manifest, "The files parmor wrote into a folder (.parmor)"),
     }
 
 
 def schemas() -> dict[str, dict]:
     """format name -> its JSON Schema."""
-    return {name: json_schema(model, name, doc) for name, (model, doc) in formats().items()}
+    from adron import catalog_schema
+
+    out = {name: json_schema(model, name, doc) for name, (model, doc) in formats().items()}
+    out["catalog"] = catalog_schema.json_schema()  # complete, or extending another
+    return out
 
 
 def check(name: str, data: Any, source: str) -> Any:

@@ -17,6 +17,7 @@ message still names the exact key.
 
 from __future__ import annotations
 
+import difflib
 import math
 from collections.abc import Callable
 from typing import Annotated, Any, TypeVar
@@ -175,11 +176,29 @@ def path_is_tag(part: str) -> bool:
     return "[" in part or part in ("float", "int", "str", "bool", "list", "dict", "tuple")
 
 
-def key_of(path: tuple[str | int, ...]) -> str:
-    """``kind[2].joints[1].limits``: a key path as messages write it."""
+def key_of(path: tuple[str | int, ...], data: Any = None, labels: tuple[str, ...] = ()) -> str:
+    """``kind[2].joints[1].limits``: a key path as messages write it; with ``labels``,
+    each list entry of ``data`` on the path that is a table holding one of those keys as a
+    string is followed by it: ``actuator[1] (MG996R).mass``."""
     from adron.readers import _key
 
-    return _key(path)
+    if not labels:
+        return _key(path)
+    out = ""
+    here = data
+    for part in path:
+        out += _key((part,)) if isinstance(part, int) or not out else "." + _key((part,))
+        try:
+            here = here[part]
+        except (KeyError, IndexError, TypeError):
+            here = None
+        if isinstance(part, int) and isinstance(here, dict):
+            label = next((here[k] for k in labels if isinstance(here.get(k), str)), None)
+            if label and label.isprintable() and len(label) <= MAX_NAME:
+                out += f" ({label})"
+        if len(out) > 300:
+            return _key(path)
+    return out or "(the top level)"
 
 
 #: pydantic's type errors said as parmor says them
@@ -198,9 +217,11 @@ _TYPES = {
 }
 
 
-def _message(error: dict, data: Any) -> str:
-    """``key: value why`` for one pydantic error of ``data``."""
+def _message(error: dict, data: Any, labels: tuple[str, ...] = ()) -> str:
+    """``key = value: why`` for one pydantic error of ``data``."""
     path, value = _data_path(data, tuple(error["loc"]))
+    if error["loc"] and error["loc"][-1] == "[key]":  # a table's key: the key is the value
+        value = error.get("input", value)
     ctx = error.get("ctx") or {}
     cause = ctx.get("error")
     kind = error["type"]
@@ -208,7 +229,11 @@ def _message(error: dict, data: Any) -> str:
     if isinstance(cause, At):
         suffix, why, value = cause.key, cause.message, cause.value
     elif kind == "extra_forbidden":
-        why = "unknown key" + (f" (keys: {ctx['keys']})" if "keys" in ctx else "")
+        keys = ctx.get("keys", "")
+        close = difflib.get_close_matches(str(path[-1]) if path else "", keys.split(", "), 1, 0.6)
+        why = "unknown key" + (
+            f" (did you mean '{close[0]}'?)" if close else f" (keys: {keys})" if keys else ""
+        )
         value = ...
     elif kind == "missing":
         why = "missing (it is required)"
@@ -222,7 +247,7 @@ def _message(error: dict, data: Any) -> str:
     else:
         why = error["msg"][0].lower() + error["msg"][1:]
         why = why.replace("input should", "should")
-    key = key_of(path) if path else ""
+    key = key_of(path, data, labels) if path else ""
     if suffix:
         key = f"{key}{suffix}" if suffix.startswith("[") or not key else f"{key}.{suffix}"
     key = key or "(the top level)"
@@ -263,25 +288,50 @@ def validate(
     data: Any,
     source: str,
     error: Callable[[str], Exception] = InputError,
+    labels: tuple[str, ...] = (),
 ) -> Model:
-    """``data`` (a parsed file) as ``model``; ``error("source: key: value why")`` raised
-    for the first violation (with how many more there are)."""
+    """``data`` (a parsed file) as ``model``; ``error("source: key = value: why")`` raised
+    for the first violation (with how many more there are). ``source`` '' leaves the
+    file out (a program sent to the block server). ``labels``: keys whose string value
+    names a list entry in the key path (``actuator[1] (MG996R)``: its ``model``)."""
     try:
         return model.model_validate(data)
     except ValidationError as e:
         errors = e.errors(include_url=False)
-        first = errors[0]
+        # an unknown key first: a misspelt key is also a missing one, and explains it
+        first = next((x for x in errors if x["type"] == "extra_forbidden"), errors[0])
         if first["type"] == "extra_forbidden":
             keys = _allowed(model, tuple(first["loc"]))
             if keys:
                 first = {**first, "ctx": {**(first.get("ctx") or {}), "keys": keys}}
-        more = f" (and {len(errors) - 1} more problems)" if len(errors) > 1 else ""
-        raise error(f"{source}: {_message(first, data)}{more}") from None
+        n = len(errors) - 1
+        more = f" (and {n} more problem{'s' if n > 1 else ''})" if n else ""
+        where = f"{source}: " if source else ""
+        raise error(f"{where}{_message(first, data, labels)}{more}") from None
+
+
+def _keys_checked(node: Any) -> Any:
+    """``node`` (a JSON Schema) with every table whose keys have a pattern (pydantic writes
+    a ``dict[Name, X]`` as ``patternProperties``, which lets a key that does not match pass
+    unchecked) written as ``propertyNames`` holding the pattern and
+    ``additionalProperties`` the values' schema: a key that breaks the pattern fails."""
+    if isinstance(node, list):
+        return [_keys_checked(x) for x in node]
+    if not isinstance(node, dict):
+        return node
+    out = {k: _keys_checked(v) for k, v in node.items()}
+    patterns = out.get("patternProperties")
+    if isinstance(patterns, dict) and len(patterns) == 1 and "additionalProperties" not in out:
+        (pattern, values), *_ = patterns.items()
+        del out["patternProperties"]
+        out["propertyNames"] = {**out.get("propertyNames", {}), "pattern": pattern}
+        out["additionalProperties"] = values
+    return out
 
 
 def json_schema(model: type[BaseModel], title: str, doc: str) -> dict:
     """The JSON Schema (draft 2020-12) of ``model`` as a file of its own."""
-    schema = model.model_json_schema(by_alias=True, mode="validation")
+    schema = _keys_checked(model.model_json_schema(by_alias=True, mode="validation"))
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "$id": f"https://parmor.invalid/schemas/{title}.schema.json",

@@ -1,9 +1,11 @@
 """Fuzz every user file format (issue 34): seeded, deterministic mutations of the shipped
-part kinds, catalogs, perturbation table, studies, suites, design records, block programs
-and KIF facts, each read by parmor's own reader (and a share through the command line with
-``--out``). Counts tracebacks (an exception that is not parmor's InputError), hangs (a case
-over its time budget), refusals that do not name the file and a key (or line:col), and
-``--out`` folders written by a refused run.
+part kinds, catalogs (complete and extending another), perturbation table, studies,
+suites, design records, programs (checked against a design's behaviours), the ``.parmor``
+list of a bundle's files and KIF facts, each read by parmor's own reader (and a share
+through the command line with ``--out``). Counts tracebacks (an exception that is not
+parmor's InputError, or ExportError for ``.parmor``), hangs (a case over its time budget),
+refusals that do not name the file and a key (or line:col), and files written by a refused
+run (an ``--out`` folder, or a bundle's folder changed by a refused ``--force``).
 
     python bench/fuzz_formats.py [--cases 2400] [--seed 34] [--cli-share 0.05]
 
@@ -164,6 +166,7 @@ class Outcome:
     unnamed: list[str] = field(default_factory=list)
     written: list[str] = field(default_factory=list)
     by_format: Counter = field(default_factory=Counter)
+    refused_by_format: Counter = field(default_factory=Counter)
 
     def figures(self) -> dict:
         return {
@@ -173,13 +176,29 @@ class Outcome:
             "tracebacks": len(self.tracebacks),
             "hangs": len(self.hangs),
             "refusals not naming file and key": len(self.unnamed),
-            "--out written by a refused run": len(self.written),
-            "by format": dict(sorted(self.by_format.items())),
+            "files written by a refused run": len(self.written),
+            "by format (cases, refused)": {
+                k: (n, self.refused_by_format[k]) for k, n in sorted(self.by_format.items())
+            },
         }
 
 
 class _Hang(BaseException):
     pass
+
+
+def _tree(folder: Path) -> dict[str, bytes]:
+    """Every file below ``folder`` (relative name -> bytes; a link by its target)."""
+    import os
+
+    out = {}
+    for p in sorted(folder.rglob("*")):
+        rel = p.relative_to(folder).as_posix()
+        if p.is_symlink():
+            out[rel] = os.readlink(p).encode()
+        elif p.is_file():
+            out[rel] = p.read_bytes()
+    return out
 
 
 def _alarm(signum, frame):
@@ -234,8 +253,25 @@ class Fuzzer:
                     "currency": "EUR",
                     "version": "1",
                     "extends": "default",
+                    "replace": ["printer"],
+                    "remove": ["MPU-6050"],
                 },
-                "design": {"torque_safety_factor": 1.6},
+                "design": {"torque_safety_factor": 1.6, "gravity": "9.7 m/s^2"},
+                "passive": {"min_wall": "1.5 mm", "printer_bed": ["250 mm", "210 mm", "220 mm"]},
+                "printer": [{"model": "Big", "bed": ["1 m", "1 m", "1 m"]}],
+                "module": [
+                    {
+                        "model": "LiPo-2S",
+                        "class": "BatteryModule",
+                        "mass": "120 g",
+                        "size": ["100 mm", "50 mm", "30 mm"],
+                        "cost": 15.0,
+                        "current": "0 A",
+                        "capacity": "1 Ah",
+                        "voltage": "7.4 V",
+                        "c_rating": 25,
+                    }
+                ],
             },
             "perturbation": dyn.get("perturbation") or {"floor": {"max_slope": "2 deg"}},
             "study": toml("studies/parameter-range.toml"),
@@ -250,7 +286,20 @@ class Fuzzer:
                     },
                 ],
             },
-            "program": {"program": [{"do": "driving", "v": 0.1}, {"wait": 0.1}]},
+            "program": {
+                "program": [
+                    {
+                        "repeat": 2,
+                        "body": [{"do": "driving", "params": {"v": 0.1, "seconds": 1}}],
+                    },
+                    {"do": "turning", "params": {"angle": 0.5}},
+                    {
+                        "if": {"report": "x_m", "op": ">", "value": 0.01},
+                        "then": [{"wait": 0.1}],
+                        "else": [],
+                    },
+                ]
+            },
             "kif": [
                 ["defaultLength", "HexapodRobot", '"tibia"', '"12 cm"'],
                 ["defaultParameter", "HexapodRobot", '"payload"', '"0.1 kg"'],
@@ -297,6 +346,7 @@ class Fuzzer:
             o.accepted += 1
         elif status == "refused":
             o.refused += 1
+            o.refused_by_format[fmt] += 1
             if message is not None and not message.startswith("\x00"):
                 src = message.split("\x01")[0] if "\x01" in message else None
                 text = message.split("\x01")[-1]
@@ -455,21 +505,75 @@ class Fuzzer:
         self._run("design record", what, call)
         shutil.rmtree(b, ignore_errors=True)
 
-    def program(self) -> None:
-        from program.script import parse
+    def program(self, folder: Path) -> None:
+        """A mutated JSON program, read as ``parmor run`` reads it (the file's schema) and
+        checked against the bundle's behaviours; a share run through the command line."""
+        from program.script import read_file, validate
 
         data, what = mutate(self.bases["program"], self.rng)
+        try:
+            text = json.dumps(data, allow_nan=True)
+        except (TypeError, ValueError):
+            return
+        f = self._file("program.json", text)
+        if self.rng.random() < self.cli_share:
+            argv = ["run", str(f), str(folder), "--time-limit", "30"]
+            self._run("program (cli)", what, lambda: self._cli(argv, str(f), None))
+            return
 
         def call():
             from adron.errors import InputError
 
             try:
-                parse(json.dumps(data))
-            except InputError:
-                return "refused", "\x00"
+                form, program = read_file(f)
+                validate(program, self.behaviors(folder), str(f))
+            except InputError as e:
+                return "refused", f"{f}\x01{e}"
             return "ok", None
 
         self._run("program", what, call)
+
+    def behaviors(self, folder: Path) -> dict:
+        """The behaviours a program may call on the bundle (as the block server has them)."""
+        if not hasattr(self, "_behaviors"):
+            from program.blocks import bundle_controller, read_record
+            from program.session import program_behaviors
+
+            record = read_record(folder)
+            controller = bundle_controller(folder, record)
+            self._behaviors = program_behaviors(controller, record.get("abilities", ()))
+        return self._behaviors
+
+    def manifest(self, folder: Path) -> None:
+        """A mutated ``.parmor`` in a copy of the bundle, replaced with ``--force`` as
+        ``parmor design --out DIR --force`` does: refused (naming ``.parmor`` and a key)
+        with the folder untouched, or accepted."""
+        import shutil
+
+        from export.bundle import MARKER, write_bundle
+
+        base = json.loads((folder / MARKER).read_text(encoding="utf-8"))
+        data, what = mutate(base, self.rng)
+        b = self.folder / f"bundle{self.n}"
+        self.n += 1
+        shutil.copytree(folder, b)
+        (b / MARKER).write_text(json.dumps(data), encoding="utf-8")
+        before = _tree(b)
+        src = str(b)  # .parmor's key, or a file it lists that was changed since
+
+        def call():
+            from adron.errors import ExportError
+
+            try:
+                write_bundle(b, {"design.json": "{}", "new.txt": "new"}, force=True)
+            except ExportError as e:
+                if _tree(b) != before:
+                    return "written", f"{b} changed by a refused --force"
+                return "refused", f"{src}\x01{e}"
+            return "ok", None
+
+        self._run(".parmor", what, call)
+        shutil.rmtree(b, ignore_errors=True)
 
     def kif(self) -> None:
         """Facts parmor reads by position, with arguments dropped, added or made hostile,
@@ -545,7 +649,8 @@ def run(
             ("study", 0.09),
             ("suite", 0.08),
             ("record", record_share),
-            ("program", 0.06),
+            ("program", 0.08),
+            ("manifest", 0.05),
             ("kif", 0.07),
         ]
         names = [n for n, _ in weights]
@@ -564,7 +669,9 @@ def run(
             elif kind == "record":
                 fz.record(bundle)
             elif kind == "program":
-                fz.program()
+                fz.program(bundle)
+            elif kind == "manifest":
+                fz.manifest(bundle)
             else:
                 fz.kif()
             if progress is not None and (i + 1) % 100 == 0:

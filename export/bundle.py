@@ -278,7 +278,6 @@ LEGACY_MARKER_TEXT = (
     "This folder was written by parmor; 'parmor ... --force' may replace it whole.\n"
     "Remove this file to keep parmor from replacing it.\n"
 )
-_DIGEST = re.compile(r"sha256:[0-9a-f]{64}")
 
 
 def manifest_text(files: Mapping[str, str | bytes]) -> str:
@@ -458,17 +457,9 @@ def _read_manifest(folder: Path, shown: str) -> tuple[bytes | None, dict[str, st
         raise ExportError(f"{where}: not parmor's list of its files ({e})") from None
     except InputError as e:
         raise ExportError(f"{e} (not parmor's list of its files)") from None
-    listed = body.get("files") if isinstance(body, dict) else None
-    if (
-        not isinstance(body, dict)
-        or body.get("format") != MANIFEST_FORMAT
-        or not isinstance(listed, dict)
-        or not all(isinstance(v, str) and _DIGEST.fullmatch(v) for v in listed.values())
-    ):
-        raise ExportError(
-            f"{where}: not parmor's list of its files (expected a JSON object with "
-            f"format {MANIFEST_FORMAT!r} and files: name -> 'sha256:<hex>')"
-        )
+    from export.manifest import check_manifest
+
+    listed = dict(check_manifest(body, where, ExportError).files)
     return raw, listed
 
 

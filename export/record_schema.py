@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from pydantic import PlainValidator, WithJsonSchema, field_validator
+from pydantic import PlainValidator, WithJsonSchema, field_validator, model_validator
 
 from adron.schema import (
     MAX_MASS_KG,
@@ -29,13 +29,6 @@ from adron.schema import (
 from export.record import RECORD_FORMAT  # the number, kept with the writer
 
 
-def _non_negative(v: Any) -> float:
-    f = number(v)
-    if f < 0:
-        raise ValueError("out of range: must be at least 0")
-    return f
-
-
 def _count(v: Any) -> int:
     if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= 10_000:
         raise ValueError("not a count (a whole number from 0 to 10000)")
@@ -43,25 +36,48 @@ def _count(v: Any) -> int:
 
 
 Finite = Annotated[float, PlainValidator(number), WithJsonSchema({"type": "number"})]
-NonNegative = Annotated[
-    float, PlainValidator(_non_negative), WithJsonSchema({"type": "number", "minimum": 0})
-]
-
-
-def _positive(v: Any) -> float:
-    f = number(v)
-    if f <= 0:
-        raise ValueError("out of range: must be more than 0")
-    return f
-
-
-Positive = Annotated[
-    float, PlainValidator(_positive), WithJsonSchema({"type": "number", "exclusiveMinimum": 0})
-]
 Count = Annotated[
     int,
     PlainValidator(_count),
     WithJsonSchema({"type": "integer", "minimum": 0, "maximum": 10_000}),
+]
+
+
+def _within(low: float, high: float, unit: str, why: str):
+    """A number from ``low`` to ``high`` (``unit``), ``why`` these bounds."""
+
+    def check(v: Any) -> float:
+        f = number(v)
+        if not low <= f <= high:
+            raise ValueError(f"out of range: must be within {low:g} and {high:g} {unit} ({why})")
+        return f
+
+    schema = {"type": "number", "minimum": low, "maximum": high, "description": f"{unit}: {why}"}
+    return Annotated[float, PlainValidator(check), WithJsonSchema(schema)]
+
+
+#: a robot's mass: a milligram (the catalog facts' unit) to a tonne (far above what a bus
+#: of 253 modules and a 50 kg payload weigh)
+RobotMass = _within(1e-6, 1000.0, "kg", "a milligram to a tonne")
+#: an actuator's torque: the catalog's bounds (1 mN*m, its facts' unit, to 1000 N*m)
+Torque = _within(1e-3, 1000.0, "N*m", "the catalog's bounds")
+#: an actuator's no-load speed: the catalog's bounds (1 mrad/s to 1000 rad/s)
+Speed = _within(1e-3, 1000.0, "rad/s", "the catalog's bounds")
+
+
+def _param(v: Any) -> float | str:
+    if isinstance(v, str):
+        if len(v) > 200:
+            raise ValueError("longer than 200 characters")
+        return v
+    return number(v)
+
+
+#: a design parameter's value: a number (SI) or a choice
+ParamValue = Annotated[
+    float | str,
+    PlainValidator(_param),
+    WithJsonSchema({"anyOf": [{"type": "number"}, {"type": "string", "maxLength": 200}]}),
 ]
 
 
@@ -96,8 +112,8 @@ class JointRecord(Open):
     """One actuated joint of the design."""
 
     name: Name
-    no_load_speed_rad_s: Positive = described(doc="its actuator's (a wheel's top speed)")
-    actuator_torque_Nm: NonNegative | None = None
+    no_load_speed_rad_s: Speed = described(doc="its actuator's (a wheel's top speed)")
+    actuator_torque_Nm: Torque | None = None
 
 
 class LinkRecord(Open):
@@ -132,15 +148,17 @@ class DesignRecord(Open):
     lengths_m: dict[Name, Length] = {}
     dof: Count | None = None
     wheel_radius_m: Length | None = None
-    params: dict[Name, Any] = {}
+    params: dict[Name, ParamValue] = described(
+        {}, "the design's parameters (SI), each within the range of --param of its name"
+    )
     abilities: list[Name] = []
     ability_ancestors: dict[Name, list[Name]] = {}
     joints: list[JointRecord] = []
     passive_joints: list[Name] | None = None
     links: list[LinkRecord] = []
     modules: list[ModuleRecord] = []
-    mass_kg: NonNegative | None = None
-    loaded_mass_kg: NonNegative | None = None
+    mass_kg: RobotMass | None = None
+    loaded_mass_kg: RobotMass | None = described(None, "with the payload: at least mass_kg")
     calibration: dict[Name, Finite] | None = None
     feedback_gains: dict[Name, Positive] | None = described(
         None, "behaviour -> the scale of its feedback loop's gains (robust verification)"
@@ -150,6 +168,36 @@ class DesignRecord(Open):
     payload: PayloadRecord | None = None
     verified: VerifiedRecord | None = None
     notes: list[Any] | dict[str, Any] | None = None
+
+    @field_validator("params")
+    @classmethod
+    def _ranges(cls, v: dict[str, float | str]) -> dict[str, float | str]:
+        from synth.params import BY_NAME, bounds
+
+        for name, x in v.items():
+            spec = BY_NAME.get(name)
+            if spec is None or isinstance(x, str):
+                continue
+            low, high = bounds(spec)
+            slack = 1e-9 * max(abs(low), abs(high))  # the record's 9 significant digits
+            if not low - slack <= x <= high + slack:
+                raise At(
+                    name,
+                    f"outside {spec.range[0]} to {spec.range[1]} (the range of --param {name})",
+                    x,
+                )
+        return v
+
+    @model_validator(mode="after")
+    def _loaded(self) -> DesignRecord:
+        mass, loaded = self.mass_kg, self.loaded_mass_kg
+        if mass is not None and loaded is not None and loaded < mass * (1 - 1e-9):
+            raise At(
+                "loaded_mass_kg",
+                f"below mass_kg = {mass:g} (the robot without its payload)",
+                loaded,
+            )
+        return self
 
     @field_validator("body_plan")
     @classmethod

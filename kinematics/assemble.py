@@ -257,9 +257,11 @@ class _Walk:
         try:
             return evaluate(x, self.names)
         except KeyError as e:
+            kind = self.kinds.of(node.kinds)  # the file and the kind that give the value
+            given = f"{kind.where}: " if kind is not None and kind.where else ""
             raise AssemblyError(
-                f"part {node.kind}{_where(node)}: its {what} names {e.args[0]!r}, which is "
-                "no length of this design nor a constant of the part kinds"
+                f"{given}part {node.kind}{_where(node)}: its {what} names {e.args[0]!r}, "
+                "which is no length of this design nor a constant of the part kinds"
             ) from None
 
     # -- the root -----------------------------------------------------------------------

@@ -10,10 +10,17 @@ one of
 - ``{"if": {"report": NAME, "op": OP, "value": NUMBER}, "then": [...], "else": [...]}``:
   branch on what the robot reports (:data:`REPORTS`) after the statements before it.
 
-:func:`validate` checks a program against a design's behaviours and the :data:`LIMITS`,
-naming the place of the first problem as a JSON path (``program[1].body[0].params.distance``).
-:func:`parse` reads a program's JSON text within bounds (nesting, numbers), and
-:func:`read_file` reads a program file of either form (``parmor run``).
+The format is one schema, :class:`ProgramFile` (pydantic; published as
+``adron/schemas/program.schema.json``): the statements' keys and types, the ranges of
+``wait`` and ``repeat``, the reports and operators of a condition, and the :data:`LIMITS`
+of the whole program (statements, nesting, behaviour runs). :func:`check` validates a
+parsed program against it; :func:`validate` does, then checks what no schema of the file
+can know, the design it runs on: each ``do`` names one of the design's behaviours and each
+parameter one of that behaviour's, within its range. Every refusal names the place of the
+first problem as a JSON path and its value (``program[1].body[0].params.distance = 9``),
+after the file's name when there is one. :func:`parse` reads a program's JSON text within
+bounds (nesting, numbers), and :func:`read_file` reads a program file of either form
+(``parmor run``), a JSON one checked against the schema.
 :func:`to_python` writes the Python text the program stands for (what the block page
 shows); :func:`execute` runs a program on anything with ``do``, ``wait`` and ``report``
 (a :class:`program.session.Session`). The same Python text runs with ``parmor run``.
@@ -26,9 +33,12 @@ import math
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Annotated, Any, Literal, Protocol
+
+from pydantic import Discriminator, Field, PlainValidator, Tag, WithJsonSchema, model_validator
 
 from adron.errors import InputError
+from adron.schema import At, Closed, Name, described
 
 #: What a robot reports to a program: name -> (unit, meaning). Flags are 1 or 0.
 REPORTS: dict[str, tuple[str, str]] = {
@@ -61,8 +71,8 @@ JSON_DEPTH = 64
 INT_DIGITS = 30
 FILE_BYTES = 1024 * 1024
 
-_KEYS = {"do": {"do", "params"}, "repeat": {"repeat", "body"}, "wait": {"wait"}}
-_KEYS["if"] = {"if", "then", "else"}
+#: the statements, by the key that makes each (the first of these a statement holds)
+_KEYS = ("do", "repeat", "wait", "if")
 
 
 class ProgramError(InputError):
@@ -153,8 +163,9 @@ def read_file(path: str | Path) -> tuple[str, object]:
     The form is chosen by the content, and the suffix in any case: a ``.json`` file is
     JSON; a ``.py`` file is Python unless it parses as a JSON object holding ``program``;
     any other file is JSON when its text starts with ``{`` (after white space), else
-    Python. A JSON file larger than :data:`FILE_BYTES` is refused. InputError naming the
-    file (and line:column) otherwise."""
+    Python. A JSON file larger than :data:`FILE_BYTES` is refused, and a JSON program is
+    checked against :class:`ProgramFile`. InputError naming the file (and line:column, or
+    the key path and value) otherwise."""
     path = Path(path)
     try:
         with path.open("rb") as f:
@@ -186,6 +197,7 @@ def read_file(path: str | Path) -> tuple[str, object]:
         raise
     if suffix == ".py" and not (isinstance(program, dict) and "program" in program):
         return python
+    check(program, str(path))  # the schema; the design's behaviours are checked by the run
     return ("json", program)
 
 
@@ -217,118 +229,227 @@ def _shown(value: object) -> str:
     return _cut(repr(value), 60)
 
 
-def _need_number(value: object, path: str) -> None:
-    if not _number(value):
-        raise ProgramError(f"{path}: expected a number, got {_shown(value)}")
+# ---- the schema of a program (one model: ProgramFile) ----------------------------------------
 
 
-def validate(program: object, behaviors: Mapping[str, Any]) -> None:
-    """Check ``program`` (parsed JSON) against ``behaviors`` (name -> the design's
-    :class:`gaits.base.BehaviorSpec` it may call) and the :data:`LIMITS`; ProgramError
-    naming the first problem's JSON path otherwise."""
-    if not isinstance(program, Mapping) or set(program) != {"program"}:
-        raise ProgramError('program: expected an object {"program": [statement, ...]}')
-    count = [0]
-    calls = _body(program["program"], "program", behaviors, 1, count)
-    if calls > LIMITS["calls"]:
-        raise ProgramError(
-            f"program: runs {calls} behaviours with its repeats; at most {LIMITS['calls']:g}"
-        )
+def _finite(v: object) -> float | int:
+    """A JSON number a behaviour can take (not a boolean, finite); ints stay ints."""
+    if isinstance(v, Unreadable):
+        raise ValueError("not a number a behaviour can take")
+    if not _number(v):
+        raise ValueError("not a number")
+    return v  # type: ignore[return-value]
 
 
-def _body(
-    body: object, path: str, behaviors: Mapping[str, Any], depth: int, count: list[int]
-) -> int:
-    """Validate a list of statements; the behaviour runs it makes, repeats unrolled."""
-    if not isinstance(body, list):
-        raise ProgramError(f"{path}: expected a list of statements")
+def _ranged(low: float, high: float, unit: str, whole: bool = False):
+    def check(v: object) -> float | int:
+        x = _finite(v)
+        if whole and float(x) != int(x):
+            raise ValueError(f"not a whole number from {low:g} to {high:g}")
+        if not low <= float(x) <= high:
+            raise ValueError(f"out of range: must be within {low:g} and {high:g}{unit}")
+        return x
+
+    kind = "integer" if whole else "number"
+    return Annotated[
+        float | int,
+        PlainValidator(check),
+        WithJsonSchema({"type": kind, "minimum": low, "maximum": high}),
+    ]
+
+
+def _param_value(v: object) -> float | int | str:
+    if isinstance(v, str):
+        if len(v) > 200:
+            raise ValueError("a choice of at most 200 characters")
+        return v
+    return _finite(v)
+
+
+#: a number
+Finite = Annotated[float | int, PlainValidator(_finite), WithJsonSchema({"type": "number"})]
+#: a parameter's value: a number, or a choice's name
+ParamValue = Annotated[
+    float | int | str,
+    PlainValidator(_param_value),
+    WithJsonSchema(
+        {
+            "anyOf": [{"type": "number"}, {"type": "string", "maxLength": 200}],
+            "description": "a number (in the parameter's unit) or one of a choice's names",
+        }
+    ),
+]
+Seconds = _ranged(0.0, LIMITS["wait_s"], " s")
+Times = _ranged(0, LIMITS["repeat"], " times", whole=True)
+
+
+def _statement_kind(v: object) -> str | None:
+    """The tag of a statement: the first of :data:`_KEYS` it holds (None: no statement)."""
+    if isinstance(v, Mapping):
+        kind = next((k for k in _KEYS if k in v), None)
+        return None if kind is None else f"statement[{kind}]"
+    return None
+
+
+class DoStatement(Closed):
+    """Run one of the design's behaviours (omitted parameters take their defaults)."""
+
+    do: Name = described(doc="the behaviour (parmor simulate DIR --behavior help lists them)")
+    params: dict[Name, ParamValue] = described({}, "parameter name -> value")
+
+
+class WaitStatement(Closed):
+    """Hold the current pose."""
+
+    wait: Seconds = described(doc=f"seconds, 0 to {LIMITS['wait_s']:g}")
+
+
+class RepeatStatement(Closed):
+    """Run ``body`` ``repeat`` times."""
+
+    repeat: Times = described(doc=f"how many times, 0 to {LIMITS['repeat']:g}")
+    body: list[Statement] = []
+
+
+class Condition(Closed):
+    """What the robot reports, compared with a number."""
+
+    report: Literal[tuple(REPORTS)] = described(doc="a report (x_m, heading_deg, ok ...)")
+    op: Literal[OPS]
+    value: Finite
+
+
+class IfStatement(Closed):
+    """``then`` when the condition holds after the statements before it, else ``else``."""
+
+    cond: Condition = Field(alias="if")
+    then: list[Statement] = []
+    otherwise: list[Statement] = Field([], alias="else")
+
+
+Statement = Annotated[
+    Annotated[DoStatement, Tag("statement[do]")]
+    | Annotated[RepeatStatement, Tag("statement[repeat]")]
+    | Annotated[WaitStatement, Tag("statement[wait]")]
+    | Annotated[IfStatement, Tag("statement[if]")],
+    Discriminator(
+        _statement_kind,
+        custom_error_type="statement",
+        custom_error_message="not a statement: an object holding one of do, repeat, wait, if",
+    ),
+]
+RepeatStatement.model_rebuild()
+IfStatement.model_rebuild()
+
+
+class ProgramFile(Closed):
+    """A program: behaviour calls, waits, repeats and conditions (``parmor run
+    PROGRAM.json DIR``, the block page's requests)."""
+
+    program: list[Statement] = described(
+        doc=f"the statements, run in order; at most {LIMITS['statements']:g} in all, nested "
+        f"at most {LIMITS['depth']:g} deep, {LIMITS['calls']:g} behaviour runs with the "
+        "repeats unrolled"
+    )
+
+    @model_validator(mode="after")
+    def _limits(self) -> ProgramFile:
+        count = [0]
+        calls = _walk(self.program, "program", 1, count)
+        if calls > LIMITS["calls"]:
+            raise At(
+                "program",
+                f"runs {calls} behaviours with its repeats; at most {LIMITS['calls']:g}",
+            )
+        return self
+
+
+def _walk(body: Sequence[Any], path: str, depth: int, count: list[int]) -> int:
+    """The behaviour runs of ``body`` (repeats unrolled, the longer branch of an if); At
+    the first statement past the :data:`LIMITS` of statements and nesting."""
     if depth > LIMITS["depth"]:
-        raise ProgramError(f"{path}: nested deeper than {LIMITS['depth']:g}")
+        raise At(path, f"nested deeper than {LIMITS['depth']:g}")
     calls = 0
     for i, st in enumerate(body):
         here = f"{path}[{i}]"
         count[0] += 1
         if count[0] > LIMITS["statements"]:
-            raise ProgramError(f"{here}: more than {LIMITS['statements']:g} statements")
-        calls += _statement(st, here, behaviors, depth, count)
+            raise At(here, f"more than {LIMITS['statements']:g} statements")
+        if isinstance(st, DoStatement):
+            calls += 1
+        elif isinstance(st, RepeatStatement):
+            calls += int(st.repeat) * _walk(st.body, f"{here}.body", depth + 1, count)
+        elif isinstance(st, IfStatement):
+            a = _walk(st.then, f"{here}.then", depth + 1, count)
+            b = _walk(st.otherwise, f"{here}.else", depth + 1, count)
+            calls += max(a, b)
     return calls
 
 
-def _statement(
-    st: object, path: str, behaviors: Mapping[str, Any], depth: int, count: list[int]
-) -> int:
-    if not isinstance(st, Mapping):
-        raise ProgramError(f"{path}: expected a statement object")
-    kind = next((k for k in _KEYS if k in st), None)
-    if kind is None:
-        raise ProgramError(f"{path}: expected one of {', '.join(_KEYS)} in a statement")
-    extra = sorted(set(st) - _KEYS[kind])
-    if extra:
-        raise ProgramError(f"{path}: unexpected key {extra[0]!r} in a {kind!r} statement")
-    if kind == "do":
-        name = st["do"]
-        if not isinstance(name, str) or name not in behaviors:
-            raise ProgramError(
-                f"{path}.do: the design has no behaviour {_shown(name)} "
-                f"(behaviours: {', '.join(sorted(behaviors))})"
-            )
-        params = st.get("params", {})
-        if not isinstance(params, Mapping):
-            raise ProgramError(f"{path}.params: expected an object of parameter values")
-        specs = {p.name: p for p in behaviors[name].params}
-        for key, value in params.items():
-            if key not in specs:
-                raise ProgramError(
-                    f"{path}.params.{key}: {name} has no parameter {key!r} "
-                    f"(parameters: {', '.join(specs) or 'none'})"
-                )
-            spec = specs[key]
-            if spec.kind == "choice" and not isinstance(value, str):
-                raise ProgramError(
-                    f"{path}.params.{key}: expected one of {', '.join(spec.choices)}, "
-                    f"got {_shown(value)}"
-                )
-            if spec.kind != "choice":
-                _need_number(value, f"{path}.params.{key}")
-            if spec.kind == "int" and float(value) != int(value):
-                raise ProgramError(f"{path}.params.{key}: expected a whole number, got {value}")
-            try:
-                spec.check(value)
-            except ValueError as exc:
-                reason = str(exc).split(": ", 1)[-1]
-                raise ProgramError(f"{path}.params.{key}: {reason}") from None
-        return 1
-    if kind == "wait":
-        s = st["wait"]
-        if not _number(s) or not 0 <= float(s) <= LIMITS["wait_s"]:
-            raise ProgramError(
-                f"{path}.wait: expected seconds in [0, {LIMITS['wait_s']:g}], got {_shown(s)}"
-            )
-        return 0
-    if kind == "repeat":
-        n = st["repeat"]
-        if not _number(n) or float(n) != int(n) or not 0 <= int(n) <= LIMITS["repeat"]:
-            raise ProgramError(
-                f"{path}.repeat: expected a whole number in [0, {LIMITS['repeat']:g}], "
-                f"got {_shown(n)}"
-            )
-        return int(n) * _body(st.get("body", []), f"{path}.body", behaviors, depth + 1, count)
-    cond = st["if"]
-    if not isinstance(cond, Mapping) or set(cond) != {"report", "op", "value"}:
-        raise ProgramError(f'{path}.if: expected {{"report": NAME, "op": OP, "value": NUMBER}}')
-    if not isinstance(cond["report"], str) or cond["report"] not in REPORTS:
+def check(program: object, source: str = "") -> ProgramFile:
+    """``program`` (parsed JSON) checked against :class:`ProgramFile`; ProgramError naming
+    ``source`` (when given), the JSON path of the first problem and its value."""
+    from adron.schema import _show
+    from adron.schema import validate as against
+
+    if not isinstance(program, Mapping):
         raise ProgramError(
-            f"{path}.if.report: unknown report {_shown(cond['report'])} "
-            f"(reports: {', '.join(REPORTS)})"
+            f"{source + ': ' if source else ''}(the top level) = {_show(program)}: not a "
+            'program (an object {"program": [statement, ...]})'
         )
-    if not isinstance(cond["op"], str) or cond["op"] not in OPS:
+    return against(ProgramFile, program, source, ProgramError)
+
+
+def validate(program: object, behaviors: Mapping[str, Any], source: str = "") -> None:
+    """Check ``program`` (parsed JSON) against its schema (:func:`check`) and then against
+    ``behaviors`` (name -> the design's :class:`gaits.base.BehaviorSpec` it may call),
+    which is what no schema of the file can say: each ``do`` names one of the design's
+    behaviours, each parameter one of its parameters, of the parameter's kind and within
+    its range. ProgramError naming ``source`` (when given), the first problem's JSON path
+    and its value otherwise."""
+    _design_checks(check(program, source), behaviors, f"{source}: " if source else "")
+
+
+def _design_checks(model: ProgramFile, behaviors: Mapping[str, Any], where: str) -> None:
+    todo: list[tuple[str, Sequence[Any]]] = [("program", model.program)]
+    while todo:
+        path, body = todo.pop(0)
+        for i, st in enumerate(body):
+            here = f"{path}[{i}]"
+            if isinstance(st, RepeatStatement):
+                todo.append((f"{here}.body", st.body))
+            elif isinstance(st, IfStatement):
+                todo += [(f"{here}.then", st.then), (f"{here}.else", st.otherwise)]
+            elif isinstance(st, DoStatement):
+                _do_checks(st, behaviors, f"{where}{here}")
+
+
+def _do_checks(st: DoStatement, behaviors: Mapping[str, Any], here: str) -> None:
+    name = st.do
+    if name not in behaviors:
         raise ProgramError(
-            f"{path}.if.op: expected one of {' '.join(OPS)}, got {_shown(cond['op'])}"
+            f"{here}.do = {_shown(name)}: the design has no such behaviour "
+            f"(behaviours: {', '.join(sorted(behaviors))})"
         )
-    _need_number(cond["value"], f"{path}.if.value")
-    a = _body(st.get("then", []), f"{path}.then", behaviors, depth + 1, count)
-    b = _body(st.get("else", []), f"{path}.else", behaviors, depth + 1, count)
-    return max(a, b)
+    specs = {p.name: p for p in behaviors[name].params}
+    for key, value in st.params.items():
+        at = f"{here}.params.{key} = {_shown(value)}"
+        if key not in specs:
+            raise ProgramError(
+                f"{at}: {name} has no parameter {key!r} (parameters: {', '.join(specs) or 'none'})"
+            )
+        spec = specs[key]
+        if spec.kind == "choice" and not isinstance(value, str):
+            raise ProgramError(f"{at}: expected one of {', '.join(spec.choices)}")
+        if spec.kind != "choice" and not _number(value):
+            raise ProgramError(f"{at}: expected a number")
+        if spec.kind == "int" and float(value) != int(value):
+            raise ProgramError(f"{at}: expected a whole number")
+        try:
+            spec.check(value)
+        except ValueError as exc:
+            reason = str(exc).split(": ", 1)[-1]
+            raise ProgramError(f"{at}: {reason}") from None
 
 
 def holds(value: float, op: str, than: float) -> bool:
@@ -343,24 +464,32 @@ def holds(value: float, op: str, than: float) -> bool:
     }[op]
 
 
-def execute(program: Mapping, robot: Robot) -> None:
-    """Run a validated program on ``robot``, statement by statement."""
-    _run(program["program"], robot)
+def execute(program: Mapping, robot: Robot, source: str = "") -> None:
+    """Run a validated program on ``robot``, statement by statement. A ProgramError the
+    robot raises (a behaviour that cannot run with these values together, the simulated
+    time used up) names ``source`` (when given) and the statement's JSON path."""
+    _run(program["program"], robot, "program", f"{source}: " if source else "")
 
 
-def _run(body: Sequence[Mapping], robot: Robot) -> None:
-    for st in body:
-        if "do" in st:
-            robot.do(st["do"], **dict(st.get("params", {})))
-        elif "wait" in st:
-            robot.wait(float(st["wait"]))
-        elif "repeat" in st:
+def _run(body: Sequence[Mapping], robot: Robot, path: str, where: str) -> None:
+    for i, st in enumerate(body):
+        here = f"{path}[{i}]"
+        try:
+            if "do" in st:
+                robot.do(st["do"], **dict(st.get("params", {})))
+            elif "wait" in st:
+                robot.wait(float(st["wait"]))
+            elif "if" in st:
+                c = st["if"]
+                taken = holds(robot.report(c["report"]), c["op"], float(c["value"]))
+        except ProgramError as e:
+            raise ProgramError(f"{where}{here}: {e}") from None
+        if "repeat" in st:
             for _ in range(int(st["repeat"])):
-                _run(st.get("body", []), robot)
-        else:
-            c = st["if"]
-            taken = holds(robot.report(c["report"]), c["op"], float(c["value"]))
-            _run(st.get("then" if taken else "else", []), robot)
+                _run(st.get("body", []), robot, f"{here}.body", where)
+        elif "if" in st:
+            branch = "then" if taken else "else"
+            _run(st.get(branch, []), robot, f"{here}.{branch}", where)
 
 
 def number_text(x: float) -> str:

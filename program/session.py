@@ -707,13 +707,14 @@ def run_program(
     program: Mapping,
     progress: Callable[[str], None] | None = None,
     perturb: int | None = None,
+    source: str = "",
 ) -> dict:
-    """Validate ``program`` (JSON data, :mod:`program.script`) against the bundle's design
-    and run it (on perturbation ``perturb`` of its table: :func:`perturbed_session`);
-    :meth:`Session.result`."""
+    """Validate ``program`` (JSON data, :mod:`program.script`; from the file ``source``,
+    which messages name) against the bundle's design and run it (on perturbation
+    ``perturb`` of its table: :func:`perturbed_session`); :meth:`Session.result`."""
     session = perturbed_session(folder, progress, perturb)
-    validate(program, session.behaviors)
-    execute(program, session)
+    validate(program, session.behaviors, source)
+    execute(program, session, source)
     return session.result()
 
 

@@ -1517,7 +1517,7 @@ def cmd_run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     with stage("run"):  # the program and its behaviours: a limit here is not in 'parse'
         if form == "json":
-            result = run_program(args.dir, program, progress, args.perturb)
+            result = run_program(args.dir, program, progress, args.perturb, str(path))
         else:
             result = run_python(args.dir, path, progress, args.perturb)
     if not args.animation:

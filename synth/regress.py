@@ -11,9 +11,9 @@ import contextlib
 import difflib
 import json
 import os
-from collections.abc import Iterator
+from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from adron import readers
 from adron.errors import ExportError, InputError
@@ -23,51 +23,16 @@ from synth import limits
 if TYPE_CHECKING:
     from synth.conceptual import Designer, Request
 
-SUITE_KEYS = {"ontology", "rules", "catalog", "conceptual", "query", "verify"}
-QUERY_KEYS = {"name", "abilities", "answers", "params"}
-
 
 def snapshot_path(suite: Path) -> Path:
     return suite.with_name(suite.stem + ".snapshot.json")
 
 
-def str_list(value: object, where: str) -> tuple[str, ...]:
-    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-        raise InputError(f"{where}: expected a list of strings")
-    return tuple(value)
-
-
-def str_table(value: object, where: str) -> dict[str, str]:
-    if not isinstance(value, dict) or not all(isinstance(v, str) for v in value.values()):
-        raise InputError(f"{where}: expected a table of strings")
-    return value
-
-
-def read_toml(path: Path, keys: set[str]) -> dict:
-    """The TOML table of a user's file whose top-level keys are among ``keys``."""
+def read_toml(path: Path) -> dict:
+    """The TOML table of a user's file (a suite or a study), read within bounds; its
+    format's schema checks it (adron/formats.py)."""
     check_regular(path)  # a FIFO or a device: refused at once, not waited on
-    data = readers.read_toml(path)  # nesting and numbers bounded, a byte order mark dropped
-    unknown = sorted(set(data) - keys)
-    if unknown:
-        raise InputError(f"{path}: unknown key {unknown[0]!r}")
-    return data
-
-
-def array_tables(data: dict, key: str, allowed: set[str], path: Path) -> Iterator[tuple[str, dict]]:
-    """``(where, table)`` for each ``[[key]]`` table of a suite or study (``where`` names
-    the file and the table for messages); InputError for none, a non-table or a key
-    outside ``allowed``."""
-    tables = data.get(key, [])
-    if not isinstance(tables, list) or not tables:
-        raise InputError(f"{path}: no [[{key}]] tables")
-    for i, t in enumerate(tables, 1):
-        where = f"{path}: {key} {i}"
-        if not isinstance(t, dict):
-            raise InputError(f"{where}: expected a table ([[{key}]])")
-        bad = sorted(set(t) - allowed)
-        if bad:
-            raise InputError(f"{where}: unknown key {bad[0]!r}")
-        yield where, t
+    return readers.read_toml(path)  # nesting and numbers bounded, a byte order mark dropped
 
 
 def confined(path: Path, key: str, given: str) -> str:
@@ -90,25 +55,19 @@ def confined(path: Path, key: str, given: str) -> str:
     return str(target)
 
 
-def kb_options(data: dict, path: Path) -> dict:
-    """The ``ontology``, ``rules`` and ``catalog`` of a suite or study file (paths relative
-    to it, inside its folder: :func:`confined`), validated; ``allow_scripts`` is False."""
+def kb_options(data: Mapping[str, Any], path: Path) -> dict:
+    """The ``ontology``, ``rules`` and ``catalog`` of a suite or study file (validated by
+    its schema; paths relative to it, inside its folder: :func:`confined`);
+    ``allow_scripts`` is False."""
     opts = {
         "suite": str(path),
-        "ontology": [
-            confined(path, "ontology", p)
-            for p in str_list(data.get("ontology", []), f"{path}: ontology")
-        ],
-        "rules": [
-            confined(path, "rules", p) for p in str_list(data.get("rules", []), f"{path}: rules")
-        ],
+        "ontology": [confined(path, "ontology", p) for p in data.get("ontology", [])],
+        "rules": [confined(path, "rules", p) for p in data.get("rules", [])],
         # running a rule file's scripts is the user's call on the command line, never the
         # suite file's (a suite can come from anywhere)
         "allow_scripts": False,
     }
     catalog = data.get("catalog")
-    if catalog is not None and not isinstance(catalog, str):
-        raise InputError(f"{path}: catalog: expected a shipped catalog's name or a path")
     from adron.catalog import SHIPPED
 
     if catalog in SHIPPED:  # a shipped catalog's name ("dynamixel"), not a path
@@ -119,36 +78,28 @@ def kb_options(data: dict, path: Path) -> dict:
 
 
 def load_suite(path: Path) -> tuple[dict, list[dict]]:
-    """The suite's options and its queries, validated (errors name file and key)."""
-    data = read_toml(path, SUITE_KEYS)
-    opts = kb_options(data, path)
-    opts["conceptual"] = data.get("conceptual", False)
+    """The suite's options and its queries. The file is checked against its schema
+    (:class:`adron.formats.SuiteFile`: keys, types, unique names; errors name the file,
+    the key and the value); the files it names must lie in its folder (:func:`confined`);
+    its abilities, answers and parameters are checked against the knowledge base when
+    the queries run."""
+    from adron.formats import check
+
+    suite = check("suite", read_toml(path), str(path))
+    opts = kb_options(suite.model_dump(), path)
+    opts["conceptual"] = suite.conceptual
     # simulating every behaviour makes a suite slow and its snapshot hold simulator
     # figures; a suite asks for it with verify = true
-    opts["verify"] = data.get("verify", False)
-    for key in ("conceptual", "verify"):
-        if not isinstance(opts[key], bool):
-            raise InputError(f"{path}: {key}: expected true or false")
-    names: set[str] = set()
-    out = []
-    for where, q in array_tables(data, "query", QUERY_KEYS, path):
-        name = q.get("name")
-        if not isinstance(name, str) or not name:
-            raise InputError(f"{where}: missing 'name'")
-        if name in names:
-            raise InputError(f"{where}: duplicate name {name!r}")
-        names.add(name)
-        out.append(
-            {
-                "name": name,
-                "abilities": str_list(q.get("abilities", []), f"{where} ({name}): abilities"),
-                "answers": str_table(q.get("answers", {}), f"{where} ({name}): answers"),
-                "params": str_table(q.get("params", {}), f"{where} ({name}): params"),
-            }
-        )
-    from adron.formats import check  # the file's schema: what the checks above miss
-
-    check("suite", data, str(path))
+    opts["verify"] = suite.verify
+    out = [
+        {
+            "name": q.name,
+            "abilities": tuple(q.abilities),
+            "answers": dict(q.answers),
+            "params": dict(q.params),
+        }
+        for q in suite.query
+    ]
     return opts, out
 
 
@@ -192,12 +143,12 @@ def run_queries(
         designer = designer_for(opts)
     sopts = StructureOptions(opts["catalog"], opts["conceptual"], verify=opts["verify"])
     results = {}
-    for i, q in enumerate(queries, 1):
+    for i, q in enumerate(queries):
         try:
-            with bounded(f"{opts['suite']}: query {i} ({q['name']})"):
+            with bounded(f"{opts['suite']}: query[{i}] ({q['name']})"):
                 results[q["name"]] = run(designer, request_for(q), sopts).record(designer)
         except InputError as e:
-            raise InputError(f"{opts['suite']}: query {i} ({q['name']}): {e}") from None
+            raise InputError(f"{opts['suite']}: query[{i}] ({q['name']}): {e}") from None
     return results
 
 

@@ -5,9 +5,8 @@ A study is a TOML file of ``[[request]]`` tables (``abilities``, optional ``name
 a table expands into the product of its lists. Each expanded request is designed as
 ``parmor design --no-input`` would: sized and (unless ``--no-simulate``, which designs
 as ``--no-verify`` does) every behaviour it lists simulated with default parameters and fed
-back (``synth.verification.loop``). The figures of each simulated behaviour
-(``synth.verification.runs``, the records of ``parmor simulate --json``) become the rows of
-``results.csv``.
+back (``synth.verification``). The figures of each simulated behaviour (``synth.verification``, the
+records of ``parmor simulate --json``) become the rows of ``results.csv``.
 
 The requests run on local worker processes, or on a Ray cluster with ``--backend ray``
 (``synth.backend``); the results are the same either way. Each finished request is stored as
@@ -28,7 +27,6 @@ import hashlib
 import io
 import itertools
 import json
-import math
 import os
 from collections import Counter, defaultdict
 from collections.abc import Callable, Iterable, Sequence
@@ -37,23 +35,18 @@ from typing import TextIO
 
 from adron import readers
 from adron.errors import ExportError, InputError
+from adron.formats import MAX_STUDY_REQUESTS as MAX_STUDY_REQUESTS  # (re-exported)
 from synth import limits
 from synth.backend import Backend, files_digest, tasks
 from synth.backend import code_files as code_files  # re-exported: the files keys depend on
-from synth.limits import MAX_ROBUSTNESS
 from synth.regress import (
-    array_tables,
     designer_for,
     kb_options,
     read_toml,
     request_for,
-    str_list,
-    str_table,
     temp_beside,
 )
 
-STUDY_KEYS = {"ontology", "rules", "catalog", "request", "robustness"}
-REQUEST_KEYS = {"name", "abilities", "answers", "params"}
 RESULT_FORMAT = 2  # of the stored per-request results; part of their key
 KEY_LENGTH = 16  # hex digits of the request key (64 bits)
 NO_TYPE = "(none)"  # the robot type column of a request no robot type met
@@ -66,145 +59,44 @@ TAIL_COLUMNS = ("verdict",)
 # --- the study file ------------------------------------------------------------------------
 
 
-def _param_values(value: object, where: str) -> list[str]:
-    """A params entry: a value string, or a non-empty list of distinct value strings."""
-    if isinstance(value, str):
-        return [value]
-    if isinstance(value, list) and value and all(isinstance(v, str) for v in value):
-        seen: set[str] = set()
-        for v in value:
-            if v in seen:
-                raise InputError(f"{where}: {v!r} listed twice")
-            seen.add(v)
-        return list(value)
-    raise InputError(
-        f'{where}: expected a value with its unit ("0.2kg") or a non-empty list of them'
-    )
-
-
 def default_out(study: Path) -> Path:
     """``parameter-range.toml`` -> ``parameter-range.sweep`` beside it."""
     return study.with_name(study.stem + ".sweep")
-
-
-#: The most requests a study may expand to: counted before anything is expanded, a larger
-#: study is refused (exit 2). Checking a request costs about 1 ms and designing one with
-#: simulation seconds to a minute, so 10,000 is already hours of a 2-core machine's work
-#: (a day's on a small Ray cluster); a larger range is split into several studies.
-MAX_STUDY_REQUESTS = 10_000
-
-
-def _list_lengths(t: dict) -> list[int]:
-    """The lengths of the lists among a ``[[request]]`` table's ``params`` (values that are
-    not lists count once; malformed ones are refused when the table is read)."""
-    params = t.get("params")
-    if not isinstance(params, dict):
-        return []
-    return [len(v) for v in params.values() if isinstance(v, list)]
-
-
-#: Sizes up to this are written exactly in messages, larger ones as a power of ten.
-_EXACT = 10**15
-
-
-def _size(lengths: Sequence[int]) -> tuple[int | None, float]:
-    """(the product of ``lengths`` when at most :data:`_EXACT`, else None; its log10),
-    without making a huge integer (a 1 KB study can name 10^300 requests)."""
-    if 0 in lengths:
-        return 0, -math.inf
-    lg = sum(math.log10(n) for n in lengths)
-    return (math.prod(lengths) if lg <= 15.5 else None), lg
-
-
-def _total(sizes: Sequence[tuple[int | None, float]]) -> int | None:
-    """The sum of ``sizes`` (see :func:`_size`), None past :data:`_EXACT`."""
-    total = 0
-    for n, _ in sizes:
-        if n is None or total + n > _EXACT:
-            return None
-        total += n
-    return total
-
-
-def _size_text(sizes: Sequence[tuple[int | None, float]]) -> str:
-    """``1,000,000``, or ``about 10^40`` past :data:`_EXACT`, for the sum of ``sizes``."""
-    total = _total(sizes)
-    if total is not None:
-        return f"{total:,}"
-    return f"about 10^{int(max(lg for _, lg in sizes))}"
-
-
-def check_study_size(tables: Sequence[tuple[str, dict]], path: Path) -> None:
-    """InputError (exit 2) when the ``[[request]]`` tables expand to more than
-    :data:`MAX_STUDY_REQUESTS` requests, naming the size, the limit and the largest table;
-    counted from the lists' lengths, before anything is expanded."""
-    sizes = [_size(_list_lengths(t)) for _, t in tables]
-    total = _total(sizes)
-    if total is not None and total <= MAX_STUDY_REQUESTS:
-        return
-    k = max(range(len(sizes)), key=lambda i: sizes[i][1])
-    where, t = tables[k]
-    lists = " x ".join(f"{name} {len(v)}" for name, v in t["params"].items() if isinstance(v, list))
-    raise InputError(
-        f"{path}: the study expands to {_size_text(sizes)} requests, more than the "
-        f"{MAX_STUDY_REQUESTS:,} a study may have (the most from "
-        f"{where.removeprefix(f'{path}: ')}: params {lists} = {_size_text([sizes[k]])}); "
-        "split it into smaller studies"
-    )
 
 
 def load_study(path: Path) -> tuple[dict, list[dict]]:
     """The study's options and its expanded requests, in file order (each list expanded
     in the order of its ``params`` keys, the last varying fastest). Each request:
     ``name``, ``abilities``, ``answers`` (name -> "yes"/"no"), ``params`` (name -> value
-    string), ``where`` (file and table, for messages). Errors name the file and key; a
-    study of more than :data:`MAX_STUDY_REQUESTS` requests is refused before it is
-    expanded."""
-    data = read_toml(path, STUDY_KEYS)
-    opts = kb_options(data, path)
-    opts["robustness"] = study_robustness(data.get("robustness", 0), path)
-    tables = list(array_tables(data, "request", REQUEST_KEYS, path))
-    check_study_size(tables, path)
+    string), ``where`` (file and table, for messages).
+
+    The file is checked against its schema (:class:`adron.formats.StudyFile`: keys,
+    types, ranges, values listed once, and the study's size, at most
+    :data:`MAX_STUDY_REQUESTS` requests counted before anything is expanded; errors name
+    the file, the key and the value); the files it names must lie in its folder
+    (:func:`synth.regress.confined`). What only the knowledge base can say is
+    :func:`validate`'s."""
+    from adron.formats import check
+
+    study = check("study", read_toml(path), str(path))
+    opts = kb_options(study.model_dump(), path)
+    opts["robustness"] = study.robustness
     out = []
-    for where, t in tables:
-        abilities = str_list(t.get("abilities"), f"{where}: abilities")
-        if not abilities:
-            raise InputError(f"{where}: abilities: name at least one ability")
-        name = t.get("name", "+".join(abilities))
-        if not isinstance(name, str) or not name:
-            raise InputError(f"{where}: name: expected a non-empty string")
-        where = f"{where} ({name})"
-        answers = dict(str_table(t.get("answers", {}), f"{where}: answers"))
-        params = t.get("params", {})
-        if not isinstance(params, dict):
-            raise InputError(f"{where}: params: expected a table (name = value or [values])")
-        lists = {k: _param_values(v, f"{where}: params: {k}") for k, v in params.items()}
+    for i, t in enumerate(study.request):
+        name = t.name or "+".join(t.abilities)
+        where = f"{path}: request[{i}] ({name})"
+        lists = {k: [v] if isinstance(v, str) else list(v) for k, v in t.params.items()}
         for values in itertools.product(*lists.values()):
             out.append(
                 {
                     "name": name,
-                    "abilities": list(abilities),
-                    "answers": answers,
+                    "abilities": list(t.abilities),
+                    "answers": dict(t.answers),
                     "params": dict(zip(lists, values, strict=True)),
                     "where": where,
                 }
             )
-    from adron.formats import check  # the file's schema: what the checks above miss
-
-    check("study", data, str(path))
     return opts, out
-
-
-def study_robustness(value: object, path: Path) -> int:
-    """The study's ``robustness = K`` (perturbed runs per behaviour, as ``parmor design
-    --robustness K``; 0, the default, runs none): a whole number from 0 to
-    ``MAX_ROBUSTNESS``, else an InputError naming the file and key."""
-    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_ROBUSTNESS:
-        raise InputError(
-            f"{path}: robustness: expected a whole number of perturbed runs per behaviour "
-            f"from 0 to {MAX_ROBUSTNESS}, got {value!r}"
-        )
-    return value
 
 
 def request_key(q: dict, simulate: bool, files_digest: str, robustness: int = 0) -> str:
@@ -337,13 +229,13 @@ def design_one(q: dict, designer, sopts, simulate: bool) -> dict:
             )
         v = outcome.verification
         if simulate and v is not None:
-            res["behaviors"] = [b.to_dict() for b in v.behaviors]
+            res["behaviors"] = [dict(b) for b in v.behaviors]
             res["dropped"] = dict(sorted(v.dropped.items()))
             res["sizings"] = v.rounds
-            if v.robust is not None:  # each behaviour's perturbed runs (synth.verification.robust)
+            if v.robust is not None:  # each behaviour's perturbed runs (synth.verification)
                 res["robust"] = [
-                    {k: getattr(b, k) for k in ("behavior", "ability", "passed", "runs", "robust")}
-                    for b in v.robust.behaviors
+                    {k: b[k] for k in ("behavior", "ability", "passed", "runs", "robust")}
+                    for b in v.robust["behaviors"]
                 ]
     except Exception as e:  # noqa: BLE001 - a sweep records a crash and goes on
         res["status"], res["reason"] = "error", f"{type(e).__name__}: {e}"

@@ -221,7 +221,8 @@ def test_an_empty_folder_of_the_users_where_a_folder_goes_is_kept(tmp_path) -> N
 
 def test_the_manifest_never_reaches_outside_the_folder(tmp_path) -> None:
     """A crafted .parmor listing files outside (by '..' or through a link) with their
-    hashes deletes none of them: only the folder's own files are ever looked at."""
+    hashes deletes none of them: a name that leaves the folder is refused by the list's
+    schema (naming it), and only the folder's own files are ever looked at."""
     victim = tmp_path / "victim"
     victim.mkdir()
     (victim / "f.txt").write_text("precious")
@@ -231,7 +232,14 @@ def test_the_manifest_never_reaches_outside_the_folder(tmp_path) -> None:
 
     digest = "sha256:" + hashlib.sha256(b"precious").hexdigest()
     body = json.loads((out / MARKER).read_text())
-    body["files"] |= {"../victim/f.txt": digest, "link/f.txt": digest}
+    for name in ("../victim/f.txt", "/abs/f.txt", "a/./b", "a//b"):
+        crafted = {**body, "files": {**body["files"], name: digest}}
+        (out / MARKER).write_text(json.dumps(crafted))
+        with pytest.raises(ExportError) as e:
+            write_bundle(out, NEW, force=True)
+        assert f"{MARKER}: files." in str(e.value) and repr(name) in str(e.value)
+        assert (victim / "f.txt").read_text() == "precious"
+    body["files"] |= {"link/f.txt": digest}
     (out / MARKER).write_text(json.dumps(body))
     write_bundle(out, NEW, force=True)
     assert (victim / "f.txt").read_text() == "precious"

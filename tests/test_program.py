@@ -74,33 +74,33 @@ def test_a_program_validates_and_reads_as_python() -> None:
 @pytest.mark.parametrize(
     "program, where",
     [
-        ([], "program: expected an object"),
-        ({"program": {}}, "program: expected a list"),
-        ({"program": [walk()], "x": 1}, "program: expected an object"),
-        ({"program": [{"jump": 1}]}, "program[0]: expected one of"),
-        ({"program": [{"do": "flying"}]}, "program[0].do: the design has no behaviour 'flying'"),
-        ({"program": [walk(legs=3)]}, "program[0].params.legs: walking has no parameter"),
-        ({"program": [walk(steps=21)]}, "program[0].params.steps: 21 is outside [1, 20]"),
-        ({"program": [walk(steps=2.5)]}, "program[0].params.steps: expected a whole number"),
-        ({"program": [walk(steps=True)]}, "program[0].params.steps: expected a number"),
-        ({"program": [walk(speed="fast")]}, "program[0].params.speed: expected a number"),
-        ({"program": [walk(gait="gallop")]}, "program[0].params.gait: expected one of"),
-        ({"program": [{**walk(), "body": []}]}, "program[0]: unexpected key 'body'"),
-        ({"program": [{"wait": -1}]}, "program[0].wait: expected seconds"),
-        ({"program": [{"wait": 61}]}, "program[0].wait: expected seconds"),
-        ({"program": [{"repeat": 51, "body": []}]}, "program[0].repeat: expected a whole"),
-        ({"program": [{"repeat": 2, "body": walk()}]}, "program[0].body: expected a list"),
+        ([], "(the top level) = []: not a program (an object"),
+        ({"program": {}}, "program = an empty table: not a list"),
+        ({"program": [walk()], "x": 1}, "x: unknown key (keys: program)"),
+        ({"program": [{"jump": 1}]}, "program[0] = a table: not a statement"),
+        ({"program": [{"do": "flying"}]}, "program[0].do = 'flying': the design has no such"),
+        ({"program": [walk(legs=3)]}, "program[0].params.legs = 3: walking has no parameter"),
+        ({"program": [walk(steps=21)]}, "program[0].params.steps = 21: 21 is outside [1, 20]"),
+        ({"program": [walk(steps=2.5)]}, "program[0].params.steps = 2.5: expected a whole"),
+        ({"program": [walk(steps=True)]}, "program[0].params.steps = True: not a number"),
+        ({"program": [walk(speed="fast")]}, "program[0].params.speed = 'fast': expected a"),
+        ({"program": [walk(gait="gallop")]}, "program[0].params.gait = 'gallop': expected one"),
+        ({"program": [{**walk(), "body": []}]}, "program[0].body: unknown key"),
+        ({"program": [{"wait": -1}]}, "program[0].wait = -1: out of range"),
+        ({"program": [{"wait": 61}]}, "program[0].wait = 61: out of range"),
+        ({"program": [{"repeat": 51, "body": []}]}, "program[0].repeat = 51: out of range"),
+        ({"program": [{"repeat": 2, "body": walk()}]}, "program[0].body = a table: not a list"),
         (
             {"program": [{"if": {"report": "speed", "op": ">", "value": 1}}]},
-            "program[0].if.report: unknown report 'speed'",
+            "program[0].if.report = 'speed': not one of 'x_m'",
         ),
         (
             {"program": [{"if": {"report": "x_m", "op": "=>", "value": 1}}]},
-            "program[0].if.op: expected one of",
+            "program[0].if.op = '=>': not one of",
         ),
         (
             {"program": [{"if": {"report": "x_m", "op": ">", "value": math.inf}}]},
-            "program[0].if.value: expected a number",
+            "program[0].if.value = inf: not a number",
         ),
         (
             {"program": [{"repeat": 20, "body": [{"repeat": 20, "body": [walk()]}]}]},
@@ -330,7 +330,7 @@ def test_parmor_run_explains_bad_programs(cli, cart, tmp_path, monkeypatch) -> N
     js = tmp_path / "p.json"
     js.write_text('{"program": [\n  {"do": "driving", "params": {"v": 99}}]}')
     r = cli("run", str(js), str(cart))
-    assert r.code == 2 and "program[0].params.v: 99" in r.err
+    assert r.code == 2 and f"{js}: program[0].params.v = 99: " in r.err
     js.write_text('{"program": [\n  {"do": }]}')
     r = cli("run", str(js), str(cart))
     assert r.code == 2 and "p.json:2:" in r.err
@@ -365,18 +365,18 @@ def _refusal(text: str) -> str:
 @pytest.mark.parametrize(
     "text, where",
     [
-        ('{"program": [{"wait": %s}]}' % ("9" * 400), "program[0].wait: "),
-        ('{"program": [{"wait": %s}]}' % ("9" * 5000), "program[0].wait: "),
-        (json.dumps({"program": [walk(steps=int("1" * 400))]}), "program[0].params.steps: "),
-        ('{"program": [{"repeat": %s, "body": []}]}' % ("5" * 5000), "program[0].repeat: "),
-        ('{"program": [{"wait": 1e400}]}', "program[0].wait: "),
-        ('{"program": [{"wait": NaN}]}', "program[0].wait: "),
-        ('{"program": [{"wait": -Infinity}]}', "program[0].wait: "),
+        ('{"program": [{"wait": %s}]}' % ("9" * 400), "program[0].wait = "),
+        ('{"program": [{"wait": %s}]}' % ("9" * 5000), "program[0].wait = "),
+        (json.dumps({"program": [walk(steps=int("1" * 400))]}), "program[0].params.steps = "),
+        ('{"program": [{"repeat": %s, "body": []}]}' % ("5" * 5000), "program[0].repeat = "),
+        ('{"program": [{"wait": 1e400}]}', "program[0].wait = "),
+        ('{"program": [{"wait": NaN}]}', "program[0].wait = "),
+        ('{"program": [{"wait": -Infinity}]}', "program[0].wait = "),
         ('{"program": [{"if": {"report": ["x_m"], "op": ">", "value": 1}}]}', ".if.report"),
         ('{"program": [{"if": {"report": {}, "op": ">", "value": 1}}]}', ".if.report"),
         ('{"program": [{"if": {"report": "x_m", "op": [">"], "value": 1}}]}', ".if.op"),
         ('{"program": [{"if": {"report": "x_m", "op": ">", "value": "1"}}]}', ".if.value"),
-        ('{"program": [{"do": ["walking"]}]}', "program[0].do: "),
+        ('{"program": [{"do": ["walking"]}]}', "program[0].do = "),
         ('{"program": [{"do": "walking", "params": {"gait": ["wave"]}}]}', ".params.gait"),
         ('{"program": [{"do": "walking", "params": {"speed": {"a": 1}}}]}', ".params.speed"),
         ('{"program": [{"do": "walking", "params": {"steps": null}}]}', ".params.steps"),
@@ -465,15 +465,15 @@ def test_a_program_file_that_cannot_be_read_is_named(tmp_path) -> None:
 
 def test_parmor_run_refuses_bad_json_programs_by_key_without_a_traceback(cli, cart, tmp_path):
     cases = {
-        "huge.json": ('{"program": [{"wait": %s}]}' % ("9" * 5000), "program[0].wait: "),
-        "big.json": ('{"program": [{"wait": %s}]}' % ("9" * 400), "program[0].wait: "),
+        "huge.json": ('{"program": [{"wait": %s}]}' % ("9" * 5000), "program[0].wait = "),
+        "big.json": ('{"program": [{"wait": %s}]}' % ("9" * 400), "program[0].wait = "),
         "report.JSON": (
             '{"program": [{"if": {"report": ["x_m"], "op": ">", "value": 1}}]}',
-            "program[0].if.report: ",
+            "program[0].if.report = ",
         ),
         "param.txt": (
             '{"program": [{"do": "driving", "params": {"seconds": [1]}}]}',
-            "program[0].params.seconds: ",
+            "program[0].params.seconds = ",
         ),
         "deep.json": ("[" * 30_000 + "]" * 30_000, "deep.json:1:65: "),
     }
@@ -482,6 +482,7 @@ def test_parmor_run_refuses_bad_json_programs_by_key_without_a_traceback(cli, ca
         path.write_text(text)
         r = cli("run", str(path), str(cart))
         assert r.code == 2 and message in r.err, (name, r.err)
+        assert f"{path}:" in r.err  # the file, then its line:col or the key path
         assert "Traceback" not in r.err and len(r.err) < 1000
 
 
@@ -538,3 +539,17 @@ def test_parmor_run_stops_a_program_at_its_time_limit_and_reports_odd_exits(
     exits.write_text("import sys\n\ndef main(robot):\n    sys.exit(3)\n")
     r = cli("run", str(exits), str(cart))
     assert r.code == 2 and "exits.py:4: SystemExit: 3" in r.err, r.err
+
+
+def test_a_behaviour_that_cannot_run_names_the_file_and_the_statement(cli, cart, tmp_path):
+    """A case built to fail: each value is within its range, but the drive is shorter than
+    its ramp; the refusal (exit 2) named neither the program nor the statement."""
+    js = tmp_path / "p.json"
+    js.write_text(
+        '{"program": [{"wait": 0.1}, {"repeat": 2, "body": '
+        '[{"do": "driving", "params": {"seconds": 0.2}}]}]}'
+    )
+    r = cli("run", str(js), str(cart))
+    assert r.code == 2, r.err
+    assert f"{js}: program[1].body[0]: driving: ramp" in r.err, r.err
+    assert "Traceback" not in r.err

@@ -109,7 +109,9 @@ def test_a_bundle_is_simulated_carrying_its_payload(cart, tmp_path) -> None:
     assert loaded == pytest.approx(empty + pay["mass_kg"], rel=1e-9)
     xml = (cart / "robot.xml").read_text(encoding="utf-8")
     assert carrying_payload(xml, {"payload": {**pay, "in_models": True}}) == xml
-    with pytest.raises(ValueError, match="not in robot.xml"):
+    from adron.errors import InputError
+
+    with pytest.raises(InputError, match=r"payload.held_by\[0\].body = 'x': no body of robot"):
         carrying_payload(xml, {"payload": {**pay, "held_by": [{**pay["held_by"][0], "body": "x"}]}})
 
 

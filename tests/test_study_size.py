@@ -36,7 +36,7 @@ def test_a_study_of_10_to_the_12_requests_is_refused_before_it_is_expanded(
     assert r.code == 2, r.err
     assert "expands to 1,000,000,000,000 requests" in r.err
     assert f"{MAX_STUDY_REQUESTS:,} a study may have" in r.err
-    assert str(path) in r.err and "request 1" in r.err and "Traceback" not in r.err
+    assert str(path) in r.err and "request[0]" in r.err and "Traceback" not in r.err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
 
 
@@ -65,7 +65,7 @@ def test_the_limit_counts_every_table_and_is_inclusive(tmp_path: Path) -> None:
     with pytest.raises(InputError) as e:
         load_study(path)
     assert f"expands to {MAX_STUDY_REQUESTS + 1:,} requests" in str(e.value)
-    assert f"request 1: params x {half // 10} x y 10 = {half:,}" in str(e.value)
+    assert f"request[0]: params x {half // 10} x y 10 = {half:,}" in str(e.value)
 
 
 @pytest.fixture(scope="module")
@@ -122,6 +122,6 @@ def test_the_message_names_both_requests_and_their_values(cli, tmp_path: Path) -
     path = study(tmp_path, table('payload = ["0.5kg", "1kg"]'), table('payload = "1000g"'))
     r = cli("sweep", str(path), "--no-simulate")
     assert r.code == 2, r.err
-    assert f"{path}: request 2 (rolling): the same request as {path}: request 1" in r.err
+    assert f"{path}: request[1] (rolling): the same request as {path}: request[0]" in r.err
     assert '{"payload": "1000g"} and {"payload": "1kg"}, the same in SI units' in r.err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]

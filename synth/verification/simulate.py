@@ -186,15 +186,18 @@ def carrying_payload(xml: str, record: Mapping) -> str:
     payload = record.get("payload") if isinstance(record, Mapping) else None
     if not isinstance(payload, Mapping) or payload.get("in_models"):
         return xml
-    held = [h for h in payload.get("held_by") or () if float(h.get("mass_kg") or 0) > 0]
+    given = list(enumerate(payload.get("held_by") or ()))
+    held = [(i, h) for i, h in given if float(h.get("mass_kg") or 0) > 0]
     if not held:
         return xml
     root = ET.fromstring(xml)
     bodies = {b.get("name"): b for b in root.iter("body")}
-    for k, h in enumerate(held):
+    for k, (i, h) in enumerate(held):
         body = bodies.get(h["body"])
-        if body is None:
-            raise ValueError(f"design.json: the payload's body {h['body']!r} is not in robot.xml")
+        if body is None:  # (a reference to robot.xml: no schema of the record can check it)
+            raise InputError(
+                f"design.json: payload.held_by[{i}].body = {h['body']!r}: no body of robot.xml"
+            )
         load = ET.Element(
             "body",
             name=f"payload_{k}",

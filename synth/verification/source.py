@@ -177,10 +177,15 @@ def check_geometry(record: Mapping, source: str) -> None:
     """InputError naming ``source`` when the record's ``template``, ``body_plan`` and
     ``lengths_m`` do not make a robot (the one its controller is built for): each field is
     typed on its own (:func:`check_record`), this is how they fit together."""
+    from gaits import CONTROLLERS, structure
     from gaits.base import DesignGeometry
 
     try:
-        template = DesignGeometry.from_record(record).build()
+        geometry = DesignGeometry.from_record(record)
+        template = geometry.build()
+        kind = structure(geometry)
+        if kind not in CONTROLLERS:  # (a record whose parts no controller drives)
+            raise ValueError(f"its structure is {kind or 'none known'}: no controller drives it")
     except (ValueError, KeyError, TypeError) as e:
         why = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise InputError(
