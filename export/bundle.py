@@ -267,7 +267,6 @@ FILE_MODE = 0o644
 #: files, and only as parmor wrote them, in a folder holding it; every other file there
 #: (``.git``, a user's program, the block page of a bundle) is kept.
 MARKER = ".parmor"
-MANIFEST_FORMAT = "parmor-files-1"
 MANIFEST_NOTE = (
     "The files parmor wrote into this folder, with their SHA-256. 'parmor ... --force' "
     "replaces these files when they are unchanged and keeps every other file here."
@@ -283,6 +282,8 @@ LEGACY_MARKER_TEXT = (
 def manifest_text(files: Mapping[str, str | bytes]) -> str:
     """``MARKER``'s text for a folder holding ``files`` (relative name -> content; a str is
     written as UTF-8): each name with ``sha256:<hex>`` of its bytes, in name order."""
+    from export.manifest import MANIFEST_FORMAT  # (its schema's pydantic: only when written)
+
     listed = {
         Path(name).as_posix(): "sha256:" + hashlib.sha256(_bytes(content)).hexdigest()
         for name, content in files.items()

@@ -16,8 +16,9 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, PlainValidator, WithJsonSchema
 
 from adron.schema import Closed, described, json_schema, validate
-from export.bundle import MANIFEST_FORMAT
 
+#: the format of the list a bundle folder holds (``export.bundle.MARKER``)
+MANIFEST_FORMAT = "parmor-files-1"
 #: longest name of a listed file (bytes of a path on Linux)
 MAX_PATH = 4096
 

@@ -63,6 +63,8 @@ RobotMass = _within(1e-6, 1000.0, "kg", "a milligram to a tonne")
 Torque = _within(1e-3, 1000.0, "N*m", "the catalog's bounds")
 #: an actuator's no-load speed: the catalog's bounds (1 mrad/s to 1000 rad/s)
 Speed = _within(1e-3, 1000.0, "rad/s", "the catalog's bounds")
+#: a feedback loop's gain scale (the robust loop tries x2 and x0.5 of the default)
+GainScale = _within(1e-3, 1000.0, "x the default", "a loop's gains scaled")
 
 
 def _param(v: Any) -> float | str:
@@ -160,7 +162,7 @@ class DesignRecord(Open):
     mass_kg: RobotMass | None = None
     loaded_mass_kg: RobotMass | None = described(None, "with the payload: at least mass_kg")
     calibration: dict[Name, Finite] | None = None
-    feedback_gains: dict[Name, Positive] | None = described(
+    feedback_gains: dict[Name, GainScale] | None = described(
         None, "behaviour -> the scale of its feedback loop's gains (robust verification)"
     )
     power: dict[str, Any] | None = None

@@ -329,7 +329,8 @@ CASES = {
     ),
     "capacity in volts": (
         _edit('capacity = "1500 mAh"', 'capacity = "1500 V"'),
-        "module[1] (LiPo-3S-1500).capacity = '1500 V': expected a charge such as '1500 mAh', got '1500 V'",
+        "module[1] (LiPo-3S-1500).capacity = '1500 V': expected a charge such as '1500 mAh', "
+        "got '1500 V'",
     ),
     "no battery": (
         _drop("LiPo-3S-1500"),
@@ -357,7 +358,8 @@ CASES = {
     ),
     "passive tube too wide": (
         _edit('max_outer_radius = "20 mm"', 'max_outer_radius = "30 mm"'),
-        "passive.max_outer_radius = '30 mm': a tube of this radius with its 3 mm fillet does not fit the 50 mm dovetail face",
+        "passive.max_outer_radius = '30 mm': a tube of this radius with its 3 mm fillet does "
+        "not fit the 50 mm dovetail face",
     ),
     "link longer than the bed": (
         _edit('max_link_length = "200 mm"', 'max_link_length = "30 cm"'),

@@ -78,7 +78,9 @@ abilities = ["walking"]
 params = { payload = ["0.1kg", "0.2kg"] }
 """
 
-PROGRAM_JSON = '{"program": [{"do": "driving", "params": {"v": 0.1, "seconds": 0.2}}, {"wait": 0.1}]}\n'
+PROGRAM_JSON = (
+    '{"program": [{"do": "driving", "params": {"v": 0.1, "seconds": 0.2}}, {"wait": 0.1}]}\n'
+)
 PROGRAM_PY = """\
 def main(robot):
     robot.do("driving", v=0.1)

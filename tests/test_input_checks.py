@@ -154,7 +154,9 @@ def test_catalog_cost_is_bounded_and_a_bom_ignored(tmp_path) -> None:
     path.write_text("\ufeff" + text, encoding="utf-8")
     assert load_catalog(path).actuators
     path.write_text(re.sub(r"cost = [0-9.]+", "cost = 1e9", text, count=1), encoding="utf-8")
-    with pytest.raises(InputError, match=r"\.cost = 1000000000\.0: out of range: .* at most 100000"):
+    with pytest.raises(
+        InputError, match=r"\.cost = 1000000000\.0: out of range: .* at most 100000"
+    ):
         load_catalog(path)
 
 

@@ -129,9 +129,7 @@ def test_every_module_is_in_a_layer() -> None:
     layers = next(c for c in CONFIG["contracts"] if c["type"] == "layers")["layers"]
     assert unplaced(_modules(), layers) == []
     # the check itself: a module of a new job in synth/ is caught
-    assert unplaced(["synth.studies.grid", "export.urdf"], layers) == [
-        "synth.studies.grid"
-    ]
+    assert unplaced(["synth.studies.grid", "export.urdf"], layers) == ["synth.studies.grid"]
 
 
 # ------------------------------------------------------------- no import-time side effects
