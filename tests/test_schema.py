@@ -68,6 +68,8 @@ def _shipped() -> list[tuple[str, list[Path]]]:
             [
                 ROOT / "kinematics/partkinds.toml",
                 ROOT / "docs/examples/stilt_leg.toml",
+                ROOT / "docs/examples/balloon_wheel.toml",
+                ROOT / "docs/examples/camera.toml",
                 *sorted((ROOT / "tests/data/any_part_kind").glob("*.toml")),
             ],
         ),
@@ -81,7 +83,7 @@ def test_every_data_file_parmor_ships_has_its_schema_here() -> None:
     """A new catalog, part kinds file, study or program in the tree is validated below
     (or this test names it)."""
     covered = {p for _, paths in _shipped() for p in paths}
-    folders = ("adron", "kinematics", "export", "studies", "examples", "docs/examples")
+    folders = ("adron", "kinematics", "export", "synth", "studies", "examples", "docs/examples")
     found = {
         p
         for folder in folders
