@@ -229,13 +229,13 @@ def design_one(q: dict, designer, sopts, simulate: bool) -> dict:
             )
         v = outcome.verification
         if simulate and v is not None:
-            res["behaviors"] = [dict(b) for b in v.behaviors]
+            res["behaviors"] = [b.to_dict() for b in v.behaviors]
             res["dropped"] = dict(sorted(v.dropped.items()))
             res["sizings"] = v.rounds
             if v.robust is not None:  # each behaviour's perturbed runs (synth.verification)
                 res["robust"] = [
-                    {k: b[k] for k in ("behavior", "ability", "passed", "runs", "robust")}
-                    for b in v.robust["behaviors"]
+                    {k: getattr(b, k) for k in ("behavior", "ability", "passed", "runs", "robust")}
+                    for b in v.robust.behaviors
                 ]
     except Exception as e:  # noqa: BLE001 - a sweep records a crash and goes on
         res["status"], res["reason"] = "error", f"{type(e).__name__}: {e}"
