@@ -265,6 +265,17 @@ class _Walk:
             ) from None
 
     # -- the root -----------------------------------------------------------------------
+    def centre_and_box(self, node: PartNode, kind) -> tuple[tuple, tuple]:
+        """A root part's body centre (its kind's ``at``, or ``at_with`` the class of a part
+        it carries) and box, evaluated for this design."""
+        at = kind.at
+        for c in node.children:
+            for cls, v in kind.at_with.items():
+                if cls in c.kinds:
+                    at = v
+        centre = tuple(self.ev(x, node, "at") for x in at)
+        return centre, tuple(self.ev(x, node, "box") for x in kind.box)
+
     def root(self) -> list[LabelledPart]:
         node = self.plan.root
         kind = _kind(self.kinds, node)
@@ -273,13 +284,7 @@ class _Walk:
                 f"{self.plan.robot_type}: its body plan's root {node.kind}{_where(node)} is "
                 "not a part the others can hang on (no root part kind)"
             )
-        at = kind.at
-        for c in node.children:
-            for cls, v in kind.at_with.items():
-                if cls in c.kinds:
-                    at = v
-        self.root_at = tuple(self.ev(x, node, "at") for x in at)
-        box = tuple(self.ev(x, node, "box") for x in kind.box)
+        self.root_at, box = self.centre_and_box(node, kind)
         parts = [_trunk(kind.body, self.p.trunk_mass, box, self.root_at, _FACES[kind.faces])]
         # an arm's gripper holds the payload wherever the arm stands (each gripper of a
         # plan with several); a chain ending in a tool or nothing (a head) carries it only
@@ -448,13 +453,7 @@ class _Walk:
                 f"part {node.kind}{_where(node)}: a top mount carries a root part (a torso "
                 "on a chassis); this one has no root part kind"
             )
-        at = kind.at
-        for c in node.children:
-            for cls, v in kind.at_with.items():
-                if cls in c.kinds:
-                    at = v
-        centre = tuple(self.ev(x, node, "at") for x in at)
-        box = tuple(self.ev(x, node, "box") for x in kind.box)
+        centre, box = self.centre_and_box(node, kind)
         R = _FACES[kind.faces]
         plate = _trunk(kind.body, 0.0, box, centre, R)
         dims = plate.dims

@@ -1137,24 +1137,19 @@ class Steered(Wheeled):
         return [], ()
 
 
-class MobileManipulator(Family):
-    """A serial arm on a wheeled base: the base sized as ``Wheeled`` (the traction of the
-    whole robot, the arm standing still) and the arm as ``Manipulators`` (stretched at
-    full reach, the wheels standing still), each on its own joints of the one template;
-    the chassis' lengths (L1, L2) and the arm's (arm_L1 ...) are apart."""
+class _BaseWithChains(Family):
+    """A base family's joints (``on_base``) and serial chains on the rest of one template:
+    each sized on its own joints, the other's standing still; their lengths are apart."""
 
-    def __init__(self) -> None:
-        self.base = Wheeled()
+    def __init__(self, base: Family, on_base) -> None:
+        self.base = base
         self.arm = Manipulators()
-        self.base.joints = lambda t: [j for j in _movable(t) if _wheel_joint(t, j)]
-        self.arm.joints = lambda t: [j for j in _movable(t) if not _wheel_joint(t, j)]
+        self.base.joints = lambda t: [j for j in _movable(t) if on_base(t, j)]
+        self.arm.joints = lambda t: [j for j in _movable(t) if not on_base(t, j)]
 
     def size(self, robot_type, p, catalog):
         b, a = self.base.size(robot_type, p, catalog), self.arm.size(robot_type, p, catalog)
         return replace(b, lengths={**b.lengths, **a.lengths}, notes=[*b.notes, *a.notes])
-
-    def update(self, sizing, tmpl, p, catalog):
-        return self.base.update(sizing, tmpl, p, catalog)
 
     def load_cases(self, tmpl, p, catalog):
         return [*self.base.load_cases(tmpl, p, catalog), *self.arm.load_cases(tmpl, p, catalog)]
@@ -1166,7 +1161,20 @@ class MobileManipulator(Family):
         return {**self.base.holds(tmpl, p, catalog), **self.arm.holds(tmpl, p, catalog)}
 
 
-class LeggedManipulator(Family):
+class MobileManipulator(_BaseWithChains):
+    """A serial arm on a wheeled base: the base sized as ``Wheeled`` (the traction of the
+    whole robot, the arm standing still) and the arm as ``Manipulators`` (stretched at
+    full reach, the wheels standing still), each on its own joints of the one template;
+    the chassis' lengths (L1, L2) and the arm's (arm_L1 ...) are apart."""
+
+    def __init__(self) -> None:
+        super().__init__(Wheeled(), lambda t, j: _wheel_joint(t, j))
+
+    def update(self, sizing, tmpl, p, catalog):
+        return self.base.update(sizing, tmpl, p, catalog)
+
+
+class LeggedManipulator(_BaseWithChains):
     """Chains of joints (a head, an arm) on a multiped's trunk: the legs sized as
     ``Multipeds`` (the whole robot on its minimum support, the chains standing still) and
     each chain as ``Manipulators`` (stretched at full reach, the legs standing still), each
@@ -1174,23 +1182,7 @@ class LeggedManipulator(Family):
     are apart."""
 
     def __init__(self) -> None:
-        self.base = Multipeds()
-        self.arm = Manipulators()
-        self.base.joints = lambda t: [j for j in _movable(t) if _leg_joint(t, j)]
-        self.arm.joints = lambda t: [j for j in _movable(t) if not _leg_joint(t, j)]
-
-    def size(self, robot_type, p, catalog):
-        b, a = self.base.size(robot_type, p, catalog), self.arm.size(robot_type, p, catalog)
-        return replace(b, lengths={**b.lengths, **a.lengths}, notes=[*b.notes, *a.notes])
-
-    def load_cases(self, tmpl, p, catalog):
-        return [*self.base.load_cases(tmpl, p, catalog), *self.arm.load_cases(tmpl, p, catalog)]
-
-    def speeds(self, tmpl, p, sizing):
-        return {**self.base.speeds(tmpl, p, sizing), **self.arm.speeds(tmpl, p, sizing)}
-
-    def holds(self, tmpl, p, catalog):
-        return {**self.base.holds(tmpl, p, catalog), **self.arm.holds(tmpl, p, catalog)}
+        super().__init__(Multipeds(), lambda t, j: _leg_joint(t, j))
 
 
 def _leg_joint(tmpl: Template, joint: str) -> bool:
