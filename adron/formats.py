@@ -30,6 +30,7 @@ from adron.schema import (
     json_schema,
     number,
     validate,
+    within,
 )
 
 MAX_QUANTITY = 100
@@ -61,20 +62,6 @@ Quantity = Annotated[
 Size = Annotated[list[Quantity], Field(min_length=3, max_length=3)]
 
 
-def _number(low: float, high: float):
-    def check(v: Any) -> float:
-        f = number(v)
-        if not low <= f <= high:
-            raise ValueError(f"out of range: must be within {low:g} and {high:g}")
-        return f
-
-    return Annotated[
-        float,
-        PlainValidator(check),
-        WithJsonSchema({"type": "number", "minimum": low, "maximum": high}),
-    ]
-
-
 def _integer(low: int, high: int):
     def check(v: Any) -> int:
         if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= high:
@@ -88,8 +75,8 @@ def _integer(low: int, high: int):
     ]
 
 
-Cost = _number(0.0, 100_000.0)
-Ratio = _number(0.0, 1e6)
+Cost = within(0.0, 100_000.0)
+Ratio = within(0.0, 1e6)
 
 
 # ---- perturbation tables --------------------------------------------------------------------
@@ -100,12 +87,12 @@ class Draw(Closed):
 
 
 class MassSpread(Closed):
-    spread: _number(0.0, 0.9) = described(doc="each body's mass scaled by 1 + u, |u| <= spread")
+    spread: within(0.0, 0.9) = described(doc="each body's mass scaled by 1 + u, |u| <= spread")
 
 
 class Floor(Closed):
-    friction_low: _number(0.0, 10.0)
-    friction_high: _number(0.0, 10.0)
+    friction_low: within(0.0, 10.0)
+    friction_high: within(0.0, 10.0)
     max_slope: Quantity
 
 
@@ -121,7 +108,7 @@ class Battery(Closed):
     cutoff_per_cell: Quantity
     rail_voltage: Quantity
     dropout: Quantity
-    rail_resistance_ohm: _number(0.0, 10.0)
+    rail_resistance_ohm: within(0.0, 10.0)
     rated_voltage: Quantity
 
 
@@ -134,7 +121,7 @@ Backlash = Annotated[list[Quantity], Field(min_length=2, max_length=2)]
 
 
 class Compliance(Closed):
-    scale: _number(0.0, 1e6)
+    scale: within(0.0, 1e6)
 
 
 class Imu(Closed):
@@ -157,11 +144,11 @@ class Ultrasonic(Closed):
 
     noise: Quantity
     resolution: Quantity
-    scale: _number(0.0, 0.5)
+    scale: within(0.0, 0.5)
 
 
 class Acceptance(Closed):
-    share: _number(0.0, 1.0)
+    share: within(0.0, 1.0)
     default_k: _integer(0, 1000)
 
 

@@ -96,6 +96,24 @@ def _bounded(low: float, high: float, unit: str, open_low: bool = True) -> Calla
     return check
 
 
+def within(low: float, high: float, unit: str = "", why: str = ""):
+    """A finite number from ``low`` to ``high`` (closed), in ``unit``, ``why`` these bounds
+    (both said in the message and the JSON Schema's description when given)."""
+    said = f" {unit}" if unit else ""
+    said += f" ({why})" if why else ""
+
+    def check(v: Any) -> float:
+        f = number(v)
+        if not low <= f <= high:
+            raise ValueError(f"out of range: must be within {low:g} and {high:g}{said}")
+        return f
+
+    schema: dict[str, Any] = {"type": "number", "minimum": low, "maximum": high}
+    if unit or why:
+        schema["description"] = f"{unit}: {why}" if why else unit
+    return Annotated[float, PlainValidator(check), WithJsonSchema(schema)]
+
+
 #: a length (m): more than 0, at most :data:`MAX_LENGTH_M`
 Length = Annotated[
     float,

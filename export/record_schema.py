@@ -25,6 +25,7 @@ from adron.schema import (
     json_schema,
     number,
     validate,
+    within,
 )
 from export.record import RECORD_FORMAT  # the number, kept with the writer
 
@@ -43,28 +44,15 @@ Count = Annotated[
 ]
 
 
-def _within(low: float, high: float, unit: str, why: str):
-    """A number from ``low`` to ``high`` (``unit``), ``why`` these bounds."""
-
-    def check(v: Any) -> float:
-        f = number(v)
-        if not low <= f <= high:
-            raise ValueError(f"out of range: must be within {low:g} and {high:g} {unit} ({why})")
-        return f
-
-    schema = {"type": "number", "minimum": low, "maximum": high, "description": f"{unit}: {why}"}
-    return Annotated[float, PlainValidator(check), WithJsonSchema(schema)]
-
-
 #: a robot's mass: a milligram (the catalog facts' unit) to a tonne (far above what a bus
 #: of 253 modules and a 50 kg payload weigh)
-RobotMass = _within(1e-6, 1000.0, "kg", "a milligram to a tonne")
+RobotMass = within(1e-6, 1000.0, "kg", "a milligram to a tonne")
 #: an actuator's torque: the catalog's bounds (1 mN*m, its facts' unit, to 1000 N*m)
-Torque = _within(1e-3, 1000.0, "N*m", "the catalog's bounds")
+Torque = within(1e-3, 1000.0, "N*m", "the catalog's bounds")
 #: an actuator's no-load speed: the catalog's bounds (1 mrad/s to 1000 rad/s)
-Speed = _within(1e-3, 1000.0, "rad/s", "the catalog's bounds")
+Speed = within(1e-3, 1000.0, "rad/s", "the catalog's bounds")
 #: a feedback loop's gain scale (the robust loop tries x2 and x0.5 of the default)
-GainScale = _within(1e-3, 1000.0, "x the default", "a loop's gains scaled")
+GainScale = within(1e-3, 1000.0, "x the default", "a loop's gains scaled")
 
 
 def _param(v: Any) -> float | str:
