@@ -355,6 +355,14 @@ def verification_text(verified: dict | None, indent: str = "  ") -> str:
             f"{indent}  gains {name}: its {loop} loop's gains x{scale:g}: with its own, "
             "perturbed runs failed; with these every one passes"
         )
+    paces = (verified.get("robust") or {}).get("paces") or {}
+    for name, pace in paces.get("chosen", {}).items():
+        t = next((t for t in paces.get("tried", ()) if t["behavior"] == name), {})
+        out.append(
+            f"{indent}  pace {name}: {t.get('parameter', 'pace')} {pace:g} {t.get('unit', '')} "
+            f"(the design's {t.get('from', 0):.3g}): the servos' command hold saturated it "
+            "under perturbation; at this pace every perturbed run passes"
+        )
     for a, why in verified.get("dropped", {}).items():
         out.append(f"{indent}  dropped {a}: {why}")
     if verified.get("not_simulated"):

@@ -53,6 +53,9 @@ Torque = within(1e-3, 1000.0, "N*m", "the catalog's bounds")
 Speed = within(1e-3, 1000.0, "rad/s", "the catalog's bounds")
 #: a feedback loop's gain scale (the robust loop tries x2 and x0.5 of the default)
 GainScale = within(1e-3, 1000.0, "x the default", "a loop's gains scaled")
+#: a behaviour's pace chosen by the robust verification, in its pace parameter's unit
+#: (m/s, a snake's Hz, a humanoid's step m): more than nothing, far below any servo's reach
+Pace = within(1e-6, 1000.0, "its pace parameter's unit", "a behaviour's pace")
 
 
 def _param(v: Any) -> float | str:
@@ -152,6 +155,11 @@ class DesignRecord(Open):
     calibration: dict[Name, Finite] | None = None
     feedback_gains: dict[Name, GainScale] | None = described(
         None, "behaviour -> the scale of its feedback loop's gains (robust verification)"
+    )
+    paces: dict[Name, Pace] | None = described(
+        None,
+        "behaviour -> the default of its pace parameter the robust verification chose "
+        "(the servos' command hold saturated it at the design's own)",
     )
     power: dict[str, Any] | None = None
     bus: dict[str, Any] | None = None

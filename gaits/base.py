@@ -254,6 +254,18 @@ class BehaviorSpec:
         return out
 
 
+def pace_parameter(spec: BehaviorSpec) -> str | None:
+    """The parameter of ``spec`` that sets how fast the behaviour goes: the one a sensing
+    loop steers as its ``speed`` (``gaits.steering.SteerableSpec``: a legged robot's
+    ``speed``, a humanoid's ``step_length``, a snake's wave ``frequency``...), else one
+    named ``speed``; None when it has none. Lowering it slows the joints down (the pace a
+    robust verification may choose, :attr:`DesignGeometry.paces`)."""
+    names = {p.name: p for p in spec.params}
+    name = dict(getattr(spec, "steer", ())).get("speed") or ("speed" if "speed" in names else None)
+    p = names.get(name) if name else None
+    return name if p is not None and p.kind == "float" else None
+
+
 def serving(
     ability: str, ancestors: Mapping[str, Sequence[str]], offered: Collection[str]
 ) -> str | None:
@@ -298,6 +310,11 @@ class DesignGeometry:
     #: chosen by the robust verification, :mod:`synth.verification.gains`); a plan of that
     #: behaviour carries it in ``info["feedback"]["gain_scale"]``
     feedback_gains: Mapping[str, float] = field(default_factory=dict)
+    #: behaviour -> the default of its pace parameter (:func:`pace_parameter`: how fast it
+    #: goes) that the robust verification chose because the servos' command hold
+    #: saturated it at the design's own (the record's ``paces``,
+    #: :mod:`synth.verification.hold`); a caller's own value still wins
+    paces: Mapping[str, float] = field(default_factory=dict)
 
     @classmethod
     def from_record(cls, record: Mapping) -> DesignGeometry:
@@ -332,6 +349,7 @@ class DesignGeometry:
             feedback_gains={
                 str(k): float(v) for k, v in (record.get("feedback_gains") or {}).items()
             },
+            paces={str(k): float(v) for k, v in (record.get("paces") or {}).items()},
             ancestors={
                 str(k): tuple(str(a) for a in v)
                 for k, v in (record.get("ability_ancestors") or {}).items()
@@ -521,6 +539,10 @@ class Controller(ABC):
                 f"{self.geometry.robot_type} has no behaviour {name!r} "
                 f"(behaviours: {', '.join(sorted(self.behaviors))})"
             )
+        pace = self.geometry.paces.get(name)
+        if pace is not None and (key := pace_parameter(spec)) and key not in params:
+            # the pace the design's verification chose (a caller's own value wins)
+            params = {**params, key: pace}
         traj = self._planned(name, spec.planned(spec.resolve(params)))
         scale = self.geometry.feedback_gains.get(name)
         feedback = traj.info.get("feedback")
@@ -529,6 +551,18 @@ class Controller(ABC):
         # the loop's gains the design's verification chose: in the plan, so that every
         # runner of it (simulate, run, the ROS node, the block page) runs them
         return replace(traj, info={**traj.info, "feedback": {**feedback, "gain_scale": scale}})
+
+    def offered(self, name: str) -> BehaviorSpec:
+        """Behaviour ``name``'s description as a program sees it: its pace parameter's
+        default is the pace the design's verification chose, where it chose one
+        (:attr:`DesignGeometry.paces`; what :meth:`run` plans when none is given)."""
+        spec = self.behaviors[name]
+        pace = self.geometry.paces.get(name)
+        key = pace_parameter(spec) if pace is not None else None
+        if key is None:
+            return spec
+        params = tuple(replace(p, default=pace) if p.name == key else p for p in spec.params)
+        return replace(spec, params=params)
 
     def _planned(self, name: str, resolved: Mapping[str, object]) -> Trajectory:
         """The trajectory of behaviour ``name`` with ``resolved`` values (``own``

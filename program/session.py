@@ -51,7 +51,8 @@ def program_behaviors(controller, abilities) -> dict:
     server all offer exactly these."""
     from program.sensing import sensing_behaviors
 
-    out = {n: controller.behaviors[n] for n in controller.listed(abilities)}
+    # (each as a program sees it: at the pace the design's verification chose)
+    out = {n: controller.offered(n) for n in controller.listed(abilities)}
     out.update(sensing_behaviors(controller.behaviors, tuple(abilities)))
     return dict(sorted(out.items()))
 

@@ -109,6 +109,9 @@ class Outcome:
     #: behaviour -> the scale of its feedback loop's gains the robust verification chose
     #: (synth.verification.gains); the record's ``feedback_gains``, which its controller reads
     feedback_gains: dict[str, float] | None = None
+    #: behaviour -> its pace the robust verification chose (synth.verification.hold); the
+    #: record's ``paces``, which its controller reads
+    paces: dict[str, float] | None = None
     bed: object = None  # the user's printer (export.split.Bed, --bed): parts made to fit it
     #: bonus abilities dropped before verifying: a behaviour serving them cannot be
     #: planned with its default parameters (ability -> why; :func:`drop_unplannable`)
@@ -165,6 +168,8 @@ class Outcome:
             rec["calibration"] = dict(sorted(self.calibration.items()))
         if self.feedback_gains:
             rec["feedback_gains"] = dict(sorted(self.feedback_gains.items()))
+        if self.paces:
+            rec["paces"] = dict(sorted(self.paces.items()))
         if self.note is not None and self.structure is None:
             rec["no_structure"] = self.note  # why there is none (the request keeps its params)
         if self.unplanned:

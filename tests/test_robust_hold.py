@@ -100,3 +100,83 @@ def test_hold_blame_reads_the_robust_record(walker) -> None:
     assert [(r["behavior"], r["seed"]) for r in blamed] == [("walking", 1), ("walking", 2)]
     fine = verify_robust(files, 1, _table(walker, _closed("10 ms")), behaviors=["walking"])
     assert fine.behaviors[0].robust and hold_blame(files, fine) == []
+
+
+# --- the pace that answers it (issue 30): chosen by the robust loop, kept in the record ----
+
+
+def _round(files: Bundle, robust, demanded=("walking",)):
+    from adron.catalog import load_catalog
+    from synth.verification.causes import Round
+
+    record = files.record
+    models = {j["name"]: j["actuator"] for j in record["joints"]}
+    return Round(1, record, models, load_catalog(), robust, lambda: files,
+                 demanded=frozenset(demanded))  # fmt: skip
+
+
+def test_the_hold_cause_chooses_a_pace_every_perturbed_run_passes_at(walker) -> None:
+    """Built to fail first: held 40 ms the walk fails every run saturated; the cause's pace
+    is below the design's own and, kept in the record, every perturbed run passes with it
+    (replayed from the bundle as ``parmor simulate --perturb`` does)."""
+    from synth.verification.hold import Hold, with_paces
+
+    files = Bundle.read(walker)
+    table = _table(walker, _closed("40 ms"))
+    robust = verify_robust(files, 3, table, behaviors=["walking"])
+    assert robust.behaviors[0].passed == 0
+    hold = Hold()
+    remedy = hold.explains(_round(files, robust))
+    assert remedy is not None and set(remedy.paces) == {"walking"}
+    pace = remedy.paces["walking"]
+    assert 0 < pace < hold.tried[0]["from"] and hold.tried[-1]["passed"] == 3
+    paced = with_paces(files, remedy.paces)
+    again = verify_robust(paced, 3, table, behaviors=["walking"])
+    assert again.behaviors[0].passed == 3
+    traj, result, _ = run_perturbed(paced, "walking", 2, table=table)
+    assert not result.verdict and traj.info["speed"] == pytest.approx(pace)
+    hold.chose(remedy.paces)
+    rec = hold.record()
+    assert rec["chosen"] == {"walking": pace} and rec["tried"][-1]["parameter"] == "speed"
+    assert hold.note("walking", 1) == ""  # chosen: nothing for a refusal to add
+
+
+def test_no_pace_is_chosen_where_the_request_gave_the_speed_or_the_walk_is_a_bonus(
+    walker,
+) -> None:
+    """The user's ``--param speed`` is theirs: the refusal names the pace that would pass
+    instead; a behaviour no demanded ability needs gets none either (it is dropped)."""
+    from synth.verification.hold import Hold
+
+    files = Bundle.read(walker)
+    robust = verify_robust(files, 2, _table(walker, _closed("40 ms")), behaviors=["walking"])
+    fixed = Hold(given={"speed": 0.05})
+    assert fixed.explains(_round(files, robust)) is None and not fixed.tried
+    note = fixed.note("walking", 1)
+    assert "command hold breaks it" in note and "--param speed" in note
+    bonus = Hold()
+    assert bonus.explains(_round(files, robust, demanded=())) is None and not bonus.tried
+
+
+def test_a_recorded_pace_is_what_every_runner_plans_with(walker) -> None:
+    """The record's ``paces`` is the behaviour's default pace for the controller (a
+    caller's own value wins) and what a program is offered; a bad one is refused naming
+    the key."""
+    from gaits import controller_for
+    from gaits.base import DesignGeometry, pace_parameter
+    from program.session import program_behaviors
+
+    record = Bundle.read(walker).record
+    plain = controller_for(DesignGeometry.from_record(record))
+    own = plain.run("walking").info["speed"]
+    paced = controller_for(DesignGeometry.from_record(record | {"paces": {"walking": own / 2}}))
+    assert paced.run("walking").info["speed"] == pytest.approx(own / 2)
+    assert paced.run("walking", speed=own).info["speed"] == pytest.approx(own)
+    assert paced.run("turning").info["speed"] == plain.run("turning").info["speed"]
+    spec = program_behaviors(paced, record["abilities"])["walking"]
+    assert pace_parameter(spec) == "speed"
+    assert next(p for p in spec.params if p.name == "speed").default == pytest.approx(own / 2)
+    from export.record_schema import check_record
+
+    with pytest.raises(Exception, match="paces.walking"):
+        check_record(record | {"paces": {"walking": -1}}, "design.json")

@@ -13,8 +13,9 @@ part of the perturbation changed, whether it explains them, and says what answer
   new sizing);
 - a closed loop's gains (:class:`synth.verification.gains.Gains`): the loop's gains
   scaled (no new sizing: the plan's ``info["feedback"]`` changes);
-- the servos' command hold (:class:`synth.verification.hold.Hold`): the speed at which the
-  runs pass, which no sizing gives: it only words a refusal.
+- the servos' command hold (:class:`synth.verification.hold.Hold`): a slower pace of the
+  behaviours it breaks (no new sizing: the record's ``paces`` change), where the request
+  left the speed to the design.
 
 Each cause also words what it measured and tried for a refusal (:meth:`Cause.note`) and
 gives what the record keeps of what it changed (:meth:`Cause.record`).
@@ -41,7 +42,7 @@ class Round:
     structure with other exclusions (``sizer``: a ``synth.structure.StructureDesigner``
     with the round's torque floors, or None), the gains chosen for closed loops so far
     (``gains``: behaviour -> scale) and the behaviours that serve a demanded ability
-    (``demanded``)."""
+    (``demanded``), and the paces chosen so far (``paces``: behaviour -> pace)."""
 
     number: int
     record: Mapping[str, Any]
@@ -53,6 +54,7 @@ class Round:
     sizer: Any = None
     gains: Mapping[str, float] = field(default_factory=dict)
     demanded: frozenset[str] = frozenset()
+    paces: Mapping[str, float] = field(default_factory=dict)
 
     def bundle(self) -> Bundle:
         return self.bundle_of()
@@ -62,13 +64,15 @@ class Round:
 class Remedy:
     """What answers a cause: sizings to try in turn (``sizings``: each joint -> the
     actuator models it may no longer have; the first that sizes is taken), and/or gains
-    for closed loops (``gains``: behaviour -> the scale of its loop's gains, no sizing)."""
+    for closed loops (``gains``: behaviour -> the scale of its loop's gains, no sizing),
+    and/or paces (``paces``: behaviour -> the value of its pace parameter, no sizing)."""
 
     sizings: tuple[Mapping[str, frozenset[str]], ...] = ()
     gains: Mapping[str, float] | None = None
+    paces: Mapping[str, float] | None = None
 
     def __bool__(self) -> bool:
-        return bool(self.sizings) or bool(self.gains)
+        return bool(self.sizings) or bool(self.gains) or bool(self.paces)
 
 
 class Cause(Protocol):

@@ -1,5 +1,5 @@
-"""Perturbed runs that the servos' command hold breaks (issue 22), measured, and the speed
-that answers them.
+"""Perturbed runs that the servos' command hold breaks (issue 22), measured, and the pace
+that answers them (issue 30).
 
 A position servo in the MuJoCo model gives its stall torque ``export.mjcf.SERVO_BAND``
 (0.05 rad) off its reference (``kp = effort / SERVO_BAND``), less what the load already
@@ -12,14 +12,26 @@ strongest servo: its seven femurs each saturate about 1 % of the time, 6.2 % tog
 (limit 5 %); replayed with the commands applied as sent (the latency kept) every run
 passes, and with the latency alone too (0 %). A stronger actuator is not the answer
 (there is none: the sizing loop's torque floors cannot rise), less play neither (the run
-still fails without it): a lower speed is.
+still fails without it): a slower pace is.
 
 :func:`hold_attribution` tells, by replays of the failed run's very perturbation, whether
 the hold breaks it (it passes with the control period at 0) and the largest share of the
-behaviour's default speed (``SPEED_SHARES``) at which it passes as perturbed;
-:func:`hold_blame` does so for the failed runs of the behaviours that are not robust;
-:func:`hold_note` words it for a refusal (the perturbation, the joints' step against the
-servo's band, the speed that passes).
+behaviour's pace (``SPEED_SHARES`` of its pace parameter, :func:`gaits.base.
+pace_parameter`: a legged robot's ``speed``, a humanoid's ``step_length``...) at which it
+passes as perturbed; :func:`hold_blame` does so for the failed runs of the behaviours that
+are not robust; :func:`hold_note` words it for a refusal (the perturbation, the joints'
+step against the servo's band, the pace that passes).
+
+:class:`Hold`, the cause of the strengthening loop, answers it when no sizing and no
+gains do: for each behaviour that serves a demanded ability and that the hold breaks, the
+slowest pace its blamed runs need is verified like a gain scale (the nominal run and every
+perturbed run of the round's table, the worst-looking first, stopping at the first that
+fails); the first that passes them all is kept as the record's ``paces`` (behaviour ->
+pace), which the design's controller plans with when a caller gives no pace of its own
+(``parmor simulate``, ``parmor run``, the ROS node and the block page alike), and
+``verified.robust.paces`` records what was tried. A pace is chosen only where the request
+left the speed to the design: a request that gives ``--param speed`` gets a refusal naming
+the pace that would pass instead (the user asked for that speed).
 """
 
 from __future__ import annotations
@@ -68,8 +80,9 @@ def hold_attribution(
     verify_robust``'s). The run must fail saturated and pass replayed with the control
     period at 0 (everything else as drawn), else None. Then ``{"verdict", "frame_s",
     "joints": {joint: its largest reference step rad a frame}, "speed": the largest of
-    SPEED_SHARES x the default speed at which the run passes as perturbed (None: none
-    does, or the behaviour has no speed), "default_speed", "unit"}``."""
+    SPEED_SHARES x the behaviour's pace (its ``parameter``, :func:`gaits.base.pace_parameter`)
+    at which the run passes as perturbed (None: none does, or the behaviour has no pace),
+    "default_speed": the pace it had, "unit"}``."""
     from synth.verification.runs import Replay
 
     replay = Replay(bundle, table, behavior, seed)
@@ -81,15 +94,18 @@ def hold_attribution(
         return None
     if not run({"control_period_s": 0.0}, stop_on_failure=True).ok:
         return None
-    spec = controller.behaviors[behavior]
-    speed = next((x for x in spec.params if x.name == "speed"), None)
-    default = float(traj.info.get("speed") or 0.0)
+    from gaits.base import pace_parameter
+
+    spec = controller.offered(behavior)  # its pace: the one the design plans with now
+    key = pace_parameter(spec)
+    pace = next((x for x in spec.params if x.name == key), None)
+    default = float(pace.default) if pace is not None and pace.default else 0.0  # type: ignore[arg-type]
     found = None
-    if speed is not None and default > 0:
+    if key is not None and default > 0:
         for share in SPEED_SHARES:
             value = float(f"{share * default:.3g}")
             try:
-                plan = controller.run(behavior, speed=value)
+                plan = controller.run(behavior, **{key: value})
             except ValueError:
                 continue
             if run(plan=plan, stop_on_failure=True).ok:
@@ -100,9 +116,10 @@ def hold_attribution(
         "verdict": before.verdict,
         "frame_s": frame,
         "joints": _steps(traj, saturated, frame),
+        "parameter": key,
         "speed": found,
         "default_speed": default,
-        "unit": speed.unit if speed is not None else "",
+        "unit": pace.unit if pace is not None else "",
     }
 
 
@@ -140,34 +157,142 @@ def hold_note(blamed: list[dict], behavior: str) -> str:
     speeds = [r["speed"] for r in runs]
     if all(s is not None for s in speeds):
         unit, default = runs[0]["unit"], float(f"{runs[0]['default_speed']:.3g}")
+        key = runs[0].get("parameter") or "speed"
         out += (
-            f"; at speed {min(speeds):g} {unit} (the default {default:g} {unit}) "
+            f"; at {key} {min(speeds):g} {unit} (the design's {default:g} {unit}) "
             f"{'they pass' if len(runs) > 1 else 'it passes'} as perturbed"
         )
     return out
 
 
+def with_paces(bundle: Bundle, paces: Mapping[str, float]) -> Bundle:
+    """``bundle`` whose record gives its behaviours the paces ``paces`` (behaviour -> the
+    value of its pace parameter; the record's ``paces``)."""
+    import json
+
+    record = dict(bundle.record)
+    record["paces"] = dict(sorted(paces.items()))
+    return bundle.with_files({"design.json": json.dumps(record)})
+
+
 class Hold:
     """The servos' command hold as a cause of the loop (:class:`synth.verification.causes.
-    Cause`): measured on the design the loop ends with (:func:`hold_blame`), for a refusal
-    to name; no sizing answers it (a lower speed does, which the design's plans do not
-    choose), so it changes nothing."""
+    Cause`, module docstring): measured by replays of the failed runs (:func:`hold_blame`);
+    answered by a slower pace of the behaviours it breaks (:meth:`explains`, where the
+    request left the speed to the design: ``given``, the request's own parameters, has no
+    ``speed``), verified on every perturbed run before it is kept."""
 
     name = "command hold"
 
-    def __init__(self) -> None:
+    def __init__(self, given: Mapping[str, object] | None = None) -> None:
         self.at = 0
         self.held: list[dict] = []
+        #: the request gave the speed: the paces are the user's, none is chosen
+        self.fixed = "speed" in (given or {})
+        self.tried: list[dict] = []  # each pace tried: behaviour, parameter, pace, outcome
+        self.chosen: dict[str, float] = {}
+        self.done: set[str] = set()  # behaviours whose pace was tried
+
+    def measure(self, now: Round) -> None:
+        """The failed runs of ``now`` the hold breaks (for :meth:`note`), once a round."""
+        if self.at != now.number:
+            self.held, self.at = hold_blame(now.bundle(), now.robust), now.number
 
     def explains(self, now: Round) -> Remedy | None:
-        self.held, self.at = hold_blame(now.bundle(), now.robust), now.number
-        return None
+        """For each behaviour of ``now`` that is not robust, serves a demanded ability and
+        whose blamed runs the hold breaks, each passing at a slower pace: the slowest of
+        those paces, kept when its nominal run and every perturbed run pass with it. A
+        remedy with the paces found (and those chosen before); None when none was."""
+        self.measure(now)
+        robust = now.robust
+        if robust is None or self.fixed:
+            return None
+        bundle = now.bundle()
+        paces = dict(now.paces)
+        found: dict[str, float] = {}
+        for behavior in sorted({r["behavior"] for r in self.held}):
+            if behavior in self.done or behavior not in now.demanded:
+                continue
+            mine = [r for r in self.held if r["behavior"] == behavior]
+            if any(r["speed"] is None for r in mine):
+                continue  # a blamed run no slower pace makes pass
+            self.done.add(behavior)
+            # the slowest pace the blamed runs need, then (if another run fails at it) the
+            # next share slower
+            value, was = min(float(r["speed"]) for r in mine), float(mine[0]["default_speed"])
+            slower = [float(f"{x * was:.3g}") for x in SPEED_SHARES if x * was < value * 0.999]
+            for pace in [value, *slower[:1]]:
+                if self._passes(
+                    bundle, robust, behavior, {**paces, **found, behavior: pace}, mine[0]
+                ):
+                    found[behavior] = pace
+                    break
+        if not found:
+            return None
+        return Remedy(paces={**paces, **found})
+
+    def _passes(
+        self, bundle: Bundle, robust: RobustRuns, behavior: str, paces: dict, blamed: dict
+    ) -> bool:
+        """Does ``behavior`` pass nominally and in every perturbed run of ``robust``'s table
+        with ``paces``? (The worst-looking perturbations first, stopping at the first run
+        that fails; what it gave is kept in :attr:`tried`.)"""
+        from synth.verification.runs import verify_nominal, verify_robust
+
+        trial = with_paces(bundle, paces)
+        entry = {
+            "behavior": behavior,
+            "parameter": blamed["parameter"],
+            "pace": paces[behavior],
+            "unit": blamed["unit"],
+            "from": blamed["default_speed"],
+        }
+        try:
+            nominal = verify_nominal(trial, [behavior])[0]
+        except ValueError as e:  # (the pace does not plan on the nominal model)
+            self.tried.append(entry | {"nominal": [str(e)], "passed": 0, "runs": 0})
+            return False
+        if not nominal.ok:
+            self.tried.append(entry | {"nominal": nominal.verdict, "passed": 0, "runs": 0})
+            return False
+        runs = verify_robust(
+            trial, robust.k, robust.table, [behavior], sensing=False, decisive={behavior}
+        )
+        got = runs.behaviors[0]
+        failed = [f.seed for f in got.failures]
+        entry |= {"nominal": "ok", "passed": got.passed, "runs": got.runs, "of": robust.k}
+        self.tried.append(entry | ({"failed_seed": failed[0]} if failed else {}))
+        return got.passed == got.runs == robust.k
+
+    def chose(self, paces: Mapping[str, float]) -> None:
+        """The loop verifies the design again with ``paces``."""
+        self.chosen = dict(paces)
 
     def taken(self, now: Round, sizing: Mapping[str, frozenset[str]]) -> None:
         return None
 
     def note(self, behavior: str, final: int) -> str:
-        return hold_note(self.held, behavior) if self.at == final else ""
+        """What a refusal of ``behavior`` adds: the hold's share of its failed runs and the
+        pace at which they pass (:func:`hold_note`), what a pace tried gave, and why none
+        was chosen when the request gave the speed; "" when the hold did not break it."""
+        out = hold_note(self.held, behavior) if self.at == final else ""
+        if not out or behavior in self.chosen:
+            return ""
+        for t in self.tried:
+            if t["behavior"] != behavior:
+                continue
+            if t["nominal"] != "ok":
+                got = f"failed nominally: {', '.join(t['nominal'])}"
+            else:
+                got = f"perturbed run {t.get('failed_seed')} failed, {t['runs']} of {t['of']} made"
+            out += f"; at {t['parameter']} {t['pace']:g} {t['unit']} it {got}"
+        if self.fixed:
+            out += " (the request gives --param speed: no other pace is chosen)"
+        return out
 
-    def record(self, models: Mapping[str, str]) -> dict | None:
-        return None
+    def record(self, models: Mapping[str, str] | None = None) -> dict | None:
+        """``verified.robust.paces``: the paces tried, each with what it gave, and those
+        chosen; None when none was tried."""
+        if not self.tried:
+            return None
+        return {"chosen": dict(sorted(self.chosen.items())), "tried": list(self.tried)}

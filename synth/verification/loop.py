@@ -29,9 +29,10 @@ part of the perturbation changed, in this order:
   servo with as much play (a new sizing; the servo with less play must still hold the
   joint's torque), up to ``PLAY_ROUNDS`` sizings more; ``verified.play`` names each swap
   and the runs that called for it;
-- on the design the loop ends with, the command hold
-  (:class:`synth.verification.hold.Hold`), which no sizing answers: a refusal names the
-  speed at which the runs pass.
+- when no sizing answers it, a closed loop's gains (:class:`synth.verification.gains.
+  Gains`), then the servos' command hold (:class:`synth.verification.hold.Hold`): a slower
+  pace of the behaviours it breaks, where the request left the speed to the design; each
+  verified on every perturbed run before it is kept (a round without a new sizing).
 
 A refusal names what each cause measured and tried on the design as it stands.
 
@@ -386,16 +387,17 @@ class Strengthening:
 
         self.designer, self.params, self.opts, self.outcome = designer, params, opts, outcome
         self.rounds = 0  # rounds of simulation
-        self.regains = 0  # of them, rounds that verified other gains (no new sizing)
+        self.regains = 0  # of them, rounds that verified other gains or paces (no sizing)
         self.floors: dict[str, float] = {}  # joint -> the torque it must be sized for
         self.excluded: dict[str, frozenset[str]] = {}  # joint -> models it may not have
         self.torque_done = False  # a stronger actuator was asked for and none could be had
-        self.wheels, self.play, self.hold, self.gains = Wheels(), Play(), Hold(), Gains()
+        self.wheels, self.play, self.gains = Wheels(), Play(), Gains()
+        self.hold = Hold(given=params)
         self._bundle: tuple[int, Bundle] | None = None
 
     @property
     def sizings(self) -> int:
-        """The sizings so far (the rounds less those that only changed gains)."""
+        """The sizings so far (the rounds less those that only changed gains or paces)."""
         return self.rounds - self.regains
 
     def bundle(self) -> Bundle:
@@ -418,7 +420,7 @@ class Strengthening:
             structure = self.answer(now)
             if structure is None:
                 break  # everything passed, or nothing answers what fails
-            if structure is self.outcome.structure:  # other gains, the same structure
+            if structure is self.outcome.structure:  # other gains or paces, the same structure
                 continue
             self.outcome = replace(self.outcome, structure=structure, calibration=None)
         return self.judge(now)
@@ -481,6 +483,7 @@ class Strengthening:
             dict(self.excluded),
             gains=dict(self.outcome.feedback_gains or {}),
             demanded=self._demanded(now),
+            paces=dict(self.outcome.paces or {}),
         )
 
     def _demanded(self, now: Simulated) -> frozenset[str]:
@@ -491,7 +494,8 @@ class Strengthening:
         """When no repair can follow this round's perturbed runs (the sizings the loop may
         make are made, and no closed loop serving a demand has gains left to try): the
         behaviours whose failure refuses the design (their runs may then stop at the
-        first that fails); None while a repair may follow."""
+        first that fails; the command hold's pace is measured on those that failed);
+        None while a repair may follow."""
         if self.sizings < MAX_ROUNDS + PLAY_ROUNDS:
             return None
         demanded = _demanded(record, results)
@@ -507,8 +511,9 @@ class Strengthening:
         perturbed run) must get a stronger actuator (up to ``MAX_ROUNDS`` sizings); a
         perturbed failure with none saturated is put to the wheels (a robot with wheels),
         then, when no stronger actuator answers it, to the play (up to ``PLAY_ROUNDS``
-        sizings more), then, when no sizing answers it, to a closed loop's gains (the
-        same structure returned: the outcome has the gains)."""
+        sizings more), then, when no sizing answers it, to a closed loop's gains, then to
+        the command hold's slower pace (the same structure returned: the outcome has the
+        gains or the paces)."""
         from synth.structure import StructureDesigner
 
         more = _floors(now.results + (now.robust.failing_runs() if now.robust else []), now.record)
@@ -565,6 +570,13 @@ class Strengthening:
             if remedy and remedy.gains:
                 self.gains.chose(remedy.gains)
                 self.outcome = replace(self.outcome, feedback_gains=dict(remedy.gains))
+                self.regains += 1
+                return self.outcome.structure
+            # nor do they: does a slower pace, where the command hold breaks it? (measured)
+            remedy = self.hold.explains(state)
+            if remedy and remedy.paces:
+                self.hold.chose(remedy.paces)
+                self.outcome = replace(self.outcome, paces=dict(remedy.paces))
                 self.regains += 1
                 return self.outcome.structure
         return structure
@@ -641,7 +653,7 @@ class Strengthening:
         nominal_failure = failure is not None
         bad = robust.not_robust() if robust is not None else []
         if bad:  # the command hold: measured on the design as it stands, for the refusal
-            self.hold.explains(replace(self._round(now), robust=robust))
+            self.hold.measure(replace(self._round(now), robust=robust))
         for b in bad:
             why = b.why_not(robust.required, robust.k)  # type: ignore[union-attr]
             for cause in (self.play, self.wheels, self.gains, self.hold):
@@ -664,9 +676,16 @@ class Strengthening:
             )
         if failure is not None and not nominal_failure:  # it passed on the nominal model
             failure += f"; {ROBUST_OFF}"
-        gains = self.gains.record()
+        if robust is not None and dropped:  # what the runs show of the behaviours it keeps
+            from synth.verification.robust import shows
+
+            kept = tuple(b for b in robust.behaviors if not serves(b.ability) & set(dropped))
+            robust = replace(robust, shows=shows(replace(robust, behaviors=kept)))
+        gains, paces = self.gains.record(), self.hold.record()
         if robust is not None and gains is not None:  # what was tried, in verified.robust
             robust = replace(robust, gains=gains)
+        if robust is not None and paces is not None:
+            robust = replace(robust, paces=paces)
         v = Verification(
             tuple(results),
             self.sizings,

@@ -249,7 +249,8 @@ class RobustRuns:
     must pass ``required`` (``share`` x K), the perturbations' summaries, each behaviour's
     runs, the table they were drawn from; the physics they ran at (``physics``, where it
     was chosen: :func:`synth.verification.robust.physics`), what they show (``shows``)
-    the gains the loop tried and chose (``gains``, :mod:`synth.verification.gains`) and,
+    the gains the loop tried and chose (``gains``, :mod:`synth.verification.gains`), the
+    paces it tried and chose (``paces``, :mod:`synth.verification.hold`) and,
     for runs that stopped once their verdict was known, how (``stopped``:
     :func:`synth.verification.runs.verify_robust`'s ``decisive``)."""
 
@@ -262,6 +263,7 @@ class RobustRuns:
     physics: Mapping[str, Any] | None = None
     shows: Mapping[str, Any] | None = None
     gains: Mapping[str, Any] | None = None
+    paces: Mapping[str, Any] | None = None
     stopped: Mapping[str, Any] | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)
 
@@ -269,7 +271,7 @@ class RobustRuns:
     def of(cls, d: Mapping[str, Any]) -> RobustRuns:
         """A recorded ``verified.robust`` (missing counts: those of its behaviours)."""
         known = {"k", "required", "share", "perturbations", "behaviors", "table", "physics"}
-        known |= {"shows", "gains", "stopped"}
+        known |= {"shows", "gains", "paces", "stopped"}
         k = int(d["k"])
         return cls(
             k,
@@ -281,6 +283,7 @@ class RobustRuns:
             d.get("physics"),
             d.get("shows"),
             d.get("gains"),
+            d.get("paces"),
             d.get("stopped"),
             {key: v for key, v in d.items() if key not in known},
         )
@@ -317,6 +320,8 @@ class RobustRuns:
             out["shows"] = dict(self.shows)
         if self.gains is not None:
             out["gains"] = dict(self.gains)
+        if self.paces is not None:
+            out["paces"] = dict(self.paces)
         if self.stopped is not None:
             out["stopped"] = dict(self.stopped)
         return out | dict(self.extra)
