@@ -1,8 +1,8 @@
 """The registry of every user file format with a schema (:func:`formats`, :func:`check`,
 :func:`schemas`, which ``python -m adron.write_schemas`` writes into ``adron/schemas/``),
 and the schemas of the formats that have no module of their own: studies
-(``synth/sweep.py``), regression suites (``synth/regress.py``) and perturbation tables
-(``synth/verification/perturb.py``, a catalog's ``[perturbation]``).
+(``synth/commands/sweep.py``), regression suites (``synth/commands/regress.py``) and
+perturbation tables (``synth/verification/perturb.py``, a catalog's ``[perturbation]``).
 
 The other formats' models live beside their readers: module catalogs in
 ``adron/catalog_schema.py``, part kinds in ``kinematics/partkinds.py``, design records in
@@ -247,7 +247,7 @@ class Query(Closed):
 class SuiteFile(Closed):
     """A regression suite (``parmor regress SUITE.toml``).
 
-    What the schema cannot say is checked by the reader (synth/regress.py): the files
+    What the schema cannot say is checked by the reader (synth/commands/regress.py): the files
     ``ontology``, ``rules`` and ``catalog`` name exist inside the suite's folder, and each
     query's abilities, answers and parameters are the knowledge base's."""
 
@@ -324,7 +324,7 @@ class StudyFile(Closed):
     Beyond what the JSON Schema says, the model holds the study's size: its requests,
     counted from the lists' lengths before anything is expanded, are at most
     :data:`MAX_STUDY_REQUESTS`. What no schema can say is checked by the reader
-    (synth/sweep.py): the files it names exist inside its folder, and each request's
+    (synth/commands/sweep.py): the files it names exist inside its folder, and each request's
     abilities, answers and parameters are the knowledge base's (and no request is given
     twice, its values compared in SI units)."""
 

@@ -63,7 +63,7 @@ class KnowledgeBase:
     why_not: str | None = None
     #: the cache key of this knowledge base (a hash of its sources and of the code that
     #: loads them), None when the cache is off: other caches of results derived from it
-    #: (synth/solver.py: the relevant program) key on it
+    #: (synth/reasoning/solver.py: the relevant program) key on it
     key: str | None = field(default=None, compare=False)
 
     def ability(self, name: str) -> Ability | None:
@@ -374,7 +374,7 @@ def _no_gc():
 def materialised(kb: KnowledgeBase) -> KnowledgeBase:
     """``kb`` with its ontology-only rules materialised (``grounded``, ``why_not``: see
     adron/materialise.py); this grounds them with clingo, so callers run it where a limit
-    or Ctrl-C can stop it (synth/solver.py does, in its worker process)."""
+    or Ctrl-C can stop it (synth/reasoning/solver.py does, in its worker process)."""
     if kb.grounded is not None or kb.why_not is not None:
         return kb
     grounded, why_not = materialise(kb.translation)
@@ -403,7 +403,7 @@ def _load(sources: Sequence[tuple[str, str]]) -> KnowledgeBase:
         params.append(ConceptualParameter(name, rel, vals))
     facts(tr, "structuralLimit", 3)  # checked here, used by the structure stage
     # materialised later, where grounding can be interrupted and limited (the reasoner's
-    # worker process: synth/solver.py), not here in the parse stage
+    # worker process: synth/reasoning/solver.py), not here in the parse stage
     grounded, why_not = None, None
     return KnowledgeBase(
         files=tuple(n for n, _ in sources),

@@ -122,7 +122,8 @@ class _Quoted(dict):
 class LazyUnits(Sequence[Unit]):
     """A translation's units as plain tuples, turned into :class:`Unit` objects on first
     use: what a cached knowledge base (adron/kb.py) holds, since unpickling 20,000 frozen
-    dataclasses costs ~0.5 s and a cached relevance result (synth/solver.py) needs none."""
+    dataclasses costs ~0.5 s and a cached relevance result (synth/reasoning/solver.py) needs
+    none."""
 
     def __init__(self, rows: tuple[tuple, ...]) -> None:
         self._rows = rows

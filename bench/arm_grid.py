@@ -31,7 +31,10 @@ SHAPES = {3: ("cylinder", "sphere"), 4: ("cylinder", "sphere"), 5: ("cylinder", 
 
 def parmor(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "synth.cli", *args], capture_output=True, text=True, check=False
+        [sys.executable, "-m", "synth.commands.cli", *args],
+        capture_output=True,
+        text=True,
+        check=False,
     )
 
 

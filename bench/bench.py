@@ -33,8 +33,8 @@ from bench_startup import bench_startup  # noqa: E402
 from bench_stl import bench_stl  # noqa: E402
 
 from adron.kb import load  # noqa: E402
-from synth.conceptual import Designer, Request  # noqa: E402
-from synth.solver import Query, Reasoner  # noqa: E402
+from synth.reasoning.conceptual import Designer, Request  # noqa: E402
+from synth.reasoning.solver import Query, Reasoner  # noqa: E402
 
 SUMO = REPO.parent / "shared" / "kif" / "sumo"
 
@@ -94,7 +94,7 @@ def bench_queries() -> list[str]:
 def bench_structures() -> list[str]:
     """The whole structural design (co-design loop) of each base configuration."""
     from adron.catalog import load_catalog
-    from synth.structure import design_structure
+    from synth.sizing.structure import design_structure
 
     kb = load()
     designer = Designer(kb, Reasoner(kb))
@@ -112,14 +112,14 @@ def bench_structures() -> list[str]:
 
 
 def bench_process() -> list[str]:
-    """Whole-process time of the command line (python -m synth.cli), best of 10."""
+    """Whole-process time of the command line (python -m synth.commands.cli), best of 10."""
     lines = ["whole process (best/median of 10; target: conceptual design < 500 ms)"]
     for argv in (
         ["--help"],
         ["design", "walking", "--answer", "grasping=yes", "--json", "--conceptual"],
         ["design", "walking", "--answer", "grasping=yes", "--json"],
     ):
-        cmd = [sys.executable, "-m", "synth.cli", *argv]
+        cmd = [sys.executable, "-m", "synth.commands.cli", *argv]
 
         def run(cmd: list[str] = cmd) -> None:
             subprocess.run(cmd, cwd=REPO, check=True, capture_output=True)
@@ -162,7 +162,15 @@ def bench_verified() -> list[str]:
     for name, argv in TYPE_REQUESTS.items():
         times = []
         for extra, runs in ((["--no-verify"], 2), (["--robustness", "0"], 2), ([], 1)):
-            cmd = [sys.executable, "-m", "synth.cli", "design", *argv, "--no-input", "--json"]
+            cmd = [
+                sys.executable,
+                "-m",
+                "synth.commands.cli",
+                "design",
+                *argv,
+                "--no-input",
+                "--json",
+            ]
 
             def run(cmd: list[str] = cmd + extra) -> None:
                 subprocess.run(cmd, cwd=REPO, capture_output=True, env=env)

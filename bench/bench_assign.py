@@ -37,7 +37,7 @@ TIME_LIMIT = 300  # s per process
 
 def _run(args: list[str], catalog: Path) -> tuple[float, str]:
     env = {**os.environ, "PYTHONPATH": str(REPO)}
-    cmd = [sys.executable, "-m", "synth.cli", *args, "--catalog", str(catalog)]
+    cmd = [sys.executable, "-m", "synth.commands.cli", *args, "--catalog", str(catalog)]
     t0 = time.perf_counter()
     try:
         done = subprocess.run(

@@ -68,7 +68,7 @@ def bench_chain(runs: int = 2) -> list[str]:
         warm = Path(tmp) / "warm"
         env = {**os.environ, "PYTHONPATH": str(REPO), "PARMOR_CACHE": str(warm)}
         subprocess.run(  # the gaits' caches (sway, gait maps) as a user's machine has them
-            [sys.executable, "-m", "synth.cli", "design", *REQUEST],
+            [sys.executable, "-m", "synth.commands.cli", "design", *REQUEST],
             env=env,
             capture_output=True,
             cwd=REPO,

@@ -3,7 +3,7 @@
 Usage: ``python bench/bench_links.py [N]`` (default N = 400 random cases, a quarter per
 branch). ``bench_links`` returns the report lines for ``bench/bench.py``, and so does
 ``bench_chain_links``: a serial chain's links sized one by one (even shares of the tip
-deflection budget) against ``synth.chain_links``' joint sizing, its separable solve and
+deflection budget) against ``synth.sizing.chain_links``' joint sizing, its separable solve and
 its convex program (cvxpy + Clarabel).
 
 Both solvers get the same seeded cases. Throughput is calls per second over the whole
@@ -24,7 +24,7 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from synth.links import Tube, TubeLimits, optimal_tube, optimal_tube_numeric  # noqa: E402
+from synth.sizing.links import Tube, TubeLimits, optimal_tube, optimal_tube_numeric  # noqa: E402
 
 BRANCHES = ("minimum", "solid", "wall", "stiffness")
 SEED = 2024
@@ -97,7 +97,7 @@ def chain_cases(n: int, seed: int = SEED) -> list[tuple[list, list]]:
     section (r2max 20 mm, wall 1.2 mm, PLA, Kt 1.8), lengths 40-300 mm, 1-3 random loads a
     link (none overstressed in its strongest tube) and a budget the per-link sizing can
     meet (1.05-30 times n x the largest share of a stiffest tube)."""
-    from synth.chain_links import Chain, ChainLink, deflection_coefficient, stress_floor
+    from synth.sizing.chain_links import Chain, ChainLink, deflection_coefficient, stress_floor
 
     rng = np.random.default_rng(seed)
     out = []
@@ -141,7 +141,7 @@ def bench_chain_links(n: int = 100) -> list[str]:
     from functools import partial
 
     work = chain_cases(n)
-    from synth.chain_links import chain_tubes, per_link_tubes
+    from synth.sizing.chain_links import chain_tubes, per_link_tubes
 
     t0 = time.perf_counter()
     chain_tubes(*work[0], CHAIN_E, CHAIN_ALLOWED, CHAIN_KT, method="program")

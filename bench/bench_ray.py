@@ -43,7 +43,7 @@ def study_text() -> str:
     the source's requests of cheap types (each expanded, one table per request)."""
     import json
 
-    from synth.sweep import load_study
+    from synth.commands.sweep import load_study
 
     cheap = [q for q in load_study(SOURCE)[1] if q["name"] not in COSTLY]
     n = N_REQUESTS - len(EXTRA)
@@ -81,7 +81,7 @@ def _sweep(study: Path, out: Path, *extra: str) -> tuple[float, int, str]:
         "RAY_AUTH_MODE": "disabled",  # a throwaway instance: no token in the home folder
         "RAY_USAGE_STATS_ENABLED": "0",
     }
-    cmd = [sys.executable, "-m", "synth.cli", "sweep", str(study), "--out", str(out)]
+    cmd = [sys.executable, "-m", "synth.commands.cli", "sweep", str(study), "--out", str(out)]
     t0 = time.perf_counter()
     try:
         r = subprocess.run(

@@ -23,11 +23,11 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-import synth.bodyplan  # noqa: E402 (the shipped types' body plans, found by name below)
+import synth.reasoning.plans  # noqa: E402 (the shipped types' body plans, found by name below)
 from kinematics.dynamics import rnea  # noqa: E402
 from kinematics.templates import build  # noqa: E402
 
-synth.bodyplan.install()
+synth.reasoning.plans.install()
 
 RUNS = 5
 TYPES = ("HexapodRobot", "HumanoidRobot")

@@ -20,9 +20,9 @@ def default_bundles(tmp: Path):
     from adron.kb import load
     from export.bundle import bundle_files, write_bundle
     from export.record import design_record
-    from synth.conceptual import Design, Designer, Request
-    from synth.solver import Query, Reasoner
-    from synth.structure import design_structure
+    from synth.reasoning.conceptual import Design, Designer, Request
+    from synth.reasoning.solver import Query, Reasoner
+    from synth.sizing.structure import design_structure
     from synth.verification.runs import controller_for_model
     from synth.verification.source import Bundle
 

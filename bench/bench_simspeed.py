@@ -99,7 +99,7 @@ def bench_simspeed(seconds: float = SECONDS, runs: int = RUNS) -> list[str]:
                 f"raw {min(raw) * 1000:6.1f} ms: {ratio:4.2f} x ({seconds / min(sim):4.0f} x "
                 "real time)"
             )
-            cmd = [sys.executable, "-m", "synth.cli", "simulate", str(folder)]
+            cmd = [sys.executable, "-m", "synth.commands.cli", "simulate", str(folder)]
             cmd += ["--behavior", name, "--seconds", f"{seconds:g}", "--json"]
             walls = []
             for _ in range(max(2, runs // 2)):

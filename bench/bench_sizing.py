@@ -47,7 +47,7 @@ def _best(cmd: list[str], runs: int) -> float:
 def _forget_plans() -> None:
     """Empty the in-process memos of plans, so that a sizing plans from nothing."""
     from gaits import base, hexapod, legged
-    from synth import behaviour_loads
+    from synth.sizing import behaviour_loads
 
     for memo in (
         base._PLANNED,
@@ -64,9 +64,9 @@ def _in_process(catalog: Path, runs: int) -> list[str]:
     from adron.kb import load
     from export.bundle import bundle_files
     from export.record import design_record
-    from synth.conceptual import Design, Designer, Request
-    from synth.solver import Query, Reasoner
-    from synth.structure import design_structure
+    from synth.reasoning.conceptual import Design, Designer, Request
+    from synth.reasoning.solver import Query, Reasoner
+    from synth.sizing.structure import design_structure
     from synth.verification import runs as verify
     from synth.verification.source import Bundle
 
@@ -122,13 +122,13 @@ def _chain_sizing(runs: int) -> list[str]:
     on its own (the closed form they replaced), for the 3-DOF arm and the hexapod."""
     from functools import partial
 
-    import synth.structure as structure
+    import synth.sizing.structure as structure
     from adron.catalog import load_catalog
     from adron.kb import load
-    from synth.chain_links import chain_tubes
-    from synth.conceptual import Designer
-    from synth.solver import Query, Reasoner
-    from synth.structure import StructureDesigner
+    from synth.reasoning.conceptual import Designer
+    from synth.reasoning.solver import Query, Reasoner
+    from synth.sizing.chain_links import chain_tubes
+    from synth.sizing.structure import StructureDesigner
 
     def per_link(self, lengths, loads, counts, analysis):
         return {n: self._size_link(n, lengths[n], loads[n]) for n in lengths}
@@ -174,7 +174,7 @@ def _chain_sizing(runs: int) -> list[str]:
 
 def bench_sizing(runs: int = 3) -> list[str]:
     py = sys.executable
-    parmor = [py, "-m", "synth.cli"]
+    parmor = [py, "-m", "synth.commands.cli"]
     with tempfile.TemporaryDirectory() as tmp:
         big = Path(tmp) / "catalog1000.toml"
         write_synthetic_catalog(big, 1000, seed=0)

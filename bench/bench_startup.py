@@ -79,7 +79,7 @@ def bench_startup(runs: int = 2, repo: Path = REPO, simulated: bool = False) -> 
     """The start-up figures as lines (``repo``: the checkout to time, e.g. an older one
     for a before/after comparison)."""
     py = sys.executable
-    parmor = [py, "-m", "synth.cli"]
+    parmor = [py, "-m", "synth.commands.cli"]
     load = os.getloadavg()[0]
     requests = _type_requests()
     with tempfile.TemporaryDirectory() as tmp:

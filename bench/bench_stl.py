@@ -56,8 +56,8 @@ def default_links() -> list[tuple[str, tuple[float, ...]]]:
     """(name, (length, r_outer, r_inner, face_side, face_thickness, fillet) m) of the default
     Manipulator3DOF design's links."""
     from adron.kb import load
-    from synth.solver import Query, Reasoner
-    from synth.structure import design_structure
+    from synth.reasoning.solver import Query, Reasoner
+    from synth.sizing.structure import design_structure
 
     kb = load()
     catalog = load_catalog()

@@ -21,12 +21,12 @@ def best_time(
     seed: Callable[[Path], None] | None = None,
     ok: Sequence[int] = (0,),
 ) -> float:
-    """Best wall-clock seconds of ``runs`` processes ``python -m synth.cli ARGS``.
+    """Best wall-clock seconds of ``runs`` processes ``python -m synth.commands.cli ARGS``.
 
     ``cache``: the PARMOR_CACHE folder, warmed by one run first; None: a new empty one
     per run (a cold cache), given its files by ``seed(folder)`` first when given. A run
     ending with a code outside ``ok`` raises RuntimeError with its error output."""
-    cmd = [sys.executable, "-m", "synth.cli", *args]
+    cmd = [sys.executable, "-m", "synth.commands.cli", *args]
     best = float("inf")
     for _ in range(runs):
         with tempfile.TemporaryDirectory(prefix="parmor-bench-cache-") as cold:

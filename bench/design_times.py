@@ -1,7 +1,7 @@
 """Wall time of ``parmor design REQUEST --no-input`` as a process for each shipped type's
 default request, with the default robust verification (K = 8, the environment's
 PARMOR_ROBUSTNESS removed) and with ``--no-verify``, for one or two source trees
-interleaved (each tree's ``python -m synth.cli`` run with that tree as its current folder):
+interleaved (each tree's ``python -m synth.commands.cli`` run with that tree as its current folder):
 the table of ``docs/verification.md``'s *How long a verified design takes*.
 
     python bench/design_times.py [TREE ...] [--json OUT]
@@ -40,7 +40,7 @@ REQUESTS = {
 def timed(tree: Path, argv: list[str]) -> tuple[float, int]:
     """(wall s, exit code) of ``parmor design ARGV --no-input`` run from ``tree``."""
     env = {k: v for k, v in os.environ.items() if k != "PARMOR_ROBUSTNESS"}
-    cmd = [sys.executable, "-m", "synth.cli", "design", *argv, "--no-input"]
+    cmd = [sys.executable, "-m", "synth.commands.cli", "design", *argv, "--no-input"]
     t = time.perf_counter()
     r = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, check=False)
     return time.perf_counter() - t, r.returncode

@@ -360,7 +360,7 @@ class Fuzzer:
     # -- one case of each format -------------------------------------------------------------
 
     def _cli(self, argv: list[str], source: str, out: Path | None) -> tuple[str, str | None]:
-        from synth.cli import main
+        from synth.commands.cli import main
 
         err = io.StringIO()
         code = main(argv, out=io.StringIO(), err=err)
@@ -452,8 +452,8 @@ class Fuzzer:
         self._run("perturbation", what, call)
 
     def study_or_suite(self, kind: str) -> None:
-        from synth.regress import load_suite
-        from synth.sweep import load_study
+        from synth.commands.regress import load_suite
+        from synth.commands.sweep import load_study
 
         data, what = mutate(self.bases[kind], self.rng)
         f = self._file(f"{kind}.toml", toml_text(data))
@@ -630,7 +630,7 @@ def run(
     """Run ``cases`` seeded cases over every format; their Outcome."""
     import io as _io
 
-    from synth.cli import main
+    from synth.commands.cli import main
 
     with tempfile.TemporaryDirectory(prefix="parmor-fuzz-") as d:
         folder = Path(d)

@@ -96,7 +96,7 @@ def requests() -> list[tuple[str, str | None, list[str]]]:
 def design(job: tuple[str, str | None, list[str], int]) -> dict:
     """One request designed with ``--robustness k``, in-process (no hint search)."""
     import synth.verification.loop
-    from synth.cli import main
+    from synth.commands.cli import main
 
     label, kif, argv, k = job
     synth.verification.loop.best_value = lambda *a, **kw: (

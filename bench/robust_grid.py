@@ -30,7 +30,7 @@ VARIANTS = ((), ("--param", "payload=0kg"), ("--param", "payload=0.3kg"))
 
 
 def design(argv: list[str]) -> tuple[int, dict | None, str]:
-    from synth.cli import main
+    from synth.commands.cli import main
 
     out, err = io.StringIO(), io.StringIO()
     code = main(["design", *argv, "--no-input", "--json"], out, err)

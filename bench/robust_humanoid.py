@@ -92,7 +92,7 @@ def neutral(p: dict, keep: str, joints: str | None = None) -> dict:
 def _design(argv: list[str]) -> tuple[int, str]:
     import io
 
-    from synth.cli import main
+    from synth.commands.cli import main
 
     out, err = io.StringIO(), io.StringIO()
     code = main(["design", *argv, "--no-input"], out, err)

@@ -25,7 +25,7 @@ def _legged_kif(name: str, legs: int, ability: str) -> str:
 
 
 def _bundle(root: Path, name: str, *argv: str) -> Path:
-    from synth.cli import main
+    from synth.commands.cli import main
 
     out = root / name
     err = io.StringIO()

@@ -34,7 +34,7 @@ VERIFY = False
 
 
 def _bundle(root: Path, name: str, *argv: str) -> Path:
-    from synth.cli import main
+    from synth.commands.cli import main
 
     out = root / name
     err = io.StringIO()

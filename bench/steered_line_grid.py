@@ -20,7 +20,7 @@ GRID_FLOOR = 0.4
 def main() -> int:
     import io
 
-    from synth.cli import main as parmor
+    from synth.commands.cli import main as parmor
     from tests.test_sensing_steered import TYPES, _follow
 
     root = Path(tempfile.mkdtemp(prefix="steerline-"))

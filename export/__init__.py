@@ -2,6 +2,6 @@
 
 Importing the package does nothing else: the shipped ontology's body plans (for a bundle
 written before design records kept their own) are installed by the entry points
-(``synth.bodyplan.install``: ``parmor``'s ``main``, the ROS worker, the block server's
+(``synth.reasoning.plans.install``: ``parmor``'s ``main``, the ROS worker, the block server's
 runs).
 """

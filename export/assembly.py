@@ -78,7 +78,7 @@ from kinematics.templates import LabelledPart, Template
 
 if TYPE_CHECKING:
     from export.polymesh import Mesh
-    from synth.structure import Structure
+    from synth.sizing.structure import Structure
 
 __all__ = [
     "PRINTED_RGBA",

@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from adron.catalog import Catalog
     from export.model3d import Assembly
     from export.split import Bed
-    from synth.structure import Structure
+    from synth.sizing.structure import Structure
 
 _SAFE_STEM = re.compile(r"[a-z0-9_]+")
 

@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # the structure stage pulls numpy in: keep it off the conceptual path;
     # the solver pulls clingo in: keep it off the path of a command that only prints JSON
     from adron.catalog import Bus, Catalog
-    from synth.conceptual import Design
-    from synth.solver import Candidate
-    from synth.structure import Alternatives, Structure
+    from synth.reasoning.conceptual import Design
+    from synth.reasoning.solver import Candidate
+    from synth.sizing.structure import Alternatives, Structure
 
 Short = Callable[[str], str]
 

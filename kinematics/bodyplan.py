@@ -172,7 +172,7 @@ class BodyPlan:
 
 
 #: Where a robot type's body plan comes from when none is registered in this process
-#: (``kinematics.templates.plan_of``): set by ``synth.bodyplan.install`` to the shipped
+#: (``kinematics.templates.plan_of``): set by ``synth.reasoning.plans.install`` to the shipped
 #: ontology's; kept here, in a module that imports nothing heavy, so that installing it
 #: costs nothing on the command line's start-up path.
 PLAN_SOURCE: list[Callable[[str], BodyPlan | None]] = []

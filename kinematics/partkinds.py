@@ -607,7 +607,7 @@ class SerialSchema(BaseModel):
                 if n in names[:i]:
                     raise At(f"{k}[{i}]", "joint names repeat", n)
             # an arm's sizing needs its column (the printed link on the first joint) and a
-            # link that reaches out (synth/sizing.py: the column, then the reach)
+            # link that reaches out (synth/sizing/families.py: the column, then the reach)
             if not rows[0][4]:
                 raise At(
                     f"{k}[0]",

@@ -6,7 +6,7 @@ and the part kinds' data (no robot type is built by code of its own).
 :class:`~kinematics.model.Model` whose link lengths, tube radii and masses come from
 ``params``, plus what the designer needs to analyse it (the printed tubes, feet, grippers,
 wheels). A type's name finds its body plan (``plan_of``: registered, e.g. from a design's
-record, or from the shipped ontology once ``synth.bodyplan.install()`` ran). The fixed root
+record, or from the shipped ontology once ``synth.reasoning.plans.install()`` ran). The fixed root
 body (base, trunk or chassis) is welded to the world: a worst-case static or dynamic
 analysis of the limbs needs exactly that.
 
@@ -142,7 +142,9 @@ def plan_of(robot_type: str) -> BodyPlan:
             register_plan(plan)
     if plan is None:
         known = ", ".join(sorted(PLANS)) or "none registered"
-        hint = "" if PLAN_SOURCE else "; synth.bodyplan.install() finds the shipped ontology's"
+        hint = (
+            "" if PLAN_SOURCE else "; synth.reasoning.plans.install() finds the shipped ontology's"
+        )
         raise ValueError(f"unknown robot type {robot_type!r}: no body plan (known: {known}){hint}")
     return plan
 

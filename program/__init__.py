@@ -2,5 +2,5 @@
 
 Importing the package does nothing else: the entry points (the ROS worker's ``main``, the
 block server's runs) install the shipped ontology's body plans themselves
-(``synth.bodyplan.install``).
+(``synth.reasoning.plans.install``).
 """

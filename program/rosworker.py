@@ -268,7 +268,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     _quiet_signals()
     _limit_memory()
-    from synth.bodyplan import install
+    from synth.reasoning.plans import install
 
     install()  # the shipped ontology's body plans (a bundle older than recorded plans)
     try:

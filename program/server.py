@@ -165,7 +165,7 @@ def _child(conn, bundle: str, program: dict) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         from program.session import run_program
-        from synth.bodyplan import install
+        from synth.reasoning.plans import install
 
         install()  # a spawned process: the shipped ontology's body plans (older bundles)
 

@@ -19,7 +19,7 @@ section" (``deflection``, ``slope``).
 | (mobile_manipulator) | | payload, reach, speed, load_area, deflection, slope | | |
 | (legged_manipulator) | | payload, reach, speed, obstacle_height, deflection | | |
 | (multi_arm) | | as serial_arm | | |
-| dof | count | serial_arm (composes the arm, synth/compose.py) | the arm's own | 3-7 |
+| dof | count | serial_arm (synth/reasoning/composition.py makes it) | the arm's own | 3-7 |
 
 The range is where a design of ParMoR-like modules makes sense (see RANGES); a value
 outside it is refused (InputError, exit 2) before any work. Inside it, sizing may still
@@ -69,6 +69,25 @@ class ParamSpec:
         return structure in self.defaults
 
 
+#: The joint counts ``--param dof`` takes (the part kinds' [serial] rows may offer more).
+DOF_RANGE = (3, 7)
+
+
+def parse_dof(text: str) -> int:
+    """The joint count of ``--param dof=TEXT``; InputError (exit 2) naming the range."""
+    try:
+        n = int(str(text).strip())
+    except ValueError:
+        n = -1
+    lo, hi = DOF_RANGE
+    if not lo <= n <= hi:
+        raise InputError(
+            f"--param dof={text}: a serial arm has {lo} to {hi} joints besides its gripper "
+            "(a whole number)"
+        )
+    return n
+
+
 def _for(types: tuple[str, ...], value: float | None) -> dict[str, float | None]:
     return dict.fromkeys(types, value)
 
@@ -98,8 +117,9 @@ RANGES: dict[str, tuple[str, str, str]] = {
     "deflection": ("0.01 mm", "10 cm", "printing accuracy to a link bent out of shape"),
     # A rubber tyre's friction coefficient is about 1: on a steeper slope the wheels slip.
     "slope": ("0 deg", "45 deg", "a tyre's grip (friction ~1) ends at 45 deg"),
-    # The part kinds' serial arms (synth/compose.py): a yaw and two pitch joints position
-    # what the gripper holds; a wrist of three more orients it; a seventh is redundant.
+    # The part kinds' serial arms (synth/reasoning/composition.py): a yaw and two pitch
+    # joints position what the gripper holds; a wrist of three more orients it; a seventh
+    # is redundant.
     "dof": ("3", "7", "three joints position a gripper, six orient it, a seventh is redundant"),
 }
 
@@ -155,7 +175,7 @@ PARAMS: tuple[ParamSpec, ...] = (
         "steepest slope to climb while accelerating",
         _for((*WHEELED, *MOBILE), None),
     ),
-    # not a sizing parameter: it composes the arm (synth/compose.py) and picks it
+    # not a sizing parameter: it composes the arm (synth/reasoning/composition.py) and picks it
     ParamSpec("dof", "count", "joints of a serial arm besides its gripper (3 to 7)", {}),
 )
 BY_NAME = {p.name: p for p in PARAMS}
@@ -226,8 +246,6 @@ def parse_structural(items: Mapping[str, str]) -> dict[str, float]:
     for name, text in items.items():
         spec = BY_NAME[name]
         if spec.dimension == "count":
-            from synth.compose import parse_dof
-
             out[name] = float(parse_dof(text))
             continue
         zero_ok = name in ("payload", "slope")
@@ -266,8 +284,6 @@ def ontology_defaults(kb, lineage) -> dict[str, float]:
             )
         spec = BY_NAME[name]
         if spec.dimension == "count":  # dof: a whole number of joints, as --param dof
-            from synth.compose import parse_dof
-
             try:
                 value = float(parse_dof(str(text)))
             except InputError as e:

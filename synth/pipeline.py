@@ -11,11 +11,11 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 from adron.errors import InfeasibleError, InputError
-from synth.conceptual import Design, Designer, Request
+from synth.reasoning.conceptual import Design, Designer, Request
 
 if TYPE_CHECKING:  # numpy-heavy: imported only when a structure is sized
     from adron.catalog import Catalog
-    from synth.structure import Structure
+    from synth.sizing.structure import Structure
     from synth.verification.loop import Verification
 
 
@@ -207,14 +207,14 @@ def run(designer: Designer, req: Request, opts: StructureOptions) -> Outcome:
     """The conceptual step of ``req`` and, for a designed robot, its structure."""
     d = designer.step(req)
     if d.over_limit:  # name the bus whose limit it is
-        from synth.conceptual import limit_note
+        from synth.reasoning.conceptual import limit_note
 
         d = replace(d, note=limit_note(d.over_limit, limit_source(opts)))
     if d.status != "designed":
         return Outcome(d)
     if opts.conceptual:
         return Outcome(d, note="designed with --conceptual: stopped after the conceptual design")
-    from synth.structure import design_structure
+    from synth.sizing.structure import design_structure
 
     catalog = load_checked_catalog(opts.catalog, designer)
     loaded = opts.with_payload

@@ -10,17 +10,17 @@ from pathlib import Path
 
 import pytest
 
-import synth.bodyplan
+import synth.reasoning.plans
 from adron.kb import KnowledgeBase, load
-from synth.cli import main
-from synth.conceptual import Designer
-from synth.solver import Reasoner
+from synth.commands.cli import main
+from synth.reasoning.conceptual import Designer
+from synth.reasoning.solver import Reasoner
 
 REPO = Path(__file__).resolve().parents[1]
 
 # the shipped ontology's body plans, by type name (the tests build templates of the
 # shipped types by name, as parmor's entry points let a bundle older than recorded plans)
-synth.bodyplan.install()
+synth.reasoning.plans.install()
 
 #: ``parmor design`` verifies under 8 perturbations by default; the suite's many designs
 #: stay on the nominal model (set here, before any test, for in-process runs and the
@@ -84,7 +84,7 @@ def catalog():
 @pytest.fixture(scope="session")
 def bases(designer: Designer) -> dict:
     """Robot type -> conceptual design of every base configuration of the ontology."""
-    from synth.solver import Query
+    from synth.reasoning.solver import Query
 
     return {c.robot_type: c for c in designer.reasoner.solve(Query()).candidates}
 

@@ -13,15 +13,15 @@ import json
 
 import pytest
 
-import synth.sweep
+import synth.commands.sweep
 import synth.verification.loop
 import synth.verification.runs
 from adron.kb import load
 from gaits import controller_for
 from gaits.base import DesignGeometry, serving
-from synth.conceptual import Designer, Request
 from synth.pipeline import Outcome, StructureOptions, run
-from synth.solver import Reasoner
+from synth.reasoning.conceptual import Designer, Request
+from synth.reasoning.solver import Reasoner
 from tests.test_bodyplan import legged_kif
 from tests.test_bus_limit import _catalog
 
@@ -366,11 +366,11 @@ def test_a_sweep_accepts_only_designs_with_a_structure(designer, monkeypatch) ->
         return Outcome(out.design, note="stopped after the conceptual design")
 
     monkeypatch.setattr(synth.pipeline, "run", conceptual)
-    res = synth.sweep.design_one(req, designer, StructureOptions(verify=False), False)
+    res = synth.commands.sweep.design_one(req, designer, StructureOptions(verify=False), False)
     assert res["status"] == "refused"
     assert res["reason"] == "no structure: stopped after the conceptual design"
     monkeypatch.setattr(synth.pipeline, "run", real)
-    res = synth.sweep.design_one(req, designer, StructureOptions(verify=False), False)
+    res = synth.commands.sweep.design_one(req, designer, StructureOptions(verify=False), False)
     assert res["status"] == "accepted" and res["mass_kg"]
 
 
@@ -379,7 +379,7 @@ def test_the_sizing_plans_the_behaviours_that_serve_a_subclass(grid_designer) ->
     only walking ability were the subclass is still sized for walking."""
     import dataclasses
 
-    from synth.behaviour_loads import behaviour_trajectories
+    from synth.sizing.behaviour_loads import behaviour_trajectories
 
     rec, _, _ = _sized(grid_designer, Request(("very-heavy-walking",)))
     geometry = DesignGeometry.from_record(rec)

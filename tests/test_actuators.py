@@ -1,4 +1,5 @@
-"""Actuator assignment by clingo (asp/actuators.lp through synth.solver.ActuatorAssigner)."""
+"""Actuator assignment by clingo (asp/actuators.lp through
+synth.reasoning.solver.ActuatorAssigner)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import pytest
 
 from adron.catalog import catalog_facts
 from adron.errors import InputError
-from synth.assign import ActuatorAssigner, JointSlot
+from synth.sizing.assign import ActuatorAssigner, JointSlot
 
 POS = ("SG90", "MG996R", "DS3218")
 

@@ -406,7 +406,7 @@ def test_the_body_plans_assemble_with_a_tool_or_a_bare_tip(kif, tmp_path) -> Non
     from kinematics.assemble import assemble
     from kinematics.partkinds import load
     from kinematics.templates import TemplateParams
-    from synth.bodyplan import plan_of
+    from synth.reasoning.plans import plan_of
 
     path = tmp_path / "t.kif"
     path.write_text(kif)

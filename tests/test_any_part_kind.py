@@ -36,7 +36,7 @@ def _template(kif: str, robot_type: str, parts: str | None = None):
     from adron.kb import load as load_kb
     from kinematics.partkinds import load, use
     from kinematics.templates import build
-    from synth.bodyplan import plan_of
+    from synth.reasoning.plans import plan_of
 
     kinds = load([parts] if parts else [])
     use(kinds)
@@ -63,7 +63,7 @@ def test_shipped_legs_keep_the_closed_form() -> None:
 
 
 def test_leg_shape_of_the_shipped_leg() -> None:
-    from synth.sizing import leg_shape
+    from synth.sizing.families import leg_shape
 
     s = leg_shape("QuadrupedRobot")
     assert s.order == ("coxa", "femur", "tibia")
@@ -72,7 +72,7 @@ def test_leg_shape_of_the_shipped_leg() -> None:
 
 
 def test_leg_shape_of_other_legs() -> None:
-    from synth.sizing import leg_shape
+    from synth.sizing.families import leg_shape
 
     for kif, robot, want in (
         ("quadruped4.kif", "FourJointQuadruped", ("thigh", ("shin", "toe"), ("hip", "thigh"))),

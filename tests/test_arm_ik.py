@@ -48,7 +48,7 @@ def _kif_arm(n: int, links: tuple[int, ...], name: str) -> str:
 def _plan(tmp_path_factory, kif: str, name: str):
     from adron.kb import load as load_kb
     from kinematics.partkinds import load
-    from synth.bodyplan import plan_of
+    from synth.reasoning.plans import plan_of
 
     f = tmp_path_factory.mktemp(name) / f"{name}.kif"
     f.write_text(kif)
@@ -59,7 +59,7 @@ def _plan(tmp_path_factory, kif: str, name: str):
 def arms(tmp_path_factory) -> dict[int, str]:
     """Joint count -> the registered template name of the part kinds' composed arm."""
     from kinematics.partkinds import load
-    from synth.compose import arm_type_name, serial_arm_kif
+    from synth.reasoning.composition import arm_type_name, serial_arm_kif
 
     out = {}
     for n in COUNTS:

@@ -17,7 +17,7 @@ import pytest
 from adron.kb import KnowledgeBase
 from adron.kif import parse
 from adron.translate import translate
-from synth.solver import Query, Reasoner
+from synth.reasoning.solver import Query, Reasoner
 
 # The upper vocabulary the encodings reason with ("ActuatorModule" makes Servo a joint).
 UPPER = """

@@ -25,8 +25,8 @@ from export.slicer import estimate
 from gaits.steered import steering_joints
 from kinematics.spatial import box_inertia, combine_parts, sphere_inertia
 from kinematics.templates import DEFAULTS, PART_KINDS, TemplateParams, build
-from synth.solver import Query
-from synth.structure import Structure, design_structure
+from synth.reasoning.solver import Query
+from synth.sizing.structure import Structure, design_structure
 from tests.conftest import TEMPLATES
 
 FACES = {"face_side": 0.05, "face_thickness": 0.004, "fillet": 0.003}

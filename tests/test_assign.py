@@ -1,4 +1,4 @@
-"""Actuator assignment per unit (synth.assign): the same answers as the ASP encoding
+"""Actuator assignment per unit (synth.sizing.assign): the same answers as the ASP encoding
 (asp/actuators.lp) solved by clingo, dominance, and exact counts against brute force."""
 
 from __future__ import annotations
@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from adron.catalog import catalog_facts, parse_catalog
-from synth.assign import (
+from synth.reasoning.solver import encoding_dir
+from synth.sizing.assign import (
     ActuatorAssigner,
     Coupled,
     JointSlot,
@@ -25,7 +26,6 @@ from synth.assign import (
     dominated,
     feasible_mask,
 )
-from synth.solver import encoding_dir
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 from synthetic_catalog import synthetic_catalog_text  # noqa: E402
@@ -205,7 +205,7 @@ def test_count_gives_up_rather_than_guess() -> None:
 
 def test_bounds_are_printed_as_bounds() -> None:
     """enumerate's text gives the bounds when the count is not exact (count_exact false)."""
-    from synth.cli import _Sizer
+    from synth.commands.cli import _Sizer
 
     rec = {
         "structure": {"mass_kg": 1.0, "cost": 2.0},
@@ -298,7 +298,7 @@ def test_intervals_leave_many_combinations_to_the_branch_and_bound() -> None:
     """Where the other units' combinations times the units pass INTERVAL_STEPS (a
     humanoid's 9 units), the count by intervals declines (None) and count_bounds still
     brackets the brute-force count."""
-    from synth.assign import INTERVAL_STEPS
+    from synth.sizing.assign import INTERVAL_STEPS
 
     p = random_problem(0, 9)  # 17,280 assignments
     sizes = sorted(len(o) for o in p.options)

@@ -1,5 +1,5 @@
 """Sizing from the behaviours: inverse dynamics with contact forces along every trajectory a
-design runs (``synth.behaviour_loads``), checked against MuJoCo and on built cases."""
+design runs (``synth.sizing.behaviour_loads``), checked against MuJoCo and on built cases."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ from export.record import to_json
 from gaits.base import Trajectory
 from kinematics.dynamics import center_of_mass, rnea
 from kinematics.templates import build
-from synth import behaviour_loads as bl
-from synth.sizing import support_shares
-from synth.structure import (
+from synth.sizing import behaviour_loads as bl
+from synth.sizing.families import support_shares
+from synth.sizing.structure import (
     StructureDesigner,
     alternatives,
     design_structure,

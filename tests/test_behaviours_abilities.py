@@ -11,8 +11,8 @@ import pytest
 
 from gaits import controller_for
 from gaits.base import DesignGeometry
-from synth.conceptual import Request
 from synth.pipeline import StructureOptions, run
+from synth.reasoning.conceptual import Request
 
 REQUESTS = {
     "HexapodRobot": Request(("rough-terrain-walking",)),

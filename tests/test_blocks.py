@@ -30,7 +30,7 @@ from pathlib import Path
 import pytest
 
 from program.blocks import MAKE_TARGET, WEB_ENV, toolbox, web_dir
-from synth.cli import main
+from synth.commands.cli import main
 from tests.conftest import REPO, need
 from tests.test_mobile_manipulator import KIF_DESIGNS, kif_args
 
@@ -113,7 +113,7 @@ class Server:
             [
                 sys.executable,
                 "-m",
-                "synth.cli",
+                "synth.commands.cli",
                 "blocks",
                 str(bundle),
                 "--serve",
@@ -566,7 +566,7 @@ import os, sys
 started = []
 sys.addaudithook(lambda event, args: started.append(args) if event == "subprocess.Popen" else None)
 if sys.argv[1] == "cli":
-    from synth.cli import main
+    from synth.commands.cli import main
     main(["blocks", "--help"], open(os.devnull, "w"), open(os.devnull, "w"))
 import mujoco
 print(len(started))

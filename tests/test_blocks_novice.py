@@ -11,7 +11,7 @@ import math
 import pytest
 
 from program.blocks import DISPLAY_UNITS, display, toolbox
-from synth.cli import main
+from synth.commands.cli import main
 from tests.test_blocks import _open, chromium  # noqa: F401  (a fixture)
 
 

@@ -210,7 +210,7 @@ def test_a_same_shape_subtype_assembles_like_its_parent(kb) -> None:
     """A user's hexapod subclass inherits the whole body plan: the same joints, frames
     and masses as the hexapod's."""
     from adron.kb import load as load_kb
-    from synth.bodyplan import plan_of as ontology_plan
+    from synth.reasoning.plans import plan_of as ontology_plan
 
     del kb
     import tempfile
@@ -457,7 +457,7 @@ def test_a_mobile_manipulator_is_sized_as_its_base_and_its_arm(tmp_path) -> None
     the arm's joints for the arm's reach, each with its own speeds."""
     from adron.kb import load as load_kb
     from kinematics.assemble import serial_links
-    from synth.bodyplan import plan_of as ontology_plan
+    from synth.reasoning.plans import plan_of as ontology_plan
 
     f = tmp_path / "mm.kif"
     f.write_text(MOBILE)
@@ -470,7 +470,7 @@ def test_a_mobile_manipulator_is_sized_as_its_base_and_its_arm(tmp_path) -> None
     assert t.wheels and t.casters and t.end_effectors == ("gripper_link",)
     base_yaw = t.model.joints[t.model.joint("base_yaw")]
     assert t.model.bodies[base_yaw.parent].name == "chassis"
-    from synth.sizing import FAMILIES
+    from synth.sizing.families import FAMILIES
 
     fam = FAMILIES["mobile_manipulator"]
     speeds = fam.speeds(t, {"speed": 0.2, "reach": 0.25}, None)
@@ -482,7 +482,7 @@ def test_a_mobile_manipulators_gripper_holds_the_payload(tmp_path) -> None:
     """Where an arm is, its gripper holds the payload (the object it picks), on a chassis
     as on an arm's base; a chassis without an arm carries it on its plate."""
     from adron.kb import load as load_kb
-    from synth.bodyplan import plan_of as ontology_plan
+    from synth.reasoning.plans import plan_of as ontology_plan
 
     f = tmp_path / "mm.kif"
     f.write_text(MOBILE)

@@ -18,9 +18,9 @@ from export.bundle import bundle_files, write_bundle
 from export.meshes import dovetail_volume
 from export.mjcf import load_mjcf
 from export.record import design_record
-from synth.conceptual import Design, Request
-from synth.solver import Query
-from synth.structure import design_structure
+from synth.reasoning.conceptual import Design, Request
+from synth.reasoning.solver import Query
+from synth.sizing.structure import design_structure
 from tests.conftest import CI, need
 
 

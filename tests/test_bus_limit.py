@@ -29,7 +29,7 @@ def _catalog(tmp_path, limit: int) -> str:
 
 def _design(*argv: str) -> tuple[int, dict]:
     r = subprocess.run(
-        [sys.executable, "-m", "synth.cli", "design", *argv, "--no-input", "--json"],
+        [sys.executable, "-m", "synth.commands.cli", "design", *argv, "--no-input", "--json"],
         capture_output=True,
         text=True,
         check=False,

@@ -716,8 +716,8 @@ def test_design_with_the_dynamixel_catalog_names_its_bus(cli) -> None:
 
 
 def test_suites_and_studies_take_a_shipped_catalogs_name(tmp_path: Path) -> None:
-    from synth.backend import files_digest
-    from synth.regress import kb_options
+    from synth.commands.backend import files_digest
+    from synth.commands.regress import kb_options
 
     suite = tmp_path / "s.toml"
     assert kb_options({"catalog": "dynamixel"}, suite)["catalog"] == "dynamixel"

@@ -1,6 +1,6 @@
-"""Tests of synth/chain_links.py: a serial chain's links sized as one convex program.
+"""Tests of synth/sizing/chain_links.py: a serial chain's links sized as one convex program.
 
-Everything the program claims is checked with the beam formulas of ``synth.links``
+Everything the program claims is checked with the beam formulas of ``synth.sizing.links``
 (``beam_check``: one frame element per link) and the closed form ``optimal_tube``, not
 with the program's own numbers.
 """
@@ -15,7 +15,7 @@ import pytest
 
 from adron.errors import InfeasibleError, ParmorError
 from kinematics.model import Body, Joint, Model
-from synth.chain_links import (
+from synth.sizing.chain_links import (
     Chain,
     ChainLink,
     _Problem,
@@ -28,7 +28,7 @@ from synth.chain_links import (
     stress_floor,
     tube_stress,
 )
-from synth.links import Tube, TubeLimits, beam_check, optimal_tube, stiffness_constant
+from synth.sizing.links import Tube, TubeLimits, beam_check, optimal_tube, stiffness_constant
 
 # the shipped catalog's material and passive section (adron/catalog.toml)
 E = 2.3e9  # Pa, PLA
@@ -461,7 +461,7 @@ def test_a_failed_solve_keeps_the_feasible_start(monkeypatch: pytest.MonkeyPatch
     far), and without the polish the per-link sizing itself."""
     from types import SimpleNamespace
 
-    import synth.chain_links as chain_links
+    import synth.sizing.chain_links as chain_links
 
     def failing(n: int, m: int):
         params = {

@@ -1,4 +1,4 @@
-"""The separable solve of synth/chain_links.py (issue 20, item 5, speed): chains that
+"""The separable solve of synth/sizing/chain_links.py (issue 20, item 5, speed): chains that
 share no link sized from the program's optimality conditions, without cvxpy, against
 the cvxpy + Clarabel program run explicitly; chains that share a link still go through
 the program; a design does not import cvxpy.
@@ -20,9 +20,9 @@ import sys
 import numpy as np
 import pytest
 
-import synth.chain_links as chain_links
+import synth.sizing.chain_links as chain_links
 from adron.errors import InfeasibleError
-from synth.chain_links import (
+from synth.sizing.chain_links import (
     ACTIVE_RTOL,
     Chain,
     ChainLink,
@@ -371,7 +371,7 @@ def test_a_design_does_not_import_cvxpy(request_args: list[str], tmp_path) -> No
     argv = ["design", *request_args, "--no-verify", "--no-input"]
     code = (
         "import io, sys\n"
-        "from synth.cli import main\n"
+        "from synth.commands.cli import main\n"
         f"code = main({argv!r}, out=io.StringIO(), err=sys.stderr)\n"
         "assert code == 0, code\n"
         "print('cvxpy' in sys.modules)\n"
@@ -384,7 +384,7 @@ def test_chains_sharing_a_link_import_cvxpy(tmp_path) -> None:
     code = (
         "import sys\n"
         "from tests.test_chain_separable import _shared\n"
-        "from synth.chain_links import chain_tubes\n"
+        "from synth.sizing.chain_links import chain_tubes\n"
         "assert 'cvxpy' not in sys.modules\n"
         "chain_tubes(*_shared(), 2.3e9, 20e6, 1.8)\n"
         "print('cvxpy' in sys.modules)\n"

@@ -1,9 +1,9 @@
 """The structure generator sizes a serial chain's links together (issue 20, item 5):
-``synth.chain_links.chain_tubes`` wired into ``StructureDesigner.run``.
+``synth.sizing.chain_links.chain_tubes`` wired into ``StructureDesigner.run``.
 
 A chain of N links (root to a foot or an end effector) may deflect N times the
 ``deflection`` parameter, shared among its links. Checked here with the beam formulas of
-``synth.links`` (``beam_check``) and against the per-link closed form (every link within
+``synth.sizing.links`` (``beam_check``) and against the per-link closed form (every link within
 ``deflection`` on its own, ``StructureDesigner._size_link``), not with the program's own
 numbers.
 """
@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from adron.errors import InfeasibleError
-from synth.chain_links import Chain, ChainLink, chain_tubes, per_link_tubes
-from synth.links import Tube, TubeLimits, beam_check, max_allowed_stress
-from synth.structure import StructureDesigner
+from synth.sizing.chain_links import Chain, ChainLink, chain_tubes, per_link_tubes
+from synth.sizing.links import Tube, TubeLimits, beam_check, max_allowed_stress
+from synth.sizing.structure import StructureDesigner
 
 #: Shipped types with a serial chain of several links, and their chains (length names
 #: from the root to the tip: the arm's gripper, a leg's foot).
@@ -165,7 +165,7 @@ def test_nothing_deflection_governed_is_not_solved(monkeypatch) -> None:
     """Every link at its stress floor (a generous budget): the per-link sizing is the
     optimum, returned without the convex program; a budget that makes a link
     deflection-governed does call it (the case built to fail the shortcut)."""
-    import synth.chain_links as chain_links
+    import synth.sizing.chain_links as chain_links
 
     def no_solver(n: int, m: int):
         raise AssertionError("the convex program was built")

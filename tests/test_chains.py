@@ -32,7 +32,7 @@ HEAD = str(DATA / "headed_quadruped.kif")
 def _plan(kif: str, robot: str, extra: str | None = None):
     from adron.kb import load as load_kb
     from kinematics.partkinds import in_use
-    from synth.bodyplan import plan_of
+    from synth.reasoning.plans import plan_of
 
     files = [Path(kif)] + ([Path(extra)] if extra else [])
     return plan_of(load_kb(files), robot, in_use())

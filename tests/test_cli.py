@@ -1,4 +1,4 @@
-"""Tests of the ``parmor`` command line (synth.cli), run in-process through ``main(argv)``.
+"""Tests of the ``parmor`` command line (synth.commands.cli), run in-process through ``main(argv)``.
 
 Exit codes (docs/architecture.md): 0 done; 1 the request cannot be met; 2 bad input; 3 an answer is
 needed and input is off.
@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from adron.kb import builtin_files
-from synth.conceptual import Request
+from synth.reasoning.conceptual import Request
 
 REPO = Path(__file__).resolve().parents[1]
 LEGGED = {"HumanoidRobot", "QuadrupedRobot", "HexapodRobot"}
@@ -447,7 +447,7 @@ def test_enumerate_limit(cli) -> None:
 def test_enumerate_sizes_candidates_on_the_cores_with_the_same_output(cli, monkeypatch) -> None:
     """By default ``enumerate`` sizes its candidates in one process per core (at most one
     per candidate); the output is the one of a single process, byte for byte."""
-    import synth.backend as backend
+    import synth.commands.backend as backend
 
     used: list[int] = []
     real = backend.tasks
@@ -752,7 +752,7 @@ def test_same_bytes_across_hash_seeds(argv: list[str]) -> None:
     def run(seed: str) -> subprocess.CompletedProcess:
         env = {**os.environ, "PYTHONPATH": str(REPO), "PYTHONHASHSEED": seed}
         return subprocess.run(
-            [sys.executable, "-m", "synth.cli", *argv],
+            [sys.executable, "-m", "synth.commands.cli", *argv],
             cwd=REPO,
             env=env,
             capture_output=True,
@@ -778,7 +778,7 @@ def test_prefetched_imports_finish_before_any_fork(tmp_path, monkeypatch) -> Non
     import sys
     import time
 
-    from synth.cli import _prefetch
+    from synth.commands.cli import _prefetch
 
     (tmp_path / "parmor_slow_import.py").write_text(
         "import time\ntime.sleep(0.5)\nDONE = True\n", encoding="utf-8"

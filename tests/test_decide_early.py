@@ -98,8 +98,8 @@ def test_the_loop_stops_the_runs_of_a_request_refused_nominally(designer, monkey
     a bonus behaviour's nominal failure refuses nothing, and its runs are all made."""
     import synth.verification.loop
     import synth.verification.runs
-    from synth.conceptual import Request
     from synth.pipeline import StructureOptions, run
+    from synth.reasoning.conceptual import Request
     from synth.verification.results import RobustRuns, Run
 
     monkeypatch.setattr(synth.verification.loop, "HINT_ROUNDS", 0)

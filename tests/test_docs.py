@@ -291,7 +291,7 @@ def test_every_parmor_command_is_in_a_console_block() -> None:
 
 
 def test_commands_not_run_still_parse() -> None:
-    from synth.cli import build_parser
+    from synth.commands.cli import build_parser
 
     bad = []
     for page in PAGES:

@@ -9,9 +9,9 @@ import itertools
 
 import pytest
 
-import synth.solver as solver
+import synth.reasoning.solver as solver
 from adron.kb import load
-from synth.solver import Query, Reasoner
+from synth.reasoning.solver import Query, Reasoner
 
 
 def _kif(n: int) -> str:
@@ -136,7 +136,7 @@ def test_shown_atoms_read_from_their_text_as_from_the_symbol() -> None:
     from clingo import Number as N
     from clingo import String as S
 
-    from synth.solver import _read_symbol, _str
+    from synth.reasoning.solver import _read_symbol, _str
 
     cases = [
         F("p"),

@@ -33,7 +33,7 @@ DOCUMENTED = {0, 1, 2, 3, 130}
 RUNS = max(1, int(os.environ.get("PARMOR_EXIT_RUNS", "1")))
 #: beyond what a path takes, s, before a run counts as hung (a loaded 2-core machine)
 SLACK_S = 40.0
-#: the ground probe's budget after a time or memory limit (synth/ground_probe.py)
+#: the ground probe's budget after a time or memory limit (synth/reasoning/ground_probe.py)
 PROBE_S = 3.0
 #: grounds for minutes and to gigabytes
 BLOW_UP = "p(X) :- X = 1..100000000.\n"
@@ -106,7 +106,7 @@ class Ended:
 
 
 def _command(case: Case) -> list[str]:
-    cmd = [sys.executable, "-m", "synth.cli", *case.argv]
+    cmd = [sys.executable, "-m", "synth.commands.cli", *case.argv]
     if case.stdout == "closed":  # the shell's >&-: the command starts with no fd 1
         return ["/bin/sh", "-c", 'exec "$0" "$@" >&-', *cmd]
     return cmd
@@ -345,7 +345,7 @@ def test_prefetch_imports_on_the_calling_thread(tmp_path: Path, monkeypatch) -> 
     imports stop once the worker has replied."""
     import threading
 
-    from synth import cli
+    from synth.commands import cli
 
     for name, body in {
         "parmor_t_ok": "DONE = True\n",
@@ -382,7 +382,7 @@ def test_ctrl_c_and_the_alarm_wait_for_the_outermost_import(
     outside an import."""
     import builtins
 
-    from synth import cli
+    from synth.commands import cli
 
     (tmp_path / "parmor_t_outer.py").write_text(
         "import parmor_t_inner\nDONE = True\n", encoding="utf-8"
@@ -417,7 +417,7 @@ def test_a_ctrl_c_lost_in_a_finalizer_is_raised_again(capsys) -> None:
     """Python reports a KeyboardInterrupt raised inside ``__del__`` as unraisable and
     drops it (clingo's AST objects are collected at any moment): run as the program, it
     is raised again after the finalizer (by the alarm, 20 ms later), not printed."""
-    from synth import cli
+    from synth.commands import cli
 
     class Collected:
         def __del__(self) -> None:
@@ -447,7 +447,8 @@ def test_a_time_limit_lost_in_a_finalizer_is_not_printed(monkeypatch) -> None:
     again until the run ends); any other unraisable error still is."""
     from types import SimpleNamespace
 
-    from synth import cli, limits
+    from synth import limits
+    from synth.commands import cli
 
     told: list[type] = []
     monkeypatch.setattr(sys, "unraisablehook", lambda info: told.append(info.exc_type))
@@ -474,7 +475,8 @@ def test_an_error_a_stop_caused_is_told_as_the_stop(tmp_path: Path) -> None:
     stop; one with no stop behind it is raised (a bug's traceback is its report)."""
     import io
 
-    from synth import cli, limits
+    from synth import limits
+    from synth.commands import cli
 
     err = io.StringIO()
     try:
@@ -524,7 +526,8 @@ def test_an_interrupted_prefetch_stops_the_grounding_worker(tmp_path: Path, stop
     """Ctrl-C or the time limit while this process imports (the worker grounding a huge
     rule file): the worker is killed, and the time limit is told as a grounding's is."""
     from adron.kb import load
-    from synth import limits, solver
+    from synth import limits
+    from synth.reasoning import solver
 
     rules = tmp_path / "explode.lp"
     rules.write_text(BLOW_UP, encoding="utf-8")

@@ -528,7 +528,7 @@ def sized(tmp_path_factory) -> Path:
     """A sized bundle (the differential drive, not simulated)."""
     import io
 
-    from synth.cli import main
+    from synth.commands.cli import main
 
     out = tmp_path_factory.mktemp("sized") / "cart"
     err = io.StringIO()

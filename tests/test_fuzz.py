@@ -77,7 +77,7 @@ def empty_kb():
 @cases(250)  # each example grounds a Reasoner (~0.05 s): 600 took 26 s of the suite
 @given(st.lists(st.sampled_from(RULE_ALPHABET), max_size=60).map("".join))
 def test_rule_loader(empty_kb, tmp_path_factory, text: str) -> None:
-    from synth.solver import Reasoner
+    from synth.reasoning.solver import Reasoner
 
     path = Path(tmp_path_factory.mktemp("rules")) / "r.lp"
     path.write_text(text, encoding="utf-8")

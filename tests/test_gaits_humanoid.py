@@ -524,9 +524,9 @@ def design(kb, designer, tmp_path_factory):
     from adron.catalog import load_catalog
     from export.bundle import bundle_files, write_bundle
     from export.record import design_record
-    from synth.conceptual import Design, Request
-    from synth.solver import Query
-    from synth.structure import design_structure
+    from synth.reasoning.conceptual import Design, Request
+    from synth.reasoning.solver import Query
+    from synth.sizing.structure import design_structure
     from synth.verification.source import Bundle
 
     cand = next(
@@ -569,13 +569,13 @@ def test_default_design_walks_too_far_when_the_servos_give(design):
     assert fig["distance_m"] > 1.25 * fig["planned_distance_m"]
 
 
-# --- sizing (synth.sizing.Humanoid) ------------------------------------------------------
+# --- sizing (synth.sizing.families.Humanoid) ------------------------------------------------------
 
 
 def test_sizing_refuses_legs_outside_the_maps_naming_the_height_that_works():
     from adron.catalog import load_catalog
     from adron.errors import InfeasibleError
-    from synth.sizing import HUMANOID, Humanoid
+    from synth.sizing.families import HUMANOID, Humanoid
 
     catalog = load_catalog()
     lo, hi = leg_module_range()
@@ -593,7 +593,7 @@ def test_sizing_refuses_legs_outside_the_maps_naming_the_height_that_works():
 def test_sizing_holds_the_centre_of_pressure_off_the_ankle():
     from adron.catalog import load_catalog
     from kinematics.dynamics import rnea
-    from synth.sizing import ANKLE_COP_REACH, HUMANOID, Humanoid
+    from synth.sizing.families import ANKLE_COP_REACH, HUMANOID, Humanoid
 
     catalog = load_catalog()
     tmpl = build("HumanoidRobot", TemplateParams({k: f * 0.4 for k, f in HUMANOID.items()}))
@@ -617,7 +617,7 @@ def test_sizing_holds_the_centre_of_pressure_off_the_ankle():
 
 def test_sizing_takes_each_joints_peak_load_of_the_gaits():
     from adron.catalog import load_catalog
-    from synth.sizing import HUMANOID, Humanoid
+    from synth.sizing.families import HUMANOID, Humanoid
 
     catalog = load_catalog()
     tmpl = build("HumanoidRobot", TemplateParams({k: f * 0.4 for k, f in HUMANOID.items()}))
@@ -644,7 +644,7 @@ def test_sizing_takes_each_joints_peak_load_of_the_gaits():
 
 def test_sizing_holds_each_joints_fastest_instant_of_the_gaits():
     from adron.catalog import load_catalog
-    from synth.sizing import HUMANOID, Humanoid
+    from synth.sizing.families import HUMANOID, Humanoid
 
     catalog = load_catalog()
     tmpl = build("HumanoidRobot", TemplateParams({k: f * 0.2 for k, f in HUMANOID.items()}))
@@ -735,7 +735,7 @@ def test_load_cases_like_holds_the_gait_instants_as_the_masses_move():
     N m: a sensitivity of tens of N m per kg); the held instants give torques linear in
     the masses."""
     from adron.catalog import load_catalog
-    from synth.sizing import HUMANOID, Humanoid
+    from synth.sizing.families import HUMANOID, Humanoid
 
     catalog = load_catalog()
     p = {"height": 0.4, "payload": 0.0}
@@ -764,7 +764,7 @@ def test_load_cases_like_holds_the_gait_instants_as_the_masses_move():
 
 def test_a_family_that_picks_its_cases_by_the_masses_must_hold_them():
     from adron.catalog import load_catalog
-    from synth.sizing import LoadCase, Multipeds
+    from synth.sizing.families import LoadCase, Multipeds
 
     class ByMass(Multipeds):
         def load_cases(self, tmpl, p, catalog):

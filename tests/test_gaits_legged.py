@@ -60,9 +60,9 @@ def designs(kb, designer, tmp_path_factory) -> dict[str, Designed]:
     from adron.catalog import load_catalog
     from export.bundle import bundle_files, write_bundle
     from export.record import design_record
-    from synth.conceptual import Design, Request
-    from synth.solver import Query
-    from synth.structure import design_structure
+    from synth.reasoning.conceptual import Design, Request
+    from synth.reasoning.solver import Query
+    from synth.sizing.structure import design_structure
 
     catalog = load_catalog()
     cands = designer.reasoner.solve(Query()).candidates

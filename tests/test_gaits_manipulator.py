@@ -37,9 +37,9 @@ PLACE_TOLERANCE = 0.005  # m, the issue's acceptance
 def _design(kb, designer, robot_type: str):
     from adron.catalog import load_catalog
     from export.record import design_record
-    from synth.conceptual import Design, Request
-    from synth.solver import Query
-    from synth.structure import design_structure
+    from synth.reasoning.conceptual import Design, Request
+    from synth.reasoning.solver import Query
+    from synth.sizing.structure import design_structure
 
     cand = next(
         c for c in designer.reasoner.solve(Query()).candidates if c.robot_type == robot_type

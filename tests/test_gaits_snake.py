@@ -31,8 +31,8 @@ from gaits.snake import (
 )
 from kinematics.dynamics import forward_kinematics
 from kinematics.spatial import rot_x
-from synth.conceptual import Design, Request
-from synth.structure import design_structure
+from synth.reasoning.conceptual import Design, Request
+from synth.sizing.structure import design_structure
 from synth.verification.simulate import simulate
 from synth.verification.source import Bundle
 

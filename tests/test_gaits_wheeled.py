@@ -31,10 +31,10 @@ from gaits.wheeled import (
     wheel_speeds,
 )
 from kinematics.templates import TemplateParams, build
-from synth.conceptual import Design, Request
-from synth.sizing import Wheeled
-from synth.solver import Query
-from synth.structure import design_structure
+from synth.reasoning.conceptual import Design, Request
+from synth.reasoning.solver import Query
+from synth.sizing.families import Wheeled
+from synth.sizing.structure import design_structure
 from synth.verification.loop import calibrate
 from synth.verification.simulate import simulate
 from synth.verification.source import Bundle
@@ -461,7 +461,7 @@ def test_commands_feed_forward_the_load() -> None:
 def test_wheeled_constants_agree_with_sizing_and_the_mjcf() -> None:
     from export import mjcf
     from export.mjcf import CONTACT_CLASSES
-    from synth import sizing
+    from synth.sizing import families as sizing
 
     assert TYRE_FRICTION == sizing.TYRE_FRICTION
     assert WHEEL_MOTOR_TIME_CONSTANT == mjcf.WHEEL_MOTOR_TIME_CONSTANT

@@ -5,7 +5,7 @@ value is in fact fine), one line of error message and never a traceback.
 The option walk is driven by the argparse parser itself (a new option is walked without
 editing this file); files are mutated with a seeded generator (deterministic). Designs are
 kept cheap (--conceptual, --no-input, --no-simulate, a 0.1 s simulation) and everything
-runs in-process through ``synth.cli.main``, but for the broken-pipe cases, which need a
+runs in-process through ``synth.commands.cli.main``, but for the broken-pipe cases, which need a
 real pipe.
 """
 
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import pytest
 
-from synth.cli import build_parser, main
+from synth.commands.cli import build_parser, main
 
 #: Hostile values for any option or positional argument.
 HOSTILE = (
@@ -409,7 +409,7 @@ def test_regress_update_keeps_the_old_snapshot_when_it_cannot_write(tmp_path) ->
 
 
 def _cli(*args: str) -> list[str]:
-    return [sys.executable, "-m", "synth.cli", *args]
+    return [sys.executable, "-m", "synth.commands.cli", *args]
 
 
 @pytest.mark.parametrize("args", [("abilities", "--json"), ("explain", "HexapodRobot", "--json")])

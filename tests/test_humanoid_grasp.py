@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from synth.cli import main
+from synth.commands.cli import main
 from synth.verification import perturb
 
 REQUEST = ("walking", "--answer", "grasping=yes", "--param", "payload=0.3kg")

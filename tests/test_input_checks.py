@@ -44,7 +44,7 @@ def test_each_parameter_range_accepts_its_bounds_and_refuses_beyond(name) -> Non
     "value", ["payload=1e308kg", "reach=1e-300m", "load_area=1e-9cm2", "height=1mm"]
 )
 def test_absurd_requests_are_refused_before_any_work(value) -> None:
-    from synth.cli import main
+    from synth.commands.cli import main
 
     err = io.StringIO()
     code = main(["design", "walking", "--param", value, "--no-input"], io.StringIO(), err)
@@ -54,7 +54,7 @@ def test_absurd_requests_are_refused_before_any_work(value) -> None:
 
 def test_a_humanoid_below_its_gait_maps_is_refused_not_clamped() -> None:
     from adron.catalog import load_catalog
-    from synth.sizing import Humanoid
+    from synth.sizing.families import Humanoid
 
     catalog = load_catalog()
     with pytest.raises(InfeasibleError, match="smallest height that works"):
@@ -164,7 +164,7 @@ def test_catalog_cost_is_bounded_and_a_bom_ignored(tmp_path) -> None:
 
 
 def test_rule_files_refuse_what_clingo_cannot_lex() -> None:
-    from synth.solver import check_lexable
+    from synth.reasoning.solver import check_lexable
 
     check_lexable("r.lp", 'p("é ☃"). % é\n%* é *% q.\n')
     for text, col in (("p :- é.\n", 6), ("\ufeffp.\n", 1), ("p(\x01).\n", 3)):
@@ -176,7 +176,7 @@ def test_rule_files_refuse_what_clingo_cannot_lex() -> None:
 
 
 def run(*argv: str) -> tuple[int, str]:
-    from synth.cli import main
+    from synth.commands.cli import main
 
     err = io.StringIO()
     return main(list(argv), io.StringIO(), err), err.getvalue()
@@ -198,7 +198,7 @@ def test_behaviour_parameters_refuse_nan() -> None:
 
 
 def test_empty_out_nul_arguments_and_answers_with_equals() -> None:
-    from synth.conceptual import parse_answer
+    from synth.reasoning.conceptual import parse_answer
 
     code, err = run("design", "walking", "--out", "", "--no-input")
     assert code == 2 and "--out ''" in err
@@ -208,7 +208,7 @@ def test_empty_out_nul_arguments_and_answers_with_equals() -> None:
 
 
 def test_messages_are_one_line_and_bounded() -> None:
-    from synth.cli import MAX_MESSAGE, _one_line
+    from synth.commands.cli import MAX_MESSAGE, _one_line
 
     assert _one_line("a\n  b\n\nc") == "a | b | c"
     long = _one_line("x" * 10 * MAX_MESSAGE)

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from adron.errors import InputError
-from synth.regress import kb_options
+from synth.commands.regress import kb_options
 
 QUERY = '[[query]]\nname = "q"\nabilities = ["walking"]\n'
 REQUEST = '[[request]]\nabilities = ["rolling"]\n'

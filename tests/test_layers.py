@@ -4,7 +4,7 @@ The contracts are ``[tool.importlinter]`` in pyproject.toml (a layers contract o
 pipeline's layers, an acyclic-siblings contract over each package), run here with
 ``lint-imports`` as a user runs it; their exceptions are listed there with their reasons.
 Importing ``export`` or ``program`` installs nothing: the entry points install the shipped
-ontology's body plans (``synth.bodyplan.install``), which a bundle whose record predates
+ontology's body plans (``synth.reasoning.plans.install``), which a bundle whose record predates
 recorded body plans needs.
 """
 
@@ -74,14 +74,15 @@ def test_an_upward_import_or_a_new_circle_breaks_the_contracts(tmp_path: Path) -
     solver back) and a controller reading the ontology: each contract fails, naming them."""
     root = _copy(tmp_path)
     _append(root / "kinematics" / "spatial.py", "\n\ndef _up():\n    from export import urdf\n")
-    _append(root / "synth" / "ground_probe.py", "\n\ndef _back():\n    from synth import solver\n")
+    probe = root / "synth" / "reasoning" / "ground_probe.py"
+    _append(probe, "\n\ndef _back():\n    from synth.reasoning import solver\n")
     _append(root / "gaits" / "feedback.py", "\n\ndef _onto():\n    from adron import units\n")
     proc = lint(root)
     assert proc.returncode == 1, proc.stdout[-4000:]
     assert "Contracts: 0 kept, 3 broken." in proc.stdout
     assert "gaits is not allowed to import adron" in proc.stdout
     assert "kinematics.spatial -> export.urdf" in proc.stdout
-    assert "No cycles are allowed in synth." in proc.stdout
+    assert "No cycles are allowed in synth.reasoning." in proc.stdout
     assert ".solver -> .ground_probe" in proc.stdout
 
 
@@ -147,7 +148,7 @@ def test_importing_a_package_installs_nothing() -> None:
         "import adron, export, gaits, kinematics, program, synth\n"
         "import export.record, program.script\n"
         "from kinematics.bodyplan import PLAN_SOURCE\n"
-        "print(len(PLAN_SOURCE), 'synth.bodyplan' in sys.modules)\n"
+        "print(len(PLAN_SOURCE), 'synth.reasoning.plans' in sys.modules)\n"
     )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split() == ["0", "False"]
@@ -158,7 +159,7 @@ def old_bundle(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A cart's bundle whose record has no body plan, as records before body plans were."""
     folder = tmp_path_factory.mktemp("old") / "cart"
     proc = subprocess.run(
-        [sys.executable, "-m", "synth.cli", "design", "driving", "--no-verify", "--out"]
+        [sys.executable, "-m", "synth.commands.cli", "design", "driving", "--no-verify", "--out"]
         + [str(folder)],
         cwd=ROOT,
         env=_env(),
@@ -185,20 +186,20 @@ def test_an_old_bundle_needs_the_installed_body_plans(old_bundle: Path) -> None:
         "    controller_for(g)\n"
         "except ValueError as e:\n"
         "    print('refused:', e)\n"
-        "from synth.bodyplan import install\n"
+        "from synth.reasoning.plans import install\n"
         "install()\n"
         "print('then:', type(controller_for(g)).__name__)\n"
     )
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.splitlines()
     assert lines[0].startswith("refused: unknown robot type 'DifferentialDriveRobot'")
-    assert "synth.bodyplan.install()" in lines[0]
+    assert "synth.reasoning.plans.install()" in lines[0]
     assert lines[1] == "then: WheeledController"
 
 
 def test_parmor_installs_them_itself(old_bundle: Path) -> None:
     proc = subprocess.run(
-        [sys.executable, "-m", "synth.cli", "simulate", str(old_bundle)]
+        [sys.executable, "-m", "synth.commands.cli", "simulate", str(old_bundle)]
         + ["--behavior", "driving", "--seconds", "0.2"],
         cwd=ROOT,
         env=_env(),

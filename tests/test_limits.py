@@ -18,7 +18,7 @@ import pytest
 from adron.kb import load
 from adron.translate import taxonomy_closure
 from synth import limits
-from synth.solver import Query, Reasoner
+from synth.reasoning.solver import Query, Reasoner
 
 REPO = Path(__file__).resolve().parents[1]
 CONCEPTUAL = ["design", "walking", "--answer", "grasping=no", "--conceptual"]
@@ -46,7 +46,7 @@ def test_ctrl_c_during_grounding_exits_130_and_writes_nothing(tmp_path: Path) ->
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     args = [*CONCEPTUAL, "--rules", rules(tmp_path, BLOW_UP), "--out", str(out)]
     p = subprocess.Popen(
-        [sys.executable, "-m", "synth.cli", *args],
+        [sys.executable, "-m", "synth.commands.cli", *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         env=env,
@@ -266,7 +266,7 @@ def test_actuator_assignment_isa_facts_match_the_grounded_taxonomy() -> None:
     import clingo
 
     from adron.translate import asp_string, isa_facts
-    from synth.solver import encoding_dir
+    from synth.reasoning.solver import encoding_dir
 
     kb = load()
     ctl = clingo.Control(["--warn=none"])

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from synth import limits
-from synth.cli import build_parser, main
+from synth.commands.cli import build_parser, main
 
 BLOW_UP = "p(X) :- X = 1..100000000.\n"
 SUITE = """\
@@ -76,7 +76,7 @@ def test_a_sweep_request_that_reaches_the_time_limit_is_an_error_of_the_sweep(
 ) -> None:
     """Each request has its own deadline; one that reaches it is recorded as an error
     (tried again on the next run), the sweep goes on."""
-    import synth.sweep as sweep
+    import synth.commands.sweep as sweep
 
     def forever(*args) -> dict:
         while True:

@@ -1,4 +1,4 @@
-"""Tests of synth/links.py: link sizing (problem (1)) and the cantilever stress check."""
+"""Tests of synth/sizing/links.py: link sizing (problem (1)) and the cantilever stress check."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from adron.errors import InfeasibleError, ParmorError
-from synth.links import (
+from synth.sizing.links import (
     BeamResult,
     Tube,
     TubeLimits,

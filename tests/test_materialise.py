@@ -15,7 +15,7 @@ from adron import materialise as mat
 from adron.errors import ParmorError
 from adron.kb import load as _load_kb
 from adron.kb import materialised
-from synth.solver import Query, Reasoner, encoding_dir
+from synth.reasoning.solver import Query, Reasoner, encoding_dir
 
 
 def load(*args, **kwargs):
@@ -175,7 +175,7 @@ def test_cache_key_covers_the_code() -> None:
 
 def test_relevant_program_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The cached relevant program is the one computed; a cut-short file is ignored."""
-    from synth import solver
+    from synth.reasoning import solver
 
     monkeypatch.setenv("PARMOR_CACHE", str(tmp_path / "cache"))
     kb = load([_kif(tmp_path, RULES)])

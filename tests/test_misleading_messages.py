@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from adron.errors import InputError
-from synth.ground_probe import ENCODINGS, blamed
+from synth.reasoning.ground_probe import ENCODINGS, blamed
 
 REPO = Path(__file__).resolve().parents[1]
 HEADER = '[catalog]\nname = "{name}"\nversion = "1"\ncurrency = "EUR"\nextends = "{parent}"\n'
@@ -108,7 +108,7 @@ def parmor(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     """``parmor ARGS`` as its own process (a limit acts on the whole process)."""
     env = {**os.environ, "PYTHONPATH": str(REPO), "PARMOR_CACHE": ""}
     return subprocess.run(
-        [sys.executable, "-m", "synth.cli", *args],
+        [sys.executable, "-m", "synth.commands.cli", *args],
         cwd=cwd,
         env=env,
         capture_output=True,
@@ -136,7 +136,7 @@ def test_a_tiny_memory_limit_blames_no_rule_with_0_atoms(tmp_path: Path) -> None
 def test_a_time_limit_in_a_programs_run_names_the_run_stage(cli, tmp_path: Path) -> None:
     import io
 
-    from synth.cli import main
+    from synth.commands.cli import main
 
     bundle = tmp_path / "cart"
     err = io.StringIO()

@@ -58,7 +58,7 @@ def verified(tmp_path_factory) -> Path:
     """The mobile manipulator designed with verification (no --no-verify)."""
     import io
 
-    from synth.cli import main
+    from synth.commands.cli import main
 
     root = tmp_path_factory.mktemp("mobile")
     out, err = io.StringIO(), io.StringIO()

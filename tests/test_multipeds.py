@@ -37,7 +37,7 @@ def templates(tmp_path_factory) -> dict:
     from adron.kb import load as load_kb
     from kinematics.partkinds import load
     from kinematics.templates import build
-    from synth.bodyplan import plan_of
+    from synth.reasoning.plans import plan_of
 
     folder = tmp_path_factory.mktemp("walkers")
     out = {}
@@ -206,7 +206,7 @@ def test_no_contact_is_no_support() -> None:
 
 def test_the_studies_cover_every_count_with_at_least_30_requests() -> None:
     """studies/multipeds.toml and studies/octopod.toml: the grid of the README's figures."""
-    from synth.sweep import load_study
+    from synth.commands.sweep import load_study
 
     total, counts = 0, set()
     for name in ("multipeds.toml", "octopod.toml"):

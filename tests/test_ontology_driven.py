@@ -7,8 +7,8 @@ import re
 from pathlib import Path
 
 from adron.kb import builtin_files, load
-from synth.conceptual import Designer, Request
-from synth.solver import Reasoner
+from synth.reasoning.conceptual import Designer, Request
+from synth.reasoning.solver import Reasoner
 
 
 def edited(

@@ -271,7 +271,7 @@ def test_kill_at_any_moment(tmp_path) -> None:
 def test_the_command_line_refuses_those_names_before_any_work(tmp_path, monkeypatch, out) -> None:
     import io
 
-    from synth.cli import main
+    from synth.commands.cli import main
 
     monkeypatch.chdir(tmp_path)
     err = io.StringIO()

@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 
 from gaits.base import AUTO, BehaviorSpec, Controller, Parameter, significant
-from synth.cli import main
+from synth.commands.cli import main
 from tests.test_bodyplan import MOBILE, arm_kif, legged_kif
 
 WORDS = {4: "four", 5: "five", 7: "seven", 8: "eight"}

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from synth.conceptual import Request
+from synth.reasoning.conceptual import Request
 
 
 def design(designer, *abilities: str, answers=(), params=()):
@@ -134,7 +134,7 @@ def test_look_alikes_are_chosen_by_the_documented_preference(designer) -> None:
 
 
 def test_every_base_configuration_stays_within_the_bus_limit(designer) -> None:
-    from synth.solver import Query
+    from synth.reasoning.solver import Query
 
     sol = designer.reasoner.solve(Query())
     assert len(sol.candidates) == 10  # the paper's eight and the two steered ones

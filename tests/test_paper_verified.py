@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import pytest
 
-from synth.conceptual import Request
 from synth.pipeline import StructureOptions, run
+from synth.reasoning.conceptual import Request
 
 CASES = {
     # Fig. 8: the canning cell's two workspaces, 150 g cans

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from adron.errors import InputError
-from synth.cli import main
+from synth.commands.cli import main
 from synth.verification import perturb
 from synth.verification.results import RobustRuns, Run
 from synth.verification.runs import (
@@ -543,7 +543,7 @@ def test_sweep_without_robustness_runs_no_perturbation(kif, tmp_path: Path, cli,
 
 
 def test_the_sweep_key_follows_robustness() -> None:
-    from synth.sweep import request_key
+    from synth.commands.sweep import request_key
 
     q = {"abilities": ["driving"], "answers": {}, "params": {}}
     assert request_key(q, True, "d") == request_key(q, True, "d", 0)

@@ -203,7 +203,7 @@ def test_the_python_text_does_what_the_program_does() -> None:
 
 
 def _design(folder: Path, *argv: str) -> Path:
-    from synth.cli import main
+    from synth.commands.cli import main
 
     err = io.StringIO()
     code = main(["design", *argv, "--no-verify", "--out", str(folder)], out=io.StringIO(), err=err)
@@ -265,7 +265,7 @@ def test_behaviours_chain_from_where_the_last_ended(hexapod) -> None:
 def test_a_robot_that_cannot_do_it_fails_the_program(cart, tmp_path) -> None:
     """Built to fail: the cart with motors of a thousandth of a newton metre cannot drive,
     so the program's end pose and its behaviours fail; exit 1 from ``parmor run``."""
-    from synth.cli import main
+    from synth.commands.cli import main
 
     weak = tmp_path / "weak"
     shutil.copytree(cart, weak)
@@ -501,7 +501,7 @@ def main(robot):
 def _parmor_process(*argv: str, env: dict | None = None) -> subprocess.CompletedProcess:
     """``parmor ARGV`` as its own process (a thread left running would keep it alive)."""
     return subprocess.run(
-        [sys.executable, "-m", "synth.cli", *argv],
+        [sys.executable, "-m", "synth.commands.cli", *argv],
         capture_output=True,
         text=True,
         timeout=600,  # a loaded machine runs this in seconds; a wait on the thread is 3600 s

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from adron.errors import InputError
-from synth.solver import read_rule_files
+from synth.reasoning.solver import read_rule_files
 
 DESIGN = ["design", "--no-verify", "walking", "--answer", "grasping=no", "--conceptual"]
 NO_ROUGH = ["--answer", "rough-terrain-walking=no", "--json"]

@@ -1,5 +1,5 @@
-"""The Ray backend (synth.backend): a sweep and an enumeration on a local Ray cluster of two
-workers give the same files and lines as on local processes.
+"""The Ray backend (synth.commands.backend): a sweep and an enumeration on a local Ray
+cluster of two workers give the same files and lines as on local processes.
 
 The cluster is started once for the module in this process (``ray.init``: two CPUs, no
 dashboard, a small object store, its files under the test's temporary folder) and shut down
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-import synth.sweep
+import synth.commands.sweep
 from tests.conftest import need
 from tests.test_sweep import TINY, outputs, write
 
@@ -115,7 +115,7 @@ def test_ctrl_c_cancels_the_ray_tasks_and_keeps_what_is_stored(
     study = write(tmp_path / "s.toml", STUDY)
     whole, cut = tmp_path / "whole", tmp_path / "cut"
     assert cli("sweep", str(study), "--no-simulate", "--jobs", "1", "--out", str(whole)).code == 0
-    real_store, real_cancel = synth.sweep._store, ray.cancel
+    real_store, real_cancel = synth.commands.sweep._store, ray.cancel
     stored, cancelled = [], []
 
     def store(*args) -> None:
@@ -128,7 +128,7 @@ def test_ctrl_c_cancels_the_ray_tasks_and_keeps_what_is_stored(
         cancelled.append(kw)
         real_cancel(ref, **kw)
 
-    monkeypatch.setattr(synth.sweep, "_store", store)
+    monkeypatch.setattr(synth.commands.sweep, "_store", store)
     monkeypatch.setattr(ray, "cancel", cancel)
     r = cli("sweep", str(study), "--no-simulate", "--backend", "ray", "--out", str(cut))
     assert r.code == 130 and f"2 of {N_STUDY} requests stored" in r.err
@@ -157,7 +157,16 @@ def test_enumerate_json_on_ray_from_another_process_by_address(cli, ray_cluster:
     here = cli(*argv)
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     there = subprocess.run(
-        [sys.executable, "-m", "synth.cli", *argv, "--backend", "ray", "--address", ray_cluster],
+        [
+            sys.executable,
+            "-m",
+            "synth.commands.cli",
+            *argv,
+            "--backend",
+            "ray",
+            "--address",
+            ray_cluster,
+        ],
         capture_output=True,
         text=True,
         env=env,

@@ -151,7 +151,7 @@ def test_a_hostile_suite_and_study(cli, tmp_path: Path, hostile: str) -> None:
 def cart(tmp_path_factory) -> Path:
     import io
 
-    from synth.cli import main
+    from synth.commands.cli import main
 
     folder = tmp_path_factory.mktemp("readers") / "cart"
     err = io.StringIO()

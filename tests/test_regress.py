@@ -1,4 +1,4 @@
-"""Tests of ``parmor regress`` (synth.regress): suites of named design queries compared
+"""Tests of ``parmor regress`` (synth.commands.regress): suites of named design queries compared
 with a snapshot stored beside the suite."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from synth.regress import snapshot_path
+from synth.commands.regress import snapshot_path
 
 QUERIES = {
     "humanoid": """\

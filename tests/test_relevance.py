@@ -9,8 +9,8 @@ import pytest
 
 from adron.kb import load, materialised
 from adron.relevance import Relevance
-from synth import solver
-from synth.solver import Query, Reasoner, relevant
+from synth.reasoning import solver
+from synth.reasoning.solver import Query, Reasoner, relevant
 from tests.conftest import require_shared
 
 WALK = Query(requests=("RobotWalking",))
@@ -77,7 +77,7 @@ def test_chains_to_the_vocabulary_are_kept_and_the_rest_filtered(tmp_path: Path)
     assert any('"disjoint"' in line for line in dropped)
     assert any('"Peel"' in line for line in dropped)
     # with the shipped ontology's own: e.g. defaultLength and defaultParameter facts (read
-    # by Python only: synth/bodyplan.py, synth/params.py), the part classes no rule reads
+    # by Python only: synth/reasoning/plans.py, synth/params.py), the part classes no rule reads
     # (62 since CarRobot and TricycleRobot: their defaultLength, structuralLimit and
     # steered-driving's abilityVerb facts; 63 with pointing's abilityVerb)
     assert rel.counts == {"relation": 63, "class": 9, "axiom": 1}
@@ -168,7 +168,7 @@ def test_a_pass_reading_what_the_last_one_read_reuses_its_result(
     steps 2 and 3 read what an earlier pass's read reuses its result. Worked out again
     each time, the result is the same."""
     import adron.relevance as rel
-    from synth.solver import relevant
+    from synth.reasoning.solver import relevant
 
     kb = materialised(load())
     calls = {"pass": 0, "reached": 0}

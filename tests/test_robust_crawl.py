@@ -24,7 +24,7 @@ import pytest
 import gaits.base
 import gaits.hexapod as hexapod
 import gaits.legged as legged
-from synth.cli import main
+from synth.commands.cli import main
 from synth.verification import perturb
 from synth.verification.runs import run_perturbed
 from synth.verification.source import Bundle

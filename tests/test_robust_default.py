@@ -9,7 +9,7 @@ import json
 
 import pytest
 
-from synth.cli import ROBUSTNESS_ENV, _robustness
+from synth.commands.cli import ROBUSTNESS_ENV, _robustness
 
 
 def test_without_the_option_the_tables_default(monkeypatch) -> None:

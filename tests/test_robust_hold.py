@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from export.mjcf import SERVO_BAND
-from synth.cli import main
+from synth.commands.cli import main
 from synth.verification import perturb
 from synth.verification.hold import hold_attribution, hold_blame, hold_note
 from synth.verification.runs import run_perturbed, verify_robust

@@ -20,7 +20,7 @@ import pytest
 import gaits.base
 import gaits.legged as legged
 from gaits.hexapod import _advance
-from synth.cli import main
+from synth.commands.cli import main
 from synth.verification import perturb
 from synth.verification.runs import run_perturbed
 from synth.verification.source import Bundle

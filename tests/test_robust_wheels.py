@@ -23,7 +23,7 @@ SEED = 6
 def bundle(tmp_path_factory) -> Path:
     import io
 
-    from synth.cli import main
+    from synth.commands.cli import main
 
     out = tmp_path_factory.mktemp("robwheel") / "dd"
     err = io.StringIO()
@@ -86,7 +86,7 @@ def _design(*argv: str) -> tuple[int, dict | None, str]:
     import io
     import json
 
-    from synth.cli import main
+    from synth.commands.cli import main
 
     out, err = io.StringIO(), io.StringIO()
     code = main(["design", *argv, "--no-input", "--json"], out, err)
@@ -122,7 +122,7 @@ def test_a_turn_in_place_at_its_default_speed_is_robust(tmp_path, monkeypatch) -
     import gaits.base
     import gaits.wheeled
     from adron.catalog import load_catalog
-    from synth.cli import main
+    from synth.commands.cli import main
     from synth.verification.perturb import design_table
     from synth.verification.runs import verify_robust
     from synth.verification.source import Bundle

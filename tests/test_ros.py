@@ -31,7 +31,7 @@ from gaits import controller_for
 from gaits.base import DesignGeometry
 from program.ros import interface, robot_name, srv_text, type_name
 from program.rosworker import Worker, serve
-from synth.cli import main
+from synth.commands.cli import main
 from tests.conftest import REPO, need
 from tests.test_mobile_manipulator import KIF_DESIGNS, kif_args
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from synth.solver import protected_predicates
+from synth.reasoning.solver import protected_predicates
 
 DESIGN = ["design", "--no-verify", "walking", "--answer", "grasping=no", "--conceptual"]
 NO_ROUGH = ["--answer", "rough-terrain-walking=no", "--json"]

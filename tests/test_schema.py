@@ -48,7 +48,7 @@ def written_record(tmp_path_factory) -> Path:
     """The design.json of a quick ``parmor design ... --out``."""
     import io
 
-    from synth.cli import main
+    from synth.commands.cli import main
 
     folder = tmp_path_factory.mktemp("schema") / "cart"
     err = io.StringIO()
@@ -435,7 +435,7 @@ def test_an_absurd_bed_is_refused_with_its_bound(cli, tmp_path: Path, bed: str) 
 def test_a_full_stderr_keeps_the_exit_code_of_bad_input() -> None:
     with open("/dev/full", "w") as full:
         r = subprocess.run(
-            [sys.executable, "-m", "synth.cli", "design", "flying", "--no-input"],
+            [sys.executable, "-m", "synth.commands.cli", "design", "flying", "--no-input"],
             stderr=full,
             stdout=subprocess.DEVNULL,
             cwd=ROOT,
@@ -465,7 +465,7 @@ def test_a_body_plan_of_thousands_of_parts_is_built_iteratively(tmp_path: Path) 
     from adron.kb import load
     from kinematics.bodyplan import BodyPlan
     from kinematics.partkinds import load as load_kinds
-    from synth.bodyplan import plan_of
+    from synth.reasoning.plans import plan_of
 
     f = tmp_path / "long.kif"
     f.write_text(long_snake(2000), encoding="utf-8")
@@ -489,7 +489,7 @@ def test_a_body_plan_of_600_parts_is_refused_by_the_bus_not_a_traceback(cli, tmp
 
 def test_the_study_schemas_bound_is_the_command_lines() -> None:
     from adron.formats import MAX_ROBUSTNESS
-    from synth.cli import MAX_ROBUSTNESS as CLI_MAX
+    from synth.commands.cli import MAX_ROBUSTNESS as CLI_MAX
 
     assert MAX_ROBUSTNESS == CLI_MAX
 
@@ -518,7 +518,7 @@ def test_a_study_is_refused_by_its_schema_naming_file_key_and_value(
 ) -> None:
     """Cases built to fail the schema alone (nothing of the knowledge base is read)."""
     from adron.errors import InputError
-    from synth.sweep import load_study
+    from synth.commands.sweep import load_study
 
     text, key = STUDIES[case]
     path = tmp_path / "s.toml"

@@ -19,7 +19,7 @@ from tests.test_bodyplan import legged_kif
 
 
 def _bundle(folder: Path, *argv: str) -> Path:
-    from synth.cli import main
+    from synth.commands.cli import main
 
     err = io.StringIO()
     code = main([*argv, "--no-input", "--no-verify", "--out", str(folder)], io.StringIO(), err)

@@ -19,7 +19,7 @@ ASK = ("design", "walking", "grasping", "line-tracking", "obstacle-avoidance")
 
 
 def _design(folder: Path, *flags: str) -> tuple[int, str, str]:
-    from synth.cli import main
+    from synth.commands.cli import main
 
     out, err = io.StringIO(), io.StringIO()
     code = main([*ASK, "--no-input", *flags, "--out", str(folder)], out, err)

@@ -26,7 +26,7 @@ TYPES = {
 def bundles(tmp_path_factory) -> dict[str, Path]:
     """Each KIF-only steered type with line-tracking, designed (not verified: its runs
     are judged here)."""
-    from synth.cli import main
+    from synth.commands.cli import main
 
     out = {}
     root = tmp_path_factory.mktemp("steerline")

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from adron.errors import InputError
-from synth.cli import main
+from synth.commands.cli import main
 from synth.verification.simulate import check_agrees
 
 
@@ -91,9 +91,9 @@ def test_every_base_configurations_bundle_agrees(kb, designer, catalog) -> None:
 
     from export.bundle import bundle_files
     from export.record import design_record
-    from synth.conceptual import Design, Request
-    from synth.solver import Query
-    from synth.structure import design_structure
+    from synth.reasoning.conceptual import Design, Request
+    from synth.reasoning.solver import Query
+    from synth.sizing.structure import design_structure
 
     seen = set()
     for cand in designer.reasoner.solve(Query()).candidates:

@@ -12,7 +12,7 @@ import pytest
 def cart(tmp_path_factory) -> Path:
     import io
 
-    from synth.cli import main
+    from synth.commands.cli import main
 
     folder = tmp_path_factory.mktemp("sim") / "cart"
     err = io.StringIO()
@@ -170,7 +170,7 @@ def test_simulate_exits_1_when_a_sensing_loop_fails(sensing_cart, monkeypatch) -
     import io
 
     from program import sensing
-    from synth.cli import main
+    from synth.commands.cli import main
 
     monkeypatch.setattr(sensing, "RANGER_MAX_M", 0.03)
     out, err = io.StringIO(), io.StringIO()

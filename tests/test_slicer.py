@@ -17,9 +17,9 @@ import pytest
 from export.bundle import bundle_files
 from export.record import design_record
 from export.slicer import prusa_slicer, slice_stl
-from synth.conceptual import Design, Request
-from synth.solver import Query
-from synth.structure import design_structure
+from synth.reasoning.conceptual import Design, Request
+from synth.reasoning.solver import Query
+from synth.sizing.structure import design_structure
 from tests.conftest import need
 from tests.test_bundle_designs import NON_DEFAULT
 

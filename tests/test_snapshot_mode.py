@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from synth.regress import snapshot_path, temp_beside, write_atomic
+from synth.commands.regress import snapshot_path, temp_beside, write_atomic
 
 SUITE = 'conceptual = true\n[[query]]\nname = "snake"\nabilities = ["rolling"]\n'
 

@@ -270,7 +270,7 @@ def _printed_files(files: dict[str, bytes]) -> list[str]:
 
 @pytest.fixture(scope="module")
 def on_180(tmp_path_factory) -> dict[str, dict[str, bytes]]:
-    from synth.cli import main
+    from synth.commands.cli import main
 
     out = {}
     for key, args in DESIGNS.items():

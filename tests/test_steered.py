@@ -73,7 +73,7 @@ def _bom_mass(folder: Path) -> float:
 @pytest.fixture(scope="module")
 def bundles(tmp_path_factory) -> dict[str, Path]:
     """Each KIF-only type designed with verification (no --no-verify), written out."""
-    from synth.cli import main
+    from synth.commands.cli import main
 
     out = {}
     root = tmp_path_factory.mktemp("steered")

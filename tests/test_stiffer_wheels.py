@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from adron.catalog import load_catalog
-from synth.cli import main
+from synth.commands.cli import main
 from synth.verification.wheels import (
     kv,
     stiffer_servos,

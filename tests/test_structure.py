@@ -9,7 +9,7 @@ import re
 import pytest
 
 from adron.errors import InfeasibleError
-from synth.structure import (
+from synth.sizing.structure import (
     StructureDesigner,
     _TorqueModel,
     alternatives,
@@ -347,7 +347,7 @@ def test_every_counted_assignment_is_feasible_with_its_own_masses(kb, bases, cat
 def test_every_snake_gait_designs_with_defaults(designer, kb, catalog) -> None:
     """The lifted segment follows the gaits asked for (the ontology's liftedModuleShare),
     so even the 14-module circular-path snake is buildable with the default catalog."""
-    from synth.conceptual import Request
+    from synth.reasoning.conceptual import Request
 
     for gait in ("rolling", "rectilinear", "sidewinding", "rotating", "circular-path"):
         cand = designer.step(Request(abilities=(gait,))).chosen

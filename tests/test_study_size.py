@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from adron.errors import InputError
-from synth.sweep import MAX_STUDY_REQUESTS, load_study, validate
+from synth.commands.sweep import MAX_STUDY_REQUESTS, load_study, validate
 
 
 def values(n: int, unit: str = "cm") -> str:

@@ -1,4 +1,4 @@
-"""Tests of ``parmor sweep`` (synth.sweep): study files whose parameter lists expand into
+"""Tests of ``parmor sweep`` (synth.commands.sweep): study files whose parameter lists expand into
 their product, designed on worker processes, stored per request (resumable) and summarised
 in results.csv, summary.md and plots."""
 
@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-import synth.sweep
-from synth.sweep import code_files, default_out, load_study, request_key
+import synth.commands.sweep
+from synth.commands.sweep import code_files, default_out, load_study, request_key
 from synth.verification.results import Run
 
 # cheap designs: a snake, a differential drive, one too fast to size, a request no robot can
@@ -219,7 +219,7 @@ def test_an_interrupted_sweep_resumes_to_the_same_bytes(
     study = write(tmp_path / "s.toml")
     whole, cut = tmp_path / "whole", tmp_path / "cut"
     assert cli("sweep", str(study), "--no-simulate", "--jobs", "1", "--out", str(whole)).code == 0
-    real = synth.sweep.design_one
+    real = synth.commands.sweep.design_one
     calls = []
 
     def interrupted(*args, **kwargs):
@@ -228,12 +228,12 @@ def test_an_interrupted_sweep_resumes_to_the_same_bytes(
         calls.append(1)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(synth.sweep, "design_one", interrupted)
+    monkeypatch.setattr(synth.commands.sweep, "design_one", interrupted)
     r = cli("sweep", str(study), "--no-simulate", "--jobs", "1", "--out", str(cut))
     assert r.code == 130 and "3 of 7 requests stored" in r.err and "run the same" in r.err
     assert len(list((cut / "requests").glob("*.json"))) == 3
     assert not (cut / "results.csv").exists()
-    monkeypatch.setattr(synth.sweep, "design_one", real)
+    monkeypatch.setattr(synth.commands.sweep, "design_one", real)
     r = cli("sweep", str(study), "--no-simulate", "--jobs", "2", "--out", str(cut), "--json")
     assert r.code == 0, r.err
     s = json.loads(r.out)
@@ -371,7 +371,7 @@ def test_the_key_follows_request_mode_and_files() -> None:
     )
 
 
-# --- the engine: local processes or Ray (synth.backend; tests/test_ray.py runs Ray) ---------
+# --- the engine: local processes or Ray (synth.commands.backend; tests/test_ray.py runs Ray) ---
 
 
 @pytest.mark.parametrize("command", ["sweep", "enumerate"])
@@ -406,7 +406,7 @@ def test_start_up_does_not_import_ray() -> None:
     import sys
 
     code = (
-        "import sys, io; from synth.cli import main; "
+        "import sys, io; from synth.commands.cli import main; "
         "main(['sweep', '--help'], io.StringIO(), io.StringIO()); "
         "main(['enumerate', 'driving', '--conceptual'], io.StringIO(), io.StringIO()); "
         "print('ray' in sys.modules)"
@@ -428,7 +428,7 @@ def test_enumerate_on_two_local_processes_prints_the_same_lines(cli) -> None:
 def test_a_node_whose_files_differ_refuses_the_work(tmp_path: Path) -> None:
     """The check a Ray worker makes before its first task (built to fail: a digest of other
     files, a study file missing on the node)."""
-    from synth.backend import BackendError, _ray_work, files_digest
+    from synth.commands.backend import BackendError, _ray_work, files_digest
 
     mine = tmp_path / "mine.kif"
     mine.write_text("(subclass Gizmo Robot)\n")

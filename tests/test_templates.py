@@ -24,7 +24,7 @@ from kinematics.templates import (
     build,
     default_lengths,
 )
-from synth.solver import Query
+from synth.reasoning.solver import Query
 from tests.conftest import TEMPLATES
 
 # --- agreement with the ontology ---------------------------------------------------------------

@@ -18,9 +18,9 @@ from export.meshes import read_stl
 from export.record import design_record
 from export.slicer import SKIRT_MARGIN, prusa_slicer, slice_3mf
 from export.threemf import COPY_GAP_MM, part_3mf, plate_of
-from synth.conceptual import Design, Request
-from synth.solver import Query
-from synth.structure import design_structure
+from synth.reasoning.conceptual import Design, Request
+from synth.reasoning.solver import Query
+from synth.sizing.structure import design_structure
 from tests.conftest import need
 from tests.test_slicer import TOLERANCE
 

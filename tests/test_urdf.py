@@ -304,8 +304,8 @@ def real_assemblies(kb, designer) -> dict[str, Assembly]:
     """
     from adron.catalog import load_catalog
     from export.assembly import build_assembly
-    from synth.solver import Query
-    from synth.structure import design_structure
+    from synth.reasoning.solver import Query
+    from synth.sizing.structure import design_structure
 
     catalog = load_catalog()
     bases = {c.robot_type: c for c in designer.reasoner.solve(Query()).candidates}

@@ -12,8 +12,8 @@ import pytest
 
 import synth.verification.loop
 import synth.verification.runs
-from synth.conceptual import Request
 from synth.pipeline import StructureOptions, run
+from synth.reasoning.conceptual import Request
 from synth.verification.results import RobustRuns, Run
 
 ARM = Request(abilities=("pick-and-place",), params=(("object_shape", "cylinder"),))

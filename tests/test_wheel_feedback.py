@@ -23,7 +23,7 @@ DATA = Path(__file__).parent / "data"
 
 
 def _design(folder: Path, *argv: str) -> Path:
-    from synth.cli import main
+    from synth.commands.cli import main
 
     err = io.StringIO()
     code = main(

@@ -39,7 +39,7 @@ class Round:
     design's record and its joints' actuators (``models``: joint -> model), the catalog,
     the round's perturbed runs (``robust``) and bundle (``bundle()``: built on first use),
     the actuator models each joint may no longer have (``excluded``), a sizer to try a
-    structure with other exclusions (``sizer``: a ``synth.structure.StructureDesigner``
+    structure with other exclusions (``sizer``: a ``synth.sizing.structure.StructureDesigner``
     with the round's torque floors, or None), the gains chosen for closed loops so far
     (``gains``: behaviour -> scale) and the behaviours that serve a demanded ability
     (``demanded``), and the paces chosen so far (``paces``: behaviour -> pace)."""

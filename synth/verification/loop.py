@@ -74,8 +74,8 @@ from adron.errors import InfeasibleError
 from synth.verification.results import RobustRuns, Run
 
 if TYPE_CHECKING:
-    from synth.conceptual import Designer, Request
     from synth.pipeline import Outcome, StructureOptions
+    from synth.reasoning.conceptual import Designer, Request
     from synth.verification.causes import Round
     from synth.verification.source import Bundle
 
@@ -279,9 +279,9 @@ def best_value(
     designer: Designer, params: Mapping[str, float], opts: StructureOptions, outcome: Outcome
 ) -> str | None:
     """``"the largest payload that works here is 1.400 kg"``: the largest value of the
-    first parameter in ``synth.structure.EASIER_WHEN_SMALLER`` (payload always; speed and
+    first parameter in ``synth.sizing.structure.EASIER_WHEN_SMALLER`` (payload always; speed and
     slope where the request gives them) with which the design is sized and every
-    behaviour verified, all else equal (``synth.structure.bisect_largest``; each test a
+    behaviour verified, all else equal (``synth.sizing.structure.bisect_largest``; each test a
     full sizing and verification); None when none works even at its floor.
 
     At most ``HINT_ROUNDS`` sizings with verification in all: each takes one to a few
@@ -292,7 +292,7 @@ def best_value(
     verdict's threshold it often is not). That is five tests for the parameter that is
     the limit and one for each parameter before it whose floor failed; out of rounds, a
     value counts as failing."""
-    from synth.structure import (
+    from synth.sizing.structure import (
         EASIER_WHEN_SMALLER,
         StructureDesigner,
         bisect_largest,
@@ -514,7 +514,7 @@ class Strengthening:
         sizings more), then, when no sizing answers it, to a closed loop's gains, then to
         the command hold's slower pace (the same structure returned: the outcome has the
         gains or the paces)."""
-        from synth.structure import StructureDesigner
+        from synth.sizing.structure import StructureDesigner
 
         more = _floors(now.results + (now.robust.failing_runs() if now.robust else []), now.record)
         new = {j: f for j, f in more.items() if f > self.floors.get(j, 0.0)}

@@ -28,8 +28,8 @@ from typing import TYPE_CHECKING
 from synth.verification.results import RobustRuns, Run
 
 if TYPE_CHECKING:
-    from synth.conceptual import Designer
     from synth.pipeline import Outcome
+    from synth.reasoning.conceptual import Designer
     from synth.verification.source import Bundle
 
 

@@ -75,8 +75,8 @@ def stiffer_servos(record: Mapping, catalog: Catalog) -> list[Actuator]:
     """The catalog's servos that may replace every wheel servo of the design, the least
     stiff first: of the wheels' class (the record's ``module_class``), continuous,
     stiffer than each wheel's (``kv`` x :data:`STIFFER`), holding each wheel's required
-    torque at its required speed (``synth.structure.meets``)."""
-    from synth.structure import meets
+    torque at its required speed (``synth.sizing.structure.meets``)."""
+    from synth.sizing.structure import meets
 
     wheels = wheel_joints(record, catalog)
     joints = [j for j in record.get("joints", ()) if j["name"] in wheels]

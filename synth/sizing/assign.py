@@ -15,9 +15,9 @@ once per robot type, and the rest is solved per *unit*, the joints that must sha
   assignments is the product of the units' capable counts (``count``), and the k best come
   lazily from a best-first merge of the units' sorted options (``ranked``);
 - ``count_feasible`` counts the assignments that stay capable when the torques move with
-  the chosen actuators' own masses (``synth.structure.alternatives``): a branch and bound
+  the chosen actuators' own masses (``synth.sizing.structure.alternatives``): a branch and bound
   over boxes of group masses, exact (its leaves check every assignment with the same float
-  operations as ``synth.structure._TorqueModel.feasible``).
+  operations as ``synth.sizing.structure._TorqueModel.feasible``).
 
 ``dominated`` discards actuators that can never be the best choice for a joint (the
 design loop checks capability only on the others); counts and ranked lists use the whole
@@ -94,7 +94,7 @@ def prepare_knowledge(kb: KnowledgeBase) -> IsaIndex | None:
 
 def _knowledge(kb: KnowledgeBase, classes: tuple[str, ...], others: Sequence[str]) -> str:
     """The program text ``asp/serving.lp`` needs of ``kb`` for these classes (ASP strings)."""
-    from synth.solver import encoding_dir, taxonomy_program
+    from synth.reasoning.solver import encoding_dir, taxonomy_program
 
     index = prepare_knowledge(kb)
     with _KNOWN_LOCK:
@@ -124,7 +124,7 @@ class ActuatorAssigner:
         other_active: int,
         objective: Sequence[str] = ("mass", "cost"),
     ) -> None:
-        from synth.solver import encoding_dir
+        from synth.reasoning.solver import encoding_dir
 
         if sorted(objective) != ["cost", "mass"]:
             raise InputError(f"objective {list(objective)}: expected an order of mass and cost")
@@ -402,7 +402,7 @@ def distinct_points(pts: Points) -> Points:
 
 
 def _meets(p: Coupled, a: np.ndarray, tt: np.ndarray, w: np.ndarray | float) -> np.ndarray:
-    """``synth.structure.meets`` elementwise: models ``a`` at torques ``tt`` and speeds
+    """``synth.sizing.structure.meets`` elementwise: models ``a`` at torques ``tt`` and speeds
     ``w`` (the same float operations)."""
     speed = np.maximum(0.0, p.w0[a] * (1.0 - tt / p.stall[a]))
     return (p.usable[a] >= tt) & (speed >= w)

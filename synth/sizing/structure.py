@@ -2,22 +2,22 @@
 
 Starting from the conceptual design (a robot type with its parts and modules):
 
-1. tentative link lengths from the requirements (``synth.sizing``);
+1. tentative link lengths from the requirements (``synth.sizing.families``);
 2. worst-case RNEA on the type's kinematic template (``kinematics``): joint torques and
    the wrenches every link carries, for the family's hand-made load cases and along every
    behaviour the design lists, planned with the actuators of the previous pass (none on
-   the first), with the ground's contact forces (``synth.behaviour_loads``); the joint
+   the first), with the ground's contact forces (``synth.sizing.behaviour_loads``); the joint
    speeds too come from both, and a joint's actuator must meet each (torque, speed)
    operating point (its speed falls with torque; a behaviour's torque and speed peaks
    need not coincide);
-3. actuator assignment (``synth.assign.ActuatorAssigner``; the models that can never be
-   a joint's best choice discarded first: ``synth.assign.dominated``): a model is capable
+3. actuator assignment (``synth.sizing.assign.ActuatorAssigner``; the models that can never be
+   a joint's best choice discarded first: ``synth.sizing.assign.dominated``): a model is capable
    for a joint
    when its stall torque divided by the catalog's torque safety factor covers the required
    torque and its speed under that torque (a servo's speed falls linearly from no-load
    speed at no torque to zero at stall) covers the required speed;
 4. each printed link as the minimum-volume tube that keeps its tip deflection within the
-   allowed one (``synth.links.optimal_tube``), thickened (more stiffness asked of it) until
+   allowed one (``synth.sizing.links.optimal_tube``), thickened (more stiffness asked of it) until
    its clamped-end stress, with the fillet's stress concentration, is within the
    material's yield over the stress safety factor;
 5. again from 2 with the new masses, until the masses change by less than 1e-6
@@ -49,7 +49,10 @@ from kinematics.templates import (
     build,
     register_plan,
 )
-from synth.assign import (
+from synth.params import resolve
+from synth.reasoning.conceptual import ability_ancestors
+from synth.reasoning.solver import Candidate
+from synth.sizing.assign import (
     ActuatorAssigner,
     Assignment,
     Coupled,
@@ -63,10 +66,10 @@ from synth.assign import (
     feasible_mask,
     product_rows,
 )
-from synth.behaviour_loads import BehaviourCase, analyse
-from synth.chain_links import Chain, ChainLink, chain_tubes, serial_chains
-from synth.conceptual import ability_ancestors
-from synth.links import (
+from synth.sizing.behaviour_loads import BehaviourCase, analyse
+from synth.sizing.chain_links import Chain, ChainLink, chain_tubes, serial_chains
+from synth.sizing.families import FAMILIES, Family, LoadCase, Sizing
+from synth.sizing.links import (
     Tube,
     TubeLimits,
     beam_check,
@@ -74,9 +77,6 @@ from synth.links import (
     optimal_tube,
     stiffness_constant,
 )
-from synth.params import resolve
-from synth.sizing import FAMILIES, Family, LoadCase, Sizing
-from synth.solver import Candidate
 
 CONVERGENCE = 1e-6
 MAX_ITERATIONS = 50
@@ -350,8 +350,8 @@ class StructureDesigner:
         objective: Sequence[str] = ("mass", "cost"),
     ) -> None:
         from kinematics.assemble import STRUCTURES
-        from synth.bodyplan import ancestors, structure_of_type
         from synth.params import ontology_defaults
+        from synth.reasoning.plans import ancestors, structure_of_type
 
         plan, structure = structure_of_type(kb, candidate.robot_type)
         if structure not in FAMILIES:
@@ -453,7 +453,7 @@ class StructureDesigner:
 
     def _undominated(self) -> dict[str, tuple[str, ...]]:
         """Per joint, its serving models less those dominated among the models that serve
-        every joint of its symmetry group (``synth.assign.dominated``)."""
+        every joint of its symmetry group (``synth.sizing.assign.dominated``)."""
         torque = {a.model: a.stall_torque_Nm for a in self.catalog.actuators}
         speed = {a.model: a.no_load_speed_rad_s for a in self.catalog.actuators}
         serving = self.assigner.serving
@@ -536,7 +536,7 @@ class StructureDesigner:
 
     def _geometry(self, tmpl: Template, sizing: Sizing, speeds: Mapping[str, float]):
         """The gaits' view of the design as its record will give it (``design.json``)."""
-        from synth.behaviour_loads import design_geometry
+        from synth.sizing.behaviour_loads import design_geometry
 
         return design_geometry(
             self.candidate.robot_type,
@@ -713,7 +713,7 @@ class StructureDesigner:
     ) -> dict[str, tuple[Tube, dict]]:
         """Every printed link design (length name -> length m, free-end loads): the links
         of a serial chain of two or more of them (root to a foot, an end effector, or a
-        leaf when there are neither) as one convex program (``synth.chain_links``): least
+        leaf when there are neither) as one convex program (``synth.sizing.chain_links``): least
         printed volume (``counts`` copies of each) with the chain's allowance, the
         ``deflection`` parameter times its links, shared among them, each link within its
         stress and buckling floors; every other link on its own (``_size_link``)."""
@@ -1440,7 +1440,7 @@ def alternatives(designer: StructureDesigner, k: int, pareto: bool = False) -> A
     Candidates are the assignments capable at the converged design's torques (the
     lightest actuators: any other assignment only adds mass); an assignment is feasible
     when it stays capable with its own actuator masses (``_TorqueModel``). The count is
-    exact (``synth.assign.count_bounds``, or every candidate checked when there are at
+    exact (``synth.sizing.assign.count_bounds``, or every candidate checked when there are at
     most ENUMERATE_LIMIT) unless its branch and bound gives up on more: then ``count`` is
     an upper bound and ``lower`` a lower one, from the boxes it left (``exact`` False); the
     best come lazily, candidates in objective order each checked until ``k`` (or all)

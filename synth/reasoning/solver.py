@@ -36,7 +36,8 @@ from adron.materialise import Derivation
 from adron.relevance import Relevance, relevance
 from adron.translate import asp_string, closed_taxonomy
 from adron.units import cache_folder, read_cache_bytes, write_cache_file
-from synth import ground_probe, limits
+from synth import limits
+from synth.reasoning import ground_probe
 
 _SCRIPT = re.compile(r"#\s*script", re.IGNORECASE)
 
@@ -1226,7 +1227,7 @@ class Reasoner:
 
 def _explained(e: limits.LimitExceeded, kb, rules: Sequence, what: str, focus: str | None):
     """``e`` (a LimitExceeded of the grounding) with the files grounded and, for a time or
-    memory limit, the rule that grew (``synth.ground_probe.culprit``, given the program as
+    memory limit, the rule that grew (``synth.reasoning.ground_probe.culprit``, given the program as
     ``_Core`` grounds it, the encodings and the parser; the size limit names its own)."""
     if e.stage != "ground" or not e.limit.startswith(("time", "memory")):
         return e

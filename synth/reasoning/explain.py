@@ -3,7 +3,7 @@ location) and its abilities, each with the reason the reasoner gave."""
 
 from __future__ import annotations
 
-from synth.conceptual import Designer
+from synth.reasoning.conceptual import Designer
 
 
 def explain_record(designer: Designer, robot_type: str) -> dict:

@@ -423,7 +423,7 @@ def install() -> None:
     """Let ``kinematics.templates.build`` find the shipped ontology's robot types by name
     (``kinematics.bodyplan.PLAN_SOURCE``; nothing heavy is imported): what a bundle
     written before design records kept their body plan needs. Called by the entry points
-    (``synth.cli`` before a command runs, ``program.rosworker.main``, the block server's
+    (``synth.commands.cli`` before a command runs, ``program.rosworker.main``, the block server's
     runs), never as a side effect of an import; calling it again does nothing."""
     from kinematics.bodyplan import PLAN_SOURCE
 

@@ -636,16 +636,17 @@ def use_parts(files, kb=None) -> None:
 
 def _with_composed_arm(kb, args: argparse.Namespace):
     """``kb``, or ``kb`` with a serial arm of ``--param dof=N`` joints composed from the
-    part kinds (``synth.compose``) when none of its base configurations is one."""
-    from synth.conceptual import parse_param
+    part kinds (``synth.reasoning.composition``) when none of its base configurations is one."""
+    from synth.reasoning.conceptual import parse_param
 
     given = [v for n, v in (parse_param(p) for p in getattr(args, "param", ())) if n == "dof"]
     if not given:
         return kb
     from adron.kb import load
     from kinematics.partkinds import in_use
-    from synth.bodyplan import arm_joints
-    from synth.compose import parse_dof, serial_arm_kif
+    from synth.params import parse_dof
+    from synth.reasoning.composition import serial_arm_kif
+    from synth.reasoning.plans import arm_joints
 
     n = parse_dof(given[-1])
     bases = [a[0] for a in kb.translation.relation("instance") if a[1:] == ("BaseConfiguration",)]
@@ -659,9 +660,9 @@ def _designer(args: argparse.Namespace, err: TextIO, req=None):
     """Load the knowledge base and ground it; returns a Designer. ``req``: the command's
     request, whose query the reasoner then grounds for first (``Reasoner``'s ``first``)."""
     from adron.kb import load
-    from synth.conceptual import Designer, query_for
     from synth.limits import stage
-    from synth.solver import Reasoner
+    from synth.reasoning.conceptual import Designer, query_for
+    from synth.reasoning.solver import Reasoner
 
     with stage("parse"):
         kb = load(args.ontology)
@@ -697,9 +698,9 @@ def _designer(args: argparse.Namespace, err: TextIO, req=None):
 #: and MuJoCo: 1-2 s on a loaded machine), imported while the reasoner's worker grounds:
 #: this process only waits on a pipe then, and a large ontology grounds for seconds.
 SIZING_MODULES = (
-    "synth.structure",
-    "synth.sizing",
-    "synth.behaviour_loads",
+    "synth.sizing.structure",
+    "synth.sizing.families",
+    "synth.sizing.behaviour_loads",
     "gaits.legged",
     "gaits.hexapod",
     "gaits.humanoid",
@@ -725,7 +726,7 @@ IDLE_MODULES = ("scipy.sparse", "scipy.optimize", "scipy.interpolate")
 
 def _prefetch(names: Sequence[str], kb=None, ready: Callable[[], bool] | None = None) -> None:
     """Import ``names``, then index ``kb``'s taxonomy for the actuator assignment
-    (``synth.assign.prepare_knowledge``), then import IDLE_MODULES until ``ready()`` (the
+    (``synth.sizing.assign.prepare_knowledge``), then import IDLE_MODULES until ``ready()`` (the
     worker has replied). Run by the reasoner on this (the main) thread while its worker
     grounds, not on a thread of its own: a thread still importing when the process forks
     (the ground probe after a time limit) or exits (Ctrl-C, an early refusal) deadlocked
@@ -743,7 +744,7 @@ def _prefetch(names: Sequence[str], kb=None, ready: Callable[[], bool] | None = 
         load(name)
     if kb is not None:
         try:
-            from synth.assign import prepare_knowledge
+            from synth.sizing.assign import prepare_knowledge
 
             prepare_knowledge(kb)
         except LimitExceeded:
@@ -770,7 +771,7 @@ def _warn_untranslated(kb, err: TextIO) -> None:
 
 
 def _request(args: argparse.Namespace):
-    from synth.conceptual import Request, parse_answer, parse_param
+    from synth.reasoning.conceptual import Request, parse_answer, parse_param
 
     return Request(
         abilities=tuple(args.abilities),
@@ -942,7 +943,7 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     import json
 
     from export.record import candidate_record, candidate_text
-    from synth.backend import Backend, tasks
+    from synth.commands.backend import Backend, tasks
     from synth.limits import stage
 
     engine = Backend(args.backend, args.jobs, args.address)  # bad values told before any work
@@ -1028,8 +1029,8 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         why = ""
         limited = designer.over_limit(req) if not sol.candidates else ()
         if limited:  # robots the module limit alone excludes: name them and the bus
-            from synth.conceptual import limit_note
             from synth.pipeline import limit_source
+            from synth.reasoning.conceptual import limit_note
 
             why = f" ({limit_note(limited, limit_source(opts))})"
         err.write(f"parmor: no robot can meet the request: {' + '.join(conflict)}{why}\n")
@@ -1050,7 +1051,7 @@ class _Sizer:
     def size(self, c) -> dict:
         from adron.errors import InfeasibleError, InputError
         from export.record import alternatives_record, structure_record
-        from synth.structure import StructureDesigner, alternatives
+        from synth.sizing.structure import StructureDesigner, alternatives
 
         try:
             sd = StructureDesigner(
@@ -1121,8 +1122,8 @@ def _count(n: int, way: int = 0) -> str:
 
 
 def _sizer_init(arg: tuple) -> _Sizer:
-    """A worker's sizer (``synth.backend``): the knowledge base grounded again there."""
-    from synth.regress import designer_for
+    """A worker's sizer (``synth.commands.backend``): the knowledge base grounded again there."""
+    from synth.commands.regress import designer_for
 
     ontology, rules, allow_scripts, opts, physical, k, pareto = arg
     kb = {
@@ -1158,7 +1159,7 @@ def _progress(err: TextIO, total: int):
 
 def cmd_explain(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from export.record import to_json
-    from synth.explain import explain_record, explain_text
+    from synth.reasoning.explain import explain_record, explain_text
 
     designer = _designer(args, err)
     rec = explain_record(designer, args.robot_type)
@@ -1168,7 +1169,7 @@ def cmd_explain(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 def cmd_abilities(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from export.record import to_json
-    from synth.solver import Query
+    from synth.reasoning.solver import Query
 
     designer = _designer(args, err)
     sol = designer.reasoner.solve(Query())
@@ -1198,7 +1199,7 @@ def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> in
     from adron.kb import load
     from adron.relevance import REASONS
     from export.record import to_json
-    from synth.solver import materialised_in_worker, relevant
+    from synth.reasoning.solver import materialised_in_worker, relevant
 
     # one load, the shipped ontology with the user's files (it holds the vocabulary that
     # relevance is judged by); the user's files' own counts are read from it by file
@@ -1273,7 +1274,7 @@ def cmd_ontology_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> in
 
 
 def cmd_regress(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from synth.regress import run_suite
+    from synth.commands.regress import run_suite
 
     return run_suite(
         args.suite,
@@ -1286,7 +1287,7 @@ def cmd_regress(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from synth.sweep import cmd_sweep as sweep
+    from synth.commands.sweep import cmd_sweep as sweep
 
     return sweep(args, out, err)
 
@@ -1662,7 +1663,7 @@ def _main(argv: list[str], out: TextIO, err: TextIO) -> int:
         handler = cmd_ontology_check if args.command == "ontology" else COMMANDS[args.command]
         # the shipped ontology's body plans, for a bundle whose record predates body plans
         # (explicit here: importing export or program installs nothing)
-        from synth.bodyplan import install
+        from synth.reasoning.plans import install
 
         install()
         limited = hasattr(args, "memory_limit")  # every command but blocks (its own limit)

@@ -1,8 +1,8 @@
 """Joint loads from the behaviours a design will run: inverse dynamics along every
 trajectory, with the ground's support and contact forces (issue 8, item 2).
 
-The structure generator (``synth.structure``) sizes a design for its family's hand-made load
-cases (``synth.sizing``) *and* for the behaviours the design lists: every behaviour of the
+The structure generator (``synth.sizing.structure``) sizes a design for its family's hand-made load
+cases (``synth.sizing.families``) *and* for the behaviours the design lists: every behaviour of the
 design's controller whose ability is among the design's abilities (``BehaviorSpec.ability``,
 its own name when None; aliases are skipped), run with its default parameters on a
 ``gaits.DesignGeometry`` built from the sizing at hand exactly as ``design.json`` will give
@@ -352,7 +352,7 @@ def _thin(times: np.ndarray) -> np.ndarray:
 
 
 def support_shares_batch(points: np.ndarray, mask: np.ndarray, cop: np.ndarray) -> np.ndarray:
-    """``synth.sizing.support_shares`` over a batch: vertical shares (B, n) of the contacts
+    """``synth.sizing.families.support_shares`` over a batch: vertical shares (B, n) of the contacts
     at ``points`` (B, n, 2) in use where ``mask`` (B, n), holding a load whose centre of
     pressure is ``cop`` (B, 2): total 1 and no moment about ``cop`` (least norm; contacts
     that would have to pull dropped, the most negative first). When ``cop`` is outside

@@ -45,7 +45,7 @@ def pieces(
 ) -> list[tuple[str, str]]:
     """(place, program text) of each piece, in grounding order (see the module);
     ``encodings``: parmor's encodings as one text, ``parse``: the solver's parser of a rule
-    file into statements (``synth.solver`` hands both over: this module imports nothing
+    file into statements (``synth.reasoning.solver`` hands both over: this module imports nothing
     of it); ``program``: the translation as it went to the grounder (default: all of it)."""
     program = kb.translation.program if program is None else program
     lines = program.splitlines()

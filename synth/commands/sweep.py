@@ -9,7 +9,8 @@ back (``synth.verification``). The figures of each simulated behaviour (``synth.
 records of ``parmor simulate --json``) become the rows of ``results.csv``.
 
 The requests run on local worker processes, or on a Ray cluster with ``--backend ray``
-(``synth.backend``); the results are the same either way. Each finished request is stored as
+(``synth.commands.backend``); the results are the same either way. Each finished request is
+stored as
 ``DIR/requests/<key>.json``, ``key`` a hash of the request, the mode (simulated or not)
 and the contents of the study's ontology, rules and catalog files and of parmor's own
 source and data files; a rerun designs only
@@ -37,9 +38,9 @@ from adron import readers
 from adron.errors import ExportError, InputError
 from adron.formats import MAX_STUDY_REQUESTS as MAX_STUDY_REQUESTS  # (re-exported)
 from synth import limits
-from synth.backend import Backend, files_digest, tasks
-from synth.backend import code_files as code_files  # re-exported: the files keys depend on
-from synth.regress import (
+from synth.commands.backend import Backend, files_digest, tasks
+from synth.commands.backend import code_files as code_files  # re-exported: the files keys depend on
+from synth.commands.regress import (
     designer_for,
     kb_options,
     read_toml,
@@ -74,7 +75,7 @@ def load_study(path: Path) -> tuple[dict, list[dict]]:
     types, ranges, values listed once, and the study's size, at most
     :data:`MAX_STUDY_REQUESTS` requests counted before anything is expanded; errors name
     the file, the key and the value); the files it names must lie in its folder
-    (:func:`synth.regress.confined`). What only the knowledge base can say is
+    (:func:`synth.commands.regress.confined`). What only the knowledge base can say is
     :func:`validate`'s."""
     from adron.formats import check
 
@@ -247,7 +248,7 @@ def design_one(q: dict, designer, sopts, simulate: bool) -> dict:
 
 def write_atomic(path: Path, data: bytes) -> None:
     """Write ``path`` through a temporary sibling renamed into place (all or nothing), with
-    the mode a new file gets (``synth.regress.temp_beside``)."""
+    the mode a new file gets (``synth.commands.regress.temp_beside``)."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = temp_beside(path)
@@ -341,7 +342,7 @@ def run_study(
     lim: limits.Limits | None = None,
 ) -> dict:
     """Run a study: design (and simulate) the requests without a stored result on the
-    ``backend`` (local processes, or Ray: ``synth.backend``), then write the outputs from
+    ``backend`` (local processes, or Ray: ``synth.commands.backend``), then write the outputs from
     every stored result; returns the summary object (``--json``)."""
     path = Path(study)
     engine = Backend(backend, jobs, address)

@@ -21,25 +21,7 @@ from __future__ import annotations
 from adron.errors import InputError
 from kinematics.partkinds import PartKinds
 
-__all__ = ["DOF_RANGE", "arm_type_name", "parse_dof", "serial_arm_kif"]
-
-#: The joint counts ``--param dof`` takes (the part kinds' [serial] rows may offer more).
-DOF_RANGE = (3, 7)
-
-
-def parse_dof(text: str) -> int:
-    """The joint count of ``--param dof=TEXT``; InputError (exit 2) naming the range."""
-    try:
-        n = int(str(text).strip())
-    except ValueError:
-        n = -1
-    lo, hi = DOF_RANGE
-    if not lo <= n <= hi:
-        raise InputError(
-            f"--param dof={text}: a serial arm has {lo} to {hi} joints besides its gripper "
-            "(a whole number)"
-        )
-    return n
+__all__ = ["arm_type_name", "serial_arm_kif"]
 
 
 def arm_type_name(n: int) -> str:

@@ -21,7 +21,7 @@ from adron.userfiles import check_regular
 from synth import limits
 
 if TYPE_CHECKING:
-    from synth.conceptual import Designer, Request
+    from synth.reasoning.conceptual import Designer, Request
 
 
 def snapshot_path(suite: Path) -> Path:
@@ -106,9 +106,9 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
 def designer_for(opts: dict) -> Designer:
     """The Designer of a suite's (or study's) ``ontology``, ``rules``, ``allow_scripts``."""
     from adron.kb import load
-    from synth.conceptual import Designer
     from synth.pipeline import bus_limit
-    from synth.solver import Reasoner
+    from synth.reasoning.conceptual import Designer
+    from synth.reasoning.solver import Reasoner
 
     kb = load(opts["ontology"])
     try:
@@ -120,7 +120,7 @@ def designer_for(opts: dict) -> Designer:
 
 def request_for(q: dict) -> Request:
     """The Request of a query table (``abilities``, ``answers`` yes/no, ``params``)."""
-    from synth.conceptual import Request, parse_answer
+    from synth.reasoning.conceptual import Request, parse_answer
 
     return Request(
         abilities=tuple(q["abilities"]),

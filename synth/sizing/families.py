@@ -8,7 +8,7 @@ Each family turns the resolved parameters (SI, see ``synth.params``) into
    torques and joint wrenches bound what the actuators and links must carry, plus the
    joint speeds the behaviours need. These hand-made cases are joined by the design's
    own behaviours (``Family.behaviour_cases``: inverse dynamics with contact forces along
-   every trajectory it will run, ``synth.behaviour_loads``).
+   every trajectory it will run, ``synth.sizing.behaviour_loads``).
 
 Constants below are documented design choices, not knowledge about robot types (which
 lives in the ontology) nor module data (which lives in the catalog).
@@ -31,7 +31,7 @@ from kinematics.templates import Template, TemplateParams, build, default_length
 
 if TYPE_CHECKING:  # gaits is imported lazily, when a structure is sized
     from gaits.base import DesignGeometry
-    from synth.behaviour_loads import BehaviourCase
+    from synth.sizing.behaviour_loads import BehaviourCase
 
 #: Lift of a foot above an obstacle, m; and clearance between neighbouring legs' reach, m.
 STEP_MARGIN = 0.01
@@ -296,7 +296,7 @@ class Family(ABC):
     ) -> list[LoadCase]:
         """The cases ``like`` (``load_cases`` of a template with other masses) on ``tmpl``:
         the same poses, motions and instants with ``tmpl``'s masses, so that the torques
-        of one case with two sets of masses can be compared (``synth.structure``'s
+        of one case with two sets of masses can be compared (``synth.sizing.structure``'s
         torque model; ``load_cases`` itself may pick other instants as the masses move).
         Default: ``load_cases``, whose choices must not depend on the masses."""
         cases = self.load_cases(tmpl, p, catalog)
@@ -334,8 +334,8 @@ class Family(ABC):
         """Load cases from the behaviours the design will run (``geometry``: the design as
         its controllers see it) on the analysis template ``tmpl`` with its masses, and
         notes on behaviours left out; default: every behaviour of the design's abilities,
-        inverse dynamics with contact forces (``synth.behaviour_loads``)."""
-        from synth.behaviour_loads import behaviour_case, motions_for
+        inverse dynamics with contact forces (``synth.sizing.behaviour_loads``)."""
+        from synth.sizing.behaviour_loads import behaviour_case, motions_for
 
         motions, notes = motions_for(geometry, tmpl)
         return [behaviour_case(tmpl, m) for m in motions], notes

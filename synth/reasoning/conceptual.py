@@ -22,7 +22,7 @@ from adron.errors import InputError, OntologyError
 from adron.kb import KnowledgeBase
 from synth.params import BY_NAME as STRUCTURAL
 from synth.params import exceeded_limits, parse_structural
-from synth.solver import Candidate, Query, Reasoner
+from synth.reasoning.solver import Candidate, Query, Reasoner
 
 
 @dataclass(frozen=True, slots=True)
@@ -135,10 +135,10 @@ def query_for(kb: KnowledgeBase, req: Request) -> Query:
 
 def ability_ancestors(kb: KnowledgeBase, abilities: Sequence[str]) -> dict[str, tuple[str, ...]]:
     """Each of ``abilities`` (short names) that has ability classes above it in the
-    ontology's taxonomy -> their short names, nearest first (``synth.bodyplan.ancestors``:
+    ontology's taxonomy -> their short names, nearest first (``synth.reasoning.plans.ancestors``:
     breadth first; classes that are no ability are passed through, not named): which
     behaviours serve an ability with none of its own (``gaits.base.serving``)."""
-    from synth.bodyplan import ancestors
+    from synth.reasoning.plans import ancestors
 
     out: dict[str, tuple[str, ...]] = {}
     for name in sorted(set(abilities)):
@@ -201,7 +201,7 @@ class Designer:
         """The candidates that are serial arms of ``--param dof`` joints (all without it)."""
         if "dof" not in physical:
             return tuple(cands)
-        from synth.bodyplan import arm_joints
+        from synth.reasoning.plans import arm_joints
 
         n = int(physical["dof"])
         return tuple(c for c in cands if arm_joints(self.kb, c.robot_type) == n)
@@ -214,7 +214,7 @@ class Designer:
         limits = self.kb.translation.located("structuralLimit")
         if not limits:
             return tuple(cands), {}
-        from synth.bodyplan import parameter_defaults
+        from synth.reasoning.plans import parameter_defaults
 
         over = {
             c.robot_type: exceeded_limits(

@@ -1,13 +1,13 @@
 """A serial chain's printed links sized as one convex program (issue 20, item 5).
 
-:func:`synth.links.optimal_tube` sizes one tube for its own stiffness. Here the links of
+:func:`synth.sizing.links.optimal_tube` sizes one tube for its own stiffness. Here the links of
 a serial chain (root -> tip) share the chain's tip deflection budget: least printed
 volume (mass, for one material) subject to
 
 * the tip deflection of every chain within its budget ``b``;
 * every link's clamped-end stress (von Mises with the fillet's ``Kt``) within the allowed
   stress, and any other stiffness floor the caller has (Euler buckling);
-* the printable limits of :class:`~synth.links.TubeLimits` (wall >= ``e``, outer radius
+* the printable limits of :class:`~synth.sizing.links.TubeLimits` (wall >= ``e``, outer radius
   <= ``r2max``, length ``Lmin``).
 
 :func:`chain_tubes` solves it with cvxpy and the Clarabel solver; :func:`per_link_tubes`
@@ -18,7 +18,7 @@ one chain) it solves the program's optimality conditions directly, exactly and w
 cvxpy (see "The separable case"); chains that share a link are solved with cvxpy and the
 Clarabel solver, then polished to the same exactness.
 
-Load model (the structure generator's, ``synth.structure._equivalent_force``): each link
+Load model (the structure generator's, ``synth.sizing.structure._equivalent_force``): each link
 is a cantilever clamped at its root end and loaded at its free end by the wrench the
 generator computes (``free_end_load``), transverse force ``F`` and bending moment ``M``
 (magnitudes, N and N m). Its free end then deflects ``d = (F L^3/3 + M L^2/2) / (E I)``
@@ -127,7 +127,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from adron.errors import InfeasibleError
-from synth.links import Tube, TubeLimits, optimal_tube
+from synth.sizing.links import Tube, TubeLimits, optimal_tube
 
 __all__ = [
     "Chain",
