@@ -503,7 +503,7 @@ def test_the_program_ends_at_once_when_its_shutdown_is_not_safe(tmp_path: Path) 
     run; one that ended well with no thread left shuts down as usual."""
     code = (
         "import atexit, sys, threading, time\n"
-        "from synth import cli\n"
+        "from synth.commands import cli\n"
         "atexit.register(lambda: print('atexit ran', flush=True))\n"
         "threading.Thread(target=time.sleep, args=(60,)).start()\n"
         "sys.stdout.write('buffered ')\n"
@@ -514,7 +514,7 @@ def test_the_program_ends_at_once_when_its_shutdown_is_not_safe(tmp_path: Path) 
         [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=30
     )
     assert (p.returncode, p.stdout) == (1, "buffered atexit ran\n"), p.stderr
-    well = "from synth import cli\ncli._end(0)\nprint('went on')\n"
+    well = "from synth.commands import cli\ncli._end(0)\nprint('went on')\n"
     p = subprocess.run(
         [sys.executable, "-c", well], env=env, capture_output=True, text=True, timeout=30
     )
