@@ -91,6 +91,9 @@ STRONGER = 1.0001
 #: Sizings beyond ``MAX_ROUNDS`` that answer a perturbed run broken by the joints' play
 #: with servos of less play (``synth.verification.play.less_play``).
 PLAY_ROUNDS = 2
+#: What :meth:`Strengthening.answer` gives for a probed round that no stronger actuator
+#: answers: the round is made again, every perturbed run made.
+_WHOLE = object()
 #: A refusal's hint (:func:`best_value`): sizings with verification at most, and the
 #: bisection steps after the floor's test.
 HINT_ROUNDS = 7
@@ -292,6 +295,7 @@ def best_value(
     verdict's threshold it often is not). That is five tests for the parameter that is
     the limit and one for each parameter before it whose floor failed; out of rounds, a
     value counts as failing."""
+    from synth.params import BY_NAME, bounds
     from synth.sizing.structure import (
         EASIER_WHEN_SMALLER,
         StructureDesigner,
@@ -331,8 +335,9 @@ def best_value(
             trial = replace(outcome, structure=structure, calibration=None, bundle=None)
             return Strengthening(designer, values, opts, trial).run().infeasible is None
 
-        low = floor * asked
-        if not ok(low):
+        # (never below the parameter's range: a value out of it is no design at all)
+        low = max(floor * asked, bounds(BY_NAME[name])[0]) if name in BY_NAME else floor * asked
+        if low > asked or not ok(low):
             continue
         # midpoints on the grid of the decimals shown: the value named is one that was tested
         snap = partial(rounded_down, name)
@@ -388,6 +393,10 @@ class Strengthening:
         self.designer, self.params, self.opts, self.outcome = designer, params, opts, outcome
         self.rounds = 0  # rounds of simulation
         self.regains = 0  # of them, rounds that verified other gains or paces (no sizing)
+        #: of them, rounds whose perturbed runs stopped at a saturated worst-looking run
+        #: (:meth:`simulate`'s probe): they do not count against ``MAX_ROUNDS``
+        self.probes = 0
+        self.probing = True  # a round may probe (off to make a probed round again whole)
         self.floors: dict[str, float] = {}  # joint -> the torque it must be sized for
         self.excluded: dict[str, frozenset[str]] = {}  # joint -> models it may not have
         self.torque_done = False  # a stronger actuator was asked for and none could be had
@@ -399,6 +408,13 @@ class Strengthening:
     def sizings(self) -> int:
         """The sizings so far (the rounds less those that only changed gains or paces)."""
         return self.rounds - self.regains
+
+    @property
+    def counted(self) -> int:
+        """The sizings that count against ``MAX_ROUNDS`` (and ``PLAY_ROUNDS``): those that
+        followed a round whose every perturbed run was made (a probed round's stronger
+        actuator is a sizing too, but costs a few runs)."""
+        return self.sizings - self.probes
 
     def bundle(self) -> Bundle:
         """The perturbed runs' bundle of the design as it stands (as the user gets it),
@@ -418,6 +434,12 @@ class Strengthening:
                 self._bundle = None
                 continue
             structure = self.answer(now)
+            if structure is _WHOLE:  # a probe no stronger actuator answers: every run
+                self.rounds -= 1
+                self.probing = False
+                continue
+            if self._probed(now):
+                self.probes += 1
             if structure is None:
                 break  # everything passed, or nothing answers what fails
             if structure is self.outcome.structure:  # other gains or paces, the same structure
@@ -466,9 +488,27 @@ class Strengthening:
                 sensing=False,
                 sensed=sensed,
                 decisive=decisive,
+                probe=decisive is None and self._may_probe(),
             )
         )
         return Simulated(files, record, models, planned, sensed, failing, robust)
+
+    def _may_probe(self) -> bool:
+        """Whether this round's perturbed runs may stop at the first worst-looking run that
+        saturates (``verify_robust``'s ``probe``): a stronger actuator may still be sized
+        (the sizings left, none refused yet) and fewer than ``MAX_ROUNDS`` rounds probed."""
+        return (
+            self.probing
+            and self.counted < MAX_ROUNDS
+            and not self.torque_done
+            and self.probes < MAX_ROUNDS
+        )
+
+    @staticmethod
+    def _probed(now: Simulated) -> bool:
+        """Whether round ``now``'s perturbed runs stopped at a saturated probe."""
+        stopped = now.robust.stopped if now.robust is not None else None
+        return bool(stopped and stopped.get("probe"))
 
     def _round(self, now: Simulated) -> Round:
         from synth.verification.causes import Round
@@ -496,7 +536,7 @@ class Strengthening:
         behaviours whose failure refuses the design (their runs may then stop at the
         first that fails; the command hold's pace is measured on those that failed);
         None while a repair may follow."""
-        if self.sizings < MAX_ROUNDS + PLAY_ROUNDS:
+        if self.counted < MAX_ROUNDS + PLAY_ROUNDS:
             return None
         demanded = _demanded(record, results)
         controller = self.bundle().controller()
@@ -514,13 +554,16 @@ class Strengthening:
         sizings more), then, when no sizing answers it, to a closed loop's gains, then to
         the command hold's slower pace (the same structure returned: the outcome has the
         gains or the paces)."""
-        from synth.sizing.structure import StructureDesigner
 
+        if self._probed(now):
+            # the worst-looking runs saturated: a stronger actuator for what saturated, or
+            # (none to be had) this round again with every run made
+            return self._stronger(now) or _WHOLE
         more = _floors(now.results + (now.robust.failing_runs() if now.robust else []), now.record)
         new = {j: f for j, f in more.items() if f > self.floors.get(j, 0.0)}
-        grow = new if self.sizings < MAX_ROUNDS and not self.torque_done else {}
+        grow = new if self.counted < MAX_ROUNDS and not self.torque_done else {}
         state = self._round(now)
-        causes_left = self.sizings < MAX_ROUNDS + PLAY_ROUNDS
+        causes_left = self.counted < MAX_ROUNDS + PLAY_ROUNDS
         stiffer: Mapping[str, frozenset[str]] = {}
         wheels = not (grow or now.failing) and now.not_robust() and causes_left
         if wheels and self.wheels.applies(state):  # none saturated: a stiffer wheel servo?
@@ -528,15 +571,7 @@ class Strengthening:
             stiffer = remedy.sizings[0] if remedy else {}
         if not (now.failing or now.not_robust()):
             return None
-        o = self.outcome
-        sizer = StructureDesigner(
-            self.designer.kb,
-            o.design.chosen,
-            o.catalog,
-            dict(self.params),
-            self.opts.symmetric,
-            self.opts.objective,
-        )
+        sizer = self._sizer()
         state.sizer = sizer
         structure = None
         if grow or stiffer:
@@ -579,6 +614,40 @@ class Strengthening:
                 self.outcome = replace(self.outcome, paces=dict(remedy.paces))
                 self.regains += 1
                 return self.outcome.structure
+        return structure
+
+    def _sizer(self):
+        """The structure generator of the design's type, sized for the request's
+        parameters (its torque floors and exclusions set by the caller)."""
+        from synth.sizing.structure import StructureDesigner
+
+        o = self.outcome
+        return StructureDesigner(
+            self.designer.kb,
+            o.design.chosen,
+            o.catalog,
+            dict(self.params),
+            self.opts.symmetric,
+            self.opts.objective,
+        )
+
+    def _stronger(self, now: Simulated):
+        """The structure sized again with a stronger actuator for every joint that
+        saturated in round ``now`` (nominally or in its perturbed runs); None when none
+        is stronger than it has, or the catalog has none (``torque_done``)."""
+        more = _floors(now.results + (now.robust.failing_runs() if now.robust else []), now.record)
+        new = {j: f for j, f in more.items() if f > self.floors.get(j, 0.0)}
+        if not new:
+            return None
+        sizer = self._sizer()
+        sizer.torque_floor = dict(self.floors | new)
+        sizer.excluded = dict(self.excluded)
+        try:
+            structure = sizer.run()
+        except InfeasibleError:
+            self.torque_done = True
+            return None
+        self.floors |= new
         return structure
 
     def judge(self, now: Simulated) -> Outcome:

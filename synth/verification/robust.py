@@ -44,6 +44,7 @@ def robust_check(
     sensed: Sequence[Run] | None = None,
     table: Mapping | None = None,
     decisive: Collection[str] | None = None,
+    probe: bool = False,
 ) -> RobustRuns | None:
     """``verified.robust`` of ``outcome`` (a sized design) under perturbations 1..``k`` of
     its table (of its listed behaviours, those named in ``only`` when given; its sensing
@@ -55,7 +56,8 @@ def robust_check(
     uses it too); ``verified.robust.physics`` says which and why. ``table``: a table
     already chosen (the sensing loops' runs after the plans'). ``decisive``: the
     behaviours whose failure refuses the design when no repair can follow: the runs stop
-    once one of them cannot pass (:func:`synth.verification.runs.verify_robust`)."""
+    once one of them cannot pass; ``probe``: they stop at the worst-looking run of each
+    plan when one of those saturates (:func:`synth.verification.runs.verify_robust`)."""
     if k <= 0 or outcome.structure is None or outcome.catalog is None:
         return None
     from synth.verification.perturb import design_table
@@ -72,6 +74,7 @@ def robust_check(
     # through JSON as design.json keeps it: the replay draws from the very same numbers
     table = json.loads(json.dumps(table))
     early = {} if decisive is None else {"decisive": decisive}
+    early |= {"probe": True} if probe else {}
     robust = verify_robust(bundle, k, table, only=only, sensing=sensing, **early)
     return replace(robust, physics=checked, shows=shows(robust))
 

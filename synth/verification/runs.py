@@ -490,6 +490,7 @@ def verify_robust(
     only: Collection[str] | None = None,
     sensing: bool = True,
     decisive: Collection[str] | None = None,
+    probe: bool = False,
 ) -> RobustRuns:
     """Every listed behaviour of a bundle (default parameters; ``behaviors`` when given,
     the listed ones named in ``only``) run under the perturbations 1..``k`` of ``table``
@@ -516,7 +517,14 @@ def verify_robust(
     a decisive behaviour has failed more runs than it may (K less the required passes):
     only the behaviours so decided are listed, with the runs made (``stopped`` says the
     order, the runs made and those behaviours). When none is decided, every run is made
-    and the result is the one without ``decisive``, to the bit."""
+    and the result is the one without ``decisive``, to the bit.
+
+    ``probe`` (a round after which a stronger actuator may still be sized): every plan
+    runs first under the worst-looking perturbation; when one of those runs fails with an
+    actuator at its limit, a new sizing follows whatever the other runs give, so they
+    stop there: only the plans whose run so failed are listed (``stopped["probe"]``
+    true). Otherwise the other runs are made and the result is the one without
+    ``probe``, to the bit."""
     import dataclasses
     from concurrent.futures import ThreadPoolExecutor
 
@@ -563,19 +571,31 @@ def verify_robust(
     threads = min(VERIFY_THREADS, len(jobs), os.cpu_count() or 1)
     done: dict = {}
     decided: set[int] = set()  # the plans that can no longer pass (early only)
-    if not early:
+    probed = False
+    if probe and not early:
+        # the worst-looking perturbation of every plan first: a run of it that saturates
+        # calls for a stronger actuator whatever the other runs give
+        lead_seed = worst_first(table, seeds)[0]
+        lead = [(lead_seed, r) for r in runs]
+        with ThreadPoolExecutor(max(min(threads, len(lead)), 1)) as pool:
+            done = dict(zip(lead, pool.map(one, lead), strict=True))
+        decided = {r for (_, r), res in done.items() if not res.ok and res.saturated_joints}
+        probed = bool(decided)
+        order = [lead_seed] if probed else order
+        jobs = [j for j in jobs if j not in done]
+    if not early and not probed:
         wait = _sensing_runs(bundle.files, table, sensing_jobs, workers)
         try:
-            if threads > 1:
+            if threads > 1 and jobs:
                 with ThreadPoolExecutor(threads) as pool:
-                    done = dict(zip(jobs, pool.map(one, jobs), strict=True))
+                    done |= dict(zip(jobs, pool.map(one, jobs), strict=True))
             else:
-                done = {job: one(job) for job in jobs}
+                done |= {job: one(job) for job in jobs}
         except BaseException:  # (a time limit, Ctrl-C): the sensing runs are not waited for
             wait(cancel=True)
             raise
         done |= wait()
-    else:
+    elif early:
         # a batch of runs at a time, the worst-looking perturbations first, until one of
         # the deciding plans has failed more runs than it may
         failed: dict[int, int] = {}
@@ -630,7 +650,8 @@ def verify_robust(
             "order": list(order),
             "runs": len(done),
             "decided": sorted(names[i] for i in range(len(names)) if first[i] in decided),
-        },
+        }
+        | ({"probe": True} if probed else {}),
     )
 
 
