@@ -437,6 +437,9 @@ class Strengthening:
             if structure is _WHOLE:  # a probe no stronger actuator answers: every run
                 self.rounds -= 1
                 self.probing = False
+                # the round again as it was: measured afresh, its calibration included
+                self.outcome = replace(self.outcome, calibration=None)
+                self._bundle = None
                 continue
             if self._probed(now):
                 self.probes += 1
@@ -634,7 +637,7 @@ class Strengthening:
     def _stronger(self, now: Simulated):
         """The structure sized again with a stronger actuator for every joint that
         saturated in round ``now`` (nominally or in its perturbed runs); None when none
-        is stronger than it has, or the catalog has none (``torque_done``)."""
+        is stronger than it has or the catalog has none (the loop's state unchanged)."""
         more = _floors(now.results + (now.robust.failing_runs() if now.robust else []), now.record)
         new = {j: f for j, f in more.items() if f > self.floors.get(j, 0.0)}
         if not new:
@@ -645,7 +648,8 @@ class Strengthening:
         try:
             structure = sizer.run()
         except InfeasibleError:
-            self.torque_done = True
+            # none to be had: the loop's state as before the probe, the round made again
+            # whole (its answer then sees every saturated joint, as without the probe)
             return None
         self.floors |= new
         return structure
