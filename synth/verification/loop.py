@@ -140,6 +140,12 @@ class Verification:
         return out
 
 
+def _at_least(floors: Mapping[str, float], unmet: Mapping[str, float]) -> bool:
+    """Whether ``floors`` ask at least what ``unmet`` (floors no sizing met) asks of every
+    joint: then no sizing meets them either (a higher floor leaves fewer actuators)."""
+    return bool(unmet) and all(floors.get(j, 0.0) >= f for j, f in unmet.items())
+
+
 def _floors(results: list[Run], record: dict) -> dict[str, float]:
     """Joint -> torque floor for every joint that saturated in a failing behaviour."""
     usable = {j["name"]: float(j["usable_torque_Nm"]) for j in record.get("joints", ())}
@@ -397,6 +403,11 @@ class Strengthening:
         #: (:meth:`simulate`'s probe): they do not count against ``MAX_ROUNDS``
         self.probes = 0
         self.probing = True  # a round may probe (off to make a probed round again whole)
+        #: torque floors a probe's sizing found no actuators for (floors asking at least
+        #: as much fail too: the sizing is not tried again)
+        self.unmet: dict[str, float] = {}
+        #: a probed round to make again whole (:meth:`simulate` keeps its nominal runs)
+        self._again: Simulated | None = None
         self.floors: dict[str, float] = {}  # joint -> the torque it must be sized for
         self.excluded: dict[str, frozenset[str]] = {}  # joint -> models it may not have
         self.torque_done = False  # a stronger actuator was asked for and none could be had
@@ -437,9 +448,7 @@ class Strengthening:
             if structure is _WHOLE:  # a probe no stronger actuator answers: every run
                 self.rounds -= 1
                 self.probing = False
-                # the round again as it was: measured afresh, its calibration included
-                self.outcome = replace(self.outcome, calibration=None)
-                self._bundle = None
+                self._again = now  # (its nominal runs and table kept: the same design)
                 continue
             if self._probed(now):
                 self.probes += 1
@@ -461,6 +470,23 @@ class Strengthening:
         from synth.verification.source import Bundle
 
         designer = self.designer
+        again, self._again = self._again, None
+        if again is not None and again.robust is not None:
+            # a probed round again, every perturbed run made: the same design, its nominal
+            # runs, calibration, table and physics as they were
+            robust = robust_check(
+                designer,
+                self.outcome,
+                self.opts.robustness,
+                bundle=self.bundle(),
+                nominal=again.planned,
+                sensing=False,
+                sensed=again.sensed,
+                decisive=self._decisive(again.record, again.results),
+                table=again.robust.table,
+                checked=again.robust.physics,
+            )
+            return replace(again, robust=robust)
         files = self.outcome.files(designer)
         calibration = calibrate(Bundle(files))
         if calibration:
@@ -582,6 +608,9 @@ class Strengthening:
             sizer.torque_floor = dict(self.floors)
             sizer.excluded = dict(self.excluded) | dict(stiffer)
             try:
+                if not stiffer and _at_least(self.floors, self.unmet):
+                    # a probe's floors found no actuator and these ask as much or more
+                    raise InfeasibleError("no stronger actuator (as the probe found)")
                 structure = sizer.run()
                 self.excluded |= stiffer
                 if stiffer:
@@ -649,7 +678,9 @@ class Strengthening:
             structure = sizer.run()
         except InfeasibleError:
             # none to be had: the loop's state as before the probe, the round made again
-            # whole (its answer then sees every saturated joint, as without the probe)
+            # whole (its answer then sees every saturated joint, as without the probe;
+            # floors asking as much as these are known to fail: ``unmet``)
+            self.unmet = dict(self.floors | new)
             return None
         self.floors |= new
         return structure

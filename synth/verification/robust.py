@@ -45,6 +45,7 @@ def robust_check(
     table: Mapping | None = None,
     decisive: Collection[str] | None = None,
     probe: bool = False,
+    checked: Mapping | None = None,
 ) -> RobustRuns | None:
     """``verified.robust`` of ``outcome`` (a sized design) under perturbations 1..``k`` of
     its table (of its listed behaviours, those named in ``only`` when given; its sensing
@@ -54,7 +55,8 @@ def robust_check(
     runs use the coarse time step where the nominal runs, sensing loops included, agree
     at it (:func:`physics`; ``table["timestep_s"]``, recorded with the table, so a replay
     uses it too); ``verified.robust.physics`` says which and why. ``table``: a table
-    already chosen (the sensing loops' runs after the plans'). ``decisive``: the
+    already chosen (the sensing loops' runs after the plans', a probed round made again),
+    with ``checked``, the physics chosen with it (None: not said again). ``decisive``: the
     behaviours whose failure refuses the design when no repair can follow: the runs stop
     once one of them cannot pass; ``probe``: they stop at the worst-looking run of each
     plan when one of those saturates (:func:`synth.verification.runs.verify_robust`)."""
@@ -64,7 +66,6 @@ def robust_check(
     from synth.verification.runs import verify_robust
 
     bundle = robust_bundle(designer, outcome) if bundle is None else bundle
-    checked = None
     if table is None:
         table = design_table(bundle.record, bundle.xml, outcome.catalog)
         # the coarse step where this design's nominal runs agree with the fine ones
