@@ -520,11 +520,11 @@ def verify_robust(
     and the result is the one without ``decisive``, to the bit.
 
     ``probe`` (a round after which a stronger actuator may still be sized): every plan
-    runs first under the worst-looking perturbation; when one of those runs fails with an
-    actuator at its limit, a new sizing follows whatever the other runs give, so they
-    stop there: only the plans whose run so failed are listed (``stopped["probe"]``
-    true). Otherwise the other runs are made and the result is the one without
-    ``probe``, to the bit."""
+    runs first under the worst-looking perturbation; when one of those runs fails
+    saturated (an actuator at its limit more than the verdict allows), a new sizing
+    follows whatever the other runs give, so they stop there: only the plans whose run
+    so failed are listed (``stopped["probe"]`` true). Otherwise the other runs are made
+    and the result is the one without ``probe``, to the bit."""
     import dataclasses
     from concurrent.futures import ThreadPoolExecutor
 
@@ -579,7 +579,9 @@ def verify_robust(
         lead = [(lead_seed, r) for r in runs]
         with ThreadPoolExecutor(max(min(threads, len(lead)), 1)) as pool:
             done = dict(zip(lead, pool.map(one, lead), strict=True))
-        decided = {r for (_, r), res in done.items() if not res.ok and res.saturated_joints}
+        # (failed saturated: a run failing on its pose or turn with an actuator touching
+        # its limit on the way is left to the whole round, as every other failure)
+        decided = {r for (_, r), res in done.items() if "saturated" in res.verdict}
         probed = bool(decided)
         order = [lead_seed] if probed else order
         jobs = [j for j in jobs if j not in done]
