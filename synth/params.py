@@ -193,6 +193,14 @@ def bounds(spec: ParamSpec) -> tuple[float, float]:
     )
 
 
+def lowest(name: str, value: float) -> float:
+    """``value`` (SI), raised to parameter ``name``'s range where it is below it: the
+    smallest value a search over the parameter may try (a value out of the range is no
+    design at all: its record is refused)."""
+    spec = BY_NAME.get(name)
+    return value if spec is None else max(value, bounds(spec)[0])
+
+
 def check_range(spec: ParamSpec, value: float, text: str) -> None:
     """InputError (exit 2) when ``value`` (SI, read from ``text``) is outside ``spec``'s range."""
     low, high = bounds(spec)

@@ -49,7 +49,7 @@ from kinematics.templates import (
     build,
     register_plan,
 )
-from synth.params import BY_NAME, bounds, resolve
+from synth.params import lowest, resolve
 from synth.reasoning.conceptual import ability_ancestors
 from synth.reasoning.solver import Candidate
 from synth.sizing.assign import (
@@ -1209,11 +1209,9 @@ def largest_value(
     if not asked or asked <= 0:
         return None
     values = designer.values
-    low = floor * asked
-    if name in BY_NAME:  # never below the parameter's range: a value out of it is no design
-        low = max(low, bounds(BY_NAME[name])[0])
-        if low > asked:
-            return None
+    low = lowest(name, floor * asked)
+    if low > asked:
+        return None
 
     def ok(x: float, behaviours: bool) -> bool:
         designer.values = {**values, name: x}

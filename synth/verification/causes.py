@@ -100,3 +100,39 @@ class Cause(Protocol):
         """What ``design.json`` keeps of what this cause changed (``models``: each joint's
         actuator in the end); None when it changed nothing."""
         ...
+
+
+def with_record(bundle: Bundle, key: str, values: Mapping[str, float]) -> Bundle:
+    """``bundle`` whose record's ``key`` (``feedback_gains``, ``paces``: behaviour -> value)
+    is ``values``: what a cause that changes no sizing tries."""
+    import json
+
+    record = dict(bundle.record)
+    record[key] = dict(sorted(values.items()))
+    return bundle.with_files({"design.json": json.dumps(record)})
+
+
+def trial_passes(
+    trial: Bundle, robust: RobustRuns, behavior: str, entry: dict
+) -> tuple[bool, dict]:
+    """Does ``behavior`` of ``trial`` (a bundle with one cause's change) pass nominally and
+    in every perturbed run of ``robust``'s table (the same seeds; the worst-looking first,
+    stopping at the first run that fails)? With ``entry`` completed by what it gave: its
+    ``nominal`` verdict ("ok" or the failed criteria, or why it does not plan), ``passed``
+    of ``runs`` made ``of`` K, and the ``failed_seed``."""
+    from synth.verification.runs import verify_nominal, verify_robust
+
+    try:
+        nominal = verify_nominal(trial, [behavior])[0]
+    except ValueError as e:  # (the change does not plan on the nominal model)
+        return False, entry | {"nominal": [str(e)], "passed": 0, "runs": 0}
+    if not nominal.ok:
+        return False, entry | {"nominal": nominal.verdict, "passed": 0, "runs": 0}
+    runs = verify_robust(
+        trial, robust.k, robust.table, [behavior], sensing=False, decisive={behavior}
+    )
+    got = runs.behaviors[0]
+    failed = [f.seed for f in got.failures]
+    entry = entry | {"nominal": "ok", "passed": got.passed, "runs": got.runs, "of": robust.k}
+    entry |= {"failed_seed": failed[0]} if failed else {}
+    return got.passed == got.runs == robust.k, entry

@@ -26,11 +26,10 @@ limits or timing).
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
-from synth.verification.causes import Remedy, Round
+from synth.verification.causes import Remedy, Round, trial_passes, with_record
 
 if TYPE_CHECKING:
     from synth.verification.source import Bundle
@@ -42,9 +41,7 @@ GAIN_SCALES = (2.0, 0.5)
 def with_gains(bundle: Bundle, gains: Mapping[str, float]) -> Bundle:
     """``bundle`` whose record gives its behaviours' loops the gain scales ``gains``
     (behaviour -> scale; the record's ``feedback_gains``)."""
-    record = dict(bundle.record)
-    record["feedback_gains"] = dict(sorted(gains.items()))
-    return bundle.with_files({"design.json": json.dumps(record)})
+    return with_record(bundle, "feedback_gains", gains)
 
 
 class Gains:
@@ -65,8 +62,6 @@ class Gains:
         runs a feedback loop: the first scale of its loop's gains with which its nominal
         run and every perturbed run pass. A remedy with every scale found (and those
         chosen before); None when none was."""
-        from synth.verification.runs import verify_nominal, verify_robust
-
         robust = now.robust
         if robust is None:
             return None
@@ -86,22 +81,11 @@ class Gains:
             for s in self.scales:
                 scale = float(f"{base * s:.6g}")
                 trial = with_gains(bundle, {**gains, **found, b.behavior: scale})
-                nominal = verify_nominal(trial, [b.behavior])[0]
                 entry = {"behavior": b.behavior, "loop": str(feedback.get("loop")), "scale": scale}
-                if not nominal.ok:
-                    self.tried.append(entry | {"nominal": nominal.verdict, "passed": 0, "runs": 0})
-                    continue
-                # a failed run rejects the scale: the worst-looking perturbations first, and
-                # the runs stop at the first that fails
-                runs = verify_robust(
-                    trial, robust.k, robust.table, [b.behavior], sensing=False,
-                    decisive={b.behavior},
-                )  # fmt: skip
-                got = runs.behaviors[0]
-                failed = [f.seed for f in got.failures]
-                entry |= {"nominal": "ok", "passed": got.passed, "runs": got.runs, "of": robust.k}
-                self.tried.append(entry | ({"failed_seed": failed[0]} if failed else {}))
-                if got.passed == got.runs:
+                # a failed run rejects the scale (the worst-looking perturbations first)
+                ok, entry = trial_passes(trial, robust, b.behavior, entry)
+                self.tried.append(entry)
+                if ok:
                     found[b.behavior] = scale
                     break
         if not found:

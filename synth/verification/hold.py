@@ -39,7 +39,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
-from synth.verification.causes import Remedy, Round
+from synth.verification.causes import Remedy, Round, trial_passes, with_record
 
 if TYPE_CHECKING:
     from synth.verification.results import RobustRuns, Run
@@ -168,11 +168,7 @@ def hold_note(blamed: list[dict], behavior: str) -> str:
 def with_paces(bundle: Bundle, paces: Mapping[str, float]) -> Bundle:
     """``bundle`` whose record gives its behaviours the paces ``paces`` (behaviour -> the
     value of its pace parameter; the record's ``paces``)."""
-    import json
-
-    record = dict(bundle.record)
-    record["paces"] = dict(sorted(paces.items()))
-    return bundle.with_files({"design.json": json.dumps(record)})
+    return with_record(bundle, "paces", paces)
 
 
 class Hold:
@@ -237,9 +233,6 @@ class Hold:
         """Does ``behavior`` pass nominally and in every perturbed run of ``robust``'s table
         with ``paces``? (The worst-looking perturbations first, stopping at the first run
         that fails; what it gave is kept in :attr:`tried`.)"""
-        from synth.verification.runs import verify_nominal, verify_robust
-
-        trial = with_paces(bundle, paces)
         entry = {
             "behavior": behavior,
             "parameter": blamed["parameter"],
@@ -247,22 +240,9 @@ class Hold:
             "unit": blamed["unit"],
             "from": blamed["default_speed"],
         }
-        try:
-            nominal = verify_nominal(trial, [behavior])[0]
-        except ValueError as e:  # (the pace does not plan on the nominal model)
-            self.tried.append(entry | {"nominal": [str(e)], "passed": 0, "runs": 0})
-            return False
-        if not nominal.ok:
-            self.tried.append(entry | {"nominal": nominal.verdict, "passed": 0, "runs": 0})
-            return False
-        runs = verify_robust(
-            trial, robust.k, robust.table, [behavior], sensing=False, decisive={behavior}
-        )
-        got = runs.behaviors[0]
-        failed = [f.seed for f in got.failures]
-        entry |= {"nominal": "ok", "passed": got.passed, "runs": got.runs, "of": robust.k}
-        self.tried.append(entry | ({"failed_seed": failed[0]} if failed else {}))
-        return got.passed == got.runs == robust.k
+        ok, entry = trial_passes(with_paces(bundle, paces), robust, behavior, entry)
+        self.tried.append(entry)
+        return ok
 
     def chose(self, paces: Mapping[str, float]) -> None:
         """The loop verifies the design again with ``paces``."""

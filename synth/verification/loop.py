@@ -284,6 +284,19 @@ def unserved_message(robot: str, unserved: Mapping[str, tuple[tuple[str, ...], l
     )
 
 
+def structure_designer(
+    designer: Designer, outcome: Outcome, params: Mapping[str, float], opts: StructureOptions
+):
+    """The structure generator (``synth.sizing.structure.StructureDesigner``) of
+    ``outcome``'s chosen type and catalog, for the parameters ``params``."""
+    from synth.sizing.structure import StructureDesigner
+
+    c = outcome.design.chosen
+    return StructureDesigner(
+        designer.kb, c, outcome.catalog, dict(params), opts.symmetric, opts.objective
+    )
+
+
 def best_value(
     designer: Designer, params: Mapping[str, float], opts: StructureOptions, outcome: Outcome
 ) -> str | None:
@@ -301,26 +314,16 @@ def best_value(
     verdict's threshold it often is not). That is five tests for the parameter that is
     the limit and one for each parameter before it whose floor failed; out of rounds, a
     value counts as failing."""
-    from synth.params import BY_NAME, bounds
+    from synth.params import lowest
     from synth.sizing.structure import (
         EASIER_WHEN_SMALLER,
-        StructureDesigner,
         bisect_largest,
         rounded_down,
         shown_value,
     )
 
     budget = [HINT_ROUNDS]
-
-    def sizer(values: Mapping[str, float]) -> StructureDesigner:
-        return StructureDesigner(
-            designer.kb,
-            outcome.design.chosen,
-            outcome.catalog,
-            dict(values),
-            opts.symmetric,
-            opts.objective,
-        )
+    sizer = partial(structure_designer, designer, outcome, opts=opts)
 
     asked_values = sizer(params).values  # the parameters with the type's defaults
 
@@ -341,8 +344,7 @@ def best_value(
             trial = replace(outcome, structure=structure, calibration=None, bundle=None)
             return Strengthening(designer, values, opts, trial).run().infeasible is None
 
-        # (never below the parameter's range: a value out of it is no design at all)
-        low = max(floor * asked, bounds(BY_NAME[name])[0]) if name in BY_NAME else floor * asked
+        low = lowest(name, floor * asked)
         if low > asked or not ok(low):
             continue
         # midpoints on the grid of the decimals shown: the value named is one that was tested
@@ -633,35 +635,22 @@ class Strengthening:
                 break
         if structure is None and not now.failing:
             # no sizing answers it: do other gains of a closed loop? (measured)
-            remedy = self.gains.explains(state)
-            if remedy and remedy.gains:
-                self.gains.chose(remedy.gains)
-                self.outcome = replace(self.outcome, feedback_gains=dict(remedy.gains))
-                self.regains += 1
-                return self.outcome.structure
-            # nor do they: does a slower pace, where the command hold breaks it? (measured)
-            remedy = self.hold.explains(state)
-            if remedy and remedy.paces:
-                self.hold.chose(remedy.paces)
-                self.outcome = replace(self.outcome, paces=dict(remedy.paces))
-                self.regains += 1
-                return self.outcome.structure
+            # then a slower pace, where the command hold breaks it (measured)
+            for cause, field in ((self.gains, "gains"), (self.hold, "paces")):
+                remedy = cause.explains(state)
+                values = getattr(remedy, field) if remedy else None
+                if values:
+                    cause.chose(values)
+                    key = "feedback_gains" if field == "gains" else field
+                    self.outcome = replace(self.outcome, **{key: dict(values)})
+                    self.regains += 1
+                    return self.outcome.structure
         return structure
 
     def _sizer(self):
         """The structure generator of the design's type, sized for the request's
         parameters (its torque floors and exclusions set by the caller)."""
-        from synth.sizing.structure import StructureDesigner
-
-        o = self.outcome
-        return StructureDesigner(
-            self.designer.kb,
-            o.design.chosen,
-            o.catalog,
-            dict(self.params),
-            self.opts.symmetric,
-            self.opts.objective,
-        )
+        return structure_designer(self.designer, self.outcome, self.params, self.opts)
 
     def _stronger(self, now: Simulated):
         """The structure sized again with a stronger actuator for every joint that
