@@ -590,9 +590,17 @@ class Strengthening:
             # the worst-looking runs saturated: a stronger actuator for what saturated, or
             # (none to be had) this round again with every run made
             return self._stronger(now) or _WHOLE
-        more = _floors(now.results + (now.robust.failing_runs() if now.robust else []), now.record)
-        new = {j: f for j, f in more.items() if f > self.floors.get(j, 0.0)}
-        grow = new if self.counted < MAX_ROUNDS and not self.torque_done else {}
+        if not (now.failing or now.not_robust()):
+            return None
+        sizer = self._sizer()
+        sizer.excluded = dict(self.excluded)
+        # a stronger actuator for each joint that saturated and has one in the catalog (a
+        # joint already at the strongest keeps its floor out: the others' may still answer)
+        grow = (
+            sizer.attainable(self._new_floors(now))
+            if self.counted < MAX_ROUNDS and not self.torque_done
+            else {}
+        )
         state = self._round(now)
         causes_left = self.counted < MAX_ROUNDS + PLAY_ROUNDS
         stiffer: Mapping[str, frozenset[str]] = {}
@@ -600,20 +608,19 @@ class Strengthening:
         if wheels and self.wheels.applies(state):  # none saturated: a stiffer wheel servo?
             remedy = self.wheels.explains(state)
             stiffer = remedy.sizings[0] if remedy else {}
-        if not (now.failing or now.not_robust()):
-            return None
-        sizer = self._sizer()
         state.sizer = sizer
         structure = None
         if grow or stiffer:
-            self.floors |= grow
-            sizer.torque_floor = dict(self.floors)
+            floors = self.floors | grow
+            sizer.torque_floor = dict(floors)
             sizer.excluded = dict(self.excluded) | dict(stiffer)
             try:
-                if not stiffer and _at_least(self.floors, self.unmet):
+                if not stiffer and _at_least(floors, self.unmet):
                     # a probe's floors found no actuator and these ask as much or more
                     raise InfeasibleError("no stronger actuator (as the probe found)")
                 structure = sizer.run()
+                self.floors = floors  # (floors no sizing met are not kept: the play's
+                # trials below are sized without them, and the record names only floors met)
                 self.excluded |= stiffer
                 if stiffer:
                     self.wheels.taken(state, stiffer)
@@ -652,17 +659,22 @@ class Strengthening:
         parameters (its torque floors and exclusions set by the caller)."""
         return structure_designer(self.designer, self.outcome, self.params, self.opts)
 
+    def _new_floors(self, now: Simulated) -> dict[str, float]:
+        """Joint -> torque floor for each joint that saturated in round ``now`` (nominally
+        or in a failing perturbed run) beyond the floor it has."""
+        more = _floors(now.results + (now.robust.failing_runs() if now.robust else []), now.record)
+        return {j: f for j, f in more.items() if f > self.floors.get(j, 0.0)}
+
     def _stronger(self, now: Simulated):
         """The structure sized again with a stronger actuator for every joint that
         saturated in round ``now`` (nominally or in its perturbed runs); None when none
         is stronger than it has or the catalog has none (the loop's state unchanged)."""
-        more = _floors(now.results + (now.robust.failing_runs() if now.robust else []), now.record)
-        new = {j: f for j, f in more.items() if f > self.floors.get(j, 0.0)}
+        sizer = self._sizer()
+        sizer.excluded = dict(self.excluded)
+        new = sizer.attainable(self._new_floors(now))
         if not new:
             return None
-        sizer = self._sizer()
         sizer.torque_floor = dict(self.floors | new)
-        sizer.excluded = dict(self.excluded)
         try:
             structure = sizer.run()
         except InfeasibleError:
