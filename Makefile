@@ -56,11 +56,11 @@ bench: $(STAMP)
 schemas: $(STAMP)
 	$(BIN)/python -m adron.write_schemas
 
-# The documentation site into site/ (git-ignored); `make test` builds it too (tests/test_docs.py).
+# The documentation site into site/ (git-ignored); `make test` builds it too (tests/project/test_docs.py).
 docs: $(STAMP)
 	$(BIN)/python -m mkdocs build --strict
 
-# ruff, and the import contracts of pyproject.toml (make test checks them too: tests/test_layers.py)
+# ruff, and the import contracts of pyproject.toml (make test checks them too: tests/project/test_layers.py)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .

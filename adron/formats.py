@@ -226,7 +226,7 @@ Answer = Annotated[
 ParamValue = Annotated[str, Field(max_length=MAX_NAME)]
 #: the most perturbed runs per behaviour (``--robustness``): the same number as
 #: synth.limits.MAX_ROBUSTNESS, which the command line reads without importing pydantic
-#: (tests/test_schema.py holds the two together)
+#: (tests/adron/test_schema.py holds the two together)
 MAX_ROBUSTNESS = 64
 #: The most requests a study may expand to: counted before anything is expanded, a larger
 #: study is refused (exit 2). Checking a request costs about 1 ms and designing one with

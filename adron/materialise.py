@@ -34,7 +34,7 @@ from dataclasses import replace
 from adron.translate import Translation, Unit
 
 #: the KIF meaning of the taxonomy relations, as the encodings give it (asp/taxonomy.lp and
-#: asp/closure.lp: tests/test_materialise.py checks that they agree)
+#: asp/closure.lp: tests/adron/test_materialise.py checks that they agree)
 KIF_TAXONOMY = """\
 holds("instance", X, D) :- holds("instance", X, C), holds("subclass", C, D).
 holds(S, X, Y) :- holds(R, X, Y), holds("subrelation", R, S).

@@ -623,7 +623,7 @@ def closed_taxonomy(
     ``RobotAction``, the module kinds...) or ``holds("subclass", V_X, "D")`` (a translated
     rule; one with both arguments free means the fallback). Every other rule that asks
     ``isa`` binds its first argument from a class something names (the encodings were
-    checked for this; tests/test_limits.py compares every design with the recursive
+    checked for this; tests/adron/test_limits.py compares every design with the recursive
     closure over hierarchies hung below every class). So D's pairs from non-anchor
     descendants are given only for such D: a 100,000-class chain of leg kinds gives
     100,000 pairs instead of one per ancestor of ``RobotLeg``. Likewise upwards: unless a

@@ -1,6 +1,6 @@
 """Write the JSON Schema of every user file format into ``adron/schemas/`` (package data):
 ``python -m adron.write_schemas`` (``make schemas``); ``--check`` only compares, exit 1
-when a committed file differs from what the models give (tests/test_schema.py does too).
+when a committed file differs from what the models give (tests/adron/test_schema.py does too).
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ run (an ``--out`` folder, or a bundle's folder changed by a refused ``--force``)
 
     python bench/fuzz_formats.py [--cases 2400] [--seed 34] [--cli-share 0.05]
 
-tests/test_schema_fuzz.py runs a few hundred of the same cases.
+tests/adron/test_schema_fuzz.py runs a few hundred of the same cases.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ nominal verification (the refusal happens after it), one accepted passed it too.
 
     python bench/robust_acceptance.py [K] [--jobs N] [--jsonl FILE] [--only SUBSTRING]
 
-The KIF types are this file's own (written like tests/test_bodyplan.py's generators, which
+The KIF types are this file's own (like tests/kinematics/test_bodyplan.py's generators, which
 they mirror), so that the grid does not depend on the tests folder.
 """
 
@@ -32,7 +32,7 @@ for p in (REPO, REPO / "bench", REPO / "tests"):
 
 
 def _kifs() -> dict[str, str]:
-    from test_bodyplan import HEAVY, MOBILE, arm_kif, legged_kif
+    from tests.kinematics.test_bodyplan import HEAVY, MOBILE, arm_kif, legged_kif
 
     return {
         "arm4": arm_kif(4),

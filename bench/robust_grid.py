@@ -9,7 +9,7 @@ refusals' hint search (the largest payload that works) is left out: it only name
 
 ``--arms``: the arms' grid instead (``ARM_KINDS`` x ``ARM_PAYLOADS`` x ``ARM_REACHES``):
 the 3-joint arm (a cylinder), the 6-joint arm (an oval) and KIF-only arms of 4, 5 and 7
-joints (``tests/test_bodyplan.py``'s ``arm_kif``), each payload and reach.
+joints (``tests/kinematics/test_bodyplan.py``'s ``arm_kif``), each payload and reach.
 """
 
 from __future__ import annotations
@@ -55,7 +55,8 @@ def arm_requests(folder: Path) -> dict[str, list[list[str]]]:
     ``folder``)."""
     import importlib.util
 
-    spec = importlib.util.spec_from_file_location("bodyplan", REPO / "tests" / "test_bodyplan.py")
+    where = REPO / "tests" / "kinematics" / "test_bodyplan.py"
+    spec = importlib.util.spec_from_file_location("bodyplan", where)
     mod = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
     spec.loader.exec_module(mod)  # type: ignore[union-attr]
     out: dict[str, list[list[str]]] = {}

@@ -1,6 +1,6 @@
 """Robust verification of wheeled robots over a grid (issue 22): differential drive,
-skid-steer, tricycle, car, the KIF-only steered types of ``tests/test_steered.py`` and the
-KIF mobile manipulator of ``tests/test_bodyplan.py``, payload x speed, each request
+skid-steer, tricycle, car, the KIF-only steered types of ``tests/gaits/test_steered.py`` and the
+KIF mobile manipulator of ``tests/kinematics/test_bodyplan.py``, payload x speed, each request
 designed as ``parmor design`` does (nominal verification) and with ``--robustness K``.
 Prints per type the requests accepted nominal -> robust and the perturbed runs passed;
 ``--jsonl FILE`` keeps one row per request (the failures' seeds, criteria and
@@ -27,8 +27,8 @@ for p in (REPO, REPO / "bench", REPO / "tests"):
 
 def requests(kif_dir: Path) -> list[tuple[str, list[str]]]:
     """(label, design argv) of the grid: 27 requests over the wheeled types."""
-    from test_bodyplan import MOBILE
-    from test_steered import TYPES
+    from tests.gaits.test_steered import TYPES
+    from tests.kinematics.test_bodyplan import MOBILE
 
     out: list[tuple[str, list[str]]] = []
     for payload in ("0kg", "0.5kg", "1kg"):
@@ -49,7 +49,7 @@ def requests(kif_dir: Path) -> list[tuple[str, list[str]]]:
         for payload in ("0kg", "0.3kg"):
             p = ["--param", f"payload={payload}"]
             out.append((case, [ability, "--ontology", str(src), *p]))
-    # the KIF mobile manipulator of tests/test_bodyplan.py: a differential drive with an arm
+    # tests/kinematics/test_bodyplan.py's KIF mobile manipulator: a differential drive, an arm
     src = kif_dir / "mobile.kif"
     src.write_text(MOBILE)
     for payload in ("0kg", "0.05kg", "0.1kg"):

@@ -19,7 +19,7 @@ from pathlib import Path
 
 
 def _legged_kif(name: str, legs: int, ability: str) -> str:
-    from tests.test_bodyplan import legged_kif
+    from tests.kinematics.test_bodyplan import legged_kif
 
     return legged_kif(name, legs, ability)
 

@@ -1,5 +1,5 @@
 """Steered line-tracking over a grid (issue 21): the two KIF-only steered types of
-tests/test_steered.py x circle/wave x line radius 0.5/1/2 m x a quarter and half of the top
+tests/gaits/test_steered.py x circle/wave x line radius 0.5/1/2 m x a quarter and half of the top
 speed (24 runs, about 7 min on 2 cores); prints the pass rate and the worst steering-servo
 saturation, and exits 1 below the measured floor (10 of 24 when written: see the README).
 
@@ -21,7 +21,7 @@ def main() -> int:
     import io
 
     from synth.commands.cli import main as parmor
-    from tests.test_sensing_steered import TYPES, _follow
+    from tests.program.test_sensing_steered import TYPES, _follow
 
     root = Path(tempfile.mkdtemp(prefix="steerline-"))
     runs, passed, worst_sat, failed = 0, 0, 0.0, []

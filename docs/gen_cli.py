@@ -5,7 +5,7 @@
 
 The page is every command's ``--help`` text as ``parmor COMMAND --help`` prints it in a
 terminal 100 columns wide (``synth.commands.cli.build_parser``; argparse wraps to ``$COLUMNS``).
-``tests/test_docs.py`` checks that the committed page is what this gives now and that each
+``tests/project/test_docs.py`` checks that the committed page is what this gives now and that each
 block is what ``--help`` prints, so a changed flag fails the tests until the page is
 written again.
 """

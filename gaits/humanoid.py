@@ -75,7 +75,7 @@ design with the hip yaws given the hip pitch's torque and gains
 (``--yaw-as-pitch``) passes 39 of 48 (with 0.3 kg, 43; the rest: downhill distance up to
 1.38 x, heading 0.28-0.32 rad on lateral slopes: the SG90's play), with an MG996R at the
 hip yaws (the bundle edited by hand: its torque and its metal gears' play) 48 of 48
-(``tests/test_humanoid_hip_yaw.py`` pins seeds 6 and 8).
+(``tests/synth/verification/test_humanoid_hip_yaw.py`` pins seeds 6 and 8).
 Arcs of this gait turn 0.87-0.92 x on that robot (0.91-0.94 x with the arms hanging,
 0.94-0.96 x with 0.75 s steps; holding both hips' yaw while both feet are down, turning
 only in single support, gave 0.88-1.07 x). It therefore measures its turn on the design
@@ -1039,7 +1039,7 @@ GRIPPER_OPEN = pi / 2  # rad: the gripper joint's open end (0: closed)
 REACH_TIME = 1.5  # s to raise the arms
 #: s to close the grippers. Closed in 0.5 s (5.9 rad/s at the peak) and opened in the
 #: crouch alone, an SG90 gripper was at its limit 2 % of every perturbed run
-#: (``tests/test_humanoid_grasp.py``).
+#: (``tests/synth/verification/test_humanoid_grasp.py``).
 GRIP_TIME = 1.0
 HOLD_TIME = 1.5  # s holding
 

@@ -25,7 +25,8 @@ synth.reasoning.plans.install()
 #: ``parmor design`` verifies under 8 perturbations by default; the suite's many designs
 #: stay on the nominal model (set here, before any test, for in-process runs and the
 #: subprocesses alike). Tests of the robust verification pass ``--robustness K`` or
-#: ``StructureOptions(robustness=K)``; tests/test_robust_default.py checks the default.
+#: ``StructureOptions(robustness=K)``; tests/synth/verification/test_robust_default.py
+#: checks the default.
 os.environ["PARMOR_ROBUSTNESS"] = "0"
 
 
@@ -216,11 +217,11 @@ def _open_loop(traj):
 
 @pytest.fixture(scope="session")
 def without_imu():
-    """``without_imu(record)``: the record with its IMU dropped (tests/test_balance.py)."""
+    """``without_imu(record)``: the record with its IMU dropped (tests/gaits/test_balance.py)."""
     return _without_imu
 
 
 @pytest.fixture(scope="session")
 def open_loop():
-    """``open_loop(traj)``: the plan without its feedback loop (tests/test_balance.py)."""
+    """``open_loop(traj)``: the plan without its feedback loop (tests/gaits/test_balance.py)."""
     return _open_loop

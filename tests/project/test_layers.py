@@ -1,0 +1,210 @@
+"""The layering of docs/architecture.md, checked: import contracts and no import-time work.
+
+The contracts are ``[tool.importlinter]`` in pyproject.toml (a layers contract over the
+pipeline's layers, an acyclic-siblings contract over each package), run here with
+``lint-imports`` as a user runs it; their exceptions are listed there with their reasons.
+Importing ``export`` or ``program`` installs nothing: the entry points install the shipped
+ontology's body plans (``synth.reasoning.plans.install``), which a bundle whose record predates
+recorded body plans needs.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import need
+
+ROOT = Path(__file__).resolve().parents[2]
+CONFIG = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
+LINT = Path(sys.executable).parent / "lint-imports"
+
+
+def _env() -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["PYTHONPATH"] = str(ROOT)
+    return env
+
+
+def lint(folder: Path) -> subprocess.CompletedProcess:
+    """``lint-imports`` on the packages in ``folder`` with its pyproject.toml's contracts."""
+    need(LINT.is_file(), "import-linter is not installed (pip install -e '.[test]')")
+    env = _env()
+    env["PYTHONPATH"] = str(folder)  # the packages of this folder, not the installed ones
+    return subprocess.run(
+        [str(LINT), "--no-cache", "--no-logo"],
+        cwd=folder,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+
+
+# --------------------------------------------------------------------------- contracts
+
+
+def test_the_import_contracts_hold() -> None:
+    proc = lint(ROOT)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+    assert "0 broken" in proc.stdout
+
+
+def _copy(tmp_path: Path) -> Path:
+    for pkg in CONFIG["root_packages"]:
+        shutil.copytree(ROOT / pkg, tmp_path / pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(ROOT / "pyproject.toml", tmp_path)
+    return tmp_path
+
+
+def _append(path: Path, text: str) -> None:
+    path.write_text(path.read_text() + text)
+
+
+def test_an_upward_import_or_a_new_circle_breaks_the_contracts(tmp_path: Path) -> None:
+    """A copy of the packages with one upward import (kinematics -> export, function-local,
+    as the circles of old were closed), one new circle (the ground probe importing the
+    solver back) and a controller reading the ontology: each contract fails, naming them."""
+    root = _copy(tmp_path)
+    _append(root / "kinematics" / "spatial.py", "\n\ndef _up():\n    from export import urdf\n")
+    probe = root / "synth" / "reasoning" / "ground_probe.py"
+    _append(probe, "\n\ndef _back():\n    from synth.reasoning import solver\n")
+    _append(root / "gaits" / "feedback.py", "\n\ndef _onto():\n    from adron import units\n")
+    proc = lint(root)
+    assert proc.returncode == 1, proc.stdout[-4000:]
+    assert "Contracts: 0 kept, 3 broken." in proc.stdout
+    assert "gaits is not allowed to import adron" in proc.stdout
+    assert "kinematics.spatial -> export.urdf" in proc.stdout
+    assert "No cycles are allowed in synth.reasoning." in proc.stdout
+    assert ".solver -> .ground_probe" in proc.stdout
+
+
+def test_an_exception_no_import_needs_fails(tmp_path: Path) -> None:
+    """The exception list stays what the code is: an ignored import that no longer exists
+    is an error (import-linter's default), so a circle broken later leaves the list."""
+    root = _copy(tmp_path)
+    text = (root / "pyproject.toml").read_text()
+    stale = '    "kinematics.templates -> kinematics.assemble",\n'
+    assert stale in text
+    (root / "pyproject.toml").write_text(
+        text.replace(stale, stale + '    "gaits.base -> gaits.legged",\n', 1)
+    )
+    proc = lint(root)
+    assert proc.returncode != 0
+    assert "No matches for ignored import gaits.base -> gaits.legged" in proc.stdout + proc.stderr
+
+
+def _modules() -> list[str]:
+    out = []
+    for pkg in CONFIG["root_packages"]:
+        for f in sorted((ROOT / pkg).rglob("*.py")):
+            rel = f.relative_to(ROOT).with_suffix("")
+            if "ros_templates" in rel.parts:  # files written into a ROS package, not imported
+                continue
+            parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
+            out.append(".".join(parts))
+    return out
+
+
+def unplaced(modules: list[str], layers: list[str]) -> list[str]:
+    """The modules no layer holds (a layer names modules or packages, ``a : b``), other
+    than the root packages' own ``__init__`` (they import nothing of parmor)."""
+    named = [m.strip() for layer in layers for m in layer.replace("|", ":").split(":")]
+    roots = set(CONFIG["root_packages"])
+    return [
+        m
+        for m in modules
+        if m not in roots and not any(m == n or m.startswith(n + ".") for n in named)
+    ]
+
+
+def test_every_module_is_in_a_layer() -> None:
+    """A new module is placed on purpose: one line in the layers contract."""
+    layers = next(c for c in CONFIG["contracts"] if c["type"] == "layers")["layers"]
+    assert unplaced(_modules(), layers) == []
+    # the check itself: a module of a new job in synth/ is caught
+    assert unplaced(["synth.studies.grid", "export.urdf"], layers) == ["synth.studies.grid"]
+
+
+# ------------------------------------------------------------- no import-time side effects
+
+
+def _python(code: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-c", code], cwd=cwd, env=_env(), capture_output=True, text=True
+    )
+
+
+def test_importing_a_package_installs_nothing() -> None:
+    proc = _python(
+        "import sys\n"
+        "import adron, export, gaits, kinematics, program, synth\n"
+        "import export.record, program.script\n"
+        "from kinematics.bodyplan import PLAN_SOURCE\n"
+        "print(len(PLAN_SOURCE), 'synth.reasoning.plans' in sys.modules)\n"
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ["0", "False"]
+
+
+@pytest.fixture(scope="module")
+def old_bundle(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A cart's bundle whose record has no body plan, as records before body plans were."""
+    folder = tmp_path_factory.mktemp("old") / "cart"
+    proc = subprocess.run(
+        [sys.executable, "-m", "synth.commands.cli", "design", "driving", "--no-verify", "--out"]
+        + [str(folder)],
+        cwd=ROOT,
+        env=_env(),
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 0, proc.stderr
+    record = json.loads((folder / "design.json").read_text())
+    del record["body_plan"]
+    (folder / "design.json").write_text(json.dumps(record, indent=1))
+    return folder
+
+
+def test_an_old_bundle_needs_the_installed_body_plans(old_bundle: Path) -> None:
+    """Without ``install()`` the record's type has no body plan (the error says what to
+    call); with it, the shipped ontology's is found."""
+    record = str(old_bundle / "design.json")
+    proc = _python(
+        "import json, sys\n"
+        "from gaits import controller_for\n"
+        "from gaits.base import DesignGeometry\n"
+        f"g = DesignGeometry.from_record(json.loads(open({record!r}).read()))\n"
+        "try:\n"
+        "    controller_for(g)\n"
+        "except ValueError as e:\n"
+        "    print('refused:', e)\n"
+        "from synth.reasoning.plans import install\n"
+        "install()\n"
+        "print('then:', type(controller_for(g)).__name__)\n"
+    )
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("refused: unknown robot type 'DifferentialDriveRobot'")
+    assert "synth.reasoning.plans.install()" in lines[0]
+    assert lines[1] == "then: WheeledController"
+
+
+def test_parmor_installs_them_itself(old_bundle: Path) -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "synth.commands.cli", "simulate", str(old_bundle)]
+        + ["--behavior", "driving", "--seconds", "0.2"],
+        cwd=ROOT,
+        env=_env(),
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "behavior: driving" in proc.stdout
