@@ -133,6 +133,35 @@ def test_every_module_is_in_a_layer() -> None:
     assert unplaced(["synth.studies.grid", "export.urdf"], layers) == ["synth.studies.grid"]
 
 
+#: The tests' folder for what is not one package: the documentation and the layers.
+PROJECT_TESTS = "project"
+
+
+def misplaced_tests(tests: Path, root: Path) -> list[str]:
+    """Test files not in a folder that mirrors a package of ``root`` (``tests/gaits/`` for
+    ``gaits/``, ``tests/synth/sizing/`` for ``synth/sizing/``) or in ``tests/project/``."""
+    out = []
+    for path in sorted(tests.rglob("test_*.py")):
+        folder = path.parent.relative_to(tests)
+        package = root.joinpath(*folder.parts)
+        mirrored = bool(folder.parts) and (package / "__init__.py").is_file()
+        if not (mirrored or folder.parts == (PROJECT_TESTS,)):
+            out.append(path.relative_to(tests).as_posix())
+    return out
+
+
+def test_the_tests_mirror_the_packages(tmp_path: Path) -> None:
+    assert misplaced_tests(ROOT / "tests", ROOT) == []
+    # the check itself: a test at the top, or in a folder no package has, is caught
+    (tmp_path / "tests" / "gaits").mkdir(parents=True)
+    (tmp_path / "gaits").mkdir()
+    (tmp_path / "gaits" / "__init__.py").write_text("")
+    for name in ("test_top.py", "gaits/test_ok.py", "gates/test_typo.py"):
+        (tmp_path / "tests" / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / "tests" / name).write_text("")
+    assert misplaced_tests(tmp_path / "tests", tmp_path) == ["gates/test_typo.py", "test_top.py"]
+
+
 # ------------------------------------------------------------- no import-time side effects
 
 
