@@ -451,24 +451,6 @@ class StructureDesigner:
         #: play broke a behaviour under perturbation, and those with as much play)
         self.excluded: dict[str, frozenset[str]] = {}
 
-    def attainable(self, floors: Mapping[str, float]) -> dict[str, float]:
-        """The torque floors (joint -> N m) of ``floors`` that some model serving the joint
-        (less those ``excluded`` for it) gives after the torque safety factor: what a
-        stronger actuator can answer. The verification loop asks before it sizes, so that a
-        joint already at the catalog's strongest does not keep its neighbours from theirs."""
-        sf = self.catalog.design.torque_safety_factor
-        out = {}
-        for joint, floor in floors.items():
-            barred = self.excluded.get(joint, frozenset())
-            usable = [
-                self.by_model[m].stall_torque_Nm / sf
-                for m in self.assigner.serving.get(joint, ())
-                if m not in barred and m in self.by_model
-            ]
-            if usable and max(usable) >= floor:
-                out[joint] = floor
-        return out
-
     def _undominated(self) -> dict[str, tuple[str, ...]]:
         """Per joint, its serving models less those dominated among the models that serve
         every joint of its symmetry group (``synth.sizing.assign.dominated``)."""

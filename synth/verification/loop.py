@@ -593,14 +593,8 @@ class Strengthening:
         if not (now.failing or now.not_robust()):
             return None
         sizer = self._sizer()
-        sizer.excluded = dict(self.excluded)
-        # a stronger actuator for each joint that saturated and has one in the catalog (a
-        # joint already at the strongest keeps its floor out: the others' may still answer)
-        grow = (
-            sizer.attainable(self._new_floors(now))
-            if self.counted < MAX_ROUNDS and not self.torque_done
-            else {}
-        )
+        new = self._new_floors(now)
+        grow = new if self.counted < MAX_ROUNDS and not self.torque_done else {}
         state = self._round(now)
         causes_left = self.counted < MAX_ROUNDS + PLAY_ROUNDS
         stiffer: Mapping[str, frozenset[str]] = {}
@@ -669,11 +663,11 @@ class Strengthening:
         """The structure sized again with a stronger actuator for every joint that
         saturated in round ``now`` (nominally or in its perturbed runs); None when none
         is stronger than it has or the catalog has none (the loop's state unchanged)."""
-        sizer = self._sizer()
-        sizer.excluded = dict(self.excluded)
-        new = sizer.attainable(self._new_floors(now))
+        new = self._new_floors(now)
         if not new:
             return None
+        sizer = self._sizer()
+        sizer.excluded = dict(self.excluded)
         sizer.torque_floor = dict(self.floors | new)
         try:
             structure = sizer.run()
