@@ -27,9 +27,10 @@ from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
-from adron import readers
+from adron import readers, schema, units
 from adron.errors import InputError
 from adron.translate import asp_string
+from adron.units import prune_cache, read_cache_pickle, write_cache_file
 
 __all__ = [
     "BATTERY_CLASS",
@@ -525,8 +526,6 @@ def parse_catalog(text: str, source: str, folder: Path | None = None, shipped: s
         if path is not None:
             import pickle
 
-            from adron.units import prune_cache, write_cache_file
-
             data = _CATALOG_CACHE + pickle.dumps(cat, pickle.HIGHEST_PROTOCOL)
             if write_cache_file(path, data):
                 prune_cache(path.parent, ("catalog-*.pickle",), CATALOG_CACHE_ENTRIES)
@@ -549,8 +548,6 @@ def _cache_path(text: str, source: str, folder: Path | None, shipped: str) -> Pa
     another (its parent's text would have to be in the key too), or with the cache off."""
     import hashlib
 
-    from adron import units
-
     folder_ = units.cache_folder()
     if folder_ is None or "extends" in text:
         return None
@@ -558,7 +555,7 @@ def _cache_path(text: str, source: str, folder: Path | None, shipped: str) -> Pa
     for part in (text, source, str(folder), shipped):
         b = part.encode("utf-8", "surrogatepass")
         h.update(len(b).to_bytes(8, "little") + b)
-    from adron import catalog_schema, schema
+    from adron import catalog_schema  # (a circle: catalog_schema reads this module)
 
     for module in (__file__, units.__file__, catalog_schema.__file__, schema.__file__):
         h.update(Path(module).read_bytes())
@@ -567,7 +564,6 @@ def _cache_path(text: str, source: str, folder: Path | None, shipped: str) -> Pa
 
 def _cached_catalog(path: Path | None) -> Catalog | None:
     """The catalog cached at ``path``, or None (absent, cut short, foreign)."""
-    from adron.units import read_cache_pickle
 
     cat = read_cache_pickle(path, _CATALOG_CACHE, Catalog)
     return cat if isinstance(cat, Catalog) else None

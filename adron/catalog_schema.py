@@ -35,7 +35,9 @@ from pydantic import (
 
 from adron.catalog import BATTERY_CLASS, MAIN_CLASS, TORQUE_CLASSES
 from adron.errors import InputError
-from adron.schema import MAX_NAME, At, Closed, described
+from adron.schema import MAX_NAME, At, Closed, _keys_checked, described, validate
+from adron.units import DIMENSIONS
+from adron.units import quantity as read
 
 PART_SOURCES = ("printed", "bought")
 ADDRESS_FORMATS = ("hex", "decimal")
@@ -79,9 +81,7 @@ _QUANTITY_TEXT = 100
 
 
 def _si(text: str, dimension: str) -> float:
-    from adron.units import quantity
-
-    return quantity(text, dimension, "CATALOG_MAX")
+    return read(text, dimension, "CATALOG_MAX")
 
 
 def _text(v: Any) -> str:
@@ -138,14 +138,11 @@ def quantity(
     """A quantity of ``dimension`` with its unit, as SI float: more than 0 (or ``zero``:
     at least 0; at least :data:`CATALOG_MIN` of the dimension), at most ``top`` (default
     :data:`CATALOG_MAX` of the dimension), or less than ``below``."""
-    from adron.units import DIMENSIONS
 
     top = top if top is not None or below is not None else CATALOG_MAX.get(dimension)
     low = None if zero else CATALOG_MIN.get(dimension)
 
     def check(v: Any) -> float:
-        from adron.units import quantity as read
-
         try:
             x = read(v, dimension, "", allow_zero=zero)
         except InputError as e:
@@ -180,8 +177,6 @@ def number(
 
     def check(v: Any) -> float:
         if isinstance(v, str):
-            from adron.units import quantity as read
-
             try:
                 v = read(v, "dimensionless", "", allow_negative=True)
             except InputError as e:
@@ -587,7 +582,6 @@ def check(doc: Any, source: str, extension: bool = False) -> Any:
     """``doc`` (a parsed catalog file, or a merged one) as :class:`CatalogFile` (or, with
     ``extension``, as :class:`CatalogExtension`); InputError naming ``source``, the key
     path (entries with their model: ``actuator[1] (MG996R).mass``) and the value."""
-    from adron.schema import validate
 
     model = CatalogExtension if extension else CatalogFile
     return validate(model, doc, source, labels=("model",))
@@ -597,8 +591,6 @@ def json_schema() -> dict:
     """The catalog's JSON Schema: a complete catalog, or an extension when ``[catalog]``
     has ``extends``."""
     from pydantic.json_schema import models_json_schema
-
-    from adron.schema import _keys_checked
 
     refs, defs = models_json_schema(
         [(CatalogFile, "validation"), (CatalogExtension, "validation")], by_alias=True

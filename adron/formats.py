@@ -32,6 +32,7 @@ from adron.schema import (
     validate,
     within,
 )
+from kinematics.partkinds import PartKindsFile
 
 MAX_QUANTITY = 100
 
@@ -393,7 +394,6 @@ def formats() -> dict[str, tuple[type, str]]:
     from adron.catalog_schema import CatalogFile
     from export.manifest import Manifest
     from export.record_schema import DesignRecord
-    from kinematics.partkinds import PartKindsFile
     from program.script import ProgramFile
 
     return {

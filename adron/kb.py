@@ -21,6 +21,7 @@ from adron.errors import InputError, OntologyError
 from adron.kif import MAX_DEPTH, Form, parse
 from adron.materialise import materialise
 from adron.translate import Translation, translate, unit_rows
+from adron.units import cache_folder, prune_cache, read_cache_pickle, write_cache_file
 
 
 @dataclass(frozen=True, slots=True)
@@ -222,8 +223,6 @@ def _cache_file(sources: Sequence[tuple[str, str]]) -> Path | None:
 
     import clingo
 
-    from adron.units import cache_folder
-
     folder = cache_folder()
     if folder is None:
         return None
@@ -241,7 +240,6 @@ def _cache_file(sources: Sequence[tuple[str, str]]) -> Path | None:
 
 def _cached(path: Path | None, files: tuple[str, ...]) -> KnowledgeBase | None:
     """The knowledge base stored at ``path``, or None when it is absent or not valid."""
-    from adron.units import read_cache_pickle
 
     kb = read_cache_pickle(path, _CACHE_FORMAT, KnowledgeBase)
     return kb if isinstance(kb, KnowledgeBase) and kb.files == files else None
@@ -251,8 +249,6 @@ def _store(path: Path | None, kb: KnowledgeBase) -> None:
     """Write ``kb`` to ``path`` whole (temporary file + rename); an unwritable folder
     only costs time."""
     import pickle
-
-    from adron.units import write_cache_file
 
     if path is None:
         return
@@ -281,7 +277,6 @@ CACHE_ENTRIES = 16
 def prune(folder: Path, keep: int = CACHE_ENTRIES) -> None:
     """Remove all but the ``keep`` most recently used ``kb-*`` and ``relevant-*`` files of
     ``folder`` (a hit touches its file; ``adron.units.prune_cache``)."""
-    from adron.units import prune_cache
 
     prune_cache(folder, ("kb-*.pickle", "relevant-*.lp"), keep)
 

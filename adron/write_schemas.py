@@ -9,12 +9,13 @@ import json
 import sys
 from pathlib import Path
 
+from adron.formats import schemas
+
 FOLDER = Path(__file__).parent / "schemas"
 
 
 def rendered() -> dict[str, str]:
     """file name -> text of each schema file."""
-    from adron.formats import schemas
 
     return {
         f"{name}.schema.json": json.dumps(schema, indent=2, sort_keys=True, ensure_ascii=False)

@@ -21,6 +21,9 @@ from typing import TYPE_CHECKING
 
 from adron import readers
 from adron.errors import ExportError, InfeasibleError, InputError
+from export.record import to_json
+from gaits import controller_for
+from gaits.base import DesignGeometry
 
 if TYPE_CHECKING:
     from adron.catalog import Catalog
@@ -104,7 +107,6 @@ def bundle_files(
     from export.bom import bom_csv
     from export.guide import guide_markdown
     from export.mjcf import mjcf_string
-    from export.record import to_json
     from export.slicer import prusa_config
     from export.urdf import urdf_string
 
@@ -234,8 +236,6 @@ def trajectory_files(record: dict) -> dict[str, str]:
 def _trajectories(record: dict) -> dict:
     """Behaviour name -> its Trajectory with default parameters, for every behaviour the
     design lists (``Controller.listed``), in name order."""
-    from gaits import controller_for
-    from gaits.base import DesignGeometry
 
     try:
         controller = controller_for(DesignGeometry.from_record(record))

@@ -36,6 +36,7 @@ import numpy as np
 
 from export.polymesh import Mesh
 from kinematics import templates as _templates
+from kinematics.spatial import check_link_part
 from kinematics.templates import WHEEL_BORE
 
 __all__ = [
@@ -182,8 +183,6 @@ def link_mesh(
     slivers, and fast.
     """
     import manifold3d as mf
-
-    from kinematics.spatial import check_link_part
 
     plates = check_link_part(length, r_outer, r_inner, face_side, face_thickness, fillet)
     n = int(segments)

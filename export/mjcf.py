@@ -64,6 +64,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from export.assembly import with_payload as loaded
 from export.model3d import Assembly, BodySpec, Geometry, JointSpec
 from export.urdf import (
     MESH_SCALE,
@@ -350,8 +351,6 @@ def mjcf_string(assembly: Assembly, mesh_dir: str = "meshes", with_payload: bool
     added to the body that holds it (the verification simulates the loaded robot).
     """
     if with_payload:
-        from export.assembly import with_payload as loaded
-
         assembly = loaded(assembly)
     bodies = check_assembly(assembly)
     if "world" in bodies:

@@ -11,6 +11,8 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from kinematics.partkinds import in_use
+
 if TYPE_CHECKING:  # the structure stage pulls numpy in: keep it off the conceptual path;
     # the solver pulls clingo in: keep it off the path of a command that only prints JSON
     from adron.catalog import Bus, Catalog
@@ -73,7 +75,6 @@ def _part_kinds_record() -> dict:
     with, each ``{"file": name, "toml": text}``, so that its bundle is rebuilt, simulated
     and programmed without them (``gaits.base.DesignGeometry.from_record``); nothing for
     the shipped part kinds alone (the record stays as it was)."""
-    from kinematics.partkinds import in_use
 
     texts = in_use().texts
     if not texts:

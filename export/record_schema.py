@@ -13,6 +13,7 @@ from typing import Annotated, Any
 
 from pydantic import PlainValidator, WithJsonSchema, field_validator, model_validator
 
+from adron.errors import InputError
 from adron.schema import (
     MAX_MASS_KG,
     At,
@@ -28,6 +29,8 @@ from adron.schema import (
     within,
 )
 from export.record import RECORD_FORMAT  # the number, kept with the writer
+from kinematics.bodyplan import BodyPlan
+from synth.params import BY_NAME, bounds
 
 
 def _count(v: Any) -> int:
@@ -170,8 +173,6 @@ class DesignRecord(Open):
     @field_validator("params")
     @classmethod
     def _ranges(cls, v: dict[str, float | str]) -> dict[str, float | str]:
-        from synth.params import BY_NAME, bounds
-
         for name, x in v.items():
             spec = BY_NAME.get(name)
             if spec is None or isinstance(x, str):
@@ -201,8 +202,6 @@ class DesignRecord(Open):
     @classmethod
     def _plan(cls, v: dict[str, Any] | None) -> dict[str, Any] | None:
         if v is not None:
-            from kinematics.bodyplan import BodyPlan
-
             BodyPlan.from_dict(v)  # ValueError naming the part: the message
         return v
 
@@ -225,8 +224,6 @@ def check_record(record: Any, source: str) -> DesignRecord:
     """``record`` (a parsed ``design.json``) checked against :class:`DesignRecord`;
     InputError naming ``source``, the key and the value otherwise."""
     if not isinstance(record, dict):
-        from adron.errors import InputError
-
         raise InputError(f"{source}: not a design record (expected an object)")
     return validate(DesignRecord, record, source)
 

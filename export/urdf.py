@@ -35,6 +35,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from export.assembly import with_payload as loaded
 from export.model3d import Assembly, BodySpec, Geometry, JointSpec
 from kinematics.spatial import rpy_from_matrix
 
@@ -429,7 +430,5 @@ def urdf_string(assembly: Assembly, mesh_dir: str = "meshes", with_payload: bool
     that holds it (by default the URDF is the robot alone).
     """
     if with_payload:
-        from export.assembly import with_payload as loaded
-
         assembly = loaded(assembly)
     return robot_xml(urdf_robot(assembly, mesh_dir, _RECORDS))

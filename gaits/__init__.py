@@ -12,6 +12,9 @@ import inspect
 from importlib import import_module
 
 from gaits.base import Controller, DesignGeometry, _plain
+from kinematics.assemble import structure_of
+from kinematics.partkinds import in_use
+from kinematics.templates import plan_of
 
 #: structure -> (module, controller class)
 CONTROLLERS: dict[str, tuple[str, str]] = {
@@ -29,9 +32,6 @@ CONTROLLERS: dict[str, tuple[str, str]] = {
 
 def structure(geometry: DesignGeometry) -> str:
     """The structure of a design (``kinematics.assemble.structure_of`` of its body plan)."""
-    from kinematics.assemble import structure_of
-    from kinematics.partkinds import in_use
-    from kinematics.templates import plan_of
 
     return structure_of(plan_of(geometry.template), in_use())
 

@@ -47,6 +47,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from gaits.feedback import Loop, Reading, register, roll_pitch_yaw
+from kinematics.dynamics import forward_kinematics
 
 #: the loop's kind (``Trajectory.info["feedback"]["loop"]``)
 KIND = "balance"
@@ -83,7 +84,6 @@ def balance_joints(model, feet: tuple[str, ...], joint_names: tuple[str, ...]) -
     pitch axis (y); ``hip``: the first of each from the trunk; ``yaw``: the first from the
     trunk about z. Joints not in ``joint_names`` (the plan's) are left out. Each entry
     ``[joint, leg, ax, ay, az]``."""
-    from kinematics.dynamics import forward_kinematics
 
     fk = forward_kinematics(model, np.zeros((1, model.nq)))[0]  # (nb, 4, 4) at q = 0
     root = fk[0, :3, :3]
@@ -124,7 +124,6 @@ def support_weights(model, feet: tuple[str, ...], names: tuple[str, ...], q) -> 
     """(n, len(feet)) in [0, 1]: each foot's share of the support along the planned angles
     ``q`` (n, len(names)): 1 while its sole is the lowest (within ``CONTACT_M``), fading to
     0 as it rises ``2 CONTACT_M`` above it (the plan's stance and swing phases)."""
-    from kinematics.dynamics import forward_kinematics
 
     index = {n: k for k, n in enumerate(model.q_names)}
     full = np.zeros((len(q), model.nq))

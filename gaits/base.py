@@ -26,6 +26,7 @@ from typing import BinaryIO
 import numpy as np
 
 from kinematics.bodyplan import BodyPlan
+from kinematics.partkinds import PartKindError, load_texts, use
 from kinematics.templates import Template, TemplateParams, build, register_plan
 
 
@@ -33,7 +34,6 @@ def use_recorded_kinds(entries) -> None:
     """Assemble with the shipped part kinds and the user's ones a design record carries
     (``part_kinds``: ``{"file", "toml"}`` each): its bundle needs no ``--parts`` file.
     ValueError (a ``PartKindError``) when they cannot be read."""
-    from kinematics.partkinds import PartKindError, load_texts, use
 
     try:
         texts = [(str(e["file"]), str(e["toml"])) for e in entries]

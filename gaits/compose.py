@@ -73,6 +73,7 @@ from functools import cached_property
 
 import numpy as np
 
+from gaits import CONTROLLERS, controller_for
 from gaits.base import (
     BehaviorSpec,
     Controller,
@@ -82,8 +83,11 @@ from gaits.base import (
     min_jerk,
     quat_yaw,
 )
+from kinematics.assemble import structure_of
 from kinematics.bodyplan import BodyPlan, PartNode
 from kinematics.dynamics import forward_kinematics
+from kinematics.partkinds import in_use
+from kinematics.templates import TemplateParams, build, plan_of, register_plan
 
 __all__ = ["ComposedController", "split"]
 
@@ -236,10 +240,6 @@ class ComposedController(Controller):
         stiffness: Mapping[str, float] | None = None,
     ) -> None:
         super().__init__(geometry)
-        from gaits import CONTROLLERS, controller_for
-        from kinematics.assemble import structure_of
-        from kinematics.partkinds import in_use
-        from kinematics.templates import build, plan_of, register_plan
 
         kinds = in_use()
         plan = plan_of(geometry.template)
@@ -1321,8 +1321,6 @@ def _standing_height(template) -> float:
 
 
 def _params(geometry: DesignGeometry, payload: float = 0.0):
-    from kinematics.templates import TemplateParams
-
     return TemplateParams(
         lengths=geometry.lengths,
         modules=geometry.modules,

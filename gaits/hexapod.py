@@ -105,6 +105,7 @@ from pathlib import Path
 import numpy as np
 
 from gaits.arm_ik import DAMPING, MAX_STEP, SerialChain, chain_rank, solve_ik
+from gaits.base import cache_folder, cache_write
 from kinematics.dynamics import center_of_mass, forward_kinematics
 from kinematics.templates import Template
 
@@ -1620,7 +1621,6 @@ def _sway(
     input the programmes read, this file (their code and constants) and scipy's and
     numpy's versions and builds, so an entry is never stale; an unreadable one is solved
     again."""
-    from gaits.base import cache_folder
 
     folder = cache_folder()
     path = None
@@ -1682,7 +1682,6 @@ def _sway_code() -> bytes | None:
 def _write_cached(path: Path, array: np.ndarray, prefix: str, keep: int) -> None:
     """``array`` saved as the cache entry ``path`` (``gaits.base.cache_write``), keeping
     the newest ``keep`` ``prefix*`` entries."""
-    from gaits.base import cache_write
 
     cache_write(path, lambda f: np.save(f, array, allow_pickle=False), prefix, keep)
 

@@ -130,6 +130,7 @@ from gaits.base import (  # noqa: F401 - CACHE_ENV: the cache folder's variable,
     Parameter,
     Trajectory,
     cache_folder,
+    cache_write,
     quat_yaw,
 )
 from gaits.feedback import IMU_CLASS, has_imu
@@ -748,7 +749,6 @@ def _read_maps(path: Path, shape: GaitShape) -> ConversionMaps | None:
 def _write_maps(path: Path, maps: ConversionMaps) -> None:
     """Cache ``maps`` in ``path`` (``gaits.base.cache_write``); a folder that cannot be
     written only means the maps are fitted again next time."""
-    from gaits.base import cache_write
 
     ref = maps.reference
     cache_write(

@@ -101,6 +101,7 @@ from gaits.base import (
 )
 from kinematics.dynamics import forward_kinematics, gravity_torques, jacobian, rnea
 from kinematics.model import Model
+from kinematics.partkinds import evaluate, load
 from kinematics.spatial import matrix_from_rpy, rot_y, rot_z
 from kinematics.templates import TemplateParams, build
 
@@ -156,7 +157,6 @@ _CLOSED_FORMS = (3, 6)
 @lru_cache(maxsize=1)
 def _serial_rows() -> dict[int, tuple[tuple[str, float, float], ...]]:
     """(joint, lower, upper rad) of the [serial] rows the closed forms serve."""
-    from kinematics.partkinds import evaluate, load
 
     rows = load().serial
     return {

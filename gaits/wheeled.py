@@ -71,6 +71,7 @@ from gaits.base import (
     min_jerk_integral,
     quat_yaw,
 )
+from gaits.feedback import has_imu
 from gaits.steering import SteerableSpec
 from kinematics.dynamics import forward_kinematics
 from kinematics.model import GRAVITY
@@ -929,7 +930,6 @@ class WheeledController(Controller):
         wheels, for a ``profile`` (its heading and distance reference); the heading from
         the IMU where the design carries one (``DesignGeometry.sensors``), else from the
         wheels' odometry."""
-        from gaits.feedback import has_imu
 
         d = self.drive
         spec: dict[str, object] = {

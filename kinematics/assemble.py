@@ -23,7 +23,7 @@ from types import MappingProxyType
 import numpy as np
 
 from kinematics.bodyplan import BodyPlan, PartNode
-from kinematics.partkinds import AXES, KindJoint, Mount, PartKind, PartKinds, evaluate
+from kinematics.partkinds import AXES, KindJoint, Mount, PartKind, PartKinds, _names, evaluate
 from kinematics.spatial import (
     box_inertia,
     rot_x,
@@ -178,7 +178,6 @@ def unused_lengths(plan: BodyPlan, kinds: PartKinds) -> tuple[str, ...]:
     (``defaultLength``) that nothing of its kinds uses: no box, place, limit, tube or wheel
     size names them (a ``foot_plate`` end uses ``foot``; a serial arm, its links). A value
     given and not used is reported, never dropped in silence."""
-    from kinematics.partkinds import _names
 
     used: set[str] = set()
     given: list[str] = []

@@ -69,6 +69,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PlainValidator, WithJsonSchema, model_validator
 
+from adron.errors import InputError
 from adron.schema import (
     MAX_ANGLE_RAD,
     MAX_LENGTH_M,
@@ -649,7 +650,6 @@ class PartKindsFile(Closed):
 
 
 def _parse(sources: Sequence[tuple[str, str]]) -> PartKinds:
-    from adron.errors import InputError
     from adron.readers import parse_toml
 
     kinds: dict[str, PartKind] = {}

@@ -55,8 +55,9 @@ from types import MappingProxyType
 
 import numpy as np
 
-from kinematics.bodyplan import BodyPlan
+from kinematics.bodyplan import PLAN_SOURCE, BodyPlan
 from kinematics.model import Body, Joint, Model
+from kinematics.partkinds import in_use
 from kinematics.spatial import (
     Part,
     box_inertia,
@@ -133,7 +134,6 @@ def register_plan(plan: BodyPlan) -> BodyPlan:
 def plan_of(robot_type: str) -> BodyPlan:
     """The body plan of ``robot_type``: registered, or from
     ``kinematics.bodyplan.PLAN_SOURCE``; ValueError when there is none."""
-    from kinematics.bodyplan import PLAN_SOURCE
 
     plan = PLANS.get(robot_type)
     if plan is None and PLAN_SOURCE:
@@ -432,7 +432,6 @@ class Template:
 def default_lengths(robot_type: str | BodyPlan) -> dict[str, float]:
     """The length names of a robot type (or body plan) with their default values, m."""
     from kinematics.assemble import length_defaults
-    from kinematics.partkinds import in_use
 
     plan = robot_type if isinstance(robot_type, BodyPlan) else plan_of(robot_type)
     return length_defaults(plan, in_use())
@@ -778,7 +777,6 @@ def build(robot_type: str | BodyPlan, params: TemplateParams | None = None) -> T
     parameters or lengths in place.
     """
     from kinematics.assemble import assemble
-    from kinematics.partkinds import in_use
 
     plan = robot_type if isinstance(robot_type, BodyPlan) else plan_of(robot_type)
     p = params if params is not None else TemplateParams()

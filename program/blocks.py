@@ -31,6 +31,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from adron.errors import ExportError, InputError
+from export.bundle import write_bundle
+from program.script import LIMITS, REPORTS, to_python
+from program.session import program_behaviors
+from synth.verification.runs import controller_for_model
+from synth.verification.source import Bundle
 
 if TYPE_CHECKING:
     from gaits.base import Controller
@@ -85,15 +90,12 @@ def _require_web(web: Path) -> None:
 
 def read_record(folder: Path) -> dict:
     """The design record of a bundle folder; InputError when it is not a sized one."""
-    from synth.verification.source import Bundle
 
     return Bundle.read(folder).record
 
 
 def bundle_controller(folder: Path, record: Mapping) -> Controller:
     """The design's controller, set up for the bundle's MuJoCo model as a run sets it up."""
-    from synth.verification.runs import controller_for_model
-    from synth.verification.source import Bundle
 
     model = Bundle(folder=folder, record=dict(record)).model()
     try:
@@ -145,7 +147,6 @@ def toolbox(controller: Controller, abilities: Sequence[str]) -> list[dict]:
     them: :func:`display`). Depends only on the
     controller's behaviour descriptions, so two designs whose controllers describe their
     behaviours alike get identical toolboxes."""
-    from program.session import program_behaviors
 
     out = []
     for name, spec in program_behaviors(controller, abilities).items():
@@ -175,7 +176,6 @@ def toolbox(controller: Controller, abilities: Sequence[str]) -> list[dict]:
 def python_header() -> str:
     """What the Python text of every program starts with (before ``def main(robot):``),
     taken from :func:`program.script.to_python` so that the page writes the same text."""
-    from program.script import to_python
 
     text = to_python({"program": []})
     head, sep, _ = text.partition("def main(robot):")
@@ -187,7 +187,6 @@ def python_header() -> str:
 def page_config(folder: Path, record: Mapping, controller: Controller) -> dict:
     """What the page is generated from: the robot, its toolbox, the reports the if block
     can test, the program limits and the Python header."""
-    from program.script import LIMITS, REPORTS
 
     return {
         "robot_type": record["robot_type"],
@@ -234,7 +233,6 @@ def write_page(folder: str | Path) -> Path:
     record = read_record(folder)
     controller = bundle_controller(folder, record)
     files = page_files(page_config(folder, record, controller))
-    from export.bundle import write_bundle
 
     target = write_bundle(folder / PAGE_DIR, files, force=True, adopt=True)
     return target / "index.html"

@@ -47,7 +47,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 from xml.sax.saxutils import escape
 
+import program
 from adron.errors import ExportError, InputError
+from export.bundle import write_bundle
+from export.urdf import relative_meshes
+from gaits import controller_for
+from gaits.base import DesignGeometry
+from gaits.feedback import CONTROL_PERIOD_S, has_imu
+from synth.verification.source import Bundle
 
 if TYPE_CHECKING:
     from gaits.base import BehaviorSpec, Controller, Parameter, Trajectory
@@ -213,9 +220,6 @@ def interface(record: Mapping, name: str | None = None) -> dict:
     robot's ROS name, and for each behaviour the design lists its service, request
     fields and response fields. RosInputError when the record has no structure, no
     controller or no behaviour."""
-    from gaits import controller_for
-    from gaits.base import DesignGeometry
-    from gaits.feedback import CONTROL_PERIOD_S, has_imu
 
     try:
         geometry = DesignGeometry.from_record(record)
@@ -489,7 +493,6 @@ unset _parmor_pkg
 def worker_defaults() -> dict:
     """The worker as this parmor installation runs it: its interpreter and the folder
     ``program`` was imported from (recorded in the generated package, never here)."""
-    import program
 
     return {
         "python": sys.executable,
@@ -552,8 +555,6 @@ def package_files(
 def read_bundle(folder: Path) -> tuple[dict, str, dict[str, bytes]]:
     """(design record, URDF text, the meshes it names) of a bundle folder; RosInputError
     naming what is wrong."""
-    from export.urdf import relative_meshes
-    from synth.verification.source import Bundle
 
     record = Bundle.read(folder).record
     try:
@@ -576,7 +577,6 @@ def ros_package(
 ) -> tuple[Path, dict]:
     """Write the ROS package of the bundle in ``folder`` into
     ``folder/ros/parmor_<robot>/``: (its path, its interface)."""
-    from export.bundle import write_bundle
 
     folder = Path(folder)
     record, urdf, meshes = read_bundle(folder)

@@ -38,7 +38,11 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO, TYPE_CHECKING
 
+from gaits import controller_for
+from gaits.base import DesignGeometry
+from gaits.feedback import Attitude, Reading, loop_for
 from program.ros import INTERFACE_FORMAT, MAX_POINTS
+from synth.reasoning.plans import install
 
 if TYPE_CHECKING:
     from gaits.base import Controller, Trajectory
@@ -72,9 +76,6 @@ class Worker:
     """Plans the services of one generated package."""
 
     def __init__(self, iface: Mapping, record: Mapping) -> None:
-        from gaits import controller_for
-        from gaits.base import DesignGeometry
-
         self.iface = iface
         self.services = {s["service"]: s for s in iface["services"]}
         self.controller: Controller = controller_for(DesignGeometry.from_record(record))
@@ -141,8 +142,6 @@ class Worker:
         same filter. A malformed reading is refused."""
         import numpy as np
 
-        from gaits.feedback import Attitude, Reading
-
         plan = self.plan
         if plan is None:
             return {"ok": False, "message": "no plan to correct: call a service first"}
@@ -200,7 +199,6 @@ class Worker:
                 f"{service['service']}: the trajectory has {len(traj.times)} points, more "
                 f"than the {MAX_POINTS} one call may publish; ask for a shorter one",
             )
-        from gaits.feedback import loop_for
 
         try:
             loop = loop_for(traj)
@@ -268,7 +266,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     _quiet_signals()
     _limit_memory()
-    from synth.reasoning.plans import install
 
     install()  # the shipped ontology's body plans (a bundle older than recorded plans)
     try:

@@ -38,7 +38,8 @@ from typing import Annotated, Any, Literal, Protocol
 from pydantic import Discriminator, Field, PlainValidator, Tag, WithJsonSchema, model_validator
 
 from adron.errors import InputError
-from adron.schema import At, Closed, Name, described
+from adron.schema import At, Closed, Name, _show, described
+from adron.schema import validate as against
 
 #: What a robot reports to a program: name -> (unit, meaning). Flags are 1 or 0.
 REPORTS: dict[str, tuple[str, str]] = {
@@ -389,8 +390,6 @@ def _walk(body: Sequence[Any], path: str, depth: int, count: list[int]) -> int:
 def check(program: object, source: str = "") -> ProgramFile:
     """``program`` (parsed JSON) checked against :class:`ProgramFile`; ProgramError naming
     ``source`` (when given), the JSON path of the first problem and its value."""
-    from adron.schema import _show
-    from adron.schema import validate as against
 
     if not isinstance(program, Mapping):
         raise ProgramError(

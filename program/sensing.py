@@ -54,7 +54,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gaits.base import BehaviorSpec, Parameter
+from gaits.base import BehaviorSpec, Parameter, serving
+from gaits.steering import SteerableSpec
 
 if TYPE_CHECKING:
     from program.session import Session
@@ -135,7 +136,6 @@ class Steering:
 def steering(behaviors: Mapping[str, BehaviorSpec]) -> Steering | None:
     """The design's steerable behaviour (the first, by name, whose spec declares its
     steering roles: :class:`gaits.steering.SteerableSpec`), or None."""
-    from gaits.steering import SteerableSpec
 
     for name in sorted(behaviors):
         spec = behaviors[name]
@@ -1313,7 +1313,6 @@ def simulated_abilities(record: Mapping, behaviors: Mapping[str, BehaviorSpec]) 
     """The sensing abilities of ``record`` that this module simulates for a controller
     with these ``behaviors``, and the abilities they serve: those whose nearest ancestor
     with a sensing loop is one (the record's ``ability_ancestors``, ``gaits.base.serving``)."""
-    from gaits.base import serving
 
     abilities = tuple(record.get("abilities", ()))
     sensed = sensing_behaviors(behaviors, abilities)

@@ -37,6 +37,9 @@ from typing import TextIO
 from urllib.parse import unquote, urlsplit
 
 from adron.errors import InputError
+from program.blocks import bundle_controller, read_record
+from program.script import JsonError, ProgramError, parse, validate
+from program.session import program_behaviors
 
 #: The only address the server listens on.
 HOST = "127.0.0.1"
@@ -288,8 +291,6 @@ class BlocksServer(ThreadingHTTPServer):
         request_timeout: float = REQUEST_TIMEOUT_S,
     ) -> None:
         """``max_runs`` None: :func:`run_slots`."""
-        from program.blocks import bundle_controller, read_record
-        from program.session import program_behaviors
 
         check_time_limit(time_limit)
         self.bundle = bundle.resolve()
@@ -313,7 +314,6 @@ class BlocksServer(ThreadingHTTPServer):
 
     def validate(self, program: object) -> None:
         """ProgramError (an InputError) when ``program`` is not one the design can run."""
-        from program.script import validate
 
         validate(program, self.behaviors)
 
@@ -505,7 +505,6 @@ class Handler(BaseHTTPRequestHandler):
         if len(raw) < length:
             self.close_connection = True
             return  # the client closed the connection before sending it all: nobody to answer
-        from program.script import JsonError, ProgramError, parse
 
         try:
             program = parse(raw.decode("utf-8"))

@@ -25,8 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from adron.errors import InputError, ParmorError
-from gaits.base import quat_yaw
+from gaits.base import min_jerk, quat_yaw
 from program.script import LIMITS, REPORTS, ProgramError, execute, validate
+from synth.verification.simulate import ServoLaw, _ClosedLoop, simulate, start_closed, step_through
+from synth.verification.verdict import COLLAPSE_TILT, SATURATION_LEVEL, judge
 
 BLEND_MIN_S = 0.3  # s: shortest move to a behaviour's first pose
 BLEND_SPEED_SHARE = 0.3  # of a servo's no-load speed, for that move's peak speed
@@ -165,7 +167,6 @@ class Session:
     def do(self, behavior: str, **params: object) -> dict:
         """Run one behaviour from where the robot is; its judged figures."""
         from synth.verification.runs import figures
-        from synth.verification.simulate import simulate
 
         spec = self.behaviors.get(behavior)
         if spec is None:
@@ -230,7 +231,6 @@ class Session:
     def _sense(self, behavior: str, spec, params: Mapping[str, object]) -> dict:
         """Run a sensing behaviour (a closed loop, :mod:`program.sensing`); its figures."""
         from program import sensing
-        from synth.verification.verdict import judge
 
         try:
             resolved = spec.resolve(params)
@@ -418,7 +418,6 @@ class Session:
 
     def _blend_to(self, joints, q1: np.ndarray) -> None:
         """Move ``joints`` from where they are to ``q1`` (minimum jerk)."""
-        from gaits.base import min_jerk
 
         cols = self._columns(joints)
         q0 = np.array([self.data.qpos[adr] for _, _, adr, _ in cols])
@@ -467,9 +466,6 @@ class Session:
         ``contact`` sensor on it, :func:`program.sensing.scene_xml`) are counted over every
         step from what was recorded."""
         import mujoco
-
-        from synth.verification.simulate import ServoLaw, start_closed, step_through
-        from synth.verification.verdict import COLLAPSE_TILT, SATURATION_LEVEL
 
         m, d = self.model, self.data
         cols = self._columns(joints)
@@ -561,7 +557,6 @@ class Session:
         loop."""
         if plan is None:
             return None
-        from synth.verification.simulate import _ClosedLoop
 
         p = self.perturbation
         columns = [(k, a, velocity) for k, a, _, velocity in cols]

@@ -31,7 +31,8 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
-from adron.errors import InputError
+from adron.errors import InputError, OntologyError
+from adron.units import quantity
 
 # Parameters apply by the design's structure (``kinematics.assemble.structure_of``), never
 # by a robot type's name; a type may change a default with the ontology's
@@ -183,7 +184,6 @@ BY_NAME = {p.name: p for p in PARAMS}
 
 def bounds(spec: ParamSpec) -> tuple[float, float]:
     """The (low, high) range of ``spec`` in SI units."""
-    from adron.units import quantity
 
     low, high = spec.range
     where = f"synth/params.py: range of {spec.name}"
@@ -221,8 +221,6 @@ def exceeded_limits(
     ``candidate``'s class or any robot class above it that its parameters exceed (the given
     values, else ``defaults``: its structure's, a mapping or a function that gives it, asked
     only when a limit applies), as readable phrases."""
-    from adron.errors import OntologyError
-    from adron.units import quantity
 
     out = []
     for (rtype, name, text), where in limits:
@@ -248,7 +246,6 @@ def exceeded_limits(
 def parse_structural(items: Mapping[str, str]) -> dict[str, float]:
     """``{"reach": "30cm"}`` -> ``{"reach": 0.3}``; raises InputError for a wrong unit or a
     value outside the parameter's range (RANGES)."""
-    from adron.units import quantity
 
     out = {}
     for name, text in items.items():
@@ -276,8 +273,6 @@ def ontology_defaults(kb, lineage) -> dict[str, float]:
     """The ``(defaultParameter TYPE "name" "quantity")`` values for a type whose classes,
     nearest first, are ``lineage``: the nearest class's wins; OntologyError for a name
     that is no parameter or a quantity of the wrong dimension."""
-    from adron.errors import OntologyError
-    from adron.units import quantity
 
     rank = {c: i for i, c in enumerate(lineage)}
     best: dict[str, tuple[int, float]] = {}

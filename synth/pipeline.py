@@ -10,8 +10,15 @@ import re
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
+from adron.catalog import load_catalog
 from adron.errors import InfeasibleError, InputError
-from synth.reasoning.conceptual import Design, Designer, Request
+from export.bundle import bundle_files, payload_record
+from export.record import catalog_record, design_record, to_json
+from gaits import controller_for
+from gaits.base import DesignGeometry
+from synth.reasoning.conceptual import Design, Designer, Request, limit_note
+from synth.sizing.structure import design_structure
+from synth.verification.loop import demanded, served_abilities, verify
 
 if TYPE_CHECKING:  # numpy-heavy: imported only when a structure is sized
     from adron.catalog import Catalog
@@ -79,7 +86,6 @@ def _catalog(path: str | None, stamp: tuple[int, int] | None) -> Catalog:
     """``load_catalog(path)`` parsed once per process for the bus limit and the sizing of
     one request (a 1000-actuator catalog takes 0.15 s); a changed file (``stamp``) is
     parsed again. Catalogs are immutable."""
-    from adron.catalog import load_catalog
 
     return load_catalog(path)
 
@@ -127,12 +133,10 @@ class Outcome:
         The robot is sized for its payload and simulated with it: robot.urdf and robot.xml
         carry it only ``with_payload`` (the user's choice), else design.json places it and
         the simulation adds it there (the verification's files and the user's alike)."""
-        from export.record import to_json
 
         rec = self.record(designer)
         if self.structure is None or self.catalog is None:
             return {"design.json": to_json(rec)}
-        from export.bundle import bundle_files
 
         doc = designer.kb.translation.documentation.get(self.structure.robot_type, "")
         # the verification's own call: no pictures; afterwards the same design (its meshes
@@ -153,16 +157,10 @@ class Outcome:
         )
 
     def record(self, designer: Designer) -> dict:
-        from export.record import design_record
-
         rec = design_record(self.design, designer.short, self.structure)
         if self.catalog is not None:  # which catalog: to reload it, or to tell it changed
-            from export.record import catalog_record
-
             rec["catalog"] = catalog_record(self.catalog)
         if self.structure is not None:
-            from export.bundle import payload_record
-
             rec["payload"] = payload_record(self.structure, self.with_payload)
         if self.calibration:
             rec["calibration"] = dict(sorted(self.calibration.items()))
@@ -207,14 +205,11 @@ def run(designer: Designer, req: Request, opts: StructureOptions) -> Outcome:
     """The conceptual step of ``req`` and, for a designed robot, its structure."""
     d = designer.step(req)
     if d.over_limit:  # name the bus whose limit it is
-        from synth.reasoning.conceptual import limit_note
-
         d = replace(d, note=limit_note(d.over_limit, limit_source(opts)))
     if d.status != "designed":
         return Outcome(d)
     if opts.conceptual:
         return Outcome(d, note="designed with --conceptual: stopped after the conceptual design")
-    from synth.sizing.structure import design_structure
 
     catalog = load_checked_catalog(opts.catalog, designer)
     loaded = opts.with_payload
@@ -229,7 +224,6 @@ def run(designer: Designer, req: Request, opts: StructureOptions) -> Outcome:
         return Outcome(
             d, s, catalog=catalog, verify_skipped=True, with_payload=loaded, unplanned=unplanned
         )
-    from synth.verification.loop import verify
 
     return verify(
         designer,
@@ -248,10 +242,6 @@ def drop_unplannable(
     sinks a design: its failed plan drops it, as its failed simulation does
     (:mod:`synth.verification.loop`). A demanded ability's failed plan is left to refuse the request
     where the bundle is written."""
-    from export.record import design_record
-    from gaits import controller_for
-    from gaits.base import DesignGeometry
-    from synth.verification.loop import demanded, served_abilities
 
     c = d.chosen
     if c is None:

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from adron.catalog import load_catalog
 from adron.errors import InputError, ParmorError
 
 BACKENDS = ("local", "ray")
@@ -100,7 +101,6 @@ def files_digest(catalog: str | None, ontology: Sequence[str], rules: Sequence[s
     """The digest of a study's files (catalog, ontology, rules) and of parmor's own. The
     catalog counts by its content hash (adron.catalog: its text and those it extends; a
     shipped catalog's name works as well as a path)."""
-    from adron.catalog import load_catalog
 
     head = "-" if catalog is None else load_catalog(catalog).sha256
     rest = digest([*ontology, *rules, *code_files()])

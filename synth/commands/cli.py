@@ -18,8 +18,18 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import TextIO
 
-from adron.errors import AnswerNeeded, ExportError, InputError, ParmorError
-from synth.limits import MAX_ROBUSTNESS
+from adron.errors import AnswerNeeded, ExportError, InfeasibleError, InputError, ParmorError
+from synth import limits
+from synth.limits import (
+    DEFAULT_MEMORY_MB,
+    DEFAULT_SIZE_ATOMS,
+    DEFAULT_TIME_S,
+    MAX_ROBUSTNESS,
+    MIN_PROCESS_MB,
+    LimitExceeded,
+    paused,
+    stage,
+)
 
 EPILOG = """\
 examples:
@@ -126,12 +136,6 @@ def _limit_options(
     """--time-limit, --memory-limit and (where clingo grounds) --size-limit. ``each``: the
     time limit is per item of the command (a sweep's request, a suite's query), not for
     the whole of it."""
-    from synth.limits import (
-        DEFAULT_MEMORY_MB,
-        DEFAULT_SIZE_ATOMS,
-        DEFAULT_TIME_S,
-        MIN_PROCESS_MB,
-    )
 
     g = p.add_argument_group("limits (0 turns one off; reaching one: exit 1)")
     what = f"wall time of {each}" if each else "wall time of the command, questions excepted"
@@ -613,7 +617,6 @@ def use_parts(files, kb=None) -> None:
     """Assemble with the shipped part kinds and ``files`` (``--parts``); InputError (exit
     2) naming the file and the key of a part kind that cannot be used, or (given the
     knowledge base ``kb``) of a user's kind for a class no ontology has."""
-    from adron.errors import InputError
     from kinematics.partkinds import PartKindError, shipped_text, use
     from kinematics.partkinds import load as load_kinds
 
@@ -660,7 +663,6 @@ def _designer(args: argparse.Namespace, err: TextIO, req=None):
     """Load the knowledge base and ground it; returns a Designer. ``req``: the command's
     request, whose query the reasoner then grounds for first (``Reasoner``'s ``first``)."""
     from adron.kb import load
-    from synth.limits import stage
     from synth.reasoning.conceptual import Designer, query_for
     from synth.reasoning.solver import Reasoner
 
@@ -733,7 +735,6 @@ def _prefetch(names: Sequence[str], kb=None, ready: Callable[[], bool] | None = 
     the fork or crashed the interpreter's shutdown (issue 23). Ctrl-C and the time limit
     stop these imports as any other (see ``_SignalsWait``). An import or an index that
     fails is left to where it is used, which reports it."""
-    from synth.limits import LimitExceeded
 
     def load(name: str) -> None:
         # a failed import is tried again, and reported, where the module is used
@@ -781,8 +782,6 @@ def _request(args: argparse.Namespace):
 
 
 def _ask(question, err: TextIO) -> bool:
-    from synth.limits import paused
-
     with paused():  # a person thinking is not the command hanging
         return _ask_now(question, err)
 
@@ -845,7 +844,6 @@ def _robustness(k: int | None, no_verify: bool = False) -> int:
 
 def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from export.record import design_text, to_json, verification_text
-    from synth.limits import stage
     from synth.pipeline import run
 
     if args.certify is not None:
@@ -944,7 +942,6 @@ def cmd_enumerate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     from export.record import candidate_record, candidate_text
     from synth.commands.backend import Backend, tasks
-    from synth.limits import stage
 
     engine = Backend(args.backend, args.jobs, args.address)  # bad values told before any work
     req = _request(args)
@@ -1049,7 +1046,6 @@ class _Sizer:
         self.catalog = load_checked_catalog(opts.catalog, designer)
 
     def size(self, c) -> dict:
-        from adron.errors import InfeasibleError, InputError
         from export.record import alternatives_record, structure_record
         from synth.sizing.structure import StructureDesigner, alternatives
 
@@ -1324,7 +1320,6 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             f"--seconds {args.seconds:g}: expected a number of seconds in "
             f"[{MIN_SIM_SECONDS:g}, {MAX_SIM_SECONDS:g}]"
         )
-    from synth.limits import stage
 
     if args.plot:
         _check_writable(folder / "plots", "--plot")
@@ -1425,7 +1420,6 @@ def _simulate_sensing(folder, args: argparse.Namespace, params: dict) -> dict | 
         )
     if args.plot:
         raise InputError(f"--plot does not apply to {args.behavior}, a sensing loop: drop it")
-    from synth.limits import stage
 
     if args.perturb is not None:
         from synth.verification.perturb import summary
@@ -1514,7 +1508,6 @@ def cmd_run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             err.write(f"running {text}\n")
 
     form, program = read_file(path)  # JSON or Python, by content and suffix
-    from synth.limits import stage
 
     with stage("run"):  # the program and its behaviours: a limit here is not in 'parse'
         if form == "json":
@@ -1668,8 +1661,6 @@ def _main(argv: list[str], out: TextIO, err: TextIO) -> int:
         install()
         limited = hasattr(args, "memory_limit")  # every command but blocks (its own limit)
         if limited:
-            from synth import limits
-
             lim = limits.Limits(
                 args.time_limit or None,
                 args.memory_limit or None,
@@ -1789,7 +1780,6 @@ class _SignalsWait:
             sys.unraisablehook = self._unraisable
 
     def unraisable(self, info) -> None:  # noqa: ANN001 - sys.UnraisableHookArgs
-        from synth.limits import LimitExceeded
 
         kind = info.exc_type if isinstance(info.exc_type, type) else type(None)
         if issubclass(kind, KeyboardInterrupt) and self._remaining is not None:
@@ -1830,7 +1820,6 @@ def _unexpected(e: Exception, err: TextIO, limited: bool) -> int:
     caused it (Ctrl-C or the time limit's alarm raised inside a library that turned it
     into another error: numpy's TypeError, an ImportError), and return the exit code;
     otherwise raise it (a bug: its traceback is the report)."""
-    from synth import limits
 
     x: BaseException | None = e
     while x is not None and not isinstance(x, (KeyboardInterrupt, limits.LimitExceeded)):

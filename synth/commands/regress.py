@@ -13,15 +13,19 @@ import json
 import os
 from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import Any, TextIO
 
+import synth.pipeline
 from adron import readers
+from adron.catalog import SHIPPED
 from adron.errors import ExportError, InputError
+from adron.formats import check
+from adron.kb import load
 from adron.userfiles import check_regular
 from synth import limits
-
-if TYPE_CHECKING:
-    from synth.reasoning.conceptual import Designer, Request
+from synth.pipeline import StructureOptions, bus_limit
+from synth.reasoning.conceptual import Designer, Request, parse_answer
+from synth.reasoning.solver import Reasoner
 
 
 def snapshot_path(suite: Path) -> Path:
@@ -68,7 +72,6 @@ def kb_options(data: Mapping[str, Any], path: Path) -> dict:
         "allow_scripts": False,
     }
     catalog = data.get("catalog")
-    from adron.catalog import SHIPPED
 
     if catalog in SHIPPED:  # a shipped catalog's name ("dynamixel"), not a path
         opts["catalog"] = catalog
@@ -83,7 +86,6 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
     the key and the value); the files it names must lie in its folder (:func:`confined`);
     its abilities, answers and parameters are checked against the knowledge base when
     the queries run."""
-    from adron.formats import check
 
     suite = check("suite", read_toml(path), str(path))
     opts = kb_options(suite.model_dump(), path)
@@ -105,11 +107,6 @@ def load_suite(path: Path) -> tuple[dict, list[dict]]:
 
 def designer_for(opts: dict) -> Designer:
     """The Designer of a suite's (or study's) ``ontology``, ``rules``, ``allow_scripts``."""
-    from adron.kb import load
-    from synth.pipeline import bus_limit
-    from synth.reasoning.conceptual import Designer
-    from synth.reasoning.solver import Reasoner
-
     kb = load(opts["ontology"])
     try:
         limit = bus_limit(opts.get("catalog"), bool(opts.get("conceptual")))
@@ -120,8 +117,6 @@ def designer_for(opts: dict) -> Designer:
 
 def request_for(q: dict) -> Request:
     """The Request of a query table (``abilities``, ``answers`` yes/no, ``params``)."""
-    from synth.reasoning.conceptual import Request, parse_answer
-
     return Request(
         abilities=tuple(q["abilities"]),
         answers=tuple(parse_answer(f"{k}={v}") for k, v in q["answers"].items()),
@@ -134,7 +129,6 @@ def run_queries(
 ) -> dict[str, dict]:
     """name -> design record, for every query of a suite (one grounding for all). With
     ``lim``, the grounding and each query get its limits, with a deadline each."""
-    from synth.pipeline import StructureOptions, run
 
     def bounded(what: str):
         return limits.bounded(lim, what) if lim is not None else contextlib.nullcontext()
@@ -146,7 +140,8 @@ def run_queries(
     for i, q in enumerate(queries):
         try:
             with bounded(f"{opts['suite']}: query[{i}] ({q['name']})"):
-                results[q["name"]] = run(designer, request_for(q), sopts).record(designer)
+                outcome = synth.pipeline.run(designer, request_for(q), sopts)
+                results[q["name"]] = outcome.record(designer)
         except InputError as e:
             raise InputError(f"{opts['suite']}: query[{i}] ({q['name']}): {e}") from None
     return results

@@ -34,9 +34,11 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import TextIO
 
+import synth.pipeline
 from adron import readers
 from adron.errors import ExportError, InputError
 from adron.formats import MAX_STUDY_REQUESTS as MAX_STUDY_REQUESTS  # (re-exported)
+from adron.formats import check
 from synth import limits
 from synth.commands.backend import Backend, files_digest, tasks
 from synth.commands.backend import code_files as code_files  # re-exported: the files keys depend on
@@ -47,6 +49,8 @@ from synth.commands.regress import (
     request_for,
     temp_beside,
 )
+from synth.params import BY_NAME, parse_structural
+from synth.pipeline import StructureOptions, load_checked_catalog
 
 RESULT_FORMAT = 2  # of the stored per-request results; part of their key
 KEY_LENGTH = 16  # hex digits of the request key (64 bits)
@@ -77,7 +81,6 @@ def load_study(path: Path) -> tuple[dict, list[dict]]:
     the file, the key and the value); the files it names must lie in its folder
     (:func:`synth.commands.regress.confined`). What only the knowledge base can say is
     :func:`validate`'s."""
-    from adron.formats import check
 
     study = check("study", read_toml(path), str(path))
     opts = kb_options(study.model_dump(), path)
@@ -128,7 +131,6 @@ def validate(opts: dict, requests: Sequence[dict]) -> None:
     catalog before anything runs, and refuse a request given twice (its parameters
     compared in SI units: ``1kg`` is ``1000g``); an InputError names the file and the
     request."""
-    from synth.pipeline import load_checked_catalog
 
     designer = designer_for(opts)
     try:
@@ -164,7 +166,6 @@ def validate(opts: dict, requests: Sequence[dict]) -> None:
 def _init_worker(arg: tuple[dict, bool, limits.Limits | None]) -> tuple:
     """The state of a worker: the study's knowledge base grounded (within the limits, with
     a deadline of its own), the structure options."""
-    from synth.pipeline import StructureOptions
 
     opts, simulate, lim = arg
     with _bounded(lim, "grounding the study's knowledge base"):
@@ -195,12 +196,11 @@ def design_one(q: dict, designer, sopts, simulate: bool) -> dict:
     an unexpected exception), reason, robot type, abilities, mass, and what the design's
     verification found: the simulation record of each behaviour (None when not simulated),
     the abilities it dropped (ability -> why) and the sizings it took."""
-    from synth.pipeline import run
 
     res: dict = {"status": "error", "reason": "", "robot_type": None, "abilities": []}
     res.update(mass_kg=None, behaviors=None, dropped={}, sizings=None)
     try:
-        outcome = run(designer, request_for(q), sopts)
+        outcome = synth.pipeline.run(designer, request_for(q), sopts)
         d = outcome.design
         rec = outcome.record(designer)
         res["robot_type"] = d.chosen.robot_type if d.chosen else None
@@ -713,7 +713,6 @@ def _behaviors_md(rows: Sequence[dict]) -> list[str]:
 
 def _axis_order(values: Iterable[str], name: str) -> list[str]:
     """Distinct parameter values in axis order: physical ones by their SI value."""
-    from synth.params import BY_NAME, parse_structural
 
     distinct = sorted(set(values))
     if name not in BY_NAME:

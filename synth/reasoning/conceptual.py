@@ -22,6 +22,7 @@ from adron.errors import InputError, OntologyError
 from adron.kb import KnowledgeBase
 from synth.params import BY_NAME as STRUCTURAL
 from synth.params import exceeded_limits, parse_structural
+from synth.reasoning.plans import ancestors, arm_joints, parameter_defaults
 from synth.reasoning.solver import Candidate, Query, Reasoner
 
 
@@ -138,7 +139,6 @@ def ability_ancestors(kb: KnowledgeBase, abilities: Sequence[str]) -> dict[str, 
     ontology's taxonomy -> their short names, nearest first (``synth.reasoning.plans.ancestors``:
     breadth first; classes that are no ability are passed through, not named): which
     behaviours serve an ability with none of its own (``gaits.base.serving``)."""
-    from synth.reasoning.plans import ancestors
 
     out: dict[str, tuple[str, ...]] = {}
     for name in sorted(set(abilities)):
@@ -201,7 +201,6 @@ class Designer:
         """The candidates that are serial arms of ``--param dof`` joints (all without it)."""
         if "dof" not in physical:
             return tuple(cands)
-        from synth.reasoning.plans import arm_joints
 
         n = int(physical["dof"])
         return tuple(c for c in cands if arm_joints(self.kb, c.robot_type) == n)
@@ -214,7 +213,6 @@ class Designer:
         limits = self.kb.translation.located("structuralLimit")
         if not limits:
             return tuple(cands), {}
-        from synth.reasoning.plans import parameter_defaults
 
         over = {
             c.robot_type: exceeded_limits(

@@ -30,6 +30,11 @@ import time
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Pipe
 
+from adron.kb import builtin_files, read_user_file
+from adron.kif import MAX_DEPTH, parse
+from adron.translate import translate
+from synth.limits import address_space_kb
+
 #: Seconds the probe may take after the limit was reached: it is added to the limit.
 PROBE_S = 3.0
 ENCODINGS = "parmor's encodings"
@@ -74,9 +79,6 @@ def pieces(
 def kif_rules(kb) -> list[tuple[str, str]]:
     """(place, ASP rules) of each KIF rule form (``=>``, ``<=>``) of ``kb``'s files, read
     and translated again one form at a time (the translation does not locate rules)."""
-    from adron.kb import builtin_files, read_user_file
-    from adron.kif import MAX_DEPTH, parse
-    from adron.translate import translate
 
     shipped = builtin_files()
     n = len(shipped) if tuple(kb.files[: len(shipped)]) == tuple(x for x, _ in shipped) else 0
@@ -107,7 +109,6 @@ def culprit(
     """The place of the statement that grew (see the module), or '' when none did
     within ``budget_s`` seconds and ``memory_mb`` (None: no memory cap); ``encodings``
     and ``parse`` as for :func:`pieces`."""
-    from adron.kb import builtin_files
 
     parts = pieces(kb, taxonomy, rules, encodings, parse, program)
     read, write = Pipe(duplex=False)
@@ -181,8 +182,6 @@ def _ground(parts: list[tuple[str, str]], conn, memory_mb: int | None) -> None:
     import clingo
 
     if memory_mb is not None:
-        from synth.limits import address_space_kb
-
         cap = (address_space_kb() + memory_mb * 1024) * 1024
         with contextlib.suppress(ValueError, OSError):
             resource.setrlimit(resource.RLIMIT_AS, (cap, resource.getrlimit(resource.RLIMIT_AS)[1]))

@@ -33,7 +33,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from adron.errors import InputError, OntologyError
-from kinematics.bodyplan import BodyPlan, PartNode
+from adron.kb import load
+from adron.schema import MAX_LENGTH_M
+from adron.units import quantity
+from kinematics.bodyplan import PLAN_SOURCE, BodyPlan, PartNode
+from kinematics.partkinds import in_use
+from kinematics.partkinds import load as load_kinds
+from synth.params import ontology_defaults, structure_defaults
 
 if TYPE_CHECKING:  # imported where used: importing this module stays cheap (install())
     from adron.kb import KnowledgeBase
@@ -376,9 +382,6 @@ def _arm_base(kb, kinds, nodes, edges, lineage_of) -> tuple[str, tuple[str, int]
 
 
 def _default_lengths(kb: KnowledgeBase, lineage: Sequence[str]) -> dict[str, float]:
-    from adron.schema import MAX_LENGTH_M
-    from adron.units import quantity
-
     rank = {c: i for i, c in enumerate(lineage)}
     best: dict[str, tuple[int, float]] = {}
     for args, where in kb.translation.located("defaultLength"):
@@ -410,8 +413,6 @@ def _default_lengths(kb: KnowledgeBase, lineage: Sequence[str]) -> dict[str, flo
 def shipped_plan(robot_type: str) -> BodyPlan | None:
     """The body plan of a class of the shipped ontology (None for a class that is no robot
     there): ``kinematics.bodyplan.PLAN_SOURCE`` once ``install`` ran."""
-    from adron.kb import load
-    from kinematics.partkinds import load as load_kinds
 
     kb = load()
     if "Robot" not in ancestors(kb, robot_type)[1:]:
@@ -425,7 +426,6 @@ def install() -> None:
     written before design records kept their body plan needs. Called by the entry points
     (``synth.commands.cli`` before a command runs, ``program.rosworker.main``, the block server's
     runs), never as a side effect of an import; calling it again does nothing."""
-    from kinematics.bodyplan import PLAN_SOURCE
 
     if not PLAN_SOURCE:
         PLAN_SOURCE.append(shipped_plan)
@@ -434,7 +434,6 @@ def install() -> None:
 def structure_of_type(kb: KnowledgeBase, robot_type: str) -> tuple[BodyPlan, str]:
     """(body plan, structure) of ``robot_type`` with the part kinds in use."""
     from kinematics.assemble import structure_of
-    from kinematics.partkinds import in_use
 
     kinds = in_use()
     plan = plan_of(kb, robot_type, kinds)
@@ -445,7 +444,6 @@ def parameter_defaults(kb: KnowledgeBase, robot_type: str) -> dict[str, float | 
     """The structural parameters' defaults of ``robot_type`` (its structure's, with the
     ontology's ``defaultParameter`` over them); {} when its body plan cannot be made (the
     design step says why)."""
-    from synth.params import ontology_defaults, structure_defaults
 
     try:
         _, structure = structure_of_type(kb, robot_type)
@@ -459,7 +457,6 @@ def parameter_defaults(kb: KnowledgeBase, robot_type: str) -> dict[str, float | 
 def arm_joints(kb: KnowledgeBase, robot_type: str) -> int | None:
     """The joints of ``robot_type``'s serial arm (its body plan's parts of role "joint"),
     None when it is no serial arm on a fixed base or its plan cannot be made."""
-    from kinematics.partkinds import in_use
 
     try:
         plan, structure = structure_of_type(kb, robot_type)

@@ -32,7 +32,7 @@ import clingo
 from adron import relevance as relevance_module
 from adron.errors import InputError, OntologyError, ParmorError
 from adron.kb import KnowledgeBase, materialised, prune, read_user_file
-from adron.materialise import Derivation
+from adron.materialise import Derivation, applied, derivation
 from adron.relevance import Relevance, relevance
 from adron.translate import asp_string, closed_taxonomy
 from adron.units import cache_folder, read_cache_bytes, write_cache_file
@@ -918,8 +918,6 @@ class _Materialiser:
     """A worker's core that materialises a knowledge base's ontology-only rules."""
 
     def __init__(self, kb: KnowledgeBase) -> None:
-        from adron.materialise import derivation
-
         self.found = derivation(kb.translation)
         self.externals: set = set()
 
@@ -941,7 +939,6 @@ def materialised_in_worker(kb: KnowledgeBase) -> KnowledgeBase:
         found, why_not = worker.call("result")
     finally:
         worker.close()
-    from adron.materialise import applied
 
     grounded = kb.translation if found is None else applied(kb.translation, found)
     return replace(kb, grounded=grounded, why_not=why_not)

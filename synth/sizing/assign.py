@@ -39,6 +39,7 @@ import numpy as np
 from adron.errors import InputError
 from adron.kb import KnowledgeBase
 from adron.translate import IsaIndex, asp_string
+from synth.reasoning.solver import encoding_dir, taxonomy_program
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,7 +95,6 @@ def prepare_knowledge(kb: KnowledgeBase) -> IsaIndex | None:
 
 def _knowledge(kb: KnowledgeBase, classes: tuple[str, ...], others: Sequence[str]) -> str:
     """The program text ``asp/serving.lp`` needs of ``kb`` for these classes (ASP strings)."""
-    from synth.reasoning.solver import encoding_dir, taxonomy_program
 
     index = prepare_knowledge(kb)
     with _KNOWN_LOCK:
@@ -124,8 +124,6 @@ class ActuatorAssigner:
         other_active: int,
         objective: Sequence[str] = ("mass", "cost"),
     ) -> None:
-        from synth.reasoning.solver import encoding_dir
-
         if sorted(objective) != ["cost", "mass"]:
             raise InputError(f"objective {list(objective)}: expected an order of mass and cost")
         self.objective = tuple(objective)

@@ -59,6 +59,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gaits import controller_for
+from gaits.base import DesignGeometry
 from kinematics.dynamics import forward_kinematics, joint_wrenches
 from kinematics.templates import Template
 
@@ -156,7 +158,6 @@ def design_geometry(
     this design's record (SI units; values rounded as the record rounds them;
     ``wheel_radius`` None for a design without wheels; ``ancestors`` its abilities'
     ancestor abilities, the record's ``ability_ancestors``)."""
-    from gaits.base import DesignGeometry
 
     return DesignGeometry(
         robot_type=robot_type,
@@ -197,7 +198,6 @@ def behaviour_trajectories(geometry) -> tuple[dict, tuple[str, ...]]:
     if hit is not None:
         _TRAJECTORIES.move_to_end(key)
         return hit
-    from gaits import controller_for
 
     try:
         controller = controller_for(geometry)

@@ -24,13 +24,24 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+import gaits.humanoid
 from adron.catalog import Catalog
 from adron.errors import InfeasibleError, InputError
-from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics
-from kinematics.templates import Template, TemplateParams, build, default_lengths
+from gaits.base import DesignGeometry
+from gaits.humanoid import (
+    HumanoidController,
+    leg_ik,
+    leg_module_range,
+    stance_height,
+    stance_loads,
+)
+from kinematics.assemble import AssemblyError, _ordered_children, serial_links, wheel_size
+from kinematics.dynamics import center_of_mass, external_force_at, forward_kinematics, rnea
+from kinematics.partkinds import in_use
+from kinematics.templates import Template, TemplateParams, build, default_lengths, plan_of
+from synth.sizing.behaviour_loads import behaviour_case, motions_for
 
-if TYPE_CHECKING:  # gaits is imported lazily, when a structure is sized
-    from gaits.base import DesignGeometry
+if TYPE_CHECKING:
     from synth.sizing.behaviour_loads import BehaviourCase
 
 #: Lift of a foot above an obstacle, m; and clearance between neighbouring legs' reach, m.
@@ -227,9 +238,6 @@ def _arm_links(tmpl_or_type) -> list[str]:
 def _arm_chains(tmpl_or_type) -> list[list[str]]:
     """The length names of the printed links of each of a design's chains (arms, heads),
     column first; alike chains (two arms of one mount share their lengths) once."""
-    from kinematics.assemble import serial_links
-    from kinematics.partkinds import in_use
-    from kinematics.templates import plan_of
 
     plan = tmpl_or_type.plan if isinstance(tmpl_or_type, Template) else plan_of(tmpl_or_type)
     out: list[list[str]] = []
@@ -335,7 +343,6 @@ class Family(ABC):
         its controllers see it) on the analysis template ``tmpl`` with its masses, and
         notes on behaviours left out; default: every behaviour of the design's abilities,
         inverse dynamics with contact forces (``synth.sizing.behaviour_loads``)."""
-        from synth.sizing.behaviour_loads import behaviour_case, motions_for
 
         motions, notes = motions_for(geometry, tmpl)
         return [behaviour_case(tmpl, m) for m in motions], notes
@@ -491,8 +498,6 @@ class Multipeds(Family):
 def _biped_refusal(robot_type, missing: Sequence[str]) -> str:
     """Why a biped whose kinds lack ``missing`` of BIPED_LENGTHS is not sized: its kinds'
     files and what is supported."""
-    from kinematics.partkinds import in_use
-    from kinematics.templates import plan_of
 
     kinds = in_use()
     plan = robot_type if hasattr(robot_type, "root") else plan_of(robot_type)
@@ -522,9 +527,6 @@ def _kind_wheel(
 ) -> tuple[float | None, str]:
     """(the radius (``what``: or width) m the design's wheel kinds give, where) or
     (None, "") (:func:`kinematics.assemble.wheel_size`)."""
-    from kinematics.assemble import AssemblyError, wheel_size
-    from kinematics.partkinds import in_use
-    from kinematics.templates import plan_of
 
     plan = robot_type if hasattr(robot_type, "root") else plan_of(robot_type)
     try:
@@ -556,9 +558,6 @@ def leg_shape(robot_type) -> LegShape:
     """The :class:`LegShape` of a multiped (robot type or body plan): its first leg part's
     kind; InfeasibleError naming the kind's file when its chain has no joint with a tube
     hanging down (no foot under the trunk)."""
-    from kinematics.assemble import _ordered_children
-    from kinematics.partkinds import in_use
-    from kinematics.templates import plan_of
 
     kinds = in_use()
     plan = robot_type if hasattr(robot_type, "root") else plan_of(robot_type)
@@ -631,9 +630,6 @@ class Humanoid(Family):
     ) -> list[tuple[str, np.ndarray, tuple[str, ...], np.ndarray, np.ndarray]]:
         """Per gait of ``GAITS``: (name, times s, joint names, planned positions rad (n, J),
         velocities rad/s (n, J)) of its default run on ``tmpl``'s legs."""
-        from gaits.base import DesignGeometry
-        from gaits.humanoid import HumanoidController
-
         key = tuple(sorted((k, round(float(v), 12)) for k, v in tmpl.lengths.items()))
         if key not in cls._plans:
             geometry = DesignGeometry(
@@ -660,7 +656,6 @@ class Humanoid(Family):
         rad/s, the ground's wrenches (n, nbodies, 6)) with ``tmpl``'s masses; kept for the
         last template asked (``load_cases`` and ``holds`` ask for the same one in turn; a
         template is immutable, the arrays are only read)."""
-        from gaits.humanoid import stance_loads
 
         last = getattr(self, "_last_gait_loads", None)
         if last is not None and last[0] is tmpl:
@@ -678,7 +673,6 @@ class Humanoid(Family):
 
     def holds(self, tmpl, p, catalog):
         """Each joint's fastest instant of the gaits: (the torque then, that speed)."""
-        from kinematics.dynamics import rnea
 
         model = tmpl.model
         best: dict[str, tuple[float, float, str]] = {}
@@ -715,7 +709,6 @@ class Humanoid(Family):
         """InfeasibleError when the legs' module length is outside the sizes the gait's
         conversion maps were fitted on (never extrapolated), naming the nearest height
         that works."""
-        from gaits.humanoid import leg_module_range
 
         lo, hi = leg_module_range()
         x = (lengths["femur"] + lengths["tibia"]) / 2
@@ -736,13 +729,13 @@ class Humanoid(Family):
     def stance(tmpl: Template) -> np.ndarray:
         """The walking gait's single-support pose (nv,): crouched to the gait's stance
         height, the pelvis swayed over the left ankle by the gait's sway, arms hanging."""
-        from gaits.humanoid import WALK, leg_ik, stance_height
 
         L = tmpl.lengths
         hw = L["hip_width"] / 2
         leg = L["femur"] + L["tibia"]
-        y = WALK.sway * hw
-        ankle = np.array([0.0, -y, -stance_height(WALK, leg, hw)])
+        walk = gaits.humanoid.WALK  # (read at call time: a test may replace it)
+        y = walk.sway * hw
+        ankle = np.array([0.0, -y, -stance_height(walk, leg, hw)])
         angles = leg_ik(ankle, L["femur"], L["tibia"])
         names = ("hip_yaw", "hip_roll", "hip_pitch", "knee_pitch", "ankle_pitch", "ankle_roll")
         return _joint_q(tmpl, dict(zip(names, (float(a) for a in angles), strict=True)))
@@ -757,7 +750,6 @@ class Humanoid(Family):
     def _cases(self, tmpl, catalog, instants: Sequence[tuple[str, int]] | None) -> list[LoadCase]:
         """The stance cases, then the gaits' cases: each joint's peak instant, or the
         ``instants`` (gait, sample index) given."""
-        from kinematics.dynamics import rnea
 
         q = self.stance(tmpl)
         model = tmpl.model

@@ -38,7 +38,9 @@ import numpy as np
 from adron.catalog import I2C_DEFAULT, Actuator, Bus, Catalog, catalog_facts
 from adron.errors import InfeasibleError, InputError, OntologyError
 from adron.kb import KnowledgeBase
+from kinematics.assemble import STRUCTURES, AssemblyError, unused_lengths
 from kinematics.dynamics import joint_wrenches, rnea
+from kinematics.partkinds import _names, evaluate, in_use
 from kinematics.spatial import link_part_volume
 from kinematics.templates import (
     FOOT_WIDTH_RATIO,
@@ -49,8 +51,9 @@ from kinematics.templates import (
     build,
     register_plan,
 )
-from synth.params import lowest, resolve
+from synth.params import lowest, ontology_defaults, resolve
 from synth.reasoning.conceptual import ability_ancestors
+from synth.reasoning.plans import ancestors, structure_of_type
 from synth.reasoning.solver import Candidate
 from synth.sizing.assign import (
     ActuatorAssigner,
@@ -66,7 +69,7 @@ from synth.sizing.assign import (
     feasible_mask,
     product_rows,
 )
-from synth.sizing.behaviour_loads import BehaviourCase, analyse
+from synth.sizing.behaviour_loads import BehaviourCase, analyse, design_geometry
 from synth.sizing.chain_links import Chain, ChainLink, chain_tubes, serial_chains
 from synth.sizing.families import FAMILIES, Family, LoadCase, Sizing
 from synth.sizing.links import (
@@ -326,7 +329,6 @@ def _plate_area(plan, lengths: Mapping[str, float]) -> float | None:
     sized (the two sides of that face are expressions of the design's lengths: a trunk's
     La1 x La2, a torso's shoulder width x height); None for a box of fixed size (numbers,
     the actuator's size: an arm's base, a snake's head)."""
-    from kinematics.partkinds import _names, evaluate, in_use
 
     kind = in_use().of(plan.root.kinds)
     if kind is None or len(kind.box) != 3:
@@ -349,10 +351,6 @@ class StructureDesigner:
         symmetric: bool = True,
         objective: Sequence[str] = ("mass", "cost"),
     ) -> None:
-        from kinematics.assemble import STRUCTURES
-        from synth.params import ontology_defaults
-        from synth.reasoning.plans import ancestors, structure_of_type
-
         plan, structure = structure_of_type(kb, candidate.robot_type)
         if structure not in FAMILIES:
             raise InputError(
@@ -383,8 +381,6 @@ class StructureDesigner:
         self.values, ignored = resolve(
             structure, params, defaults, ontology_defaults(kb, ancestors(kb, candidate.robot_type))
         )
-        from kinematics.assemble import AssemblyError, unused_lengths
-        from kinematics.partkinds import in_use
 
         # the request's parameters and the kinds' lengths that nothing uses: said
         self.ignored = tuple(ignored) + unused_lengths(plan, in_use())
@@ -536,8 +532,6 @@ class StructureDesigner:
 
     def _geometry(self, tmpl: Template, sizing: Sizing, speeds: Mapping[str, float]):
         """The gaits' view of the design as its record will give it (``design.json``)."""
-        from synth.sizing.behaviour_loads import design_geometry
-
         return design_geometry(
             self.candidate.robot_type,
             self.type,

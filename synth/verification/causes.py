@@ -27,6 +27,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol
 
+import synth.verification.runs
+
 if TYPE_CHECKING:
     from adron.catalog import Catalog
     from synth.verification.results import RobustRuns
@@ -120,15 +122,14 @@ def trial_passes(
     stopping at the first run that fails)? With ``entry`` completed by what it gave: its
     ``nominal`` verdict ("ok" or the failed criteria, or why it does not plan), ``passed``
     of ``runs`` made ``of`` K, and the ``failed_seed``."""
-    from synth.verification.runs import verify_nominal, verify_robust
 
     try:
-        nominal = verify_nominal(trial, [behavior])[0]
+        nominal = synth.verification.runs.verify_nominal(trial, [behavior])[0]
     except ValueError as e:  # (the change does not plan on the nominal model)
         return False, entry | {"nominal": [str(e)], "passed": 0, "runs": 0}
     if not nominal.ok:
         return False, entry | {"nominal": nominal.verdict, "passed": 0, "runs": 0}
-    runs = verify_robust(
+    runs = synth.verification.runs.verify_robust(
         trial, robust.k, robust.table, [behavior], sensing=False, decisive={behavior}
     )
     got = runs.behaviors[0]

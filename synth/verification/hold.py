@@ -39,7 +39,11 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
+from export.mjcf import SERVO_BAND
+from gaits.base import pace_parameter
 from synth.verification.causes import Remedy, Round, trial_passes, with_record
+from synth.verification.robust import replayed_blame
+from synth.verification.runs import Replay
 
 if TYPE_CHECKING:
     from synth.verification.results import RobustRuns, Run
@@ -83,7 +87,6 @@ def hold_attribution(
     SPEED_SHARES x the behaviour's pace (its ``parameter``, :func:`gaits.base.pace_parameter`)
     at which the run passes as perturbed (None: none does, or the behaviour has no pace),
     "default_speed": the pace it had, "unit"}``."""
-    from synth.verification.runs import Replay
 
     replay = Replay(bundle, table, behavior, seed)
     controller, traj, p, run = replay.controller, replay.plan, replay.perturbation, replay.run
@@ -94,7 +97,6 @@ def hold_attribution(
         return None
     if not run({"control_period_s": 0.0}, stop_on_failure=True).ok:
         return None
-    from gaits.base import pace_parameter
 
     spec = controller.offered(behavior)  # its pace: the one the design plans with now
     key = pace_parameter(spec)
@@ -127,7 +129,6 @@ def hold_blame(bundle: Bundle, robust: RobustRuns | None) -> list[dict]:
     """:func:`hold_attribution` of the failed perturbed runs (up to ``HOLD_BLAMED_RUNS`` a
     behaviour, the worst first) of the behaviours that are not robust, each with its
     ``behavior`` and ``seed``: those the command hold breaks."""
-    from synth.verification.robust import replayed_blame
 
     return replayed_blame(bundle, robust, hold_attribution, HOLD_BLAMED_RUNS)
 
@@ -136,7 +137,6 @@ def hold_note(blamed: list[dict], behavior: str) -> str:
     """What a refusal adds when the command hold broke ``behavior`` (:func:`hold_blame`):
     the joints' largest reference step a frame against the servo's band, and the speed at
     which the run passes; "" when the hold did not break it."""
-    from export.mjcf import SERVO_BAND
 
     runs = [r for r in blamed if r["behavior"] == behavior]
     if not runs:

@@ -71,6 +71,18 @@ from functools import partial
 from typing import TYPE_CHECKING
 
 from adron.errors import InfeasibleError
+from export.record import design_record
+from gaits import controller_for
+from gaits.base import DesignGeometry, serving
+from program.sensing import simulated_abilities, verify_sensing
+from synth.params import lowest
+from synth.sizing.structure import (
+    EASIER_WHEN_SMALLER,
+    StructureDesigner,
+    bisect_largest,
+    rounded_down,
+    shown_value,
+)
 from synth.verification.results import RobustRuns, Run
 
 if TYPE_CHECKING:
@@ -163,8 +175,6 @@ def calibrate(bundle: Bundle) -> dict[str, float]:
     """The design's ``calibration`` measured on its controller's probe runs in MuJoCo
     (:meth:`gaits.base.Controller.calibration_probes`; a skid-steer's effective track and
     turning load); empty when its controller needs none (no model is compiled then)."""
-    from gaits import controller_for
-    from gaits.base import DesignGeometry
     from synth.verification.runs import run_behavior
 
     if not controller_for(DesignGeometry.from_record(bundle.record)).calibration_probes():
@@ -203,9 +213,6 @@ def _no_controller(designer: Designer, outcome: Outcome) -> str | None:
     """Why the design's behaviours cannot be simulated (no controller serves its
     structure yet), or None: such a design is refused rather than claimed verified; with
     --no-verify it is sized and exported unverified."""
-    from export.record import design_record
-    from gaits import controller_for
-    from gaits.base import DesignGeometry
 
     record = design_record(outcome.design, designer.short, outcome.structure)
     try:
@@ -223,8 +230,6 @@ def served_abilities(record: Mapping, controller) -> dict[str, str | None]:
     ability whose simulated behaviour serves it (``gaits.base.serving`` over the record's
     ``ability_ancestors``): a behaviour of ``controller``, or a sensing loop that
     :mod:`program.sensing` simulates for it; None when nothing does."""
-    from gaits.base import serving
-    from program.sensing import simulated_abilities
 
     offered = {spec.realises for spec in controller.behaviors.values()}
     ancestors = record.get("ability_ancestors") or {}
@@ -247,9 +252,6 @@ def _unserved(designer: Designer, outcome: Outcome) -> dict[str, tuple[tuple[str
     """The demanded abilities of ``outcome`` (:func:`demanded`) that no behaviour serves ->
     (what would serve them: the ability and its ancestor abilities, the abilities that the
     design's behaviours serve)."""
-    from export.record import design_record
-    from gaits import controller_for
-    from gaits.base import DesignGeometry
 
     record = design_record(outcome.design, designer.short, outcome.structure)
     controller = controller_for(DesignGeometry.from_record(record))
@@ -289,7 +291,6 @@ def structure_designer(
 ):
     """The structure generator (``synth.sizing.structure.StructureDesigner``) of
     ``outcome``'s chosen type and catalog, for the parameters ``params``."""
-    from synth.sizing.structure import StructureDesigner
 
     c = outcome.design.chosen
     return StructureDesigner(
@@ -314,13 +315,6 @@ def best_value(
     verdict's threshold it often is not). That is five tests for the parameter that is
     the limit and one for each parameter before it whose floor failed; out of rounds, a
     value counts as failing."""
-    from synth.params import lowest
-    from synth.sizing.structure import (
-        EASIER_WHEN_SMALLER,
-        bisect_largest,
-        rounded_down,
-        shown_value,
-    )
 
     budget = [HINT_ROUNDS]
     sizer = partial(structure_designer, designer, outcome, opts=opts)
@@ -466,7 +460,6 @@ class Strengthening:
         behaviours' plans and the sensing loops nominally, and, when they all passed, the
         plans under the perturbations; None when a bonus ability's behaviour cannot be
         planned (it is dropped: :func:`_drop_unplanned`)."""
-        from program.sensing import verify_sensing
         from synth.verification.robust import robust_check
         from synth.verification.runs import UnplannedError, verify_nominal
         from synth.verification.source import Bundle
@@ -684,8 +677,6 @@ class Strengthening:
         """The outcome of the last round ``now``: what failed nominally drops a bonus
         ability or refuses the request, as does a behaviour not robust under the
         perturbations (its refusal names what each cause measured and tried)."""
-        from gaits import controller_for
-        from gaits.base import DesignGeometry
         from synth.verification.robust import robust_check, with_sensing
         from synth.verification.verdict import explain
 
@@ -805,9 +796,6 @@ class Strengthening:
 def _demanded(record: Mapping, results: list[Run]) -> frozenset[str]:
     """The behaviours of ``results`` that serve a demanded ability of the design in
     ``record`` (:func:`served_abilities`)."""
-    from gaits import controller_for
-    from gaits.base import DesignGeometry
-
     served = served_abilities(record, controller_for(DesignGeometry.from_record(record)))
     needed = set(record.get("needed") or record.get("abilities", ()))
     out = set()
@@ -823,9 +811,6 @@ def _drop_unplanned(designer: Designer, outcome: Outcome, record: Mapping, e) ->
     """``outcome`` without the bonus abilities that the behaviour of ``e`` (an
     ``synth.verification.runs.UnplannedError``: it cannot be planned on the simulated robot) serves,
     with a note; ``e`` itself when it serves a demanded ability (the request is refused)."""
-    from gaits import controller_for
-    from gaits.base import DesignGeometry
-
     served = served_abilities(record, controller_for(DesignGeometry.from_record(record)))
     needed = set(record.get("needed") or record.get("abilities", ()))
     mine = {e.ability} | {a for a, s in served.items() if s == e.ability}

@@ -50,6 +50,10 @@ from importlib import resources
 from typing import Any
 
 from adron.errors import InputError
+from adron.formats import PerturbationOverrides
+from adron.schema import validate
+from adron.units import quantity
+from export.mjcf import load_mjcf
 
 #: The shipped ranges (package data).
 TABLE_FILE = "perturb.toml"
@@ -112,8 +116,6 @@ def ranges(overrides: Mapping[str, Any] | None = None, where: str = "catalog") -
                         f"{where}: [perturbation] unknown key {key}.{sub} "
                         f"(one of {', '.join(sorted(raw[key]))})"
                     )
-        from adron.formats import PerturbationOverrides
-        from adron.schema import validate
 
         validate(PerturbationOverrides, dict(overrides), f"{where}: [perturbation]")
         raw = _merge(raw, overrides)
@@ -122,8 +124,6 @@ def ranges(overrides: Mapping[str, Any] | None = None, where: str = "catalog") -
 
 
 def _resolve(raw: Mapping[str, Any], source: str) -> dict[str, Any]:
-    from adron.units import quantity
-
     def get(table: str, key: str) -> Any:
         try:
             return raw[table][key]
@@ -571,7 +571,6 @@ def perturbed_xml(
 def perturbed_model(xml: str, meshes: Mapping[str, bytes], table: Mapping[str, Any], p):
     """The compiled MuJoCo model of ``xml`` (a bundle's robot.xml carrying its payload)
     under perturbation ``p``."""
-    from export.mjcf import load_mjcf
 
     return load_mjcf(perturbed_xml(xml, table, p), dict(meshes))
 

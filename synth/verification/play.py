@@ -20,7 +20,9 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
 from synth.verification.causes import Remedy, Round
+from synth.verification.perturb import catalog_play
 from synth.verification.robust import BLAMED_RUNS, replayed_blame
+from synth.verification.runs import Replay
 
 if TYPE_CHECKING:
     from synth.verification.results import RobustRuns, Run
@@ -43,8 +45,6 @@ class Play:
 
     def explains(self, now: Round) -> Remedy | None:
         if self.play is None:
-            from synth.verification.perturb import catalog_play
-
             self.play = catalog_play(now.catalog)
         runs = play_blame(now.bundle(), now.robust)
         self.blamed, self.at, self.models = runs, now.number, now.models
@@ -179,7 +179,6 @@ def play_attribution(
     groups left are those whose play must go. ``{"verdict": [...], "joints": [...],
     "figures": {"with": ..., "without": ...}}`` (the failed criteria, the joints whose
     play breaks it, the :func:`_criteria` figures of the run with and without play)."""
-    from synth.verification.runs import Replay
 
     replay = Replay(bundle, table, behavior, seed)
     record, p = replay.record, replay.perturbation

@@ -25,12 +25,17 @@ from collections.abc import Collection, Mapping, Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
+import synth.verification.runs
+from export.bundle import bundle_files
+from program.sensing import verify_sensing
+from synth.verification.perturb import design_table
 from synth.verification.results import RobustRuns, Run
+from synth.verification.runs import agreement, coarse_xml, physics_check
+from synth.verification.source import Bundle
 
 if TYPE_CHECKING:
     from synth.pipeline import Outcome
     from synth.reasoning.conceptual import Designer
-    from synth.verification.source import Bundle
 
 
 def robust_check(
@@ -62,8 +67,6 @@ def robust_check(
     plan when one of those saturates (:func:`synth.verification.runs.verify_robust`)."""
     if k <= 0 or outcome.structure is None or outcome.catalog is None:
         return None
-    from synth.verification.perturb import design_table
-    from synth.verification.runs import verify_robust
 
     bundle = robust_bundle(designer, outcome) if bundle is None else bundle
     if table is None:
@@ -76,7 +79,9 @@ def robust_check(
     table = json.loads(json.dumps(table))
     early = {} if decisive is None else {"decisive": decisive}
     early |= {"probe": True} if probe else {}
-    robust = verify_robust(bundle, k, table, only=only, sensing=sensing, **early)
+    robust = synth.verification.runs.verify_robust(
+        bundle, k, table, only=only, sensing=sensing, **early
+    )
     return replace(robust, physics=checked, shows=shows(robust))
 
 
@@ -89,13 +94,11 @@ def physics(
     known), and where they agree at the coarse step, the sensing loops' too (``sensed``:
     their fine nominal runs, ``program.sensing.verify_sensing``; each run again on the
     bundle at the coarse step): one step for every perturbed run of the design."""
-    from synth.verification.runs import agreement, coarse_xml, physics_check
 
     checked = physics_check(bundle, nominal)
     loops = [r.to_dict() for r in sensed or () if r.figures.get("verdict") is not None]
     if not checked["timestep_s"] or not loops:
         return checked
-    from program.sensing import verify_sensing
 
     raw = bundle.files["robot.xml"]
     text, _ = coarse_xml(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
@@ -160,9 +163,6 @@ def with_sensing(robust: RobustRuns, more: RobustRuns | None) -> RobustRuns:
 def robust_bundle(designer: Designer, outcome: Outcome) -> Bundle:
     """The bundle the perturbed runs use (as the user gets it: robot.xml without the
     payload, which design.json places)."""
-    from export.bundle import bundle_files
-    from synth.verification.source import Bundle
-
     return Bundle(
         bundle_files(
             outcome.record(designer),

@@ -26,6 +26,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from adron.errors import InfeasibleError, InputError
+from gaits import controller_for
+from gaits.base import DesignGeometry
+from synth.verification.perturb import describe, draw, perturbed_xml, summary, worst_first
 from synth.verification.results import (
     BehaviorRuns,
     Failure,
@@ -34,6 +37,8 @@ from synth.verification.results import (
     criteria,
     required_passes,
 )
+from synth.verification.simulate import simulate
+from synth.verification.verdict import explain
 
 if TYPE_CHECKING:
     from gaits.base import Controller, Trajectory
@@ -75,8 +80,6 @@ def mujoco_gravity(model, joints: Sequence[str]) -> Callable[[np.ndarray], np.nd
 
 def controller_for_model(record: Mapping, model) -> Controller:
     """The controller of the design in ``record``, set up for the MuJoCo ``model``."""
-    from gaits import controller_for
-    from gaits.base import DesignGeometry
 
     try:
         geometry = DesignGeometry.from_record(record)
@@ -135,7 +138,6 @@ def _simulate(
     (``synth.verification.simulate.simulate`` told whether the robot can fall and where its gripper
     is; for a ``perturbation`` of
     :mod:`synth.verification.perturb`, its command latency and control period)."""
-    from synth.verification.simulate import simulate
 
     tmpl = controller.template
     body = traj.info.get("tool_body")
@@ -383,8 +385,6 @@ class Perturbed:
     def __init__(
         self, bundle: Bundle, table: Mapping, seed: int, perturbation: Mapping | None = None
     ) -> None:
-        from synth.verification.perturb import draw
-
         self.bundle, self.table, self.seed = bundle, table, seed
         if perturbation is None:
             try:
@@ -401,7 +401,6 @@ class Perturbed:
 
     def xml(self) -> str:
         """The perturbed robot's MJCF text."""
-        from synth.verification.perturb import perturbed_xml
 
         try:
             return perturbed_xml(self.bundle.xml, self.table, self.perturbation)
@@ -529,8 +528,6 @@ def verify_robust(
     from concurrent.futures import ThreadPoolExecutor
 
     from program.sensing import sensing_behaviors
-    from synth.verification.perturb import describe, summary, worst_first
-    from synth.verification.verdict import explain
 
     record = bundle.record
     controller = bundle.controller()

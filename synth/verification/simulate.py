@@ -62,6 +62,9 @@ import numpy as np
 
 from adron.errors import InputError
 from gaits.base import Trajectory, quat_yaw
+from gaits.feedback import CONTROL_PERIOD_S, Attitude, Reading, _qmul, loop_for
+from gaits.hexapod import support_margin
+from kinematics.spatial import matrix_from_rpy
 
 
 @dataclass
@@ -244,7 +247,6 @@ def support_margin_of(model, data) -> float:
     the point it stands over moves downhill by its height x tan(slope), which a straight
     drop ignores (5 mm for a 10 cm high body on 3 deg); with gravity straight down the two
     are the same number."""
-    from gaits.hexapod import support_margin
 
     n = data.ncon
     if n == 0:
@@ -696,8 +698,6 @@ def simulate(
         result.placing_error_m = float(np.linalg.norm(where - goal))
         rpy = info.get("orientation_rpy")
         if rpy is not None:
-            from kinematics.spatial import matrix_from_rpy
-
             rot = placed_rot if placed_rot is not None else data.xmat[eid].reshape(3, 3)
             base = data.xmat[1].reshape(3, 3)  # parameters are in the base frame
             result.orientation_error_rad = _rotation_angle(
@@ -737,7 +737,6 @@ def _level_quat(quat: np.ndarray, gravity: np.ndarray) -> np.ndarray:
         return np.asarray(quat, dtype=float)
     half = math.atan2(s, c) / 2
     tilt = np.array([math.cos(half), *(math.sin(half) * axis / s)])
-    from gaits.feedback import _qmul
 
     return _qmul(tilt, np.asarray(quat, dtype=float))
 
@@ -767,8 +766,6 @@ class _ClosedLoop:
 
     @classmethod
     def of(cls, model, data, traj, columns, latency_s, command_period_s, noise):
-        from gaits.feedback import CONTROL_PERIOD_S, loop_for
-
         loop = loop_for(traj)
         if loop is None:
             return None
@@ -783,8 +780,6 @@ class _ClosedLoop:
         return cls(model, loop, columns, period, delay, imu, noise)
 
     def reading(self, data, t: float):
-        from gaits.feedback import Attitude, Reading
-
         gyro = accel = att = None
         if self.imu is not None:
             g, a = self.imu

@@ -19,6 +19,11 @@ from typing import Any
 
 from adron import readers
 from adron.errors import InputError
+from export.mjcf import load_mjcf
+from export.record_schema import check_record as check
+from gaits import CONTROLLERS, structure
+from gaits.base import DesignGeometry
+from synth.verification.simulate import carrying_payload, check_agrees
 
 
 def _text(v: str | bytes) -> str:
@@ -84,8 +89,6 @@ class Bundle:
         """robot.xml's text carrying the design's payload, checked to be the record's robot
         (:func:`synth.verification.simulate.check_agrees`)."""
         if self._xml is None:
-            from synth.verification.simulate import carrying_payload, check_agrees
-
             text = _text(self.files["robot.xml"])
             try:
                 check_agrees(text, self.record)
@@ -113,7 +116,6 @@ class Bundle:
     def compile(self, xml: str | None = None):
         """The MuJoCo model of ``xml`` (default: :attr:`xml`, the nominal robot) with the
         bundle's meshes; InputError naming the bundle when it does not compile."""
-        from export.mjcf import load_mjcf
 
         try:
             return load_mjcf(self.xml if xml is None else xml, dict(self.meshes))
@@ -153,7 +155,6 @@ class Bundle:
 def check_record(record: object, source: str) -> None:
     """InputError naming ``source``, the key and the value when ``record`` is not a design
     record of this parmor's format (:mod:`export.record_schema`)."""
-    from export.record_schema import check_record as check
 
     check(record, source)
 
@@ -177,8 +178,6 @@ def check_geometry(record: Mapping, source: str) -> None:
     """InputError naming ``source`` when the record's ``template``, ``body_plan`` and
     ``lengths_m`` do not make a robot (the one its controller is built for): each field is
     typed on its own (:func:`check_record`), this is how they fit together."""
-    from gaits import CONTROLLERS, structure
-    from gaits.base import DesignGeometry
 
     try:
         geometry = DesignGeometry.from_record(record)

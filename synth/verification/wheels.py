@@ -43,7 +43,12 @@ import json
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
+from export.mjcf import servo_gains
+from export.urdf import number, numbers
+from synth.sizing.structure import meets
 from synth.verification.causes import Remedy, Round
+from synth.verification.robust import BLAMED_RUNS, worst_failures
+from synth.verification.runs import Perturbed
 
 if TYPE_CHECKING:
     from adron.catalog import Actuator, Catalog
@@ -76,7 +81,6 @@ def stiffer_servos(record: Mapping, catalog: Catalog) -> list[Actuator]:
     stiff first: of the wheels' class (the record's ``module_class``), continuous,
     stiffer than each wheel's (``kv`` x :data:`STIFFER`), holding each wheel's required
     torque at its required speed (``synth.sizing.structure.meets``)."""
-    from synth.sizing.structure import meets
 
     wheels = wheel_joints(record, catalog)
     joints = [j for j in record.get("joints", ()) if j["name"] in wheels]
@@ -108,9 +112,6 @@ def swapped(bundle: Bundle, joints: list[str], actuator: Actuator) -> Bundle:
     and the joint's armature, as ``export.mjcf`` writes them."""
     import xml.etree.ElementTree as ET
 
-    from export.mjcf import servo_gains
-    from export.urdf import number, numbers
-
     def text(v: str | bytes) -> str:
         return v.decode("utf-8") if isinstance(v, bytes) else v
 
@@ -141,7 +142,6 @@ def swapped(bundle: Bundle, joints: list[str], actuator: Actuator) -> Bundle:
 def _failed_runs(robust: RobustRuns) -> list[tuple[str, int, Run | None]]:
     """(behaviour, seed, the run) of the failed perturbed runs replayed: those
     ``play_blame`` replays (``synth.verification.robust.worst_failures``)."""
-    from synth.verification.robust import BLAMED_RUNS, worst_failures
 
     return worst_failures(robust, BLAMED_RUNS)
 
@@ -156,7 +156,6 @@ def wheel_blame(bundle: Bundle, robust: RobustRuns | None, catalog: Catalog) -> 
     refusal can say so)."""
     if not robust or not robust.table:
         return None
-    from synth.verification.runs import Perturbed
 
     runs = _failed_runs(robust)
     if not runs:

@@ -237,3 +237,208 @@ def test_parmor_installs_them_itself(old_bundle: Path) -> None:
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "behavior: driving" in proc.stdout
+
+
+# --------------------------------------------------------------- function-local imports
+
+#: Commands whose start-up a function-local import may keep light (the project's modules
+#: each imports are measured in a fresh process): every command's help, the dialogue's
+#: listing, a design without verification, and the same written out.
+STARTUP_COMMANDS = (
+    ["--help"],
+    ["abilities"],
+    [
+        "design",
+        "walking",
+        "--answer",
+        "grasping=no",
+        "--answer",
+        "rough-terrain-walking=no",
+        "--no-verify",
+        "--no-input",
+    ],
+    [
+        "design",
+        "walking",
+        "--answer",
+        "grasping=no",
+        "--answer",
+        "rough-terrain-walking=no",
+        "--no-verify",
+        "--no-input",
+        "--out",
+        "{tmp}/bundle",
+    ],
+)
+
+#: Function-local imports kept for a start-up no command above shows, with the reason.
+DEFERRED = {
+    ("program.server", "program.session"): "the block server answers pages without MuJoCo; "
+    "only the child process that runs a program imports the session",
+    ("program.server", "synth.reasoning.plans"): "the same child installs the body plans",
+}
+
+_LOADED = (
+    "import json, sys\n"
+    "from synth.commands.cli import main\n"
+    "try:\n    main(json.loads(sys.argv[1]))\nexcept SystemExit:\n    pass\n"
+    "roots = {roots!r}\n"
+    "print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in roots)))\n"
+)
+
+
+def function_local_imports(root: Path, graph) -> list[tuple[str, int, str]]:
+    """(module, line, imported module) of every import of a parmor module inside a
+    function of the packages in ``root`` (a name imported from a package resolves to the
+    package unless it is a module of ``graph``)."""
+    import ast
+
+    roots = set(CONFIG["root_packages"])
+    out = []
+    for module in _modules_in(root):
+        path = root.joinpath(*module.split("."))
+        path = path / "__init__.py" if path.is_dir() else path.with_suffix(".py")
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for fn in ast.walk(tree):
+            if not isinstance(fn, ast.FunctionDef | ast.AsyncFunctionDef):
+                continue
+            for node in ast.walk(fn):
+                if isinstance(node, ast.Import):
+                    names = [a.name for a in node.names]
+                elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+                    names = [
+                        f"{node.module}.{a.name}"
+                        if f"{node.module}.{a.name}" in graph.modules
+                        else node.module
+                        for a in node.names
+                    ]
+                else:
+                    continue
+                for name in names:
+                    if name.split(".")[0] in roots:
+                        out.append((module, node.lineno, name))
+    return sorted(set(out))
+
+
+def _modules_in(root: Path) -> list[str]:
+    out = []
+    for pkg in CONFIG["root_packages"]:
+        for f in sorted((root / pkg).rglob("*.py")):
+            rel = f.relative_to(root).with_suffix("")
+            if "ros_templates" in rel.parts:
+                continue
+            out.append(".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts))
+    return out
+
+
+def circles(graph) -> dict[str, int]:
+    """Module -> the number of its import circle (strongly connected component of more than
+    one module, function-local imports included)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: dict[str, int] = {}
+    counter = [0]
+
+    def visit(v: str) -> None:  # Tarjan's algorithm, iterative over the edges
+        work = [(v, iter(sorted(graph.find_modules_directly_imported_by(v))))]
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        while work:
+            node, edges = work[-1]
+            for w in edges:
+                if w not in index:
+                    index[w] = low[w] = counter[0]
+                    counter[0] += 1
+                    stack.append(w)
+                    on.add(w)
+                    work.append((w, iter(sorted(graph.find_modules_directly_imported_by(w)))))
+                    break
+                if w in on:
+                    low[node] = min(low[node], index[w])
+            else:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[node])
+                if low[node] == index[node]:
+                    comp = []
+                    while True:
+                        w = stack.pop()
+                        on.discard(w)
+                        comp.append(w)
+                        if w == node:
+                            break
+                    if len(comp) > 1:
+                        number = len(set(out.values()))
+                        for w in comp:
+                            out[w] = number
+
+    for m in sorted(graph.modules):
+        if m not in index:
+            visit(m)
+    return out
+
+
+def unexplained(
+    imports: list[tuple[str, int, str]],
+    circle_of: dict[str, int],
+    loaded: list[set[str]],
+    deferred: dict[tuple[str, str], str],
+) -> list[str]:
+    """The function-local imports that neither close an import circle (both modules in
+    one), nor keep a measured start-up light (a command in ``loaded`` imports the module
+    but not what it imports), nor are listed in ``deferred``: "module:line -> target"."""
+    out = []
+    for module, line, target in imports:
+        if module in circle_of and circle_of.get(target) == circle_of[module]:
+            continue
+        if any(module in s and target not in s for s in loaded):
+            continue
+        if (module, target) in deferred:
+            continue
+        out.append(f"{module}:{line} -> {target}")
+    return out
+
+
+def _loaded(argv: list[str], tmp: Path) -> set[str]:
+    argv = [a.replace("{tmp}", str(tmp)) for a in argv]
+    code = _LOADED.format(roots=sorted(CONFIG["root_packages"]))
+    proc = subprocess.run(
+        [sys.executable, "-c", code, json.dumps(argv)],
+        cwd=tmp,
+        env=_env(),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    return set(json.loads(proc.stdout.strip().splitlines()[-1]))
+
+
+def test_function_local_imports_keep_start_up_light_or_close_a_circle(tmp_path: Path) -> None:
+    """A function-local import of a parmor module is there for a reason a machine can check:
+    a command's start-up it keeps light (measured: the command imports the module, not what
+    it imports), or an import circle it closes (listed in pyproject.toml's contracts), or
+    one of ``DEFERRED``; anything else belongs at the top of its module."""
+    grimp = pytest.importorskip("grimp")
+    graph = grimp.build_graph(
+        *CONFIG["root_packages"], include_external_packages=False, cache_dir=None
+    )
+    imports = function_local_imports(ROOT, graph)
+    loaded = [_loaded(argv, tmp_path) for argv in STARTUP_COMMANDS]
+    assert all(len(s) > 3 for s in loaded), loaded  # the commands ran
+    assert unexplained(imports, circles(graph), loaded, DEFERRED) == []
+    # the check itself: one import no start-up and no circle needs is named
+    # (the command line importing what every command loads anyway)
+    local = ("synth.commands.cli", 1, "synth.limits")
+    assert unexplained([local], circles(graph), loaded, {}) == [
+        "synth.commands.cli:1 -> synth.limits"
+    ]
+    # ... while one that closes a circle is not
+    kept = ("adron.catalog", 1, "adron.catalog_schema")
+    assert unexplained([kept], circles(graph), loaded, {}) == []
+    # ... as is one that only a listed reason kept
+    server = [i for i in imports if i[0] == "program.server"]
+    assert server and unexplained(server, circles(graph), loaded, {})
