@@ -218,7 +218,12 @@ class JointHold(Loop):
     gravity, a spring), bounded by ``limit_rad``. ``ki`` 1/s; ``joints`` (optional) names
     the joints it acts on (default: every position joint of the plan). A joint that moves
     fast (|planned speed| above ``moving_rad_s``) is left to its servo: the integral is
-    frozen so it does not wind up on the servo's lag."""
+    frozen so it does not wind up on the servo's lag.
+
+    The plan the error is taken against is where the joints should be: the plan's
+    ``info["planned_positions"]`` when it has them (an arm's commands carry its servos'
+    droop compensation, ``q + g / kp``: held to the commands, the integral would add the
+    droop a second time and the tool would end off by as much)."""
 
     GAINS = ("ki",)
 
@@ -234,9 +239,18 @@ class JointHold(Loop):
         )
         self.acc = np.zeros(len(self.joints))
         self.last_t: float | None = None
+        where = traj.info.get("planned_positions") if getattr(traj, "info", None) else None
+        self.reference = (
+            np.asarray(where, dtype=float) if where is not None else np.asarray(traj.positions)
+        )
 
     def correct(self, r: Reading) -> np.ndarray:
-        q_plan, v_plan = self.planned(r.t)
+        _, v_plan = self.planned(r.t)
+        times = self.traj.times
+        t = min(max(r.t, 0.0), float(times[-1]))
+        q_plan = np.array(
+            [np.interp(t, times, self.reference[:, k]) for k in range(len(self.joints))]
+        )
         dt = 0.0 if self.last_t is None else r.t - self.last_t
         self.last_t = r.t
         still = np.abs(v_plan) < self.moving

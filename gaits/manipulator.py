@@ -978,9 +978,9 @@ class ManipulatorController(Controller):
                 q[: self.na] = self.point(float(az), el, q[: self.na])
                 self._joint(plan, f"point {k + 1}" if len(stops) > 1 else "point", q)
             # held still a moment, the servos' read-back integrated (gaits.feedback): the
-            # tool's tip swings with the chain's whole length, and under the servos' play
-            # the open loop ended 5.6-6.3 mm off on 8 perturbed runs of a 3-joint probe
-            # arm; with the hold and the loop 4.0-4.9 mm
+            # tool's tip swings with the chain's whole length; on a 3-joint probe arm's
+            # perturbed runs (seeds 1-3) the open loop ended 6.1-6.5 mm off, the loop
+            # 5.7-6.3 mm (the play's own sag is out of the read-back's sight)
             self._joint(plan, "hold", plan.last)
             info["feedback"] = dict(POINTING_FEEDBACK)
             info["direction_rad"] = (float(stops[-1]), el)

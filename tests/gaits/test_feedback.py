@@ -164,3 +164,30 @@ def test_servo_read_back_removes_a_steady_error(arm) -> None:
     closed = run({"loop": "joint-hold", "ki": 4.0, "limit_rad": 0.15})
     assert open_loop > 0.5 * push / kp  # the servo's proportional band gives way
     assert closed < 0.2 * open_loop
+
+
+def test_the_read_back_holds_the_joints_where_the_plan_wants_them_not_the_commands() -> None:
+    """An arm's commands carry its servos' droop compensation (positions = planned + g/kp):
+    a servo that settles at the planned position under its load reads back the planned
+    position, and the loop must leave it there. Built to fail: held to the commands (a plan
+    without ``planned_positions``), the integral pushes it past by the compensation."""
+    from gaits.base import Trajectory
+
+    times = np.linspace(0.0, 1.0, 11)
+    planned = np.tile([0.3, -0.5], (11, 1))
+    droop = np.array([0.02, -0.01])
+    spec = {"loop": "joint-hold", "ki": 4.0}
+
+    def hold(info):
+        traj = Trajectory(
+            "pointing", times, ("a", "b"), planned + droop, np.zeros_like(planned), info
+        )
+        loop = feedback.loop_for(traj)
+        out = np.zeros(2)
+        for t in np.arange(0.0, 3.0, 0.02):  # the joints sit where they should
+            out = loop.correct(Reading(t=float(t), q=planned[0], qd=np.zeros(2)))
+        return out
+
+    assert np.allclose(hold({"feedback": spec, "planned_positions": planned}), 0.0)
+    pushed = hold({"feedback": spec})  # the commands as the reference: it winds up
+    assert np.all(np.sign(pushed) == np.sign(droop)) and np.all(abs(pushed) >= abs(droop))

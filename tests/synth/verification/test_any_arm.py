@@ -363,7 +363,9 @@ def test_a_bonus_ability_whose_plan_fails_is_dropped_with_a_note(cli, tmp_path) 
 
 def test_pointing_places_better_with_its_joint_hold_loop_than_open_loop(cli, tmp_path) -> None:
     """Under the servos' play, the probe arm's pointing ends nearer its target with the
-    joint-hold loop its plan asks for than open loop (:data:`POINTING_FEEDBACK`)."""
+    joint-hold loop its plan asks for than open loop (:data:`POINTING_FEEDBACK`), seed for
+    seed (the same perturbation: the loop takes out what the servos' proportional band
+    leaves beyond the droop the plan compensates; the play's own sag it cannot see)."""
     from export.mjcf import load_mjcf
     from synth.verification.perturb import draw, perturbed_model
     from synth.verification.runs import controller_for_model, recorded_table
@@ -395,7 +397,7 @@ def test_pointing_places_better_with_its_joint_hold_loop_than_open_loop(cli, tmp
                 feedback=fb,
             )
             into.append(res.placing_error_m)
-    assert max(closed) < min(opened), (closed, opened)
+    assert all(c < o for c, o in zip(closed, opened, strict=True)), (closed, opened)
 
 
 @pytest.mark.parametrize("kif", [PROBE, BARE4])
