@@ -239,18 +239,16 @@ class JointHold(Loop):
         )
         self.acc = np.zeros(len(self.joints))
         self.last_t: float | None = None
-        where = traj.info.get("planned_positions") if getattr(traj, "info", None) else None
-        self.reference = (
-            np.asarray(where, dtype=float) if where is not None else np.asarray(traj.positions)
-        )
 
     def correct(self, r: Reading) -> np.ndarray:
-        _, v_plan = self.planned(r.t)
-        times = self.traj.times
-        t = min(max(r.t, 0.0), float(times[-1]))
-        q_plan = np.array(
-            [np.interp(t, times, self.reference[:, k]) for k in range(len(self.joints))]
-        )
+        q_plan, v_plan = self.planned(r.t)
+        where = self.traj.info.get("planned_positions")
+        if where is not None:  # where the joints should be, not the commands
+            times = self.traj.times
+            t = min(max(r.t, 0.0), float(times[-1]))
+            q_plan = np.array(
+                [np.interp(t, times, np.asarray(where)[:, k]) for k in range(len(self.joints))]
+            )
         dt = 0.0 if self.last_t is None else r.t - self.last_t
         self.last_t = r.t
         still = np.abs(v_plan) < self.moving

@@ -45,6 +45,8 @@ from typing import TYPE_CHECKING
 
 from export.mjcf import servo_gains
 from export.urdf import number, numbers
+from gaits import controller_for
+from gaits.base import DesignGeometry
 from synth.sizing.structure import meets
 from synth.verification.causes import Remedy, Round
 from synth.verification.robust import BLAMED_RUNS, worst_failures
@@ -60,15 +62,22 @@ STIFFER = 1.0001
 
 
 def wheel_joints(record: Mapping, catalog: Catalog) -> dict[str, Actuator]:
-    """The design's wheel joints -> their actuator: the joints whose catalog actuator turns
-    without an end stop (continuous rotation: a velocity servo in the MJCF)."""
+    """The design's wheel joints -> their actuator: the joints of its template's wheels
+    whose catalog actuator turns without an end stop (continuous rotation: a velocity servo
+    in the MJCF). A leg's joint on a servo that can also turn continuously (a DYNAMIXEL) is
+    not a wheel."""
     by_model = {a.model: a for a in catalog.actuators}
-    out = {}
-    for j in record.get("joints", ()):
-        a = by_model.get(j.get("actuator"))
-        if a is not None and a.continuous:
-            out[j["name"]] = a
-    return out
+    turning = [
+        j
+        for j in record.get("joints", ())
+        if getattr(by_model.get(j.get("actuator")), "continuous", False)
+    ]
+    if not turning:
+        return {}
+    template = controller_for(DesignGeometry.from_record(record)).template
+    m = template.model
+    wheels = {m.joints[m.body(w)].name for w in template.wheels}
+    return {j["name"]: by_model[j["actuator"]] for j in turning if j["name"] in wheels}
 
 
 def kv(a: Actuator) -> float:

@@ -87,6 +87,11 @@ def test_the_wheels_are_the_continuous_servos(bundle, catalog) -> None:
     arm = {"joints": [{"name": "elbow", "actuator": "MG996R", "module_class": "x"}]}
     assert wheel_joints(arm, catalog) == {}
     assert stiffer_servos(arm, catalog) == []
+    # a joint on a servo that can also turn without end stops (a DYNAMIXEL's wheel mode) is
+    # a wheel only where the design has a wheel: not a leg's or an arm's joint
+    more = json.loads(json.dumps(rec))
+    more["joints"].append({**more["joints"][0], "name": "mast_yaw", "actuator": "FS90R"})
+    assert sorted(wheel_joints(more, catalog)) == ["left_wheel", "right_wheel"]
 
 
 def test_stiffer_servos_the_least_stiff_first_and_only_those_fast_enough(bundle, catalog):
