@@ -238,6 +238,8 @@ def design_one(q: dict, designer, sopts, simulate: bool) -> dict:
                     {k: getattr(b, k) for k in ("behavior", "ability", "passed", "runs", "robust")}
                     for b in v.robust.behaviors
                 ]
+                if v.robust.shows:  # what the runs show (Clopper-Pearson), as design prints
+                    res["shows"] = dict(v.robust.shows)
     except Exception as e:  # noqa: BLE001 - a sweep records a crash and goes on
         res["status"], res["reason"] = "error", f"{type(e).__name__}: {e}"
     return res
@@ -340,10 +342,18 @@ def run_study(
     backend: str = "local",
     address: str | None = None,
     lim: limits.Limits | None = None,
+    certify: int = 0,
 ) -> dict:
     """Run a study: design (and simulate) the requests without a stored result on the
     ``backend`` (local processes, or Ray: ``synth.commands.backend``), then write the outputs from
-    every stored result; returns the summary object (``--json``)."""
+    every stored result; returns the summary object (``--json``).
+
+    ``certify`` N (``--certify``): the study's finalists, its accepted requests, are
+    designed again as ``parmor design --certify N`` does (N perturbed runs per behaviour,
+    stored under their own key, so a certification resumes too), and each row gets
+    ``certified``: the runs, the outcome and what they show (the lower bound of each
+    behaviour's success probability at 90 % confidence, Clopper-Pearson). A finalist may
+    fail its certification: more perturbations may strengthen it or refuse it."""
     path = Path(study)
     engine = Backend(backend, jobs, address)
     opts, requests = load_study(path)
@@ -366,6 +376,21 @@ def run_study(
     _compute(pending, results, keys, store, (opts, simulate, lim), engine, err, len(requests))
     computed = len(results) - reused
     rows = [_merged(q, results[i], keys[i]) for i, q in enumerate(requests)]
+    if certify:
+        finalists = [i for i, r in enumerate(rows) if r["status"] == "accepted"]
+        ckeys = {i: request_key(requests[i], simulate, digest, certify) for i in finalists}
+        certified: dict[int, dict] = {}
+        for i in finalists:
+            r = _stored(store / f"{ckeys[i]}.json")
+            if r is not None and r.get("status") != "error":
+                certified[i] = r
+        reused += len(certified)
+        todo = [(i, requests[i]) for i in finalists if i not in certified]
+        copts = dict(opts, robustness=certify)
+        _compute(todo, certified, ckeys, store, (copts, simulate, lim), engine, err, len(todo))
+        computed += len(todo)
+        for i in finalists:
+            rows[i]["certified"] = certificate(certified[i], certify)
     written = write_outputs(out, path, rows, simulate, opts["robustness"])
     summary = summary_object(rows, simulate, opts["robustness"])
     summary.update(study=str(path), out=str(out), computed=computed, reused=reused)
@@ -417,6 +442,21 @@ def _compute(
 
 def _merged(q: dict, res: dict, key: str) -> dict:
     return {"request": q, "id": key, **res}
+
+
+def certificate(res: dict, runs: int) -> dict:
+    """A finalist's certification (``run_study``'s ``certify``) from its result with
+    ``runs`` perturbed runs per behaviour: its status, its reason when not accepted, and
+    the lower bound its runs show (None when they show none: refused, or an error)."""
+    shows = res.get("shows") or {}
+    return {
+        "runs": runs,
+        "status": res["status"],
+        "reason": res["reason"] if res["status"] != "accepted" else "",
+        "success_lower_bound": shows.get("success_lower_bound"),
+        "confidence": shows.get("confidence"),
+        "behavior": shows.get("behavior"),
+    }
 
 
 # --- outputs -------------------------------------------------------------------------------
@@ -532,13 +572,21 @@ def summary_object(rows: Sequence[dict], simulate: bool, robustness: int = 0) ->
                 "robust_ok": sum(_robust_ok(r) for r in mine),
                 "robust_runs": [sum(b["passed"] for b in runs), sum(b["runs"] for b in runs)],
             }
-    return {
+    out = {
         "simulated": simulate,
         "robustness": robustness if simulate else 0,
         "requests": len(rows),
         "status": {s: status.get(s, 0) for s in ("accepted", "refused", "ambiguous", "error")},
         "types": types,
     }
+    certified = [r for r in rows if r.get("certified")]
+    if certified:  # --certify: each finalist's certification, in the study's order
+        out["certified"] = [
+            {"request": _describe(r["request"], r["request"]["name"]), "id": r["id"]}
+            | r["certified"]
+            for r in certified
+        ]
+    return out
 
 
 def _describe(q: dict, name: str) -> str:
@@ -600,6 +648,9 @@ def summary_md(
             lines.append(f"| {t} | {v['requests']} | {v['accepted']} | {v['refused']} |")
     if s["robustness"]:
         lines += _robust_md(s)
+    if s.get("certified"):
+        lines += ["", "## Certified finalists", ""]
+        lines += [f"- {_md(c['request'])}: {_md(certified_text(c))}" for c in s["certified"]]
     if simulate:
         lines += _behaviors_md(rows)
     dropped = [(r, a, why) for r in rows for a, why in r["dropped"].items()]
@@ -829,12 +880,35 @@ def summary_text(s: dict) -> str:
         if s.get("robustness"):
             ok = f", nominal ok {v['nominal_ok']}, robust ok {v['robust_ok']}" + ok
         lines.append(f"  {t:<24} accepted {v['accepted']}/{v['requests']}{ok}")
+    for c in s.get("certified", ()):
+        lines.append(f"  certified {c['request']}: {certified_text(c)}")
     lines.append(f"wrote {s['out']}: {', '.join(f for f in s['files'] if '/' not in f)}")
     return "\n".join(lines) + "\n"
 
 
+def certified_text(c: dict) -> str:
+    """One finalist's certification in words (the summary's lines)."""
+    if c["status"] != "accepted":
+        return f"{c['status']} with {c['runs']} perturbed runs per behaviour: {c['reason']}"
+    if c["success_lower_bound"] is None:
+        return f"accepted with {c['runs']} perturbed runs per behaviour"
+    return (
+        f"{c['runs']} of {c['runs']} perturbed runs per behaviour passed: each behaviour "
+        f"succeeds with probability above {100 * c['success_lower_bound']:.0f} % at "
+        f"{100 * c['confidence']:.0f} % confidence (Clopper-Pearson)"
+    )
+
+
 def cmd_sweep(args, out: TextIO, err: TextIO) -> int:
     """``parmor sweep``: 0 when the sweep ran (whatever its pass rates), 2 on bad input."""
+    certify = getattr(args, "certify", None) or 0
+    if getattr(args, "certify", None) is not None:
+        if args.no_simulate:
+            raise InputError("--certify N runs the verification: drop --no-simulate")
+        if not 1 <= certify <= limits.MAX_ROBUSTNESS:
+            raise InputError(
+                f"--certify {certify}: N must be 1 to {limits.MAX_ROBUSTNESS} perturbed runs"
+            )
     s = run_study(
         args.study,
         args.out,
@@ -845,6 +919,7 @@ def cmd_sweep(args, out: TextIO, err: TextIO) -> int:
         backend=args.backend,
         address=args.address,
         lim=getattr(args, "limits", None),
+        certify=certify,
     )
     if args.json:
         out.write(json.dumps(s, indent=2, ensure_ascii=False) + "\n")

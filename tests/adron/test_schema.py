@@ -74,7 +74,14 @@ def _shipped() -> list[tuple[str, list[Path]]]:
             ],
         ),
         ("perturb", [ROOT / "synth/verification/perturb.toml"]),
-        ("study", [*sorted((ROOT / "studies").glob("*.toml")), ROOT / "docs/examples/wheels.toml"]),
+        (
+            "study",
+            [
+                *sorted((ROOT / "studies").glob("*.toml")),
+                ROOT / "docs/examples/wheels.toml",
+                ROOT / "docs/examples/finalists.toml",
+            ],
+        ),
         ("program", [ROOT / "examples/square.json", ROOT / "docs/examples/walk.json"]),
     ]
 
