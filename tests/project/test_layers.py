@@ -101,11 +101,11 @@ def test_an_exception_no_import_needs_fails(tmp_path: Path) -> None:
     assert "No matches for ignored import gaits.base -> gaits.legged" in proc.stdout + proc.stderr
 
 
-def _modules() -> list[str]:
+def _modules(root: Path = ROOT) -> list[str]:
     out = []
     for pkg in CONFIG["root_packages"]:
-        for f in sorted((ROOT / pkg).rglob("*.py")):
-            rel = f.relative_to(ROOT).with_suffix("")
+        for f in sorted((root / pkg).rglob("*.py")):
+            rel = f.relative_to(root).with_suffix("")
             if "ros_templates" in rel.parts:  # files written into a ROS package, not imported
                 continue
             parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
@@ -295,7 +295,7 @@ def function_local_imports(root: Path, graph) -> list[tuple[str, int, str]]:
 
     roots = set(CONFIG["root_packages"])
     out = []
-    for module in _modules_in(root):
+    for module in _modules(root):
         path = root.joinpath(*module.split("."))
         path = path / "__init__.py" if path.is_dir() else path.with_suffix(".py")
         tree = ast.parse(path.read_text(encoding="utf-8"))
@@ -318,17 +318,6 @@ def function_local_imports(root: Path, graph) -> list[tuple[str, int, str]]:
                     if name.split(".")[0] in roots:
                         out.append((module, node.lineno, name))
     return sorted(set(out))
-
-
-def _modules_in(root: Path) -> list[str]:
-    out = []
-    for pkg in CONFIG["root_packages"]:
-        for f in sorted((root / pkg).rglob("*.py")):
-            rel = f.relative_to(root).with_suffix("")
-            if "ros_templates" in rel.parts:
-                continue
-            out.append(".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts))
-    return out
 
 
 def circles(graph) -> dict[str, int]:
