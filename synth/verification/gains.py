@@ -100,7 +100,8 @@ class Gains:
         self.chosen = dict(gains)
 
     def note(self, behavior: str, final: int) -> str:
-        """``; its wheel-odometry loop's gains x2 (perturbed run 6 failed, 1 of 8 made),
+        """``; its wheel-odometry loop's gains x2 (perturbed run 6 failed: stopped there, 1 of
+        8 runs made),
         x0.5 (...) do not make it pass``; "" when none were tried for ``behavior`` on this
         design."""
         tried = [t for t in self.tried if t["behavior"] == behavior]
@@ -111,7 +112,10 @@ class Gains:
             if t["nominal"] != "ok":
                 got = f"failed nominally: {', '.join(t['nominal'])}"
             elif t["runs"] < t["of"]:
-                got = f"perturbed run {t['failed_seed']} failed, {t['runs']} of {t['of']} made"
+                got = (
+                    f"perturbed run {t['failed_seed']} failed: stopped there, "
+                    f"{t['runs']} of {t['of']} runs made"
+                )
             else:
                 got = f"passed {t['passed']} of {t['runs']}"
             parts.append(f"x{t['scale']:g} ({got})")

@@ -752,7 +752,12 @@ class Strengthening:
                 if failure is None:
                     failure = why
                 else:
-                    also.append(f"{b.behavior} (passed {b.passed} of {b.runs})")
+                    made = (
+                        f"{b.runs} made before it could not pass, of {robust.k}"  # type: ignore[union-attr]
+                        if b.runs < robust.k  # type: ignore[union-attr]
+                        else f"{b.runs}"
+                    )
+                    also.append(f"{b.behavior} (passed {b.passed} of {made})")
             else:
                 for a in sorted(serves(b.ability)):
                     dropped.setdefault(a, why)
