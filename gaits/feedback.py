@@ -156,13 +156,15 @@ class Loop(ABC):
     def correct(self, r: Reading) -> np.ndarray:
         """(nj,) offsets to add to the plan's commands from now until the next reading."""
 
+    def sample(self, t: float, table: np.ndarray) -> np.ndarray:
+        """``table`` (samples x joints, on the plan's times) at ``t`` s, held after its end."""
+        times = self.traj.times
+        t = min(max(t, 0.0), float(times[-1]))
+        return np.array([np.interp(t, times, table[:, k]) for k in range(len(self.joints))])
+
     def planned(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The plan's (positions, velocities) at ``t`` s (held after its end)."""
-        tr = self.traj
-        t = min(max(t, 0.0), float(tr.times[-1]))
-        q = np.array([np.interp(t, tr.times, tr.positions[:, k]) for k in range(len(self.joints))])
-        v = np.array([np.interp(t, tr.times, tr.velocities[:, k]) for k in range(len(self.joints))])
-        return q, v
+        return self.sample(t, self.traj.positions), self.sample(t, self.traj.velocities)
 
 
 _LOOPS: dict[str, type[Loop]] = {}
@@ -241,14 +243,9 @@ class JointHold(Loop):
         self.last_t: float | None = None
 
     def correct(self, r: Reading) -> np.ndarray:
-        q_plan, v_plan = self.planned(r.t)
-        where = self.traj.info.get("planned_positions")
-        if where is not None:  # where the joints should be, not the commands
-            times = self.traj.times
-            t = min(max(r.t, 0.0), float(times[-1]))
-            q_plan = np.array(
-                [np.interp(t, times, np.asarray(where)[:, k]) for k in range(len(self.joints))]
-            )
+        where = self.traj.info.get("planned_positions")  # where the joints should be
+        q_plan = self.sample(r.t, np.asarray(self.traj.positions if where is None else where))
+        v_plan = self.sample(r.t, self.traj.velocities)
         dt = 0.0 if self.last_t is None else r.t - self.last_t
         self.last_t = r.t
         still = np.abs(v_plan) < self.moving

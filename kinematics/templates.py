@@ -420,6 +420,12 @@ class Template:
     passive: tuple[str, ...] = ()
 
     @property
+    def wheel_joints(self) -> tuple[str, ...]:
+        """The joints that turn the driven wheels (``wheels``), in their order."""
+        m = self.model
+        return tuple(m.joints[m.body(w)].name for w in self.wheels)
+
+    @property
     def groups(self) -> dict[str, tuple[str, ...]]:
         """Joint names of each actuator group, in joint order (passive joints have none)."""
         out: dict[str, list[str]] = {}

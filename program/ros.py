@@ -282,9 +282,8 @@ def interface(record: Mapping, name: str | None = None) -> dict:
 
 def _wheel_joints(template, record: Mapping) -> list[str]:
     """The driven wheels' joints (velocity servos: a loop's offset for them is a speed)."""
-    m = template.model
     driven = {j.get("name") for j in record.get("joints", ())}
-    return sorted(name for w in template.wheels if (name := m.joints[m.body(w)].name) in driven)
+    return sorted(name for name in template.wheel_joints if name in driven)
 
 
 # --- the package's files ------------------------------------------------------------------

@@ -74,9 +74,7 @@ def wheel_joints(record: Mapping, catalog: Catalog) -> dict[str, Actuator]:
     ]
     if not turning:
         return {}
-    template = controller_for(DesignGeometry.from_record(record)).template
-    m = template.model
-    wheels = {m.joints[m.body(w)].name for w in template.wheels}
+    wheels = set(controller_for(DesignGeometry.from_record(record)).template.wheel_joints)
     return {j["name"]: by_model[j["actuator"]] for j in turning if j["name"] in wheels}
 
 
