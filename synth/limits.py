@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
-from adron.errors import ParmorError
+from adron.errors import InputError, ParmorError
 
 #: Wall time of one command, s: room for a design with every behaviour simulated (about a
 #: minute on a loaded 2-core machine) many times over, short of "hangs".
@@ -33,6 +33,19 @@ DEFAULT_SIZE_ATOMS = 10_000_000
 #: ``PARMOR_ROBUSTNESS``, a study's ``robustness``): 64 runs of each behaviour is minutes
 #: to an hour of simulation, and certifying more is ``--certify``'s job.
 MAX_ROBUSTNESS = 64
+
+
+def certify_runs(n: int | None, conflict: bool, option: str) -> int:
+    """``--certify N``'s runs (0: not asked), for ``design`` and ``sweep`` alike: N at
+    least 1 (the parser bounds it above), and not with ``option`` (given: ``conflict``),
+    which turns off what it counts on."""
+    if n is None:
+        return 0
+    if conflict:
+        raise InputError(f"--certify N sets the number of perturbed runs: drop {option}")
+    if n == 0:
+        raise InputError("--certify N: N must be at least 1")
+    return n
 
 
 class LimitExceeded(ParmorError):

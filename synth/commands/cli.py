@@ -856,13 +856,8 @@ def cmd_design(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from synth.pipeline import run
 
     if args.certify is not None:
-        if args.robustness is not None or args.no_verify:
-            raise InputError(
-                "--certify N sets the number of perturbed runs: drop --robustness/--no-verify"
-            )
-        if args.certify == 0:
-            raise InputError("--certify N: N must be at least 1")
-        args.robustness = args.certify
+        conflict = args.robustness is not None or args.no_verify
+        args.robustness = limits.certify_runs(args.certify, conflict, "--robustness/--no-verify")
     if args.no_verify and args.robustness is not None and args.robustness != 0:
         raise InputError("--robustness runs the verification under perturbations: drop --no-verify")
     if args.out is not None:

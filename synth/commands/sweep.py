@@ -364,31 +364,17 @@ def run_study(
         validate(opts, requests)
     files = (opts["catalog"], opts["ontology"], opts["rules"])
     digest = files_digest(*files)  # reads and hashes every file: once per study
-    keys = [request_key(q, simulate, digest, opts["robustness"]) for q in requests]
+    keys = {i: request_key(q, simulate, digest, opts["robustness"]) for i, q in enumerate(requests)}
     store = out / "requests"
-    results: dict[int, dict] = {}
-    for i, k in enumerate(keys):
-        r = _stored(store / f"{k}.json")
-        if r is not None and r.get("status") != "error":
-            results[i] = r
-    reused = len(results)
-    pending = [(i, requests[i]) for i in range(len(requests)) if i not in results]
-    _compute(pending, results, keys, store, (opts, simulate, lim), engine, err, len(requests))
+    run = (store, engine, err, requests)
+    results, reused = _results(run, keys, (opts, simulate, lim))
     computed = len(results) - reused
     rows = [_merged(q, results[i], keys[i]) for i, q in enumerate(requests)]
-    if certify:
+    if certify:  # the finalists again, with N perturbed runs (stored under their own keys)
         finalists = [i for i, r in enumerate(rows) if r["status"] == "accepted"]
         ckeys = {i: request_key(requests[i], simulate, digest, certify) for i in finalists}
-        certified: dict[int, dict] = {}
-        for i in finalists:
-            r = _stored(store / f"{ckeys[i]}.json")
-            if r is not None and r.get("status") != "error":
-                certified[i] = r
-        reused += len(certified)
-        todo = [(i, requests[i]) for i in finalists if i not in certified]
-        copts = dict(opts, robustness=certify)
-        _compute(todo, certified, ckeys, store, (copts, simulate, lim), engine, err, len(todo))
-        computed += len(todo)
+        certified, more = _results(run, ckeys, (dict(opts, robustness=certify), simulate, lim))
+        reused, computed = reused + more, computed + len(certified) - more
         for i in finalists:
             rows[i]["certified"] = certificate(certified[i], certify)
     written = write_outputs(out, path, rows, simulate, opts["robustness"])
@@ -398,10 +384,30 @@ def run_study(
     return summary
 
 
+def _results(
+    run: tuple[Path, Backend, TextIO | None, list[dict]],
+    keys: dict[int, str],
+    arg: tuple[dict, bool, limits.Limits | None],
+) -> tuple[dict[int, dict], int]:
+    """The result of each request ``keys`` names (index -> its key): stored ones as they
+    are, the others designed on the engine with ``arg`` (and stored); with how many were
+    stored. ``run``: the store folder, the engine, the progress stream, the requests."""
+    store, engine, err, requests = run
+    results: dict[int, dict] = {}
+    for i, k in keys.items():
+        r = _stored(store / f"{k}.json")
+        if r is not None and r.get("status") != "error":
+            results[i] = r
+    reused = len(results)
+    pending = [(i, requests[i]) for i in keys if i not in results]
+    _compute(pending, results, keys, store, arg, engine, err, len(keys))
+    return results, reused
+
+
 def _compute(
     pending: list[tuple[int, dict]],
     results: dict[int, dict],
-    keys: list[str],
+    keys: dict[int, str],
     store: Path,
     arg: tuple[dict, bool, limits.Limits | None],
     engine: Backend,
@@ -901,14 +907,7 @@ def certified_text(c: dict) -> str:
 
 def cmd_sweep(args, out: TextIO, err: TextIO) -> int:
     """``parmor sweep``: 0 when the sweep ran (whatever its pass rates), 2 on bad input."""
-    certify = getattr(args, "certify", None) or 0
-    if getattr(args, "certify", None) is not None:
-        if args.no_simulate:
-            raise InputError("--certify N runs the verification: drop --no-simulate")
-        if not 1 <= certify <= limits.MAX_ROBUSTNESS:
-            raise InputError(
-                f"--certify {certify}: N must be 1 to {limits.MAX_ROBUSTNESS} perturbed runs"
-            )
+    certify = limits.certify_runs(args.certify, args.no_simulate, "--no-simulate")
     s = run_study(
         args.study,
         args.out,
