@@ -410,6 +410,7 @@ class Strengthening:
         self.wheels, self.play, self.gains = Wheels(), Play(), Gains()
         self.hold = Hold(given=params)
         self._bundle: tuple[int, Bundle] | None = None
+        self._made: Mapping = {}  # the last round's perturbed runs (verify_robust's made)
 
     @property
     def sizings(self) -> int:
@@ -480,6 +481,7 @@ class Strengthening:
                 decisive=self._decisive(again.record, again.results),
                 table=again.robust.table,
                 checked=again.robust.physics,
+                made=again.robust.made,  # (the runs the probe made: not made again)
             )
             return replace(again, robust=robust)
         files = self.outcome.files(designer)
@@ -513,8 +515,11 @@ class Strengthening:
                 sensed=sensed,
                 decisive=decisive,
                 probe=decisive is None and self._may_probe(),
+                repair=decisive is None and self.probing,
+                made=self._made,  # (the same robot and plans after other gains or paces)
             )
         )
+        self._made = robust.made if robust is not None else {}
         return Simulated(files, record, models, planned, sensed, failing, robust)
 
     def _may_probe(self) -> bool:
@@ -527,6 +532,14 @@ class Strengthening:
             and not self.torque_done
             and self.probes < MAX_ROUNDS
         )
+
+    @staticmethod
+    def _repaired(now: Simulated) -> bool:
+        """Whether round ``now``'s perturbed runs stopped at the first batch in which one
+        failed (``verify_robust``'s ``repair``): what failed there is answered, and when
+        nothing answers it the round is made again whole."""
+        stopped = now.robust.stopped if now.robust is not None else None
+        return bool(stopped and stopped.get("repair"))
 
     @staticmethod
     def _probed(now: Simulated) -> bool:
@@ -585,6 +598,13 @@ class Strengthening:
             return self._stronger(now) or _WHOLE
         if not (now.failing or now.not_robust()):
             return None
+        structure = self._answered(now)
+        # stopped at the first failed runs and nothing answers them: every run made, for
+        # the verdict (and the causes' answers to every failure)
+        return _WHOLE if structure is None and self._repaired(now) else structure
+
+    def _answered(self, now: Simulated):
+        """:meth:`answer` of a round in which something failed."""
         sizer = self._sizer()
         new = self._new_floors(now)
         grow = new if self.counted < MAX_ROUNDS and not self.torque_done else {}

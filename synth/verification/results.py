@@ -266,6 +266,9 @@ class RobustRuns:
     paces: Mapping[str, Any] | None = None
     stopped: Mapping[str, Any] | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)
+    #: the runs as made (``verify_robust``'s ``made``: a later call on the same robot takes
+    #: them rather than making them again); not recorded
+    made: Mapping[tuple, Any] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def of(cls, d: Mapping[str, Any]) -> RobustRuns:

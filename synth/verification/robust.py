@@ -50,7 +50,9 @@ def robust_check(
     table: Mapping | None = None,
     decisive: Collection[str] | None = None,
     probe: bool = False,
+    repair: bool = False,
     checked: Mapping | None = None,
+    made: Mapping | None = None,
 ) -> RobustRuns | None:
     """``verified.robust`` of ``outcome`` (a sized design) under perturbations 1..``k`` of
     its table (of its listed behaviours, those named in ``only`` when given; its sensing
@@ -64,7 +66,9 @@ def robust_check(
     with ``checked``, the physics chosen with it (None: not said again). ``decisive``: the
     behaviours whose failure refuses the design when no repair can follow: the runs stop
     once one of them cannot pass; ``probe``: they stop at the worst-looking run of each
-    plan when one of those saturates (:func:`synth.verification.runs.verify_robust`)."""
+    plan when one of those saturates, ``repair``: at the first batch of runs in which one
+    fails (:func:`synth.verification.runs.verify_robust`); ``made``: runs made before, taken
+    where they are the same runs."""
     if k <= 0 or outcome.structure is None or outcome.catalog is None:
         return None
 
@@ -79,6 +83,8 @@ def robust_check(
     table = json.loads(json.dumps(table))
     early = {} if decisive is None else {"decisive": decisive}
     early |= {"probe": True} if probe else {}
+    early |= {"repair": True} if repair else {}
+    early |= {"made": made} if made else {}
     robust = synth.verification.runs.verify_robust(
         bundle, k, table, only=only, sensing=sensing, **early
     )

@@ -18,6 +18,8 @@ all go through it). The results are typed (:mod:`synth.verification.results`).
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import re
 from collections.abc import Callable, Collection, Mapping, Sequence
@@ -244,8 +246,6 @@ def nominal_runs(
 def _plan_digest(traj: Trajectory) -> bytes:
     """A digest of everything of ``traj`` a simulation reads (samples, joints, promise),
     its name left out."""
-    import hashlib
-
     h = hashlib.blake2b(digest_size=20)
 
     def feed(x: object) -> None:
@@ -490,6 +490,8 @@ def verify_robust(
     sensing: bool = True,
     decisive: Collection[str] | None = None,
     probe: bool = False,
+    repair: bool = False,
+    made: Mapping[tuple, SimResult] | None = None,
 ) -> RobustRuns:
     """Every listed behaviour of a bundle (default parameters; ``behaviors`` when given,
     the listed ones named in ``only``) run under the perturbations 1..``k`` of ``table``
@@ -523,7 +525,20 @@ def verify_robust(
     saturated (an actuator at its limit more than the verdict allows), a new sizing
     follows whatever the other runs give, so they stop there: only the plans whose run
     so failed are listed (``stopped["probe"]`` true). Otherwise the other runs are made
-    and the result is the one without ``probe``, to the bit."""
+    and the result is the one without ``probe``, to the bit.
+
+    ``repair`` (a round after which a repair may follow: a cause of
+    :mod:`synth.verification.causes` answers a failed run with a new sizing, gains or a
+    pace, and the next round makes every run again): the runs go a batch at a time, the
+    worst-looking perturbations first, each run whole, and stop after the first batch in
+    which one failed: only the plans that failed are listed (``stopped["repair"]`` true).
+    A round whose every run passes makes them all, and the result is the one without
+    ``repair``, to the bit.
+
+    ``made``: runs made before (an earlier call's ``RobustRuns.made``): a run of the same
+    robot (model text and table), perturbation and plan is taken from there rather than
+    made again (the same result to the bit: the physics is deterministic); runs stopped
+    before their end are not kept."""
     import dataclasses
     from concurrent.futures import ThreadPoolExecutor
 
@@ -545,30 +560,40 @@ def verify_robust(
         sensed = []
     trajs = _plans(record, controller, names)
     same: dict[bytes, int] = {}
-    first = [same.setdefault(_plan_digest(t), i) for i, t in enumerate(trajs)]
+    digests = [_plan_digest(t) for t in trajs]
+    first = [same.setdefault(d, i) for i, d in enumerate(digests)]
+    made = made or {}
+    robot_key = hashlib.sha256(
+        json.dumps([bundle.xml, table], sort_keys=True, default=str).encode()
+    ).digest()
     runs = sorted(set(first))
     seeds = list(range(1, k + 1))
     robots = {s: Perturbed(bundle, table, s) for s in seeds}
-    for robot in robots.values():
-        robot.model()  # compiled here, not on the threads
+    for s, robot in robots.items():  # compiled here, not on the threads (where run)
+        if any((robot_key, s, digests[r]) not in made for r in runs):
+            robot.model()
     need = required_passes(k, float(table["share"]))
     # the sensing loops on the perturbed robots, from a fresh start: Python most of their
     # time, so on processes of their own (threads would wait on each other's lock)
     sensing_jobs = [(s, n) for s in seeds for n in sensed]
     workers = min(VERIFY_THREADS, len(sensing_jobs), os.cpu_count() or 1)
     early = decisive is not None
-    order = worst_first(table, seeds) if early else seeds
+    repair = repair and not early
+    order = worst_first(table, seeds) if early or repair else seeds
     jobs: list[tuple] = [(s, r) for s in order for r in runs]
     deciding = {first[i] for i, n in enumerate(names) if n in (decisive or ())}
 
     def one(job: tuple) -> SimResult:
         s, r = job
+        before = made.get((robot_key, s, digests[r]))
+        if before is not None:
+            return before
         return robots[s].simulate(trajs[r], stop_on_failure=r in deciding)
 
     threads = min(VERIFY_THREADS, len(jobs), os.cpu_count() or 1)
     done: dict = {}
     decided: set[int] = set()  # the plans that can no longer pass (early only)
-    probed = False
+    probed = repaired = False
     if probe and not early:
         # the worst-looking perturbation of every plan first: a run of it that saturates
         # calls for a stronger actuator whatever the other runs give
@@ -579,10 +604,26 @@ def verify_robust(
         # (failed saturated: a run failing on its pose or turn with an actuator touching
         # its limit on the way is left to the whole round, as every other failure)
         decided = {r for (_, r), res in done.items() if "saturated" in res.verdict}
-        probed = bool(decided)
-        order = [lead_seed] if probed else order
+        if not decided and repair:  # failed otherwise: a repair answers it
+            decided = {r for (_, r), res in done.items() if not res.ok}
+            repaired = bool(decided)
+        probed = bool(decided) and not repaired
+        order = [lead_seed] if decided else order
         jobs = [j for j in jobs if j not in done]
-    if not early and not probed:
+    if repair and not decided:
+        # a batch at a time, the worst-looking perturbations first, until a run fails
+        with ThreadPoolExecutor(max(threads, 1)) as pool:
+            for a in range(0, len(jobs), max(threads, 1)):
+                batch = jobs[a : a + max(threads, 1)]
+                done |= dict(zip(batch, pool.map(one, batch), strict=True))
+                decided = {r for (_, r), res in done.items() if not res.ok}
+                if decided:
+                    order = list(dict.fromkeys(s for s, _ in done))
+                    repaired = True
+                    break
+        if not decided and sensing_jobs:
+            done |= _sensing_runs(bundle.files, table, sensing_jobs, workers)()
+    elif not early and not probed and not repaired:
         wait = _sensing_runs(bundle.files, table, sensing_jobs, workers)
         try:
             if threads > 1 and jobs:
@@ -650,7 +691,13 @@ def verify_robust(
             "runs": len(done),
             "decided": sorted(names[i] for i in range(len(names)) if first[i] in decided),
         }
-        | ({"probe": True} if probed else {}),
+        | ({"probe": True} if probed else {})
+        | ({"repair": True} if repaired else {}),
+        made={
+            (robot_key, s, digests[r]): res
+            for (s, r), res in done.items()
+            if isinstance(r, int) and res.complete
+        },
     )
 
 

@@ -440,7 +440,7 @@ def test_a_saturated_perturbed_run_gets_a_stronger_actuator(kif, parts, cli, mon
     ]
     calls = []
 
-    def fake(files, k, table, behaviors=None, only=None, sensing=True, probe=False):
+    def fake(files, k, table, behaviors=None, only=None, sensing=True, **early):
         calls.append(k)
         return answers[min(len(calls), len(answers)) - 1]
 
@@ -499,7 +499,7 @@ def test_sweep_reports_nominal_and_robust_pass_rates(kif, tmp_path: Path, cli, m
 
     calls = []
 
-    def fake(bundle, k, table, behaviors=None, only=None, sensing=True, probe=False):
+    def fake(bundle, k, table, behaviors=None, only=None, sensing=True, **early):
         calls.append(k)
         record = bundle.record
         bad = record["request"]["params"].get("payload") == "0.02kg"

@@ -214,8 +214,10 @@ def test_the_loop_gives_the_wheels_a_stiffer_servo(tmp_path: Path, open_loop) ->
     assert rec["verified"]["rounds"] == 2
     swapped = rec["verified"]["wheels"]["swapped"]
     assert swapped == {j: {"from": "FS90R", "to": "FS5113R"} for j in wheels}
+    # the measured replays of the runs that failed: the first round stopped at the first
+    # batch of runs with a failure, the worst-looking perturbation (seed 6) first
     runs = rec["verified"]["wheels"]["runs"]
-    assert {(r["behavior"], r["seed"]) for r in runs} >= {("driving", 1), ("driving", 6)}
+    assert ("driving", 6) in {(r["behavior"], r["seed"]) for r in runs}
     assert "stiffer wheel left_wheel: FS90R -> FS5113R" in text
 
 
