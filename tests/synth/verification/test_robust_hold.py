@@ -205,6 +205,50 @@ def test_a_probe_stops_at_a_saturated_worst_looking_run_and_changes_nothing_else
     assert a.stopped is None and a.to_dict() == b.to_dict()
 
 
+def test_a_round_a_repair_may_follow_stops_at_its_first_failed_batch(walker) -> None:
+    """Built to fail first: held 40 ms every run fails, so a round a repair may follow
+    (``repair``) stops after its first batch of runs (the worst-looking perturbation
+    first, each run whole: its figures are the full run's), listing only what failed.
+    Held 10 ms nothing fails: every run is made and the result is the one without
+    ``repair``, to the bit."""
+    from synth.verification.perturb import worst_first
+
+    files = Bundle.read(walker)
+    held = _table(walker, _closed("40 ms"))
+    cut = verify_robust(files, 3, held, behaviors=["walking", "turning"], repair=True)
+    assert cut.stopped is not None and cut.stopped["repair"] is True
+    assert cut.stopped["order"][0] == worst_first(held, [1, 2, 3])[0]
+    assert cut.stopped["runs"] < 2 * 3
+    assert all(r.figures["complete"] for b in cut.behaviors for r in b.figures)
+    assert {b.behavior for b in cut.behaviors} == set(cut.stopped["decided"])
+    fine = _table(walker, _closed("10 ms"))
+    a = verify_robust(files, 3, fine, behaviors=["walking", "turning"], repair=True)
+    b = verify_robust(files, 3, fine, behaviors=["walking", "turning"])
+    assert a.stopped is None and a.to_dict() == b.to_dict()
+
+
+def test_runs_made_before_are_taken_only_for_the_same_robot(walker, monkeypatch) -> None:
+    """The runs a call made (``RobustRuns.made``) are taken by the next call on the same
+    robot, table and plans (none made again, the same result to the bit); built to fail:
+    on another table they are not taken (every run made again)."""
+    from synth.verification.runs import Perturbed
+
+    files = Bundle.read(walker)
+    fine = _table(walker, _closed("10 ms"))
+    first = verify_robust(files, 2, fine, behaviors=["walking"])
+    assert len(first.made) == 2
+    made = []
+    real = Perturbed.simulate
+    monkeypatch.setattr(
+        Perturbed, "simulate", lambda self, *a, **k: made.append(self.seed) or real(self, *a, **k)
+    )
+    again = verify_robust(files, 2, fine, behaviors=["walking"], made=first.made)
+    assert made == [] and again.to_dict() == first.to_dict()
+    other = _table(walker, _closed("20 ms"))
+    verify_robust(files, 2, other, behaviors=["walking"], made=first.made)
+    assert sorted(made) == [1, 2]
+
+
 def test_a_probed_round_no_stronger_actuator_answers_is_made_whole(
     walker, tmp_path: Path, monkeypatch
 ) -> None:
