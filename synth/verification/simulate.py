@@ -754,6 +754,7 @@ class _ClosedLoop:
         self.model, self.loop, self.period, self.delay = model, loop, period, delay
         self.columns = columns
         idx = np.array([a for _, a, _ in columns], dtype=int)
+        self.acts = idx
         joints = model.actuator_trnid[idx, 0]
         self.qadr = model.jnt_qposadr[joints]
         self.vadr = model.jnt_dofadr[joints]
@@ -816,13 +817,17 @@ class _ClosedLoop:
         self._fill(ctrl, 0, min(len(ctrl), every))
 
     def _fill(self, ctrl: np.ndarray, a: int, b: int) -> None:
-        """Rows a..b of the block's controls: the plan's plus the offsets in force."""
-        for row in range(a, b):
+        """Rows a..b of the block's controls: the plan's plus the offsets in force (rows
+        between two changes of the offsets at once)."""
+        acts = self.acts
+        row = a
+        while row < b:
             step = self.offset + row
             while self.pending and self.pending[0][0] <= step:
                 self.now = self.pending.pop(0)[1]
-            for c, (_, act, _) in enumerate(self.columns):
-                ctrl[row, act] = self.base[row, act] + self.now[c]
+            end = b if not self.pending else min(b, self.pending[0][0] - self.offset)
+            ctrl[row:end, acts] = self.base[row:end, acts] + self.now
+            row = end
 
     def after(self, data, done: int, ctrl: np.ndarray) -> None:
         dt = self.model.opt.timestep
