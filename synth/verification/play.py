@@ -16,12 +16,12 @@ it for a refusal; ``verified.play`` records each swap and the runs that called f
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from synth.verification.causes import Remedy, Round
 from synth.verification.perturb import catalog_play
-from synth.verification.robust import BLAMED_RUNS, replayed_blame
+from synth.verification.robust import BLAMED_RUNS, replayed_blame, worst_failures
 from synth.verification.runs import Replay
 
 if TYPE_CHECKING:
@@ -37,6 +37,7 @@ class Play:
     def __init__(self) -> None:
         self.play: dict[str, float] | None = None  # model -> its largest play (the catalog's)
         self.blamed: list[dict] = []  # the runs the play broke, measured on round ``at``
+        self.unexplained: dict[str, list[int]] = {}  # behaviour -> seeds failing without it
         self.at = 0
         self.history: list[dict] = []  # and those of every round, for the record
         self.stuck: list[str] = []  # joints the play broke that no model with less play serves
@@ -48,6 +49,12 @@ class Play:
             self.play = catalog_play(now.catalog)
         runs = play_blame(now.bundle(), now.robust)
         self.blamed, self.at, self.models = runs, now.number, now.models
+        # the runs replayed that fail without the play too: not the play's (the note says so)
+        blamed = {(r["behavior"], r["seed"]) for r in runs}
+        self.unexplained = {}
+        for behavior, seed, _ in worst_failures(now.robust, BLAMED_RUNS) if now.robust else ():
+            if (behavior, seed) not in blamed:
+                self.unexplained.setdefault(behavior, []).append(seed)
         self.history += runs
         serving = now.sizer.assigner.serving if now.sizer is not None else {}
         looser, self.stuck = less_play(runs, now.models, serving, self.play, now.excluded)
@@ -66,7 +73,14 @@ class Play:
     def note(self, behavior: str, final: int) -> str:
         if self.at != final:  # measured on another design than the one refused
             return ""
-        return play_note(self.blamed, behavior, self.stuck, self.play or {}, self.models)
+        return play_note(
+            self.blamed,
+            behavior,
+            self.stuck,
+            self.play or {},
+            self.models,
+            self.unexplained.get(behavior, ()),
+        )
 
     def record(self, models: Mapping[str, str]) -> dict | None:
         """``verified.play``: each joint whose servo was swapped for one of less play (from,
@@ -136,10 +150,12 @@ def play_note(
     stuck: list[str],
     play: Mapping[str, float],
     models: Mapping[str, str],
+    unexplained: Sequence[int] = (),
 ) -> str:
     """What a refusal adds when the play broke ``behavior``: the joints whose play it is
-    (measured), their actuators and play, and that the catalog has none with less play
-    that holds their torque; "" when the play did not break it."""
+    (measured), their actuators and play, the seeds replayed that fail without it too
+    (``unexplained``), and that the catalog has none with less play that holds their
+    torque; "" when the play did not break it."""
     import math
 
     runs = [r for r in blamed if r["behavior"] == behavior]
@@ -158,7 +174,12 @@ def play_note(
         else "; no actuator of the catalog with less play holds their torque and makes it pass"
     )
     which = f"seeds {seeds} pass" if len(runs) > 1 else f"seed {seeds} passes"
-    return f"; the play of {servos} breaks it ({which} with their play removed){tail}"
+    which += " with their play removed"
+    if unexplained:
+        others = ", ".join(str(s) for s in sorted(unexplained))
+        which += f"; seed{'s' if len(unexplained) > 1 else ''} {others} "
+        which += f"fail{'' if len(unexplained) > 1 else 's'} without it too"
+    return f"; the play of {servos} breaks it ({which}){tail}"
 
 
 def play_attribution(

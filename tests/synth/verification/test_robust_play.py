@@ -171,3 +171,17 @@ def test_the_dynamixel_catalog_perturbs_its_own_servos(name) -> None:
     r = ranges(json.loads(cat.perturbation), cat.source)
     assert r["battery"]["supply"] == "direct"
     assert r["battery"]["rated_V"] == pytest.approx(11.1)
+
+
+def test_the_play_note_names_the_replayed_runs_the_play_does_not_explain() -> None:
+    """A refusal named seed 7 and said seed 8 passes without the play: a reader took the
+    play for seed 7's cause too. The note now says which replayed runs fail without it;
+    with every replayed run explained it says nothing more."""
+    from synth.verification.play import play_note
+
+    blamed = [{"behavior": "walking", "seed": 8, "joints": ["lf_hip"]}]
+    args = (blamed, "walking", ["lf_hip"], {"DS3218": 0.019}, {"lf_hip": "DS3218"})
+    note = play_note(*args, unexplained=[7])
+    assert "breaks it (seed 8 passes with their play removed; seed 7 fails without it too)" in note
+    assert "seeds 4, 7 fail without it too" in play_note(*args, unexplained=[7, 4])
+    assert "without it too" not in play_note(*args)
