@@ -42,6 +42,9 @@ class StructureOptions:
     #: otherwise the verification refuses it: ``synth.verification.loop``)
     allow_unverified: bool = False
     robustness: int = 0  # perturbed runs per behaviour (--robustness K; synth.verification.robust)
+    #: the runs are a certification (--certify N): a behaviour passes when its runs show at
+    #: least what the default K runs show (synth.verification.robust.certified_share)
+    certify: bool = False
 
 
 def parse_objective(text: str) -> tuple[str, ...]:

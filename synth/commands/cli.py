@@ -303,7 +303,8 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="run N perturbations per behaviour instead of K and print what they show: the "
         "lower bound of each behaviour's success probability at 90 %% confidence "
-        "(Clopper-Pearson; 8 of 8 shows > 74 %%, 30 of 30 > 92 %%)",
+        "(Clopper-Pearson; 8 of 8 shows > 74 %%, 30 of 30 > 92 %%); a behaviour passes when "
+        "its runs show at least what K of K shows (26 of 30, 81 of 100; every run for N <= K)",
     )
     p.add_argument(
         "--with-payload",
@@ -822,6 +823,7 @@ def _options(args: argparse.Namespace):
         with_payload=getattr(args, "with_payload", False),
         allow_unverified=getattr(args, "allow_unverified", False),
         robustness=_robustness(getattr(args, "robustness", 0), getattr(args, "no_verify", False)),
+        certify=getattr(args, "certify", None) is not None,
     )
 
 

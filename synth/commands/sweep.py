@@ -171,7 +171,9 @@ def _init_worker(arg: tuple[dict, bool, limits.Limits | None]) -> tuple:
     with _bounded(lim, "grounding the study's knowledge base"):
         designer = designer_for(opts)
     k = int(opts.get("robustness", 0)) if simulate else 0
-    return designer, StructureOptions(opts["catalog"], verify=simulate, robustness=k), simulate, lim
+    certify = bool(opts.get("certify")) and k > 0
+    sopts = StructureOptions(opts["catalog"], verify=simulate, robustness=k, certify=certify)
+    return designer, sopts, simulate, lim
 
 
 def _bounded(lim: limits.Limits | None, what: str = ""):
@@ -373,7 +375,8 @@ def run_study(
     if certify:  # the finalists again, with N perturbed runs (stored under their own keys)
         finalists = [i for i, r in enumerate(rows) if r["status"] == "accepted"]
         ckeys = {i: request_key(requests[i], simulate, digest, certify) for i in finalists}
-        certified, more = _results(run, ckeys, (dict(opts, robustness=certify), simulate, lim))
+        copts = dict(opts, robustness=certify, certify=True)
+        certified, more = _results(run, ckeys, (copts, simulate, lim))
         reused, computed = reused + more, computed + len(certified) - more
         for i in finalists:
             rows[i]["certified"] = certificate(certified[i], certify)

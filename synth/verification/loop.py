@@ -517,6 +517,7 @@ class Strengthening:
                 probe=decisive is None and self._may_probe(),
                 repair=decisive is None and self.probing,
                 made=self._made,  # (the same robot and plans after other gains or paces)
+                certify=self.opts.certify,
             )
         )
         self._made = robust.made if robust is not None else {}
@@ -719,6 +720,7 @@ class Strengthening:
                 [r for r in now.planned if r.behavior in passed],
                 sensed=[r for r in sensed if r.behavior in passed],
                 decisive=passed if refused else None,
+                certify=opts.certify,
             )
         # which abilities no behaviour serves: the controller alone tells (no model needed)
         controller = controller_for(DesignGeometry.from_record(record))

@@ -265,6 +265,13 @@ def catalog_play(catalog, overrides: Mapping[str, Any] | None = None) -> dict[st
     return out
 
 
+def default_k(catalog) -> int:
+    """The default K of ``parmor design --robustness`` with ``catalog``'s ``[perturbation]``
+    table over the shipped one (``[acceptance] default_k``)."""
+    own = json.loads(catalog.perturbation) if getattr(catalog, "perturbation", "") else {}
+    return int(ranges(own, getattr(catalog, "source", "catalog"))["default_k"])
+
+
 def design_table(
     record: Mapping[str, Any], xml: str, catalog, overrides: Mapping[str, Any] | None = None
 ) -> dict[str, Any]:

@@ -28,8 +28,8 @@ from typing import TYPE_CHECKING
 import synth.verification.runs
 from export.bundle import bundle_files
 from program.sensing import verify_sensing
-from synth.verification.perturb import design_table
-from synth.verification.results import RobustRuns, Run
+from synth.verification.perturb import default_k, design_table
+from synth.verification.results import RobustRuns, Run, required_passes
 from synth.verification.runs import agreement, coarse_xml, physics_check
 from synth.verification.source import Bundle
 
@@ -53,6 +53,7 @@ def robust_check(
     repair: bool = False,
     checked: Mapping | None = None,
     made: Mapping | None = None,
+    certify: bool = False,
 ) -> RobustRuns | None:
     """``verified.robust`` of ``outcome`` (a sized design) under perturbations 1..``k`` of
     its table (of its listed behaviours, those named in ``only`` when given; its sensing
@@ -68,13 +69,17 @@ def robust_check(
     once one of them cannot pass; ``probe``: they stop at the worst-looking run of each
     plan when one of those saturates, ``repair``: at the first batch of runs in which one
     fails (:func:`synth.verification.runs.verify_robust`); ``made``: runs made before, taken
-    where they are the same runs."""
+    where they are the same runs. ``certify`` (``--certify``): the K runs are a
+    certification, and a behaviour passes when its runs show what the default K runs show
+    (:func:`certified_share`, the table's ``share``)."""
     if k <= 0 or outcome.structure is None or outcome.catalog is None:
         return None
 
     bundle = robust_bundle(designer, outcome) if bundle is None else bundle
     if table is None:
         table = design_table(bundle.record, bundle.xml, outcome.catalog)
+        if certify:
+            table["share"] = certified_share(k, float(table["share"]), default_k(outcome.catalog))
         # the coarse step where this design's nominal runs agree with the fine ones
         checked = physics(bundle, nominal, sensed)
         if checked["timestep_s"]:
@@ -155,6 +160,21 @@ def shows(robust: RobustRuns) -> dict:
         "behavior": worst.behavior,
         "success_lower_bound": float(f"{bound:.4g}"),
     }
+
+
+def certified_share(n: int, share: float, k: int) -> float:
+    """The share of a certification's ``n`` runs a behaviour must pass (``--certify N``):
+    the fewest passes whose lower bound (:func:`success_bound`) is at least the one the
+    default verification's ``k`` runs show when they pass as the table's ``share``
+    requires, as a share of ``n``. So a certification never shows less than an accepted
+    default design claims, and a rare failed run among many does not refuse a design that
+    K of K would accept: with K = 8 (8 of 8, above 74.99 %), 26 of 30 (above 75.1 %);
+    with ``n`` at most ``k``, every run."""
+    claim = success_bound(required_passes(k, share), k)
+    for p in range(n + 1):
+        if success_bound(p, n) >= claim:
+            return p / n
+    return 1.0
 
 
 def with_sensing(robust: RobustRuns, more: RobustRuns | None) -> RobustRuns:

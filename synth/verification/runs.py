@@ -530,8 +530,9 @@ def verify_robust(
     ``repair`` (a round after which a repair may follow: a cause of
     :mod:`synth.verification.causes` answers a failed run with a new sizing, gains or a
     pace, and the next round makes every run again): the runs go a batch at a time, the
-    worst-looking perturbations first, each run whole, and stop after the first batch in
-    which one failed: only the plans that failed are listed (``stopped["repair"]`` true).
+    worst-looking perturbations first, each run whole, and stop after the first batch after
+    which a plan has failed more runs than it may (K less the passes needed: with every run
+    needed, its first failure): only those plans are listed (``stopped["repair"]`` true).
     A round whose every run passes makes them all, and the result is the one without
     ``repair``, to the bit.
 
@@ -590,6 +591,13 @@ def verify_robust(
             return before
         return robots[s].simulate(trajs[r], stop_on_failure=r in deciding)
 
+    def beyond(runs: Mapping[tuple, SimResult]) -> set[int]:
+        """The plans that failed more of ``runs`` than they may (K less the passes needed)."""
+        failed: dict[int, int] = {}
+        for (_, r), res in runs.items():
+            failed[r] = failed.get(r, 0) + (not res.ok)
+        return {r for r, f in failed.items() if f > k - need}
+
     threads = min(VERIFY_THREADS, len(jobs), os.cpu_count() or 1)
     done: dict = {}
     decided: set[int] = set()  # the plans that can no longer pass (early only)
@@ -605,7 +613,7 @@ def verify_robust(
         # its limit on the way is left to the whole round, as every other failure)
         decided = {r for (_, r), res in done.items() if "saturated" in res.verdict}
         if not decided and repair:  # failed otherwise: a repair answers it
-            decided = {r for (_, r), res in done.items() if not res.ok}
+            decided = beyond(done)
             repaired = bool(decided)
         probed = bool(decided) and not repaired
         order = [lead_seed] if decided else order
@@ -616,7 +624,7 @@ def verify_robust(
             for a in range(0, len(jobs), max(threads, 1)):
                 batch = jobs[a : a + max(threads, 1)]
                 done |= dict(zip(batch, pool.map(one, batch), strict=True))
-                decided = {r for (_, r), res in done.items() if not res.ok}
+                decided = beyond(done)
                 if decided:
                     order = list(dict.fromkeys(s for s, _ in done))
                     repaired = True

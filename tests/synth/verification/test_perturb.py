@@ -574,3 +574,47 @@ def test_a_real_sweep_with_robustness(tmp_path: Path, cli) -> None:
     assert runs == 2 * 2 and 0 <= passed <= runs
     stored = json.loads(next((tmp_path / "s.sweep" / "requests").glob("*.json")).read_text())
     assert {b["runs"] for b in stored["result"]["robust"]} == {2}
+
+
+# --- a certification (--certify N) asks its runs to show what the default K runs show ---------
+
+
+def test_a_certification_needs_the_passes_that_show_the_default_claim() -> None:
+    """``certified_share``: the fewest passes of N whose lower bound reaches what K of K
+    shows (0.1^(1/8) with the shipped K = 8), for every N; N at most K needs every run."""
+    from synth.verification.results import required_passes
+    from synth.verification.robust import certified_share, success_bound
+
+    claim = success_bound(8, 8)
+    assert certified_share(8, 1.0, 8) == 1.0 and certified_share(3, 1.0, 8) == 1.0
+    assert required_passes(30, certified_share(30, 1.0, 8)) == 26
+    for n in range(1, 201):
+        need = required_passes(n, certified_share(n, 1.0, 8))
+        if n < 8:  # fewer runs than K cannot show as much: every run
+            assert need == n and success_bound(n, n) < claim, n
+            continue
+        assert success_bound(need, n) >= claim > success_bound(need - 1, n), n
+    # a catalog that accepts 7 of 8 claims less, and so does its certification
+    assert required_passes(30, certified_share(30, 0.875, 8)) < 26
+
+
+def test_certify_records_the_share_its_runs_need_and_robustness_keeps_every_run(
+    kif, cli, monkeypatch
+):
+    """``--certify 20`` verifies with 18 of 20 needed (the table's share, recorded with
+    it); built to fail: ``--robustness 20`` asks the same runs for all 20."""
+    import synth.verification.runs
+
+    shares = []
+
+    def fake(bundle, k, table, behaviors=None, only=None, sensing=True, **early):
+        shares.append((k, table["share"]))
+        return _robust([("pick-and-place", "pick-and-place", [_run(s) for s in range(1, k + 1)])])
+
+    monkeypatch.setattr(synth.verification.runs, "verify_robust", fake)
+    r = cli("design", *REQUEST, "--ontology", str(kif), "--certify", "20", "--json")
+    assert r.code == 0, r.err
+    assert shares[-1] == (20, pytest.approx(0.9))
+    r = cli("design", *REQUEST, "--ontology", str(kif), "--robustness", "20", "--json")
+    assert r.code == 0, r.err
+    assert shares[-1] == (20, 1.0)
