@@ -103,10 +103,12 @@ def load_study(path: Path) -> tuple[dict, list[dict]]:
     return opts, out
 
 
-def request_key(q: dict, simulate: bool, files_digest: str, robustness: int = 0) -> str:
+def request_key(
+    q: dict, simulate: bool, files_digest: str, robustness: int = 0, certify: bool = False
+) -> str:
     """The stable key of a request's result: abilities, answers, params, mode (simulated
-    or not, perturbed runs per behaviour), and the digest of the study's files and
-    parmor's own."""
+    or not, perturbed runs per behaviour, a certification's or not: they need other
+    passes), and the digest of the study's files and parmor's own."""
     ident = {
         "format": RESULT_FORMAT,
         "simulate": simulate,
@@ -117,6 +119,8 @@ def request_key(q: dict, simulate: bool, files_digest: str, robustness: int = 0)
     }
     if robustness and simulate:  # (keys of studies without robustness stay as they were)
         ident["robustness"] = robustness
+        if certify:
+            ident["certify"] = True
     text = json.dumps(ident, sort_keys=True, ensure_ascii=False)
     return hashlib.sha256(text.encode()).hexdigest()[:KEY_LENGTH]
 
@@ -374,7 +378,7 @@ def run_study(
     rows = [_merged(q, results[i], keys[i]) for i, q in enumerate(requests)]
     if certify:  # the finalists again, with N perturbed runs (stored under their own keys)
         finalists = [i for i, r in enumerate(rows) if r["status"] == "accepted"]
-        ckeys = {i: request_key(requests[i], simulate, digest, certify) for i in finalists}
+        ckeys = {i: request_key(requests[i], simulate, digest, certify, True) for i in finalists}
         copts = dict(opts, robustness=certify, certify=True)
         certified, more = _results(run, ckeys, (copts, simulate, lim))
         reused, computed = reused + more, computed + len(certified) - more

@@ -501,3 +501,14 @@ def test_certify_needs_the_verification_and_a_run(cli, tmp_path: Path, extra, wh
     r = cli("sweep", str(study), "--jobs", "1", *extra)
     assert r.code == 2 and why in r.err, r.err
     assert not default_out(study).exists()
+
+
+def test_a_certification_is_stored_apart_from_a_study_with_as_many_runs() -> None:
+    """A study with ``robustness = 30`` needs every run, a certification of 30 needs 26:
+    their results are not the same, so their keys differ (else one was taken for the
+    other)."""
+    from synth.commands.sweep import request_key
+
+    q = {"abilities": ["walking"], "answers": {}, "params": {}}
+    assert request_key(q, True, "d", 30) != request_key(q, True, "d", 30, True)
+    assert request_key(q, True, "d", 30) == request_key(q, True, "d", 30, False)
