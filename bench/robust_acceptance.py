@@ -8,7 +8,12 @@ breaking perturbation (a robust refusal) or another cause (sizing, the catalog..
 Nominal acceptance is read from the same run: a request refused as "not robust" passed the
 nominal verification (the refusal happens after it), one accepted passed it too.
 
-    python bench/robust_acceptance.py [K] [--jobs N] [--jsonl FILE] [--only SUBSTRING]
+    python bench/robust_acceptance.py [K] [--jobs N] [--jsonl FILE] [--only SUBSTRING] [--fine]
+
+``--fine``: every accepted design's perturbed runs of the behaviours it keeps made again
+from its bundle at the model's own time step (``parmor simulate DIR --perturb SEED
+--fine``, here all seeds at once), where the verification ran them at the coarse step:
+whether the coarse physics decided any of them.
 
 The KIF types are this file's own (like tests/kinematics/test_bodyplan.py's generators, which
 they mirror), so that the grid does not depend on the tests folder.
@@ -93,12 +98,14 @@ def requests() -> list[tuple[str, str | None, list[str]]]:
     return [(label, kif, [*argv, *v]) for label, kif, argv, vs in REQUESTS for v in vs]
 
 
-def design(job: tuple[str, str | None, list[str], int]) -> dict:
-    """One request designed with ``--robustness k``, in-process (no hint search)."""
+def design(job: tuple) -> dict:
+    """One request designed with ``--robustness k``, in-process (no hint search); with
+    ``fine``, an accepted design's perturbed runs made again at the model's own step."""
     import synth.verification.loop
     from synth.commands.cli import main
 
-    label, kif, argv, k = job
+    label, kif, argv, k, *more = job
+    fine = bool(more and more[0])
     synth.verification.loop.best_value = lambda *a, **kw: (
         None
     )  # a refusal's hint only names a value
@@ -109,15 +116,18 @@ def design(job: tuple[str, str | None, list[str], int]) -> dict:
             src.write_text(_kifs()[kif])
             extra = ["--ontology", str(src)]
         out, err = io.StringIO(), io.StringIO()
+        folder = Path(tmp) / "bundle"
+        extra += ["--out", str(folder)] if fine else []
         code = main(
             ["design", *argv, *extra, "--no-input", "--json", "--robustness", str(k)], out, err
         )
-    text = out.getvalue()
-    rec = json.loads(text) if code == 0 and text.strip() else {}
+        text = out.getvalue()
+        rec = json.loads(text) if code == 0 and text.strip() else {}
+        robust = (rec.get("verified") or {}).get("robust") or {}
+        kept = set(rec.get("abilities", ()))
+        again = _fine(folder, robust, kept) if fine and code == 0 and robust else {}
     why = err.getvalue().strip().splitlines()
-    robust = (rec.get("verified") or {}).get("robust") or {}
-    kept = set(rec.get("abilities", ()))
-    return {
+    return again | {
         "label": label,
         "argv": argv,
         "robot_type": rec.get("robot_type"),
@@ -132,8 +142,34 @@ def design(job: tuple[str, str | None, list[str], int]) -> dict:
     }
 
 
-def grid(k: int = 8, jobs: int = 1, jsonl: str | None = None, only: str = "") -> list[str]:
-    todo = [(label, kif, argv, k) for label, kif, argv in requests() if only in label]
+def _fine(folder: Path, robust: dict, kept: set) -> dict:
+    """The recorded perturbed runs of the kept behaviours made again at the model's own
+    step: ``fine_runs_passed`` of ``fine_runs`` (none when they ran at it already)."""
+    from synth.verification.runs import verify_robust
+    from synth.verification.source import Bundle
+
+    table = {key: v for key, v in robust["table"].items() if key != "timestep_s"}
+    if table == robust["table"]:
+        return {"fine_step": "own"}
+    names = [b["behavior"] for b in robust["behaviors"] if b["ability"] in kept]
+    again = verify_robust(Bundle.read(folder), int(robust["k"]), table, behaviors=names)
+    failed = [
+        f"{b.behavior} seed {f.seed}: {', '.join(f.verdict)}"
+        for b in again.behaviors
+        for f in b.failures
+    ]
+    return {
+        "fine_step": "coarse",
+        "fine_runs_passed": sum(b.passed for b in again.behaviors),
+        "fine_runs": sum(b.runs for b in again.behaviors),
+        "fine_failed": failed,
+    }
+
+
+def grid(
+    k: int = 8, jobs: int = 1, jsonl: str | None = None, only: str = "", fine: bool = False
+) -> list[str]:
+    todo = [(label, kif, argv, k, fine) for label, kif, argv in requests() if only in label]
     rows: list[dict] = []
     pool = ProcessPoolExecutor(jobs) if jobs > 1 else None
     with contextlib.ExitStack() as stack:
@@ -168,6 +204,17 @@ def report(rows: list[dict], k: int) -> list[str]:
         f"  accepted {len(acc)} of {len(rows)}; of them passing every perturbed run: "
         f"{ok} ({100 * ok / max(1, len(acc)):.0f} %)"
     )
+    coarse = [r for r in acc if r.get("fine_step") == "coarse"]
+    if coarse:
+        passed = sum(r["fine_runs_passed"] for r in coarse)
+        lines.append(
+            f"  at the model's own step: {len(coarse)} accepted designs ran their perturbed "
+            f"runs coarse; made again fine, {passed} of {sum(r['fine_runs'] for r in coarse)} "
+            "pass"
+        )
+        for r in coarse:
+            for f in r["fine_failed"]:
+                lines.append(f"  fine: {r['label']} {' '.join(r['argv'])}: {f}")
     for r in rows:
         if not r["accepted"]:
             lines.append(f"  refused {r['label']} {' '.join(r['argv'])}: {r['refusal'][:300]}")
@@ -176,6 +223,8 @@ def report(rows: list[dict], k: int) -> list[str]:
 
 if __name__ == "__main__":
     args = sys.argv[1:]
+    fine = "--fine" in args
+    args = [a for a in args if a != "--fine"]
     opts = {"--jsonl": None, "--jobs": "1", "--only": ""}
     for key in opts:
         if key in args:
@@ -189,6 +238,7 @@ if __name__ == "__main__":
                 int(opts["--jobs"] or 1),
                 opts["--jsonl"],
                 opts["--only"] or "",
+                fine,
             )
         )
     )
