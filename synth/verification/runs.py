@@ -40,7 +40,7 @@ from synth.verification.results import (
     required_passes,
 )
 from synth.verification.simulate import simulate
-from synth.verification.verdict import explain
+from synth.verification.verdict import explain, judge
 
 if TYPE_CHECKING:
     from gaits.base import Controller, Trajectory
@@ -294,6 +294,41 @@ AGREE = {
 }
 
 
+#: How far a coarse run's support margin may be from the fine run's for the guard band of
+#: :func:`near_limit` (m; the margins are not among the nominal runs' compared figures): as
+#: a pose's.
+SUPPORT_AGREE = 0.003
+
+
+def near_limit(fig: Mapping, info: Mapping, free: bool) -> bool:
+    """Whether a run's verdict could turn within the coarse step's agreement: some figure
+    it is judged on (:func:`synth.verification.verdict.judge`), moved by its :data:`AGREE`
+    tolerance either way, changes what the verdict says. A perturbed run at the coarse step
+    for which this holds is made again at the model's own step, which decides it
+    (:meth:`Perturbed.simulate`)."""
+    shifts = {
+        key: AGREE[key]
+        for key in (
+            "saturated_fraction", "final_pose_error_m", "drift_m", "placing_error_m",
+            "orientation_error_rad", "line_lost_s",
+        )
+    }  # fmt: skip
+    shifts["heading_rad"] = AGREE["heading_error_rad"]
+    shifts["support_margin_m"] = SUPPORT_AGREE
+    planned = fig.get("planned_distance_m")
+    if planned:
+        shifts["distance_m"] = AGREE["distance_ratio"] * abs(float(planned))
+    before = judge(fig, info, free)
+    for key, tol in shifts.items():
+        value = fig.get(key)
+        if value is None:
+            continue
+        for sign in (-1.0, 1.0):
+            if judge({**fig, key: float(value) + sign * tol}, info, free) != before:
+                return True
+    return False
+
+
 def coarse_xml(xml: str, factor: int = COARSE_STEP) -> tuple[str, float]:
     """(MJCF text with its time step ``factor`` x longer, that step in s)."""
     import xml.etree.ElementTree as ET
@@ -420,10 +455,26 @@ class Perturbed:
         stop_on_failure: bool = False,
     ) -> SimResult:
         """``plan`` run on this robot and judged (stopped as soon as it has failed, with
-        ``stop_on_failure``: :func:`synth.verification.simulate.simulate`)."""
+        ``stop_on_failure``: :func:`synth.verification.simulate.simulate`). At the table's
+        coarse step (``timestep_s``), a whole run whose verdict could turn within the step's
+        agreement (:func:`near_limit`) is made again at the model's own step, which decides
+        it (``fine_step`` true)."""
+        import mujoco
+
         controller = self.bundle.controller()
         p = self.perturbation
-        return _simulate(self.model(), controller, plan, seconds, progress, p, stop_on_failure)
+        model = self.model()
+        result = _simulate(model, controller, plan, seconds, progress, p, stop_on_failure)
+        if not (self.table.get("timestep_s") and result.complete):
+            return result
+        free = model.njnt > 0 and model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
+        if not near_limit(result.to_dict(), plan.info, bool(free)):
+            return result
+        own = {k: v for k, v in self.table.items() if k != "timestep_s"}
+        fine = Perturbed(self.bundle, own, self.seed, self.perturbation)
+        result = fine.simulate(plan, seconds, progress, stop_on_failure)
+        result.fine_step = True
+        return result
 
     def run(self, plan: Trajectory, stop_on_failure: bool = False) -> Run:
         """``plan`` run on this robot: its judged figures (with this run's seed)."""

@@ -92,6 +92,9 @@ class SimResult:
     saturated_joints: dict[str, float] = field(default_factory=dict)  # actuator -> share
     verdict: list[str] = field(default_factory=list)
     complete: bool = True  # ran to the behaviour's end: its promise was judged too
+    #: made again at the model's own step: at the coarse one a figure lay within the step's
+    #: agreement of its limit (synth.verification.runs.near_limit)
+    fine_step: bool = False
     series: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     @property
@@ -129,6 +132,8 @@ class SimResult:
         if self.support_margin_m is not None:  # measured (None then: no contact, no support)
             m = self.support_margin_m
             out["support_margin_m"] = r(m) if math.isfinite(m) else None
+        if self.fine_step:
+            out["fine_step"] = True
         return out
 
 

@@ -276,3 +276,46 @@ def test_a_probed_round_no_stronger_actuator_answers_is_made_whole(
     assert runs and all(n == 3 for n in runs.values()), runs
     assert "probe" not in (record["verified"]["robust"].get("stopped") or {})
     assert "passed 0 of 3 perturbed runs" in record["infeasible"]
+
+
+# --- the coarse step's guard band: a run near its limit is decided at the model's own step ---
+
+
+def test_a_figure_within_the_steps_agreement_of_its_limit_is_near() -> None:
+    """Placing is judged at 5 mm and the coarse step agrees within 1.5 mm: 4.9 and 5.8 mm
+    are near the limit (either way), 2 and 8 mm are not (built to fail both ways)."""
+    from synth.verification.runs import near_limit
+
+    info = {"motion": "place"}
+
+    def fig(mm: float) -> dict:
+        return {"seconds": 5.0, "saturated_fraction": 0.0, "placing_error_m": mm / 1000}
+
+    assert near_limit(fig(4.9), info, False) and near_limit(fig(5.8), info, False)
+    assert not near_limit(fig(2.0), info, False) and not near_limit(fig(8.0), info, False)
+    # a support margin 1 mm inside the polygon is near; 20 mm is not
+    walk = {"motion": "straight", "min_stability_margin_m": 0.01}
+    base = {"seconds": 10.0, "distance_m": 1.0, "planned_distance_m": 1.0, "heading_rad": 0.0}
+    assert near_limit(base | {"support_margin_m": 0.001}, walk, True)
+    assert not near_limit(base | {"support_margin_m": 0.02}, walk, True)
+
+
+def test_a_coarse_run_near_its_limit_is_made_again_at_the_models_own_step(
+    walker, monkeypatch
+) -> None:
+    """At the coarse step a run near its limit is the run at the model's own step (the
+    same figures, ``fine_step`` said); one that is not near stays coarse."""
+    import synth.verification.runs as runs
+    from synth.verification.runs import Perturbed
+
+    files = Bundle.read(walker)
+    fine = _table(walker, _closed("10 ms"))
+    coarse = dict(fine, timestep_s=0.004)
+    plan = files.controller().run("walking")
+    at_own = Perturbed(files, fine, 1).simulate(plan).to_dict()
+    monkeypatch.setattr(runs, "near_limit", lambda *a: False)
+    kept = Perturbed(files, coarse, 1).simulate(plan).to_dict()
+    assert "fine_step" not in kept and kept != at_own
+    monkeypatch.setattr(runs, "near_limit", lambda *a: True)
+    again = Perturbed(files, coarse, 1).simulate(plan).to_dict()
+    assert again.pop("fine_step") is True and again == at_own
