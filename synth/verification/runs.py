@@ -459,16 +459,13 @@ class Perturbed:
         coarse step (``timestep_s``), a whole run whose verdict could turn within the step's
         agreement (:func:`near_limit`) is made again at the model's own step, which decides
         it (``fine_step`` true)."""
-        import mujoco
-
         controller = self.bundle.controller()
         p = self.perturbation
         model = self.model()
         result = _simulate(model, controller, plan, seconds, progress, p, stop_on_failure)
         if not (self.table.get("timestep_s") and result.complete):
             return result
-        free = model.njnt > 0 and model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
-        if not near_limit(result.to_dict(), plan.info, bool(free)):
+        if not near_limit(result.to_dict(), plan.info, not _fixed_base(model)):
             return result
         own = {k: v for k, v in self.table.items() if k != "timestep_s"}
         fine = Perturbed(self.bundle, own, self.seed, self.perturbation)
@@ -642,12 +639,30 @@ def verify_robust(
             return before
         return robots[s].simulate(trajs[r], stop_on_failure=r in deciding)
 
-    def beyond(runs: Mapping[tuple, SimResult]) -> set[int]:
-        """The plans that failed more of ``runs`` than they may (K less the passes needed)."""
+    def beyond(runs: Mapping[tuple, SimResult], plans: Collection[int] | None = None) -> set[int]:
+        """The plans (of ``plans``, default all) that failed more of ``runs`` than they may
+        (K less the passes needed)."""
         failed: dict[int, int] = {}
         for (_, r), res in runs.items():
-            failed[r] = failed.get(r, 0) + (not res.ok)
+            if plans is None or r in plans:
+                failed[r] = failed.get(r, 0) + (not res.ok)
         return {r for r, f in failed.items() if f > k - need}
+
+    def in_batches(plans: Collection[int] | None) -> set[int]:
+        """The runs of ``jobs`` not made yet, a batch (one run a thread) at a time in their
+        order, until one of ``plans`` (default all) has failed more runs than it may: those
+        plans; when none has, the sensing loops' runs too and the empty set."""
+        n = max(threads, 1)
+        with ThreadPoolExecutor(n) as pool:
+            for a in range(0, len(jobs), n):
+                batch = jobs[a : a + n]
+                done.update(zip(batch, pool.map(one, batch), strict=True))
+                decided = beyond(done, plans)
+                if decided:
+                    return decided
+        if sensing_jobs:
+            done.update(_sensing_runs(bundle.files, table, sensing_jobs, workers)())
+        return set()
 
     threads = min(VERIFY_THREADS, len(jobs), os.cpu_count() or 1)
     done: dict = {}
@@ -670,18 +685,11 @@ def verify_robust(
         order = [lead_seed] if decided else order
         jobs = [j for j in jobs if j not in done]
     if repair and not decided:
-        # a batch at a time, the worst-looking perturbations first, until a run fails
-        with ThreadPoolExecutor(max(threads, 1)) as pool:
-            for a in range(0, len(jobs), max(threads, 1)):
-                batch = jobs[a : a + max(threads, 1)]
-                done |= dict(zip(batch, pool.map(one, batch), strict=True))
-                decided = beyond(done)
-                if decided:
-                    order = list(dict.fromkeys(s for s, _ in done))
-                    repaired = True
-                    break
-        if not decided and sensing_jobs:
-            done |= _sensing_runs(bundle.files, table, sensing_jobs, workers)()
+        # the worst-looking perturbations first, until a plan fails more runs than it may
+        decided = in_batches(None)
+        if decided:
+            order = list(dict.fromkeys(s for s, _ in done))
+            repaired = True
     elif not early and not probed and not repaired:
         wait = _sensing_runs(bundle.files, table, sensing_jobs, workers)
         try:
@@ -695,21 +703,9 @@ def verify_robust(
             raise
         done |= wait()
     elif early:
-        # a batch of runs at a time, the worst-looking perturbations first, until one of
-        # the deciding plans has failed more runs than it may
-        failed: dict[int, int] = {}
-        with ThreadPoolExecutor(max(threads, 1)) as pool:
-            for a in range(0, len(jobs), max(threads, 1)):
-                batch = jobs[a : a + max(threads, 1)]
-                for job, result in zip(batch, pool.map(one, batch), strict=True):
-                    done[job] = result
-                    if job[1] in deciding and not result.ok:
-                        failed[job[1]] = failed.get(job[1], 0) + 1
-                decided = {r for r, f in failed.items() if f > k - need}
-                if decided:
-                    break
-        if not decided and sensing_jobs:
-            done |= _sensing_runs(bundle.files, table, sensing_jobs, workers)()
+        # the worst-looking perturbations first, until a deciding plan fails more runs
+        # than it may
+        decided = in_batches(deciding)
     out = []
     for i, n in enumerate([*names, *sensed]):
         loop = i >= len(names)  # a sensing loop
