@@ -265,11 +265,17 @@ def catalog_play(catalog, overrides: Mapping[str, Any] | None = None) -> dict[st
     return out
 
 
+def catalog_ranges(catalog, overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """:func:`ranges` with ``catalog``'s ``[perturbation]`` table and then ``overrides``
+    over the shipped one."""
+    own = json.loads(catalog.perturbation) if getattr(catalog, "perturbation", "") else {}
+    return ranges(_merge(own, overrides or {}), getattr(catalog, "source", "catalog"))
+
+
 def default_k(catalog) -> int:
     """The default K of ``parmor design --robustness`` with ``catalog``'s ``[perturbation]``
     table over the shipped one (``[acceptance] default_k``)."""
-    own = json.loads(catalog.perturbation) if getattr(catalog, "perturbation", "") else {}
-    return int(ranges(own, getattr(catalog, "source", "catalog"))["default_k"])
+    return int(catalog_ranges(catalog)["default_k"])
 
 
 def design_table(
@@ -279,8 +285,7 @@ def design_table(
     bodies and servos of its MJCF text ``xml``, its record and its ``catalog`` (the
     material's modulus, the battery's voltage, each servo's travel), with the catalog's
     ``[perturbation]`` table and then ``overrides`` over the shipped ranges."""
-    own = json.loads(catalog.perturbation) if getattr(catalog, "perturbation", "") else {}
-    r = ranges(_merge(own, overrides or {}), getattr(catalog, "source", "catalog"))
+    r = catalog_ranges(catalog, overrides)
     root = ET.fromstring(xml)
     acts = {a.model: a for a in catalog.actuators}
     joints = {j["name"]: j for j in record.get("joints", ())}
